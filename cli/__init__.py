@@ -1,0 +1,1 @@
+"""Command-line interface of ppo-cv (installed as ``ppo_cv.cli``)."""

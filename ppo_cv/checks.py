@@ -1,0 +1,122 @@
+"""Input checks at the public boundary: each failure names the argument and the problem."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "MIN_POINTS",
+    "as_points",
+    "as_point_pair",
+    "as_camera_matrix",
+    "as_essential",
+    "as_mask",
+    "as_positive",
+]
+
+MIN_POINTS = 5
+
+
+def _as_real_array(value: Any, name: str) -> np.ndarray:
+    if value is None:
+        raise TypeError(f"{name} is required, got None")
+    try:
+        array = np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name} must be a numeric array: {exc}") from None
+    if array.dtype == bool or not (
+        np.issubdtype(array.dtype, np.integer) or np.issubdtype(array.dtype, np.floating)
+    ):
+        raise TypeError(f"{name} must hold real numbers, got dtype {array.dtype}")
+    return array.astype(np.float64, copy=False)
+
+
+def _require_finite(array: np.ndarray, name: str) -> None:
+    bad = ~np.isfinite(array)
+    if bad.any():
+        raise ValueError(f"{name} has {int(bad.sum())} NaN or infinite value(s)")
+
+
+def as_points(value: Any, name: str) -> np.ndarray:
+    """Image points as float64 (N, 2), from (N, 2), (N, 1, 2) or (1, N, 2), OpenCV's shapes."""
+    array = _as_real_array(value, name)
+    shape = array.shape
+    if array.ndim == 3 and shape[2] == 2 and (shape[1] == 1 or shape[0] == 1):
+        array = array.reshape(-1, 2)
+    elif not (array.ndim == 2 and shape[1] == 2):
+        raise ValueError(f"{name} must have shape (N, 2), (N, 1, 2) or (1, N, 2), got {shape}")
+    _require_finite(array, name)
+    return array
+
+
+def as_point_pair(
+    points1: Any, points2: Any, min_points: int = MIN_POINTS
+) -> tuple[np.ndarray, np.ndarray]:
+    """Both point sets, checked for shape, finiteness, equal length and a minimum count."""
+    p1 = as_points(points1, "points1")
+    p2 = as_points(points2, "points2")
+    if p1.shape[0] != p2.shape[0]:
+        raise ValueError(
+            f"points1 and points2 must have the same length, got {p1.shape[0]} and {p2.shape[0]}"
+        )
+    if p1.shape[0] < min_points:
+        raise ValueError(
+            f"at least {min_points} point correspondences are needed, got {p1.shape[0]}"
+        )
+    return p1, p2
+
+
+def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
+    """A 3x3 pinhole matrix with nonzero focal lengths and last row (0, 0, 1)."""
+    K = _as_real_array(value, name)
+    if K.shape != (3, 3):
+        raise ValueError(f"{name} must be a 3x3 matrix, got shape {K.shape}")
+    _require_finite(K, name)
+    if not np.allclose(K[2], (0.0, 0.0, 1.0)):
+        raise ValueError(f"{name} must have last row (0, 0, 1), got {K[2].tolist()}")
+    if K[0, 0] == 0 or K[1, 1] == 0:
+        raise ValueError(f"{name} has a zero focal length (fx={K[0, 0]}, fy={K[1, 1]})")
+    return K
+
+
+def as_essential(value: Any) -> np.ndarray:
+    """A single finite, nonzero 3x3 essential matrix."""
+    E = _as_real_array(value, "E")
+    if E.ndim == 2 and E.shape[1] == 3 and E.shape[0] % 3 == 0 and E.shape[0] > 3:
+        raise ValueError(
+            f"E has shape {E.shape}: a stack of {E.shape[0] // 3} essential matrices as "
+            "cv2.findEssentialMat returns them; pass one 3x3 matrix, e.g. E[:3]"
+        )
+    if E.shape != (3, 3):
+        raise ValueError(f"E must be a 3x3 matrix, got shape {E.shape}")
+    _require_finite(E, "E")
+    if not np.any(E):
+        raise ValueError("E is all zeros: it defines no pose")
+    return E
+
+
+def as_mask(value: Any, n: int) -> np.ndarray | None:
+    """An inlier mask of n entries (any of OpenCV's shapes) as bool (n,), or None."""
+    if value is None:
+        return None
+    mask = np.asarray(value)
+    if mask.size == 0:
+        return None
+    if mask.dtype != bool and not np.issubdtype(mask.dtype, np.number):
+        raise TypeError(f"mask must be numeric or bool, got dtype {mask.dtype}")
+    if mask.size != n or (mask.ndim > 1 and max(mask.shape) != n):
+        raise ValueError(f"mask must have one entry per point ({n}), got shape {mask.shape}")
+    return mask.reshape(-1) != 0
+
+
+def as_positive(value: Any, name: str) -> float:
+    """A finite number > 0."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a number, got {type(value).__name__}") from None
+    if not np.isfinite(number) or number <= 0:
+        raise ValueError(f"{name} must be a finite number > 0, got {number}")
+    return number

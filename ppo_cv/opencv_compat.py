@@ -1,0 +1,202 @@
+"""``recoverPose``: OpenCV's call forms, with the PPO inequalities in place of cheirality.
+
+The four call forms of OpenCV 5's ``cv2.recoverPose`` are accepted with the same argument names,
+defaults, array shapes and return tuples::
+
+    recoverPose(E, points1, points2, cameraMatrix[, R[, t[, mask]]]) -> retval, R, t, mask
+    recoverPose(E, points1, points2[, R[, t[, focal[, pp[, mask]]]]]) -> retval, R, t, mask
+    recoverPose(E, points1, points2, cameraMatrix, distanceThresh[, R[, t[, mask[,
+                triangulatedPoints]]]]) -> retval, R, t, mask, triangulatedPoints
+    recoverPose(points1, points2, cameraMatrix1, distCoeffs1, cameraMatrix2, distCoeffs2[, E[,
+                R[, t[, method[, prob[, threshold[, mask]]]]]]]) -> retval, E, R, t, mask
+
+``retval`` counts the points that satisfy both PPO inequalities, and the output ``mask`` marks
+them (keeping the values of the input mask, 255 where none was given, as OpenCV does).
+``install()`` puts this function in place of ``cv2.recoverPose``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+from typing import Any
+
+import cv2
+import numpy as np
+
+from .checks import as_camera_matrix, as_essential, as_mask, as_point_pair, as_positive
+from .pose import PoseResult, _recover_normalized, normalize_points, recover_pose
+
+__all__ = ["recoverPose", "install", "uninstall", "installed", "is_installed"]
+
+_OPENCV_RECOVER_POSE = cv2.recoverPose
+_FORM1 = ("E", "points1", "points2", "cameraMatrix", "R", "t", "mask")
+_FORM2 = ("E", "points1", "points2", "R", "t", "focal", "pp", "mask")
+_FORM3 = (
+    "E", "points1", "points2", "cameraMatrix", "distanceThresh", "R", "t", "mask",
+    "triangulatedPoints",
+)
+_FORM4 = (
+    "points1", "points2", "cameraMatrix1", "distCoeffs1", "cameraMatrix2", "distCoeffs2", "E",
+    "R", "t", "method", "prob", "threshold", "mask",
+)
+
+
+def _bind(names: tuple[str, ...], args: tuple, kwargs: dict) -> dict[str, Any]:
+    if len(args) > len(names):
+        raise TypeError(f"recoverPose takes at most {len(names)} positional arguments here")
+    bound = dict(zip(names, args))
+    for key, value in kwargs.items():
+        if key not in names:
+            raise TypeError(f"recoverPose got an unexpected keyword argument {key!r}")
+        if key in bound:
+            raise TypeError(f"recoverPose got multiple values for argument {key!r}")
+        bound[key] = value
+    return bound
+
+
+def _is_3x3(value: Any) -> bool:
+    return value is not None and np.shape(value) == (3, 3)
+
+
+def _form(args: tuple, kwargs: dict) -> tuple[str, ...]:
+    if "cameraMatrix1" in kwargs or (len(args) > 2 and _is_3x3(args[2])):
+        return _FORM4
+    if "distanceThresh" in kwargs or (len(args) > 4 and np.ndim(args[4]) == 0):
+        return _FORM3
+    if "focal" in kwargs or "pp" in kwargs:
+        return _FORM2
+    if "cameraMatrix" in kwargs or (len(args) > 3 and _is_3x3(args[3])):
+        return _FORM1
+    return _FORM2
+
+
+def _out_matrix(buffer: Any, value: np.ndarray) -> np.ndarray:
+    """Write into a caller's output array when it fits, as OpenCV's bindings do."""
+    if isinstance(buffer, np.ndarray) and buffer.shape == value.shape and buffer.dtype == value.dtype:
+        buffer[...] = value
+        return buffer
+    return value
+
+
+def _out_mask(inliers: np.ndarray, mask_in: Any) -> np.ndarray:
+    values = np.full(inliers.shape, 255, dtype=np.uint8)
+    if mask_in is not None and np.size(mask_in) == inliers.size:
+        values = np.asarray(mask_in).reshape(-1).astype(np.uint8)
+    return np.where(inliers, values, 0).astype(np.uint8).reshape(-1, 1)
+
+
+def _homogeneous_points(result: PoseResult) -> np.ndarray:
+    """4xN homogeneous points; a point at infinity is its camera-1 ray with w = 0."""
+    finite = np.isfinite(result.points3d).all(axis=1)
+    rays = np.where(finite[:, None], result.points3d, 0.0)
+    w = finite.astype(np.float64)
+    return np.vstack([rays.T, w])
+
+
+def _pose_outputs(result: PoseResult, bound: dict) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    R = _out_matrix(bound.get("R"), result.R.copy())
+    t = _out_matrix(bound.get("t"), result.t.reshape(3, 1).copy())
+    return result.num_inliers, R, t, _out_mask(result.inliers, bound.get("mask"))
+
+
+def _camera_from_focal(focal: Any, pp: Any) -> np.ndarray:
+    f = float(focal) if focal is not None else 1.0
+    if not np.isfinite(f) or f == 0:
+        raise ValueError(f"focal must be a finite nonzero number, got {f}")
+    cx, cy = (0.0, 0.0) if pp is None else np.asarray(pp, dtype=np.float64).reshape(2)
+    if not (np.isfinite(cx) and np.isfinite(cy)):
+        raise ValueError(f"pp must be two finite numbers, got {pp}")
+    return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
+
+
+def _recover_from_points(bound: dict) -> tuple:
+    """Form 4: undistort, estimate E with OpenCV's robust estimator, then choose by PPO."""
+    p1, p2 = as_point_pair(bound.get("points1"), bound.get("points2"))
+    K1 = as_camera_matrix(bound.get("cameraMatrix1"), "cameraMatrix1")
+    K2 = as_camera_matrix(bound.get("cameraMatrix2"), "cameraMatrix2")
+    n1 = cv2.undistortPoints(p1.reshape(-1, 1, 2), K1, _dist(bound.get("distCoeffs1"))).reshape(-1, 2)
+    n2 = cv2.undistortPoints(p2.reshape(-1, 1, 2), K2, _dist(bound.get("distCoeffs2"))).reshape(-1, 2)
+    threshold = as_positive(bound.get("threshold", 1.0), "threshold")
+    focal = (K1[0, 0] + K1[1, 1] + K2[0, 0] + K2[1, 1]) / 4.0
+    E, ransac_mask = cv2.findEssentialMat(
+        n1, n2, np.eye(3), int(bound.get("method", cv2.RANSAC)),
+        float(bound.get("prob", 0.999)), threshold / abs(focal),
+    )
+    if E is None or ransac_mask is None or not ransac_mask.any():
+        raise ValueError("no essential matrix could be estimated from these points")
+    used = ransac_mask.reshape(-1) != 0
+    input_mask = as_mask(bound.get("mask"), p1.shape[0])
+    if input_mask is not None:
+        used &= input_mask
+    x1, x2 = np.c_[n1, np.ones(len(n1))], np.c_[n2, np.ones(len(n2))]
+    candidates = [E[i : i + 3] for i in range(0, E.shape[0], 3)]
+    results = [_recover_normalized(Ei, x1, x2, used, 0.015, None) for Ei in candidates]
+    best = int(np.argmax([r.num_inliers for r in results]))
+    retval, R, t, mask = _pose_outputs(results[best], {**bound, "mask": used.astype(np.uint8)})
+    return retval, _out_matrix(bound.get("E"), candidates[best].copy()), R, t, mask
+
+
+def _dist(value: Any) -> np.ndarray | None:
+    if value is None or np.size(value) == 0:
+        return None
+    d = np.asarray(value, dtype=np.float64).reshape(-1)
+    if d.size not in (4, 5, 8, 12, 14) or not np.isfinite(d).all():
+        raise ValueError(f"distortion coefficients must be 4, 5, 8, 12 or 14 finite numbers, got {d.size}")
+    return d
+
+
+def recoverPose(*args: Any, **kwargs: Any) -> tuple:  # noqa: N802 - OpenCV's name
+    """Drop-in for ``cv2.recoverPose`` choosing the pose by the PPO inequalities.
+
+    See the module docstring for the call forms; arguments, shapes and return tuples follow
+    OpenCV 5. ``R`` is 3x3 and ``t`` 3x1 float64; ``t`` has unit length.
+
+    Raises
+    ------
+    TypeError, ValueError
+        With a message naming the offending argument.
+    """
+    form = _form(args, kwargs)
+    bound = _bind(form, args, kwargs)
+    if form is _FORM4:
+        return _recover_from_points(bound)
+    if form is _FORM2:
+        K = _camera_from_focal(bound.get("focal", 1.0), bound.get("pp"))
+    else:
+        K = bound.get("cameraMatrix")
+    distance = bound.get("distanceThresh") if form is _FORM3 else None
+    result = recover_pose(
+        bound.get("E"), bound.get("points1"), bound.get("points2"), K,
+        mask=bound.get("mask"), distance_thresh=distance,
+    )
+    outputs = _pose_outputs(result, bound)
+    if form is _FORM3:
+        return (*outputs, _out_matrix(bound.get("triangulatedPoints"), _homogeneous_points(result)))
+    return outputs
+
+
+def is_installed() -> bool:
+    """Whether ``cv2.recoverPose`` is currently ppo_cv's."""
+    return cv2.recoverPose is recoverPose
+
+
+def install() -> None:
+    """Replace ``cv2.recoverPose`` with :func:`recoverPose` for all code in this process."""
+    cv2.recoverPose = recoverPose
+
+
+def uninstall() -> None:
+    """Restore OpenCV's own ``cv2.recoverPose``."""
+    cv2.recoverPose = _OPENCV_RECOVER_POSE
+
+
+@contextlib.contextmanager
+def installed() -> Iterator[None]:
+    """Context manager: ``cv2.recoverPose`` is ppo_cv's inside the block, as before after it."""
+    previous = cv2.recoverPose
+    cv2.recoverPose = recoverPose
+    try:
+        yield
+    finally:
+        cv2.recoverPose = previous

@@ -1,0 +1,169 @@
+"""Relative pose from an essential matrix and pixel correspondences: the rich API."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from . import ppo
+from .checks import as_camera_matrix, as_essential, as_mask, as_point_pair, as_positive
+
+__all__ = ["PoseResult", "recover_pose", "normalize_points"]
+
+
+@dataclass(frozen=True)
+class PoseResult:
+    """The pose chosen by the PPO inequalities, with its evidence.
+
+    Attributes
+    ----------
+    R : ndarray, shape (3, 3)
+        Rotation from camera 1 to camera 2: ``X2 = R X1 + t``.
+    t : ndarray, shape (3,)
+        Unit translation direction. Meaningless when ``pure_rotation`` is True.
+    inliers : ndarray of bool, shape (N,)
+        Points that were used (input mask) and satisfy both PPO inequalities, ``m1 > 0`` and
+        ``m2 > 0`` (and lie closer than ``distance_thresh``, when one is given).
+    pure_rotation : bool
+        ``pri < pri_threshold`` (eq. 85).
+    pri : float
+        Pure-rotation indicator, mean ``|m2|`` over the used points (eq. 84).
+    m3 : float
+        The paper's alternative indicator (eq. 78), mean sine of the parallax angle.
+    points3d : ndarray, shape (N, 3)
+        Analytic points in camera-1 coordinates, baseline = 1 (Proposition 3); NaN where the
+        rays are parallel. Meaningful for inliers of a motion that is not a pure rotation.
+    depths : ndarray, shape (N, 2)
+        Depth of each point in camera 1 and camera 2, baseline = 1 (eq. 36); inf where the rays
+        are parallel.
+    support_R, support_R_rejected : int
+        Number of used points with positive same-side score for the chosen and the rejected
+        rotation (S1 of Table II).
+    support_t, support_t_rejected : int
+        The same for the intersection score and the two translation signs (S2).
+    pri_threshold : float
+        The threshold the decision used.
+    """
+
+    R: np.ndarray
+    t: np.ndarray
+    inliers: np.ndarray
+    pure_rotation: bool
+    pri: float
+    m3: float
+    points3d: np.ndarray
+    depths: np.ndarray
+    support_R: int
+    support_R_rejected: int
+    support_t: int
+    support_t_rejected: int
+    pri_threshold: float
+
+    @property
+    def num_inliers(self) -> int:
+        """Number of points that satisfy both PPO inequalities."""
+        return int(np.count_nonzero(self.inliers))
+
+
+def normalize_points(points: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """Pixel points (N, 2) to normalized homogeneous rays ``K^-1 [u, v, 1]^T``, shape (N, 3)."""
+    return ppo.homogeneous(points) @ np.linalg.inv(K).T
+
+
+def recover_pose(
+    E: Any,
+    points1: Any,
+    points2: Any,
+    K1: Any,
+    K2: Any = None,
+    *,
+    mask: Any = None,
+    pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD,
+    distance_thresh: float | None = None,
+) -> PoseResult:
+    """Recover ``(R, t)`` from an essential matrix by the PPO inequalities (Table II).
+
+    Unlike cheirality (``cv2.recoverPose``) no point is triangulated to choose the pose, and the
+    rotation is right even for a pure rotation (Proposition 7), which ``pure_rotation`` reports.
+
+    Parameters
+    ----------
+    E : array_like, shape (3, 3)
+        Essential matrix in normalized coordinates, ``x2^T E x1 = 0``, any scale.
+    points1, points2 : array_like, shape (N, 2), (N, 1, 2) or (1, N, 2)
+        Matching pixel coordinates in image 1 and image 2, N >= 5.
+    K1 : array_like, shape (3, 3)
+        Intrinsics of camera 1.
+    K2 : array_like, shape (3, 3), optional
+        Intrinsics of camera 2; defaults to ``K1``.
+    mask : array_like, shape (N,) or (N, 1), optional
+        Nonzero entries select the points to use (e.g. RANSAC inliers).
+    pri_threshold : float
+        Motion is a pure rotation when PRI is below it (paper: 0.015).
+    distance_thresh : float, optional
+        Points farther than this (in baselines) from either camera are not inliers.
+
+    Returns
+    -------
+    PoseResult
+
+    Examples
+    --------
+    >>> import numpy as np, ppo_cv
+    >>> rng = np.random.default_rng(0)
+    >>> K = np.array([[800.0, 0, 320], [0, 800, 240], [0, 0, 1]])
+    >>> X = rng.uniform([-2, -2, 4], [2, 2, 8], (50, 3))
+    >>> R, t = np.eye(3), np.array([1.0, 0, 0])
+    >>> p1 = (X @ K.T)[:, :2] / X[:, 2:]
+    >>> X2 = X @ R.T + t
+    >>> p2 = (X2 @ K.T)[:, :2] / X2[:, 2:]
+    >>> E = np.array([[0, 0, 0], [0, 0, -1.0], [0, 1, 0]]) @ R
+    >>> result = ppo_cv.recover_pose(E, p1, p2, K)
+    >>> np.allclose(result.t, t), result.num_inliers, result.pure_rotation
+    (True, 50, False)
+    """
+    E = as_essential(E)
+    p1, p2 = as_point_pair(points1, points2)
+    K1 = as_camera_matrix(K1, "K1")
+    K2 = K1 if K2 is None else as_camera_matrix(K2, "K2")
+    used = as_mask(mask, p1.shape[0])
+    used = np.ones(p1.shape[0], dtype=bool) if used is None else used
+    if distance_thresh is not None:
+        distance_thresh = as_positive(distance_thresh, "distance_thresh")
+    x1, x2 = normalize_points(p1, K1), normalize_points(p2, K2)
+    return _recover_normalized(E, x1, x2, used, float(pri_threshold), distance_thresh)
+
+
+def _recover_normalized(
+    E: np.ndarray,
+    x1: np.ndarray,
+    x2: np.ndarray,
+    used: np.ndarray,
+    pri_threshold: float,
+    distance_thresh: float | None,
+) -> PoseResult:
+    sel = ppo.select_pose(E, x1[used], x2[used])
+    m1 = ppo.same_side_scores(x1, x2, sel.R, sel.t)
+    m2 = ppo.intersection_scores(x1, x2, sel.R, sel.t)
+    z1, z2 = ppo.analytic_depths(x1, x2, sel.R, sel.t)
+    inliers = used & (m1 > 0) & (m2 > 0)
+    if distance_thresh is not None:
+        inliers &= (z1 < distance_thresh) & (z2 < distance_thresh)
+    pri = ppo.pure_rotation_indicator(sel.m2)
+    return PoseResult(
+        R=sel.R,
+        t=sel.t,
+        inliers=inliers,
+        pure_rotation=bool(pri < pri_threshold),
+        pri=pri,
+        m3=ppo.m3_indicator(x1[used], x2[used], sel.R),
+        points3d=ppo.analytic_points(x1, x2, sel.R, sel.t),
+        depths=np.stack([z1, z2], axis=1),
+        support_R=sel.support_R,
+        support_R_rejected=sel.support_R_rejected,
+        support_t=sel.support_t,
+        support_t_rejected=sel.support_t_rejected,
+        pri_threshold=pri_threshold,
+    )

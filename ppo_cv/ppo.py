@@ -1,0 +1,335 @@
+"""The pose-only (PPO) two-view geometry of Cai, Wu, Zhang and Zhang, in pure numpy.
+
+Equation numbers refer to "Equivalent Constraints for Two-View Geometry: Pose Solution/Pure
+Rotation Identification and 3D Reconstruction". Conventions:
+
+* ``x1``, ``x2`` are normalized homogeneous image points, shape (N, 3), third coordinate 1
+  (the paper's X and X'). A point seen in both views obeys ``z2 x2 = z1 R x1 + t`` (eq. 2),
+  i.e. ``X2 = R X1 + t`` in camera coordinates, the convention of OpenCV.
+* ``e_t`` is the unit translation direction; the scale of ``t`` is unobservable.
+
+Nothing here does I/O or calls OpenCV: every function is vectorised over the points.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = [
+    "W1",
+    "W2",
+    "DEFAULT_PRI_THRESHOLD",
+    "Candidates",
+    "Selection",
+    "decompose_essential",
+    "same_side_scores",
+    "intersection_scores",
+    "select_pose",
+    "pure_rotation_indicator",
+    "m3_indicator",
+    "analytic_depths",
+    "analytic_points",
+    "homogeneous",
+]
+
+W1 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+W2 = W1.T
+
+DEFAULT_PRI_THRESHOLD = 0.015
+"""The paper's delta_pri (Section 5.3), in normalized image coordinates."""
+
+
+@dataclass(frozen=True)
+class Candidates:
+    """The two rotations and the translation axis of an essential matrix (Table II, steps 2-3).
+
+    The four poses are ``(R1 | +t)``, ``(R2 | +t)``, ``(R1 | -t)`` and ``(R2 | -t)``.
+
+    Attributes
+    ----------
+    R1, R2 : ndarray, shape (3, 3)
+        ``U W1^T V^T`` and ``U W2^T V^T`` with ``det(U V^T) = +1`` (eq. 57, Table I).
+    t : ndarray, shape (3,)
+        ``u_q3``, the unit left singular vector of the smallest singular value (eq. 62).
+    singular_values : ndarray, shape (3,)
+        Singular values of ``E / ||E||_F``; a valid essential matrix has ``(s, s, 0)``.
+    """
+
+    R1: np.ndarray
+    R2: np.ndarray
+    t: np.ndarray
+    singular_values: np.ndarray
+
+
+@dataclass(frozen=True)
+class Selection:
+    """The pose picked by the PPO inequalities (Table II, step 4).
+
+    Attributes
+    ----------
+    R : ndarray, shape (3, 3)
+        Rotation with the larger same-side support S1.
+    t : ndarray, shape (3,)
+        Unit translation with the larger intersection support S2.
+    m1, m2 : ndarray, shape (N,)
+        Same-side scores ``M1(R)`` (eq. 70) and intersection scores ``M2(t)`` (eq. 76) of the
+        chosen pose; a point satisfies the PPO inequalities when both are positive.
+    support_R, support_R_rejected : int
+        ``S1`` of the chosen and of the rejected rotation.
+    support_t, support_t_rejected : int
+        ``S2`` of the chosen and of the rejected translation sign.
+    """
+
+    R: np.ndarray
+    t: np.ndarray
+    m1: np.ndarray
+    m2: np.ndarray
+    support_R: int
+    support_R_rejected: int
+    support_t: int
+    support_t_rejected: int
+
+
+def homogeneous(points: np.ndarray) -> np.ndarray:
+    """Append a column of ones: (N, 2) -> (N, 3)."""
+    points = np.asarray(points, dtype=np.float64)
+    return np.concatenate([points, np.ones((points.shape[0], 1))], axis=1)
+
+
+def decompose_essential(E: np.ndarray) -> Candidates:
+    """Split an essential matrix into its candidate poses (Section 3.2, Table I, Table II).
+
+    ``E = U diag(s1, s2, s3) V^T``. The signs of ``U`` and ``V`` are fixed so that
+    ``det(U) = det(V) = +1``, which puts the decomposition in the ``det(U V^T) = 1`` row of
+    Table I where ``W1`` and ``W2`` give proper rotations. Any scale or sign of ``E`` gives the
+    same candidates; a noisy or rank-deficient ``E`` is handled the same way, ``t`` being the
+    singular vector of its smallest singular value.
+
+    Parameters
+    ----------
+    E : array_like, shape (3, 3)
+        Essential matrix, any nonzero scale.
+
+    Returns
+    -------
+    Candidates
+    """
+    E = np.asarray(E, dtype=np.float64)
+    U, s, Vt = np.linalg.svd(E / np.linalg.norm(E))
+    if np.linalg.det(U) < 0:
+        U = -U
+    if np.linalg.det(Vt) < 0:
+        Vt = -Vt
+    return Candidates(R1=U @ W1.T @ Vt, R2=U @ W2.T @ Vt, t=U[:, 2].copy(), singular_values=s)
+
+
+def same_side_scores(x1: np.ndarray, x2: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Same-side scores ``m1 = (e_t x R x1) . (e_t x x2)`` for all points (eq. 65-66, 70).
+
+    The paper writes ``m1 = x2^T Q Q^T R x1``; for an exact essential matrix
+    ``Q Q^T = ||a||^2 [e_t]x^T [e_t]x`` (eq. 66), so this is the same inequality with the
+    singular values of a noisy ``Q`` taken out. It is positive when both projection rays lie on
+    the same side of the baseline, and ``m1(R1) = -m1(R2)`` (eq. 68).
+
+    Parameters
+    ----------
+    x1, x2 : ndarray, shape (N, 3)
+    R : ndarray, shape (3, 3)
+    t : ndarray, shape (3,)
+        Translation direction (any length).
+
+    Returns
+    -------
+    ndarray, shape (N,)
+    """
+    e = t / np.linalg.norm(t)
+    projector = np.eye(3) - np.outer(e, e)  # [e_t]x^T [e_t]x
+    return np.einsum("ni,ni->n", x2, x1 @ (projector @ R).T)
+
+
+def intersection_scores(x1: np.ndarray, x2: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Intersection scores ``m2 = ||x1|| x2.e_t - ||x2|| (R x1).e_t`` for all points (eq. 73, 76).
+
+    ``m2 = ||x1|| ||x2|| (cos theta1 - cos theta2)``: positive when the second ray leans further
+    towards the translation than the rotated first ray, as it must for the rays to intersect
+    in front of both cameras (eq. 71-72). For the candidates of one essential matrix it does not
+    depend on which rotation is used (eq. 74-75), and ``m2(-t) = -m2(t)``.
+
+    Parameters
+    ----------
+    x1, x2 : ndarray, shape (N, 3)
+    R : ndarray, shape (3, 3)
+    t : ndarray, shape (3,)
+
+    Returns
+    -------
+    ndarray, shape (N,)
+    """
+    e = t / np.linalg.norm(t)
+    n1 = np.linalg.norm(x1, axis=1)
+    n2 = np.linalg.norm(x2, axis=1)
+    return n1 * (x2 @ e) - n2 * (x1 @ (R.T @ e))
+
+
+def _pick_sign(scores: np.ndarray) -> tuple[bool, int, int]:
+    """Whether ``+scores`` wins the count of positive entries, and the two counts.
+
+    Ties (e.g. all scores zero) go to the larger sum, then to ``+``.
+    """
+    positive = int(np.count_nonzero(scores > 0))
+    negative = int(np.count_nonzero(scores < 0))
+    keep = positive > negative or (positive == negative and scores.sum() >= 0)
+    return keep, positive, negative
+
+
+def select_pose(E: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> Selection:
+    """Pick the right pose among the four candidates of ``E`` (Table II).
+
+    ``R`` maximises the count S1 of positive same-side scores (eq. 70) and ``t`` the count S2 of
+    positive intersection scores (eq. 76). Because ``m1(R2) = -m1(R1)`` and
+    ``m2(-t) = -m2(t)``, one evaluation of each score decides between two candidates, and no 3D
+    point is reconstructed. The rotation is right even for a pure rotation (Proposition 7),
+    where the translation is meaningless; see :func:`pure_rotation_indicator`.
+
+    Parameters
+    ----------
+    E : ndarray, shape (3, 3)
+    x1, x2 : ndarray, shape (N, 3)
+        Normalized homogeneous points, N >= 1.
+
+    Returns
+    -------
+    Selection
+    """
+    cand = decompose_essential(E)
+    m1 = same_side_scores(x1, x2, cand.R1, cand.t)
+    keep_R1, s1_R1, s1_R2 = _pick_sign(m1)
+    R = cand.R1 if keep_R1 else cand.R2
+    m1 = m1 if keep_R1 else -m1
+    m2 = intersection_scores(x1, x2, R, cand.t)
+    keep_t, s2_plus, s2_minus = _pick_sign(m2)
+    t = cand.t if keep_t else -cand.t
+    m2 = m2 if keep_t else -m2
+    return Selection(
+        R=R,
+        t=t,
+        m1=m1,
+        m2=m2,
+        support_R=s1_R1 if keep_R1 else s1_R2,
+        support_R_rejected=s1_R2 if keep_R1 else s1_R1,
+        support_t=s2_plus if keep_t else s2_minus,
+        support_t_rejected=s2_minus if keep_t else s2_plus,
+    )
+
+
+def pure_rotation_indicator(m2: np.ndarray) -> float:
+    """PRI = mean ``|M2(t)|`` (eq. 84); the motion is a pure rotation if PRI < delta (eq. 85).
+
+    By Proposition 8, ``m2 = 0`` exactly when the two rays are parallel, which holds for every
+    point under a pure rotation. ``|m2|`` does not depend on the sign of ``t``.
+
+    Parameters
+    ----------
+    m2 : ndarray, shape (N,)
+        Intersection scores of the points to average over (typically the inliers).
+
+    Returns
+    -------
+    float
+        NaN for an empty input.
+    """
+    return float(np.mean(np.abs(m2))) if m2.size else float("nan")
+
+
+def _ray_cross(x1: np.ndarray, x2: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """``x2 x R x1`` for all points, shape (N, 3)."""
+    return np.cross(x2, x1 @ R.T)
+
+
+def m3_indicator(x1: np.ndarray, x2: np.ndarray, R: np.ndarray) -> float:
+    """M3 = mean ``||x2 x R x1|| / (||x2|| ||x1||)`` (eq. 78): mean sine of the parallax angle.
+
+    The paper's alternative pure-rotation test, kept for comparison with PRI.
+    """
+    if x1.shape[0] == 0:
+        return float("nan")
+    sin_parallax = np.linalg.norm(_ray_cross(x1, x2, R), axis=1) / (
+        np.linalg.norm(x1, axis=1) * np.linalg.norm(x2, axis=1)
+    )
+    return float(np.mean(sin_parallax))
+
+
+def analytic_depths(
+    x1: np.ndarray, x2: np.ndarray, R: np.ndarray, t: np.ndarray, rtol: float = 1e-12
+) -> tuple[np.ndarray, np.ndarray]:
+    """Depths of each point in both views from the pose alone (Proposition 3, eq. 36).
+
+    ``z1 / ||t|| = ||e_t x x2|| / ||x2 x R x1||`` and ``z2 / ||t|| = ||e_t x R x1|| / ||x2 x R x1||``:
+    the law of sines in the triangle of the two centres and the point. Depths are returned in
+    units of the baseline ``||t||``.
+
+    Where the rays are parallel (``||x2 x R x1||`` at most ``rtol`` times the product of the ray
+    lengths: a point at infinity, on the baseline, or every point of a pure rotation,
+    Propositions 4-5) the depth is ``+inf``.
+
+    Parameters
+    ----------
+    x1, x2 : ndarray, shape (N, 3)
+    R : ndarray, shape (3, 3)
+    t : ndarray, shape (3,)
+    rtol : float
+        Relative size below which the parallax is taken as zero.
+
+    Returns
+    -------
+    z1, z2 : ndarray, shape (N,)
+        Depths (third coordinate) in camera 1 and camera 2.
+    """
+    e = t / np.linalg.norm(t)
+    rx1 = x1 @ R.T
+    parallax = np.linalg.norm(np.cross(x2, rx1), axis=1)
+    scale = np.linalg.norm(x1, axis=1) * np.linalg.norm(x2, axis=1)
+    finite = parallax > rtol * scale
+    denom = np.where(finite, parallax, 1.0)
+    z1 = np.where(finite, np.linalg.norm(np.cross(e, x2), axis=1) / denom, np.inf)
+    z2 = np.where(finite, np.linalg.norm(np.cross(e, rx1), axis=1) / denom, np.inf)
+    return z1, z2
+
+
+def analytic_points(
+    x1: np.ndarray, x2: np.ndarray, R: np.ndarray, t: np.ndarray, rtol: float = 1e-12
+) -> np.ndarray:
+    """3D points in camera-1 coordinates from the pose alone, baseline ``||t|| = 1`` (eq. 36).
+
+    Eq. 36 gives one point on each ray: ``P1 = z1 x1`` and, from view 2,
+    ``P2 = R^T (z2 x2 - e_t)``. With noise they differ; the paper averages them. Here they are
+    weighted by the inverse square of their depths,
+    ``P = (z2^2 P1 + z1^2 P2) / (z1^2 + z2^2)``, which to first order minimises the sum of the
+    squared angular reprojection errors in the two views (moving a point by ``d`` across a ray at
+    depth ``z`` costs an angle ``d / z``). For equal depths this is the paper's average.
+
+    Parameters
+    ----------
+    x1, x2 : ndarray, shape (N, 3)
+    R : ndarray, shape (3, 3)
+    t : ndarray, shape (3,)
+    rtol : float
+        As in :func:`analytic_depths`.
+
+    Returns
+    -------
+    ndarray, shape (N, 3)
+        NaN rows where the depth is infinite.
+    """
+    e = t / np.linalg.norm(t)
+    z1, z2 = analytic_depths(x1, x2, R, e, rtol)
+    finite = np.isfinite(z1)
+    z1f, z2f = np.where(finite, z1, 0.0), np.where(finite, z2, 0.0)
+    p1 = z1f[:, None] * x1
+    p2 = (z2f[:, None] * x2 - e) @ R
+    w = np.where(finite, z1f**2 + z2f**2, 1.0)
+    points = (z2f[:, None] ** 2 * p1 + z1f[:, None] ** 2 * p2) / w[:, None]
+    points[~finite] = np.nan
+    return points
