@@ -26,9 +26,7 @@ def _as_real_array(value: Any, name: str) -> np.ndarray:
         array = np.asarray(value)
     except (TypeError, ValueError) as exc:
         raise TypeError(f"{name} must be a numeric array: {exc}") from None
-    if array.dtype == bool or not (
-        np.issubdtype(array.dtype, np.integer) or np.issubdtype(array.dtype, np.floating)
-    ):
+    if array.dtype.kind not in "iuf":
         raise TypeError(f"{name} must hold real numbers, got dtype {array.dtype}")
     return array.astype(np.float64, copy=False)
 
@@ -74,10 +72,11 @@ def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
     if K.shape != (3, 3):
         raise ValueError(f"{name} must be a 3x3 matrix, got shape {K.shape}")
     _require_finite(K, name)
-    if not np.allclose(K[2], (0.0, 0.0, 1.0)):
-        raise ValueError(f"{name} must have last row (0, 0, 1), got {K[2].tolist()}")
-    if K[0, 0] == 0 or K[1, 1] == 0:
-        raise ValueError(f"{name} has a zero focal length (fx={K[0, 0]}, fy={K[1, 1]})")
+    (fx, _, _), (k10, fy, _), last = K.tolist()
+    if max(abs(last[0]), abs(last[1]), abs(last[2] - 1.0), abs(k10)) > 1e-12:
+        raise ValueError(f"{name} must be upper triangular with last row (0, 0, 1), got {K.tolist()}")
+    if fx == 0 or fy == 0:
+        raise ValueError(f"{name} has a zero focal length (fx={fx}, fy={fy})")
     return K
 
 
@@ -92,7 +91,7 @@ def as_essential(value: Any) -> np.ndarray:
     if E.shape != (3, 3):
         raise ValueError(f"E must be a 3x3 matrix, got shape {E.shape}")
     _require_finite(E, "E")
-    if not np.any(E):
+    if not E.any():
         raise ValueError("E is all zeros: it defines no pose")
     return E
 
@@ -104,7 +103,7 @@ def as_mask(value: Any, n: int) -> np.ndarray | None:
     mask = np.asarray(value)
     if mask.size == 0:
         return None
-    if mask.dtype != bool and not np.issubdtype(mask.dtype, np.number):
+    if mask.dtype.kind not in "biuf":
         raise TypeError(f"mask must be numeric or bool, got dtype {mask.dtype}")
     if mask.size != n or (mask.ndim > 1 and max(mask.shape) != n):
         raise ValueError(f"mask must have one entry per point ({n}), got shape {mask.shape}")

@@ -24,8 +24,9 @@ from typing import Any
 import cv2
 import numpy as np
 
+from . import ppo
 from .checks import as_camera_matrix, as_essential, as_mask, as_point_pair, as_positive
-from .pose import PoseResult, _recover_normalized, normalize_points, recover_pose
+from .pose import _recover_normalized, pixel_rays
 
 __all__ = ["recoverPose", "install", "uninstall", "installed", "is_installed"]
 
@@ -86,18 +87,19 @@ def _out_mask(inliers: np.ndarray, mask_in: Any) -> np.ndarray:
     return np.where(inliers, values, 0).astype(np.uint8).reshape(-1, 1)
 
 
-def _homogeneous_points(result: PoseResult) -> np.ndarray:
-    """4xN homogeneous points; a point at infinity is its camera-1 ray with w = 0."""
-    finite = np.isfinite(result.points3d).all(axis=1)
-    rays = np.where(finite[:, None], result.points3d, 0.0)
-    w = finite.astype(np.float64)
-    return np.vstack([rays.T, w])
+def _homogeneous_points(X1: np.ndarray, X2: np.ndarray, sel: ppo.Selection) -> np.ndarray:
+    """4xN analytic points; a point at infinity is its camera-1 ray with w = 0."""
+    points = ppo._points(X1, X2, sel.R, sel.t, 1e-12)
+    finite = np.isfinite(points[0])
+    return np.vstack([np.where(finite, points, X1), finite.astype(np.float64)])
 
 
-def _pose_outputs(result: PoseResult, bound: dict) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
-    R = _out_matrix(bound.get("R"), result.R.copy())
-    t = _out_matrix(bound.get("t"), result.t.reshape(3, 1).copy())
-    return result.num_inliers, R, t, _out_mask(result.inliers, bound.get("mask"))
+def _outputs(
+    R: np.ndarray, t: np.ndarray, inliers: np.ndarray, bound: dict
+) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    R = _out_matrix(bound.get("R"), R.copy())
+    t = _out_matrix(bound.get("t"), t.reshape(3, 1).copy())
+    return int(np.count_nonzero(inliers)), R, t, _out_mask(inliers, bound.get("mask"))
 
 
 def _camera_from_focal(focal: Any, pp: Any) -> np.ndarray:
@@ -129,11 +131,12 @@ def _recover_from_points(bound: dict) -> tuple:
     input_mask = as_mask(bound.get("mask"), p1.shape[0])
     if input_mask is not None:
         used &= input_mask
-    x1, x2 = np.c_[n1, np.ones(len(n1))], np.c_[n2, np.ones(len(n2))]
     candidates = [E[i : i + 3] for i in range(0, E.shape[0], 3)]
-    results = [_recover_normalized(Ei, x1, x2, used, 0.015, None) for Ei in candidates]
+    results = [_recover_normalized(Ei, n1, n2, used) for Ei in candidates]
     best = int(np.argmax([r.num_inliers for r in results]))
-    retval, R, t, mask = _pose_outputs(results[best], {**bound, "mask": used.astype(np.uint8)})
+    retval, R, t, mask = _outputs(
+        results[best].R, results[best].t, results[best].inliers, {**bound, "mask": used}
+    )
     return retval, _out_matrix(bound.get("E"), candidates[best].copy()), R, t, mask
 
 
@@ -165,15 +168,22 @@ def recoverPose(*args: Any, **kwargs: Any) -> tuple:  # noqa: N802 - OpenCV's na
         K = _camera_from_focal(bound.get("focal", 1.0), bound.get("pp"))
     else:
         K = bound.get("cameraMatrix")
-    distance = bound.get("distanceThresh") if form is _FORM3 else None
-    result = recover_pose(
-        bound.get("E"), bound.get("points1"), bound.get("points2"), K,
-        mask=bound.get("mask"), distance_thresh=distance,
-    )
-    outputs = _pose_outputs(result, bound)
-    if form is _FORM3:
-        return (*outputs, _out_matrix(bound.get("triangulatedPoints"), _homogeneous_points(result)))
-    return outputs
+    E = as_essential(bound.get("E"))
+    p1, p2 = as_point_pair(bound.get("points1"), bound.get("points2"))
+    K = as_camera_matrix(K, "cameraMatrix")
+    used = as_mask(bound.get("mask"), p1.shape[0])
+    X1, X2 = pixel_rays(p1, K), pixel_rays(p2, K)
+    sel = ppo._select(E, X1, X2, used)
+    inliers = (sel.m1 > 0) & (sel.m2 > 0)
+    if used is not None:
+        inliers &= used
+    if form is not _FORM3:
+        return _outputs(sel.R, sel.t, inliers, bound)
+    distance = as_positive(bound.get("distanceThresh"), "distanceThresh")
+    z1, z2, _ = ppo._depths(X1, X2, sel.R, sel.t, 1e-12)
+    inliers &= (z1 < distance) & (z2 < distance)
+    points = _out_matrix(bound.get("triangulatedPoints"), _homogeneous_points(X1, X2, sel))
+    return (*_outputs(sel.R, sel.t, inliers, bound), points)
 
 
 def is_installed() -> bool:

@@ -68,8 +68,20 @@ class PoseResult:
 
 
 def normalize_points(points: np.ndarray, K: np.ndarray) -> np.ndarray:
-    """Pixel points (N, 2) to normalized homogeneous rays ``K^-1 [u, v, 1]^T``, shape (N, 3)."""
-    return ppo.homogeneous(points) @ np.linalg.inv(K).T
+    """Pixel points (N, 2) to normalized image points ``K^-1 [u, v, 1]^T``, shape (N, 2)."""
+    return ppo.normalize(points, K)
+
+
+def pixel_rays(points: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """Pixel points (N, 2) to stacked normalized rays ``K^-1 [u, v, 1]^T``, shape (3, N).
+
+    ``K`` is upper triangular with last row (0, 0, 1), as checked by ``as_camera_matrix``.
+    """
+    (fx, skew, cx), (_, fy, cy), _ = K.tolist()
+    K_inv = np.array(
+        [[1 / fx, -skew / (fx * fy), (skew * cy - cx * fy) / (fx * fy)], [0, 1 / fy, -cy / fy], [0, 0, 1]]
+    )
+    return K_inv @ ppo._planar(points)
 
 
 def recover_pose(
@@ -132,8 +144,8 @@ def recover_pose(
     used = np.ones(p1.shape[0], dtype=bool) if used is None else used
     if distance_thresh is not None:
         distance_thresh = as_positive(distance_thresh, "distance_thresh")
-    x1, x2 = normalize_points(p1, K1), normalize_points(p2, K2)
-    return _recover_normalized(E, x1, x2, used, float(pri_threshold), distance_thresh)
+    X1, X2 = pixel_rays(p1, K1), pixel_rays(p2, K2)
+    return _recover_rays(E, X1, X2, used, float(pri_threshold), distance_thresh)
 
 
 def _recover_normalized(
@@ -141,25 +153,35 @@ def _recover_normalized(
     x1: np.ndarray,
     x2: np.ndarray,
     used: np.ndarray,
+    pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD,
+    distance_thresh: float | None = None,
+) -> PoseResult:
+    """:func:`recover_pose` on normalized points (N, 2), unchecked."""
+    return _recover_rays(E, ppo._planar(x1), ppo._planar(x2), used, pri_threshold, distance_thresh)
+
+
+def _recover_rays(
+    E: np.ndarray,
+    X1: np.ndarray,
+    X2: np.ndarray,
+    used: np.ndarray,
     pri_threshold: float,
     distance_thresh: float | None,
 ) -> PoseResult:
-    sel = ppo.select_pose(E, x1[used], x2[used])
-    m1 = ppo.same_side_scores(x1, x2, sel.R, sel.t)
-    m2 = ppo.intersection_scores(x1, x2, sel.R, sel.t)
-    z1, z2 = ppo.analytic_depths(x1, x2, sel.R, sel.t)
-    inliers = used & (m1 > 0) & (m2 > 0)
+    sel = ppo._select(E, X1, X2, used)
+    z1, z2, _ = ppo._depths(X1, X2, sel.R, sel.t, 1e-12)
+    inliers = used & (sel.m1 > 0) & (sel.m2 > 0)
     if distance_thresh is not None:
         inliers &= (z1 < distance_thresh) & (z2 < distance_thresh)
-    pri = ppo.pure_rotation_indicator(sel.m2)
+    pri = ppo.pure_rotation_indicator(sel.m2[used])
     return PoseResult(
         R=sel.R,
         t=sel.t,
         inliers=inliers,
         pure_rotation=bool(pri < pri_threshold),
         pri=pri,
-        m3=ppo.m3_indicator(x1[used], x2[used], sel.R),
-        points3d=ppo.analytic_points(x1, x2, sel.R, sel.t),
+        m3=ppo.m3_indicator(X1[:, used].T, X2[:, used].T, sel.R),
+        points3d=ppo._points(X1, X2, sel.R, sel.t, 1e-12).T,
         depths=np.stack([z1, z2], axis=1),
         support_R=sel.support_R,
         support_R_rejected=sel.support_R_rejected,

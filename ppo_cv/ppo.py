@@ -3,12 +3,14 @@
 Equation numbers refer to "Equivalent Constraints for Two-View Geometry: Pose Solution/Pure
 Rotation Identification and 3D Reconstruction". Conventions:
 
-* ``x1``, ``x2`` are normalized homogeneous image points, shape (N, 3), third coordinate 1
-  (the paper's X and X'). A point seen in both views obeys ``z2 x2 = z1 R x1 + t`` (eq. 2),
-  i.e. ``X2 = R X1 + t`` in camera coordinates, the convention of OpenCV.
+* ``x1``, ``x2`` are normalized image points ``K^-1 [u, v, 1]^T``, shape (N, 2) with the
+  homogeneous 1 implied (or (N, 3) homogeneous): the paper's X = (x, y, 1) and X'. A point
+  seen in both views obeys ``z2 X' = z1 R X + t`` (eq. 2), i.e. ``X2 = R X1 + t`` in camera
+  coordinates, the convention of OpenCV.
 * ``e_t`` is the unit translation direction; the scale of ``t`` is unobservable.
 
-Nothing here does I/O or calls OpenCV: every function is vectorised over the points.
+Nothing here does I/O or calls OpenCV. Every function is vectorised over the points and works
+on coordinate columns, so that its cost is a few passes over the data.
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ __all__ = [
     "m3_indicator",
     "analytic_depths",
     "analytic_points",
-    "homogeneous",
+    "normalize",
 ]
 
 W1 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
@@ -92,10 +94,102 @@ class Selection:
     support_t_rejected: int
 
 
-def homogeneous(points: np.ndarray) -> np.ndarray:
-    """Append a column of ones: (N, 2) -> (N, 3)."""
-    points = np.asarray(points, dtype=np.float64)
-    return np.concatenate([points, np.ones((points.shape[0], 1))], axis=1)
+@dataclass(frozen=True)
+class Candidates:
+    """The two rotations and the translation axis of an essential matrix (Table II, steps 2-3).
+
+    The four poses are ``(R1 | +t)``, ``(R2 | +t)``, ``(R1 | -t)`` and ``(R2 | -t)``.
+
+    Attributes
+    ----------
+    R1, R2 : ndarray, shape (3, 3)
+        ``U W1^T V^T`` and ``U W2^T V^T`` with ``det(U V^T) = +1`` (eq. 57, Table I).
+    t : ndarray, shape (3,)
+        ``u_q3``, the unit left singular vector of the smallest singular value (eq. 62).
+    singular_values : ndarray, shape (3,)
+        Singular values of ``E / ||E||_F``; a valid essential matrix has ``(s, s, 0)``.
+    """
+
+    R1: np.ndarray
+    R2: np.ndarray
+    t: np.ndarray
+    singular_values: np.ndarray
+
+
+@dataclass(frozen=True)
+class Selection:
+    """The pose picked by the PPO inequalities (Table II, step 4).
+
+    Attributes
+    ----------
+    R : ndarray, shape (3, 3)
+        Rotation with the larger same-side support S1.
+    t : ndarray, shape (3,)
+        Unit translation with the larger intersection support S2.
+    m1, m2 : ndarray, shape (N,)
+        Same-side scores ``M1(R)`` (eq. 70) and intersection scores ``M2(t)`` (eq. 76) of the
+        chosen pose for every point; a point satisfies the PPO inequalities when both are
+        positive.
+    support_R, support_R_rejected : int
+        ``S1`` of the chosen and of the rejected rotation, over the used points.
+    support_t, support_t_rejected : int
+        ``S2`` of the chosen and of the rejected translation sign, over the used points.
+    """
+
+    R: np.ndarray
+    t: np.ndarray
+    m1: np.ndarray
+    m2: np.ndarray
+    support_R: int
+    support_R_rejected: int
+    support_t: int
+    support_t_rejected: int
+
+
+def normalize(points: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """Pixel points to normalized image points, ``K^-1 [u, v, 1]^T`` without the 1.
+
+    Parameters
+    ----------
+    points : ndarray, shape (N, 2)
+    K : ndarray, shape (3, 3)
+        Intrinsics, last row (0, 0, 1).
+
+    Returns
+    -------
+    ndarray, shape (N, 2)
+    """
+    return (np.linalg.inv(K)[:2] @ _planar(points)).T
+
+
+def _planar(x: np.ndarray) -> np.ndarray:
+    """Points (N, 2), or homogeneous (N, 3), as the paper's stacked rays ``(X_1 ... X_N)``, (3, N)."""
+    if x.shape[1] == 3:
+        return (x / x[:, 2:]).T
+    rays = np.ones((3, x.shape[0]))
+    rays[:2] = x.T
+    return rays
+
+
+def _dot(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Column-wise dot products of two (3, N) arrays: shape (N,)."""
+    return np.einsum("ij,ij->j", A, B)
+
+
+def _cross(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Column-wise cross products of two (3, N) arrays: shape (3, N)."""
+    return np.stack(
+        [A[1] * B[2] - A[2] * B[1], A[2] * B[0] - A[0] * B[2], A[0] * B[1] - A[1] * B[0]]
+    )
+
+
+def _det3(M: np.ndarray) -> float:
+    (a, b, c), (d, e, f), (g, h, i) = M.tolist()
+    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
+
+
+def _unit(t: np.ndarray) -> np.ndarray:
+    return t / np.sqrt(t @ t)
 
 
 def decompose_essential(E: np.ndarray) -> Candidates:
@@ -116,26 +210,28 @@ def decompose_essential(E: np.ndarray) -> Candidates:
     -------
     Candidates
     """
-    E = np.asarray(E, dtype=np.float64)
-    U, s, Vt = np.linalg.svd(E / np.linalg.norm(E))
-    if np.linalg.det(U) < 0:
+    U, s, Vt = np.linalg.svd(np.asarray(E, dtype=np.float64))
+    if _det3(U) < 0:
         U = -U
-    if np.linalg.det(Vt) < 0:
+    if _det3(Vt) < 0:
         Vt = -Vt
-    return Candidates(R1=U @ W1.T @ Vt, R2=U @ W2.T @ Vt, t=U[:, 2].copy(), singular_values=s)
+    return Candidates(
+        R1=U @ W1.T @ Vt, R2=U @ W2.T @ Vt, t=U[:, 2].copy(), singular_values=s / np.sqrt(s @ s)
+    )
 
 
 def same_side_scores(x1: np.ndarray, x2: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Same-side scores ``m1 = (e_t x R x1) . (e_t x x2)`` for all points (eq. 65-66, 70).
+    """Same-side scores ``m1 = (e_t x R X) . (e_t x X')`` for all points (eq. 65-66, 70).
 
-    The paper writes ``m1 = x2^T Q Q^T R x1``; for an exact essential matrix
+    The paper writes ``m1 = X'^T Q Q^T R X``; for an exact essential matrix
     ``Q Q^T = ||a||^2 [e_t]x^T [e_t]x`` (eq. 66), so this is the same inequality with the
     singular values of a noisy ``Q`` taken out. It is positive when both projection rays lie on
     the same side of the baseline, and ``m1(R1) = -m1(R2)`` (eq. 68).
 
     Parameters
     ----------
-    x1, x2 : ndarray, shape (N, 3)
+    x1, x2 : ndarray, shape (N, 2)
+        Normalized image points (homogeneous (N, 3) is accepted too).
     R : ndarray, shape (3, 3)
     t : ndarray, shape (3,)
         Translation direction (any length).
@@ -144,22 +240,21 @@ def same_side_scores(x1: np.ndarray, x2: np.ndarray, R: np.ndarray, t: np.ndarra
     -------
     ndarray, shape (N,)
     """
-    e = t / np.linalg.norm(t)
-    projector = np.eye(3) - np.outer(e, e)  # [e_t]x^T [e_t]x
-    return np.einsum("ni,ni->n", x2, x1 @ (projector @ R).T)
+    return _same_side(_planar(x1), _planar(x2), R, _unit(t))
 
 
 def intersection_scores(x1: np.ndarray, x2: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Intersection scores ``m2 = ||x1|| x2.e_t - ||x2|| (R x1).e_t`` for all points (eq. 73, 76).
+    """Intersection scores ``m2 = ||X|| X'.e_t - ||X'|| (R X).e_t`` for all points (eq. 73, 76).
 
-    ``m2 = ||x1|| ||x2|| (cos theta1 - cos theta2)``: positive when the second ray leans further
+    ``m2 = ||X|| ||X'|| (cos theta1 - cos theta2)``: positive when the second ray leans further
     towards the translation than the rotated first ray, as it must for the rays to intersect
     in front of both cameras (eq. 71-72). For the candidates of one essential matrix it does not
     depend on which rotation is used (eq. 74-75), and ``m2(-t) = -m2(t)``.
 
     Parameters
     ----------
-    x1, x2 : ndarray, shape (N, 3)
+    x1, x2 : ndarray, shape (N, 2)
+        Normalized image points (homogeneous (N, 3) is accepted too).
     R : ndarray, shape (3, 3)
     t : ndarray, shape (3,)
 
@@ -167,10 +262,18 @@ def intersection_scores(x1: np.ndarray, x2: np.ndarray, R: np.ndarray, t: np.nda
     -------
     ndarray, shape (N,)
     """
-    e = t / np.linalg.norm(t)
-    n1 = np.linalg.norm(x1, axis=1)
-    n2 = np.linalg.norm(x2, axis=1)
-    return n1 * (x2 @ e) - n2 * (x1 @ (R.T @ e))
+    X1, X2 = _planar(x1), _planar(x2)
+    return _intersection(X1, X2, R, _unit(t), np.sqrt(_dot(X1, X1)), np.sqrt(_dot(X2, X2)))
+
+
+def _same_side(X1: np.ndarray, X2: np.ndarray, R: np.ndarray, e: np.ndarray) -> np.ndarray:
+    return _dot(X2, (R - e[:, None] * (e @ R)) @ X1)  # [e_t]x^T [e_t]x = I - e e^T
+
+
+def _intersection(
+    X1: np.ndarray, X2: np.ndarray, R: np.ndarray, e: np.ndarray, n1: np.ndarray, n2: np.ndarray
+) -> np.ndarray:
+    return n1 * (e @ X2) - n2 * ((e @ R) @ X1)
 
 
 def _pick_sign(scores: np.ndarray) -> tuple[bool, int, int]:
@@ -184,7 +287,9 @@ def _pick_sign(scores: np.ndarray) -> tuple[bool, int, int]:
     return keep, positive, negative
 
 
-def select_pose(E: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> Selection:
+def select_pose(
+    E: np.ndarray, x1: np.ndarray, x2: np.ndarray, used: np.ndarray | None = None
+) -> Selection:
     """Pick the right pose among the four candidates of ``E`` (Table II).
 
     ``R`` maximises the count S1 of positive same-side scores (eq. 70) and ``t`` the count S2 of
@@ -196,27 +301,31 @@ def select_pose(E: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> Selection:
     Parameters
     ----------
     E : ndarray, shape (3, 3)
-    x1, x2 : ndarray, shape (N, 3)
-        Normalized homogeneous points, N >= 1.
+    x1, x2 : ndarray, shape (N, 2) or (N, 3)
+        Normalized points.
+    used : ndarray of bool, shape (N,), optional
+        The points that vote (e.g. RANSAC inliers); scores are returned for all points.
 
     Returns
     -------
     Selection
     """
+    return _select(E, _planar(x1), _planar(x2), used)
+
+
+def _select(E: np.ndarray, X1: np.ndarray, X2: np.ndarray, used: np.ndarray | None) -> Selection:
     cand = decompose_essential(E)
-    m1 = same_side_scores(x1, x2, cand.R1, cand.t)
-    keep_R1, s1_R1, s1_R2 = _pick_sign(m1)
+    m1 = _same_side(X1, X2, cand.R1, cand.t)
+    keep_R1, s1_R1, s1_R2 = _pick_sign(m1 if used is None else m1[used])
     R = cand.R1 if keep_R1 else cand.R2
-    m1 = m1 if keep_R1 else -m1
-    m2 = intersection_scores(x1, x2, R, cand.t)
-    keep_t, s2_plus, s2_minus = _pick_sign(m2)
-    t = cand.t if keep_t else -cand.t
-    m2 = m2 if keep_t else -m2
+    n1, n2 = np.sqrt(_dot(X1, X1)), np.sqrt(_dot(X2, X2))
+    m2 = _intersection(X1, X2, R, cand.t, n1, n2)
+    keep_t, s2_plus, s2_minus = _pick_sign(m2 if used is None else m2[used])
     return Selection(
         R=R,
-        t=t,
-        m1=m1,
-        m2=m2,
+        t=cand.t if keep_t else -cand.t,
+        m1=m1 if keep_R1 else -m1,
+        m2=m2 if keep_t else -m2,
         support_R=s1_R1 if keep_R1 else s1_R2,
         support_R_rejected=s1_R2 if keep_R1 else s1_R1,
         support_t=s2_plus if keep_t else s2_minus,
@@ -233,7 +342,7 @@ def pure_rotation_indicator(m2: np.ndarray) -> float:
     Parameters
     ----------
     m2 : ndarray, shape (N,)
-        Intersection scores of the points to average over (typically the inliers).
+        Intersection scores of the points to average over (typically the used points).
 
     Returns
     -------
@@ -243,21 +352,15 @@ def pure_rotation_indicator(m2: np.ndarray) -> float:
     return float(np.mean(np.abs(m2))) if m2.size else float("nan")
 
 
-def _ray_cross(x1: np.ndarray, x2: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """``x2 x R x1`` for all points, shape (N, 3)."""
-    return np.cross(x2, x1 @ R.T)
-
-
 def m3_indicator(x1: np.ndarray, x2: np.ndarray, R: np.ndarray) -> float:
-    """M3 = mean ``||x2 x R x1|| / (||x2|| ||x1||)`` (eq. 78): mean sine of the parallax angle.
+    """M3 = mean ``||X' x R X|| / (||X'|| ||X||)`` (eq. 78): mean sine of the parallax angle.
 
     The paper's alternative pure-rotation test, kept for comparison with PRI.
     """
-    if x1.shape[0] == 0:
+    X1, X2 = _planar(x1), _planar(x2)
+    if X1.shape[1] == 0:
         return float("nan")
-    sin_parallax = np.linalg.norm(_ray_cross(x1, x2, R), axis=1) / (
-        np.linalg.norm(x1, axis=1) * np.linalg.norm(x2, axis=1)
-    )
+    sin_parallax = np.sqrt(_dot(*(2 * [_cross(X2, R @ X1)])) / (_dot(X1, X1) * _dot(X2, X2)))
     return float(np.mean(sin_parallax))
 
 
@@ -266,17 +369,17 @@ def analytic_depths(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Depths of each point in both views from the pose alone (Proposition 3, eq. 36).
 
-    ``z1 / ||t|| = ||e_t x x2|| / ||x2 x R x1||`` and ``z2 / ||t|| = ||e_t x R x1|| / ||x2 x R x1||``:
+    ``z1 / ||t|| = ||e_t x X'|| / ||X' x R X||`` and ``z2 / ||t|| = ||e_t x R X|| / ||X' x R X||``:
     the law of sines in the triangle of the two centres and the point. Depths are returned in
     units of the baseline ``||t||``.
 
-    Where the rays are parallel (``||x2 x R x1||`` at most ``rtol`` times the product of the ray
-    lengths: a point at infinity, on the baseline, or every point of a pure rotation,
-    Propositions 4-5) the depth is ``+inf``.
+    Where the rays are parallel (``||X' x R X||`` at most ``rtol`` times ``||X|| ||X'||``: a
+    point at infinity, on the baseline, or every point of a pure rotation, Propositions 4-5)
+    the depth is ``+inf``.
 
     Parameters
     ----------
-    x1, x2 : ndarray, shape (N, 3)
+    x1, x2 : ndarray, shape (N, 2) or (N, 3)
     R : ndarray, shape (3, 3)
     t : ndarray, shape (3,)
     rtol : float
@@ -287,15 +390,25 @@ def analytic_depths(
     z1, z2 : ndarray, shape (N,)
         Depths (third coordinate) in camera 1 and camera 2.
     """
-    e = t / np.linalg.norm(t)
-    rx1 = x1 @ R.T
-    parallax = np.linalg.norm(np.cross(x2, rx1), axis=1)
-    scale = np.linalg.norm(x1, axis=1) * np.linalg.norm(x2, axis=1)
-    finite = parallax > rtol * scale
-    denom = np.where(finite, parallax, 1.0)
-    z1 = np.where(finite, np.linalg.norm(np.cross(e, x2), axis=1) / denom, np.inf)
-    z2 = np.where(finite, np.linalg.norm(np.cross(e, rx1), axis=1) / denom, np.inf)
+    X1, X2 = _planar(x1), _planar(x2)
+    z1, z2, _ = _depths(X1, X2, R, _unit(t), rtol)
     return z1, z2
+
+
+def _depths(
+    X1: np.ndarray, X2: np.ndarray, R: np.ndarray, e: np.ndarray, rtol: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Eq. 36 on stacked rays; also returns the mask of finite depths."""
+    RX1 = R @ X1
+    parallax = np.sqrt(_dot(*(2 * [_cross(X2, RX1)])))
+    n1sq, n2sq = _dot(X1, X1), _dot(X2, X2)
+    e_cross_x2 = np.sqrt(np.maximum(n2sq - (e @ X2) ** 2, 0.0))
+    e_cross_rx1 = np.sqrt(np.maximum(n1sq - (e @ RX1) ** 2, 0.0))
+    finite = parallax > rtol * np.sqrt(n1sq * n2sq)
+    inverse = np.divide(1.0, parallax, out=np.zeros_like(parallax), where=finite)
+    z1 = np.where(finite, e_cross_x2 * inverse, np.inf)
+    z2 = np.where(finite, e_cross_rx1 * inverse, np.inf)
+    return z1, z2, finite
 
 
 def analytic_points(
@@ -303,8 +416,8 @@ def analytic_points(
 ) -> np.ndarray:
     """3D points in camera-1 coordinates from the pose alone, baseline ``||t|| = 1`` (eq. 36).
 
-    Eq. 36 gives one point on each ray: ``P1 = z1 x1`` and, from view 2,
-    ``P2 = R^T (z2 x2 - e_t)``. With noise they differ; the paper averages them. Here they are
+    Eq. 36 gives one point on each ray: ``P1 = z1 X`` and, from view 2,
+    ``P2 = R^T (z2 X' - e_t)``. With noise they differ; the paper averages them. Here they are
     weighted by the inverse square of their depths,
     ``P = (z2^2 P1 + z1^2 P2) / (z1^2 + z2^2)``, which to first order minimises the sum of the
     squared angular reprojection errors in the two views (moving a point by ``d`` across a ray at
@@ -312,7 +425,7 @@ def analytic_points(
 
     Parameters
     ----------
-    x1, x2 : ndarray, shape (N, 3)
+    x1, x2 : ndarray, shape (N, 2) or (N, 3)
     R : ndarray, shape (3, 3)
     t : ndarray, shape (3,)
     rtol : float
@@ -323,13 +436,15 @@ def analytic_points(
     ndarray, shape (N, 3)
         NaN rows where the depth is infinite.
     """
-    e = t / np.linalg.norm(t)
-    z1, z2 = analytic_depths(x1, x2, R, e, rtol)
-    finite = np.isfinite(z1)
-    z1f, z2f = np.where(finite, z1, 0.0), np.where(finite, z2, 0.0)
-    p1 = z1f[:, None] * x1
-    p2 = (z2f[:, None] * x2 - e) @ R
-    w = np.where(finite, z1f**2 + z2f**2, 1.0)
-    points = (z2f[:, None] ** 2 * p1 + z1f[:, None] ** 2 * p2) / w[:, None]
-    points[~finite] = np.nan
-    return points
+    X1, X2 = _planar(x1), _planar(x2)
+    return _points(X1, X2, R, _unit(t), rtol).T
+
+
+def _points(X1: np.ndarray, X2: np.ndarray, R: np.ndarray, e: np.ndarray, rtol: float) -> np.ndarray:
+    """Weighted eq. 36 points on stacked rays, shape (3, N)."""
+    z1, z2, finite = _depths(X1, X2, R, e, rtol)
+    z1, z2 = np.where(finite, z1, np.nan), np.where(finite, z2, np.nan)
+    p1 = z1 * X1
+    p2 = R.T @ (z2 * X2 - e[:, None])
+    w1, w2 = z2 * z2, z1 * z1
+    return (w1 * p1 + w2 * p2) / (w1 + w2)
