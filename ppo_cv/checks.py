@@ -74,7 +74,9 @@ def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
     _require_finite(K, name)
     (fx, _, _), (k10, fy, _), last = K.tolist()
     if max(abs(last[0]), abs(last[1]), abs(last[2] - 1.0), abs(k10)) > 1e-12:
-        raise ValueError(f"{name} must be upper triangular with last row (0, 0, 1), got {K.tolist()}")
+        raise ValueError(
+            f"{name} must be upper triangular with last row (0, 0, 1), got {K.tolist()}"
+        )
     if fx == 0 or fy == 0:
         raise ValueError(f"{name} has a zero focal length (fx={fx}, fy={fy})")
     return K

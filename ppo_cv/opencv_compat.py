@@ -46,7 +46,7 @@ _FORM4 = (
 def _bind(names: tuple[str, ...], args: tuple, kwargs: dict) -> dict[str, Any]:
     if len(args) > len(names):
         raise TypeError(f"recoverPose takes at most {len(names)} positional arguments here")
-    bound = dict(zip(names, args))
+    bound = dict(zip(names, args, strict=False))
     for key, value in kwargs.items():
         if key not in names:
             raise TypeError(f"recoverPose got an unexpected keyword argument {key!r}")
@@ -60,21 +60,27 @@ def _is_3x3(value: Any) -> bool:
     return value is not None and np.shape(value) == (3, 3)
 
 
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+
+
 def _form(args: tuple, kwargs: dict) -> tuple[str, ...]:
     if "cameraMatrix1" in kwargs or (len(args) > 2 and _is_3x3(args[2])):
         return _FORM4
-    if "distanceThresh" in kwargs or (len(args) > 4 and np.ndim(args[4]) == 0):
-        return _FORM3
     if "focal" in kwargs or "pp" in kwargs:
         return _FORM2
-    if "cameraMatrix" in kwargs or (len(args) > 3 and _is_3x3(args[3])):
-        return _FORM1
-    return _FORM2
+    has_camera = "cameraMatrix" in kwargs or (len(args) > 3 and args[3] is not None)
+    if not has_camera:
+        return _FORM2
+    if "distanceThresh" in kwargs or (len(args) > 4 and _is_number(args[4])):
+        return _FORM3
+    return _FORM1
 
 
 def _out_matrix(buffer: Any, value: np.ndarray) -> np.ndarray:
     """Write into a caller's output array when it fits, as OpenCV's bindings do."""
-    if isinstance(buffer, np.ndarray) and buffer.shape == value.shape and buffer.dtype == value.dtype:
+    fits = isinstance(buffer, np.ndarray) and buffer.shape == value.shape
+    if fits and buffer.dtype == value.dtype:
         buffer[...] = value
         return buffer
     return value
@@ -117,8 +123,8 @@ def _recover_from_points(bound: dict) -> tuple:
     p1, p2 = as_point_pair(bound.get("points1"), bound.get("points2"))
     K1 = as_camera_matrix(bound.get("cameraMatrix1"), "cameraMatrix1")
     K2 = as_camera_matrix(bound.get("cameraMatrix2"), "cameraMatrix2")
-    n1 = cv2.undistortPoints(p1.reshape(-1, 1, 2), K1, _dist(bound.get("distCoeffs1"))).reshape(-1, 2)
-    n2 = cv2.undistortPoints(p2.reshape(-1, 1, 2), K2, _dist(bound.get("distCoeffs2"))).reshape(-1, 2)
+    n1 = _undistort(p1, K1, bound.get("distCoeffs1"))
+    n2 = _undistort(p2, K2, bound.get("distCoeffs2"))
     threshold = as_positive(bound.get("threshold", 1.0), "threshold")
     focal = (K1[0, 0] + K1[1, 1] + K2[0, 0] + K2[1, 1]) / 4.0
     E, ransac_mask = cv2.findEssentialMat(
@@ -140,13 +146,18 @@ def _recover_from_points(bound: dict) -> tuple:
     return retval, _out_matrix(bound.get("E"), candidates[best].copy()), R, t, mask
 
 
-def _dist(value: Any) -> np.ndarray | None:
-    if value is None or np.size(value) == 0:
-        return None
-    d = np.asarray(value, dtype=np.float64).reshape(-1)
-    if d.size not in (4, 5, 8, 12, 14) or not np.isfinite(d).all():
-        raise ValueError(f"distortion coefficients must be 4, 5, 8, 12 or 14 finite numbers, got {d.size}")
-    return d
+def _undistort(points: np.ndarray, K: np.ndarray, coefficients: Any) -> np.ndarray:
+    """Pixel points (N, 2) to normalized points (N, 2) with OpenCV's distortion model."""
+    if coefficients is not None and np.size(coefficients) > 0:
+        coefficients = np.asarray(coefficients, dtype=np.float64).reshape(-1)
+        if coefficients.size not in (4, 5, 8, 12, 14) or not np.isfinite(coefficients).all():
+            raise ValueError(
+                "distortion coefficients must be 4, 5, 8, 12 or 14 finite numbers, "
+                f"got {coefficients.size}"
+            )
+    else:
+        coefficients = None
+    return cv2.undistortPoints(points.reshape(-1, 1, 2), K, coefficients).reshape(-1, 2)
 
 
 def recoverPose(*args: Any, **kwargs: Any) -> tuple:  # noqa: N802 - OpenCV's name

@@ -20,12 +20,15 @@ class PoseResult:
     Attributes
     ----------
     R : ndarray, shape (3, 3)
-        Rotation from camera 1 to camera 2: ``X2 = R X1 + t``.
+        Rotation from camera 1 to camera 2: ``X2 = R X1 + t``. For a pure rotation, the
+        least-squares rotation of the inlier rays (:func:`ppo_cv.ppo.rotation_from_rays`).
     t : ndarray, shape (3,)
-        Unit translation direction. Meaningless when ``pure_rotation`` is True.
+        Unit translation direction. Undetermined when ``pure_rotation`` is True: it is then the
+        direction fitted to noise by the essential matrix (Proposition 7).
     inliers : ndarray of bool, shape (N,)
         Points that were used (input mask) and satisfy both PPO inequalities, ``m1 > 0`` and
-        ``m2 > 0`` (and lie closer than ``distance_thresh``, when one is given).
+        ``m2 > 0`` (and lie closer than ``distance_thresh``, when one is given). For a pure
+        rotation only the same-side inequality applies, ``m1 > 0``.
     pure_rotation : bool
         ``pri < pri_threshold`` (eq. 85).
     pri : float
@@ -34,10 +37,10 @@ class PoseResult:
         The paper's alternative indicator (eq. 78), mean sine of the parallax angle.
     points3d : ndarray, shape (N, 3)
         Analytic points in camera-1 coordinates, baseline = 1 (Proposition 3); NaN where the
-        rays are parallel. Meaningful for inliers of a motion that is not a pure rotation.
+        rays are parallel, and everywhere for a pure rotation, which has no structure.
     depths : ndarray, shape (N, 2)
         Depth of each point in camera 1 and camera 2, baseline = 1 (eq. 36); inf where the rays
-        are parallel.
+        are parallel, and everywhere for a pure rotation.
     support_R, support_R_rejected : int
         Number of used points with positive same-side score for the chosen and the rejected
         rotation (S1 of Table II).
@@ -79,7 +82,11 @@ def pixel_rays(points: np.ndarray, K: np.ndarray) -> np.ndarray:
     """
     (fx, skew, cx), (_, fy, cy), _ = K.tolist()
     K_inv = np.array(
-        [[1 / fx, -skew / (fx * fy), (skew * cy - cx * fy) / (fx * fy)], [0, 1 / fy, -cy / fy], [0, 0, 1]]
+        [
+            [1 / fx, -skew / (fx * fy), (skew * cy - cx * fy) / (fx * fy)],
+            [0.0, 1 / fy, -cy / fy],
+            [0.0, 0.0, 1.0],
+        ]
     )
     return K_inv @ ppo._planar(points)
 
@@ -169,20 +176,29 @@ def _recover_rays(
     distance_thresh: float | None,
 ) -> PoseResult:
     sel = ppo._select(E, X1, X2, used)
-    z1, z2, _ = ppo._depths(X1, X2, sel.R, sel.t, 1e-12)
-    inliers = used & (sel.m1 > 0) & (sel.m2 > 0)
-    if distance_thresh is not None:
-        inliers &= (z1 < distance_thresh) & (z2 < distance_thresh)
     pri = ppo.pure_rotation_indicator(sel.m2[used])
+    pure_rotation = bool(pri < pri_threshold)
+    if pure_rotation:
+        inliers = used & (sel.m1 > 0)
+        R = ppo._rotation_from_rays(X1[:, inliers], X2[:, inliers])
+        n = X1.shape[1]
+        points3d, depths = np.full((n, 3), np.nan), np.full((n, 2), np.inf)
+    else:
+        R = sel.R
+        z1, z2, _ = ppo._depths(X1, X2, R, sel.t, 1e-12)
+        inliers = used & (sel.m1 > 0) & (sel.m2 > 0)
+        if distance_thresh is not None:
+            inliers &= (z1 < distance_thresh) & (z2 < distance_thresh)
+        points3d, depths = ppo._points(X1, X2, R, sel.t, 1e-12).T, np.stack([z1, z2], axis=1)
     return PoseResult(
-        R=sel.R,
+        R=R,
         t=sel.t,
         inliers=inliers,
-        pure_rotation=bool(pri < pri_threshold),
+        pure_rotation=pure_rotation,
         pri=pri,
-        m3=ppo.m3_indicator(X1[:, used].T, X2[:, used].T, sel.R),
-        points3d=ppo._points(X1, X2, sel.R, sel.t, 1e-12).T,
-        depths=np.stack([z1, z2], axis=1),
+        m3=ppo.m3_indicator(X1[:, used].T, X2[:, used].T, R),
+        points3d=points3d,
+        depths=depths,
         support_R=sel.support_R,
         support_R_rejected=sel.support_R_rejected,
         support_t=sel.support_t,

@@ -34,6 +34,7 @@ __all__ = [
     "analytic_depths",
     "analytic_points",
     "normalize",
+    "rotation_from_rays",
 ]
 
 W1 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
@@ -41,57 +42,6 @@ W2 = W1.T
 
 DEFAULT_PRI_THRESHOLD = 0.015
 """The paper's delta_pri (Section 5.3), in normalized image coordinates."""
-
-
-@dataclass(frozen=True)
-class Candidates:
-    """The two rotations and the translation axis of an essential matrix (Table II, steps 2-3).
-
-    The four poses are ``(R1 | +t)``, ``(R2 | +t)``, ``(R1 | -t)`` and ``(R2 | -t)``.
-
-    Attributes
-    ----------
-    R1, R2 : ndarray, shape (3, 3)
-        ``U W1^T V^T`` and ``U W2^T V^T`` with ``det(U V^T) = +1`` (eq. 57, Table I).
-    t : ndarray, shape (3,)
-        ``u_q3``, the unit left singular vector of the smallest singular value (eq. 62).
-    singular_values : ndarray, shape (3,)
-        Singular values of ``E / ||E||_F``; a valid essential matrix has ``(s, s, 0)``.
-    """
-
-    R1: np.ndarray
-    R2: np.ndarray
-    t: np.ndarray
-    singular_values: np.ndarray
-
-
-@dataclass(frozen=True)
-class Selection:
-    """The pose picked by the PPO inequalities (Table II, step 4).
-
-    Attributes
-    ----------
-    R : ndarray, shape (3, 3)
-        Rotation with the larger same-side support S1.
-    t : ndarray, shape (3,)
-        Unit translation with the larger intersection support S2.
-    m1, m2 : ndarray, shape (N,)
-        Same-side scores ``M1(R)`` (eq. 70) and intersection scores ``M2(t)`` (eq. 76) of the
-        chosen pose; a point satisfies the PPO inequalities when both are positive.
-    support_R, support_R_rejected : int
-        ``S1`` of the chosen and of the rejected rotation.
-    support_t, support_t_rejected : int
-        ``S2`` of the chosen and of the rejected translation sign.
-    """
-
-    R: np.ndarray
-    t: np.ndarray
-    m1: np.ndarray
-    m2: np.ndarray
-    support_R: int
-    support_R_rejected: int
-    support_t: int
-    support_t_rejected: int
 
 
 @dataclass(frozen=True)
@@ -163,7 +113,7 @@ def normalize(points: np.ndarray, K: np.ndarray) -> np.ndarray:
 
 
 def _planar(x: np.ndarray) -> np.ndarray:
-    """Points (N, 2), or homogeneous (N, 3), as the paper's stacked rays ``(X_1 ... X_N)``, (3, N)."""
+    """Points (N, 2), or homogeneous (N, 3), as the paper's stacked rays ``(X_1 ... X_N)``."""
     if x.shape[1] == 3:
         return (x / x[:, 2:]).T
     rays = np.ones((3, x.shape[0]))
@@ -440,7 +390,9 @@ def analytic_points(
     return _points(X1, X2, R, _unit(t), rtol).T
 
 
-def _points(X1: np.ndarray, X2: np.ndarray, R: np.ndarray, e: np.ndarray, rtol: float) -> np.ndarray:
+def _points(
+    X1: np.ndarray, X2: np.ndarray, R: np.ndarray, e: np.ndarray, rtol: float
+) -> np.ndarray:
     """Weighted eq. 36 points on stacked rays, shape (3, N)."""
     z1, z2, finite = _depths(X1, X2, R, e, rtol)
     z1, z2 = np.where(finite, z1, np.nan), np.where(finite, z2, np.nan)
@@ -448,3 +400,32 @@ def _points(X1: np.ndarray, X2: np.ndarray, R: np.ndarray, e: np.ndarray, rtol: 
     p2 = R.T @ (z2 * X2 - e[:, None])
     w1, w2 = z2 * z2, z1 * z1
     return (w1 * p1 + w2 * p2) / (w1 + w2)
+
+
+def rotation_from_rays(x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
+    """The rotation that best aligns the rays of a pure rotation, ``X' ~ R X``.
+
+    Not from the paper: once PRI has identified a pure rotation (eq. 85) every pair obeys
+    ``X' = lambda R X`` (eq. 3 with ``t = 0``), so ``R`` is the least-squares fit of the unit
+    rays, ``argmin sum ||b2 - R b1||^2`` (Wahba's problem), solved in closed form from the SVD of
+    ``sum b2 b1^T`` with the determinant forced to +1. It uses every point, unlike the
+    rotation of an essential matrix fitted to noise.
+
+    Parameters
+    ----------
+    x1, x2 : ndarray, shape (N, 2)
+        Normalized image points (homogeneous (N, 3) is accepted too), N >= 2.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+    """
+    return _rotation_from_rays(_planar(x1), _planar(x2))
+
+
+def _rotation_from_rays(X1: np.ndarray, X2: np.ndarray) -> np.ndarray:
+    B1 = X1 / np.sqrt(_dot(X1, X1))
+    B2 = X2 / np.sqrt(_dot(X2, X2))
+    U, _, Vt = np.linalg.svd(B2 @ B1.T)
+    D = np.diag([1.0, 1.0, np.sign(_det3(U) * _det3(Vt))])
+    return U @ D @ Vt

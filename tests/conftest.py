@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -18,3 +19,10 @@ def freiburg() -> Path:
     if not (FREIBURG / "pairs_with_gt.txt").is_file():
         pytest.skip(f"real-pair data not found at {FREIBURG}")
     return FREIBURG
+
+
+
+@pytest.fixture
+def K():
+    """A pinhole camera with unequal focal lengths."""
+    return np.array([[800.0, 0.0, 320.0], [0.0, 780.0, 240.0], [0.0, 0.0, 1.0]])

@@ -1,0 +1,186 @@
+"""ppo_cv.recoverPose mirrors every call form of cv2.recoverPose."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from twoview import angle_between_deg, make_scene, random_rotation, rotation_angle_deg
+
+import ppo_cv
+
+OPENCV_RECOVER_POSE = cv2.recoverPose
+
+
+@pytest.fixture(scope="module")
+def scene():
+    """A noisy general-motion pair with an E and RANSAC mask from OpenCV."""
+    rng = np.random.default_rng(3)
+    K = np.array([[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]])
+    R = random_rotation(rng, 15.0)
+    t = np.array([0.8, -0.2, 0.3])
+    t /= np.linalg.norm(t)
+    X, p1, p2 = make_scene(rng, 150, R, t, K, noise_px=0.3)
+    p2[:10] = rng.uniform(0, 640, (10, 2))
+    E, mask = cv2.findEssentialMat(p1, p2, K, cv2.RANSAC, 0.999, 1.0)
+    return {"K": K, "R": R, "t": t, "X": X, "p1": p1, "p2": p2, "E": E[:3], "mask": mask}
+
+
+def _check_pose(out, scene, reference):
+    retval, R, t, mask = out[:4]
+    assert isinstance(retval, int)
+    assert R.shape == (3, 3) and R.dtype == np.float64
+    assert t.shape == (3, 1) and t.dtype == np.float64
+    assert mask.shape == (len(scene["p1"]), 1) and mask.dtype == np.uint8
+    assert np.linalg.norm(t) == pytest.approx(1.0)
+    assert rotation_angle_deg(R, reference[1]) < 1e-4
+    assert angle_between_deg(t, reference[2]) < 1e-4
+    assert abs(retval - reference[0]) <= 3
+    assert retval == np.count_nonzero(mask)
+
+
+def test_form_camera_matrix(scene):
+    args = (scene["E"], scene["p1"], scene["p2"], scene["K"])
+    _check_pose(ppo_cv.recoverPose(*args), scene, OPENCV_RECOVER_POSE(*args))
+    kwargs = {
+        "E": scene["E"], "points1": scene["p1"], "points2": scene["p2"], "cameraMatrix": scene["K"]
+    }
+    _check_pose(ppo_cv.recoverPose(**kwargs), scene, OPENCV_RECOVER_POSE(**kwargs))
+
+
+def test_form_focal_and_principal_point(scene):
+    focal, pp = 800.0, (320.0, 240.0)
+    reference = OPENCV_RECOVER_POSE(scene["E"], scene["p1"], scene["p2"], focal=focal, pp=pp)
+    out = ppo_cv.recoverPose(scene["E"], scene["p1"], scene["p2"], focal=focal, pp=pp)
+    _check_pose(out, scene, reference)
+    positional = ppo_cv.recoverPose(scene["E"], scene["p1"], scene["p2"], None, None, focal, pp)
+    _check_pose(positional, scene, reference)
+
+
+def test_form_focal_defaults_to_normalized_points(scene):
+    x1 = cv2.undistortPoints(scene["p1"].reshape(-1, 1, 2), scene["K"], None)
+    x2 = cv2.undistortPoints(scene["p2"].reshape(-1, 1, 2), scene["K"], None)
+    reference = OPENCV_RECOVER_POSE(scene["E"], x1, x2)
+    _check_pose(ppo_cv.recoverPose(scene["E"], x1, x2), scene, reference)
+
+
+def test_form_distance_threshold_returns_analytic_points(scene):
+    ours = ppo_cv.recoverPose(scene["E"], scene["p1"], scene["p2"], scene["K"], 50.0)
+    reference = OPENCV_RECOVER_POSE(
+        scene["E"], scene["p1"], scene["p2"], scene["K"], distanceThresh=50.0
+    )
+    assert len(ours) == 5
+    _check_pose(ours, scene, reference)
+    points = ours[4]
+    assert points.shape == (4, len(scene["p1"])) and points.dtype == np.float64
+    inliers = ours[3].ravel() > 0
+    inliers[:10] = False  # the outliers of the fixture may pass any pose test by chance
+    euclidean = (points[:3] / points[3]).T[inliers]
+    theirs = reference[4]
+    checks = ((scene["X"][inliers], 0.15), ((theirs[:3] / theirs[3]).T[inliers], 0.01))
+    for expected, tolerance in checks:
+        relative = np.linalg.norm(euclidean - expected, axis=1) / np.linalg.norm(expected, axis=1)
+        assert np.median(relative) < tolerance
+    keyword = ppo_cv.recoverPose(
+        E=scene["E"], points1=scene["p1"], points2=scene["p2"], cameraMatrix=scene["K"],
+        distanceThresh=5.0,
+    )
+    assert keyword[0] < ours[0]
+
+
+def test_form_two_cameras_with_distortion():
+    rng = np.random.default_rng(4)
+    K1 = np.array([[700.0, 0.0, 330.0], [0.0, 710.0, 250.0], [0.0, 0.0, 1.0]])
+    K2 = np.array([[900.0, 0.0, 310.0], [0.0, 905.0, 235.0], [0.0, 0.0, 1.0]])
+    d1, d2 = np.array([-0.2, 0.05, 0.001, -0.001, 0.0]), np.array([0.1, -0.02, 0.0, 0.0, 0.0])
+    R = random_rotation(rng, 10.0)
+    t = np.array([1.0, 0.1, 0.05])
+    X = rng.uniform([-3, -2, 5], [3, 2, 10], (200, 3))
+    p1 = cv2.projectPoints(X, np.zeros(3), np.zeros(3), K1, d1)[0].reshape(-1, 2)
+    p2 = cv2.projectPoints(X, cv2.Rodrigues(R)[0], t, K2, d2)[0].reshape(-1, 2)
+    out = ppo_cv.recoverPose(p1, p2, K1, d1, K2, d2)
+    retval, E, R_out, t_out, mask = out
+    assert E.shape == (3, 3) and mask.shape == (200, 1)
+    assert rotation_angle_deg(R_out, R) < 0.05
+    assert angle_between_deg(t_out, t) < 0.5
+    assert retval >= 190
+    reference = OPENCV_RECOVER_POSE(p1, p2, K1, d1, K2, d2)
+    assert rotation_angle_deg(R_out, reference[2]) < 0.1
+    keyword = ppo_cv.recoverPose(
+        points1=p1, points2=p2, cameraMatrix1=K1, distCoeffs1=d1, cameraMatrix2=K2,
+        distCoeffs2=d2, method=cv2.USAC_MAGSAC, prob=0.999, threshold=1.0,
+    )
+    assert rotation_angle_deg(keyword[2], R) < 0.05
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("shape", ["N2", "N12", "1N2"])
+def test_accepted_shapes_and_dtypes(scene, dtype, shape):
+    def reshape(p):
+        p = p.astype(dtype)
+        return {"N2": p, "N12": p.reshape(-1, 1, 2), "1N2": p.reshape(1, -1, 2)}[shape]
+
+    p1, p2 = reshape(scene["p1"]), reshape(scene["p2"])
+    reference = OPENCV_RECOVER_POSE(scene["E"], p1, p2, scene["K"])
+    _check_pose(ppo_cv.recoverPose(scene["E"], p1, p2, scene["K"]), scene, reference)
+
+
+def test_mask_semantics_follow_opencv(scene):
+    no_mask = ppo_cv.recoverPose(scene["E"], scene["p1"], scene["p2"], scene["K"])
+    assert set(np.unique(no_mask[3])) <= {0, 255}
+    ours = ppo_cv.recoverPose(scene["E"], scene["p1"], scene["p2"], scene["K"], mask=scene["mask"])
+    assert set(np.unique(ours[3])) <= {0, 1}
+    assert not np.any(ours[3].ravel()[scene["mask"].ravel() == 0])
+    reference = OPENCV_RECOVER_POSE(
+        scene["E"], scene["p1"], scene["p2"], scene["K"], mask=scene["mask"].copy()
+    )
+    assert abs(ours[0] - reference[0]) <= 3
+    assert ours[0] <= np.count_nonzero(scene["mask"])
+    ones = np.ones(len(scene["p1"]), dtype=bool)
+    ones[:75] = False
+    subset = ppo_cv.recoverPose(scene["E"], scene["p1"], scene["p2"], scene["K"], mask=ones)
+    assert not subset[3][:75].any() and subset[0] <= 75
+
+
+def test_output_buffers_are_filled_in_place(scene):
+    R_buffer, t_buffer = np.zeros((3, 3)), np.zeros((3, 1))
+    out = ppo_cv.recoverPose(scene["E"], scene["p1"], scene["p2"], scene["K"], R_buffer, t_buffer)
+    assert out[1] is R_buffer and out[2] is t_buffer
+    assert rotation_angle_deg(R_buffer, scene["R"]) < 1.0
+
+
+def test_install_uninstall_and_context_manager(scene):
+    args = (scene["E"], scene["p1"], scene["p2"], scene["K"])
+    try:
+        ppo_cv.install()
+        assert cv2.recoverPose is ppo_cv.recoverPose and ppo_cv.is_installed()
+        _check_pose(cv2.recoverPose(*args), scene, OPENCV_RECOVER_POSE(*args))
+        ppo_cv.uninstall()
+        assert cv2.recoverPose is OPENCV_RECOVER_POSE and not ppo_cv.is_installed()
+        with ppo_cv.installed():
+            assert cv2.recoverPose is ppo_cv.recoverPose
+        assert cv2.recoverPose is OPENCV_RECOVER_POSE
+        with pytest.raises(RuntimeError), ppo_cv.installed():
+            raise RuntimeError("inside")
+        assert cv2.recoverPose is OPENCV_RECOVER_POSE
+    finally:
+        ppo_cv.uninstall()
+
+
+def test_installed_form_with_points_does_not_recurse(scene):
+    with ppo_cv.installed():
+        out = cv2.recoverPose(scene["p1"], scene["p2"], scene["K"], None, scene["K"], None)
+    assert rotation_angle_deg(out[2], scene["R"]) < 1.0
+    assert angle_between_deg(out[3], scene["t"]) < 5.0
+
+
+def test_many_points_and_normalized_equivalence():
+    rng = np.random.default_rng(5)
+    K = np.eye(3)
+    R = random_rotation(rng, 10.0)
+    t = np.array([0.0, 0.0, 1.0])
+    _, p1, p2 = make_scene(rng, 20000, R, t, K)
+    E = np.cross(np.eye(3), t).T @ R  # [t]x R
+    out = ppo_cv.recoverPose(E, p1, p2)
+    assert out[0] >= 0.99 * 20000
+    assert rotation_angle_deg(out[1], R) < 1e-6 and angle_between_deg(out[2], t) < 1e-6

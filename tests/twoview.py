@@ -1,0 +1,52 @@
+"""Synthetic two-view scenes with exact ground truth, shared by the tests."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+
+def skew(v):
+    """The cross-product matrix ``[v]x``."""
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+
+def random_rotation(rng, max_angle_deg: float = 30.0):
+    """A rotation about a random axis by an angle up to ``max_angle_deg``."""
+    axis = rng.normal(size=3)
+    angle = np.radians(rng.uniform(0.5, max_angle_deg))
+    return cv2.Rodrigues(axis / np.linalg.norm(axis) * angle)[0]
+
+
+def project(K, X):
+    """Pixel projections (N, 2) of camera-frame points X (N, 3)."""
+    return (X @ K.T)[:, :2] / X[:, 2:]
+
+
+def make_scene(rng, n, R, t, K1, K2=None, noise_px=0.0, depth=(4.0, 12.0)):
+    """Points in front of both cameras: returns (X1 (N, 3), pixels1, pixels2)."""
+    K2 = K1 if K2 is None else K2
+    X = np.empty((0, 3))
+    while len(X) < n:
+        Y = rng.uniform([-4, -3, depth[0]], [4, 3, depth[1]], (4 * n, 3))
+        Y2 = Y @ R.T + t
+        keep = Y2[:, 2] > 0.5
+        X = np.vstack([X, Y[keep]])
+    X = X[:n]
+    p1 = project(K1, X) + rng.normal(0, noise_px, (n, 2)) * (noise_px > 0)
+    p2 = project(K2, X @ R.T + t) + rng.normal(0, noise_px, (n, 2)) * (noise_px > 0)
+    return X, p1, p2
+
+
+def rotation_angle_deg(Ra, Rb):
+    """Angle of ``Ra^T Rb`` in degrees."""
+    c = np.clip((np.trace(Ra.T @ Rb) - 1) / 2, -1, 1)
+    return float(np.degrees(np.arccos(c)))
+
+
+def angle_between_deg(a, b):
+    """Angle between two vectors in degrees."""
+    a, b = np.ravel(a), np.ravel(b)
+    c = np.clip(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)), -1, 1)
+    return float(np.degrees(np.arccos(c)))
+
