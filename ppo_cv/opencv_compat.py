@@ -170,6 +170,24 @@ def recoverPose(*args: Any, **kwargs: Any) -> tuple:  # noqa: N802 - OpenCV's na
     ------
     TypeError, ValueError
         With a message naming the offending argument.
+
+    Examples
+    --------
+    Existing OpenCV code switches with one line:
+
+    >>> import cv2, numpy as np, ppo_cv
+    >>> rng = np.random.default_rng(0)
+    >>> K = np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]])
+    >>> X = rng.uniform([-2, -2, 5], [2, 2, 9], (100, 3))
+    >>> R, _ = cv2.Rodrigues(np.array([0.0, 0.1, 0.0]))
+    >>> t = np.array([[1.0], [0.0], [0.0]])
+    >>> p1 = cv2.projectPoints(X, np.zeros(3), np.zeros(3), K, None)[0]
+    >>> p2 = cv2.projectPoints(X, cv2.Rodrigues(R)[0], t, K, None)[0]
+    >>> E, mask = cv2.findEssentialMat(p1, p2, K, cv2.RANSAC, 0.999, 1.0)
+    >>> with ppo_cv.installed():
+    ...     retval, R_est, t_est, mask = cv2.recoverPose(E, p1, p2, K, mask=mask)
+    >>> retval, bool(np.allclose(R_est, R, atol=1e-6)), t_est.ravel().round(6).tolist()
+    (100, True, [1.0, 0.0, 0.0])
     """
     form = _form(args, kwargs)
     bound = _bind(form, args, kwargs)

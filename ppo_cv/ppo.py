@@ -259,6 +259,19 @@ def select_pose(
     Returns
     -------
     Selection
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ppo_cv import ppo
+    >>> rng = np.random.default_rng(1)
+    >>> X = rng.uniform([-1, -1, 4], [1, 1, 6], (20, 3))  # points in camera 1
+    >>> t = np.array([0.5, 0.0, 0.0])                       # camera 2 = camera 1 moved, R = I
+    >>> x1, x2 = X[:, :2] / X[:, 2:], (X + t)[:, :2] / (X + t)[:, 2:]
+    >>> E = np.array([[0, 0, 0], [0, 0, -0.5], [0, 0.5, 0]])  # [t]x R
+    >>> sel = ppo.select_pose(E, x1, x2)
+    >>> np.allclose(sel.R, np.eye(3)), sel.t.round(6).tolist(), sel.support_R, sel.support_t
+    (True, [1.0, 0.0, 0.0], 20, 20)
     """
     return _select(E, _planar(x1), _planar(x2), used)
 
