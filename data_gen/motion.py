@@ -1,0 +1,182 @@
+"""Camera-motion presets: intrinsics of both views and the relative pose ``x2 = R x1 + t``.
+
+Camera 1 is ``(I | 0)``; camera 2 has centre ``C2`` (camera-1 coordinates) and rotation ``R``,
+so ``t = -R C2``. Presets:
+
+``general``
+    ``C2`` in a random, mostly lateral direction, ``||C2|| ~ U(0.08, 0.15) * depth``; camera 2
+    looks at the scene's target (jittered) with a small roll (sigma 3 degrees).
+``pure-rotation``
+    ``t = 0`` exactly; Euler angles about X, Y, Z ~ N(0, diag(4^2, 6^2, 8^2)) degrees,
+    truncated at two sigma.
+``small-parallax``
+    The paper's protocol scaled to the scene: ``C2 = alpha * t_max (cos phi, sin phi, 0)`` with
+    ``t_max = 0.14 * depth`` (the paper's 4.2 m at 30 m), ``phi ~ U(0, 2 pi)``, Euler angles
+    ~ N(0, diag(5^2, 5^2, 20^2)) degrees truncated at two sigma; ``alpha`` is given or drawn
+    log-uniformly in [1e-3, 1].
+``forward``
+    ``t = (0, 0, -b)`` exactly along the optical axis (camera 2 is ``b`` metres ahead along its
+    own axis), ``b ~ U(0.1, 0.2) * depth``, small rotation (sigma 1.5, 1.5, 3 degrees).
+``planar``
+    The ``general`` motion, meant for the single-plane scene.
+
+Here ``depth`` is the scene's typical depth (:attr:`Scene.depth`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .protocol import euler_to_matrix
+from .scenes import Scene
+
+__all__ = ["MOTIONS", "DEFAULT_SCENE", "Motion", "intrinsics", "look_at", "sample_motion"]
+
+MOTIONS = ("general", "pure-rotation", "small-parallax", "forward", "planar")
+"""Names accepted by :func:`sample_motion`."""
+
+DEFAULT_SCENE = {
+    "general": "clutter",
+    "pure-rotation": "clutter",
+    "small-parallax": "clutter",
+    "forward": "clutter",
+    "planar": "plane",
+}
+"""Scene used with each motion preset unless another one is asked for."""
+
+PARALLAX_T_MAX_RATIO = 4.2 / 30.0
+
+
+@dataclass(frozen=True)
+class Motion:
+    """Intrinsics and relative pose of a two-view set-up.
+
+    Attributes
+    ----------
+    K1, K2 : ndarray, shape (3, 3)
+    R : ndarray, shape (3, 3)
+    t : ndarray, shape (3,)
+        ``x2 = R x1 + t``.
+    params : dict
+        Preset name and the values drawn (JSON-serialisable).
+    """
+
+    K1: np.ndarray
+    K2: np.ndarray
+    R: np.ndarray
+    t: np.ndarray
+    params: dict = field(default_factory=dict)
+
+
+def intrinsics(size: tuple[int, int], hfov_deg: float, principal_offset=(0.0, 0.0)) -> np.ndarray:
+    """Pinhole ``K`` with square pixels for a horizontal field of view.
+
+    ``f = W / (2 tan(hfov / 2))``, principal point ``((W - 1) / 2, (H - 1) / 2) + offset``.
+    """
+    width, height = size
+    if not 1.0 < hfov_deg < 179.0:
+        raise ValueError(f"hfov_deg must be in (1, 179), got {hfov_deg}")
+    f = width / (2.0 * np.tan(np.deg2rad(hfov_deg) / 2.0))
+    cx = (width - 1) / 2.0 + principal_offset[0]
+    cy = (height - 1) / 2.0 + principal_offset[1]
+    return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
+
+
+def look_at(centre: np.ndarray, target: np.ndarray, roll_deg: float = 0.0) -> np.ndarray:
+    """World-to-camera rotation of a camera at ``centre`` looking at ``target``.
+
+    The camera's Y axis points as close to world +Y (down) as possible; ``roll_deg`` then
+    rotates about the viewing axis. Returns shape (3, 3).
+    """
+    forward = np.asarray(target, float) - np.asarray(centre, float)
+    norm = np.linalg.norm(forward)
+    if norm == 0:
+        raise ValueError("target must differ from centre")
+    forward /= norm
+    right = np.cross([0.0, 1.0, 0.0], forward)
+    right /= np.linalg.norm(right)
+    down = np.cross(forward, right)
+    return euler_to_matrix([0.0, 0.0, roll_deg]) @ np.stack([right, down, forward])
+
+
+def _truncated_normal(rng: np.random.Generator, sigma) -> np.ndarray:
+    sigma = np.asarray(sigma, float)
+    return np.clip(rng.standard_normal(sigma.shape), -2.0, 2.0) * sigma
+
+
+def _camera_intrinsics(rng: np.random.Generator, size, same: bool) -> tuple:
+    def draw():
+        hfov = rng.uniform(55.0, 70.0)
+        offset = rng.uniform(-0.02, 0.02, 2) * np.asarray(size)
+        return intrinsics(size, hfov, offset), hfov
+
+    K1, hfov1 = draw()
+    K2, hfov2 = (K1, hfov1) if same else draw()
+    return K1, K2.copy(), {"hfov1_deg": hfov1, "hfov2_deg": hfov2}
+
+
+def sample_motion(
+    name: str,
+    scene: Scene,
+    rng: np.random.Generator,
+    size: tuple[int, int] = (640, 480),
+    alpha: float | None = None,
+    same_intrinsics: bool = True,
+) -> Motion:
+    """Draw the cameras of preset ``name`` for ``scene`` (see the module docstring).
+
+    Parameters
+    ----------
+    name : {"general", "pure-rotation", "small-parallax", "forward", "planar"}
+    scene : Scene
+        Supplies the look-at target and the typical depth.
+    rng : numpy.random.Generator
+    size : (int, int)
+        Image width and height (for the intrinsics).
+    alpha : float, optional
+        Parallax factor of ``small-parallax`` in (0, 1]; drawn if None.
+    same_intrinsics : bool, default True
+        ``K2 = K1`` if True, else both are drawn independently.
+
+    Returns
+    -------
+    Motion
+    """
+    if name not in MOTIONS:
+        raise ValueError(f"unknown motion {name!r}; choose one of {', '.join(MOTIONS)}")
+    if alpha is not None and (not np.isfinite(alpha) or not 0.0 < alpha <= 1.0):
+        raise ValueError(f"alpha must be in (0, 1], got {alpha}")
+    K1, K2, params = _camera_intrinsics(rng, size, same_intrinsics)
+    params["motion"] = name
+    depth = float(scene.depth)
+    if name in ("general", "planar"):
+        direction = rng.standard_normal(3) * np.array([1.0, 0.4, 0.4])
+        baseline = rng.uniform(0.08, 0.15) * depth
+        centre = baseline * direction / np.linalg.norm(direction)
+        target = scene.target + rng.standard_normal(3) * 0.05 * depth
+        roll = float(_truncated_normal(rng, 3.0))
+        R = look_at(centre, target, roll)
+        t = -R @ centre
+        params.update(baseline=baseline, roll_deg=roll, target=target.tolist())
+    elif name == "pure-rotation":
+        euler = _truncated_normal(rng, [4.0, 6.0, 8.0])
+        R, t = euler_to_matrix(euler), np.zeros(3)
+        params.update(euler_deg=euler.tolist())
+    elif name == "small-parallax":
+        if alpha is None:
+            alpha = float(10.0 ** rng.uniform(-3.0, 0.0))
+        t_max = PARALLAX_T_MAX_RATIO * depth
+        phi = rng.uniform(0.0, 2.0 * np.pi)
+        euler = _truncated_normal(rng, [5.0, 5.0, 20.0])
+        R = euler_to_matrix(euler)
+        centre = alpha * t_max * np.array([np.cos(phi), np.sin(phi), 0.0])
+        t = -R @ centre
+        params.update(alpha=alpha, t_max=t_max, phi=phi, euler_deg=euler.tolist())
+    else:
+        baseline = rng.uniform(0.1, 0.2) * depth
+        euler = _truncated_normal(rng, [1.5, 1.5, 3.0])
+        R, t = euler_to_matrix(euler), np.array([0.0, 0.0, -baseline])
+        params.update(baseline=baseline, euler_deg=euler.tolist())
+    return Motion(K1=K1, K2=K2, R=R, t=np.asarray(t, float), params=params)

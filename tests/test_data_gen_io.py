@@ -1,0 +1,110 @@
+"""Datasets on disk and the ``ppo-cv synth`` command."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from ppo_cv.cli.main import app
+from ppo_cv.data_gen import PAIRS_FILE, make_dataset, make_pair, read_pairs
+from typer.testing import CliRunner
+
+SMALL = (160, 120)
+
+
+def _files(root):
+    return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*"))
+            if p.is_file()}  # fmt: skip
+
+
+def test_same_seed_same_bytes(tmp_path):
+    a = make_dataset(tmp_path / "a", pairs=3, motion="general", seed=5, size=SMALL, workers=1)
+    b = make_dataset(tmp_path / "b", pairs=3, motion="general", seed=5, size=SMALL, workers=2)
+    c = make_dataset(tmp_path / "c", pairs=3, motion="general", seed=6, size=SMALL, workers=1)
+    files_a, files_b, files_c = _files(a), _files(b), _files(c)
+    assert len(files_a) == 3 * 4 + 1
+    assert files_a == files_b
+    assert files_a.keys() == files_c.keys() and files_a != files_c
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+def test_dataset_contents_match_the_rendered_pairs(tmp_path):
+    out = make_dataset(tmp_path / "set", pairs=2, motion="small-parallax", seed=1, size=SMALL,
+                       alpha=0.05, workers=1)  # fmt: skip
+    records = read_pairs(out / PAIRS_FILE)
+    assert len(records) == 2
+    line = (out / PAIRS_FILE).read_text().splitlines()[0].split()
+    assert len(line) == 38 and line[2:4] == ["0", "0"]
+    assert line[-4:] == ["0.000000000000", "0.000000000000", "0.000000000000", "1.000000000000"]
+    for index, record in enumerate(records):
+        pair = make_pair("small-parallax", seed=1, index=index, size=SMALL, alpha=0.05)
+        gt = json.loads((out / "gt" / f"pair_{index:03d}.json").read_text())
+        assert (out / "images" / record["name1"]).is_file()
+        assert gt["image2"] == f"images/{record['name2']}"
+        np.testing.assert_allclose(record["R"], pair.R, atol=1e-11)
+        np.testing.assert_allclose(record["t"], pair.t, atol=1e-11)
+        np.testing.assert_allclose(record["K1"], pair.K1, atol=1e-6)
+        np.testing.assert_array_equal(np.array(gt["R"]), pair.R)
+        np.testing.assert_array_equal(np.array(gt["t"]), pair.t)
+        np.testing.assert_array_equal(np.array(gt["K2"]), pair.K2)
+        assert gt["params"]["motion"] == "small-parallax" and gt["params"]["alpha"] == 0.05
+        np.testing.assert_array_equal(np.load(out / gt["depth1"]), pair.depth1)
+
+
+def test_pairs_file_reads_like_the_freiburg_one():
+    from pathlib import Path
+
+    freiburg = Path(__file__).resolve().parents[2] / "shared/data/freiburg/pairs_with_gt.txt"
+    if not freiburg.is_file():
+        pytest.skip("freiburg pairs not available")
+    record = read_pairs(freiburg)[0]
+    assert record["K1"][0, 0] == pytest.approx(535.4)
+    np.testing.assert_allclose(record["R"] @ record["R"].T, np.eye(3), atol=1e-6)
+
+
+def test_existing_directory_is_refused(tmp_path):
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "x").write_text("keep")
+    with pytest.raises(FileExistsError):
+        make_dataset(tmp_path / "full", pairs=1, size=SMALL)
+    with pytest.raises(ValueError, match="unknown motion"):
+        make_dataset(tmp_path / "new", pairs=1, motion="orbit", size=SMALL)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["full"]
+
+
+def test_cli_writes_a_dataset(tmp_path):
+    out = tmp_path / "synth"
+    result = CliRunner().invoke(app, ["synth", str(out), "--pairs", "2", "--motion",
+                                      "pure-rotation", "--seed", "4", "--width", "160",
+                                      "--height", "120", "--workers", "1"])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    records = read_pairs(out / PAIRS_FILE)
+    assert len(records) == 2 and all(np.all(r["t"] == 0) for r in records)
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--motion", "orbit"], "unknown motion"),
+        (["--pairs", "0"], "--pairs"),
+        (["--seed", "-3"], "--seed"),
+        (["--alpha", "2"], "--alpha"),
+        (["--scene", "garden"], "unknown scene"),
+        (["--width", "4"], "--width"),
+    ],
+)
+def test_cli_bad_input_exits_2_with_one_line(tmp_path, args, message):
+    out = tmp_path / "synth"
+    result = CliRunner().invoke(app, ["synth", str(out), *args])
+    assert result.exit_code == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0] and "Traceback" not in result.output
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_cli_refuses_a_non_empty_directory(tmp_path):
+    (tmp_path / "x").write_text("keep")
+    result = CliRunner().invoke(app, ["synth", str(tmp_path), "--pairs", "1"])
+    assert result.exit_code == 2 and "not an empty directory" in result.stderr
+    assert [p.name for p in tmp_path.iterdir()] == ["x"]
