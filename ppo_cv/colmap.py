@@ -1,0 +1,418 @@
+"""pycolmap interop: cameras, relative poses and two-view geometries in COLMAP's conventions.
+
+COLMAP names a transform by its direction: ``cam2_from_cam1`` maps a point from camera-1
+coordinates to camera-2 coordinates, ``X2 = R X1 + t``, which is exactly the ``(R, t)`` of
+:class:`~ppo_cv.pose.PoseResult`; an image's ``cam_from_world`` maps world points into that
+camera. Its essential matrix satisfies ``x2^T E x1 = 0`` on normalized rays, as ours does.
+A pure rotation is COLMAP's ``PANORAMIC`` configuration, with ``t = 0``.
+
+Examples
+--------
+>>> import numpy as np
+>>> from ppo_cv import colmap
+>>> rigid = colmap.rigid3d_from_pose(np.eye(3), np.array([1.0, 0.0, 0.0]))
+>>> R, t = colmap.pose_from_rigid3d(rigid.inverse())
+>>> t.tolist()
+[-1.0, 0.0, 0.0]
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pycolmap
+
+from . import ppo
+from .checks import as_camera_matrix, as_point_pair
+from .pose import PoseResult, recover_pose
+
+__all__ = [
+    "TwoViewEstimate",
+    "camera_from_K",
+    "K_from_camera",
+    "rays_from_camera",
+    "rigid3d_from_pose",
+    "pose_from_rigid3d",
+    "relative_pose",
+    "triangulation_angles",
+    "median_tri_angle",
+    "two_view_geometry_from_pose",
+    "recover_pose_from_geometry",
+    "estimate_two_view_geometry",
+    "two_view_reconstruction",
+]
+
+Config = pycolmap.TwoViewGeometryConfiguration
+_POSED_CONFIGS = frozenset(
+    int(c)
+    for c in (
+        Config.CALIBRATED,
+        Config.UNCALIBRATED,
+        Config.PLANAR,
+        Config.PANORAMIC,
+        Config.PLANAR_OR_PANORAMIC,
+    )
+)
+_PINHOLE_MODELS = ("SIMPLE_PINHOLE", "PINHOLE")
+
+
+@dataclass(frozen=True)
+class TwoViewEstimate:
+    """A pycolmap two-view geometry whose pose was chosen by the PPO inequalities.
+
+    Attributes
+    ----------
+    geometry : pycolmap.TwoViewGeometry
+        ``config``, ``E``, ``F``, ``H`` and ``inlier_matches`` as pycolmap's robust estimation
+        found them; ``cam2_from_cam1`` and ``tri_angle`` (radians) from PPO. ``config`` is
+        ``PANORAMIC`` when PPO detects a pure rotation; when pycolmap called the pair
+        panoramic but PPO measures parallax, ``CALIBRATED`` (``PLANAR`` for pycolmap's
+        ``PLANAR_OR_PANORAMIC``).
+    pose : PoseResult or None
+        The PPO result on the rows of ``geometry.inlier_matches``; None when pycolmap found no
+        usable geometry (too few matches, degenerate or watermark).
+    """
+
+    geometry: Any
+    pose: PoseResult | None
+
+    @property
+    def success(self) -> bool:
+        """Whether a pose was recovered."""
+        return self.pose is not None
+
+
+def camera_from_K(K: Any, width: int, height: int) -> pycolmap.Camera:
+    """A ``PINHOLE`` pycolmap camera ``(fx, fy, cx, cy)`` from a 3x3 intrinsic matrix.
+
+    Raises
+    ------
+    ValueError
+        If ``K`` is not a valid camera matrix, has skew, or the image size is not positive.
+    """
+    K = as_camera_matrix(K, "K")
+    if K[0, 1] != 0:
+        raise ValueError(f"K has skew {K[0, 1]}; a COLMAP PINHOLE camera has none")
+    if int(width) <= 0 or int(height) <= 0:
+        raise ValueError(f"image size must be positive, got {width}x{height}")
+    return pycolmap.Camera(
+        model="PINHOLE",
+        width=int(width),
+        height=int(height),
+        params=[K[0, 0], K[1, 1], K[0, 2], K[1, 2]],
+    )
+
+
+def K_from_camera(camera: pycolmap.Camera) -> np.ndarray:
+    """The 3x3 intrinsic matrix of a ``SIMPLE_PINHOLE`` or ``PINHOLE`` camera.
+
+    Raises
+    ------
+    ValueError
+        For models with distortion, which no 3x3 matrix describes; use
+        :func:`rays_from_camera` for those.
+    """
+    if camera.model_name not in _PINHOLE_MODELS:
+        raise ValueError(
+            f"camera model {camera.model_name} has distortion; K alone cannot describe it"
+        )
+    return np.asarray(camera.calibration_matrix(), dtype=np.float64)
+
+
+def rays_from_camera(camera: pycolmap.Camera, points: np.ndarray) -> np.ndarray:
+    """Normalized image points (N, 2) of pixel points (N, 2), undistorted by the camera model."""
+    return np.asarray(camera.cam_from_img(np.ascontiguousarray(points, dtype=np.float64)))
+
+
+def rigid3d_from_pose(R: Any, t: Any) -> pycolmap.Rigid3d:
+    """``cam2_from_cam1`` as a pycolmap ``Rigid3d`` from ``X2 = R X1 + t``."""
+    R = np.asarray(R, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64).reshape(-1)
+    if R.shape != (3, 3) or t.shape != (3,):
+        raise ValueError(f"R must be 3x3 and t of length 3, got {R.shape} and {t.shape}")
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+        raise ValueError("R is not a rotation matrix")
+    return pycolmap.Rigid3d(pycolmap.Rotation3d(R), t)
+
+
+def pose_from_rigid3d(rigid: pycolmap.Rigid3d) -> tuple[np.ndarray, np.ndarray]:
+    """``(R, t)`` of a pycolmap ``Rigid3d``: ``target = R source + t``."""
+    return np.array(rigid.rotation.matrix(), dtype=np.float64), np.array(
+        rigid.translation, dtype=np.float64
+    ).reshape(3)
+
+
+def relative_pose(
+    reconstruction: pycolmap.Reconstruction, image_id1: int, image_id2: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """``cam2_from_cam1`` of two registered images: ``cam2_from_world * inverse(cam1_from_world)``.
+
+    The translation carries the reconstruction's scale.
+    """
+    cam1 = reconstruction.image(image_id1).cam_from_world()
+    cam2 = reconstruction.image(image_id2).cam_from_world()
+    return pose_from_rigid3d(cam2 * cam1.inverse())
+
+
+def triangulation_angles(points3d: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Angle (radians) at each point between the rays to both camera centres, shape (N,).
+
+    ``points3d`` (N, 3) are in camera-1 coordinates; camera 2 sits at ``-R^T t``. NaN points
+    give NaN.
+    """
+    center2 = -np.asarray(R).T @ np.asarray(t)
+    ray1 = points3d
+    ray2 = points3d - center2
+    cos = np.einsum("ij,ij->i", ray1, ray2) / (
+        np.linalg.norm(ray1, axis=1) * np.linalg.norm(ray2, axis=1)
+    )
+    return np.arccos(np.clip(cos, -1.0, 1.0))
+
+
+def median_tri_angle(pose: PoseResult) -> float:
+    """Median triangulation angle (radians) of the analytic points of the PPO inliers.
+
+    0 for a pure rotation or without inliers, as COLMAP's ``tri_angle`` of a panoramic pair.
+    """
+    if pose.pure_rotation or not pose.inliers.any():
+        return 0.0
+    angles = triangulation_angles(pose.points3d[pose.inliers], pose.R, pose.t)
+    angles = angles[np.isfinite(angles)]
+    return float(np.median(angles)) if angles.size else 0.0
+
+
+def two_view_geometry_from_pose(
+    pose: PoseResult, E: Any = None, matches: Any = None
+) -> pycolmap.TwoViewGeometry:
+    """A pycolmap ``TwoViewGeometry`` carrying a PPO pose.
+
+    Parameters
+    ----------
+    pose : PoseResult
+        From :func:`ppo_cv.recover_pose`; sets ``cam2_from_cam1`` (``t = 0`` for a pure
+        rotation, as COLMAP stores panoramic pairs), ``config`` (``PANORAMIC`` or
+        ``CALIBRATED``) and ``tri_angle`` (median over the inliers, radians).
+    E : array_like, shape (3, 3), optional
+        The essential matrix the pose came from.
+    matches : array_like of int, shape (N, 2), optional
+        Keypoint indices of the N correspondences given to ``recover_pose``; the rows of the
+        PPO inliers become ``inlier_matches``.
+    """
+    geometry = pycolmap.TwoViewGeometry()
+    geometry.config = Config.PANORAMIC if pose.pure_rotation else Config.CALIBRATED
+    t = np.zeros(3) if pose.pure_rotation else pose.t
+    geometry.cam2_from_cam1 = rigid3d_from_pose(pose.R, t)
+    geometry.tri_angle = median_tri_angle(pose)
+    if E is not None:
+        geometry.E = np.asarray(E, dtype=np.float64)
+    if matches is not None:
+        matches = np.asarray(matches)
+        if matches.shape != (pose.inliers.shape[0], 2):
+            raise ValueError(
+                f"matches must have shape ({pose.inliers.shape[0]}, 2), got {matches.shape}"
+            )
+        geometry.inlier_matches = np.ascontiguousarray(matches[pose.inliers], dtype=np.uint32)
+    return geometry
+
+
+def recover_pose_from_geometry(
+    geometry: pycolmap.TwoViewGeometry,
+    camera1: pycolmap.Camera,
+    keypoints1: Any,
+    camera2: pycolmap.Camera,
+    keypoints2: Any,
+    *,
+    pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD,
+) -> PoseResult:
+    """PPO pose from pycolmap's essential matrix and inlier matches (no cheirality test).
+
+    Parameters
+    ----------
+    geometry : pycolmap.TwoViewGeometry
+        With ``E`` and ``inlier_matches`` (e.g. read from a COLMAP database). Without ``E``
+        (uncalibrated verification) one is estimated from the inlier matches by pycolmap's
+        five-point LO-RANSAC.
+    camera1, camera2 : pycolmap.Camera
+        Any COLMAP camera model; points are undistorted by it.
+    keypoints1, keypoints2 : array_like, shape (M1, >=2), (M2, >=2)
+        All keypoints of each image (COLMAP keypoint rows: ``x, y`` first); the matches index
+        them.
+
+    Returns
+    -------
+    PoseResult
+        Per-point fields follow the rows of ``geometry.inlier_matches``.
+
+    Raises
+    ------
+    ValueError
+        If the geometry has fewer than 5 inlier matches or no essential matrix can be found.
+    """
+    matches = np.asarray(geometry.inlier_matches, dtype=np.int64).reshape(-1, 2)
+    points1, points2 = as_point_pair(
+        np.asarray(keypoints1, dtype=np.float64)[matches[:, 0], :2],
+        np.asarray(keypoints2, dtype=np.float64)[matches[:, 1], :2],
+    )
+    E = geometry.E
+    if E is None or not np.any(E):
+        E = _essential_by_five_point(camera1, points1, camera2, points2)
+    x1, x2 = rays_from_camera(camera1, points1), rays_from_camera(camera2, points2)
+    return recover_pose(E, x1, x2, np.eye(3), pri_threshold=pri_threshold)
+
+
+def _essential_by_five_point(
+    camera1: pycolmap.Camera, points1: np.ndarray, camera2: pycolmap.Camera, points2: np.ndarray
+) -> np.ndarray:
+    options = pycolmap.RANSACOptions()
+    options.max_error = 2.0
+    result = pycolmap.estimate_relative_pose(camera1, points1, camera2, points2, options)
+    if result is None:
+        raise ValueError("no essential matrix could be estimated from the inlier matches")
+    R, t = pose_from_rigid3d(result["cam2_from_cam1"])
+    return _skew(t) @ R
+
+
+def _skew(t: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
+
+
+def estimate_two_view_geometry(
+    camera1: pycolmap.Camera,
+    points1: Any,
+    camera2: pycolmap.Camera,
+    points2: Any,
+    matches: Any = None,
+    options: pycolmap.TwoViewGeometryOptions | None = None,
+    *,
+    pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD,
+) -> TwoViewEstimate:
+    """pycolmap's calibrated two-view estimation with the pose chosen by PPO.
+
+    The counterpart of ``pycolmap.estimate_calibrated_two_view_geometry`` followed by
+    ``pycolmap.estimate_two_view_geometry_pose``: the robust model fit and inlier matches are
+    pycolmap's, while ``(R, t)`` comes from the same-side and intersection inequalities on its
+    essential matrix instead of triangulation and cheirality, and a pure rotation is detected
+    by PRI rather than by the homography inlier ratio.
+
+    Parameters
+    ----------
+    camera1, camera2 : pycolmap.Camera
+    points1, points2 : array_like, shape (M1, 2), (M2, 2)
+        Keypoints of each image, pixels.
+    matches : array_like of int, shape (K, 2), optional
+        Index pairs into ``points1`` and ``points2``; by default row i matches row i.
+    options : pycolmap.TwoViewGeometryOptions, optional
+        pycolmap's defaults with RANSAC seed 0 (deterministic) when omitted.
+    pri_threshold : float
+
+    Returns
+    -------
+    TwoViewEstimate
+    """
+    points1 = np.ascontiguousarray(points1, dtype=np.float64)
+    points2 = np.ascontiguousarray(points2, dtype=np.float64)
+    if matches is None:
+        if points1.shape != points2.shape:
+            raise ValueError(
+                f"without matches points1 and points2 must have equal shapes, "
+                f"got {points1.shape} and {points2.shape}"
+            )
+        matches = np.repeat(np.arange(points1.shape[0], dtype=np.uint32)[:, None], 2, axis=1)
+    matches = np.ascontiguousarray(matches, dtype=np.uint32)
+    if options is None:
+        options = pycolmap.TwoViewGeometryOptions()
+        options.ransac.random_seed = 0
+    geometry = pycolmap.estimate_calibrated_two_view_geometry(
+        camera1, points1, camera2, points2, matches, options
+    )
+    if int(geometry.config) not in _POSED_CONFIGS or len(geometry.inlier_matches) < 5:
+        return TwoViewEstimate(geometry=geometry, pose=None)
+    pose = recover_pose_from_geometry(
+        geometry, camera1, points1, camera2, points2, pri_threshold=pri_threshold
+    )
+    if pose.pure_rotation:
+        geometry.config = Config.PANORAMIC
+    elif int(geometry.config) == int(Config.PANORAMIC):
+        geometry.config = Config.CALIBRATED
+    elif int(geometry.config) == int(Config.PLANAR_OR_PANORAMIC):
+        geometry.config = Config.PLANAR
+    geometry.cam2_from_cam1 = rigid3d_from_pose(
+        pose.R, np.zeros(3) if pose.pure_rotation else pose.t
+    )
+    geometry.tri_angle = median_tri_angle(pose)
+    return TwoViewEstimate(geometry=geometry, pose=pose)
+
+
+def two_view_reconstruction(
+    camera1: pycolmap.Camera,
+    camera2: pycolmap.Camera,
+    image1: pycolmap.Image,
+    image2: pycolmap.Image,
+    keypoints1: Any,
+    keypoints2: Any,
+    matches: Any,
+    pose: PoseResult,
+    *,
+    min_tri_angle: float = 1.5,
+) -> pycolmap.Reconstruction:
+    """A two-view COLMAP reconstruction from a PPO pose and its analytic points (eq. 36).
+
+    The world frame is camera 1; camera 2 is ``cam2_from_world = (R, t)`` with the unit
+    baseline of ``pose``. Each match that is a PPO inlier, has a finite analytic point and a
+    triangulation angle of at least ``min_tri_angle`` degrees becomes a 3D point with a track
+    of length two. Nothing is refined: run ``pycolmap.bundle_adjustment`` on the result if
+    needed.
+
+    Parameters
+    ----------
+    camera1, camera2 : pycolmap.Camera
+        With their ``camera_id`` (equal ids mean one shared camera).
+    image1, image2 : pycolmap.Image
+        Name, ``image_id`` and ``camera_id`` are used (e.g. from a COLMAP database).
+    keypoints1, keypoints2 : array_like, shape (M1, >=2), (M2, >=2)
+        All keypoints of each image; they become the images' ``points2D``.
+    matches : array_like of int, shape (N, 2)
+        The keypoint index pairs ``pose`` was computed on.
+    pose : PoseResult
+        From :func:`recover_pose_from_geometry` or :func:`ppo_cv.recover_pose`; not a pure
+        rotation.
+
+    Raises
+    ------
+    ValueError
+        For a pure rotation (no structure to build) or mismatched ``matches``.
+    """
+    if pose.pure_rotation:
+        raise ValueError("a pure rotation has no two-view structure")
+    matches = np.asarray(matches, dtype=np.int64).reshape(-1, 2)
+    if matches.shape[0] != pose.inliers.shape[0]:
+        raise ValueError(
+            f"matches has {matches.shape[0]} rows but the pose has {pose.inliers.shape[0]} points"
+        )
+    reconstruction = pycolmap.Reconstruction()
+    for camera in {camera1.camera_id: camera1, camera2.camera_id: camera2}.values():
+        reconstruction.add_camera_with_trivial_rig(camera)
+    poses = (pycolmap.Rigid3d(), rigid3d_from_pose(pose.R, pose.t))
+    for image, keypoints, cam_from_world in zip(
+        (image1, image2), (keypoints1, keypoints2), poses, strict=True
+    ):
+        xy = np.ascontiguousarray(np.asarray(keypoints, dtype=np.float64)[:, :2])
+        reconstruction.add_image_with_trivial_frame(
+            pycolmap.Image(
+                name=image.name, keypoints=xy, camera_id=image.camera_id, image_id=image.image_id
+            ),
+            cam_from_world,
+        )
+    points = pose.points3d
+    angles = triangulation_angles(points, pose.R, pose.t)
+    keep = pose.inliers & np.all(np.isfinite(points), axis=1)
+    keep &= np.degrees(np.nan_to_num(angles)) >= min_tri_angle
+    id1, id2 = image1.image_id, image2.image_id
+    for (index1, index2), xyz in zip(matches[keep].tolist(), points[keep], strict=True):
+        track = pycolmap.Track(
+            [pycolmap.TrackElement(id1, index1), pycolmap.TrackElement(id2, index2)]
+        )
+        reconstruction.add_point3D(xyz, track)
+    return reconstruction

@@ -1,0 +1,714 @@
+"""Initial pair selection for incremental structure from motion, and the reconstruction it seeds.
+
+An incremental reconstruction grows from one image pair, and a pair without parallax (a camera
+turning on a tripod, or barely moving) is the classic way it fails: its relative pose and its
+triangulated points are unconstrained. Here every verified pair of a COLMAP database gets a PPO
+pose from pycolmap's essential matrix and inlier matches, and a score:
+
+* rejected when PPO reports a pure rotation (PRI below its threshold), when fewer than
+  ``min_inliers`` matches satisfy both PPO inequalities, when the median triangulation angle of
+  the analytic points is below ``min_tri_angle`` degrees, or for a near forward motion
+  (``|t_z| > max_forward_motion``, the epipole deep inside the image);
+* otherwise ``score = num_inliers * min(1, tri_angle / target_tri_angle)``: many inliers, and
+  parallax up to the angle beyond which depth is well conditioned.
+
+The best pair seeds pycolmap's incremental mapper, either as a two-view reconstruction from the
+PPO pose and analytic points or through pycolmap's initial-pair options, and the mapper
+registers the other images. :func:`run_sfm` does everything from an image folder.
+
+Examples
+--------
+>>> from ppo_cv import sfm
+>>> K = [[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, 1]]
+>>> result = sfm.run_sfm("images/", "model/", K=K)  # doctest: +SKIP
+>>> result.num_registered, result.initial_pair  # doctest: +SKIP
+(17, ('1341847987.758741.png', '1341847988.769740.png'))
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import tempfile
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pycolmap
+
+from . import colmap, ppo
+from .checks import as_camera_matrix, as_positive
+
+__all__ = [
+    "INITIALIZATIONS",
+    "SEEDINGS",
+    "PairScore",
+    "SfmResult",
+    "prepare_database",
+    "score_pose",
+    "score_pairs",
+    "reconstruct",
+    "run_sfm",
+    "list_images",
+    "format_pairs",
+    "write_model",
+]
+
+INITIALIZATIONS = ("ppo", "colmap")
+"""``ppo``: the best-scored pair seeds the mapper; ``colmap``: pycolmap's own initialisation."""
+
+SEEDINGS = ("two-view", "pair-options")
+"""How a PPO pair seeds the mapper: a two-view reconstruction from the PPO pose and analytic
+points, or pycolmap's initial-pair options (pycolmap then estimates the pair itself)."""
+
+_UNUSABLE_CONFIGS = frozenset(
+    int(c)
+    for c in (
+        pycolmap.TwoViewGeometryConfiguration.UNDEFINED,
+        pycolmap.TwoViewGeometryConfiguration.DEGENERATE,
+        pycolmap.TwoViewGeometryConfiguration.WATERMARK,
+    )
+)
+IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".ppm", ".pgm")
+
+Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True)
+class PairScore:
+    """A candidate initial pair and the PPO evidence behind its score.
+
+    Attributes
+    ----------
+    image_id1, image_id2 : int
+        Database image ids.
+    name1, name2 : str
+        Image names.
+    num_matches : int
+        Verified (inlier) matches in the database.
+    num_inliers : int
+        Matches satisfying both PPO inequalities.
+    pri : float
+        Pure-rotation indicator of the pair.
+    pure_rotation : bool
+        ``pri < pri_threshold``.
+    tri_angle : float
+        Median triangulation angle of the analytic points of the inliers, degrees.
+    score : float
+        ``num_inliers * min(1, tri_angle / target_tri_angle)``; 0 when rejected.
+    rejection : str
+        Why the pair cannot seed a reconstruction; empty when it can.
+    R : ndarray, shape (3, 3)
+    t : ndarray, shape (3,)
+        PPO pose ``cam2_from_cam1``, unit ``t``.
+    """
+
+    image_id1: int
+    image_id2: int
+    name1: str
+    name2: str
+    num_matches: int
+    num_inliers: int
+    pri: float
+    pure_rotation: bool
+    tri_angle: float
+    score: float
+    rejection: str
+    R: np.ndarray = field(repr=False)
+    t: np.ndarray = field(repr=False)
+
+    @property
+    def accepted(self) -> bool:
+        """Whether the pair may seed a reconstruction."""
+        return not self.rejection
+
+
+@dataclass(frozen=True)
+class SfmResult:
+    """An incremental reconstruction and how it was initialised.
+
+    Attributes
+    ----------
+    reconstruction : pycolmap.Reconstruction or None
+        The model with the most registered images; None when nothing was reconstructed.
+    initialization : str
+        One of :data:`INITIALIZATIONS`.
+    initial_pair : tuple of (str, str) or None
+        Names of the two images the mapper started from.
+    pairs : tuple of PairScore
+        The ranked candidates (``ppo`` initialisation only), best first.
+    num_images : int
+        Images in the database.
+    num_registered : int
+        Images registered in ``reconstruction``.
+    num_points3D : int
+    mean_reprojection_error : float
+        Pixels; NaN without a reconstruction.
+    num_models : int
+        Reconstructions pycolmap produced (more than one when the scene fell apart).
+    elapsed : float
+        Wall time of the pair scoring and the mapping, seconds (feature extraction and
+        matching excluded).
+    """
+
+    reconstruction: Any
+    initialization: str
+    initial_pair: tuple[str, str] | None
+    pairs: tuple[PairScore, ...]
+    num_images: int
+    num_registered: int
+    num_points3D: int
+    mean_reprojection_error: float
+    num_models: int
+    elapsed: float
+
+    @property
+    def all_registered(self) -> bool:
+        """Whether every image of the database is in the reconstruction."""
+        return self.num_images > 0 and self.num_registered == self.num_images
+
+
+@contextlib.contextmanager
+def _quiet(verbose: bool) -> Iterator[None]:
+    if verbose:
+        yield
+        return
+    previous = pycolmap.logging.minloglevel
+    pycolmap.logging.minloglevel = 2
+    try:
+        yield
+    finally:
+        pycolmap.logging.minloglevel = previous
+
+
+def _say(progress: Progress | None, message: str) -> None:
+    if progress is not None:
+        progress(message)
+
+
+def list_images(image_dir: str | os.PathLike) -> list[str]:
+    """Names of the image files directly in ``image_dir``, sorted."""
+    image_dir = Path(image_dir)
+    if not image_dir.is_dir():
+        raise ValueError(f"image folder {str(image_dir)!r} does not exist")
+    return sorted(
+        p.name for p in image_dir.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_EXTENSIONS
+    )
+
+
+def prepare_database(
+    image_dir: str | os.PathLike,
+    database_path: str | os.PathLike,
+    *,
+    K: Any = None,
+    max_num_features: int = 8192,
+    num_threads: int = 2,
+    seed: int = 0,
+    verbose: bool = False,
+    progress: Progress | None = None,
+) -> int:
+    """Extract SIFT features and match all pairs with pycolmap into a new database.
+
+    Parameters
+    ----------
+    image_dir : path
+        Folder of images (one camera).
+    database_path : path
+        The database to create; it must not exist yet.
+    K : array_like, shape (3, 3), optional
+        Known intrinsics: one ``PINHOLE`` camera with a prior focal length, so that pycolmap
+        verifies pairs with an essential matrix. Without it pycolmap guesses a
+        ``SIMPLE_RADIAL`` camera from the image size.
+    max_num_features : int
+        SIFT features per image.
+    num_threads : int
+    seed : int
+        Random seed of pycolmap's geometric verification (RANSAC).
+    verbose : bool
+        Let pycolmap log to stderr.
+    progress : callable, optional
+        Called with a one-line message at each stage.
+
+    Returns
+    -------
+    int
+        Number of images in the database.
+    """
+    names = list_images(image_dir)
+    if len(names) < 2:
+        raise ValueError(f"need at least 2 images in {str(image_dir)!r}, found {len(names)}")
+    database_path = Path(database_path)
+    if database_path.exists():
+        raise ValueError(f"database {str(database_path)!r} already exists")
+    reader = pycolmap.ImageReaderOptions()
+    if K is not None:
+        K = as_camera_matrix(K, "K")
+        reader.camera_model = "PINHOLE"
+        reader.camera_params = ",".join(
+            repr(float(v)) for v in (K[0, 0], K[1, 1], K[0, 2], K[1, 2])
+        )
+    extraction = pycolmap.FeatureExtractionOptions()
+    extraction.num_threads = num_threads
+    extraction.use_gpu = False
+    extraction.sift.max_num_features = int(max_num_features)
+    matching = pycolmap.FeatureMatchingOptions()
+    matching.num_threads = num_threads
+    matching.use_gpu = False
+    verification = pycolmap.TwoViewGeometryOptions()
+    verification.ransac.random_seed = seed
+    with _quiet(verbose):
+        _say(progress, f"extracting SIFT features from {len(names)} images")
+        pycolmap.extract_features(
+            database_path,
+            image_dir,
+            image_names=names,
+            camera_mode=pycolmap.CameraMode.SINGLE,
+            reader_options=reader,
+            extraction_options=extraction,
+            device=pycolmap.Device.cpu,
+        )
+        _say(progress, f"matching {len(names) * (len(names) - 1) // 2} image pairs")
+        pycolmap.match_exhaustive(
+            database_path,
+            matching_options=matching,
+            verification_options=verification,
+            device=pycolmap.Device.cpu,
+        )
+    with pycolmap.Database.open(database_path) as database:
+        return int(database.num_images())
+
+
+def score_pose(
+    pose: Any,
+    *,
+    min_inliers: int = 50,
+    min_tri_angle: float = 1.0,
+    target_tri_angle: float = 8.0,
+    max_forward_motion: float = 0.95,
+) -> tuple[float, float, str]:
+    """Score a PPO pose as an initial pair.
+
+    Parameters
+    ----------
+    pose : PoseResult
+    min_inliers : int
+        Fewer PPO inliers reject the pair.
+    min_tri_angle, target_tri_angle : float
+        Degrees. Median triangulation angles below ``min_tri_angle`` reject the pair; the score
+        grows linearly with the angle up to ``target_tri_angle``.
+    max_forward_motion : float
+        A unit translation with ``|t_z|`` above it is rejected.
+
+    Returns
+    -------
+    score : float
+        ``num_inliers * min(1, tri_angle / target_tri_angle)``, 0 when rejected.
+    tri_angle : float
+        Median triangulation angle of the inliers, degrees (0 for a pure rotation).
+    rejection : str
+        Empty when accepted, else the reason.
+    """
+    target_tri_angle = as_positive(target_tri_angle, "target_tri_angle")
+    tri_angle = float(np.degrees(colmap.median_tri_angle(pose)))
+    if pose.pure_rotation:
+        rejection = f"pure rotation (PRI {pose.pri:.4f} < {pose.pri_threshold})"
+    elif pose.num_inliers < min_inliers:
+        rejection = f"too few inliers ({pose.num_inliers} < {min_inliers})"
+    elif tri_angle < min_tri_angle:
+        rejection = f"small parallax ({tri_angle:.2f} < {min_tri_angle} deg)"
+    elif abs(pose.t[2]) > max_forward_motion:
+        rejection = f"forward motion (|t_z| {abs(pose.t[2]):.3f} > {max_forward_motion})"
+    else:
+        rejection = ""
+    score = 0.0 if rejection else pose.num_inliers * min(1.0, tri_angle / target_tri_angle)
+    return float(score), tri_angle, rejection
+
+
+def score_pairs(
+    database_path: str | os.PathLike,
+    *,
+    pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD,
+    min_inliers: int = 50,
+    min_tri_angle: float = 1.0,
+    target_tri_angle: float = 8.0,
+    max_forward_motion: float = 0.95,
+) -> list[PairScore]:
+    """Score every verified image pair of a COLMAP database as an initial pair.
+
+    The pose of each pair comes from :func:`ppo_cv.colmap.recover_pose_from_geometry` on the
+    pair's stored essential matrix and inlier matches; see :func:`score_pose` for the score.
+
+    Returns
+    -------
+    list of PairScore
+        Accepted pairs by decreasing score, then the rejected ones by decreasing inlier count.
+    """
+    database_path = Path(database_path)
+    if not database_path.is_file():
+        raise ValueError(f"database {str(database_path)!r} does not exist")
+    scores = []
+    with pycolmap.Database.open(database_path) as database:
+        cameras = {c.camera_id: c for c in database.read_all_cameras()}
+        images = {i.image_id: i for i in database.read_all_images()}
+        keypoints: dict[int, np.ndarray] = {}
+        pair_ids, geometries = database.read_two_view_geometries()
+        for pair_id, geometry in zip(pair_ids, geometries, strict=True):
+            id1, id2 = pycolmap.pair_id_to_image_pair(pair_id)
+            for image_id in (id1, id2):
+                if image_id not in keypoints:
+                    keypoints[image_id] = database.read_keypoints(image_id)
+            scores.append(
+                _score_geometry(
+                    geometry,
+                    images[id1],
+                    images[id2],
+                    cameras,
+                    keypoints,
+                    pri_threshold=pri_threshold,
+                    min_inliers=min_inliers,
+                    min_tri_angle=min_tri_angle,
+                    target_tri_angle=target_tri_angle,
+                    max_forward_motion=max_forward_motion,
+                )
+            )
+    return sorted(scores, key=lambda s: (not s.accepted, -s.score, -s.num_inliers))
+
+
+def _score_geometry(
+    geometry, image1, image2, cameras, keypoints, *, pri_threshold, **criteria
+) -> PairScore:
+    common = {
+        "image_id1": int(image1.image_id),
+        "image_id2": int(image2.image_id),
+        "name1": image1.name,
+        "name2": image2.name,
+        "num_matches": len(geometry.inlier_matches),
+    }
+    config = int(geometry.config)
+    try:
+        if config in _UNUSABLE_CONFIGS:
+            name = pycolmap.TwoViewGeometryConfiguration(config).name
+            raise ValueError(f"{name} two-view geometry")
+        pose = colmap.recover_pose_from_geometry(
+            geometry,
+            cameras[image1.camera_id],
+            keypoints[image1.image_id],
+            cameras[image2.camera_id],
+            keypoints[image2.image_id],
+            pri_threshold=pri_threshold,
+        )
+    except ValueError as exc:
+        return PairScore(
+            **common, num_inliers=0, pri=float("nan"), pure_rotation=False, tri_angle=0.0,
+            score=0.0, rejection=f"no pose ({exc})", R=np.eye(3), t=np.zeros(3),
+        )  # fmt: skip
+    score, tri_angle, rejection = score_pose(pose, **criteria)
+    return PairScore(
+        **common, num_inliers=pose.num_inliers, pri=float(pose.pri),
+        pure_rotation=bool(pose.pure_rotation), tri_angle=tri_angle, score=score,
+        rejection=rejection, R=pose.R, t=pose.t,
+    )  # fmt: skip
+
+
+def _pipeline_options(
+    image_dir: Path, fix_intrinsics: bool, num_threads: int, seed: int
+) -> pycolmap.IncrementalPipelineOptions:
+    options = pycolmap.IncrementalPipelineOptions()
+    options.num_threads = num_threads
+    options.random_seed = seed
+    options.image_path = str(image_dir)
+    if fix_intrinsics:
+        options.ba_refine_focal_length = False
+        options.ba_refine_principal_point = False
+        options.ba_refine_extra_params = False
+        options.mapper.abs_pose_refine_focal_length = False
+        options.mapper.abs_pose_refine_extra_params = False
+    return options
+
+
+def _run_pipeline(
+    database: pycolmap.Database,
+    options: pycolmap.IncrementalPipelineOptions,
+    manager: pycolmap.ReconstructionManager,
+    progress: Progress | None,
+) -> tuple[list[pycolmap.Reconstruction], tuple[str, str] | None]:
+    pipeline = pycolmap.IncrementalPipeline(options, database, manager)
+    seeds: list[tuple[str, str]] = []
+
+    def on_initial_pair() -> None:
+        reconstruction = manager.get(manager.size() - 1)
+        names = sorted(reconstruction.image(i).name for i in reconstruction.reg_image_ids())
+        seeds.append((names[0], names[-1]))
+        _say(progress, f"initial pair {names[0]} {names[-1]}")
+
+    def on_next_image() -> None:
+        reconstruction = manager.get(manager.size() - 1)
+        _say(progress, f"registered {reconstruction.num_reg_images()} images")
+
+    Callback = pycolmap.IncrementalPipelineCallback
+    pipeline.add_callback(Callback.INITIAL_IMAGE_PAIR_REG_CALLBACK, on_initial_pair)
+    pipeline.add_callback(Callback.NEXT_IMAGE_REG_CALLBACK, on_next_image)
+    pipeline.run()
+    models = [manager.get(i) for i in range(manager.size())]
+    first_seed = seeds[0] if seeds else None
+    return models, first_seed
+
+
+def reconstruct(
+    database_path: str | os.PathLike,
+    image_dir: str | os.PathLike,
+    *,
+    initialization: str = "ppo",
+    seeding: str = "two-view",
+    fix_intrinsics: bool = False,
+    max_init_trials: int = 5,
+    num_threads: int = 2,
+    seed: int = 0,
+    verbose: bool = False,
+    progress: Progress | None = None,
+    **scoring: Any,
+) -> SfmResult:
+    """Incremental mapping with pycolmap, seeded by the best PPO-scored pair.
+
+    Parameters
+    ----------
+    database_path : path
+        COLMAP database with features, matches and verified two-view geometries.
+    image_dir : path
+        The images (colours of the points).
+    initialization : {"ppo", "colmap"}
+        ``ppo``: rank the pairs with :func:`score_pairs` and start from the best, trying the
+        next one (up to ``max_init_trials``) if the mapper cannot grow from it.
+        ``colmap``: pycolmap's default initial-pair search.
+    seeding : {"two-view", "pair-options"}
+        How a ``ppo`` pair starts the mapper. ``two-view``: a reconstruction of the two images
+        with the PPO pose and the analytic points of its inliers
+        (:func:`ppo_cv.colmap.two_view_reconstruction`), bundle-adjusted with the cameras
+        fixed, which pycolmap's mapper then continues. ``pair-options``: pycolmap's initial
+        pair options, with its minimum initial triangulation angle and inlier count lowered to
+        what the pair offers; pycolmap estimates the pair's pose itself.
+    fix_intrinsics : bool
+        Keep the database cameras fixed in bundle adjustment (known calibration).
+    max_init_trials : int
+    num_threads, seed : int
+        pycolmap threads and random seed.
+    verbose : bool
+        Let pycolmap log to stderr.
+    progress : callable, optional
+        Called with a one-line message at each stage.
+    **scoring
+        Keyword arguments of :func:`score_pairs`.
+
+    Returns
+    -------
+    SfmResult
+        ``elapsed`` covers the pair scoring and the mapping.
+    """
+    _check_choices(initialization, seeding)
+    database_path, image_dir = Path(database_path), Path(image_dir)
+    if not database_path.is_file():
+        raise ValueError(f"database {str(database_path)!r} does not exist")
+    start = time.perf_counter()
+    pairs: tuple[PairScore, ...] = ()
+    candidates: list[PairScore | None] = [None]
+    if initialization == "ppo":
+        _say(progress, "scoring candidate initial pairs with PPO")
+        pairs = tuple(score_pairs(database_path, **scoring))
+        candidates = [p for p in pairs if p.accepted][: max(1, int(max_init_trials))]
+        if not candidates:
+            raise ValueError("no image pair qualifies as an initial pair (see score_pairs)")
+    models: list[pycolmap.Reconstruction] = []
+    initial_pair = None
+    with _quiet(verbose), pycolmap.Database.open(database_path) as database:
+        num_images = int(database.num_images())
+        for candidate in candidates:
+            options = _pipeline_options(image_dir, fix_intrinsics, num_threads, seed)
+            manager = pycolmap.ReconstructionManager()
+            if candidate is not None:
+                _say(progress, f"seeding with {candidate.name1} {candidate.name2} ({seeding})")
+                if seeding == "pair-options":
+                    _seed_options(options, candidate)
+                else:
+                    threshold = scoring.get("pri_threshold", ppo.DEFAULT_PRI_THRESHOLD)
+                    _seed_two_view(database, candidate, manager, threshold)
+            models, initial_pair = _run_pipeline(database, options, manager, progress)
+            if candidate is not None and seeding == "two-view":
+                initial_pair = (candidate.name1, candidate.name2)
+            if _grew_from(models, candidate):
+                break
+    return _result(models, initialization, initial_pair, pairs, num_images, start)
+
+
+def _check_choices(initialization: str, seeding: str) -> None:
+    if initialization not in INITIALIZATIONS:
+        raise ValueError(
+            f"initialization must be one of {', '.join(INITIALIZATIONS)}, got {initialization!r}"
+        )
+    if seeding not in SEEDINGS:
+        raise ValueError(f"seeding must be one of {', '.join(SEEDINGS)}, got {seeding!r}")
+
+
+def _grew_from(models: list, pair: PairScore | None) -> bool:
+    """Whether some model holds at least two images (and, for a given pair, both of them)."""
+    for model in models:
+        names = {model.image(i).name for i in model.reg_image_ids()}
+        if len(names) >= 2 and (pair is None or {pair.name1, pair.name2} <= names):
+            return True
+    return False
+
+
+def _seed_two_view(
+    database: pycolmap.Database,
+    pair: PairScore,
+    manager: pycolmap.ReconstructionManager,
+    pri_threshold: float,
+) -> None:
+    """Put the bundle-adjusted PPO two-view reconstruction of ``pair`` into ``manager``."""
+    image1, image2 = database.read_image(pair.image_id1), database.read_image(pair.image_id2)
+    camera1, camera2 = (
+        database.read_camera(image1.camera_id),
+        database.read_camera(image2.camera_id),
+    )
+    keypoints1 = database.read_keypoints(image1.image_id)
+    keypoints2 = database.read_keypoints(image2.image_id)
+    geometry = database.read_two_view_geometry(image1.image_id, image2.image_id)
+    pose = colmap.recover_pose_from_geometry(
+        geometry, camera1, keypoints1, camera2, keypoints2, pri_threshold=pri_threshold
+    )
+    seed = colmap.two_view_reconstruction(
+        camera1, camera2, image1, image2, keypoints1, keypoints2, geometry.inlier_matches, pose
+    )
+    options = pycolmap.BundleAdjustmentOptions()
+    options.refine_focal_length = False
+    options.refine_principal_point = False
+    options.refine_extra_params = False
+    options.print_summary = False
+    config = pycolmap.BundleAdjustmentConfig()
+    config.add_image(image1.image_id)
+    config.add_image(image2.image_id)
+    config.fix_gauge(pycolmap.BundleAdjustmentGauge.TWO_CAMS_FROM_WORLD)
+    pycolmap.create_default_bundle_adjuster(options, config, seed).solve()
+    with tempfile.TemporaryDirectory(prefix="ppo-cv-seed-") as folder:
+        seed.write(folder)
+        manager.read(folder)
+
+
+def _seed_options(options: pycolmap.IncrementalPipelineOptions, pair: PairScore) -> None:
+    options.init_image_id1 = pair.image_id1
+    options.init_image_id2 = pair.image_id2
+    mapper = options.mapper
+    mapper.init_min_tri_angle = min(mapper.init_min_tri_angle, 0.5 * pair.tri_angle)
+    mapper.init_min_num_inliers = min(mapper.init_min_num_inliers, max(15, pair.num_inliers // 2))
+
+
+def _result(models, initialization, initial_pair, pairs, num_images, start) -> SfmResult:
+    best = max(models, key=lambda m: (m.num_reg_images(), m.num_points3D()), default=None)
+    registered = int(best.num_reg_images()) if best is not None else 0
+    error = float(best.compute_mean_reprojection_error()) if registered else float("nan")
+    return SfmResult(
+        reconstruction=best,
+        initialization=initialization,
+        initial_pair=initial_pair,
+        pairs=pairs,
+        num_images=num_images,
+        num_registered=registered,
+        num_points3D=int(best.num_points3D()) if best is not None else 0,
+        mean_reprojection_error=error,
+        num_models=len(models),
+        elapsed=time.perf_counter() - start,
+    )
+
+
+def run_sfm(
+    image_dir: str | os.PathLike,
+    output_dir: str | os.PathLike | None = None,
+    *,
+    K: Any = None,
+    initialization: str = "ppo",
+    seeding: str = "two-view",
+    database_path: str | os.PathLike | None = None,
+    max_num_features: int = 8192,
+    num_threads: int = 2,
+    seed: int = 0,
+    verbose: bool = False,
+    progress: Progress | None = None,
+    **scoring: Any,
+) -> SfmResult:
+    """Structure from motion of an image folder: features, matches, PPO-seeded mapping.
+
+    Parameters
+    ----------
+    image_dir : path
+    output_dir : path, optional
+        Where to write the COLMAP model (``cameras.bin``, ``images.bin``, ``points3D.bin``, ...)
+        and ``initial_pairs.txt`` (the ranking). It must not exist; it is written in a temporary
+        sibling folder and moved into place at the end.
+    K : array_like, shape (3, 3), optional
+        Known intrinsics, held fixed; otherwise pycolmap estimates them.
+    initialization : {"ppo", "colmap"}
+    seeding : {"two-view", "pair-options"}
+        See :func:`reconstruct`.
+    database_path : path, optional
+        Where to keep the feature database (a new file); a temporary one by default.
+    max_num_features, num_threads, seed, verbose, progress, **scoring
+        See :func:`prepare_database` and :func:`reconstruct`.
+
+    Returns
+    -------
+    SfmResult
+    """
+    _check_choices(initialization, seeding)
+    image_dir = Path(image_dir)
+    output_dir = Path(output_dir) if output_dir is not None else None
+    if output_dir is not None and output_dir.exists():
+        raise ValueError(f"output folder {str(output_dir)!r} already exists")
+    with tempfile.TemporaryDirectory(prefix="ppo-cv-sfm-") as scratch:
+        database = Path(database_path) if database_path is not None else Path(scratch) / "db.db"
+        prepare_database(
+            image_dir, database, K=K, max_num_features=max_num_features,
+            num_threads=num_threads, seed=seed, verbose=verbose, progress=progress,
+        )  # fmt: skip
+        result = reconstruct(
+            database, image_dir, initialization=initialization, seeding=seeding,
+            fix_intrinsics=K is not None,
+            num_threads=num_threads, seed=seed, verbose=verbose, progress=progress, **scoring,
+        )  # fmt: skip
+    if output_dir is not None:
+        if result.reconstruction is None:
+            raise ValueError("nothing was reconstructed; no model written")
+        write_model(result, output_dir)
+        _say(progress, f"wrote {output_dir}")
+    return result
+
+
+def format_pairs(pairs: Sequence[PairScore]) -> str:
+    """The ranking as text, one pair a line: names, score, inliers, PRI, angle, verdict."""
+    lines = ["# name1 name2 score num_inliers num_matches pri tri_angle_deg verdict"]
+    for p in pairs:
+        verdict = "ok" if p.accepted else p.rejection.replace(" ", "_")
+        lines.append(
+            f"{p.name1} {p.name2} {p.score:.1f} {p.num_inliers} {p.num_matches} "
+            f"{p.pri:.4f} {p.tri_angle:.2f} {verdict}"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def write_model(result: SfmResult, output_dir: str | os.PathLike) -> None:
+    """Write the reconstruction (COLMAP binary) and the pair ranking into a new folder."""
+    output_dir = Path(output_dir)
+    if output_dir.exists():
+        raise ValueError(f"output folder {str(output_dir)!r} already exists")
+    output_dir.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{output_dir.name}-", dir=output_dir.parent))
+    try:
+        result.reconstruction.write(staging)
+        if result.pairs:
+            (staging / "initial_pairs.txt").write_text(format_pairs(result.pairs))
+        staging.rename(output_dir)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise

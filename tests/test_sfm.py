@@ -1,0 +1,291 @@
+"""ppo_cv.sfm and ``ppo-cv sfm``: initial-pair ranking and PPO-seeded incremental mapping."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pycolmap
+import pytest
+from ppo_cv.cli.main import app
+from typer.testing import CliRunner
+
+import ppo_cv
+from ppo_cv import colmap, sfm
+
+ROOT = Path(__file__).resolve().parents[1]
+FREIBURG_K = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
+
+
+def _compare_module():
+    spec = importlib.util.spec_from_file_location(
+        "sfm_compare", ROOT / "benchmarks" / "sfm_compare.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+compare = _compare_module()
+
+
+def rotation_error_deg(R_a: np.ndarray, R_b: np.ndarray) -> float:
+    cos = (np.trace(R_a.T @ R_b) - 1.0) / 2.0
+    return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+
+
+def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+    cos = a @ b / (np.linalg.norm(a) * np.linalg.norm(b))
+    return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+
+
+# --- score_pose on exact poses --------------------------------------------------------------
+
+
+def synthetic_pose(t: np.ndarray, n: int = 200, seed: int = 0, noise: float = 0.0):
+    rng = np.random.default_rng(seed)
+    K = np.array([[500.0, 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]])
+    a = np.deg2rad(5.0)
+    R = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
+    X1 = rng.uniform([-2.0, -1.5, 4.0], [2.0, 1.5, 6.0], (n, 3))
+    X2 = X1 @ R.T + t
+    p1 = (X1 @ K.T)[:, :2] / X1[:, 2:] + rng.normal(0.0, noise, (n, 2))
+    p2 = (X2 @ K.T)[:, :2] / X2[:, 2:] + rng.normal(0.0, noise, (n, 2))
+    axis = t if np.any(t) else np.array([1.0, 0.0, 0.0])
+    E = np.cross(np.eye(3), axis) @ R
+    return ppo_cv.recover_pose(E, p1, p2, K), X1, R
+
+
+def test_score_pose_accepts_parallax_and_scores_by_inliers_and_angle():
+    t = np.array([1.0, 0.0, 0.0])
+    pose, X1, R = synthetic_pose(t)
+    score, tri_angle, rejection = sfm.score_pose(pose, target_tri_angle=30.0)
+    true_angle = np.degrees(np.median(colmap.triangulation_angles(X1, R, t)))
+    assert rejection == ""
+    assert tri_angle == pytest.approx(true_angle, rel=1e-9)
+    assert score == pytest.approx(200 * true_angle / 30.0)
+    assert sfm.score_pose(pose, target_tri_angle=1.0)[0] == pytest.approx(200.0)
+
+
+@pytest.mark.parametrize(
+    "t, kwargs, reason",
+    [
+        (np.zeros(3), {}, "pure rotation"),
+        (np.array([0.3, 0.0, 0.0]), {"min_tri_angle": 10.0}, "small parallax"),
+        (np.array([1.0, 0.0, 0.0]), {"min_inliers": 201}, "too few inliers"),
+        (np.array([0.3, 0.0, 3.0]), {"min_tri_angle": 0.0}, "forward motion"),
+    ],
+)
+def test_score_pose_rejections(t, kwargs, reason):
+    pose, _, _ = synthetic_pose(t, noise=0.3)
+    score, _, rejection = sfm.score_pose(pose, **kwargs)
+    assert rejection.startswith(reason) and score == 0.0
+
+
+def test_score_pairs_on_a_synthesized_database(tmp_path):
+    """pycolmap's synthetic scene: exact matches, distorted SIMPLE_RADIAL camera, known poses."""
+    options = pycolmap.SyntheticDatasetOptions()
+    options.num_rigs, options.num_cameras_per_rig, options.num_frames_per_rig = 1, 1, 5
+    options.num_points3D = 200
+    options.camera_has_prior_focal_length = True
+    path = tmp_path / "synthetic.db"
+    with pycolmap.Database.open(path) as database:
+        reconstruction = pycolmap.synthesize_dataset(options, database)
+        ids, geometries = database.read_two_view_geometries()
+        id1, id2 = pycolmap.pair_id_to_image_pair(ids[0])
+        degenerate = geometries[0]
+        degenerate.config = pycolmap.TwoViewGeometryConfiguration.DEGENERATE
+        database.update_two_view_geometry(id1, id2, degenerate)
+    pairs = sfm.score_pairs(path)
+    assert len(pairs) == 10
+    for pair in pairs:
+        if (pair.image_id1, pair.image_id2) == (id1, id2):
+            assert pair.rejection.startswith("no pose (DEGENERATE") and pair.score == 0.0
+            continue
+        R, t = colmap.relative_pose(reconstruction, pair.image_id1, pair.image_id2)
+        assert rotation_error_deg(pair.R, R) < 1e-4 and angle_deg(pair.t, t) < 1e-4
+        assert pair.num_inliers == pair.num_matches
+        assert not pair.pure_rotation and pair.pri > 0.1
+
+
+# --- a camera that pans on a tripod, then walks -------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def tripod(tmp_path_factory):
+    """8 rendered views (4 pan, 4 move) and their COLMAP database with known intrinsics."""
+    folder = tmp_path_factory.mktemp("tripod")
+    images = folder / "images"
+    names, K, poses = compare.render_tripod_then_move(images, n_pan=4, n_move=4)
+    database = folder / "db.db"
+    sfm.prepare_database(images, database, K=K)
+    pan = {n for n in names if "pan" in n}
+    return images, database, K, compare.relative_gt_from_poses(names, poses), pan
+
+
+@pytest.fixture(scope="module")
+def tripod_pairs(tripod):
+    return sfm.score_pairs(tripod[1])
+
+
+def test_pure_rotation_pairs_look_easiest_and_are_rejected(tripod, tripod_pairs):
+    _, _, _, gt, pan = tripod
+    by_matches = sorted(tripod_pairs, key=lambda p: -p.num_matches)
+    assert {by_matches[0].name1, by_matches[0].name2} <= pan
+    for pair in tripod_pairs:
+        if {pair.name1, pair.name2} <= pan:
+            assert pair.pure_rotation and pair.rejection.startswith("pure rotation")
+            assert pair.score == 0.0
+        else:
+            assert pair.accepted, pair
+    accepted = [p for p in tripod_pairs if p.accepted]
+    assert len(accepted) == len(tripod_pairs) - 6
+    assert [p.score for p in accepted] == sorted((p.score for p in accepted), reverse=True)
+
+
+def gt_pose(gt: dict, name1: str, name2: str) -> tuple[np.ndarray, np.ndarray]:
+    """``cam2_from_cam1`` of two views, whichever order the ground truth stores them in."""
+    if (name1, name2) in gt:
+        return gt[(name1, name2)]
+    R, t = gt[(name2, name1)]
+    return R.T, -R.T @ t
+
+
+def test_pair_poses_match_ground_truth(tripod, tripod_pairs):
+    # The database's essential matrices come from pycolmap's verification (4 px threshold), so
+    # these are rough two-view poses; what matters is the right candidate.
+    gt = tripod[3]
+    rotation_errors, translation_errors = [], []
+    for pair in tripod_pairs:
+        R_gt, t_gt = gt_pose(gt, pair.name1, pair.name2)
+        rotation_errors.append(rotation_error_deg(pair.R, R_gt))
+        if pair.accepted:
+            translation_errors.append(angle_deg(pair.t, t_gt))
+    assert max(rotation_errors) < 3.0 and np.median(rotation_errors) < 0.3
+    assert max(translation_errors) < 10.0 and np.median(translation_errors) < 2.0
+
+
+@pytest.mark.parametrize("seeding", sfm.SEEDINGS)
+def test_ppo_seeded_reconstruction_registers_every_view(tripod, seeding):
+    images, database, _, gt, pan = tripod
+    messages = []
+    result = sfm.reconstruct(
+        database, images, seeding=seeding, fix_intrinsics=True, progress=messages.append
+    )
+    assert result.initialization == "ppo"
+    assert not set(result.initial_pair) <= pan
+    best = result.pairs[0]
+    assert set(result.initial_pair) == {best.name1, best.name2}
+    assert result.all_registered and result.num_registered == 8
+    assert result.mean_reprojection_error < 0.5
+    rotation_errors, translation_errors = compare.pose_errors(result.reconstruction, gt)
+    assert len(rotation_errors) == 28
+    assert max(rotation_errors) < 0.3
+    assert np.median(translation_errors) < 1.0
+    assert any("initial pair" in m for m in messages)
+    assert any("registered 8 images" in m for m in messages)
+
+
+def test_reconstruct_rejects_bad_arguments(tripod, tmp_path):
+    images, database, *_ = tripod
+    with pytest.raises(ValueError, match="initialization"):
+        sfm.reconstruct(database, images, initialization="random")
+    with pytest.raises(ValueError, match="seeding"):
+        sfm.reconstruct(database, images, seeding="random")
+    with pytest.raises(ValueError, match="does not exist"):
+        sfm.reconstruct(tmp_path / "missing.db", images)
+    with pytest.raises(ValueError, match="does not exist"):
+        sfm.score_pairs(tmp_path / "missing.db")
+    with pytest.raises(ValueError, match="no image pair qualifies"):
+        sfm.reconstruct(database, images, min_inliers=10**6)
+
+
+def test_prepare_database_rejects_bad_inputs(tripod, tmp_path):
+    images, database, *_ = tripod
+    with pytest.raises(ValueError, match="already exists"):
+        sfm.prepare_database(images, database)
+    lonely = tmp_path / "one"
+    lonely.mkdir()
+    shutil.copy(next(images.iterdir()), lonely)
+    with pytest.raises(ValueError, match="at least 2 images"):
+        sfm.prepare_database(lonely, tmp_path / "db.db")
+    with pytest.raises(ValueError, match="does not exist"):
+        sfm.prepare_database(tmp_path / "nowhere", tmp_path / "db.db")
+    assert not (tmp_path / "db.db").exists()
+
+
+# --- the command line ----------------------------------------------------------------------
+
+
+def test_cli_sfm_writes_a_colmap_model(tripod, tmp_path):
+    images, _, K, gt, pan = tripod
+    subset = tmp_path / "images"
+    subset.mkdir()
+    for name in ("00_pan.png", "01_pan.png", "04_move.png", "05_move.png", "06_move.png"):
+        shutil.copy(images / name, subset)
+    out = tmp_path / "model"
+    k = f"{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]}"
+    run = CliRunner().invoke(app, ["sfm", str(subset), str(out), "--K", k, "--json"])
+    assert run.exit_code == 0, run.output
+    summary = json.loads(run.stdout.strip().splitlines()[-1])
+    assert summary["registered"] == summary["images"] == 5
+    assert not set(summary["initial_pair"]) <= pan
+    reconstruction = pycolmap.Reconstruction(out)
+    assert reconstruction.num_reg_images() == 5
+    camera = next(iter(reconstruction.cameras.values()))
+    np.testing.assert_allclose(camera.calibration_matrix(), K)
+    ranking = (out / "initial_pairs.txt").read_text().splitlines()
+    assert ranking[0].startswith("#") and len(ranking) == 1 + 10
+    assert "pure_rotation" in (out / "initial_pairs.txt").read_text()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--K", "1,2,3"], "--K needs 4 values"),
+        (["--K", "0,500,320,240"], "zero focal length"),
+        (["--K", "a,b,c,d"], "numbers"),
+        (["--init", "best"], "--init must be one of"),
+        (["--seeding", "best"], "--seeding must be one of"),
+    ],
+)
+def test_cli_sfm_bad_options(tripod, tmp_path, args, message):
+    run = CliRunner().invoke(app, ["sfm", str(tripod[0]), str(tmp_path / "out"), *args])
+    assert run.exit_code == 2
+    assert message in run.stderr and "Traceback" not in run.output
+    assert not (tmp_path / "out").exists()
+
+
+def test_cli_sfm_bad_folders(tripod, tmp_path):
+    existing = tmp_path / "exists"
+    existing.mkdir()
+    runner = CliRunner()
+    run = runner.invoke(app, ["sfm", str(tripod[0]), str(existing)])
+    assert run.exit_code == 2 and "already exists" in run.stderr
+    run = runner.invoke(app, ["sfm", str(tmp_path / "nowhere"), str(tmp_path / "out")])
+    assert run.exit_code == 2 and "does not exist" in run.stderr
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    run = runner.invoke(app, ["sfm", str(empty), str(tmp_path / "out")])
+    assert run.exit_code == 2 and "at least 2 images" in run.stderr
+    assert not (tmp_path / "out").exists()
+
+
+# --- real images -----------------------------------------------------------------------------
+
+
+def test_freiburg_sfm_matches_pseudo_ground_truth(freiburg, tmp_path):
+    out = tmp_path / "model"
+    result = sfm.run_sfm(freiburg / "images", out, K=FREIBURG_K)
+    assert result.num_images == 17 and result.all_registered
+    assert result.mean_reprojection_error < 1.0
+    assert not result.pairs[0].pure_rotation
+    gt = compare.load_freiburg_gt(freiburg / "pairs_with_gt.txt")
+    rotation_errors, translation_errors = compare.pose_errors(pycolmap.Reconstruction(out), gt)
+    assert len(rotation_errors) == 85
+    assert np.median(rotation_errors) < 1.0
+    assert np.median(translation_errors) < 2.0
