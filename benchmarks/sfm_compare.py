@@ -29,11 +29,10 @@ import sys
 import tempfile
 from pathlib import Path
 
-import cv2
 import numpy as np
-from ppo_cv.data_gen import make_scene, render_view
+from ppo_cv.data_gen import read_pairs, relative_gt_from_poses, render_tripod_then_move
 
-from ppo_cv import colmap, sfm
+from ppo_cv import sfm
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("PPO_CV_SHARED", ROOT.parent / "shared"))
@@ -47,112 +46,9 @@ CONFIGURATIONS = (
 FREIBURG_K = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
 
 
-def _yaw(degrees: float) -> np.ndarray:
-    a = np.deg2rad(degrees)
-    return np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
-
-
-def tripod_then_move_poses(
-    n_pan: int = 4, n_move: int = 4, pan_step: float = 8.0, step: float = 0.45
-) -> list[tuple[np.ndarray, np.ndarray]]:
-    """``cam_from_world`` poses ``(R, t)``: a pan about the origin, then a sideways walk.
-
-    The pan turns by ``pan_step`` degrees between views around the centre ``(0, 0, 0)``; the walk
-    moves the centre by ``step`` metres along x (and a little backwards), turning to keep the
-    room's middle in view. World coordinates are those of the first pan view's tripod at yaw 0.
-    """
-    poses = []
-    for k in range(n_pan):
-        yaw = (k - (n_pan - 1) / 2) * pan_step
-        poses.append((_yaw(yaw), np.zeros(3)))
-    for k in range(1, n_move + 1):
-        centre = np.array([step * k, 0.05 * k, -0.1 * k])
-        R = _yaw(-4.0 * k)
-        poses.append((R, -R @ centre))
-    return poses
-
-
-def render_tripod_then_move(
-    out_dir: str | os.PathLike,
-    n_pan: int = 4,
-    n_move: int = 4,
-    size: tuple[int, int] = (480, 360),
-    seed: int = 0,
-    step: float = 0.45,
-) -> tuple[list[str], np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
-    """Render the tripod-then-move views of the ``clutter`` scene into ``out_dir``.
-
-    ``step`` is the walk's stride in metres (the room's walls are 5-8 m away).
-
-    Returns
-    -------
-    names : list of str
-        File names, ``pan_*`` then ``move_*`` (alphabetical order is capture order).
-    K : ndarray, shape (3, 3)
-    poses : list of (R, t)
-        ``cam_from_world`` of each view.
-    """
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    width, height = size
-    focal = 0.85 * width
-    K = np.array([[focal, 0.0, (width - 1) / 2], [0.0, focal, (height - 1) / 2], [0.0, 0.0, 1.0]])
-    scene = make_scene("clutter", seed)
-    poses = tripod_then_move_poses(n_pan, n_move, step=step)
-    rng = np.random.default_rng(seed)
-    names = []
-    for index, (R, t) in enumerate(poses):
-        kind = "pan" if index < n_pan else "move"
-        name = f"{index:02d}_{kind}.png"
-        image, _ = render_view(scene, K, R, t, size=size, supersample=2)
-        pixels = image * 255.0 + rng.normal(0.0, 1.0, image.shape)
-        cv2.imwrite(
-            str(out_dir / name), np.clip(np.rint(pixels), 0, 255).astype(np.uint8)[..., ::-1]
-        )
-        names.append(name)
-    return names, K, poses
-
-
 def load_freiburg_gt(pairs_file: Path) -> dict[tuple[str, str], tuple[np.ndarray, np.ndarray]]:
     """``(name1, name2) -> (R, t)`` with ``X2 = R X1 + t`` from a pairs-with-gt file."""
-    gt = {}
-    for line in pairs_file.read_text().splitlines():
-        fields = line.split()
-        if fields:
-            T = np.array(fields[22:38], dtype=float).reshape(4, 4)
-            gt[(fields[0], fields[1])] = (T[:3, :3], T[:3, 3])
-    return gt
-
-
-def relative_gt_from_poses(
-    names: list[str], poses: list[tuple[np.ndarray, np.ndarray]]
-) -> dict[tuple[str, str], tuple[np.ndarray, np.ndarray]]:
-    """Ground-truth ``cam2_from_cam1`` of every pair of views from their ``cam_from_world``."""
-    gt = {}
-    for i, (R1, t1) in enumerate(poses):
-        for j in range(i + 1, len(poses)):
-            R2, t2 = poses[j]
-            gt[(names[i], names[j])] = (R2 @ R1.T, t2 - R2 @ R1.T @ t1)
-    return gt
-
-
-def pose_errors(reconstruction, gt) -> tuple[list[float], list[float]]:
-    """Relative rotation errors and translation-direction errors (degrees) of registered pairs.
-
-    Translation errors are skipped for ground-truth pairs without translation (pure rotation).
-    """
-    ids = {reconstruction.image(i).name: i for i in reconstruction.reg_image_ids()}
-    rotation_errors, translation_errors = [], []
-    for (name1, name2), (R_gt, t_gt) in gt.items():
-        if name1 not in ids or name2 not in ids:
-            continue
-        R, t = colmap.relative_pose(reconstruction, ids[name1], ids[name2])
-        cos = (np.trace(R.T @ R_gt) - 1.0) / 2.0
-        rotation_errors.append(float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))))
-        if np.linalg.norm(t_gt) > 1e-9 and np.linalg.norm(t) > 1e-12:
-            cos = t @ t_gt / (np.linalg.norm(t) * np.linalg.norm(t_gt))
-            translation_errors.append(float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))))
-    return rotation_errors, translation_errors
+    return {(r["name1"], r["name2"]): (r["R"], r["t"]) for r in read_pairs(pairs_file)}
 
 
 def _median(values: list[float]) -> float:
@@ -183,7 +79,7 @@ def compare(name: str, image_dir: Path, K: np.ndarray, gt, pure_rotation_names=f
             result = runs[-1]
             pair = result.initial_pair
             rotation_errors, translation_errors = (
-                pose_errors(result.reconstruction, gt) if result.reconstruction else ([], [])
+                sfm.pose_errors(result.reconstruction, gt) if result.reconstruction else ([], [])
             )
             rows.append(
                 {

@@ -8,6 +8,7 @@
 
 from .io import PAIRS_FILE, make_dataset, make_pair, pairs_line, read_pairs, write_pair
 from .motion import DEFAULT_SCENE, MOTIONS, Motion, intrinsics, look_at, sample_motion
+from .multiview import relative_gt_from_poses, render_tripod_then_move, tripod_then_move_poses
 from .protocol import PAPER_K, PAPER_T_MAX, ProtocolSample, euler_to_matrix, paper_protocol
 from .render import RenderedPair, project_points, render_pair, render_view
 from .scenes import SCENES, Quad, Scene, box_quads, checker_plane, make_scene
@@ -40,8 +41,11 @@ __all__ = [
     "photo_texture",
     "project_points",
     "read_pairs",
+    "relative_gt_from_poses",
+    "render_tripod_then_move",
     "render_pair",
     "render_view",
     "sample_motion",
+    "tripod_then_move_poses",
     "write_pair",
 ]

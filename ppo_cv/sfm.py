@@ -56,6 +56,7 @@ __all__ = [
     "list_images",
     "format_pairs",
     "write_model",
+    "pose_errors",
 ]
 
 INITIALIZATIONS = ("ppo", "colmap")
@@ -712,3 +713,22 @@ def write_model(result: SfmResult, output_dir: str | os.PathLike) -> None:
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
+
+
+def pose_errors(reconstruction, gt) -> tuple[list[float], list[float]]:
+    """Relative rotation errors and translation-direction errors (degrees) of registered pairs.
+
+    Translation errors are skipped for ground-truth pairs without translation (pure rotation).
+    """
+    ids = {reconstruction.image(i).name: i for i in reconstruction.reg_image_ids()}
+    rotation_errors, translation_errors = [], []
+    for (name1, name2), (R_gt, t_gt) in gt.items():
+        if name1 not in ids or name2 not in ids:
+            continue
+        R, t = colmap.relative_pose(reconstruction, ids[name1], ids[name2])
+        cos = (np.trace(R.T @ R_gt) - 1.0) / 2.0
+        rotation_errors.append(float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))))
+        if np.linalg.norm(t_gt) > 1e-9 and np.linalg.norm(t) > 1e-12:
+            cos = t @ t_gt / (np.linalg.norm(t) * np.linalg.norm(t_gt))
+            translation_errors.append(float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))))
+    return rotation_errors, translation_errors

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import shutil
 from pathlib import Path
@@ -11,6 +10,7 @@ import numpy as np
 import pycolmap
 import pytest
 from ppo_cv.cli.main import app
+from ppo_cv.data_gen import read_pairs, relative_gt_from_poses, render_tripod_then_move
 from typer.testing import CliRunner
 
 import ppo_cv
@@ -18,18 +18,6 @@ from ppo_cv import colmap, sfm
 
 ROOT = Path(__file__).resolve().parents[1]
 FREIBURG_K = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
-
-
-def _compare_module():
-    spec = importlib.util.spec_from_file_location(
-        "sfm_compare", ROOT / "benchmarks" / "sfm_compare.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-compare = _compare_module()
 
 
 def rotation_error_deg(R_a: np.ndarray, R_b: np.ndarray) -> float:
@@ -119,11 +107,11 @@ def tripod(tmp_path_factory):
     """8 rendered views (4 pan, 4 move) and their COLMAP database with known intrinsics."""
     folder = tmp_path_factory.mktemp("tripod")
     images = folder / "images"
-    names, K, poses = compare.render_tripod_then_move(images, n_pan=4, n_move=4)
+    names, K, poses = render_tripod_then_move(images, n_pan=4, n_move=4)
     database = folder / "db.db"
     sfm.prepare_database(images, database, K=K)
     pan = {n for n in names if "pan" in n}
-    return images, database, K, compare.relative_gt_from_poses(names, poses), pan
+    return images, database, K, relative_gt_from_poses(names, poses), pan
 
 
 @pytest.fixture(scope="module")
@@ -181,7 +169,7 @@ def test_ppo_seeded_reconstruction_registers_every_view(tripod, seeding):
     assert set(result.initial_pair) == {best.name1, best.name2}
     assert result.all_registered and result.num_registered == 8
     assert result.mean_reprojection_error < 0.5
-    rotation_errors, translation_errors = compare.pose_errors(result.reconstruction, gt)
+    rotation_errors, translation_errors = sfm.pose_errors(result.reconstruction, gt)
     assert len(rotation_errors) == 28
     assert max(rotation_errors) < 0.3
     assert np.median(translation_errors) < 1.0
@@ -284,8 +272,11 @@ def test_freiburg_sfm_matches_pseudo_ground_truth(freiburg, tmp_path):
     assert result.num_images == 17 and result.all_registered
     assert result.mean_reprojection_error < 1.0
     assert not result.pairs[0].pure_rotation
-    gt = compare.load_freiburg_gt(freiburg / "pairs_with_gt.txt")
-    rotation_errors, translation_errors = compare.pose_errors(pycolmap.Reconstruction(out), gt)
+    gt = {
+        (r["name1"], r["name2"]): (r["R"], r["t"])
+        for r in read_pairs(freiburg / "pairs_with_gt.txt")
+    }
+    rotation_errors, translation_errors = sfm.pose_errors(pycolmap.Reconstruction(out), gt)
     assert len(rotation_errors) == 85
     assert np.median(rotation_errors) < 1.0
     assert np.median(translation_errors) < 2.0

@@ -1,0 +1,92 @@
+"""Multi-view sequences of one rendered scene with exact poses, for structure-from-motion."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from .render import render_view
+from .scenes import make_scene
+
+__all__ = ["relative_gt_from_poses", "render_tripod_then_move", "tripod_then_move_poses"]
+
+
+def _yaw(degrees: float) -> np.ndarray:
+    a = np.deg2rad(degrees)
+    return np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
+
+
+def tripod_then_move_poses(
+    n_pan: int = 4, n_move: int = 4, pan_step: float = 8.0, step: float = 0.45
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``cam_from_world`` poses ``(R, t)``: a pan about the origin, then a sideways walk.
+
+    The pan turns by ``pan_step`` degrees between views around the centre ``(0, 0, 0)``; the walk
+    moves the centre by ``step`` metres along x (and a little backwards), turning to keep the
+    room's middle in view. World coordinates are those of the first pan view's tripod at yaw 0.
+    """
+    poses = []
+    for k in range(n_pan):
+        yaw = (k - (n_pan - 1) / 2) * pan_step
+        poses.append((_yaw(yaw), np.zeros(3)))
+    for k in range(1, n_move + 1):
+        centre = np.array([step * k, 0.05 * k, -0.1 * k])
+        R = _yaw(-4.0 * k)
+        poses.append((R, -R @ centre))
+    return poses
+
+
+def render_tripod_then_move(
+    out_dir: str | os.PathLike,
+    n_pan: int = 4,
+    n_move: int = 4,
+    size: tuple[int, int] = (480, 360),
+    seed: int = 0,
+    step: float = 0.45,
+) -> tuple[list[str], np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
+    """Render the tripod-then-move views of the ``clutter`` scene into ``out_dir``.
+
+    ``step`` is the walk's stride in metres (the room's walls are 5-8 m away).
+
+    Returns
+    -------
+    names : list of str
+        File names, ``pan_*`` then ``move_*`` (alphabetical order is capture order).
+    K : ndarray, shape (3, 3)
+    poses : list of (R, t)
+        ``cam_from_world`` of each view.
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    width, height = size
+    focal = 0.85 * width
+    K = np.array([[focal, 0.0, (width - 1) / 2], [0.0, focal, (height - 1) / 2], [0.0, 0.0, 1.0]])
+    scene = make_scene("clutter", seed)
+    poses = tripod_then_move_poses(n_pan, n_move, step=step)
+    rng = np.random.default_rng(seed)
+    names = []
+    for index, (R, t) in enumerate(poses):
+        kind = "pan" if index < n_pan else "move"
+        name = f"{index:02d}_{kind}.png"
+        image, _ = render_view(scene, K, R, t, size=size, supersample=2)
+        pixels = image * 255.0 + rng.normal(0.0, 1.0, image.shape)
+        cv2.imwrite(
+            str(out_dir / name), np.clip(np.rint(pixels), 0, 255).astype(np.uint8)[..., ::-1]
+        )
+        names.append(name)
+    return names, K, poses
+
+
+def relative_gt_from_poses(
+    names: list[str], poses: list[tuple[np.ndarray, np.ndarray]]
+) -> dict[tuple[str, str], tuple[np.ndarray, np.ndarray]]:
+    """Ground-truth ``cam2_from_cam1`` of every pair of views from their ``cam_from_world``."""
+    gt = {}
+    for i, (R1, t1) in enumerate(poses):
+        for j in range(i + 1, len(poses)):
+            R2, t2 = poses[j]
+            gt[(names[i], names[j])] = (R2 @ R1.T, t2 - R2 @ R1.T @ t1)
+    return gt
