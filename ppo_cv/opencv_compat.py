@@ -87,9 +87,9 @@ def _out_matrix(buffer: Any, value: np.ndarray) -> np.ndarray:
 
 
 def _out_mask(inliers: np.ndarray, mask_in: Any) -> np.ndarray:
-    values = np.full(inliers.shape, 255, dtype=np.uint8)
-    if mask_in is not None and np.size(mask_in) == inliers.size:
-        values = np.asarray(mask_in).reshape(-1).astype(np.uint8)
+    if mask_in is None or np.size(mask_in) != inliers.size:
+        return (inliers.view(np.uint8) * np.uint8(255)).reshape(-1, 1)
+    values = np.asarray(mask_in).reshape(-1).astype(np.uint8)
     return np.where(inliers, values, 0).astype(np.uint8).reshape(-1, 1)
 
 
@@ -202,7 +202,8 @@ def recoverPose(*args: Any, **kwargs: Any) -> tuple:  # noqa: N802 - OpenCV's na
     K = as_camera_matrix(K, "cameraMatrix")
     used = as_mask(bound.get("mask"), p1.shape[0])
     X1, X2 = pixel_rays(p1, K), pixel_rays(p2, K)
-    sel = ppo._select(E, X1, X2, used)
+    s, U, Vt = cv2.SVDecomp(E)  # several times faster than numpy's for one 3x3 matrix
+    sel = ppo._select(ppo.candidates_from_svd(U, s, Vt), X1, X2, used)
     inliers = (sel.m1 > 0) & (sel.m2 > 0)
     if used is not None:
         inliers &= used

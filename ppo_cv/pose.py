@@ -81,14 +81,11 @@ def pixel_rays(points: np.ndarray, K: np.ndarray) -> np.ndarray:
     ``K`` is upper triangular with last row (0, 0, 1), as checked by ``as_camera_matrix``.
     """
     (fx, skew, cx), (_, fy, cy), _ = K.tolist()
-    K_inv = np.array(
-        [
-            [1 / fx, -skew / (fx * fy), (skew * cy - cx * fy) / (fx * fy)],
-            [0.0, 1 / fy, -cy / fy],
-            [0.0, 0.0, 1.0],
-        ]
-    )
-    return K_inv @ ppo._planar(points)
+    rays = np.empty((3, points.shape[0]))
+    rays[1] = (points[:, 1] - cy) * (1.0 / fy)
+    rays[0] = (points[:, 0] - cx - skew * rays[1]) * (1.0 / fx)
+    rays[2] = 1.0
+    return rays
 
 
 def recover_pose(
@@ -175,7 +172,7 @@ def _recover_rays(
     pri_threshold: float,
     distance_thresh: float | None,
 ) -> PoseResult:
-    sel = ppo._select(E, X1, X2, used)
+    sel = ppo._select(ppo.decompose_essential(E), X1, X2, used)
     pri = ppo.pure_rotation_indicator(sel.m2[used])
     pure_rotation = bool(pri < pri_threshold)
     if pure_rotation:

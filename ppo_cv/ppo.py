@@ -26,6 +26,7 @@ __all__ = [
     "Candidates",
     "Selection",
     "decompose_essential",
+    "candidates_from_svd",
     "same_side_scores",
     "intersection_scores",
     "select_pose",
@@ -161,10 +162,19 @@ def decompose_essential(E: np.ndarray) -> Candidates:
     Candidates
     """
     U, s, Vt = np.linalg.svd(np.asarray(E, dtype=np.float64))
+    return candidates_from_svd(U, s, Vt)
+
+
+def candidates_from_svd(U: np.ndarray, s: np.ndarray, Vt: np.ndarray) -> Candidates:
+    """:func:`decompose_essential` from a precomputed SVD ``E = U diag(s) Vt``.
+
+    Any SVD routine will do (signs of singular vectors are arbitrary and fixed here).
+    """
     if _det3(U) < 0:
         U = -U
     if _det3(Vt) < 0:
         Vt = -Vt
+    s = np.ravel(s)
     return Candidates(
         R1=U @ W1.T @ Vt, R2=U @ W2.T @ Vt, t=U[:, 2].copy(), singular_values=s / np.sqrt(s @ s)
     )
@@ -273,20 +283,28 @@ def select_pose(
     >>> np.allclose(sel.R, np.eye(3)), sel.t.round(6).tolist(), sel.support_R, sel.support_t
     (True, [1.0, 0.0, 0.0], 20, 20)
     """
-    return _select(E, _planar(x1), _planar(x2), used)
+    return _select(decompose_essential(E), _planar(x1), _planar(x2), used)
 
 
-def _select(E: np.ndarray, X1: np.ndarray, X2: np.ndarray, used: np.ndarray | None) -> Selection:
-    cand = decompose_essential(E)
-    m1 = _same_side(X1, X2, cand.R1, cand.t)
+def _select(
+    cand: Candidates, X1: np.ndarray, X2: np.ndarray, used: np.ndarray | None
+) -> Selection:
+    e = cand.t
+    M = np.empty((4, 3))
+    M[3] = e @ cand.R1
+    M[:3] = cand.R1 - e[:, None] * M[3]
+    MX1 = M @ X1  # rows 0-2: (I - e e^T) R1 X for eq. 66 ([e_t]x^T [e_t]x = I - e e^T); 3: e^T R1 X
+
+    m1 = _dot(X2, MX1[:3])
     keep_R1, s1_R1, s1_R2 = _pick_sign(m1 if used is None else m1[used])
     R = cand.R1 if keep_R1 else cand.R2
+    eRX1 = MX1[3] if keep_R1 else (e @ R) @ X1
     n1, n2 = np.sqrt(_dot(X1, X1)), np.sqrt(_dot(X2, X2))
-    m2 = _intersection(X1, X2, R, cand.t, n1, n2)
+    m2 = n1 * (e @ X2) - n2 * eRX1
     keep_t, s2_plus, s2_minus = _pick_sign(m2 if used is None else m2[used])
     return Selection(
         R=R,
-        t=cand.t if keep_t else -cand.t,
+        t=e if keep_t else -e,
         m1=m1 if keep_R1 else -m1,
         m2=m2 if keep_t else -m2,
         support_R=s1_R1 if keep_R1 else s1_R2,
