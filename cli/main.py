@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 import typer
-
-from ppo_cv.cli import synth
+from ppo_cv.cli import pair, sfm, synth
 
 app = typer.Typer(
     name="ppo-cv",
@@ -14,7 +13,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
-for _module in (synth,):
+for _module in (synth, sfm, pair):
     _module.register(app)
 
 

@@ -1,0 +1,261 @@
+"""Camera intrinsics from the forms people have them in.
+
+- Strings: ``"fx,fy,cx,cy"`` or the 9 entries of ``K`` row-major; distortion ``"k1,k2,p1,p2[,k3]"``.
+- OpenCV FileStorage YAML/XML as written after ``cv2.calibrateCamera`` (``camera_matrix`` /
+  ``cameraMatrix`` / ``K`` / ``M1``, ``distortion_coefficients`` / ``dist_coeffs`` / ``D1``, ...).
+- COLMAP ``cameras.txt`` (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV).
+- JSON: ``{"K": ..., "dist": ...}``, ``{"fx", "fy", "cx", "cy"}``, ``{"K1", "K2", "dist1",
+  "dist2"}`` or ``{"cameras": [camera, camera]}``.
+- EXIF: a guess from the image's focal length tags (``pycolmap.infer_camera_from_image``).
+
+A file may describe one camera (used for both images) or two (image 1, image 2).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from .checks import as_camera_matrix
+
+__all__ = [
+    "Camera",
+    "parse_intrinsics",
+    "parse_distortion",
+    "load_calibration",
+    "camera_from_exif",
+]
+
+_DIST_SIZES = (4, 5, 8, 12, 14)
+
+
+@dataclass(frozen=True)
+class Camera:
+    """Pinhole intrinsics and OpenCV distortion of one camera.
+
+    Attributes
+    ----------
+    K : ndarray, shape (3, 3)
+    dist : ndarray, shape (D,) or None
+        ``(k1, k2, p1, p2[, k3[, k4, k5, k6]])``; None for an undistorted camera.
+    """
+
+    K: np.ndarray
+    dist: np.ndarray | None = None
+
+
+def _numbers(text: str, name: str) -> np.ndarray:
+    parts = [p for p in re.split(r"[,\s;]+", str(text).strip().strip("[]()")) if p]
+    try:
+        values = np.array([float(p) for p in parts], dtype=np.float64)
+    except ValueError:
+        raise ValueError(f"{name} must be comma-separated numbers, got {text!r}") from None
+    if not np.all(np.isfinite(values)):
+        raise ValueError(f"{name} has NaN or infinite values: {text!r}")
+    return values
+
+
+def _matrix_from_values(values: np.ndarray, name: str) -> np.ndarray:
+    values = np.asarray(values, dtype=np.float64).reshape(-1)
+    if values.size == 4:
+        fx, fy, cx, cy = values
+        K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+    elif values.size == 9:
+        K = values.reshape(3, 3)
+    else:
+        raise ValueError(
+            f"{name} must be 4 numbers fx,fy,cx,cy or the 9 entries of K, got {values.size}"
+        )
+    K = as_camera_matrix(K, name)
+    if K[0, 0] < 0 or K[1, 1] < 0:
+        raise ValueError(f"{name} must have positive focal lengths, got fx={K[0, 0]} fy={K[1, 1]}")
+    return K
+
+
+def _dist_from_values(values, name: str) -> np.ndarray | None:
+    if values is None:
+        return None
+    values = np.asarray(values, dtype=np.float64).reshape(-1)
+    if values.size == 0:
+        return None
+    if values.size not in _DIST_SIZES:
+        raise ValueError(
+            f"{name} must be k1,k2,p1,p2[,k3] (4 or 5 numbers; 8, 12 or 14 for OpenCV's "
+            f"rational models), got {values.size}"
+        )
+    if not np.all(np.isfinite(values)):
+        raise ValueError(f"{name} has NaN or infinite values")
+    return values if np.any(values) else None
+
+
+def parse_intrinsics(text: str, name: str = "--K") -> np.ndarray:
+    """``"fx,fy,cx,cy"`` or 9 row-major numbers to a 3x3 ``K``.
+
+    >>> parse_intrinsics("535.4,539.2,320.1,247.6")[0]
+    array([535.4,   0. , 320.1])
+    """
+    return _matrix_from_values(_numbers(text, name), name)
+
+
+def parse_distortion(text: str, name: str = "--dist") -> np.ndarray | None:
+    """``"k1,k2,p1,p2[,k3]"`` to OpenCV distortion coefficients; None when all are zero."""
+    return _dist_from_values(_numbers(text, name), name)
+
+
+def _read_opencv(path: str) -> list[Camera]:
+    import cv2
+
+    storage = cv2.FileStorage(path, cv2.FILE_STORAGE_READ)
+    if not storage.isOpened():
+        raise ValueError(f"cannot read OpenCV calibration file {path}")
+    try:
+
+        def matrix(*keys):
+            for key in keys:
+                node = storage.getNode(key)
+                if not node.empty():
+                    value = node.mat()
+                    if value is not None:
+                        return np.asarray(value, dtype=np.float64)
+            return None
+
+        K1 = matrix("camera_matrix", "cameraMatrix", "K", "M1", "K1", "camera_matrix_1")
+        D1 = matrix("distortion_coefficients", "dist_coeffs", "distCoeffs", "D", "D1", "dist1")
+        K2 = matrix("M2", "K2", "camera_matrix_2")
+        D2 = matrix("D2", "dist2", "distortion_coefficients_2")
+    finally:
+        storage.release()
+    if K1 is None:
+        raise ValueError(f"no camera matrix (camera_matrix, cameraMatrix, K or M1) in {path}")
+    cameras = [Camera(_matrix_from_values(K1, "camera matrix"), _dist_from_values(D1, "dist"))]
+    if K2 is not None:
+        cameras.append(
+            Camera(_matrix_from_values(K2, "camera matrix 2"), _dist_from_values(D2, "dist2"))
+        )
+    return cameras
+
+
+def _colmap_camera(model: str, params: np.ndarray, where: str) -> Camera:
+    counts = {
+        "SIMPLE_PINHOLE": 3,
+        "PINHOLE": 4,
+        "SIMPLE_RADIAL": 4,
+        "RADIAL": 5,
+        "OPENCV": 8,
+        "FULL_OPENCV": 12,
+    }
+    if model not in counts:
+        raise ValueError(
+            f"{where}: unsupported COLMAP camera model {model} (supported: {', '.join(counts)})"
+        )
+    if params.size != counts[model]:
+        raise ValueError(f"{where}: {model} takes {counts[model]} parameters, got {params.size}")
+    if model in ("SIMPLE_PINHOLE", "SIMPLE_RADIAL", "RADIAL"):
+        f, cx, cy = params[:3]
+        K = _matrix_from_values([f, f, cx, cy], where)
+        radial = params[3:]  # k or (k1, k2): OpenCV (k1, k2, p1=0, p2=0)
+        dist = np.r_[radial, np.zeros(4 - radial.size)] if radial.size else None
+    else:  # OPENCV: k1 k2 p1 p2; FULL_OPENCV: k1 k2 p1 p2 k3 k4 k5 k6, OpenCV's order
+        K = _matrix_from_values(params[:4], where)
+        dist = params[4:] if params.size > 4 else None
+    return Camera(K, _dist_from_values(dist, where))
+
+
+def _read_colmap(path: str, text: str) -> list[Camera]:
+    cameras = []
+    for number, line in enumerate(text.splitlines(), 1):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        parts = line.split()
+        if len(parts) < 5:
+            raise ValueError(f"{path}:{number}: expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS...")
+        params = _numbers(" ".join(parts[4:]), f"{path}:{number}")
+        cameras.append(_colmap_camera(parts[1].upper(), params, f"{path}:{number}"))
+    if not cameras:
+        raise ValueError(f"no camera in {path}")
+    return cameras
+
+
+def _json_camera(entry, where: str) -> Camera:
+    if isinstance(entry, (list, tuple)):
+        return Camera(_matrix_from_values(np.asarray(entry, float), where))
+    if not isinstance(entry, dict):
+        raise ValueError(f"{where}: expected an object with K or fx, fy, cx, cy")
+    if "K" in entry or "camera_matrix" in entry:
+        K = entry.get("K", entry.get("camera_matrix"))
+        K = _matrix_from_values(np.asarray(K, dtype=np.float64), where)
+    elif all(k in entry for k in ("fx", "fy", "cx", "cy")):
+        K = _matrix_from_values([entry[k] for k in ("fx", "fy", "cx", "cy")], where)
+    elif all(k in entry for k in ("f", "cx", "cy")):
+        K = _matrix_from_values([entry["f"], entry["f"], entry["cx"], entry["cy"]], where)
+    else:
+        raise ValueError(f"{where}: expected K or fx, fy, cx, cy")
+    dist = entry.get("dist", entry.get("distortion", entry.get("dist_coeffs")))
+    return Camera(K, _dist_from_values(None if dist is None else np.asarray(dist, float), where))
+
+
+def _read_json(path: str, text: str) -> list[Camera]:
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{path} is not valid JSON: {exc.msg} (line {exc.lineno})") from None
+    try:
+        if isinstance(data, dict) and "cameras" in data:
+            cameras = [
+                _json_camera(c, f"{path} camera {i + 1}") for i, c in enumerate(data["cameras"])
+            ]
+        elif isinstance(data, dict) and "K1" in data:
+            cameras = [_json_camera({"K": data["K1"], "dist": data.get("dist1")}, path)]
+            if "K2" in data:
+                cameras.append(_json_camera({"K": data["K2"], "dist": data.get("dist2")}, path))
+        else:
+            cameras = [_json_camera(data, path)]
+    except (TypeError, ValueError) as exc:
+        raise ValueError(str(exc) if path in str(exc) else f"{path}: {exc}") from None
+    if not cameras:
+        raise ValueError(f"no camera in {path}")
+    return cameras
+
+
+def load_calibration(path: str | os.PathLike) -> list[Camera]:
+    """Cameras described by a calibration file: one (shared) or two (image 1, image 2).
+
+    The format follows the extension: ``.yml``/``.yaml``/``.xml`` OpenCV FileStorage, ``.json``,
+    anything else a COLMAP ``cameras.txt``.
+    """
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise ValueError(f"calibration file not found: {path}")
+    extension = os.path.splitext(path)[1].lower()
+    if extension in (".yml", ".yaml", ".xml"):
+        return _read_opencv(path)
+    try:
+        with open(path, encoding="utf-8") as handle:
+            text = handle.read()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"cannot read calibration file {path}: {exc}") from None
+    if extension == ".json" or text.lstrip().startswith(("{", "[")):
+        return _read_json(path, text)
+    return _read_colmap(path, text)
+
+
+def camera_from_exif(path: str | os.PathLike) -> tuple[Camera, bool]:
+    """A camera guessed from an image's EXIF focal length, centred principal point.
+
+    Returns
+    -------
+    camera : Camera
+    from_exif : bool
+        False when the image has no usable EXIF focal length: the focal length is then COLMAP's
+        default guess, 1.2 times the larger image side.
+    """
+    import pycolmap
+
+    camera = pycolmap.infer_camera_from_image(os.fspath(path))
+    K = np.asarray(camera.calibration_matrix(), dtype=np.float64)
+    return Camera(_matrix_from_values(K, "EXIF camera")), bool(camera.has_prior_focal_length)

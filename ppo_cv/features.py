@@ -1,0 +1,237 @@
+"""Local features and their matching: SIFT (default), ORB or AKAZE, mutual nearest neighbours.
+
+Keypoints are returned in full-resolution pixel coordinates even when detection ran on a
+downscaled copy of the image. SIFT descriptors are mapped to RootSIFT (L1-normalise, square
+root), under which the Euclidean distance is the Hellinger kernel distance of the histograms.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["FEATURE_TYPES", "Features", "to_gray", "detect_features", "match_features"]
+
+FEATURE_TYPES = ("sift", "orb", "akaze")
+_FLANN_MIN_FEATURES = 12000
+
+
+@dataclass(frozen=True)
+class Features:
+    """Keypoints and descriptors of one image.
+
+    Attributes
+    ----------
+    keypoints : ndarray, shape (N, 2)
+        Pixel coordinates ``(u, v)`` in the full-resolution image.
+    descriptors : ndarray, shape (N, D)
+        float32 (SIFT, RootSIFT-normalised) or uint8 (ORB, AKAZE: binary, Hamming distance).
+    kind : str
+        The detector, one of ``FEATURE_TYPES``.
+    """
+
+    keypoints: np.ndarray
+    descriptors: np.ndarray
+    kind: str
+
+    @property
+    def binary(self) -> bool:
+        """Whether the descriptors compare by Hamming distance."""
+        return self.descriptors.dtype == np.uint8
+
+    def __len__(self) -> int:
+        return int(self.keypoints.shape[0])
+
+
+def to_gray(image: np.ndarray) -> np.ndarray:
+    """An 8-bit single-channel copy of an image of shape (H, W), (H, W, 3) BGR or (H, W, 4)."""
+    import cv2
+
+    image = np.asarray(image)
+    if image.dtype != np.uint8:
+        if np.issubdtype(image.dtype, np.floating) and image.size and float(image.max()) <= 1.0:
+            image = image * 255.0
+        image = np.clip(image, 0, 255).astype(np.uint8)
+    if image.ndim == 2:
+        return image
+    if image.ndim == 3 and image.shape[2] == 1:
+        return image[:, :, 0]
+    if image.ndim == 3 and image.shape[2] in (3, 4):
+        code = cv2.COLOR_BGR2GRAY if image.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
+        return cv2.cvtColor(image, code)
+    raise ValueError(f"image must have shape (H, W), (H, W, 3) or (H, W, 4), got {image.shape}")
+
+
+def _detector(kind: str, max_features: int):
+    import cv2
+
+    if kind == "sift":
+        return cv2.SIFT_create(nfeatures=max_features)
+    if kind == "orb":
+        return cv2.ORB_create(nfeatures=max_features, fastThreshold=10)
+    if kind == "akaze":
+        # OpenCV 5 moved AKAZE to the contrib module xfeatures2d.
+        create = getattr(cv2, "AKAZE_create", None) or cv2.xfeatures2d.AKAZE_create
+        return create(threshold=5e-4)
+    raise ValueError(f"unknown feature type {kind!r}; choose one of {', '.join(FEATURE_TYPES)}")
+
+
+def _root_sift(descriptors: np.ndarray) -> np.ndarray:
+    l1 = np.maximum(np.abs(descriptors).sum(axis=1, keepdims=True), 1e-12)
+    return np.sqrt(descriptors / l1).astype(np.float32)
+
+
+def detect_features(
+    image: np.ndarray,
+    kind: str = "sift",
+    max_features: int = 8000,
+    max_image_size: int | None = None,
+) -> Features:
+    """Detect keypoints and compute descriptors.
+
+    Parameters
+    ----------
+    image : ndarray, shape (H, W) or (H, W, 3)
+        8-bit grey or BGR image.
+    kind : {"sift", "orb", "akaze"}
+        Detector and descriptor.
+    max_features : int
+        Keep at most this many keypoints, the strongest first.
+    max_image_size : int, optional
+        Detect on a copy whose longer side is at most this many pixels; keypoints are mapped back
+        to full resolution (``u_full = (u + 0.5) * s - 0.5``).
+
+    Returns
+    -------
+    Features
+    """
+    import cv2
+
+    if kind not in FEATURE_TYPES:
+        raise ValueError(f"unknown feature type {kind!r}; choose one of {', '.join(FEATURE_TYPES)}")
+    if int(max_features) < 1:
+        raise ValueError(f"max_features must be >= 1, got {max_features}")
+    gray = to_gray(image)
+    scale = 1.0
+    if max_image_size is not None and max(gray.shape) > max_image_size:
+        scale = max(gray.shape) / float(max_image_size)
+        size = (round(gray.shape[1] / scale), round(gray.shape[0] / scale))
+        gray = cv2.resize(gray, size, interpolation=cv2.INTER_AREA)
+    keypoints, descriptors = _detector(kind, int(max_features)).detectAndCompute(gray, None)
+    if descriptors is None or not keypoints:
+        dim = 32 if kind != "sift" else 128
+        dtype = np.uint8 if kind != "sift" else np.float32
+        return Features(np.zeros((0, 2)), np.zeros((0, dim), dtype), kind)
+    if kind == "akaze" and len(keypoints) > max_features:
+        order = np.argsort([-k.response for k in keypoints])[: int(max_features)]
+        keypoints = [keypoints[i] for i in order]
+        descriptors = descriptors[order]
+    uv = np.array([k.pt for k in keypoints], dtype=np.float64).reshape(-1, 2)
+    if scale != 1.0:
+        uv = (uv + 0.5) * scale - 0.5
+    if kind == "sift":
+        descriptors = _root_sift(descriptors)
+    return Features(uv, descriptors, kind)
+
+
+def _knn_opencv(query: np.ndarray, train: np.ndarray, k: int, binary: bool, flann: bool):
+    """Indices (Nq, k) and distances (Nq, k) of the k nearest train descriptors, by OpenCV."""
+    import cv2
+
+    if flann and not binary:
+        matcher = cv2.FlannBasedMatcher({"algorithm": 1, "trees": 4}, {"checks": 128})
+    else:
+        matcher = cv2.BFMatcher(cv2.NORM_HAMMING if binary else cv2.NORM_L2)
+    rows = matcher.knnMatch(query, train, k=k)
+    full = np.array([len(row) == k for row in rows], dtype=bool)
+    index = np.full((len(query), k), -1, dtype=np.int64)
+    distance = np.full((len(query), k), np.inf)
+    if full.any():  # OpenCV returns a list of DMatch lists
+        found = [m for row, ok in zip(rows, full, strict=True) if ok for m in row]
+        index[full] = np.array([m.trainIdx for m in found]).reshape(-1, k)
+        distance[full] = np.array([m.distance for m in found]).reshape(-1, k)
+    return index, distance
+
+
+def _two_nearest_dense(d1: np.ndarray, d2: np.ndarray, block: int = 2048):
+    """Exact 2-NN of each row of d1 among d2, and the 1-NN in d1 of each row of d2.
+
+    Squared Euclidean distances ``|a|^2 + |b|^2 - 2 a.b`` by blocks of matrix products.
+
+    Returns
+    -------
+    index12 : (N1, 2) int, dist12 : (N1, 2) float, index21 : (N2,) int
+    """
+    n1 = len(d1)
+    sq1 = np.einsum("ij,ij->i", d1, d1)
+    sq2 = np.einsum("ij,ij->i", d2, d2)
+    index12 = np.empty((n1, 2), dtype=np.int64)
+    dist12 = np.empty((n1, 2))
+    best21 = np.full(len(d2), np.inf, dtype=np.float32)
+    index21 = np.zeros(len(d2), dtype=np.int64)
+    for start in range(0, n1, block):
+        stop = min(start + block, n1)
+        dist = sq1[start:stop, None] + sq2[None, :] - 2.0 * (d1[start:stop] @ d2.T)
+        two = np.argpartition(dist, 1, axis=1)[:, :2]
+        pair = np.take_along_axis(dist, two, axis=1)
+        order = np.argsort(pair, axis=1)
+        index12[start:stop] = np.take_along_axis(two, order, axis=1)
+        dist12[start:stop] = np.sqrt(np.maximum(np.take_along_axis(pair, order, axis=1), 0))
+        rows = np.argmin(dist, axis=0)
+        column_best = dist[rows, np.arange(dist.shape[1])]
+        better = column_best < best21
+        best21[better] = column_best[better]
+        index21[better] = rows[better] + start
+    return index12, dist12, index21
+
+
+def match_features(
+    features1: Features,
+    features2: Features,
+    ratio: float = 0.8,
+    mutual: bool = True,
+    flann: bool | None = None,
+) -> np.ndarray:
+    """Match descriptors by nearest neighbour with Lowe's ratio test.
+
+    A match ``(i, j)`` is kept when ``d(i, j) < ratio * d(i, j')`` for the second nearest ``j'``
+    and, with ``mutual``, when ``i`` is also the nearest neighbour of ``j`` in image 1.
+
+    Parameters
+    ----------
+    features1, features2 : Features
+        Features of image 1 and image 2, of the same kind.
+    ratio : float
+        Lowe's ratio, in (0, 1].
+    mutual : bool
+        Keep only mutual nearest neighbours.
+    flann : bool, optional
+        Approximate search with FLANN kd-trees (float descriptors only); by default used when
+        both sets hold more than 12000 descriptors.
+
+    Returns
+    -------
+    ndarray of int, shape (M, 2)
+        Index pairs ``(i, j)`` into ``features1.keypoints`` and ``features2.keypoints``.
+    """
+    if features1.kind != features2.kind:
+        raise ValueError(f"cannot match {features1.kind} features with {features2.kind} features")
+    if not 0 < ratio <= 1:
+        raise ValueError(f"ratio must be in (0, 1], got {ratio}")
+    d1, d2 = features1.descriptors, features2.descriptors
+    if len(d1) < 2 or len(d2) < 2:
+        return np.zeros((0, 2), dtype=np.int64)
+    binary = features1.binary
+    if flann is None:
+        flann = min(len(d1), len(d2)) > _FLANN_MIN_FEATURES
+    if binary or flann:
+        index12, dist12 = _knn_opencv(d1, d2, 2, binary, flann)
+        index21 = _knn_opencv(d2, d1, 1, binary, flann)[0][:, 0] if mutual else None
+    else:
+        index12, dist12, index21 = _two_nearest_dense(d1, d2)
+    keep = (index12[:, 0] >= 0) & (dist12[:, 0] < ratio * dist12[:, 1])
+    if mutual:
+        keep &= index21[np.maximum(index12[:, 0], 0)] == np.arange(len(d1))
+    rows = np.flatnonzero(keep)
+    return np.stack([rows, index12[rows, 0]], axis=1).astype(np.int64)

@@ -1,0 +1,425 @@
+"""From two photos to ``(R, t)``, the pure-rotation flag and 3D points.
+
+Stages (each timed in ``PairResult.timings``, seconds):
+
+1. ``features``: SIFT (RootSIFT) keypoints, or ORB / AKAZE (:mod:`ppo_cv.features`).
+2. ``matching``: mutual nearest neighbours with Lowe's ratio test.
+3. ``undistort``: matched pixels to normalized coordinates ``K^-1 [u, v, 1]``, lens distortion
+   removed from the points (never from the images).
+4. ``ransac``: robust essential matrix (:mod:`ppo_cv.robust`).
+5. ``ppo``: the pose among the four candidates of ``E`` by the PPO inequalities (same-side M1
+   for ``R``, intersection M2 for ``t``), without triangulation.
+6. ``refine``: non-linear refinement of ``(R, t)`` over the inliers (:mod:`ppo_cv.refine`).
+7. ``decision``: PPO decision and PRI on the refined pose; for a pure rotation the rotation is
+   re-fitted on bearings and no point is emitted, otherwise the analytic points (Prop. 3).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from . import ppo
+from .checks import as_camera_matrix
+from .features import FEATURE_TYPES, Features, detect_features, match_features
+from .pose import _recover_normalized
+from .refine import fit_rotation, refine_pose
+from .robust import ROBUST_BACKENDS, essential_from_pose, estimate_essential, sampson_errors
+
+__all__ = ["PairOptions", "PairResult", "estimate_pair", "load_image", "MIN_MATCHES"]
+
+MIN_MATCHES = 8
+
+
+@dataclass(frozen=True)
+class PairOptions:
+    """Settings of :func:`estimate_pair`.
+
+    Attributes
+    ----------
+    features : {"sift", "orb", "akaze"}
+        Detector and descriptor.
+    max_features : int
+        Keypoints kept per image, strongest first.
+    max_image_size : int or None
+        Detect on a copy whose longer side is at most this (pixels); None keeps full size.
+    ratio : float
+        Lowe's ratio test bound.
+    mutual : bool
+        Keep only mutual nearest neighbours.
+    backend : {"pycolmap", "opencv"}
+        Robust estimator of ``E``: COLMAP LO-RANSAC or OpenCV USAC MAGSAC++.
+    ransac_threshold : float
+        Inlier threshold on the epipolar error, pixels.
+    confidence : float
+        RANSAC confidence.
+    min_trials, max_trials : int
+        Bounds on the number of RANSAC hypotheses.
+    refine : bool
+        Refine ``(R, t)`` over the inliers.
+    pri_threshold : float
+        Pure rotation when PRI is below it (paper: 0.015).
+    min_inliers : int
+        Fewer inliers than this is an error, not a pose.
+    seed : int
+        RANSAC seed.
+    """
+
+    features: str = "sift"
+    max_features: int = 8000
+    max_image_size: int | None = 2000
+    ratio: float = 0.9
+    mutual: bool = True
+    backend: str = "pycolmap"
+    ransac_threshold: float = 1.0
+    confidence: float = 0.9999
+    min_trials: int = 100
+    max_trials: int = 100_000
+    refine: bool = True
+    pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD
+    min_inliers: int = 8
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.features not in FEATURE_TYPES:
+            raise ValueError(
+                f"unknown features {self.features!r}; choose one of {', '.join(FEATURE_TYPES)}"
+            )
+        if self.backend not in ROBUST_BACKENDS:
+            raise ValueError(
+                f"unknown backend {self.backend!r}; choose one of {', '.join(ROBUST_BACKENDS)}"
+            )
+        if not 0 < self.ratio <= 1:
+            raise ValueError(f"ratio must be in (0, 1], got {self.ratio}")
+        if not self.ransac_threshold > 0:
+            raise ValueError(f"ransac_threshold must be > 0, got {self.ransac_threshold}")
+        if not 0 < self.confidence < 1:
+            raise ValueError(f"confidence must be in (0, 1), got {self.confidence}")
+        if (
+            self.max_features < 8
+            or not 1 <= self.min_trials <= self.max_trials
+            or self.min_inliers < 5
+        ):
+            raise ValueError(
+                "need max_features >= 8, 1 <= min_trials <= max_trials and min_inliers >= 5"
+            )
+        if self.max_image_size is not None and self.max_image_size < 32:
+            raise ValueError(f"max_image_size must be >= 32, got {self.max_image_size}")
+
+
+@dataclass(frozen=True)
+class PairResult:
+    """Relative pose of two images and its evidence.
+
+    Attributes
+    ----------
+    R : ndarray, shape (3, 3)
+        Rotation from camera 1 to camera 2, ``X2 = R X1 + t``.
+    t : ndarray, shape (3,)
+        Unit translation direction. When ``pure_rotation`` is True it is the best unit estimate
+        but undetermined (``translation_determined`` is False).
+    pure_rotation : bool
+        PRI below ``pri_threshold``: the views share a centre (or the baseline is negligible).
+    pri : float
+        Pure-rotation indicator (mean ``|M2|``, eq. 84) of the refined pose over the inliers.
+    keypoints1, keypoints2 : ndarray, shape (N1, 2), (N2, 2)
+        All detected keypoints, full-resolution pixels.
+    matches : ndarray of int, shape (M, 2)
+        Putative matches, indices into ``keypoints1`` and ``keypoints2``.
+    inliers : ndarray of bool, shape (M,)
+        Matches consistent with the estimated two-view geometry.
+    points3d : ndarray, shape (P, 3)
+        Analytic points (Proposition 3) in camera-1 coordinates with unit baseline, for the inliers
+        in front of both cameras; empty for a pure rotation.
+    point_matches : ndarray of int, shape (P,)
+        Row of ``matches`` of each point.
+    colours : ndarray of uint8, shape (P, 3)
+        RGB colour of each point, sampled from image 1.
+    K1, K2 : ndarray, shape (3, 3)
+        Intrinsics used.
+    image_size1, image_size2 : tuple of int
+        ``(width, height)`` of each image.
+    timings : dict
+        Seconds per stage.
+    """
+
+    R: np.ndarray
+    t: np.ndarray
+    pure_rotation: bool
+    pri: float
+    keypoints1: np.ndarray
+    keypoints2: np.ndarray
+    matches: np.ndarray
+    inliers: np.ndarray
+    points3d: np.ndarray
+    point_matches: np.ndarray
+    colours: np.ndarray
+    K1: np.ndarray
+    K2: np.ndarray
+    image_size1: tuple[int, int]
+    image_size2: tuple[int, int]
+    pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD
+    timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def translation_determined(self) -> bool:
+        """False for a pure rotation, whose translation direction the images do not fix."""
+        return not self.pure_rotation
+
+    @property
+    def num_matches(self) -> int:
+        """Number of putative matches."""
+        return int(self.matches.shape[0])
+
+    @property
+    def num_inliers(self) -> int:
+        """Number of inlier matches."""
+        return int(np.count_nonzero(self.inliers))
+
+    @property
+    def num_points(self) -> int:
+        """Number of 3D points."""
+        return int(self.points3d.shape[0])
+
+    @property
+    def inlier_points(self) -> tuple[np.ndarray, np.ndarray]:
+        """Pixel coordinates (I, 2) of the inlier matches in image 1 and image 2."""
+        m = self.matches[self.inliers]
+        return self.keypoints1[m[:, 0]], self.keypoints2[m[:, 1]]
+
+
+def load_image(path: str | os.PathLike) -> np.ndarray:
+    """Read an image file as 8-bit BGR (H, W, 3); ValueError naming the file when unreadable."""
+    import cv2
+
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise ValueError(f"image not found: {path}")
+    if os.path.isdir(path):
+        raise ValueError(f"expected an image file, got a directory: {path}")
+    data = np.fromfile(path, dtype=np.uint8)
+    image = cv2.imdecode(data, cv2.IMREAD_COLOR) if data.size else None
+    if image is None:
+        raise ValueError(f"not a readable image: {path}")
+    return image
+
+
+def _as_image(image: Any, name: str) -> np.ndarray:
+    if isinstance(image, (str, os.PathLike)):
+        return load_image(image)
+    array = np.asarray(image)
+    if (
+        array.ndim not in (2, 3)
+        or array.size == 0
+        or (array.ndim == 3 and array.shape[2] not in (1, 3, 4))
+    ):
+        raise ValueError(f"{name} must be an image of shape (H, W) or (H, W, 3), got {array.shape}")
+    if not (np.issubdtype(array.dtype, np.integer) or np.issubdtype(array.dtype, np.floating)):
+        raise TypeError(f"{name} must hold numbers, got dtype {array.dtype}")
+    return array
+
+
+def _as_distortion(dist: Any, name: str) -> np.ndarray | None:
+    if dist is None:
+        return None
+    coeffs = np.asarray(dist, dtype=np.float64).reshape(-1)
+    if coeffs.size not in (4, 5, 8, 12, 14):
+        raise ValueError(
+            f"{name} must hold OpenCV distortion coefficients (k1, k2, p1, p2[, k3, ...]): "
+            f"4, 5, 8, 12 or 14 numbers, got {coeffs.size}"
+        )
+    if not np.all(np.isfinite(coeffs)):
+        raise ValueError(f"{name} has NaN or infinite values")
+    return coeffs if np.any(coeffs) else None
+
+
+def _normalize(points: np.ndarray, K: np.ndarray, dist: np.ndarray | None) -> np.ndarray:
+    """Pixels (N, 2) to homogeneous normalized coordinates (N, 3), distortion removed."""
+    if dist is None:
+        xy = ppo.normalize(points, K)
+    else:
+        import cv2
+
+        xy = cv2.undistortPoints(points.reshape(-1, 1, 2), K, dist).reshape(-1, 2)
+    return np.column_stack([xy, np.ones(len(xy))])
+
+
+def _colours(image: np.ndarray, points: np.ndarray) -> np.ndarray:
+    h, w = image.shape[:2]
+    u = np.clip(np.rint(points[:, 0]).astype(int), 0, w - 1)
+    v = np.clip(np.rint(points[:, 1]).astype(int), 0, h - 1)
+    pixels = image[v, u]
+    if image.ndim == 2 or (image.ndim == 3 and image.shape[2] == 1):
+        pixels = np.repeat(pixels.reshape(-1, 1), 3, axis=1)
+    else:
+        pixels = pixels[:, 2::-1]  # BGR(A) -> RGB
+    return np.clip(pixels, 0, 255).astype(np.uint8)
+
+
+def _detect_both(image1, image2, options: PairOptions) -> tuple[Features, Features]:
+    """Features of both images on two threads (OpenCV releases the GIL).
+
+    The first use of pycolmap in a process pays its import; it is overlapped with detection.
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
+    def run(image):
+        return detect_features(
+            image, options.features, options.max_features, options.max_image_size
+        )
+
+    with ThreadPoolExecutor(max_workers=3) as pool:
+        if "pycolmap" not in sys.modules:
+            pool.submit(importlib.import_module, "pycolmap")
+        f1, f2 = pool.map(run, (image1, image2))
+    return f1, f2
+
+
+def _refine(R, t, x1, x2, inliers, focal, options: PairOptions, rounds: int = 3):
+    """Refine over the inliers, re-select the inliers of the refined pose, until they settle."""
+    threshold = options.ransac_threshold / focal
+    for _ in range(rounds):
+        R, t = refine_pose(R, t, x1, x2, inliers, focal)
+        within = sampson_errors(essential_from_pose(R, t), x1, x2) < threshold
+        if np.count_nonzero(within) < options.min_inliers or np.array_equal(within, inliers):
+            break
+        inliers = within
+    return R, t, inliers
+
+
+def estimate_pair(
+    image1: Any,
+    image2: Any,
+    K1: Any,
+    K2: Any = None,
+    dist1: Any = None,
+    dist2: Any = None,
+    options: PairOptions | None = None,
+) -> PairResult:
+    """Relative pose of two calibrated images.
+
+    Parameters
+    ----------
+    image1, image2 : ndarray (H, W) / (H, W, 3) BGR, or path
+        The two photos.
+    K1 : array_like, shape (3, 3)
+        Intrinsics of camera 1.
+    K2 : array_like, shape (3, 3), optional
+        Intrinsics of camera 2; defaults to ``K1``.
+    dist1, dist2 : array_like, optional
+        OpenCV distortion coefficients ``(k1, k2, p1, p2[, k3, ...])``; ``dist2`` defaults to
+        ``dist1`` when ``K2`` is not given.
+    options : PairOptions, optional
+
+    Returns
+    -------
+    PairResult
+
+    Raises
+    ------
+    ValueError
+        Unreadable image, identical images, too few features, matches or inliers.
+    """
+    options = PairOptions() if options is None else options
+    timings: dict[str, float] = {}
+    clock = time.perf_counter()
+
+    def lap(stage: str) -> None:
+        nonlocal clock
+        now = time.perf_counter()
+        timings[stage] = now - clock
+        clock = now
+
+    img1, img2 = _as_image(image1, "image1"), _as_image(image2, "image2")
+    K1 = as_camera_matrix(K1, "K1")
+    dist1 = _as_distortion(dist1, "dist1")
+    if K2 is None:
+        K2, dist2 = K1, dist1 if dist2 is None else _as_distortion(dist2, "dist2")
+    else:
+        K2, dist2 = as_camera_matrix(K2, "K2"), _as_distortion(dist2, "dist2")
+    if img1.shape == img2.shape and np.array_equal(img1, img2):
+        raise ValueError("the two images are identical: they carry no relative pose")
+    lap("load")
+
+    f1, f2 = _detect_both(img1, img2, options)
+    for name, f in (("image1", f1), ("image2", f2)):
+        if len(f) < MIN_MATCHES:
+            raise ValueError(f"{name} has too few features ({len(f)}): blank or textureless image")
+    lap("features")
+
+    matches = match_features(f1, f2, ratio=options.ratio, mutual=options.mutual)
+    if len(matches) < MIN_MATCHES:
+        raise ValueError(f"too few matches between the images ({len(matches)}, need {MIN_MATCHES})")
+    lap("matching")
+
+    p1, p2 = f1.keypoints[matches[:, 0]], f2.keypoints[matches[:, 1]]
+    x1, x2 = _normalize(p1, K1, dist1), _normalize(p2, K2, dist2)
+    focal = float(np.mean([K1[0, 0], K1[1, 1], K2[0, 0], K2[1, 1]]))
+    lap("undistort")
+
+    fit = estimate_essential(
+        x1,
+        x2,
+        focal,
+        backend=options.backend,
+        threshold=options.ransac_threshold,
+        confidence=options.confidence,
+        min_trials=options.min_trials,
+        max_trials=options.max_trials,
+        seed=options.seed,
+    )
+    if fit is None or fit.num_inliers < options.min_inliers:
+        found = 0 if fit is None else fit.num_inliers
+        raise ValueError(
+            f"no reliable two-view geometry: {found} inliers among {len(matches)} matches "
+            f"(need {options.min_inliers})"
+        )
+    inliers = fit.inliers
+    lap("ransac")
+
+    chosen = ppo.select_pose(fit.E, x1[inliers], x2[inliers])
+    lap("ppo")
+
+    R, t = chosen.R, chosen.t
+    if options.refine:
+        R, t, inliers = _refine(R, t, x1, x2, inliers, focal, options)
+    lap("refine")
+
+    final = _recover_normalized(
+        essential_from_pose(R, t), x1[:, :2], x2[:, :2], inliers, float(options.pri_threshold)
+    )
+    if final.pure_rotation:
+        R, _ = fit_rotation(x1, x2, inliers, 2.0 * options.ransac_threshold / focal, R=final.R)
+        t = final.t
+        keep = np.zeros(len(matches), dtype=bool)
+    else:
+        R, t = final.R, final.t
+        keep = final.inliers & np.all(np.isfinite(final.points3d), axis=1)
+    point_matches = np.flatnonzero(keep)
+    lap("decision")
+
+    return PairResult(
+        R=R,
+        t=t,
+        pure_rotation=final.pure_rotation,
+        pri=float(final.pri),
+        keypoints1=f1.keypoints,
+        keypoints2=f2.keypoints,
+        matches=matches,
+        inliers=inliers,
+        points3d=final.points3d[keep],
+        point_matches=point_matches,
+        colours=_colours(img1, p1[keep]),
+        K1=K1,
+        K2=K2,
+        image_size1=(int(img1.shape[1]), int(img1.shape[0])),
+        image_size2=(int(img2.shape[1]), int(img2.shape[0])),
+        pri_threshold=float(options.pri_threshold),
+        timings=timings,
+    )

@@ -1,0 +1,234 @@
+"""Intrinsics parsing: --K strings, OpenCV YAML/XML, COLMAP cameras.txt, JSON and EXIF."""
+
+from __future__ import annotations
+
+import doctest
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from ppo_cv import calib
+from ppo_cv.calib import (
+    camera_from_exif,
+    load_calibration,
+    parse_distortion,
+    parse_intrinsics,
+)
+
+K_FREIBURG = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
+DIST = np.array([-0.2, 0.05, 0.001, -0.002, 0.01])
+
+
+def test_docstring_examples():
+    result = doctest.testmod(calib, optionflags=doctest.NORMALIZE_WHITESPACE)
+    assert result.attempted > 0 and result.failed == 0
+
+
+@pytest.mark.parametrize(
+    "text",
+    [
+        "535.4,539.2,320.1,247.6",
+        "535.4, 539.2, 320.1, 247.6",
+        "535.4 539.2 320.1 247.6",
+        "535.4,0,320.1,0,539.2,247.6,0,0,1",
+        "[535.4, 0, 320.1, 0, 539.2, 247.6, 0, 0, 1]",
+    ],
+)
+def test_parse_intrinsics_accepts_four_or_nine_numbers(text):
+    np.testing.assert_allclose(parse_intrinsics(text), K_FREIBURG)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("535.4,539.2,320.1", "4 numbers"),
+        ("1,2,3,4,5", "4 numbers"),
+        ("fx,fy,cx,cy", "numbers"),
+        ("", "4 numbers"),
+        ("0,539.2,320.1,247.6", "focal"),
+        ("-535.4,539.2,320.1,247.6", "positive"),
+        ("535.4,0,320.1,0,539.2,247.6,0,1,1", "last row"),
+        ("nan,539.2,320.1,247.6", "NaN"),
+    ],
+)
+def test_parse_intrinsics_rejects_malformed_text(text, message):
+    with pytest.raises(ValueError, match=message):
+        parse_intrinsics(text)
+
+
+def test_parse_distortion():
+    np.testing.assert_allclose(parse_distortion("-0.2,0.05,0.001,-0.002"), DIST[:4])
+    np.testing.assert_allclose(parse_distortion("-0.2,0.05,0.001,-0.002,0.01"), DIST)
+    assert parse_distortion("0,0,0,0") is None
+    with pytest.raises(ValueError, match="k1,k2,p1,p2"):
+        parse_distortion("0.1,0.2,0.3")
+    with pytest.raises(ValueError, match="numbers"):
+        parse_distortion("k1")
+
+
+@pytest.mark.parametrize("extension", ["yml", "yaml", "xml"])
+def test_opencv_file_storage(tmp_path, extension):
+    path = tmp_path / f"camera.{extension}"
+    storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    storage.write("image_width", 640)
+    storage.write("camera_matrix", K_FREIBURG)
+    storage.write("distortion_coefficients", DIST.reshape(1, 5))
+    storage.release()
+    (camera,) = load_calibration(path)
+    np.testing.assert_allclose(camera.K, K_FREIBURG)
+    np.testing.assert_allclose(camera.dist, DIST)
+
+
+def test_opencv_stereo_file_gives_two_cameras(tmp_path):
+    path = tmp_path / "stereo.yml"
+    K2 = K_FREIBURG * [[1.1], [1.1], [1.0]]
+    storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    storage.write("M1", K_FREIBURG)
+    storage.write("D1", DIST)
+    storage.write("M2", K2)
+    storage.release()
+    first, second = load_calibration(path)
+    np.testing.assert_allclose(first.K, K_FREIBURG)
+    np.testing.assert_allclose(second.K, K2)
+    assert second.dist is None
+
+
+def test_opencv_file_without_camera_matrix(tmp_path):
+    path = tmp_path / "empty.yml"
+    storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    storage.write("something_else", 3)
+    storage.release()
+    with pytest.raises(ValueError, match="no camera matrix"):
+        load_calibration(path)
+
+
+def test_colmap_cameras_txt(tmp_path):
+    path = tmp_path / "cameras.txt"
+    path.write_text(
+        "# Camera list with one line of data per camera:\n"
+        "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
+        "1 PINHOLE 640 480 535.4 539.2 320.1 247.6\n"
+        "2 SIMPLE_RADIAL 640 480 500 320 240 -0.1\n"
+    )
+    first, second = load_calibration(path)
+    np.testing.assert_allclose(first.K, K_FREIBURG)
+    assert first.dist is None
+    np.testing.assert_allclose(second.K, [[500, 0, 320], [0, 500, 240], [0, 0, 1]])
+    np.testing.assert_allclose(second.dist, [-0.1, 0, 0, 0])
+
+
+@pytest.mark.parametrize(
+    "line, K, dist",
+    [
+        ("1 SIMPLE_PINHOLE 640 480 500 320 240", [500, 500, 320, 240], None),
+        ("1 RADIAL 640 480 500 320 240 -0.1 0.02", [500, 500, 320, 240], [-0.1, 0.02, 0, 0]),
+        (
+            "1 OPENCV 640 480 510 500 320 240 -0.1 0.02 0.001 0.002",
+            [510, 500, 320, 240],
+            [-0.1, 0.02, 0.001, 0.002],
+        ),
+        (
+            "1 FULL_OPENCV 640 480 510 500 320 240 -0.1 0.02 0.001 0.002 0.01 0 0 0",
+            [510, 500, 320, 240],
+            [-0.1, 0.02, 0.001, 0.002, 0.01, 0, 0, 0],
+        ),
+    ],
+)
+def test_colmap_camera_models(tmp_path, line, K, dist):
+    path = tmp_path / "cameras.txt"
+    path.write_text(line + "\n")
+    (camera,) = load_calibration(path)
+    fx, fy, cx, cy = K
+    np.testing.assert_allclose(camera.K, [[fx, 0, cx], [0, fy, cy], [0, 0, 1]])
+    if dist is None:
+        assert camera.dist is None
+    else:
+        np.testing.assert_allclose(camera.dist, dist)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("1 FISHEYE 640 480 1 2 3 4\n", "unsupported COLMAP camera model"),
+        ("1 PINHOLE 640 480 535.4 539.2\n", "takes 4 parameters"),
+        ("1 PINHOLE\n", "expected CAMERA_ID"),
+        ("# only comments\n", "no camera"),
+    ],
+)
+def test_colmap_errors(tmp_path, text, message):
+    path = tmp_path / "cameras.txt"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=message):
+        load_calibration(path)
+
+
+@pytest.mark.parametrize(
+    "data",
+    [
+        {"K": K_FREIBURG.tolist(), "dist": DIST.tolist()},
+        {"K": K_FREIBURG.ravel().tolist(), "dist": DIST.tolist()},
+        {"fx": 535.4, "fy": 539.2, "cx": 320.1, "cy": 247.6, "distortion": DIST.tolist()},
+        {"cameras": [{"K": [535.4, 539.2, 320.1, 247.6], "dist": DIST.tolist()}]},
+    ],
+)
+def test_json_single_camera(tmp_path, data):
+    path = tmp_path / "camera.json"
+    path.write_text(json.dumps(data))
+    (camera,) = load_calibration(path)
+    np.testing.assert_allclose(camera.K, K_FREIBURG)
+    np.testing.assert_allclose(camera.dist, DIST)
+
+
+def test_json_two_cameras(tmp_path):
+    path = tmp_path / "rig.json"
+    path.write_text(json.dumps({"K1": [535.4, 539.2, 320.1, 247.6], "K2": [600, 600, 300, 200]}))
+    first, second = load_calibration(path)
+    np.testing.assert_allclose(first.K, K_FREIBURG)
+    np.testing.assert_allclose(second.K, [[600, 0, 300], [0, 600, 200], [0, 0, 1]])
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("{not json", "not valid JSON"),
+        ('{"focal": 500}', "expected K"),
+        ('{"K": [1, 2, 3]}', "4 numbers"),
+        ('{"K": [500, 500, 320, 240], "dist": [1, 2, 3]}', "k1,k2,p1,p2"),
+    ],
+)
+def test_json_errors(tmp_path, text, message):
+    path = tmp_path / "camera.json"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=message):
+        load_calibration(path)
+
+
+def test_missing_calibration_file(tmp_path):
+    with pytest.raises(ValueError, match="not found"):
+        load_calibration(tmp_path / "absent.yml")
+
+
+def test_exif_absent_gives_default_guess(tmp_path):
+    path = tmp_path / "plain.png"
+    cv2.imwrite(str(path), np.zeros((480, 640, 3), np.uint8))
+    camera, from_exif = camera_from_exif(path)
+    assert not from_exif
+    np.testing.assert_allclose(camera.K, [[768, 0, 320], [0, 768, 240], [0, 0, 1]])
+
+
+def test_exif_focal_length_is_used(tmp_path):
+    from PIL import Image
+
+    path = tmp_path / "photo.jpg"
+    exif = Image.Exif()
+    exif[0x010F], exif[0x0110] = "Maker", "Model"  # Make, Model
+    ifd = exif.get_ifd(0x8769)
+    ifd[0xA405] = 36  # FocalLengthIn35mmFilm, mm, relative to the 36x24 mm frame diagonal
+    Image.fromarray(np.zeros((480, 640, 3), np.uint8)).save(path, exif=exif)
+    camera, from_exif = camera_from_exif(path)
+    assert from_exif
+    expected = 36.0 / np.hypot(36.0, 24.0) * np.hypot(640.0, 480.0)
+    np.testing.assert_allclose(camera.K[0, 0], expected, rtol=1e-3)
+    np.testing.assert_allclose(camera.K[:2, 2], [320.0, 240.0])

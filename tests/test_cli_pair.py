@@ -1,0 +1,271 @@
+"""``ppo-cv pair``, ``demo`` and ``pairs`` through typer's runner and as a subprocess."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from ppo_cv.cli.main import app
+from typer.testing import CliRunner
+
+DATA = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
+DEMO = json.loads((DATA / "demo.json").read_text())
+DEMO1, DEMO2 = str(DATA / DEMO["image1"]), str(DATA / DEMO["image2"])
+K_TEXT = ",".join(str(v) for v in DEMO["intrinsics"])
+REQUIRED_KEYS = {
+    "R",
+    "t",
+    "pure_rotation",
+    "pri",
+    "num_matches",
+    "num_inliers",
+    "num_points",
+    "K1",
+    "K2",
+    "timings",
+    "translation_determined",
+}
+
+runner = CliRunner()
+
+
+def rotation_error(R, R_true):
+    return np.degrees(np.arccos(np.clip((np.trace(R.T @ R_true) - 1) / 2, -1, 1)))
+
+
+def direction_error(t, t_true):
+    return np.degrees(np.arccos(np.clip(abs(t @ t_true), -1, 1)))
+
+
+def check_demo_pose(data):
+    R, t = np.array(data["R"]), np.array(data["t"])
+    assert rotation_error(R, np.array(DEMO["reference_R"])) < 1.0
+    assert direction_error(t, np.array(DEMO["reference_t"])) < 3.0
+
+
+def read_ply(path):
+    raw = Path(path).read_bytes()
+    end = raw.index(b"end_header\n") + len(b"end_header\n")
+    header = raw[:end].decode("ascii").splitlines()
+    assert header[0] == "ply" and header[1] == "format binary_little_endian 1.0"
+    count = int(next(line for line in header if line.startswith("element vertex")).split()[-1])
+    dtype = np.dtype(
+        [("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("red", "u1"), ("green", "u1"), ("blue", "u1")]
+    )
+    return np.frombuffer(raw[end:], dtype=dtype, count=count)
+
+
+@pytest.fixture(scope="module")
+def demo_json():
+    result = runner.invoke(app, ["pair", "--json"])
+    assert result.exit_code == 0, result.output
+    return result
+
+
+def test_no_arguments_runs_the_demo_pair(demo_json):
+    data = json.loads(demo_json.stdout)
+    assert REQUIRED_KEYS <= set(data)
+    check_demo_pose(data)
+    assert not data["pure_rotation"] and data["translation_determined"]
+    assert data["num_inliers"] >= 100 and data["num_points"] > 0
+    assert np.allclose(data["K1"], [[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, 1]])
+
+
+def test_human_summary(tmp_path):
+    result = runner.invoke(app, ["pair", DEMO1, DEMO2, "--K", K_TEXT])
+    assert result.exit_code == 0, result.output
+    for word in ("rotation", "euler", "translation", "PRI", "general motion", "inliers", "ransac"):
+        assert word in result.stdout
+
+
+def test_demo_command_matches_pair_without_arguments(demo_json):
+    result = runner.invoke(app, ["demo", "--json"])
+    assert result.exit_code == 0, result.output
+    assert np.allclose(json.loads(result.stdout)["R"], json.loads(demo_json.stdout)["R"])
+
+
+def test_subprocess_json_is_the_only_stdout():
+    exe = shutil.which("ppo-cv")
+    command = [exe] if exe else [sys.executable, "-m", "ppo_cv.cli.main"]
+    out = subprocess.run(
+        [*command, "pair", DEMO1, DEMO2, "--K", K_TEXT, "--K2", K_TEXT, "--json"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert out.returncode == 0, out.stderr
+    data = json.loads(out.stdout)
+    assert REQUIRED_KEYS <= set(data)
+    check_demo_pose(data)
+
+
+def test_out_directory_files_open(tmp_path):
+    import pycolmap
+
+    out = tmp_path / "result"
+    result = runner.invoke(app, ["pair", DEMO1, DEMO2, "--K", K_TEXT, "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    data = json.loads((out / "result.json").read_text())
+    check_demo_pose(data)
+    points = read_ply(out / "points.ply")
+    assert len(points) == data["num_points"] > 0
+    assert np.all(points["z"] > 0) and points["red"].std() > 0
+    matches = cv2.imread(str(out / "matches.png"))
+    assert matches.shape == (480, 1280, 3)
+    model = pycolmap.Reconstruction(str(out / "colmap"))
+    assert model.num_images() == 2 and model.num_points3D() == data["num_points"]
+    image2 = model.find_image_with_name(Path(DEMO2).name)
+    pose = image2.cam_from_world()
+    pose = pose() if callable(pose) else pose
+    assert rotation_error(pose.rotation.matrix(), np.array(data["R"])) < 1e-6
+    assert model.compute_mean_reprojection_error() < 1.0
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+def test_calibration_file_and_distortion_options(tmp_path):
+    calib = tmp_path / "cameras.txt"
+    calib.write_text("1 PINHOLE 640 480 " + K_TEXT.replace(",", " ") + "\n")
+    result = runner.invoke(app, ["pair", DEMO1, DEMO2, "--calib", str(calib), "--json"])
+    assert result.exit_code == 0, result.output
+    check_demo_pose(json.loads(result.stdout))
+    result = runner.invoke(
+        app, ["pair", DEMO1, DEMO2, "--K", K_TEXT, "--dist", "0,0,0,0", "--json"]
+    )
+    assert result.exit_code == 0, result.output
+
+
+def test_missing_intrinsics_fall_back_to_exif_with_a_warning():
+    result = runner.invoke(app, ["pair", DEMO1, DEMO2, "--json"])
+    assert result.exit_code == 0, result.output
+    assert "warning:" in result.stderr and "no intrinsics" in result.stderr
+    assert np.allclose(json.loads(result.stdout)["K1"][0][0], 768.0)
+
+
+@pytest.fixture(scope="module")
+def bad_files(tmp_path_factory):
+    root = tmp_path_factory.mktemp("bad")
+    text = root / "notes.png"
+    text.write_text("this is not an image\n")
+    blank = root / "blank.png"
+    cv2.imwrite(str(blank), np.full((480, 640, 3), 127, np.uint8))
+    noise = root / "noise.png"
+    rng = np.random.default_rng(0)
+    cv2.imwrite(
+        str(noise), cv2.GaussianBlur(rng.integers(0, 256, (480, 640, 3), np.uint8), (0, 0), 2)
+    )
+    copy = root / "copy.png"
+    shutil.copy(DEMO1, copy)
+    return {
+        "text": str(text),
+        "blank": str(blank),
+        "noise": str(noise),
+        "copy": str(copy),
+        "missing": str(root / "absent.png"),
+    }
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["{missing}", DEMO2, "--K", K_TEXT], "image not found"),
+        (["{text}", DEMO2, "--K", K_TEXT], "not a readable image"),
+        ([DEMO1, "{blank}", "--K", K_TEXT], "too few features"),
+        ([DEMO1, "{copy}", "--K", K_TEXT], "identical"),
+        ([DEMO1, "{noise}", "--K", K_TEXT], "too few matches|no reliable two-view geometry"),
+        ([DEMO1, DEMO2, "--K", "535.4,539.2,320.1"], "--K must be 4 numbers"),
+        ([DEMO1, DEMO2, "--K", "a,b,c,d"], "--K must be comma-separated numbers"),
+        ([DEMO1, DEMO2, "--K", K_TEXT, "--dist", "0.1,0.2,0.3"], "--dist must be"),
+        ([DEMO1, DEMO2, "--calib", "{missing}"], "calibration file not found"),
+        ([DEMO1, DEMO2, "--K", K_TEXT, "--features", "surf"], "unknown features"),
+        ([DEMO1], "give two images"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(tmp_path, bad_files, args, message):
+    import re
+
+    out = tmp_path / "out"
+    args = [a.format(**bad_files) for a in args]
+    result = runner.invoke(app, ["pair", *args, "--out", str(out)])
+    assert result.exit_code == 2
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: ")
+    assert re.search(message, lines[0])
+    assert "Traceback" not in result.output and result.stdout == ""
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_bad_input_as_subprocess_has_no_traceback(bad_files):
+    exe = shutil.which("ppo-cv")
+    command = [exe] if exe else [sys.executable, "-m", "ppo_cv.cli.main"]
+    out = subprocess.run(
+        [*command, "pair", bad_files["text"], DEMO2, "--K", K_TEXT],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert out.returncode == 2
+    assert out.stderr.strip().count("\n") == 0 and "not a readable image" in out.stderr
+    assert out.stdout == ""
+
+
+def test_pairs_with_ground_truth_prints_auc(tmp_path, freiburg):
+    lines = (freiburg / "pairs_with_gt.txt").read_text().splitlines()[:3]
+    pairs_file = tmp_path / "pairs.txt"
+    pairs_file.write_text("\n".join(lines) + "\n")
+    output = tmp_path / "poses.jsonl"
+    result = runner.invoke(
+        app,
+        [
+            "pairs",
+            str(pairs_file),
+            str(freiburg / "images"),
+            "--output",
+            str(output),
+            "--workers",
+            "2",
+        ],
+    )
+    assert result.exit_code == 0, result.output
+    rows = [json.loads(line) for line in output.read_text().splitlines()]
+    assert [r["image1"] for r in rows] == [line.split()[0] for line in lines]
+    errors = [max(r["R_err_deg"], r["t_err_deg"]) for r in rows]
+    assert max(errors) < 5.0
+    assert "AUC@5" in result.stdout and "| 3 | 0 |" in result.stdout
+
+
+def test_pairs_without_ground_truth_needs_intrinsics(tmp_path):
+    pairs_file = tmp_path / "pairs.txt"
+    pairs_file.write_text(f"{Path(DEMO1).name} {Path(DEMO2).name}\n")
+    result = runner.invoke(app, ["pairs", str(pairs_file), str(DATA)])
+    assert result.exit_code == 2 and "pass --K" in result.stderr
+    result = runner.invoke(
+        app, ["pairs", str(pairs_file), str(DATA), "--K", K_TEXT, "--workers", "1"]
+    )
+    assert result.exit_code == 0, result.output
+    (row,) = [json.loads(line) for line in result.stdout.splitlines()]
+    check_demo_pose(row)
+    assert "AUC" not in result.output
+
+
+def test_pairs_reports_failures_per_line(tmp_path):
+    pairs_file = tmp_path / "pairs.txt"
+    pairs_file.write_text(f"{Path(DEMO1).name} missing.png\n")
+    result = runner.invoke(
+        app, ["pairs", str(pairs_file), str(DATA), "--K", K_TEXT, "--workers", "1"]
+    )
+    assert result.exit_code == 0
+    (row,) = [json.loads(line) for line in result.stdout.splitlines()]
+    assert "image not found" in row["error"]
+
+
+def test_demo_data_is_attributed():
+    text = (DATA / "DEMO.md").read_text()
+    assert "TUM RGB-D" in text and "CC BY 4.0" in text
+    assert os.path.getsize(DEMO1) > 0 and cv2.imread(DEMO1).shape == (480, 640, 3)
