@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import sys
+
 import typer
+
 from ppo_cv.cli import pair, sfm, synth
 
 app = typer.Typer(
@@ -17,5 +20,26 @@ for _module in (synth, sfm, pair):
     _module.register(app)
 
 
-def main() -> None:
-    app()
+def _usage_error(exc: Exception) -> int:
+    """Print a command-line parsing error as one line; returns the exit code."""
+    ctx = getattr(exc, "ctx", None)
+    if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:
+        typer.echo(ctx.get_help(), err=True)
+        return 2
+    command = ctx.command_path if ctx is not None else "ppo-cv"
+    typer.echo(f"{command}: {exc.format_message()}", err=True)
+    return getattr(exc, "exit_code", 2)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Run the command line; a usage error is one line on stderr and exit code 2."""
+    try:
+        code = app(args=argv, prog_name="ppo-cv", standalone_mode=False)
+    except typer.Abort:
+        typer.echo("ppo-cv: interrupted", err=True)
+        code = 130
+    except Exception as exc:  # click's exceptions (typer vendors click in recent releases)
+        if not hasattr(exc, "format_message"):
+            raise
+        code = _usage_error(exc)
+    sys.exit(code if isinstance(code, int) else 0)

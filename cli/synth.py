@@ -6,8 +6,8 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
-from ppo_cv.data_gen import MOTIONS, SCENES
-from ppo_cv.data_gen.io import PAIRS_FILE
+from ppo_cv.data_gen.motion import MOTIONS
+from ppo_cv.data_gen.scenes import SCENES
 
 
 def _fail(message: str) -> None:
@@ -86,4 +86,6 @@ def register(app: typer.Typer) -> None:
             )  # fmt: skip
         except (ValueError, TypeError, OSError) as error:
             _fail(str(error))
+        from ppo_cv.data_gen.io import PAIRS_FILE
+
         typer.echo(f"wrote {pairs} pairs to {out} ({out / PAIRS_FILE})")

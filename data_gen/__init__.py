@@ -6,13 +6,59 @@
 * :func:`make_dataset`: a directory of pairs with a freiburg-style pairs file.
 """
 
-from .io import PAIRS_FILE, make_dataset, make_pair, pairs_line, read_pairs, write_pair
-from .motion import DEFAULT_SCENE, MOTIONS, Motion, intrinsics, look_at, sample_motion
-from .multiview import relative_gt_from_poses, render_tripod_then_move, tripod_then_move_poses
-from .protocol import PAPER_K, PAPER_T_MAX, ProtocolSample, euler_to_matrix, paper_protocol
-from .render import RenderedPair, project_points, render_pair, render_view
-from .scenes import SCENES, Quad, Scene, box_quads, checker_plane, make_scene
-from .textures import Texture, checker_texture, photo_texture
+from __future__ import annotations
+
+import importlib
+
+_SUBMODULE = {
+    "DEFAULT_SCENE": "motion",
+    "MOTIONS": "motion",
+    "Motion": "motion",
+    "PAIRS_FILE": "io",
+    "PAPER_K": "protocol",
+    "PAPER_T_MAX": "protocol",
+    "ProtocolSample": "protocol",
+    "Quad": "scenes",
+    "RenderedPair": "render",
+    "SCENES": "scenes",
+    "Scene": "scenes",
+    "Texture": "textures",
+    "box_quads": "scenes",
+    "checker_plane": "scenes",
+    "checker_texture": "textures",
+    "euler_to_matrix": "protocol",
+    "intrinsics": "motion",
+    "look_at": "motion",
+    "make_dataset": "io",
+    "make_pair": "io",
+    "make_scene": "scenes",
+    "pairs_line": "io",
+    "paper_protocol": "protocol",
+    "photo_texture": "textures",
+    "project_points": "render",
+    "read_pairs": "io",
+    "relative_gt_from_poses": "multiview",
+    "render_pair": "render",
+    "render_tripod_then_move": "multiview",
+    "render_view": "render",
+    "sample_motion": "motion",
+    "tripod_then_move_poses": "multiview",
+    "write_pair": "io",
+}
+"""Public name -> submodule that defines it; submodules load on first use (PEP 562)."""
+
+
+def __getattr__(name: str):
+    if name not in _SUBMODULE:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{_SUBMODULE[name]}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 __all__ = [
     "DEFAULT_SCENE",

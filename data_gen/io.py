@@ -17,11 +17,9 @@ relative to ``OUT/images``.
 from __future__ import annotations
 
 import json
-import multiprocessing
 import os
 import shutil
 import tempfile
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import cv2
@@ -263,6 +261,9 @@ def make_dataset(
         if workers == 1:
             lines = [_job(job) for job in jobs]
         else:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+
             context = multiprocessing.get_context("spawn")
             with ProcessPoolExecutor(workers, context, initializer=_init_worker) as pool:
                 lines = list(pool.map(_job, jobs))

@@ -1,0 +1,40 @@
+"""Usage errors of the ``ppo-cv`` command are one line on stderr with exit code 2."""
+
+from __future__ import annotations
+
+import pytest
+
+from ppo_cv.cli.main import main
+
+
+def _run(argv, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    out, err = capsys.readouterr()
+    return exit_info.value.code, out, err
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["bogus"], "No such command 'bogus'"),
+        (["pair", "--no-such-option"], "No such option: --no-such-option"),
+        (["pairs"], "Missing argument"),
+        (["synth", "out", "--pairs", "many"], "Invalid value for '--pairs'"),
+    ],
+)
+def test_usage_errors_are_one_line_with_exit_code_2(argv, message, capsys):
+    code, out, err = _run(argv, capsys)
+    assert code == 2 and out == ""
+    assert message in err and len(err.strip().splitlines()) == 1
+    assert err.startswith("ppo-cv")
+
+
+def test_no_arguments_prints_help_and_exits_2(capsys):
+    code, out, err = _run([], capsys)
+    assert code == 2 and "Usage" in out + err and "pair" in out + err
+
+
+def test_help_exits_0(capsys):
+    code, out, _ = _run(["--help"], capsys)
+    assert code == 0 and "synth" in out and "sfm" in out
