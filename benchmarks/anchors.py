@@ -165,7 +165,10 @@ def _poselib(m: Matches, K1: np.ndarray, K2: np.ndarray) -> AnchorResult:
 
 
 def run_anchor(name: str, matches: Matches, K1: np.ndarray, K2: np.ndarray) -> AnchorResult:
-    """Pose of anchor ``name`` (one of :data:`ANCHORS`) from shared matches; failures are returned, not raised."""
+    """Pose of anchor ``name`` (one of :data:`ANCHORS`) from shared matches.
+
+    Failures are returned, not raised.
+    """
     if len(matches.points1) < 8:
         return AnchorResult(None, None, 0.0)
     try:

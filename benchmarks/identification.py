@@ -18,9 +18,9 @@ from functools import partial
 
 import cv2
 import numpy as np
-from ppo_cv.data_gen import paper_protocol
 
 import ppo_cv
+from ppo_cv.data_gen import paper_protocol
 
 __all__ = ["identification_problem", "time_call", "run", "main"]
 

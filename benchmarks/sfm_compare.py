@@ -30,9 +30,9 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from ppo_cv.data_gen import read_pairs, relative_gt_from_poses, render_tripod_then_move
 
 from ppo_cv import sfm
+from ppo_cv.data_gen import read_pairs, relative_gt_from_poses, render_tripod_then_move
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("PPO_CV_SHARED", ROOT.parent / "shared"))

@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+
 from ppo_cv.data_gen.motion import MOTIONS
 from ppo_cv.data_gen.scenes import SCENES
 

@@ -34,12 +34,30 @@ _OPENCV_RECOVER_POSE = cv2.recoverPose
 _FORM1 = ("E", "points1", "points2", "cameraMatrix", "R", "t", "mask")
 _FORM2 = ("E", "points1", "points2", "R", "t", "focal", "pp", "mask")
 _FORM3 = (
-    "E", "points1", "points2", "cameraMatrix", "distanceThresh", "R", "t", "mask",
+    "E",
+    "points1",
+    "points2",
+    "cameraMatrix",
+    "distanceThresh",
+    "R",
+    "t",
+    "mask",
     "triangulatedPoints",
 )
 _FORM4 = (
-    "points1", "points2", "cameraMatrix1", "distCoeffs1", "cameraMatrix2", "distCoeffs2", "E",
-    "R", "t", "method", "prob", "threshold", "mask",
+    "points1",
+    "points2",
+    "cameraMatrix1",
+    "distCoeffs1",
+    "cameraMatrix2",
+    "distCoeffs2",
+    "E",
+    "R",
+    "t",
+    "method",
+    "prob",
+    "threshold",
+    "mask",
 )
 
 
@@ -128,8 +146,12 @@ def _recover_from_points(bound: dict) -> tuple:
     threshold = as_positive(bound.get("threshold", 1.0), "threshold")
     focal = (K1[0, 0] + K1[1, 1] + K2[0, 0] + K2[1, 1]) / 4.0
     E, ransac_mask = cv2.findEssentialMat(
-        n1, n2, np.eye(3), int(bound.get("method", cv2.RANSAC)),
-        float(bound.get("prob", 0.999)), threshold / abs(focal),
+        n1,
+        n2,
+        np.eye(3),
+        int(bound.get("method", cv2.RANSAC)),
+        float(bound.get("prob", 0.999)),
+        threshold / abs(focal),
     )
     if E is None or ransac_mask is None or not ransac_mask.any():
         raise ValueError("no essential matrix could be estimated from these points")

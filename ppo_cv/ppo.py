@@ -286,9 +286,7 @@ def select_pose(
     return _select(decompose_essential(E), _planar(x1), _planar(x2), used)
 
 
-def _select(
-    cand: Candidates, X1: np.ndarray, X2: np.ndarray, used: np.ndarray | None
-) -> Selection:
+def _select(cand: Candidates, X1: np.ndarray, X2: np.ndarray, used: np.ndarray | None) -> Selection:
     e = cand.t
     M = np.empty((4, 3))
     M[3] = e @ cand.R1

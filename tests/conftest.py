@@ -21,7 +21,6 @@ def freiburg() -> Path:
     return FREIBURG
 
 
-
 @pytest.fixture
 def K():
     """A pinhole camera with unequal focal lengths."""

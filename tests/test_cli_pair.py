@@ -12,8 +12,9 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from ppo_cv.cli.main import app
 from typer.testing import CliRunner
+
+from ppo_cv.cli.main import app
 
 DATA = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
 DEMO = json.loads((DATA / "demo.json").read_text())

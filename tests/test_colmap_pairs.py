@@ -8,10 +8,10 @@ import cv2
 import numpy as np
 import pycolmap
 import pytest
-from ppo_cv.data_gen import make_pair
 
 import ppo_cv
 from ppo_cv import colmap
+from ppo_cv.data_gen import make_pair
 from ppo_cv.features import detect_features, match_features
 
 Config = pycolmap.TwoViewGeometryConfiguration

@@ -6,9 +6,10 @@ import json
 
 import numpy as np
 import pytest
+from typer.testing import CliRunner
+
 from ppo_cv.cli.main import app
 from ppo_cv.data_gen import PAIRS_FILE, make_dataset, make_pair, read_pairs
-from typer.testing import CliRunner
 
 SMALL = (160, 120)
 

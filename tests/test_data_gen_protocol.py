@@ -6,6 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+
 from ppo_cv.data_gen import PAPER_K, ProtocolSample, euler_to_matrix, paper_protocol
 
 

@@ -7,6 +7,8 @@ import dataclasses
 import cv2
 import numpy as np
 import pytest
+
+import ppo_cv
 from ppo_cv.data_gen import (
     MOTIONS,
     RenderedPair,
@@ -20,8 +22,6 @@ from ppo_cv.data_gen import (
     render_pair,
     sample_motion,
 )
-
-import ppo_cv
 
 SIZE = (640, 480)
 

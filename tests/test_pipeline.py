@@ -7,9 +7,9 @@ import doctest
 import cv2
 import numpy as np
 import pytest
-from ppo_cv.data_gen import make_pair, make_scene, render_pair, sample_motion
 
 from ppo_cv import refine as refine_module
+from ppo_cv.data_gen import make_pair, make_scene, render_pair, sample_motion
 from ppo_cv.features import Features, detect_features, match_features
 from ppo_cv.pipeline import PairOptions, estimate_pair
 from ppo_cv.refine import fit_rotation, refine_pose, rotation_residuals

@@ -43,7 +43,10 @@ def test_form_camera_matrix(scene):
     args = (scene["E"], scene["p1"], scene["p2"], scene["K"])
     _check_pose(ppo_cv.recoverPose(*args), scene, OPENCV_RECOVER_POSE(*args))
     kwargs = {
-        "E": scene["E"], "points1": scene["p1"], "points2": scene["p2"], "cameraMatrix": scene["K"]
+        "E": scene["E"],
+        "points1": scene["p1"],
+        "points2": scene["p2"],
+        "cameraMatrix": scene["K"],
     }
     _check_pose(ppo_cv.recoverPose(**kwargs), scene, OPENCV_RECOVER_POSE(**kwargs))
 
@@ -82,7 +85,10 @@ def test_form_distance_threshold_returns_analytic_points(scene):
         relative = np.linalg.norm(euclidean - expected, axis=1) / np.linalg.norm(expected, axis=1)
         assert np.median(relative) < tolerance
     keyword = ppo_cv.recoverPose(
-        E=scene["E"], points1=scene["p1"], points2=scene["p2"], cameraMatrix=scene["K"],
+        E=scene["E"],
+        points1=scene["p1"],
+        points2=scene["p2"],
+        cameraMatrix=scene["K"],
         distanceThresh=5.0,
     )
     assert keyword[0] < ours[0]
@@ -107,8 +113,15 @@ def test_form_two_cameras_with_distortion():
     reference = OPENCV_RECOVER_POSE(p1, p2, K1, d1, K2, d2)
     assert rotation_angle_deg(R_out, reference[2]) < 0.1
     keyword = ppo_cv.recoverPose(
-        points1=p1, points2=p2, cameraMatrix1=K1, distCoeffs1=d1, cameraMatrix2=K2,
-        distCoeffs2=d2, method=cv2.USAC_MAGSAC, prob=0.999, threshold=1.0,
+        points1=p1,
+        points2=p2,
+        cameraMatrix1=K1,
+        distCoeffs1=d1,
+        cameraMatrix2=K2,
+        distCoeffs2=d2,
+        method=cv2.USAC_MAGSAC,
+        prob=0.999,
+        threshold=1.0,
     )
     assert rotation_angle_deg(keyword[2], R) < 0.05
 

@@ -9,12 +9,12 @@ from pathlib import Path
 import numpy as np
 import pycolmap
 import pytest
-from ppo_cv.cli.main import app
-from ppo_cv.data_gen import read_pairs, relative_gt_from_poses, render_tripod_then_move
 from typer.testing import CliRunner
 
 import ppo_cv
 from ppo_cv import colmap, sfm
+from ppo_cv.cli.main import app
+from ppo_cv.data_gen import read_pairs, relative_gt_from_poses, render_tripod_then_move
 
 ROOT = Path(__file__).resolve().parents[1]
 FREIBURG_K = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])

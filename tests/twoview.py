@@ -49,4 +49,3 @@ def angle_between_deg(a, b):
     a, b = np.ravel(a), np.ravel(b)
     c = np.clip(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)), -1, 1)
     return float(np.degrees(np.arccos(c)))
-

@@ -32,11 +32,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import figures  # noqa: E402
 import report  # noqa: E402
-from ppo_cv.data_gen import euler_to_matrix, paper_protocol  # noqa: E402
 from simulation import euler_zyx_deg, linear_essential, rmse, simulate_cell  # noqa: E402
 from timing import METHODS, time_methods  # noqa: E402
 
 from ppo_cv import ppo  # noqa: E402
+from ppo_cv.data_gen import euler_to_matrix, paper_protocol  # noqa: E402
 
 DEPTHS = (30.0, 50.0, 80.0)
 BAD_T_DEG = 45.0

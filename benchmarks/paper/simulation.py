@@ -20,9 +20,9 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from ppo_cv.data_gen import paper_protocol
 
 from ppo_cv import ppo
+from ppo_cv.data_gen import paper_protocol
 
 __all__ = [
     "CellResult",

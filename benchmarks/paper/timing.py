@@ -14,10 +14,10 @@ import time
 
 import cv2
 import numpy as np
-from ppo_cv.data_gen import paper_protocol
 from simulation import _homogeneous, linear_essential
 
 from ppo_cv import ppo
+from ppo_cv.data_gen import paper_protocol
 
 __all__ = ["cheirality_pose", "time_methods", "METHODS"]
 

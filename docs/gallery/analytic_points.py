@@ -14,10 +14,9 @@ import sys
 
 import cv2
 import numpy as np
-from ppo_cv.data_gen import make_pair
 
 import ppo_cv
-from ppo_cv.pipeline import estimate_pair
+from ppo_cv.data_gen import make_pair
 
 ply_path = sys.argv[1] if len(sys.argv) > 1 else "analytic_points.ply"
 
@@ -30,7 +29,7 @@ def depth_errors(z, pixels, depth_map):
 
 # 1. The whole pipeline on a general pair. Rendered images are RGB; estimate_pair wants BGR.
 pair = make_pair("general", seed=0, index=0, size=(480, 360))
-result = estimate_pair(pair.image1[..., ::-1], pair.image2[..., ::-1], pair.K1)
+result = ppo_cv.estimate_pair(pair.image1[..., ::-1], pair.image2[..., ::-1], pair.K1)
 baseline = np.linalg.norm(pair.t)  # points3d have a unit baseline; the images cannot tell more
 points = result.points3d * baseline
 pixels1 = result.keypoints1[result.matches[result.point_matches, 0]]
@@ -50,7 +49,7 @@ print(f"wrote {ply_path}")
 
 # 2. Small parallax: the camera turns and its centre moves by a few millimetres.
 pair = make_pair("small-parallax", seed=0, index=2, size=(480, 360), alpha=0.005)
-pixels1, pixels2 = estimate_pair(
+pixels1, pixels2 = ppo_cv.estimate_pair(
     pair.image1[..., ::-1], pair.image2[..., ::-1], pair.K1
 ).inlier_points
 baseline = np.linalg.norm(pair.t)

@@ -13,9 +13,9 @@ indicator (PRI) with its decision.
 
 import cv2
 import numpy as np
-from ppo_cv.data_gen import make_pair
 
 import ppo_cv
+from ppo_cv.data_gen import make_pair
 
 
 def rotation_error_deg(R, R_true):

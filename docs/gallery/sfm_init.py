@@ -16,9 +16,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
-from ppo_cv.data_gen import relative_gt_from_poses, render_tripod_then_move
 
 from ppo_cv import sfm
+from ppo_cv.data_gen import relative_gt_from_poses, render_tripod_then_move
 
 folder = Path(sys.argv[1] if len(sys.argv) > 1 else "sfm_example")
 images, database, model = folder / "images", folder / "database.db", folder / "model"

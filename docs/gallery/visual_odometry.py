@@ -10,9 +10,9 @@ and the chained orientation are compared with the exact ground truth.
 """
 
 import numpy as np
-from ppo_cv.data_gen import make_scene, render_view, tripod_then_move_poses
 
-from ppo_cv.pipeline import PairOptions, estimate_pair
+import ppo_cv
+from ppo_cv.data_gen import make_scene, render_view, tripod_then_move_poses
 
 
 def angle_deg(R):
@@ -31,12 +31,12 @@ for R, t in poses:
     noisy = image * 255 + rng.normal(0, 1, image.shape)  # one grey level of sensor noise
     frames.append(np.clip(np.rint(noisy), 0, 255).astype(np.uint8)[..., ::-1])  # RGB -> BGR
 
-options = PairOptions(max_features=4000, seed=0)  # 4000 SIFT keypoints are plenty at 480x360
+options = ppo_cv.PairOptions(max_features=4000, seed=0)  # 4000 SIFT keypoints are plenty at 480x360
 pure_steps, true_pure_steps = [], []
 R_world = np.eye(3)  # chained orientation: cam_from_world, with the first view as the world
 print("step  rotation  R err   PRI     motion          t dir err  chained R err")
 for k in range(1, len(frames)):
-    result = estimate_pair(frames[k - 1], frames[k], K, options=options)
+    result = ppo_cv.estimate_pair(frames[k - 1], frames[k], K, options=options)
     (R_prev, t_prev), (R_next, t_next) = poses[k - 1], poses[k]
     R_true = R_next @ R_prev.T  # exact relative pose, x_k = R x_{k-1} + t
     t_true = t_next - R_true @ t_prev
