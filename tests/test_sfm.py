@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 import pycolmap
 import pytest
+from twoview import angle_between_deg, rotation_angle_deg
 from typer.testing import CliRunner
 
 import ppo_cv
@@ -18,16 +19,6 @@ from ppo_cv.data_gen import read_pairs, relative_gt_from_poses, render_tripod_th
 
 ROOT = Path(__file__).resolve().parents[1]
 FREIBURG_K = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
-
-
-def rotation_error_deg(R_a: np.ndarray, R_b: np.ndarray) -> float:
-    cos = (np.trace(R_a.T @ R_b) - 1.0) / 2.0
-    return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
-
-
-def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
-    cos = a @ b / (np.linalg.norm(a) * np.linalg.norm(b))
-    return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
 
 
 # --- score_pose on exact poses --------------------------------------------------------------
@@ -94,7 +85,7 @@ def test_score_pairs_on_a_synthesized_database(tmp_path):
             assert pair.rejection.startswith("no pose (DEGENERATE") and pair.score == 0.0
             continue
         R, t = colmap.relative_pose(reconstruction, pair.image_id1, pair.image_id2)
-        assert rotation_error_deg(pair.R, R) < 1e-4 and angle_deg(pair.t, t) < 1e-4
+        assert rotation_angle_deg(pair.R, R) < 1e-4 and angle_between_deg(pair.t, t) < 1e-4
         assert pair.num_inliers == pair.num_matches
         assert not pair.pure_rotation and pair.pri > 0.1
 
@@ -149,9 +140,9 @@ def test_pair_poses_match_ground_truth(tripod, tripod_pairs):
     rotation_errors, translation_errors = [], []
     for pair in tripod_pairs:
         R_gt, t_gt = gt_pose(gt, pair.name1, pair.name2)
-        rotation_errors.append(rotation_error_deg(pair.R, R_gt))
+        rotation_errors.append(rotation_angle_deg(pair.R, R_gt))
         if pair.accepted:
-            translation_errors.append(angle_deg(pair.t, t_gt))
+            translation_errors.append(angle_between_deg(pair.t, t_gt))
     assert max(rotation_errors) < 3.0 and np.median(rotation_errors) < 0.3
     assert max(translation_errors) < 10.0 and np.median(translation_errors) < 2.0
 
