@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .checks import as_camera_matrix
+from .checks import as_camera_matrix, as_distortion
 
 __all__ = [
     "Camera",
@@ -30,7 +30,6 @@ __all__ = [
     "camera_from_exif",
 ]
 
-_DIST_SIZES = (4, 5, 8, 12, 14)
 
 
 @dataclass(frozen=True)
@@ -76,22 +75,6 @@ def _matrix_from_values(values: np.ndarray, name: str) -> np.ndarray:
     return K
 
 
-def _dist_from_values(values, name: str) -> np.ndarray | None:
-    if values is None:
-        return None
-    values = np.asarray(values, dtype=np.float64).reshape(-1)
-    if values.size == 0:
-        return None
-    if values.size not in _DIST_SIZES:
-        raise ValueError(
-            f"{name} must be k1,k2,p1,p2[,k3] (4 or 5 numbers; 8, 12 or 14 for OpenCV's "
-            f"rational models), got {values.size}"
-        )
-    if not np.all(np.isfinite(values)):
-        raise ValueError(f"{name} has NaN or infinite values")
-    return values if np.any(values) else None
-
-
 def parse_intrinsics(text: str, name: str = "--K") -> np.ndarray:
     """``"fx,fy,cx,cy"`` or 9 row-major numbers to a 3x3 ``K``.
 
@@ -103,7 +86,7 @@ def parse_intrinsics(text: str, name: str = "--K") -> np.ndarray:
 
 def parse_distortion(text: str, name: str = "--dist") -> np.ndarray | None:
     """``"k1,k2,p1,p2[,k3]"`` to OpenCV distortion coefficients; None when all are zero."""
-    return _dist_from_values(_numbers(text, name), name)
+    return as_distortion(_numbers(text, name), name)
 
 
 def _read_opencv(path: str) -> list[Camera]:
@@ -131,10 +114,10 @@ def _read_opencv(path: str) -> list[Camera]:
         storage.release()
     if K1 is None:
         raise ValueError(f"no camera matrix (camera_matrix, cameraMatrix, K or M1) in {path}")
-    cameras = [Camera(_matrix_from_values(K1, "camera matrix"), _dist_from_values(D1, "dist"))]
+    cameras = [Camera(_matrix_from_values(K1, "camera matrix"), as_distortion(D1, "dist"))]
     if K2 is not None:
         cameras.append(
-            Camera(_matrix_from_values(K2, "camera matrix 2"), _dist_from_values(D2, "dist2"))
+            Camera(_matrix_from_values(K2, "camera matrix 2"), as_distortion(D2, "dist2"))
         )
     return cameras
 
@@ -162,7 +145,7 @@ def _colmap_camera(model: str, params: np.ndarray, where: str) -> Camera:
     else:  # OPENCV: k1 k2 p1 p2; FULL_OPENCV: k1 k2 p1 p2 k3 k4 k5 k6, OpenCV's order
         K = _matrix_from_values(params[:4], where)
         dist = params[4:] if params.size > 4 else None
-    return Camera(K, _dist_from_values(dist, where))
+    return Camera(K, as_distortion(dist, where))
 
 
 def _read_colmap(path: str, text: str) -> list[Camera]:
@@ -196,7 +179,7 @@ def _json_camera(entry, where: str) -> Camera:
     else:
         raise ValueError(f"{where}: expected K or fx, fy, cx, cy")
     dist = entry.get("dist", entry.get("distortion", entry.get("dist_coeffs")))
-    return Camera(K, _dist_from_values(None if dist is None else np.asarray(dist, float), where))
+    return Camera(K, as_distortion(None if dist is None else np.asarray(dist, float), where))
 
 
 def _read_json(path: str, text: str) -> list[Camera]:

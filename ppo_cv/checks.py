@@ -11,6 +11,7 @@ __all__ = [
     "as_points",
     "as_point_pair",
     "as_camera_matrix",
+    "as_distortion",
     "as_essential",
     "as_mask",
     "as_positive",
@@ -82,6 +83,20 @@ def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
     if fx == 0 or fy == 0:
         raise ValueError(f"{name} has a zero focal length (fx={fx}, fy={fy})")
     return K
+
+
+def as_distortion(value: Any, name: str) -> np.ndarray | None:
+    """OpenCV distortion coefficients as float64 (n,), or None for none or all zeros."""
+    if value is None or np.size(value) == 0:
+        return None
+    coefficients = _as_real_array(value, name).reshape(-1)
+    if coefficients.size not in (4, 5, 8, 12, 14):
+        raise ValueError(
+            f"{name} must be OpenCV distortion coefficients k1,k2,p1,p2[,k3] (4 or 5 numbers; "
+            f"8, 12 or 14 for the rational models), got {coefficients.size}"
+        )
+    _require_finite(coefficients, name)
+    return coefficients if coefficients.any() else None
 
 
 def as_essential(value: Any) -> np.ndarray:

@@ -25,7 +25,14 @@ import cv2
 import numpy as np
 
 from . import ppo
-from .checks import as_camera_matrix, as_essential, as_mask, as_point_pair, as_positive
+from .checks import (
+    as_camera_matrix,
+    as_distortion,
+    as_essential,
+    as_mask,
+    as_point_pair,
+    as_positive,
+)
 from .pose import _recover_normalized, pixel_rays
 
 __all__ = ["recoverPose", "install", "uninstall", "installed", "is_installed"]
@@ -170,15 +177,7 @@ def _recover_from_points(bound: dict) -> tuple:
 
 def _undistort(points: np.ndarray, K: np.ndarray, coefficients: Any) -> np.ndarray:
     """Pixel points (N, 2) to normalized points (N, 2) with OpenCV's distortion model."""
-    if coefficients is not None and np.size(coefficients) > 0:
-        coefficients = np.asarray(coefficients, dtype=np.float64).reshape(-1)
-        if coefficients.size not in (4, 5, 8, 12, 14) or not np.isfinite(coefficients).all():
-            raise ValueError(
-                "distortion coefficients must be 4, 5, 8, 12 or 14 finite numbers, "
-                f"got {coefficients.size}"
-            )
-    else:
-        coefficients = None
+    coefficients = as_distortion(coefficients, "distCoeffs")
     return cv2.undistortPoints(points.reshape(-1, 1, 2), K, coefficients).reshape(-1, 2)
 
 

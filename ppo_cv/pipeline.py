@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from . import ppo
-from .checks import as_camera_matrix
+from .checks import as_camera_matrix, as_distortion
 from .features import FEATURE_TYPES, Features, detect_features, match_features
 from .pose import _recover_normalized
 from .refine import fit_rotation, refine_pose
@@ -225,20 +225,6 @@ def _as_image(image: Any, name: str) -> np.ndarray:
     return array
 
 
-def _as_distortion(dist: Any, name: str) -> np.ndarray | None:
-    if dist is None:
-        return None
-    coeffs = np.asarray(dist, dtype=np.float64).reshape(-1)
-    if coeffs.size not in (4, 5, 8, 12, 14):
-        raise ValueError(
-            f"{name} must hold OpenCV distortion coefficients (k1, k2, p1, p2[, k3, ...]): "
-            f"4, 5, 8, 12 or 14 numbers, got {coeffs.size}"
-        )
-    if not np.all(np.isfinite(coeffs)):
-        raise ValueError(f"{name} has NaN or infinite values")
-    return coeffs if np.any(coeffs) else None
-
-
 def _normalize(points: np.ndarray, K: np.ndarray, dist: np.ndarray | None) -> np.ndarray:
     """Pixels (N, 2) to homogeneous normalized coordinates (N, 3), distortion removed."""
     if dist is None:
@@ -338,11 +324,11 @@ def estimate_pair(
 
     img1, img2 = _as_image(image1, "image1"), _as_image(image2, "image2")
     K1 = as_camera_matrix(K1, "K1")
-    dist1 = _as_distortion(dist1, "dist1")
+    dist1 = as_distortion(dist1, "dist1")
     if K2 is None:
-        K2, dist2 = K1, dist1 if dist2 is None else _as_distortion(dist2, "dist2")
+        K2, dist2 = K1, dist1 if dist2 is None else as_distortion(dist2, "dist2")
     else:
-        K2, dist2 = as_camera_matrix(K2, "K2"), _as_distortion(dist2, "dist2")
+        K2, dist2 = as_camera_matrix(K2, "K2"), as_distortion(dist2, "dist2")
     if img1.shape == img2.shape and np.array_equal(img1, img2):
         raise ValueError("the two images are identical: they carry no relative pose")
     lap("load")
