@@ -13,11 +13,16 @@ import statistics
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 
 def _command() -> list[str]:
-    exe = shutil.which("ppo-cv")
-    return [exe] if exe else [sys.executable, "-m", "ppo_cv.cli.main"]
+    """The console script of this interpreter's environment (what a user of it runs)."""
+    beside = Path(sys.executable).with_name("ppo-cv")
+    exe = str(beside) if beside.is_file() else shutil.which("ppo-cv")
+    if exe is None:
+        raise SystemExit("ppo-cv is not installed: pip install .")
+    return [exe]
 
 
 def run(runs: int) -> tuple[list[float], dict[str, list[float]]]:
