@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -33,7 +34,7 @@ def _as_real_array(value: Any, name: str) -> np.ndarray:
 
 
 def _require_finite(array: np.ndarray, name: str) -> None:
-    if np.isfinite(array.sum()):
+    if math.isfinite(array.sum()):
         return
     bad = ~np.isfinite(array)  # the sum can also overflow with finite entries
     if bad.any():
@@ -110,7 +111,7 @@ def as_essential(value: Any) -> np.ndarray:
     if E.shape != (3, 3):
         raise ValueError(f"E must be a 3x3 matrix, got shape {E.shape}")
     _require_finite(E, "E")
-    if not E.any():
+    if not any(E.ravel().tolist()):
         raise ValueError("E is all zeros: it defines no pose")
     return E
 

@@ -81,6 +81,15 @@ def pixel_rays(points: np.ndarray, K: np.ndarray) -> np.ndarray:
     ``K`` is upper triangular with last row (0, 0, 1), as checked by ``as_camera_matrix``.
     """
     (fx, skew, cx), (_, fy, cy), _ = K.tolist()
+    if points.shape[0] <= 4096:  # one small matrix product is cheapest here, row passes beyond
+        K_inv = np.array(
+            [
+                [1.0 / fx, -skew / (fx * fy), (skew * cy - cx * fy) / (fx * fy)],
+                [0.0, 1.0 / fy, -cy / fy],
+                [0.0, 0.0, 1.0],
+            ]
+        )
+        return K_inv[:, :2] @ points.T + K_inv[:, 2:]
     rays = np.empty((3, points.shape[0]))
     rays[1] = (points[:, 1] - cy) * (1.0 / fy)
     rays[0] = (points[:, 0] - cx - skew * rays[1]) * (1.0 / fx)
