@@ -31,7 +31,6 @@ __all__ = [
 ]
 
 
-
 @dataclass(frozen=True)
 class Camera:
     """Pinhole intrinsics and OpenCV distortion of one camera.
