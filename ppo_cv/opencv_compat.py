@@ -222,7 +222,9 @@ def recoverPose(*args: Any, **kwargs: Any) -> tuple:  # noqa: N802 - OpenCV's na
     p1, p2 = as_point_pair(bound.get("points1"), bound.get("points2"))
     K = as_camera_matrix(K, "cameraMatrix")
     used = as_mask(bound.get("mask"), p1.shape[0])
-    X1, X2 = pixel_rays(p1, K), pixel_rays(p2, K)
+    n = p1.shape[0]
+    X = pixel_rays(np.concatenate([p1, p2]), K)  # one K^-1 for both views
+    X1, X2 = X[:, :n], X[:, n:]
     s, U, Vt = cv2.SVDecomp(E)  # several times faster than numpy's for one 3x3 matrix
     sel = ppo._select(ppo.candidates_from_svd(U, s, Vt), X1, X2, used)
     inliers = (sel.m1 > 0) & (sel.m2 > 0)
