@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pycolmap
 import pytest
-from twoview import angle_between_deg, rotation_angle_deg
+from twoview import angle_between_deg, pycolmap_relative_pose, rotation_angle_deg
 
 import ppo_cv
 from ppo_cv import colmap
@@ -96,11 +96,7 @@ def test_pycolmap_relative_pose_and_ppo_pick_the_same_pose(camera):
     R_gt = rotation([0.1, 1.0, 0.2], 12.0)
     t_gt = np.array([1.0, 0.15, 0.2]) / np.linalg.norm([1.0, 0.15, 0.2])
     p1, p2 = scene(1, R_gt, t_gt)
-    options = pycolmap.RANSACOptions()
-    options.max_error = 1.0
-    options.random_seed = 0
-    found = pycolmap.estimate_relative_pose(camera, p1, camera, p2, options)
-    R_c, t_c = colmap.pose_from_rigid3d(found["cam2_from_cam1"])
+    R_c, t_c, found = pycolmap_relative_pose(camera, p1, camera, p2)
     assert rotation_angle_deg(R_c, R_gt) < 0.5 and angle_between_deg(t_c, t_gt) < 2.0
     E = np.cross(np.eye(3), t_c) @ R_c  # [t]_x R, pycolmap's x2^T E x1 = 0
     result = ppo_cv.recover_pose(E, p1, p2, K, mask=found["inlier_mask"])
@@ -138,11 +134,7 @@ def test_two_view_geometry_from_pose(camera):
 def test_pure_rotation_where_relative_pose_reports_a_translation(camera):
     R_gt = rotation([0.3, 1.0, 0.1], 8.0)
     p1, p2 = scene(3, R_gt, np.zeros(3), noise=0.5)
-    options = pycolmap.RANSACOptions()
-    options.max_error = 1.0
-    options.random_seed = 0
-    found = pycolmap.estimate_relative_pose(camera, p1, camera, p2, options)
-    R_c, t_c = colmap.pose_from_rigid3d(found["cam2_from_cam1"])
+    R_c, t_c, found = pycolmap_relative_pose(camera, p1, camera, p2)
     # pycolmap's five-point solver returns a unit baseline with nothing to tell it is noise.
     assert np.linalg.norm(t_c) == pytest.approx(1.0)
     assert found["num_inliers"] > 250

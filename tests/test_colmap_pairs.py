@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pycolmap
 import pytest
-from twoview import angle_between_deg, rotation_angle_deg
+from twoview import angle_between_deg, pycolmap_relative_pose, rotation_angle_deg
 
 import ppo_cv
 from ppo_cv import colmap
@@ -74,11 +74,7 @@ def test_rendered_general_motion_from_relative_pose_essential(general_pair):
     pair, keypoints1, keypoints2, matches = general_pair
     camera1, camera2 = colmap.camera_from_K(pair.K1, *SIZE), colmap.camera_from_K(pair.K2, *SIZE)
     points1, points2 = keypoints1[matches[:, 0]], keypoints2[matches[:, 1]]
-    options = pycolmap.RANSACOptions()
-    options.max_error = 1.0
-    options.random_seed = 0
-    found = pycolmap.estimate_relative_pose(camera1, points1, camera2, points2, options)
-    R_c, t_c = colmap.pose_from_rigid3d(found["cam2_from_cam1"])
+    R_c, t_c, found = pycolmap_relative_pose(camera1, points1, camera2, points2)
     E = np.cross(np.eye(3), t_c) @ R_c
     result = ppo_cv.recover_pose(E, points1, points2, pair.K1, pair.K2, mask=found["inlier_mask"])
     assert not result.pure_rotation
@@ -99,11 +95,7 @@ def test_rendered_pure_rotation(rotation_pair):
     # pycolmap's five-point solver reports a unit baseline with no sign that it is noise;
     # PPO on its essential matrix keeps the rotation and flags the pure rotation.
     points1, points2 = keypoints1[matches[:, 0]], keypoints2[matches[:, 1]]
-    options = pycolmap.RANSACOptions()
-    options.max_error = 1.0
-    options.random_seed = 0
-    found = pycolmap.estimate_relative_pose(camera1, points1, camera2, points2, options)
-    R_c, t_c = colmap.pose_from_rigid3d(found["cam2_from_cam1"])
+    R_c, t_c, found = pycolmap_relative_pose(camera1, points1, camera2, points2)
     assert np.linalg.norm(t_c) == pytest.approx(1.0)
     E = np.cross(np.eye(3), t_c) @ R_c
     result = ppo_cv.recover_pose(E, points1, points2, pair.K1, pair.K2, mask=found["inlier_mask"])

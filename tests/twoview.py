@@ -49,3 +49,17 @@ def angle_between_deg(a, b):
     a, b = np.ravel(a), np.ravel(b)
     c = np.clip(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)), -1, 1)
     return float(np.degrees(np.arccos(c)))
+
+
+def pycolmap_relative_pose(camera1, points1, camera2, points2):
+    """pycolmap's LO-RANSAC relative pose (1 px, seed 0): ``(R, t, found)``, ``X2 = R X1 + t``."""
+    import pycolmap
+
+    from ppo_cv import colmap
+
+    options = pycolmap.RANSACOptions()
+    options.max_error = 1.0
+    options.random_seed = 0
+    found = pycolmap.estimate_relative_pose(camera1, points1, camera2, points2, options)
+    R, t = colmap.pose_from_rigid3d(found["cam2_from_cam1"])
+    return R, t, found
