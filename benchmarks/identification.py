@@ -13,14 +13,18 @@ table of median times and the ratio cv2 / ppo_cv for each N.
 from __future__ import annotations
 
 import argparse
-import time
+import sys
 from functools import partial
+from pathlib import Path
 
 import cv2
 import numpy as np
 
 import ppo_cv
 from ppo_cv.data_gen import paper_protocol
+
+sys.path.insert(0, str(Path(__file__).resolve().parent / "paper"))
+from timing import per_call  # noqa: E402
 
 __all__ = ["identification_problem", "time_call", "run", "main"]
 
@@ -38,24 +42,11 @@ def identification_problem(n_points: int, seed: int = 0) -> tuple[np.ndarray, ..
 
 
 def time_call(fn, repeats: int, min_seconds: float = 0.02, best_of: int = 3) -> np.ndarray:
-    """Seconds per call of ``fn()``: ``repeats`` samples, each the fastest of ``best_of`` loops
-    of enough calls to last about ``min_seconds`` (so that timer resolution and a busy
+    """Seconds per call of ``fn()``: ``repeats`` samples of :func:`per_call` (the fastest of
+    ``best_of`` loops lasting about ``min_seconds``, so that timer resolution and a busy
     machine's interruptions do not dominate microsecond calls)."""
     fn()
-    start = time.perf_counter()
-    fn()
-    once = max(time.perf_counter() - start, 1e-7)
-    inner = max(1, int(min_seconds / once))
-    samples = np.empty(repeats)
-    for i in range(repeats):
-        best = float("inf")
-        for _ in range(best_of if once < 0.05 else 1):
-            start = time.perf_counter()
-            for _ in range(inner):
-                fn()
-            best = min(best, (time.perf_counter() - start) / inner)
-        samples[i] = best
-    return samples
+    return np.array([per_call(fn, min_seconds, best_of) for _ in range(repeats)])
 
 
 def run(sizes=SIZES, repeats: int = 15) -> list[dict]:

@@ -61,7 +61,7 @@ def cheirality_pose(E: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> tuple[np.n
     return best
 
 
-def _per_call(fn, min_seconds: float, best_of: int = 3) -> float:
+def per_call(fn, min_seconds: float, best_of: int = 3) -> float:
     """Seconds per call: loops of calls lasting about ``min_seconds``, the fastest of
     ``best_of`` loops (one loop for calls slower than 50 ms), so that a busy machine's
     interruptions do not enter the figure."""
@@ -107,7 +107,7 @@ def time_methods(sizes, n_runs: int = 20, min_seconds: float = 0.003) -> dict[st
                 METHODS[3]: lambda E=E, n1=n1, n2=n2: cv2.recoverPose(E, n1, n2, eye),
             }
             for name, fn in calls.items():
-                samples[name].append(_per_call(fn, min_seconds))
+                samples[name].append(per_call(fn, min_seconds))
         for name in METHODS:
             medians[name].append(float(np.median(samples[name])))
     return {name: np.asarray(v) for name, v in medians.items()}
