@@ -33,7 +33,7 @@ from .checks import (
     as_point_pair,
     as_positive,
 )
-from .pose import _recover_normalized, pixel_rays
+from .pose import pixel_rays
 
 __all__ = ["recoverPose", "install", "uninstall", "installed", "is_installed"]
 
@@ -166,13 +166,25 @@ def _recover_from_points(bound: dict) -> tuple:
     input_mask = as_mask(bound.get("mask"), p1.shape[0])
     if input_mask is not None:
         used &= input_mask
+    X1, X2 = ppo._planar(n1), ppo._planar(n2)
     candidates = [E[i : i + 3] for i in range(0, E.shape[0], 3)]
-    results = [_recover_normalized(Ei, n1, n2, used) for Ei in candidates]
-    best = int(np.argmax([r.num_inliers for r in results]))
-    retval, R, t, mask = _outputs(
-        results[best].R, results[best].t, results[best].inliers, {**bound, "mask": used}
-    )
+    results = [_identify(Ei, X1, X2, used) for Ei in candidates]
+    best = int(np.argmax([np.count_nonzero(inliers) for _, inliers in results]))
+    sel, inliers = results[best]
+    retval, R, t, mask = _outputs(sel.R, sel.t, inliers, {**bound, "mask": used})
     return retval, _out_matrix(bound.get("E"), candidates[best].copy()), R, t, mask
+
+
+def _identify(
+    E: np.ndarray, X1: np.ndarray, X2: np.ndarray, used: np.ndarray | None
+) -> tuple[ppo.Selection, np.ndarray]:
+    """The PPO choice among the candidates of ``E`` and the points satisfying both inequalities."""
+    s, U, Vt = cv2.SVDecomp(E)  # several times faster than numpy's for one 3x3 matrix
+    sel = ppo._select(ppo.candidates_from_svd(U, s, Vt), X1, X2, used)
+    inliers = (sel.m1 > 0) & (sel.m2 > 0)
+    if used is not None:
+        inliers &= used
+    return sel, inliers
 
 
 def _undistort(points: np.ndarray, K: np.ndarray, coefficients: Any) -> np.ndarray:
@@ -225,11 +237,7 @@ def recoverPose(*args: Any, **kwargs: Any) -> tuple:  # noqa: N802 - OpenCV's na
     n = p1.shape[0]
     X = pixel_rays(np.concatenate([p1, p2]), K)  # one K^-1 for both views
     X1, X2 = X[:, :n], X[:, n:]
-    s, U, Vt = cv2.SVDecomp(E)  # several times faster than numpy's for one 3x3 matrix
-    sel = ppo._select(ppo.candidates_from_svd(U, s, Vt), X1, X2, used)
-    inliers = (sel.m1 > 0) & (sel.m2 > 0)
-    if used is not None:
-        inliers &= used
+    sel, inliers = _identify(E, X1, X2, used)
     if form is not _FORM3:
         return _outputs(sel.R, sel.t, inliers, bound)
     distance = as_positive(bound.get("distanceThresh"), "distanceThresh")

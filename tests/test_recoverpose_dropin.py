@@ -197,3 +197,18 @@ def test_many_points_and_normalized_equivalence():
     out = ppo_cv.recoverPose(E, p1, p2)
     assert out[0] >= 0.99 * 20000
     assert rotation_angle_deg(out[1], R) < 1e-6 and angle_between_deg(out[2], t) < 1e-6
+
+
+def test_form_with_points_keeps_the_rotation_and_the_mask_contract_for_pure_rotation():
+    rng = np.random.default_rng(6)
+    K = np.array([[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]])
+    R = random_rotation(rng, 15.0)
+    _, p1, p2 = make_scene(rng, 200, R, np.zeros(3), K, noise_px=0.5)
+    retval, E, R_out, t_out, mask = ppo_cv.recoverPose(p1, p2, K, None, K, None)
+    assert rotation_angle_deg(R_out, R) < 1.0
+    x1 = cv2.undistortPoints(p1.reshape(-1, 1, 2), K, None).reshape(-1, 2)
+    x2 = cv2.undistortPoints(p2.reshape(-1, 1, 2), K, None).reshape(-1, 2)
+    m1 = ppo_cv.ppo.same_side_scores(x1, x2, R_out, t_out.ravel())
+    m2 = ppo_cv.ppo.intersection_scores(x1, x2, R_out, t_out.ravel())
+    both = (m1 > 0) & (m2 > 0)
+    assert np.all(both[mask.ravel() > 0]) and retval == np.count_nonzero(mask)
