@@ -10,7 +10,7 @@ import numpy as np
 from . import ppo
 from .checks import as_camera_matrix, as_essential, as_mask, as_point_pair, as_positive
 
-__all__ = ["PoseResult", "recover_pose", "normalize_points"]
+__all__ = ["PoseResult", "recover_pose", "pixel_rays"]
 
 
 @dataclass(frozen=True)
@@ -68,11 +68,6 @@ class PoseResult:
     def num_inliers(self) -> int:
         """Number of points that satisfy both PPO inequalities."""
         return int(np.count_nonzero(self.inliers))
-
-
-def normalize_points(points: np.ndarray, K: np.ndarray) -> np.ndarray:
-    """Pixel points (N, 2) to normalized image points ``K^-1 [u, v, 1]^T``, shape (N, 2)."""
-    return ppo.normalize(points, K)
 
 
 def pixel_rays(points: np.ndarray, K: np.ndarray) -> np.ndarray:
