@@ -11,6 +11,7 @@ __all__ = [
     "MIN_POINTS",
     "as_points",
     "as_point_pair",
+    "as_homogeneous_pair",
     "as_camera_matrix",
     "as_distortion",
     "as_essential",
@@ -41,24 +42,26 @@ def _require_finite(array: np.ndarray, name: str) -> None:
         raise ValueError(f"{name} has {int(bad.sum())} NaN or infinite value(s)")
 
 
-def as_points(value: Any, name: str) -> np.ndarray:
-    """Image points as float64 (N, 2), from (N, 2), (N, 1, 2) or (1, N, 2), OpenCV's shapes."""
+def _point_rows(value: Any, name: str) -> np.ndarray:
+    """(N, 2) float64 view or copy of OpenCV-shaped points, not yet checked for finiteness."""
     array = _as_real_array(value, name)
     shape = array.shape
     if array.ndim == 3 and shape[2] == 2 and (shape[1] == 1 or shape[0] == 1):
-        array = array.reshape(-1, 2)
-    elif not (array.ndim == 2 and shape[1] == 2):
+        return array.reshape(-1, 2)
+    if not (array.ndim == 2 and shape[1] == 2):
         raise ValueError(f"{name} must have shape (N, 2), (N, 1, 2) or (1, N, 2), got {shape}")
+    return array
+
+
+def as_points(value: Any, name: str) -> np.ndarray:
+    """Image points as float64 (N, 2), from (N, 2), (N, 1, 2) or (1, N, 2), OpenCV's shapes."""
+    array = _point_rows(value, name)
     _require_finite(array, name)
     return array
 
 
-def as_point_pair(
-    points1: Any, points2: Any, min_points: int = MIN_POINTS
-) -> tuple[np.ndarray, np.ndarray]:
-    """Both point sets, checked for shape, finiteness, equal length and a minimum count."""
-    p1 = as_points(points1, "points1")
-    p2 = as_points(points2, "points2")
+def _paired_rows(points1: Any, points2: Any, min_points: int) -> tuple[np.ndarray, np.ndarray]:
+    p1, p2 = _point_rows(points1, "points1"), _point_rows(points2, "points2")
     if p1.shape[0] != p2.shape[0]:
         raise ValueError(
             f"points1 and points2 must have the same length, got {p1.shape[0]} and {p2.shape[0]}"
@@ -70,13 +73,44 @@ def as_point_pair(
     return p1, p2
 
 
+def as_point_pair(
+    points1: Any, points2: Any, min_points: int = MIN_POINTS
+) -> tuple[np.ndarray, np.ndarray]:
+    """Both point sets, checked for shape, finiteness, equal length and a minimum count."""
+    p1, p2 = _paired_rows(points1, points2, min_points)
+    _require_finite(p1, "points1")
+    _require_finite(p2, "points2")
+    return p1, p2
+
+
+def as_homogeneous_pair(points1: Any, points2: Any, min_points: int = MIN_POINTS) -> np.ndarray:
+    """Both point sets checked as by :func:`as_point_pair`, as homogeneous coordinate rows.
+
+    Returns
+    -------
+    ndarray, shape (2, 3, N)
+        ``[[u1], [v1], [1]]`` and ``[[u2], [v2], [1]]``.
+    """
+    p1, p2 = _paired_rows(points1, points2, min_points)
+    stack = np.empty((2, 3, p1.shape[0]))
+    stack[0, :2] = p1.T
+    stack[1, :2] = p2.T
+    stack[:, 2] = 1.0
+    if not math.isfinite(stack.sum()):
+        _require_finite(p1, "points1")
+        _require_finite(p2, "points2")
+    return stack
+
+
 def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
     """A 3x3 pinhole matrix with nonzero focal lengths and last row (0, 0, 1)."""
     K = _as_real_array(value, name)
     if K.shape != (3, 3):
         raise ValueError(f"{name} must be a 3x3 matrix, got shape {K.shape}")
-    _require_finite(K, name)
-    (fx, _, _), (k10, fy, _), last = K.tolist()
+    rows = K.tolist()
+    if not math.isfinite(sum(rows[0]) + sum(rows[1]) + sum(rows[2])):
+        _require_finite(K, name)
+    (fx, _, _), (k10, fy, _), last = rows
     if max(abs(last[0]), abs(last[1]), abs(last[2] - 1.0), abs(k10)) > 1e-12:
         raise ValueError(
             f"{name} must be upper triangular with last row (0, 0, 1), got {K.tolist()}"
@@ -110,8 +144,10 @@ def as_essential(value: Any) -> np.ndarray:
         )
     if E.shape != (3, 3):
         raise ValueError(f"E must be a 3x3 matrix, got shape {E.shape}")
-    _require_finite(E, "E")
-    if not any(E.ravel().tolist()):
+    entries = E.ravel().tolist()
+    if not math.isfinite(sum(entries)):
+        _require_finite(E, "E")
+    if not any(entries):
         raise ValueError("E is all zeros: it defines no pose")
     return E
 

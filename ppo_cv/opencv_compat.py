@@ -29,15 +29,19 @@ from .checks import (
     as_camera_matrix,
     as_distortion,
     as_essential,
+    as_homogeneous_pair,
     as_mask,
     as_point_pair,
     as_positive,
 )
-from .pose import pixel_rays
+from .pose import inverse_camera
 
 __all__ = ["recoverPose", "install", "uninstall", "installed", "is_installed"]
 
 _OPENCV_RECOVER_POSE = cv2.recoverPose
+_FLIP_XY = np.array([-1.0, -1.0, 1.0])
+_W1T = np.ascontiguousarray(ppo.W1.T)
+_MASK_ON = np.uint8(255)
 _FORM1 = ("E", "points1", "points2", "cameraMatrix", "R", "t", "mask")
 _FORM2 = ("E", "points1", "points2", "R", "t", "focal", "pp", "mask")
 _FORM3 = (
@@ -82,7 +86,8 @@ def _bind(names: tuple[str, ...], args: tuple, kwargs: dict) -> dict[str, Any]:
 
 
 def _is_3x3(value: Any) -> bool:
-    return value is not None and np.shape(value) == (3, 3)
+    shape = getattr(value, "shape", None)
+    return value is not None and (np.shape(value) if shape is None else shape) == (3, 3)
 
 
 def _is_number(value: Any) -> bool:
@@ -113,14 +118,14 @@ def _out_matrix(buffer: Any, value: np.ndarray) -> np.ndarray:
 
 def _out_mask(inliers: np.ndarray, mask_in: Any) -> np.ndarray:
     if mask_in is None or np.size(mask_in) != inliers.size:
-        return (inliers.view(np.uint8) * np.uint8(255)).reshape(-1, 1)
+        return (inliers.view(np.uint8) * _MASK_ON).reshape(-1, 1)
     values = np.asarray(mask_in).reshape(-1).astype(np.uint8)
     return np.where(inliers, values, 0).astype(np.uint8).reshape(-1, 1)
 
 
-def _homogeneous_points(X1: np.ndarray, X2: np.ndarray, sel: ppo.Selection) -> np.ndarray:
+def _homogeneous_points(X1: np.ndarray, X2: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
     """4xN analytic points; a point at infinity is its camera-1 ray with w = 0."""
-    points = ppo._points(X1, X2, sel.R, sel.t, 1e-12)
+    points = ppo._points(X1, X2, R, t, 1e-12)
     finite = np.isfinite(points[0])
     return np.vstack([np.where(finite, points, X1), finite.astype(np.float64)])
 
@@ -128,8 +133,8 @@ def _homogeneous_points(X1: np.ndarray, X2: np.ndarray, sel: ppo.Selection) -> n
 def _outputs(
     R: np.ndarray, t: np.ndarray, inliers: np.ndarray, bound: dict
 ) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
-    R = _out_matrix(bound.get("R"), R.copy())
-    t = _out_matrix(bound.get("t"), t.reshape(3, 1).copy())
+    R = _out_matrix(bound.get("R"), R)
+    t = _out_matrix(bound.get("t"), t.reshape(3, 1))
     return int(np.count_nonzero(inliers)), R, t, _out_mask(inliers, bound.get("mask"))
 
 
@@ -166,25 +171,32 @@ def _recover_from_points(bound: dict) -> tuple:
     input_mask = as_mask(bound.get("mask"), p1.shape[0])
     if input_mask is not None:
         used &= input_mask
-    X1, X2 = ppo._planar(n1), ppo._planar(n2)
+    points, K_inv = as_homogeneous_pair(n1, n2), np.eye(3)
     candidates = [E[i : i + 3] for i in range(0, E.shape[0], 3)]
-    results = [_identify(Ei, X1, X2, used) for Ei in candidates]
-    best = int(np.argmax([np.count_nonzero(inliers) for _, inliers in results]))
-    sel, inliers = results[best]
-    retval, R, t, mask = _outputs(sel.R, sel.t, inliers, {**bound, "mask": used})
+    results = [_identify(Ei, points, K_inv, used) for Ei in candidates]
+    best = int(np.argmax([np.count_nonzero(inliers) for _, _, inliers in results]))
+    retval, R, t, mask = _outputs(*results[best], {**bound, "mask": used})
     return retval, _out_matrix(bound.get("E"), candidates[best].copy()), R, t, mask
 
 
 def _identify(
-    E: np.ndarray, X1: np.ndarray, X2: np.ndarray, used: np.ndarray | None
-) -> tuple[ppo.Selection, np.ndarray]:
-    """The PPO choice among the candidates of ``E`` and the points satisfying both inequalities."""
-    s, U, Vt = cv2.SVDecomp(E)  # several times faster than numpy's for one 3x3 matrix
-    sel = ppo._select(ppo.candidates_from_svd(U, s, Vt), X1, X2, used)
-    inliers = (sel.m1 > 0) & (sel.m2 > 0)
+    E: np.ndarray, points: np.ndarray, K_inv: np.ndarray, used: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(R, t, inliers)`` chosen among the candidates of ``E`` by the PPO inequalities.
+
+    ``points`` (2, 3, N) holds the homogeneous pixels of both views by coordinate rows and
+    ``K_inv`` (3, 3) their inverse intrinsics, folded into the maps of :func:`ppo.frame_scores`.
+    """
+    _, U, Vt = cv2.SVDecomp(E)  # several times faster than numpy's for one 3x3 matrix
+    W1tVt = _W1T @ ppo._proper_svd(U, Vt)
+    m1, m2 = ppo.frame_scores(np.array((W1tVt, U.T)) @ K_inv, points)
+    keep_R1, same_side, _, _ = ppo._vote(m1, used)
+    keep_t, intersecting, _, _ = ppo._vote(m2, used)
+    inliers = same_side & intersecting
     if used is not None:
         inliers &= used
-    return sel, inliers
+    R = U @ W1tVt if keep_R1 else (U * _FLIP_XY) @ W1tVt  # W2^T V^T = diag(-1, -1, 1) W1^T V^T
+    return R, U[:, 2] * (1.0 if keep_t else -1.0), inliers
 
 
 def _undistort(points: np.ndarray, K: np.ndarray, coefficients: Any) -> np.ndarray:
@@ -231,20 +243,19 @@ def recoverPose(*args: Any, **kwargs: Any) -> tuple:  # noqa: N802 - OpenCV's na
     else:
         K = bound.get("cameraMatrix")
     E = as_essential(bound.get("E"))
-    p1, p2 = as_point_pair(bound.get("points1"), bound.get("points2"))
+    points = as_homogeneous_pair(bound.get("points1"), bound.get("points2"))
     K = as_camera_matrix(K, "cameraMatrix")
-    used = as_mask(bound.get("mask"), p1.shape[0])
-    n = p1.shape[0]
-    X = pixel_rays(np.concatenate([p1, p2]), K)  # one K^-1 for both views
-    X1, X2 = X[:, :n], X[:, n:]
-    sel, inliers = _identify(E, X1, X2, used)
+    used = as_mask(bound.get("mask"), points.shape[2])
+    K_inv = inverse_camera(K)
+    R, t, inliers = _identify(E, points, K_inv, used)
     if form is not _FORM3:
-        return _outputs(sel.R, sel.t, inliers, bound)
+        return _outputs(R, t, inliers, bound)
     distance = as_positive(bound.get("distanceThresh"), "distanceThresh")
-    z1, z2, _ = ppo._depths(X1, X2, sel.R, sel.t, 1e-12)
+    X1, X2 = K_inv @ points
+    z1, z2, _ = ppo._depths(X1, X2, R, t, 1e-12)
     inliers &= (z1 < distance) & (z2 < distance)
-    points = _out_matrix(bound.get("triangulatedPoints"), _homogeneous_points(X1, X2, sel))
-    return (*_outputs(sel.R, sel.t, inliers, bound), points)
+    points = _out_matrix(bound.get("triangulatedPoints"), _homogeneous_points(X1, X2, R, t))
+    return (*_outputs(R, t, inliers, bound), points)
 
 
 def is_installed() -> bool:

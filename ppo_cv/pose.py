@@ -10,7 +10,7 @@ import numpy as np
 from . import ppo
 from .checks import as_camera_matrix, as_essential, as_mask, as_point_pair, as_positive
 
-__all__ = ["PoseResult", "recover_pose", "pixel_rays"]
+__all__ = ["PoseResult", "recover_pose", "pixel_rays", "inverse_camera"]
 
 
 @dataclass(frozen=True)
@@ -70,21 +70,23 @@ class PoseResult:
         return int(np.count_nonzero(self.inliers))
 
 
+def inverse_camera(K: np.ndarray) -> np.ndarray:
+    """``K^-1`` of a 3x3 pinhole matrix, upper triangular with last row (0, 0, 1)."""
+    (fx, skew, cx), (_, fy, cy), _ = K.tolist()
+    fxy = fx * fy
+    inverse = [1.0 / fx, -skew / fxy, (skew * cy - cx * fy) / fxy, 0.0, 1.0 / fy, -cy / fy]
+    return np.array([*inverse, 0.0, 0.0, 1.0]).reshape(3, 3)
+
+
 def pixel_rays(points: np.ndarray, K: np.ndarray) -> np.ndarray:
     """Pixel points (N, 2) to stacked normalized rays ``K^-1 [u, v, 1]^T``, shape (3, N).
 
     ``K`` is upper triangular with last row (0, 0, 1), as checked by ``as_camera_matrix``.
     """
-    (fx, skew, cx), (_, fy, cy), _ = K.tolist()
     if points.shape[0] <= 4096:  # one small matrix product is cheapest here, row passes beyond
-        K_inv = np.array(
-            [
-                [1.0 / fx, -skew / (fx * fy), (skew * cy - cx * fy) / (fx * fy)],
-                [0.0, 1.0 / fy, -cy / fy],
-                [0.0, 0.0, 1.0],
-            ]
-        )
+        K_inv = inverse_camera(K)
         return K_inv[:, :2] @ points.T + K_inv[:, 2:]
+    (fx, skew, cx), (_, fy, cy), _ = K.tolist()
     rays = np.empty((3, points.shape[0]))
     rays[1] = (points[:, 1] - cy) * (1.0 / fy)
     rays[0] = (points[:, 0] - cx - skew * rays[1]) * (1.0 / fx)

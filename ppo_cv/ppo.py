@@ -29,6 +29,7 @@ __all__ = [
     "candidates_from_svd",
     "same_side_scores",
     "intersection_scores",
+    "frame_scores",
     "select_pose",
     "pure_rotation_indicator",
     "m3_indicator",
@@ -43,6 +44,8 @@ W2 = W1.T
 
 DEFAULT_PRI_THRESHOLD = 0.015
 """The paper's delta_pri (Section 5.3), in normalized image coordinates."""
+
+_BLOCK = 8192
 
 
 @dataclass(frozen=True)
@@ -59,12 +62,16 @@ class Candidates:
         ``u_q3``, the unit left singular vector of the smallest singular value (eq. 62).
     singular_values : ndarray, shape (3,)
         Singular values of ``E / ||E||_F``; a valid essential matrix has ``(s, s, 0)``.
+    U, Vt : ndarray, shape (3, 3)
+        The SVD factors, signed so that ``det(U V^T) = +1``; ``t`` is the last column of ``U``.
     """
 
     R1: np.ndarray
     R2: np.ndarray
     t: np.ndarray
     singular_values: np.ndarray
+    U: np.ndarray
+    Vt: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -170,14 +177,22 @@ def candidates_from_svd(U: np.ndarray, s: np.ndarray, Vt: np.ndarray) -> Candida
 
     Any SVD routine will do (signs of singular vectors are arbitrary and fixed here).
     """
-    if _det3(U) < 0:
-        U = -U
-    if _det3(Vt) < 0:
-        Vt = -Vt
+    Vt = _proper_svd(U, Vt)
     s = np.ravel(s)
     return Candidates(
-        R1=U @ W1.T @ Vt, R2=U @ W2.T @ Vt, t=U[:, 2].copy(), singular_values=s / np.sqrt(s @ s)
+        R1=U @ W1.T @ Vt,
+        R2=U @ W2.T @ Vt,
+        t=U[:, 2].copy(),
+        singular_values=s / np.sqrt(s @ s),
+        U=U,
+        Vt=Vt,
     )
+
+
+def _proper_svd(U: np.ndarray, Vt: np.ndarray) -> np.ndarray:
+    """``Vt`` with its sign fixed so that ``det(U Vt) = +1`` (Table I), making ``U W Vt`` a
+    rotation. Flipping ``U`` instead would only flip ``t``, which both signs cover anyway."""
+    return -Vt if _det3(U) * _det3(Vt) < 0 else Vt
 
 
 def same_side_scores(x1: np.ndarray, x2: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -236,15 +251,22 @@ def _intersection(
     return n1 * (e @ X2) - n2 * ((e @ R) @ X1)
 
 
-def _pick_sign(scores: np.ndarray) -> tuple[bool, int, int]:
-    """Whether ``+scores`` wins the count of positive entries, and the two counts.
+def _vote(scores: np.ndarray, used: np.ndarray | None) -> tuple[bool, np.ndarray, int, int]:
+    """Table II step 4 for one score: whether ``+scores`` wins the count of positive entries
+    over the used points, the mask of the points on the winning side, and the two counts.
 
     Ties (e.g. all scores zero) go to the larger sum, then to ``+``.
     """
-    positive = int(np.count_nonzero(scores > 0))
-    negative = int(np.count_nonzero(scores < 0))
-    keep = positive > negative or (positive == negative and scores.sum() >= 0)
-    return keep, positive, negative
+    positive, negative = scores > 0.0, scores < 0.0  # a float zero compares faster than 0
+    if used is None:
+        n_pos, n_neg = int(np.count_nonzero(positive)), int(np.count_nonzero(negative))
+    else:
+        n_pos = int(np.count_nonzero(positive & used))
+        n_neg = int(np.count_nonzero(negative & used))
+    keep = n_pos > n_neg or (
+        n_pos == n_neg and (scores if used is None else scores[used]).sum() >= 0
+    )
+    return keep, positive if keep else negative, n_pos, n_neg
 
 
 def select_pose(
@@ -286,23 +308,55 @@ def select_pose(
     return _select(decompose_essential(E), _planar(x1), _planar(x2), used)
 
 
-def _select(cand: Candidates, X1: np.ndarray, X2: np.ndarray, used: np.ndarray | None) -> Selection:
-    e = cand.t
-    M = np.empty((4, 3))
-    M[3] = e @ cand.R1
-    M[:3] = cand.R1 - e[:, None] * M[3]
-    MX1 = M @ X1  # rows 0-2: (I - e e^T) R1 X for eq. 66 ([e_t]x^T [e_t]x = I - e e^T); 3: e^T R1 X
+def frame_scores(F: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Scores ``m1(R1)`` and ``m2(+t)`` for all points, from the rays in the frame of ``U``.
 
-    m1 = _dot(X2, MX1[:3])
-    keep_R1, s1_R1, s1_R2 = _pick_sign(m1 if used is None else m1[used])
-    R = cand.R1 if keep_R1 else cand.R2
-    eRX1 = MX1[3] if keep_R1 else (e @ R) @ X1
-    n1, n2 = np.sqrt(_dot(X1, X1)), np.sqrt(_dot(X2, X2))
-    m2 = n1 * (e @ X2) - n2 * eRX1
-    keep_t, s2_plus, s2_minus = _pick_sign(m2 if used is None else m2[used])
+    With ``E = U diag(s) V^T``, ``det(U V^T) = 1``, ``t = u3`` and ``R1 = U W1^T V^T``, let
+    ``A = U^T R1 X = W1^T V^T X`` and ``B = U^T X'``. In this frame ``t = (0, 0, 1)`` and
+    ``U^T (I - t t^T) U = diag(1, 1, 0)``, so the same-side score (eq. 66, 70) and the
+    intersection score (eq. 73, 76) reduce to
+
+    ``m1 = a_x b_x + a_y b_y``  and  ``m2 = ||A|| b_z - ||B|| a_z``,
+
+    the numbers :func:`same_side_scores` and :func:`intersection_scores` give for ``(R1, u3)``.
+    ``m1(R2) = -m1`` (eq. 68) and ``m2(-t) = -m2``; ``a_z`` is the same for ``R1`` and ``R2``
+    (eq. 74-75).
+
+    Parameters
+    ----------
+    F : ndarray, shape (2, 3, 3)
+        The maps of view 1 and view 2 into the frame: ``W1^T V^T`` and ``U^T`` for rays, or
+        ``W1^T V^T K1^-1`` and ``U^T K2^-1`` for homogeneous pixels.
+    points : ndarray, shape (2, 3, N)
+        Rays or homogeneous pixels of view 1 and view 2, by coordinate rows.
+
+    Returns
+    -------
+    m1, m2 : ndarray, shape (N,)
+    """
+    n = points.shape[2]
+    if n <= _BLOCK:
+        return _frame_scores(F @ points)
+    m1, m2 = np.empty(n), np.empty(n)
+    for start in range(0, n, _BLOCK):  # blocks that stay in cache: several times faster
+        block = slice(start, start + _BLOCK)
+        m1[block], m2[block] = _frame_scores(F @ points[:, :, block])
+    return m1, m2
+
+
+def _frame_scores(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    products = Y[0] * Y[1]
+    norms = np.sqrt((Y * Y).sum(axis=1))
+    return products[0] + products[1], norms[0] * Y[1, 2] - norms[1] * Y[0, 2]
+
+
+def _select(cand: Candidates, X1: np.ndarray, X2: np.ndarray, used: np.ndarray | None) -> Selection:
+    m1, m2 = frame_scores(np.array((W1.T @ cand.Vt, cand.U.T)), np.array((X1, X2)))
+    keep_R1, _, s1_R1, s1_R2 = _vote(m1, used)
+    keep_t, _, s2_plus, s2_minus = _vote(m2, used)
     return Selection(
-        R=R,
-        t=e if keep_t else -e,
+        R=cand.R1 if keep_R1 else cand.R2,
+        t=cand.t if keep_t else -cand.t,
         m1=m1 if keep_R1 else -m1,
         m2=m2 if keep_t else -m2,
         support_R=s1_R1 if keep_R1 else s1_R2,

@@ -10,6 +10,7 @@ from twoview import make_scene, project, random_rotation, skew
 from ppo_cv import ppo
 
 K = np.array([[800.0, 0.0, 512.0], [0.0, 800.0, 512.0], [0.0, 0.0, 1.0]])
+W1T = ppo.W1.T
 
 
 def _random_pose(rng):
@@ -113,6 +114,25 @@ def test_scores_match_their_geometric_definitions():
     sin3 = np.linalg.norm(np.cross(X2, X1 @ R.T), axis=1) / (n1 * n2)
     assert ppo.m3_indicator(x1, x2, R) == pytest.approx(np.mean(sin3))
     np.testing.assert_allclose(ppo.same_side_scores(X1, X2, R, t), m1, atol=1e-12)
+
+
+@pytest.mark.parametrize("n", [7, 8192, 20001])  # one block, exactly one, several
+def test_frame_scores_equal_the_scores_of_r1_and_u3(n):
+    rng = np.random.default_rng(12)
+    R, t = _random_pose(rng)
+    _, p1, p2 = make_scene(rng, n, R, t, K, noise_px=1.0)
+    E = (skew(t) @ R + rng.normal(scale=1e-3, size=(3, 3))) * -3.0  # noisy, any scale and sign
+    cand = ppo.decompose_essential(E)
+    x1, x2 = ppo.normalize(p1, K), ppo.normalize(p2, K)
+    m1 = ppo.same_side_scores(x1, x2, cand.R1, cand.t)
+    m2 = ppo.intersection_scores(x1, x2, cand.R1, cand.t)
+    maps = np.array((W1T @ cand.Vt, cand.U.T))
+    rays = np.array((np.c_[x1, np.ones(n)].T, np.c_[x2, np.ones(n)].T))
+    pixels = np.array((np.c_[p1, np.ones(n)].T, np.c_[p2, np.ones(n)].T))
+    for F, points in ((maps, rays), (maps @ np.linalg.inv(K), pixels)):
+        f1, f2 = ppo.frame_scores(F, points)
+        np.testing.assert_allclose(f1, m1, atol=1e-12)
+        np.testing.assert_allclose(f2, m2, atol=1e-12)
 
 
 def test_pure_rotation_rotation_is_a_candidate_and_is_chosen():
