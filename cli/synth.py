@@ -7,8 +7,7 @@ from typing import Annotated
 
 import typer
 
-from ppo_cv.data_gen.motion import MOTIONS
-from ppo_cv.data_gen.scenes import SCENES
+from ppo_cv.data_gen.names import MOTIONS, SCENES
 
 
 def _fail(message: str) -> None:

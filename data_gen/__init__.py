@@ -12,7 +12,7 @@ import importlib
 
 _SUBMODULE = {
     "DEFAULT_SCENE": "motion",
-    "MOTIONS": "motion",
+    "MOTIONS": "names",
     "Motion": "motion",
     "PAIRS_FILE": "io",
     "PAPER_K": "protocol",
@@ -20,7 +20,7 @@ _SUBMODULE = {
     "ProtocolSample": "protocol",
     "Quad": "scenes",
     "RenderedPair": "render",
-    "SCENES": "scenes",
+    "SCENES": "names",
     "Scene": "scenes",
     "Texture": "textures",
     "box_quads": "scenes",

@@ -29,13 +29,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .names import MOTIONS
 from .protocol import euler_to_matrix
 from .scenes import Scene
 
 __all__ = ["MOTIONS", "DEFAULT_SCENE", "Motion", "intrinsics", "look_at", "sample_motion"]
 
-MOTIONS = ("general", "pure-rotation", "small-parallax", "forward", "planar")
-"""Names accepted by :func:`sample_motion`."""
 
 DEFAULT_SCENE = {
     "general": "clutter",

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .names import SCENES
 from .textures import Texture, checker_texture, texture_pool
 
 __all__ = [
@@ -27,8 +28,6 @@ __all__ = [
     "make_scene",
 ]
 
-SCENES = ("room", "clutter", "plane", "backdrop")
-"""Names accepted by :func:`make_scene`."""
 
 TEXELS_PER_METRE = 256.0
 
