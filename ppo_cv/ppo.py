@@ -257,16 +257,17 @@ def _vote(scores: np.ndarray, used: np.ndarray | None) -> tuple[bool, np.ndarray
 
     Ties (e.g. all scores zero) go to the larger sum, then to ``+``.
     """
-    positive, negative = scores > 0.0, scores < 0.0  # a float zero compares faster than 0
+    positive = scores > 0.0  # a float zero compares faster than 0
     if used is None:
-        n_pos, n_neg = int(np.count_nonzero(positive)), int(np.count_nonzero(negative))
+        n_pos = int(np.count_nonzero(positive))
+        n_neg = int(np.count_nonzero(scores)) - n_pos
     else:
         n_pos = int(np.count_nonzero(positive & used))
-        n_neg = int(np.count_nonzero(negative & used))
+        n_neg = int(np.count_nonzero(scores[used])) - n_pos
     keep = n_pos > n_neg or (
         n_pos == n_neg and (scores if used is None else scores[used]).sum() >= 0
     )
-    return keep, positive if keep else negative, n_pos, n_neg
+    return keep, positive if keep else scores < 0.0, n_pos, n_neg
 
 
 def select_pose(
