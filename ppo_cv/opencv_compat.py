@@ -18,6 +18,7 @@ them (keeping the values of the input mask, 255 where none was given, as OpenCV 
 from __future__ import annotations
 
 import contextlib
+import functools
 from collections.abc import Iterator
 from typing import Any
 
@@ -199,6 +200,21 @@ def _identify(
     return R, U[:, 2] * (1.0 if keep_t else -1.0), inliers
 
 
+def _inverse_camera_matrix(K: Any) -> np.ndarray:
+    """The checked ``cameraMatrix`` inverted, from a small cache for float64 3x3 arrays
+    (a video or a matcher loop passes the same matrix call after call)."""
+    if isinstance(K, np.ndarray) and K.dtype == np.float64 and K.shape == (3, 3):
+        return _cached_inverse(K.tobytes())
+    return inverse_camera(as_camera_matrix(K, "cameraMatrix"))
+
+
+@functools.lru_cache(maxsize=16)
+def _cached_inverse(K_bytes: bytes) -> np.ndarray:
+    K_inv = inverse_camera(as_camera_matrix(np.frombuffer(K_bytes).reshape(3, 3), "cameraMatrix"))
+    K_inv.flags.writeable = False
+    return K_inv
+
+
 def _undistort(points: np.ndarray, K: np.ndarray, coefficients: Any) -> np.ndarray:
     """Pixel points (N, 2) to normalized points (N, 2) with OpenCV's distortion model."""
     coefficients = as_distortion(coefficients, "distCoeffs")
@@ -244,9 +260,8 @@ def recoverPose(*args: Any, **kwargs: Any) -> tuple:  # noqa: N802 - OpenCV's na
         K = bound.get("cameraMatrix")
     E = as_essential(bound.get("E"))
     points = as_homogeneous_pair(bound.get("points1"), bound.get("points2"))
-    K = as_camera_matrix(K, "cameraMatrix")
+    K_inv = _inverse_camera_matrix(K)
     used = as_mask(bound.get("mask"), points.shape[2])
-    K_inv = inverse_camera(K)
     R, t, inliers = _identify(E, points, K_inv, used)
     if form is not _FORM3:
         return _outputs(R, t, inliers, bound)

@@ -51,6 +51,20 @@ def test_form_camera_matrix(scene):
     _check_pose(ppo_cv.recoverPose(**kwargs), scene, OPENCV_RECOVER_POSE(**kwargs))
 
 
+def test_a_camera_matrix_changed_in_place_is_used_and_a_bad_one_always_rejected(scene):
+    K = scene["K"].copy()
+    args = (scene["E"], scene["p1"], scene["p2"])
+    first = ppo_cv.recoverPose(*args, K, 50.0)[4]
+    K[0, 2] += 40.0  # same array object, new principal point
+    moved = ppo_cv.recoverPose(*args, K, 50.0)[4]
+    np.testing.assert_array_equal(moved, ppo_cv.recoverPose(*args, K.copy(), 50.0)[4])
+    assert np.abs(moved - first).max() > 1e-3
+    K[0, 0] = 0.0
+    for _ in range(2):
+        with pytest.raises(ValueError, match="cameraMatrix has a zero focal length"):
+            ppo_cv.recoverPose(*args, K)
+
+
 def test_form_focal_and_principal_point(scene):
     focal, pp = 800.0, (320.0, 240.0)
     reference = OPENCV_RECOVER_POSE(scene["E"], scene["p1"], scene["p2"], focal=focal, pp=pp)
