@@ -29,9 +29,11 @@ def _as_real_array(value: Any, name: str) -> np.ndarray:
         array = np.asarray(value)
     except (TypeError, ValueError) as exc:
         raise TypeError(f"{name} must be a numeric array: {exc}") from None
+    if array.dtype == np.float64:
+        return array
     if array.dtype.kind not in "iuf":
         raise TypeError(f"{name} must hold real numbers, got dtype {array.dtype}")
-    return array.astype(np.float64, copy=False)
+    return array.astype(np.float64)
 
 
 def _require_finite(array: np.ndarray, name: str) -> None:
