@@ -154,9 +154,9 @@ def decompose_essential(E: np.ndarray) -> Candidates:
     """Split an essential matrix into its candidate poses (Section 3.2, Table I, Table II).
 
     ``E = U diag(s1, s2, s3) V^T``. The sign of ``V`` is fixed so that ``det(U V^T) = 1``,
-    the row of Table I where ``W1`` and ``W2`` give proper rotations. Any scale or sign of ``E`` gives the
-    same candidates; a noisy or rank-deficient ``E`` is handled the same way, ``t`` being the
-    singular vector of its smallest singular value.
+    the row of Table I where ``W1`` and ``W2`` give proper rotations. Any scale or sign of
+    ``E`` gives the same candidates; a noisy or rank-deficient ``E`` is handled the same way,
+    ``t`` being the singular vector of its smallest singular value.
 
     Parameters
     ----------

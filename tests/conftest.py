@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+
+# The tests exercise the installed package. ``python -m pytest`` puts the checkout first on
+# sys.path, where ppo_cv/ lacks the cli and data_gen subpackages that installation maps into it.
+sys.path[:] = [entry for entry in sys.path if Path(entry or os.curdir).resolve() != ROOT]
 SHARED = Path(os.environ.get("PPO_CV_SHARED", ROOT.parent / "shared"))
 FREIBURG = SHARED / "data" / "freiburg"
 
