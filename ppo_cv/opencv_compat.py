@@ -41,7 +41,6 @@ __all__ = ["recoverPose", "install", "uninstall", "installed", "is_installed"]
 
 _OPENCV_RECOVER_POSE = cv2.recoverPose
 _FLIP_XY = np.array([-1.0, -1.0, 1.0])
-_W1T = np.ascontiguousarray(ppo.W1.T)
 _MASK_ON = np.uint8(255)
 _FORM1 = ("E", "points1", "points2", "cameraMatrix", "R", "t", "mask")
 _FORM2 = ("E", "points1", "points2", "R", "t", "focal", "pp", "mask")
@@ -189,14 +188,14 @@ def _identify(
     ``K_inv`` (3, 3) their inverse intrinsics, folded into the maps of :func:`ppo.frame_scores`.
     """
     _, U, Vt = cv2.SVDecomp(E)  # several times faster than numpy's for one 3x3 matrix
-    W1tVt = _W1T @ ppo._proper_svd(U, Vt)
-    m1, m2 = ppo.frame_scores(np.array((W1tVt, U.T)) @ K_inv, points)
+    maps = ppo.frame_maps(U, ppo._proper_svd(U, Vt))
+    m1, m2 = ppo.frame_scores(maps @ K_inv, points)
     keep_R1, same_side, _, _ = ppo._vote(m1, used)
     keep_t, intersecting, _, _ = ppo._vote(m2, used)
     inliers = same_side & intersecting
     if used is not None:
         inliers &= used
-    R = U @ W1tVt if keep_R1 else (U * _FLIP_XY) @ W1tVt  # W2^T V^T = diag(-1, -1, 1) W1^T V^T
+    R = U @ maps[0] if keep_R1 else (U * _FLIP_XY) @ maps[0]  # W2^T = diag(-1, -1, 1) W1^T
     return R, U[:, 2] * (1.0 if keep_t else -1.0), inliers
 
 

@@ -29,6 +29,7 @@ __all__ = [
     "candidates_from_svd",
     "same_side_scores",
     "intersection_scores",
+    "frame_maps",
     "frame_scores",
     "select_pose",
     "pure_rotation_indicator",
@@ -41,6 +42,7 @@ __all__ = [
 
 W1 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 W2 = W1.T
+_W1T = np.ascontiguousarray(W1.T)
 
 DEFAULT_PRI_THRESHOLD = 0.015
 """The paper's delta_pri (Section 5.3), in normalized image coordinates."""
@@ -214,7 +216,8 @@ def same_side_scores(x1: np.ndarray, x2: np.ndarray, R: np.ndarray, t: np.ndarra
     -------
     ndarray, shape (N,)
     """
-    return _same_side(_planar(x1), _planar(x2), R, _unit(t))
+    e = _unit(t)
+    return _dot(_planar(x2), (R - e[:, None] * (e @ R)) @ _planar(x1))  # [e]x^T [e]x = I - e e^T
 
 
 def intersection_scores(x1: np.ndarray, x2: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -236,18 +239,8 @@ def intersection_scores(x1: np.ndarray, x2: np.ndarray, R: np.ndarray, t: np.nda
     -------
     ndarray, shape (N,)
     """
-    X1, X2 = _planar(x1), _planar(x2)
-    return _intersection(X1, X2, R, _unit(t), np.sqrt(_dot(X1, X1)), np.sqrt(_dot(X2, X2)))
-
-
-def _same_side(X1: np.ndarray, X2: np.ndarray, R: np.ndarray, e: np.ndarray) -> np.ndarray:
-    return _dot(X2, (R - e[:, None] * (e @ R)) @ X1)  # [e_t]x^T [e_t]x = I - e e^T
-
-
-def _intersection(
-    X1: np.ndarray, X2: np.ndarray, R: np.ndarray, e: np.ndarray, n1: np.ndarray, n2: np.ndarray
-) -> np.ndarray:
-    return n1 * (e @ X2) - n2 * ((e @ R) @ X1)
+    X1, X2, e = _planar(x1), _planar(x2), _unit(t)
+    return np.sqrt(_dot(X1, X1)) * (e @ X2) - np.sqrt(_dot(X2, X2)) * ((e @ R) @ X1)
 
 
 def _vote(scores: np.ndarray, used: np.ndarray | None) -> tuple[bool, np.ndarray, int, int]:
@@ -344,6 +337,15 @@ def frame_scores(F: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndar
     return m1, m2
 
 
+def frame_maps(U: np.ndarray, Vt: np.ndarray) -> np.ndarray:
+    """The maps ``W1^T V^T`` and ``U^T`` of rays of view 1 and view 2 into the frame of ``U``.
+
+    ``U``, ``Vt`` as in :attr:`Candidates.U`, :attr:`Candidates.Vt` (``det(U Vt) = +1``).
+    ``U @ maps[0]`` is ``R1``. Returns shape (2, 3, 3), the ``F`` of :func:`frame_scores`.
+    """
+    return np.array((_W1T @ Vt, U.T))
+
+
 def _frame_scores(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     products = Y[0] * Y[1]
     norms = np.sqrt((Y * Y).sum(axis=1))
@@ -351,7 +353,7 @@ def _frame_scores(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _select(cand: Candidates, X1: np.ndarray, X2: np.ndarray, used: np.ndarray | None) -> Selection:
-    m1, m2 = frame_scores(np.array((W1.T @ cand.Vt, cand.U.T)), np.array((X1, X2)))
+    m1, m2 = frame_scores(frame_maps(cand.U, cand.Vt), np.array((X1, X2)))
     keep_R1, _, s1_R1, s1_R2 = _vote(m1, used)
     keep_t, _, s2_plus, s2_minus = _vote(m2, used)
     return Selection(
