@@ -12,7 +12,7 @@ from ppo_cv.data_gen.names import MOTIONS, SCENES
 MAX_PAIRS = 10_000
 MAX_SIDE = 4096
 MAX_SAMPLES = 20_000_000
-"""Bound on ``width * height * supersample^2`` (rays cast per view), about 10 s a view."""
+"""Bound on ``width * height * supersample^2`` (rays cast per view): about 15 s a pair."""
 MAX_NOISE = 50.0
 MAX_BLUR = 50.0
 MAX_BASELINE_RATIO = 0.5
