@@ -135,10 +135,12 @@ def register(app: typer.Typer) -> None:
             int, typer.Option(help="Anti-aliasing samples per pixel and axis.")
         ] = 2,
         noise: Annotated[
-            float | None, typer.Option(help="Gaussian image noise (grey levels); 0, or 1.")
+            float | None,
+            typer.Option(help="Gaussian image noise (grey levels); 0, or 1 with --imperfect."),
         ] = None,
         blur: Annotated[
-            float | None, typer.Option(help="Gaussian blur sigma (pixels); 0, or 0.5.")
+            float | None,
+            typer.Option(help="Gaussian blur sigma (pixels); 0, or 0.5 with --imperfect."),
         ] = None,
         different_k: Annotated[
             bool, typer.Option("--different-k", help="Draw K2 independently of K1.")
