@@ -28,7 +28,10 @@ so ``t = -R C2``. Presets:
     The ``pure-rotation`` rotation plus a camera-centre displacement in a random, mostly
     lateral direction with ``||C2|| = baseline_ratio * median depth``, where the median depth
     is that of the surfaces camera 1 actually sees (ray-cast at the pixel centres) and
-    ``baseline_ratio`` is given or drawn log-uniformly in [0.001, 0.05].
+    ``baseline_ratio`` is given or drawn log-uniformly in [0.001, 0.05]. The scene, cameras
+    and rotation are those of ``pure-rotation`` for the same random stream, and a given ratio
+    changes nothing else: a sweep of ``baseline_ratio`` at one seed starts from the
+    ``pure-rotation`` pair (ratio 0 renders it exactly).
 
 Here ``depth`` is the scene's typical depth (:attr:`Scene.depth`), ``hfov`` the horizontal
 field of view of camera 1.

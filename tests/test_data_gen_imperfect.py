@@ -156,8 +156,13 @@ def test_tiny_baseline_records_the_ratio_to_the_median_depth_seen():
     seen = np.median(fixed.depth1[np.isfinite(fixed.depth1)])
     assert fixed.params["baseline_ratio"] == 0.02
     assert np.linalg.norm(fixed.t) / seen == pytest.approx(0.02, rel=1e-5)
-    zero = make_pair("tiny-baseline", seed=7, size=(64, 48), supersample=1, baseline_ratio=0.0)
+    zero = make_pair("tiny-baseline", seed=7, size=(64, 48), supersample=1, baseline_ratio=0.0,
+                     imperfections=REAL_PHOTO)  # fmt: skip
+    rotation = make_pair("pure-rotation", seed=7, size=(64, 48), supersample=1,
+                         imperfections=REAL_PHOTO)  # fmt: skip
     assert np.all(zero.t == 0.0)
+    np.testing.assert_array_equal(zero.R, rotation.R)
+    np.testing.assert_array_equal(zero.image2, rotation.image2)
 
 
 def test_same_seed_same_bytes_and_other_seeds_differ():
