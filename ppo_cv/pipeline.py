@@ -2,8 +2,9 @@
 
 Stages (each timed in ``PairResult.timings``, seconds):
 
-1. ``features``: SIFT (RootSIFT) keypoints, or ORB / AKAZE (:mod:`ppo_cv.features`).
-2. ``matching``: mutual nearest neighbours with Lowe's ratio test.
+1. ``features``: SIFT (RootSIFT) keypoints, or ORB / AKAZE (:mod:`ppo_cv.features`);
+   ``pycolmap_import`` is the wait for the first import of pycolmap that runs beside it.
+2. ``matching``: mutual nearest neighbours with Lowe's ratio test, one match per pixel pair.
 3. ``undistort``: matched pixels to normalized coordinates ``K^-1 [u, v, 1]``, lens distortion
    removed from the points (never from the images).
 4. ``ransac``: robust essential matrix (:mod:`ppo_cv.robust`).
