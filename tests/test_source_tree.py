@@ -60,24 +60,33 @@ def copy_tree(target: Path) -> Path:
     return target
 
 
-def site_dirs_without_ppo_cv() -> list[str]:
-    """Site directories that neither hold ppo_cv nor install an editable finder for it."""
-    dirs = [*site.getsitepackages(), site.getusersitepackages()]
-    return [
-        d
-        for d in dict.fromkeys(dirs)
-        if Path(d).is_dir()
-        and not (Path(d) / "ppo_cv").exists()
-        and not any(Path(d).glob("__editable__*ppo_cv*"))
-    ]
+def site_dirs_without_ppo_cv(scratch: Path) -> list[str]:
+    """The site directories, with any installed or editable ppo_cv left out.
+
+    A directory that holds ppo_cv is replaced by a folder in ``scratch`` of links to its other
+    entries.
+    """
+    dirs = list(dict.fromkeys([*site.getsitepackages(), site.getusersitepackages()]))
+    paths = []
+    for number, d in enumerate(Path(d) for d in dirs if Path(d).is_dir()):
+        entries = list(d.iterdir())
+        ours = [e for e in entries if e.name.startswith(("ppo_cv", "__editable__", "ppo-cv"))]
+        if not ours:
+            paths.append(str(d))
+            continue
+        filtered = scratch / f"site{number}"
+        filtered.mkdir()
+        for entry in entries:
+            if entry not in ours:
+                (filtered / entry.name).symlink_to(entry)
+        paths.append(str(filtered))
+    return paths
 
 
-def test_clone_root_without_installation():
-    paths = os.pathsep.join(site_dirs_without_ppo_cv())
-    env = {"PYTHONPATH": paths}
-    # -S: no site processing, so no installed or editable ppo_cv can be found
-    if run(["-S", "-c", "import numpy, cv2, typer"], ROOT, env).returncode != 0:
-        pytest.skip("the dependencies share a site directory with the installed ppo_cv")
+def test_clone_root_without_installation(tmp_path):
+    env = {"PYTHONPATH": os.pathsep.join(site_dirs_without_ppo_cv(tmp_path))}
+    # -S: no site processing, so neither an installed nor an editable ppo_cv can be found
+    assert run(["-S", "-c", "import numpy, cv2, typer"], ROOT, env).returncode == 0
     assert run(["-S", "-c", "import ppo_cv.pose"], ROOT / "tests", env).returncode != 0
     package, cli, data_gen = probe(ROOT, "-S", env=env)
     assert package == ROOT / "ppo_cv" / "__init__.py"
