@@ -125,7 +125,7 @@ def test_out_directory_files_open(tmp_path):
     image2 = model.find_image_with_name(Path(DEMO2).name)
     pose = image2.cam_from_world()
     pose = pose() if callable(pose) else pose
-    assert rotation_error(pose.rotation.matrix(), np.array(data["R"])) < 1e-6
+    np.testing.assert_allclose(pose.rotation.matrix(), np.array(data["R"]), atol=1e-9)
     assert model.compute_mean_reprojection_error() < 1.0
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
 
