@@ -289,7 +289,7 @@ def draw_matches(
 
     a, b = _as_bgr(image1), _as_bgr(image2)
     width = a.shape[1] + b.shape[1]
-    scale = max(1.0, width / 1280.0)
+    scale = max(0.6, width / 1280.0)  # text readable on the canvas, whatever its width
     line_height = round(24 * scale)
     drawn = matches_to_draw(result.inliers, max_lines)
     legend = _legend_lines(result, drawn)
