@@ -17,6 +17,7 @@ __all__ = [
     "as_essential",
     "as_mask",
     "as_positive",
+    "as_nonnegative",
     "MAX_COORDINATE",
     "MIN_FOCAL",
     "MAX_FOCAL",
@@ -258,10 +259,24 @@ def _require_byte_values(mask: np.ndarray) -> None:
 
 def as_positive(value: Any, name: str) -> float:
     """A finite number > 0."""
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a number, got {type(value).__name__}") from None
+    number = _as_float(value, name)
     if not np.isfinite(number) or number <= 0:
         raise ValueError(f"{name} must be a finite number > 0, got {number}")
     return number
+
+
+def as_nonnegative(value: Any, name: str) -> float:
+    """A finite number >= 0."""
+    number = _as_float(value, name)
+    if not np.isfinite(number) or number < 0:
+        raise ValueError(f"{name} must be a finite number >= 0, got {number}")
+    return number
+
+
+def _as_float(value: Any, name: str) -> float:
+    if isinstance(value, (str, bytes)):
+        raise TypeError(f"{name} must be a number, got {type(value).__name__} {value!r}")
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a number, got {type(value).__name__}") from None

@@ -84,9 +84,7 @@ def test_form_focal_defaults_to_normalized_points(scene):
 
 
 def test_form_distance_threshold_returns_analytic_points(scene):
-    ours = ppo_cv.recoverPose(
-        scene["E"], scene["p1"], scene["p2"], scene["K"], distanceThresh=50.0
-    )
+    ours = ppo_cv.recoverPose(scene["E"], scene["p1"], scene["p2"], scene["K"], distanceThresh=50.0)
     reference = OPENCV_RECOVER_POSE(
         scene["E"], scene["p1"], scene["p2"], scene["K"], distanceThresh=50.0
     )
