@@ -145,10 +145,16 @@ def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
             f"{name} must be upper triangular with last row (0, 0, 1), got {K.tolist()}"
         )
     if not (MIN_FOCAL <= fx <= MAX_FOCAL and MIN_FOCAL <= fy <= MAX_FOCAL):
-        kind = "zero" if fx == 0 or fy == 0 else "negative" if min(fx, fy) < 0 else "implausible"
+        kind = (
+            "a zero"
+            if fx == 0 or fy == 0
+            else "a negative"
+            if min(fx, fy) < 0
+            else "an implausible"
+        )
         raise ValueError(
-            f"{name} has a {kind} focal length (fx={fx}, fy={fy}); focal lengths must be in "
-            f"[{MIN_FOCAL:g}, {MAX_FOCAL:g}] pixels"
+            f"{name} has {kind} focal length (fx={fx}, fy={fy}); focal lengths must be "
+            f"positive, in [{MIN_FOCAL:g}, {MAX_FOCAL:g}] pixels"
         )
     if max(abs(rows[0][1]), abs(rows[0][2]), abs(rows[1][2])) > MAX_COORDINATE:
         raise ValueError(

@@ -75,7 +75,7 @@ CASES = {
     "recoverPose negative fx": (lambda: ppo_cv.recoverPose(E, P1, P2, _K(fx=-800)), ValueError,
                                 "cameraMatrix has a negative focal length"),
     "recoverPose tiny focal": (lambda: ppo_cv.recoverPose(E, P1, P2, _K(fx=1e-200, fy=1e-200)),
-                               ValueError, "cameraMatrix has a implausible focal"),
+                               ValueError, "cameraMatrix has an implausible focal"),
     "recoverPose nan focal": (lambda: ppo_cv.recoverPose(E, P1, P2, _K(fy=np.nan)), ValueError,
                               "cameraMatrix has 1 NaN"),
     "recoverPose focal form negative": (lambda: ppo_cv.recoverPose(E, P1, P2, focal=-800.0),
@@ -95,7 +95,7 @@ CASES = {
     "recover_pose principal point 1e300": (lambda: ppo_cv.recover_pose(E, P1, P2, _K(cx=1e300)),
                                            ValueError, "K1 has a skew or principal point"),
     "estimate_pair negative K1": (_pair(K1=_K(fx=-800)), ValueError, "K1 has a negative"),
-    "estimate_pair tiny K2": (_pair(K2=_K(fx=1e-200)), ValueError, "K2 has a implausible"),
+    "estimate_pair tiny K2": (_pair(K2=_K(fx=1e-200)), ValueError, "K2 has an implausible"),
     # points that overflow
     "recoverPose points 1e300": (lambda: ppo_cv.recoverPose(E, P1, _points(3, 1e300), K),
                                  ValueError, "points2 has coordinates up to 1e+300"),
