@@ -41,7 +41,9 @@ def _scene(seed: int, n: int, pure: bool):
 
 
 def _opencv_is_right(out, R, t) -> bool:
-    return rotation_angle_deg(out[1], R) < 1e-3 and float(out[2].ravel() @ t) > 0.9999
+    """OpenCV's R and t match the truth entrywise (at extreme scales of E its SVD returns a
+    matrix that is not even a rotation)."""
+    return np.allclose(out[1], R, atol=1e-5) and np.allclose(out[2].ravel(), t, atol=1e-5)
 
 
 @SETTINGS
@@ -82,8 +84,8 @@ def test_same_pose_and_mask_as_opencv_where_it_is_right(
     reference = OPENCV_RECOVER_POSE(E, x1, x2, K, mask=None if mask is None else mask.copy())
     event(f"OpenCV right: {_opencv_is_right(reference, R, t)}")
     if _opencv_is_right(reference, R, t):
-        np.testing.assert_allclose(R_out, reference[1], atol=1e-6)
-        np.testing.assert_allclose(t_out, reference[2], atol=1e-6)
+        np.testing.assert_allclose(R_out, reference[1], atol=2e-5)
+        np.testing.assert_allclose(t_out, reference[2], atol=2e-5)
         np.testing.assert_array_equal(mask_out, reference[3])
         assert retval == reference[0]
 
