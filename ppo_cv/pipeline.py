@@ -267,6 +267,17 @@ def _detect_both(image1, image2, options: PairOptions) -> tuple[Features, Featur
     return f1, f2
 
 
+def _given_features(f1: Any, f2: Any, options: PairOptions) -> tuple[Features, Features]:
+    for name, f in (("features1", f1), ("features2", f2)):
+        if not isinstance(f, Features):
+            raise TypeError(f"{name} must be ppo_cv.features.Features, got {type(f).__name__}")
+        if f.kind != options.features:
+            raise ValueError(
+                f"{name} are {f.kind} features but options.features is {options.features}"
+            )
+    return f1, f2
+
+
 def _refine(R, t, x1, x2, inliers, focal, options: PairOptions, rounds: int = 3):
     """Refine over the inliers, re-select the inliers of the refined pose, until they settle."""
     threshold = options.ransac_threshold / focal
@@ -287,6 +298,9 @@ def estimate_pair(
     dist1: Any = None,
     dist2: Any = None,
     options: PairOptions | None = None,
+    *,
+    features1: Features | None = None,
+    features2: Features | None = None,
 ) -> PairResult:
     """Relative pose of two calibrated images.
 
@@ -302,6 +316,10 @@ def estimate_pair(
         OpenCV distortion coefficients ``(k1, k2, p1, p2[, k3, ...])``; ``dist2`` defaults to
         ``dist1`` when ``K2`` is not given.
     options : PairOptions, optional
+    features1, features2 : Features, optional
+        Precomputed features of the images (as :func:`~ppo_cv.features.detect_features` gives
+        with the ``options``); given both, detection is skipped. Batch runs use it to detect
+        each image once.
 
     Returns
     -------
@@ -333,7 +351,10 @@ def estimate_pair(
         raise ValueError("the two images are identical: they carry no relative pose")
     lap("load")
 
-    f1, f2 = _detect_both(img1, img2, options)
+    if features1 is None or features2 is None:
+        f1, f2 = _detect_both(img1, img2, options)
+    else:
+        f1, f2 = _given_features(features1, features2, options)
     for name, f in (("image1", f1), ("image2", f2)):
         if len(f) < MIN_MATCHES:
             raise ValueError(f"{name} has too few features ({len(f)}): blank or textureless image")

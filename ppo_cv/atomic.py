@@ -1,0 +1,142 @@
+"""All-or-nothing output: files and folders built beside their target and renamed into place.
+
+A target that already exists is never touched unless ``overwrite`` is given; then it is replaced
+only after the new content is complete. An exception, a KeyboardInterrupt or (after
+:func:`sigterm_as_interrupt`) a SIGTERM removes the temporary sibling and leaves the target as
+it was.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import shutil
+import signal
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+__all__ = ["check_target", "atomic_file", "atomic_directory", "sigterm_as_interrupt"]
+
+
+def check_target(path: str | os.PathLike, kind: str, overwrite: bool = False) -> Path:
+    """Check that ``path`` can receive a new file or folder; raise ValueError naming the problem.
+
+    Parameters
+    ----------
+    path : path
+        The output to create.
+    kind : {"file", "folder"}
+        What will be written there.
+    overwrite : bool
+        Allow replacing an existing output of the same kind.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``, its parent folder existing and writable.
+    """
+    target = Path(path)
+    parent = target.parent
+    for ancestor in (parent, *parent.parents):
+        if ancestor.exists() and not ancestor.is_dir():
+            raise ValueError(f"cannot write {target}: {ancestor} is a file, not a folder")
+        if ancestor.exists():
+            break
+    if kind == "file":
+        if target.is_dir() or str(path).endswith(os.sep):
+            raise ValueError(f"{target} is a folder; give a file name")
+        if not parent.is_dir():
+            raise ValueError(f"cannot write {target}: folder {parent} does not exist")
+        if target.exists() and not overwrite:
+            raise ValueError(f"{target} already exists; pass --overwrite to replace it")
+        if target.exists() and not target.is_file():
+            raise ValueError(f"{target} is not a regular file")
+    else:
+        if target.exists() and not target.is_dir():
+            raise ValueError(f"{target} is a file, not a folder")
+        if target.is_dir() and any(target.iterdir()) and not overwrite:
+            raise ValueError(f"{target} exists and is not empty; pass --overwrite to replace it")
+    existing = next((p for p in (parent, *parent.parents) if p.exists()), Path("."))
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ValueError(f"cannot write {target}: {existing} is not writable")
+    return target
+
+
+def _visible_mode(path: Path, base: int) -> None:
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(path, base & ~umask)  # mkstemp / mkdtemp create private entries
+
+
+def _replace(staging: Path, target: Path, overwrite: bool) -> None:
+    """Move ``staging`` onto ``target``; an existing target is set aside, then removed."""
+    if not (target.exists() or target.is_symlink()):
+        os.rename(staging, target)
+        return
+    if not overwrite and not (target.is_dir() and not any(target.iterdir())):
+        raise ValueError(f"{target} already exists; pass --overwrite to replace it")
+    if target.is_file() and staging.is_file():
+        os.replace(staging, target)
+        return
+    aside = Path(tempfile.mkdtemp(prefix=f".{target.name}.old.", dir=target.parent))
+    os.rename(target, aside / "old")
+    try:
+        os.rename(staging, target)
+    except BaseException:
+        os.rename(aside / "old", target)
+        raise
+    finally:
+        shutil.rmtree(aside, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def atomic_file(
+    path: str | os.PathLike, overwrite: bool = False, mode: str = "w"
+) -> Iterator[object]:
+    """Open a temporary sibling of ``path`` for writing; rename it to ``path`` on success.
+
+    Yields the open file (text mode ``"w"`` in UTF-8, or ``"wb"``). On any exception, including
+    KeyboardInterrupt, the temporary file is removed and ``path`` is left untouched.
+    """
+    target = check_target(path, "file", overwrite)
+    descriptor, name = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
+    staging = Path(name)
+    try:
+        encoding = None if "b" in mode else "utf-8"
+        with os.fdopen(descriptor, mode, encoding=encoding) as handle:
+            yield handle
+        _visible_mode(staging, 0o666)
+        _replace(staging, target, overwrite)
+    except BaseException:
+        staging.unlink(missing_ok=True)
+        raise
+
+
+@contextlib.contextmanager
+def atomic_directory(path: str | os.PathLike, overwrite: bool = False) -> Iterator[Path]:
+    """A temporary sibling folder of ``path``, renamed to ``path`` when the block succeeds.
+
+    An empty existing folder is replaced; a non-empty one or a file only with ``overwrite``.
+    On any exception the temporary folder is removed and ``path`` is left untouched.
+    """
+    target = check_target(path, "folder", overwrite)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+    try:
+        yield staging
+        _visible_mode(staging, 0o777)
+        _replace(staging, target, overwrite)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+
+
+def _raise_interrupt(signum, frame) -> None:
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+def sigterm_as_interrupt() -> None:
+    """Make SIGTERM raise KeyboardInterrupt in the main thread, so clean-up code runs for both."""
+    with contextlib.suppress(ValueError):  # not the main thread: leave the default
+        signal.signal(signal.SIGTERM, _raise_interrupt)
