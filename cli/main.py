@@ -6,6 +6,7 @@ import sys
 
 import typer
 
+from ppo_cv.atomic import sigterm_as_interrupt
 from ppo_cv.cli import pair, sfm, synth
 
 app = typer.Typer(
@@ -31,12 +32,21 @@ def _usage_error(exc: Exception) -> int:
     return getattr(exc, "exit_code", 2)
 
 
+def _command(argv: list[str] | None) -> str:
+    words = [a for a in (sys.argv[1:] if argv is None else argv) if not a.startswith("-")]
+    return f"ppo-cv {words[0]}" if words else "ppo-cv"
+
+
 def main(argv: list[str] | None = None) -> None:
-    """Run the command line; a usage error is one line on stderr and exit code 2."""
+    """Run the command line; a usage error is one line on stderr and exit code 2.
+
+    SIGTERM is handled as Ctrl-C: outputs in progress are removed, exit code 130.
+    """
+    sigterm_as_interrupt()
     try:
         code = app(args=argv, prog_name="ppo-cv", standalone_mode=False)
-    except typer.Abort:
-        typer.echo("ppo-cv: interrupted", err=True)
+    except (typer.Abort, KeyboardInterrupt):
+        typer.echo(f"{_command(argv)}: interrupted; no output written", err=True)
         code = 130
     except Exception as exc:  # click's exceptions (typer vendors click in recent releases)
         if not hasattr(exc, "format_message"):
