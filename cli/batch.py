@@ -7,6 +7,7 @@ folder); ``--no-cache`` detects per pair, as :func:`~ppo_cv.pipeline.estimate_pa
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import sys
@@ -167,9 +168,31 @@ def _init_worker() -> None:
     import signal
 
     import cv2
+    import pycolmap  # noqa: F401  (imported before the handlers below: it installs its own)
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops the pool
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # stopped by the parent: quietly
     cv2.setNumThreads(1)
+
+
+@contextlib.contextmanager
+def _worker_pool(workers: int):
+    """A pool of ``workers`` spawned processes (None for one: run here), stopped on any error."""
+    if workers <= 1:
+        yield None
+        return
+    import multiprocessing
+
+    context = multiprocessing.get_context("spawn")  # no fork of a threaded process
+    pool = context.Pool(workers, initializer=_init_worker)
+    try:
+        yield pool
+    except BaseException:
+        pool.terminate()
+        pool.join()
+        raise
+    pool.close()
+    pool.join()
 
 
 class FeatureCache:
@@ -278,9 +301,6 @@ def run_pairs(
     The output file is written completely or not at all (an interrupt leaves nothing). Returns
     the exit code; ValueError for bad arguments, raised before any image is read.
     """
-    import contextlib
-    import multiprocessing
-
     from ppo_cv.atomic import atomic_file, check_target
 
     check_range("--workers", workers, 0, WORKERS_MAX)
@@ -294,12 +314,7 @@ def run_pairs(
     with contextlib.ExitStack() as stack:
         scratch = stack.enter_context(tempfile.TemporaryDirectory(prefix="ppo-cv-features-"))
         handle = stack.enter_context(sink) or sys.stdout
-        pool = None
-        if workers > 1:
-            context = multiprocessing.get_context("spawn")  # no fork of a threaded process
-            pool = context.Pool(workers, initializer=_init_worker)
-            stack.callback(pool.join)
-            stack.callback(pool.terminate)  # runs first: on success, error or interrupt alike
+        pool = stack.enter_context(_worker_pool(workers))
         features = FeatureCache(scratch, options) if cache else None
         paths = [Path(image_dir) / r[k] for r in rows for k in ("image1", "image2")]
         if features is not None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 from typing import Annotated
 
@@ -9,35 +10,60 @@ import typer
 
 from ppo_cv.data_gen.names import MOTIONS, SCENES
 
+from .common import ProgressReport, Quiet, fail
+
+__all__ = ["register", "MAX_BLUR", "MAX_NOISE"]
+
+MAX_BLUR = 50.0
+MAX_NOISE = 255.0
+MAX_PAIRS = 100_000
+
 
 def _fail(message: str) -> None:
-    typer.echo(f"ppo-cv synth: {message}", err=True)
-    raise typer.Exit(2)
+    fail("synth", message)
 
 
 def _check(out_dir: Path, pairs: int, seed: int, motion: str, scene: str | None, width: int,
            height: int, alpha: float | None, supersample: int, noise: float, blur: float,
-           workers: int | None) -> None:  # fmt: skip
+           workers: int | None, overwrite: bool) -> None:  # fmt: skip
     if motion not in MOTIONS:
         _fail(f"unknown motion {motion!r}; choose one of {', '.join(MOTIONS)}")
     if scene is not None and scene not in SCENES:
         _fail(f"unknown scene {scene!r}; choose one of {', '.join(SCENES)}")
-    if seed < 0:
-        _fail(f"--seed must be >= 0, got {seed}")
-    if pairs < 1:
-        _fail(f"--pairs must be >= 1, got {pairs}")
+    if not 0 <= seed <= 2**32 - 1:
+        _fail(f"--seed must be in 0..{2**32 - 1}, got {seed}")
+    if not 1 <= pairs <= MAX_PAIRS:
+        _fail(f"--pairs must be in 1..{MAX_PAIRS}, got {pairs}")
     if not (8 <= width <= 8192 and 8 <= height <= 8192):
         _fail(f"--width and --height must be in 8..8192, got {width}x{height}")
     if alpha is not None and not 0.0 < alpha <= 1.0:
         _fail(f"--alpha must be in (0, 1], got {alpha}")
     if not 1 <= supersample <= 8:
         _fail(f"--supersample must be in 1..8, got {supersample}")
-    if noise < 0 or blur < 0:
-        _fail("--noise and --blur must be >= 0")
-    if workers is not None and workers < 1:
-        _fail(f"--workers must be >= 1, got {workers}")
-    if out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())):
-        _fail(f"{out_dir} exists and is not an empty directory")
+    if not 0.0 <= noise <= MAX_NOISE:
+        _fail(f"--noise must be in 0..{MAX_NOISE:g} grey levels, got {noise}")
+    if not 0.0 <= blur <= MAX_BLUR:
+        _fail(f"--blur must be in 0..{MAX_BLUR:g} pixels, got {blur}")
+    if workers is not None and not 1 <= workers <= 256:
+        _fail(f"--workers must be in 1..256, got {workers}")
+    from ppo_cv.atomic import check_target
+
+    try:
+        check_target(out_dir, "folder", overwrite)
+    except ValueError as exc:
+        _fail(str(exc))
+
+
+def _watch(staging: Path, total: int, quiet: bool, stop: threading.Event) -> None:
+    """Progress of a render into ``staging``: counts the finished second images of the pairs."""
+    with ProgressReport("synth", "pairs", total, quiet) as report:
+        pattern = f".{staging.name}.*/images/pair_*_2.png"
+        while not stop.wait(0.25):
+            done = min(sum(1 for _ in staging.parent.glob(pattern)), total)
+            if done > report.done:
+                report.advance(done - report.done)
+        if (staging / "images").is_dir() and report.done < total:
+            report.advance(total - report.done)  # the rename came before the last look
 
 
 def register(app: typer.Typer) -> None:
@@ -72,20 +98,35 @@ def register(app: typer.Typer) -> None:
         workers: Annotated[
             int | None, typer.Option(help="Worker processes (default: CPUs).")
         ] = None,
+        overwrite: Annotated[
+            bool, typer.Option("--overwrite", help="Replace an existing non-empty OUT_DIR.")
+        ] = False,
+        quiet: Quiet = False,
     ) -> None:
         """Render synthetic pairs with exact ground truth and a freiburg-style pairs file."""
+        from ppo_cv.atomic import atomic_directory
         from ppo_cv.data_gen import make_dataset
 
         _check(out_dir, pairs, seed, motion, scene, width, height, alpha, supersample, noise, blur,
-               workers)  # fmt: skip
+               workers, overwrite)  # fmt: skip
+        stop = threading.Event()
         try:
-            out = make_dataset(
-                out_dir, pairs=pairs, motion=motion, seed=seed, size=(width, height),
-                scene=scene, alpha=alpha, supersample=supersample, noise_std=noise,
-                blur_sigma=blur, same_intrinsics=not different_k, workers=workers,
-            )  # fmt: skip
+            with atomic_directory(out_dir, overwrite) as staging:
+                watcher = threading.Thread(
+                    target=_watch, args=(staging, pairs, quiet, stop), daemon=True
+                )
+                watcher.start()
+                try:
+                    make_dataset(
+                        staging, pairs=pairs, motion=motion, seed=seed, size=(width, height),
+                        scene=scene, alpha=alpha, supersample=supersample, noise_std=noise,
+                        blur_sigma=blur, same_intrinsics=not different_k, workers=workers,
+                    )  # fmt: skip
+                finally:
+                    stop.set()
+                    watcher.join()
         except (ValueError, TypeError, OSError) as error:
             _fail(str(error))
         from ppo_cv.data_gen.io import PAIRS_FILE
 
-        typer.echo(f"wrote {pairs} pairs to {out} ({out / PAIRS_FILE})")
+        typer.echo(f"wrote {pairs} pairs to {out_dir} ({out_dir / PAIRS_FILE})")
