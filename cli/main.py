@@ -53,3 +53,7 @@ def main(argv: list[str] | None = None) -> None:
             raise
         code = _usage_error(exc)
     sys.exit(code if isinstance(code, int) else 0)
+
+
+if __name__ == "__main__":
+    main()
