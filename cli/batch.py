@@ -301,8 +301,11 @@ def run_pairs(
     The output file is written completely or not at all (an interrupt leaves nothing). Returns
     the exit code; ValueError for bad arguments, raised before any image is read.
     """
-    from ppo_cv.atomic import atomic_file, check_target
+    import pycolmap  # noqa: F401  (before the SIGTERM handler: it installs its own)
 
+    from ppo_cv.atomic import atomic_file, check_target, sigterm_as_interrupt
+
+    sigterm_as_interrupt()
     check_range("--workers", workers, 0, WORKERS_MAX)
     if output is not None:
         check_target(output, "file", overwrite)

@@ -46,12 +46,13 @@ def main(argv: list[str] | None = None) -> None:
     try:
         code = app(args=argv, prog_name="ppo-cv", standalone_mode=False)
     except (typer.Abort, KeyboardInterrupt):
-        typer.echo(f"{_command(argv)}: interrupted; no output written", err=True)
         code = 130
     except Exception as exc:  # click's exceptions (typer vendors click in recent releases)
         if not hasattr(exc, "format_message"):
             raise
         code = _usage_error(exc)
+    if code == 130:  # typer turns a KeyboardInterrupt into exit code 130, silently
+        typer.echo(f"{_command(argv)}: interrupted; no output written", err=True)
     sys.exit(code if isinstance(code, int) else 0)
 
 

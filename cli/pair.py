@@ -196,8 +196,10 @@ def _run_pair(
             names = (f"1_{names[0]}", f"2_{names[1]}")
         extra = {"image1": str(image1), "image2": str(image2)}
         if out is not None:
+            from ppo_cv.atomic import sigterm_as_interrupt
             from ppo_cv.export import write_outputs
 
+            sigterm_as_interrupt()  # again: the pipeline imported pycolmap, which replaces it
             write_outputs(out, result, img1, img2, names, (d1, d2), extra, overwrite=overwrite)
     except (ValueError, TypeError, OSError) as exc:
         _fail(str(exc) or type(exc).__name__, command)

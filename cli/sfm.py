@@ -117,7 +117,10 @@ def register(app: typer.Typer) -> None:
         quiet: Quiet = False,
     ) -> None:
         """Features, matches, PPO-ranked initial pair and incremental mapping of a folder."""
-        from ppo_cv import sfm
+        from ppo_cv import sfm  # imports pycolmap, which replaces the SIGTERM handler
+        from ppo_cv.atomic import sigterm_as_interrupt
+
+        sigterm_as_interrupt()
 
         try:
             matrix = _check(image_dir, out_dir, K, init, seeding, database, max_features,

@@ -137,6 +137,10 @@ def _raise_interrupt(signum, frame) -> None:
 
 
 def sigterm_as_interrupt() -> None:
-    """Make SIGTERM raise KeyboardInterrupt in the main thread, so clean-up code runs for both."""
+    """Make SIGTERM raise KeyboardInterrupt in the main thread, so clean-up code runs for both.
+
+    Importing pycolmap installs its own SIGTERM handler (a stack dump, then death, with no
+    clean-up): call this again once pycolmap is imported, before writing anything.
+    """
     with contextlib.suppress(ValueError):  # not the main thread: leave the default
         signal.signal(signal.SIGTERM, _raise_interrupt)
