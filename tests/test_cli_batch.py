@@ -125,8 +125,9 @@ def rotation_pairs(tmp_path_factory):
 
 
 def test_pure_rotations_get_an_auc_and_progress_goes_to_stderr(rotation_pairs, tmp_path):
-    args = [*COMMAND, "pairs", str(rotation_pairs / "pairs.txt"), str(rotation_pairs),
-            "--workers", "1", "--pri-threshold", "0.02", "-o", str(tmp_path / "out.jsonl")]  # fmt: skip
+    pairs = str(rotation_pairs / "pairs.txt")
+    args = [*COMMAND, "pairs", pairs, str(rotation_pairs), "--workers", "1",
+            "--pri-threshold", "0.02", "-o", str(tmp_path / "out.jsonl")]  # fmt: skip
     out = subprocess.run(args, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     progress = out.stderr.strip().splitlines()
@@ -167,8 +168,8 @@ def test_sfm_passes_its_options_on(monkeypatch, tmp_path):
     monkeypatch.setattr(sfm, "run_sfm", fake_run_sfm)
     images = tmp_path / "images"
     images.mkdir()
-    run = CliRunner().invoke(app, ["sfm", str(images), str(tmp_path / "model"),
-                                   "--pri-threshold", "0.03", "--seed", "7", "--quiet"])  # fmt: skip
+    args = ["sfm", str(images), str(tmp_path / "model"), "--pri-threshold", "0.03", "--seed", "7"]
+    run = CliRunner().invoke(app, [*args, "--quiet"])
     assert run.exit_code == 2 and "ppo-cv sfm: stopped here" in run.stderr
     assert "warning: no intrinsics given" in run.stderr  # sfm warns without --K, as pair does
     assert seen["pri_threshold"] == 0.03 and seen["seed"] == 7
