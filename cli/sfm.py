@@ -54,6 +54,8 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
     check_range("--pri-threshold", pri_threshold, 0.0, 1.0)
     check_target(out_dir, "folder", overwrite)
     if database is not None:
+        if database.exists():
+            raise ValueError(f"database {database} already exists; give a new file name")
         check_target(database, "file")
     names = sfm.list_images(image_dir)
     if K is None:

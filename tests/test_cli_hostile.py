@@ -40,6 +40,9 @@ def _workspace(root: Path) -> None:
     (root / "deep.json").write_text("[" * 100_000 + "]" * 100_000)
     (root / "gt_then_none.txt").write_text(f"a.png b.png {GT}\n#\nc.png d.png {INTRINSICS}\n")
     (root / "no_gt.txt").write_text("a.png b.png\n")
+    (root / "negative_focal.txt").write_text(
+        f"a.png b.png {INTRINSICS.replace('535.4', '-535.4')}\n"
+    )
     (root / "afile").write_text("not a folder\n")
     (root / "images").mkdir()
     for image in (DEMO1, DEMO2):
@@ -94,12 +97,24 @@ CASES = [
         "pairs",
         r"gt_then_none\.txt:3: line 1 carries a ground-truth motion and line 3 does not",
     ),
+    (["pairs", "negative_focal.txt", "images"], "pairs", r"negative_focal\.txt:1: K1 .*focal"),
+    (
+        ["sfm", "images", "out", "--K", K_TEXT, "--database", "taken.jsonl"],
+        "sfm",
+        r"database taken\.jsonl already exists; give a new file name",
+    ),
     # section 3: numbers out of range, checked before any work
     ([*PAIR, "--seed", "1099511627776"], "pair", r"--seed must be in 0\.\.2147483647"),
     ([*PAIR, "--seed", "-1"], "pair", r"--seed must be in 0\.\."),
     ([*PAIR, "--max-features", "3000000000"], "pair", r"--max-features must be in 8\.\."),
     ([*PAIR, "--max-size", "-5"], "pair", r"--max-size .* must be in 32\.\."),
     ([*PAIR, "--pri-threshold", "-0.1"], "pair", r"--pri-threshold must be in 0\.\.1"),
+    ([*PAIR, "--threshold", "inf"], "pair", r"--threshold \(pixels\) must be in"),
+    (
+        ["pairs", "no_gt.txt", "images", "--K", K_TEXT, "--workers", "-1"],
+        "pairs",
+        r"--workers must be in 0\.\.256",
+    ),
     (
         ["pairs", "no_gt.txt", "images", "--K", K_TEXT, "--seed", "1099511627776"],
         "pairs",
