@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 import subprocess
 import sys
@@ -15,6 +16,7 @@ from typer.testing import CliRunner
 import ppo_cv.features
 import ppo_cv.pipeline
 from ppo_cv.cli import batch
+from ppo_cv.cli.common import ProgressReport
 from ppo_cv.cli.main import app
 from ppo_cv.cli.pair import pipeline_options
 
@@ -173,3 +175,29 @@ def test_sfm_passes_its_options_on(monkeypatch, tmp_path):
     assert run.exit_code == 2 and "ppo-cv sfm: stopped here" in run.stderr
     assert "warning: no intrinsics given" in run.stderr  # sfm warns without --K, as pair does
     assert seen["pri_threshold"] == 0.03 and seen["seed"] == 7
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+@pytest.mark.parametrize("terminal", [False, True])
+def test_progress_report_plain_lines_or_a_bar(monkeypatch, terminal):
+    stream = _Terminal() if terminal else io.StringIO()
+    monkeypatch.setattr(sys, "stderr", stream)
+    with ProgressReport("pairs", "pairs", 3) as report:
+        for _ in range(3):
+            report.advance()
+    text = stream.getvalue()
+    plain = [line for line in text.splitlines() if line.startswith("ppo-cv pairs: ")]
+    if terminal:
+        assert plain == [] and "3/3" in text  # rich's bar, not the plain lines
+    else:
+        assert plain[0].startswith("ppo-cv pairs: 1/3 pairs, ")
+        assert plain[-1].startswith("ppo-cv pairs: 3/3 pairs, ")
+    quiet = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", quiet)
+    with ProgressReport("pairs", "pairs", 3, quiet=True) as report:
+        report.advance(3)
+    assert quiet.getvalue() == ""
