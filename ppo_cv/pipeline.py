@@ -267,17 +267,6 @@ def _detect_both(image1, image2, options: PairOptions) -> tuple[Features, Featur
     return f1, f2
 
 
-def _given_features(f1: Any, f2: Any, options: PairOptions) -> tuple[Features, Features]:
-    for name, f in (("features1", f1), ("features2", f2)):
-        if not isinstance(f, Features):
-            raise TypeError(f"{name} must be ppo_cv.features.Features, got {type(f).__name__}")
-        if f.kind != options.features:
-            raise ValueError(
-                f"{name} are {f.kind} features but options.features is {options.features}"
-            )
-    return f1, f2
-
-
 def _refine(R, t, x1, x2, inliers, focal, options: PairOptions, rounds: int = 3):
     """Refine over the inliers, re-select the inliers of the refined pose, until they settle."""
     threshold = options.ransac_threshold / focal
@@ -354,7 +343,14 @@ def estimate_pair(
     if features1 is None or features2 is None:
         f1, f2 = _detect_both(img1, img2, options)
     else:
-        f1, f2 = _given_features(features1, features2, options)
+        f1, f2 = features1, features2
+        for name, f in (("features1", f1), ("features2", f2)):
+            if not isinstance(f, Features):
+                raise TypeError(f"{name} must be ppo_cv.features.Features, got {type(f).__name__}")
+            if f.kind != options.features:
+                raise ValueError(
+                    f"{name} are {f.kind} features but options.features is {options.features}"
+                )
     for name, f in (("image1", f1), ("image2", f2)):
         if len(f) < MIN_MATCHES:
             raise ValueError(f"{name} has too few features ({len(f)}): blank or textureless image")
