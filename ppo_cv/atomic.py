@@ -56,7 +56,9 @@ def check_target(path: str | os.PathLike, kind: str, overwrite: bool = False) ->
         if target.exists() and not target.is_dir():
             raise ValueError(f"{target} is a file, not a folder")
         if target.is_dir() and any(target.iterdir()) and not overwrite:
-            raise ValueError(f"{target} exists and is not empty; pass --overwrite to replace it")
+            raise ValueError(
+                f"{target} exists and is not an empty directory; pass --overwrite to replace it"
+            )
     existing = next((p for p in (parent, *parent.parents) if p.exists()), Path("."))
     if not os.access(existing, os.W_OK | os.X_OK):
         raise ValueError(f"cannot write {target}: {existing} is not writable")

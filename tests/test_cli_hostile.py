@@ -151,12 +151,16 @@ CASES = [
         "sfm",
         r"afile is a file, not a folder",
     ),
-    (["sfm", "images", "t", "--K", K_TEXT], "sfm", r"t exists and is not empty; pass --overwrite"),
+    (["sfm", "images", "t", "--K", K_TEXT], "sfm", r"t exists and is not an empty directory"),
     # section 2: outputs never written over without --overwrite
-    ([*PAIR, "--out", "t"], "pair", r"t exists and is not empty; pass --overwrite"),
-    ([*PAIR, "--out", "u"], "pair", r"u exists and is not empty; pass --overwrite"),
+    ([*PAIR, "--out", "t"], "pair", r"t exists and is not an empty directory"),
+    ([*PAIR, "--out", "u"], "pair", r"u exists and is not an empty directory"),
     ([*PAIR, "--out", "afile"], "pair", r"afile is a file, not a folder"),
-    (["synth", "synth_out", "--pairs", "1"], "synth", r"synth_out exists and is not empty"),
+    (
+        ["synth", "synth_out", "--pairs", "1"],
+        "synth",
+        r"synth_out exists and is not an empty directory",
+    ),
     # section 5: bounded resources, non-regular files
     (["synth", "new", "--blur", "1000000"], "synth", r"--blur must be in 0\.\.50"),
     (["pair", "fifo.png", DEMO2, "--K", K_TEXT], "pair", r"not a regular file: fifo\.png"),

@@ -245,7 +245,7 @@ def test_cli_sfm_bad_folders(tripod, tmp_path):
     (existing / "keep.txt").write_text("keep")
     runner = CliRunner()
     run = runner.invoke(app, ["sfm", str(tripod[0]), str(existing)])
-    assert run.exit_code == 2 and "is not empty; pass --overwrite" in run.stderr
+    assert run.exit_code == 2 and "is not an empty directory; pass --overwrite" in run.stderr
     assert [p.name for p in existing.iterdir()] == ["keep.txt"]
     run = runner.invoke(app, ["sfm", str(tmp_path / "nowhere"), str(tmp_path / "out")])
     assert run.exit_code == 2 and "does not exist" in run.stderr
