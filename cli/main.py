@@ -52,7 +52,7 @@ def main(argv: list[str] | None = None) -> None:
             raise
         code = _usage_error(exc)
     if code == 130:  # typer turns a KeyboardInterrupt into exit code 130, silently
-        typer.echo(f"{_command(argv)}: interrupted; no output written", err=True)
+        typer.echo(f"{_command(argv)}: interrupted; unfinished output removed", err=True)
     sys.exit(code if isinstance(code, int) else 0)
 
 

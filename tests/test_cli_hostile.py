@@ -256,7 +256,7 @@ def test_interrupted_pairs_leave_no_jsonl(tmp_path, signum, workers):
             "--workers", workers, "--max-features", "600"]  # fmt: skip
     code, err = _interrupt(args, tmp_path, " pairs, ", signum)
     assert code == 130, err
-    assert err.strip().splitlines()[-1] == "ppo-cv pairs: interrupted; no output written"
+    assert err.strip().splitlines()[-1] == "ppo-cv pairs: interrupted; unfinished output removed"
     assert "Traceback" not in err and "SIGTERM" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["pairs.txt"]
 
