@@ -239,8 +239,10 @@ def load_calibration(path: str | os.PathLike) -> list[Camera]:
     anything else a COLMAP ``cameras.txt``.
     """
     path = os.fspath(path)
-    if not os.path.isfile(path):
+    if not os.path.exists(path):
         raise ValueError(f"calibration file not found: {path}")
+    if not os.path.isfile(path):  # a folder, or a FIFO that would block the reader
+        raise ValueError(f"calibration file {path} is not a regular file")
     extension = os.path.splitext(path)[1].lower()
     if extension in (".yml", ".yaml", ".xml"):
         return _read_opencv(path)

@@ -80,6 +80,7 @@ CASES = [
     ([*PAIR[:3], "--calib", "scalar.yml"], "pair", r"camera_matrix .* is a scalar"),
     ([*PAIR[:3], "--calib", "bad.xml"], "pair", r"malformed OpenCV calibration file.*bad\.xml"),
     ([*PAIR[:3], "--calib", "deep.json"], "pair", r"deep\.json is nested too deeply"),
+    ([*PAIR[:3], "--calib", "fifo.png"], "pair", r"fifo\.png is not a regular file"),
     # section 3: pairs output paths and inconsistent ground truth
     (
         ["pairs", "no_gt.txt", "images", "--K", K_TEXT, "-o", "nodir/x.jsonl"],
