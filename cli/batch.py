@@ -182,9 +182,14 @@ def _worker_pool(workers: int):
         yield None
         return
     import multiprocessing
+    import signal
 
     context = multiprocessing.get_context("spawn")  # no fork of a threaded process
-    pool = context.Pool(workers, initializer=_init_worker)
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # inherited: workers ignore Ctrl-C
+    try:  # from their first instruction, not only once _init_worker has run
+        pool = context.Pool(workers, initializer=_init_worker)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     try:
         yield pool
     except BaseException:

@@ -230,16 +230,20 @@ def _wait_for_entry(process, root: Path, known: set) -> str:
 
 
 def _interrupt(args, root: Path, needle: str | None, signum: int) -> tuple[int, str]:
+    """Send ``signum`` midway: SIGINT to the process group (Ctrl-C at a terminal reaches the
+    workers too), SIGTERM to the command's process only (as ``kill`` does)."""
     known = set(os.listdir(root))
-    process = subprocess.Popen(
-        [*COMMAND, *args], cwd=root, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
-    )
+    process = subprocess.Popen([*COMMAND, *args], cwd=root, text=True, start_new_session=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
     try:
         if needle is None:
             head = _wait_for_entry(process, root, known)
         else:
             head = _wait_for(process, needle)
-        process.send_signal(signum)
+        if signum == signal.SIGINT:
+            os.killpg(process.pid, signum)
+        else:
+            process.send_signal(signum)
         _, tail = process.communicate(timeout=120)
     finally:
         process.kill()
@@ -247,7 +251,9 @@ def _interrupt(args, root: Path, needle: str | None, signum: int) -> tuple[int, 
 
 
 @pytest.mark.parametrize(
-    "signum, workers", [(signal.SIGINT, "1"), (signal.SIGTERM, "2")], ids=["SIGINT", "SIGTERM"]
+    "signum, workers",
+    [(signal.SIGINT, "2"), (signal.SIGTERM, "2"), (signal.SIGTERM, "1")],
+    ids=["SIGINT-group", "SIGTERM-pool", "SIGTERM-in-process"],
 )
 def test_interrupted_pairs_leave_no_jsonl(tmp_path, signum, workers):
     names = [Path(DEMO1).name, Path(DEMO2).name]
@@ -262,10 +268,12 @@ def test_interrupted_pairs_leave_no_jsonl(tmp_path, signum, workers):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["pairs.txt"]
 
 
-def test_interrupted_synth_leaves_no_staging_folder(tmp_path):
-    args = ["synth", "out", "--pairs", "40", "--workers", "1", "--width", "96", "--height", "72",
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_interrupted_synth_leaves_no_staging_folder(tmp_path, signum):
+    args = ["synth", "out", "--pairs", "40", "--workers", "2", "--width", "96", "--height", "72",
             "--supersample", "1"]  # fmt: skip
-    code, err = _interrupt(args, tmp_path, None, signal.SIGTERM)  # once the staging folder exists
+    # SIGTERM as soon as the staging folder exists; Ctrl-C once the workers have started
+    code, err = _interrupt(args, tmp_path, None if signum == signal.SIGTERM else " pairs, ", signum)
     assert code == 130, err
     assert "Traceback" not in err
     assert list(tmp_path.iterdir()) == []
