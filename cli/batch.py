@@ -8,6 +8,7 @@ folder); ``--no-cache`` detects per pair, as :func:`~ppo_cv.pipeline.estimate_pa
 from __future__ import annotations
 
 import contextlib
+import importlib
 import json
 import os
 import sys
@@ -222,7 +223,10 @@ class FeatureCache:
         """One detection job per image not yet cached: ``(path, options, npz file)``."""
         keys = dict.fromkeys(self.key(p) for p in paths)
         fresh = [k for k in keys if k not in self.files and k not in self.errors]
-        return [(k[0], self.options, str(self.folder / f"{i}.npz")) for i, k in enumerate(fresh)]
+        start = len(self.files) + len(self.errors)
+        return [
+            (k[0], self.options, str(self.folder / f"{start + i}.npz")) for i, k in enumerate(fresh)
+        ]
 
     def store(self, path: str, outcome: tuple[str, str]) -> None:
         """Record a job's outcome: ``("file", npz path)`` or ``("error", message)``."""
@@ -306,11 +310,8 @@ def run_pairs(
     The output file is written completely or not at all (an interrupt leaves nothing). Returns
     the exit code; ValueError for bad arguments, raised before any image is read.
     """
-    import pycolmap  # noqa: F401  (before the SIGTERM handler: it installs its own)
-
     from ppo_cv.atomic import atomic_file, check_target, sigterm_as_interrupt
 
-    sigterm_as_interrupt()
     check_range("--workers", workers, 0, WORKERS_MAX)
     if output is not None:
         check_target(output, "file", overwrite)
@@ -318,6 +319,8 @@ def run_pairs(
     if not Path(image_dir).is_dir():
         raise ValueError(f"image folder not found: {image_dir}")
     workers = workers or (os.cpu_count() or 1)
+    importlib.import_module("pycolmap")  # before the handler: importing it replaces SIGTERM's
+    sigterm_as_interrupt()
     sink = atomic_file(output, overwrite) if output is not None else contextlib.nullcontext(None)
     with contextlib.ExitStack() as stack:
         scratch = stack.enter_context(tempfile.TemporaryDirectory(prefix="ppo-cv-features-"))
