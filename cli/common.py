@@ -29,7 +29,6 @@ __all__ = [
 
 SEED_MAX = 2**31 - 1  # pycolmap and OpenCV take the seed as a 32-bit signed integer
 MAX_FEATURES_MAX = 1_000_000
-THREADS_MAX = 256
 WORKERS_MAX = 256
 MAX_SIZE_MAX = 100_000
 _PANEL = "Pipeline"
