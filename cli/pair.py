@@ -185,7 +185,8 @@ def _run_pair(
         K1, d1, K2v, d2, exif_note = _cameras(image1, image2, K, K2, dist, dist2, calib)
         if exif_note:
             _warn(exif_note, command)
-        for matrix, img, name in ((K1, img1, "--K"), (K2v, img2, "--K2")):
+        sources = ("--calib", "--calib") if calib is not None else ("--K", "--K2" if K2 else "--K")
+        for matrix, img, name in ((K1, img1, sources[0]), (K2v, img2, sources[1])):
             doubt = implausible_intrinsics(matrix, (img.shape[1], img.shape[0]), name)
             if doubt and not exif_note:
                 _warn(doubt, command)
