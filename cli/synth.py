@@ -57,12 +57,12 @@ def _check(out_dir: Path, pairs: int, seed: int, motion: str, scene: str | None,
 def _watch(staging: Path, total: int, quiet: bool, stop: threading.Event) -> None:
     """Progress of a render into ``staging``: counts the finished second images of the pairs."""
     with ProgressReport("synth", "pairs", total, quiet) as report:
-        pattern = f".{staging.name}.*/images/pair_*_2.png"
+        pattern = ".render.*/images/pair_*_2.png"
         while not stop.wait(0.25):
-            done = min(sum(1 for _ in staging.parent.glob(pattern)), total)
+            done = min(sum(1 for _ in staging.glob(pattern)), total)
             if done > report.done:
                 report.advance(done - report.done)
-        if (staging / "images").is_dir() and report.done < total:
+        if (staging / "render").is_dir() and report.done < total:
             report.advance(total - report.done)  # the rename came before the last look
 
 
@@ -117,14 +117,18 @@ def register(app: typer.Typer) -> None:
                 )
                 watcher.start()
                 try:
-                    make_dataset(
-                        staging, pairs=pairs, motion=motion, seed=seed, size=(width, height),
-                        scene=scene, alpha=alpha, supersample=supersample, noise_std=noise,
+                    make_dataset(  # its own staging folder lands inside ours
+                        staging / "render", pairs=pairs, motion=motion, seed=seed,
+                        size=(width, height), scene=scene, alpha=alpha, supersample=supersample,
+                        noise_std=noise,
                         blur_sigma=blur, same_intrinsics=not different_k, workers=workers,
                     )  # fmt: skip
                 finally:
                     stop.set()
                     watcher.join()
+                for entry in (staging / "render").iterdir():
+                    entry.rename(staging / entry.name)
+                (staging / "render").rmdir()
         except (ValueError, TypeError, OSError) as error:
             _fail(str(error))
         from ppo_cv.data_gen.io import PAIRS_FILE

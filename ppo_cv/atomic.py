@@ -65,6 +65,24 @@ def check_target(path: str | os.PathLike, kind: str, overwrite: bool = False) ->
     return target
 
 
+_DEFERRED = {signal.SIGINT, signal.SIGTERM}
+
+
+@contextlib.contextmanager
+def _signals_deferred() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM back (in this thread) until the block is over.
+
+    Creating a temporary entry and entering the ``try`` that removes it, or swapping an output
+    into place, must not be split by an interrupt; a signal that arrives meanwhile is delivered,
+    and its KeyboardInterrupt raised, as soon as the block ends.
+    """
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFERRED)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
 def _visible_mode(path: Path, base: int) -> None:
     umask = os.umask(0)
     os.umask(umask)
@@ -102,16 +120,20 @@ def atomic_file(
     KeyboardInterrupt, the temporary file is removed and ``path`` is left untouched.
     """
     target = check_target(path, "file", overwrite)
-    descriptor, name = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
-    staging = Path(name)
+    staging = None
     try:
+        with _signals_deferred():
+            descriptor, name = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
+            staging = Path(name)
         encoding = None if "b" in mode else "utf-8"
         with os.fdopen(descriptor, mode, encoding=encoding) as handle:
             yield handle
         _visible_mode(staging, 0o666)
-        _replace(staging, target, overwrite)
+        with _signals_deferred():
+            _replace(staging, target, overwrite)
     except BaseException:
-        staging.unlink(missing_ok=True)
+        if staging is not None:
+            staging.unlink(missing_ok=True)
         raise
 
 
@@ -124,13 +146,17 @@ def atomic_directory(path: str | os.PathLike, overwrite: bool = False) -> Iterat
     """
     target = check_target(path, "folder", overwrite)
     target.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+    staging = None
     try:
+        with _signals_deferred():
+            staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
         yield staging
         _visible_mode(staging, 0o777)
-        _replace(staging, target, overwrite)
+        with _signals_deferred():
+            _replace(staging, target, overwrite)
     except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
+        if staging is not None:
+            shutil.rmtree(staging, ignore_errors=True)
         raise
 
 
