@@ -16,7 +16,13 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
-__all__ = ["check_target", "atomic_file", "atomic_directory", "sigterm_as_interrupt"]
+__all__ = [
+    "check_target",
+    "atomic_file",
+    "atomic_directory",
+    "signals_deferred",
+    "sigterm_as_interrupt",
+]
 
 
 def check_target(path: str | os.PathLike, kind: str, overwrite: bool = False) -> Path:
@@ -69,7 +75,7 @@ _DEFERRED = {signal.SIGINT, signal.SIGTERM}
 
 
 @contextlib.contextmanager
-def _signals_deferred() -> Iterator[None]:
+def signals_deferred() -> Iterator[None]:
     """Hold SIGINT and SIGTERM back (in this thread) until the block is over.
 
     Creating a temporary entry and entering the ``try`` that removes it, or swapping an output
@@ -122,14 +128,14 @@ def atomic_file(
     target = check_target(path, "file", overwrite)
     staging = None
     try:
-        with _signals_deferred():
+        with signals_deferred():
             descriptor, name = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
             staging = Path(name)
         encoding = None if "b" in mode else "utf-8"
         with os.fdopen(descriptor, mode, encoding=encoding) as handle:
             yield handle
         _visible_mode(staging, 0o666)
-        with _signals_deferred():
+        with signals_deferred():
             _replace(staging, target, overwrite)
     except BaseException:
         if staging is not None:
@@ -148,11 +154,11 @@ def atomic_directory(path: str | os.PathLike, overwrite: bool = False) -> Iterat
     target.parent.mkdir(parents=True, exist_ok=True)
     staging = None
     try:
-        with _signals_deferred():
+        with signals_deferred():
             staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
         yield staging
         _visible_mode(staging, 0o777)
-        with _signals_deferred():
+        with signals_deferred():
             _replace(staging, target, overwrite)
     except BaseException:
         if staging is not None:

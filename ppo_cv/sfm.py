@@ -41,7 +41,7 @@ import numpy as np
 import pycolmap
 
 from . import colmap, ppo
-from .atomic import atomic_directory, check_target
+from .atomic import atomic_directory, check_target, signals_deferred
 from .checks import as_camera_matrix, as_positive
 
 __all__ = [
@@ -710,12 +710,16 @@ def _staged_file(path: str | os.PathLike) -> Iterator[Path]:
     holds (a partial SQLite database and its journal) are removed.
     """
     target = check_target(path, "file")
-    staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+    staging = None
     try:
+        with signals_deferred():
+            staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
         yield staging / target.name
-        os.rename(staging / target.name, target)
+        with signals_deferred():
+            os.rename(staging / target.name, target)
     finally:
-        shutil.rmtree(staging, ignore_errors=True)
+        if staging is not None:
+            shutil.rmtree(staging, ignore_errors=True)
 
 
 def format_pairs(pairs: Sequence[PairScore]) -> str:
