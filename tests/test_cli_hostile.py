@@ -312,3 +312,45 @@ def test_implausible_intrinsics_warn():
     assert warnings and warnings[0].startswith("ppo-cv pair: warning: --K looks implausible")
     assert "focal length fx=1 fy=2 px is outside 0.1..10 x 640 px" in warnings[0]
     assert "principal point (-400, 247.6) is outside the 640x480 image" in warnings[0]
+
+
+# --- the helpers behind it, in process ------------------------------------------------------
+
+
+def test_atomic_file_appears_only_when_complete(tmp_path):
+    from ppo_cv.atomic import atomic_file
+
+    target = tmp_path / "out.jsonl"
+    with pytest.raises(KeyboardInterrupt), atomic_file(target) as handle:
+        handle.write("half\n")
+        raise KeyboardInterrupt
+    assert list(tmp_path.iterdir()) == []
+    with atomic_file(target) as handle:
+        handle.write("whole\n")
+        assert not target.exists()
+    assert target.read_text() == "whole\n" and list(tmp_path.iterdir()) == [target]
+    with pytest.raises(ValueError, match="already exists; pass --overwrite"):
+        with atomic_file(target):
+            pass
+    with atomic_file(target, overwrite=True) as handle:
+        handle.write("new\n")
+    assert target.read_text() == "new\n" and list(tmp_path.iterdir()) == [target]
+
+
+def test_atomic_directory_replaces_only_when_asked_and_complete(tmp_path):
+    from ppo_cv.atomic import atomic_directory
+
+    target = tmp_path / "out"
+    target.mkdir()
+    (target / "old.txt").write_text("old")
+    with pytest.raises(ValueError, match="not an empty directory; pass --overwrite"):
+        with atomic_directory(target):
+            pass
+    with pytest.raises(RuntimeError), atomic_directory(target, overwrite=True) as staging:
+        (staging / "new.txt").write_text("new")
+        raise RuntimeError("failed midway")
+    assert [p.name for p in target.iterdir()] == ["old.txt"]
+    with atomic_directory(target, overwrite=True) as staging:
+        (staging / "new.txt").write_text("new")
+    assert [p.name for p in target.iterdir()] == ["new.txt"]
+    assert [p.name for p in tmp_path.iterdir()] == ["out"]
