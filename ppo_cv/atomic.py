@@ -166,15 +166,40 @@ def atomic_directory(path: str | os.PathLike, overwrite: bool = False) -> Iterat
         raise
 
 
+_LAUNCHERS = {"popen_spawn_posix.py", "popen_forkserver.py", "popen_fork.py"}
+_RETRY_SECONDS = 0.02
+
+
+def _launching_a_process(frame) -> bool:
+    """Whether ``frame`` is inside multiprocessing's hand-over of its data to a new worker."""
+    while frame is not None:
+        code = frame.f_code
+        if code.co_name == "_launch" and os.path.basename(code.co_filename) in _LAUNCHERS:
+            return True
+        frame = frame.f_back
+    return False
+
+
 def _raise_interrupt(signum, frame) -> None:
+    """KeyboardInterrupt, unless a worker is being launched: then again in a few milliseconds.
+
+    Interrupting the launch would leave the new worker reading a truncated hand-over and dying
+    with a traceback; SIGALRM brings the interrupt back once the launch is over.
+    """
+    if _launching_a_process(frame):
+        signal.signal(signal.SIGALRM, _raise_interrupt)
+        signal.setitimer(signal.ITIMER_REAL, _RETRY_SECONDS)
+        return
     raise KeyboardInterrupt(f"signal {signum}")
 
 
 def sigterm_as_interrupt() -> None:
-    """Make SIGTERM raise KeyboardInterrupt in the main thread, so clean-up code runs for both.
+    """Make SIGINT and SIGTERM raise KeyboardInterrupt in the main thread, so clean-up code runs.
 
     Importing pycolmap installs its own SIGTERM handler (a stack dump, then death, with no
     clean-up): call this again once pycolmap is imported, before writing anything.
     """
-    with contextlib.suppress(ValueError):  # not the main thread: leave the default
+    with contextlib.suppress(ValueError):  # not the main thread: leave the defaults
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            signal.signal(signal.SIGINT, _raise_interrupt)
         signal.signal(signal.SIGTERM, _raise_interrupt)
