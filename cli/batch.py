@@ -366,7 +366,13 @@ def register(app: typer.Typer) -> None:
 
     from .pair import pipeline_options
 
-    @app.command()
+    @app.command(
+        help="Run many pairs in parallel, one JSON line each; AUC@5/10/20 given ground truth."
+        "\n\nFeatures are computed once per image for the whole run (--no-cache: once per "
+        "pair). Progress goes to stderr. With ground truth the AUC is that of the pose error "
+        "max(rotation error, translation-direction error), the rotation error alone where the "
+        "true translation is zero. -o is written completely or not at all.",
+    )
     def pairs(
         pairs_file: Annotated[
             Path, typer.Argument(help="Lines 'name1 name2 [0 0 K1(9) K2(9) [T_1to2(16)]]'.")
@@ -399,13 +405,7 @@ def register(app: typer.Typer) -> None:
         seed: Seed = 0,
         pri_threshold: PriThreshold = DEFAULT_PRI_THRESHOLD,
     ) -> None:
-        """Run many pairs in parallel, one JSON line each; AUC@5/10/20 given ground truth.
-
-        Features are computed once per image for the whole run (--no-cache: once per pair).
-        Progress goes to stderr. With ground truth the AUC table follows the pose error
-        max(rotation error, translation-direction error), the rotation error alone where the
-        true translation is zero.
-        """
+        """Many pairs, one JSON line each, and the AUC given ground truth."""
         try:
             options = pipeline_options(
                 features, max_features, max_size, ratio, backend, threshold, seed, pri_threshold
