@@ -3,38 +3,74 @@
 from __future__ import annotations
 
 import json
-import os
 import sys
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, NoReturn
 
 import typer
 
-__all__ = ["register"]
+from .common import (
+    MAX_FEATURES_MAX,
+    MAX_SIZE_MAX,
+    SEED_MAX,
+    Backend,
+    Features,
+    MaxFeatures,
+    MaxSize,
+    Overwrite,
+    PriThreshold,
+    Ratio,
+    Seed,
+    Threshold,
+    check_image_file,
+    check_range,
+    fail,
+    implausible_intrinsics,
+    warn,
+)
 
-_PANEL = "Pipeline"
+__all__ = ["register", "pipeline_options"]
 
 
-def _fail(message: str) -> None:
-    typer.echo(f"error: {message}", err=True)
-    raise typer.Exit(2)
+def _fail(message: str, command: str = "pair") -> NoReturn:
+    fail(command, message)
 
 
-def _warn(message: str) -> None:
-    typer.echo(f"warning: {message}", err=True)
+def _warn(message: str, command: str = "pair") -> None:
+    warn(command, message)
 
 
-def _options(features, max_features, max_size, ratio, backend, threshold, seed):
+def pipeline_options(
+    features: str = "sift",
+    max_features: int = 8000,
+    max_size: int = 2000,
+    ratio: float = 0.9,
+    backend: str = "pycolmap",
+    threshold: float = 1.0,
+    seed: int = 0,
+    pri_threshold: float | None = None,
+):
+    """PairOptions from command-line values, each bounded up front (ValueError naming it)."""
     from ppo_cv.pipeline import PairOptions
+    from ppo_cv.ppo import DEFAULT_PRI_THRESHOLD
 
+    check_range("--seed", seed, 0, SEED_MAX)
+    check_range("--max-features", max_features, 8, MAX_FEATURES_MAX)
+    if max_size != 0:
+        check_range("--max-size (0: full size)", max_size, 32, MAX_SIZE_MAX)
+    check_range("--ratio", ratio, 1e-6, 1.0)
+    check_range("--threshold (pixels)", threshold, 1e-6, 100.0)
+    pri_threshold = DEFAULT_PRI_THRESHOLD if pri_threshold is None else pri_threshold
+    check_range("--pri-threshold", pri_threshold, 0.0, 1.0)
     return PairOptions(
         features=features.lower(),
         max_features=max_features,
-        max_image_size=max_size if max_size and max_size > 0 else None,
+        max_image_size=max_size or None,
         ratio=ratio,
         backend=backend.lower(),
         ransac_threshold=threshold,
         seed=seed,
+        pri_threshold=pri_threshold,
     )
 
 
@@ -146,26 +182,40 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
 
 
 def _run_pair(
-    image1, image2, K, K2, dist, dist2, calib, as_json, out, options, note=None, reference=None
-):
+    image1, image2, K, K2, dist, dist2, calib, as_json, out, options, note=None, reference=None,
+    overwrite=False, command="pair",
+):  # fmt: skip
+    from ppo_cv.atomic import check_target
     from ppo_cv.pipeline import estimate_pair, load_image
 
     try:
+        if out is not None:
+            check_target(out, "folder", overwrite)
+        for image in (image1, image2):
+            check_image_file(image)
         img1, img2 = load_image(image1), load_image(image2)
         K1, d1, K2v, d2, exif_note = _cameras(image1, image2, K, K2, dist, dist2, calib)
         if exif_note:
-            _warn(exif_note)
+            _warn(exif_note, command)
+        sources = ("--calib", "--calib") if calib is not None else ("--K", "--K2" if K2 else "--K")
+        for matrix, img, name in ((K1, img1, sources[0]), (K2v, img2, sources[1])):
+            doubt = implausible_intrinsics(matrix, (img.shape[1], img.shape[0]), name)
+            if doubt and not exif_note:
+                _warn(doubt, command)
+                break
         result = estimate_pair(img1, img2, K1, K2v, d1, d2, options=options)
         names = (Path(image1).name, Path(image2).name)
         if names[0] == names[1]:
             names = (f"1_{names[0]}", f"2_{names[1]}")
         extra = {"image1": str(image1), "image2": str(image2)}
         if out is not None:
+            from ppo_cv.atomic import sigterm_as_interrupt
             from ppo_cv.export import write_outputs
 
-            write_outputs(out, result, img1, img2, names, (d1, d2), extra)
-    except (ValueError, OSError) as exc:
-        _fail(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+            sigterm_as_interrupt()  # again: the pipeline imported pycolmap, which replaces it
+            write_outputs(out, result, img1, img2, names, (d1, d2), extra, overwrite=overwrite)
+    except (ValueError, TypeError, OSError) as exc:
+        _fail(str(exc) or type(exc).__name__, command)
     if as_json:
         from ppo_cv.export import result_to_dict
 
@@ -176,182 +226,23 @@ def _run_pair(
             typer.echo(f"  written      {out}/result.json, points.ply, matches.png, colmap/")
 
 
-def _read_pairs(pairs_file: Path, K: str | None) -> list[dict]:
-    """Rows of a pairs file: names, intrinsics and, when present, the ground-truth motion."""
-    import numpy as np
-
-    from ppo_cv.calib import parse_intrinsics
-    from ppo_cv.checks import as_camera_matrix
-
-    if not pairs_file.is_file():
-        raise ValueError(f"pairs file not found: {pairs_file}")
-    default = parse_intrinsics(K, "--K") if K else None
-    rows = []
-    for number, line in enumerate(pairs_file.read_text(encoding="utf-8").splitlines(), 1):
-        parts = line.split()
-        if not parts or parts[0].startswith("#"):
-            continue
-        if len(parts) not in (2, 4, 22, 38):
-            raise ValueError(
-                f"{pairs_file}:{number}: expected 'name1 name2 [0 0 K1(9) K2(9) [T(16)]]', "
-                f"got {len(parts)} fields"
-            )
-        row = {"image1": parts[0], "image2": parts[1], "K1": default, "K2": default, "T": None}
-        try:
-            if len(parts) >= 22:
-                values = np.array(parts[4:], dtype=np.float64)
-                row["K1"] = as_camera_matrix(values[0:9].reshape(3, 3), "K1")
-                row["K2"] = as_camera_matrix(values[9:18].reshape(3, 3), "K2")
-                if len(parts) == 38:
-                    row["T"] = values[18:34].reshape(4, 4)
-        except ValueError as exc:
-            raise ValueError(f"{pairs_file}:{number}: {exc}") from None
-        if row["K1"] is None:
-            raise ValueError(f"{pairs_file}:{number}: no intrinsics in the file; pass --K")
-        rows.append(row)
-    if not rows:
-        raise ValueError(f"no pairs in {pairs_file}")
-    return rows
-
-
-def _init_worker() -> None:
-    import cv2
-
-    cv2.setNumThreads(1)
-
-
-def _pair_job(job: tuple) -> dict:
-    """One pair in a worker: a JSON-ready dict, with ``error`` instead of a pose on failure."""
-    from ppo_cv.export import result_to_dict
-    from ppo_cv.pipeline import estimate_pair
-
-    row, image_dir, options = job
-    names = {"image1": row["image1"], "image2": row["image2"]}
-    try:
-        result = estimate_pair(
-            Path(image_dir) / row["image1"],
-            Path(image_dir) / row["image2"],
-            row["K1"],
-            row["K2"],
-            options=options,
-        )
-    except (ValueError, OSError) as exc:
-        return {**names, "error": str(exc).splitlines()[0]}
-    data = result_to_dict(result, **names)
-    if row["T"] is not None:
-        data.update(_pose_errors(result.R, result.t, row["T"]))
-    return data
-
-
-def _pose_errors(R, t, T) -> dict:
-    """Rotation error and (sign-free) translation-direction error in degrees."""
-    import numpy as np
-
-    R_gt, t_gt = T[:3, :3], T[:3, 3]
-    cos_r = np.clip((np.trace(R.T @ R_gt) - 1.0) / 2.0, -1.0, 1.0)
-    norm = np.linalg.norm(t) * np.linalg.norm(t_gt)
-    cos_t = np.clip(abs(float(t @ t_gt)) / max(norm, 1e-12), -1.0, 1.0)
-    return {
-        "R_err_deg": float(np.degrees(np.arccos(cos_r))),
-        "t_err_deg": float(np.degrees(np.arccos(cos_t))),
-    }
-
-
-def pose_auc(errors, thresholds=(5.0, 10.0, 20.0)) -> list[float]:
-    """Area under the recall curve of pose errors (degrees) up to each threshold, in [0, 1]."""
-    import numpy as np
-
-    errors = np.sort(np.asarray(errors, dtype=np.float64))
-    recall = np.arange(1, errors.size + 1) / errors.size
-    errors, recall = np.r_[0.0, errors], np.r_[0.0, recall]
-    areas = []
-    for threshold in thresholds:
-        last = np.searchsorted(errors, threshold)
-        e = np.r_[errors[:last], threshold]
-        r = np.r_[recall[:last], recall[last - 1]]
-        areas.append(float(np.trapezoid(r, x=e) / threshold))
-    return areas
-
-
-def run_pairs(pairs_file, image_dir, K, output, workers, options) -> int:
-    """Run every pair of a pairs file; returns the exit code."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-    rows = _read_pairs(Path(pairs_file), K)
-    if not Path(image_dir).is_dir():
-        raise ValueError(f"image folder not found: {image_dir}")
-    workers = workers if workers > 0 else (os.cpu_count() or 1)
-    jobs = [(row, str(image_dir), options) for row in rows]
-    results: list[dict] = []
-    sink = open(output, "w", encoding="utf-8") if output is not None else sys.stdout
-    console = Console(stderr=True)
-    try:
-        with (
-            Progress(
-                TextColumn("pairs"),
-                BarColumn(),
-                MofNCompleteColumn(),
-                TimeElapsedColumn(),
-                console=console,
-                transient=True,
-            ) as progress,
-            ProcessPoolExecutor(
-                workers,
-                mp_context=multiprocessing.get_context("spawn"),  # no fork of a threaded process
-                initializer=_init_worker,
-            ) as pool,
-        ):
-            task = progress.add_task("pairs", total=len(jobs))
-            for data in pool.map(_pair_job, jobs):
-                sink.write(json.dumps(data) + "\n")
-                sink.flush()
-                results.append(data)
-                progress.advance(task)
-    finally:
-        if output is not None:
-            sink.close()
-    failed = sum("error" in r for r in results)
-    if rows[0]["T"] is not None:
-        errors = [
-            max(r["R_err_deg"], r["t_err_deg"]) if "error" not in r else 180.0 for r in results
-        ]
-        auc = pose_auc(errors)
-        table = (
-            "| pairs | failed | AUC@5 | AUC@10 | AUC@20 |\n|---|---|---|---|---|\n"
-            f"| {len(results)} | {failed} | {100 * auc[0]:.1f} | {100 * auc[1]:.1f} "
-            f"| {100 * auc[2]:.1f} |"
-        )
-        typer.echo(table, err=output is None)
-    elif failed:
-        _warn(f"{failed} of {len(results)} pairs failed")
-    return 0
-
-
-_Features = Annotated[str, typer.Option(help="sift, orb or akaze.", rich_help_panel=_PANEL)]
-_MaxFeatures = Annotated[int, typer.Option(help="Keypoints per image.", rich_help_panel=_PANEL)]
-_Ratio = Annotated[float, typer.Option(help="Lowe's ratio test.", rich_help_panel=_PANEL)]
-_Backend = Annotated[
-    str,
-    typer.Option(
-        help="Robust E: pycolmap (LO-RANSAC) or opencv (USAC MAGSAC++).", rich_help_panel=_PANEL
-    ),
-]
-_Threshold = Annotated[
-    float, typer.Option(help="RANSAC threshold, pixels.", rich_help_panel=_PANEL)
-]
-_Seed = Annotated[int, typer.Option(help="RANSAC seed.", rich_help_panel=_PANEL)]
 _Json = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")]
 _Out = Annotated[
     Path | None,
-    typer.Option("--out", help="Write result.json, points.ply, matches.png and a COLMAP model."),
+    typer.Option(
+        "--out",
+        help="New folder for result.json, points.ply, matches.png and a COLMAP model; "
+        "written completely or not at all.",
+    ),
 ]
 
 
 def register(app: typer.Typer) -> None:
+    """Add ``pair``, ``demo`` and ``pairs`` to ``app``."""
+    from ppo_cv.ppo import DEFAULT_PRI_THRESHOLD
+
+    from . import batch
+
     @app.command()
     def pair(
         image1: Annotated[
@@ -378,19 +269,15 @@ def register(app: typer.Typer) -> None:
         ] = None,
         as_json: _Json = False,
         out: _Out = None,
-        features: _Features = "sift",
-        max_features: _MaxFeatures = 8000,
-        max_size: Annotated[
-            int,
-            typer.Option(
-                help="Detect on a copy whose longer side is at most this (0: full size).",
-                rich_help_panel=_PANEL,
-            ),
-        ] = 2000,
-        ratio: _Ratio = 0.9,
-        backend: _Backend = "pycolmap",
-        threshold: _Threshold = 1.0,
-        seed: _Seed = 0,
+        overwrite: Overwrite = False,
+        features: Features = "sift",
+        max_features: MaxFeatures = 8000,
+        max_size: MaxSize = 2000,
+        ratio: Ratio = 0.9,
+        backend: Backend = "pycolmap",
+        threshold: Threshold = 1.0,
+        seed: Seed = 0,
+        pri_threshold: PriThreshold = DEFAULT_PRI_THRESHOLD,
     ) -> None:
         """Relative pose (R, t), pure-rotation verdict and 3D points of two photos.
 
@@ -404,7 +291,9 @@ def register(app: typer.Typer) -> None:
         warning). Without images it runs on the built-in demo pair.
         """
         try:
-            options = _options(features, max_features, max_size, ratio, backend, threshold, seed)
+            options = pipeline_options(
+                features, max_features, max_size, ratio, backend, threshold, seed, pri_threshold
+            )
         except ValueError as exc:
             _fail(str(exc))
         note = reference = None
@@ -417,42 +306,22 @@ def register(app: typer.Typer) -> None:
             reference = (info["reference_R"], info["reference_t"])
         elif image2 is None:
             _fail("give two images (or none for the demo pair)")
-        _run_pair(image1, image2, K, K2, dist, dist2, calib, as_json, out, options, note, reference)
+        _run_pair(
+            image1, image2, K, K2, dist, dist2, calib, as_json, out, options, note, reference,
+            overwrite,
+        )  # fmt: skip
 
     @app.command()
-    def demo(as_json: _Json = False, out: _Out = None) -> None:
+    def demo(as_json: _Json = False, out: _Out = None, overwrite: Overwrite = False) -> None:
         """Run the pipeline on the built-in demo pair (two TUM RGB-D frames)."""
         image1, image2, info = _demo_inputs()
         K = ",".join(str(v) for v in info["intrinsics"])
-        options = _options("sift", 8000, 2000, 0.9, "pycolmap", 1.0, 0)
+        options = pipeline_options()
         note = f"built-in demo pair: {info['attribution']}"
         reference = (info["reference_R"], info["reference_t"])
-        _run_pair(image1, image2, K, None, None, None, None, as_json, out, options, note, reference)
+        _run_pair(
+            image1, image2, K, None, None, None, None, as_json, out, options, note, reference,
+            overwrite, "demo",
+        )  # fmt: skip
 
-    @app.command()
-    def pairs(
-        pairs_file: Annotated[
-            Path, typer.Argument(help="Lines 'name1 name2 [0 0 K1(9) K2(9) [T_1to2(16)]]'.")
-        ],
-        image_dir: Annotated[Path, typer.Argument(help="Folder holding the images.")],
-        K: Annotated[
-            str | None, typer.Option("--K", help="Intrinsics for lines that carry none.")
-        ] = None,
-        output: Annotated[
-            Path | None, typer.Option("--output", "-o", help="JSON lines file (default: stdout).")
-        ] = None,
-        workers: Annotated[int, typer.Option(help="Worker processes (0: one per CPU).")] = 0,
-        features: _Features = "sift",
-        max_features: _MaxFeatures = 8000,
-        ratio: _Ratio = 0.9,
-        backend: _Backend = "pycolmap",
-        threshold: _Threshold = 1.0,
-        seed: _Seed = 0,
-    ) -> None:
-        """Run many pairs in parallel, one JSON line each; AUC@5/10/20 given ground truth."""
-        try:
-            options = _options(features, max_features, 2000, ratio, backend, threshold, seed)
-            code = run_pairs(pairs_file, image_dir, K, output, workers, options)
-        except ValueError as exc:
-            _fail(str(exc))
-        raise typer.Exit(code)
+    batch.register(app)

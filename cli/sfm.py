@@ -10,35 +10,80 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from .common import (
+    SEED_MAX,
+    Overwrite,
+    PriThreshold,
+    Quiet,
+    check_range,
+    fail,
+    image_size,
+    implausible_intrinsics,
+    warn,
+)
+
 __all__ = ["register", "parse_K"]
+
+MAX_FEATURES = 100_000
 
 
 def parse_K(text: str) -> np.ndarray:
     """``fx,fy,cx,cy`` or nine comma-separated values (row-major) as a 3x3 matrix."""
-    try:
-        values = [float(v) for v in text.replace(" ", "").split(",") if v]
-    except ValueError:
-        raise ValueError(f"--K must be numbers separated by commas, got {text!r}") from None
-    if len(values) == 4:
-        fx, fy, cx, cy = values
-        return np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
-    if len(values) == 9:
-        return np.array(values).reshape(3, 3)
-    raise ValueError(f"--K needs 4 values (fx,fy,cx,cy) or 9 (row-major), got {len(values)}")
+    from ppo_cv.calib import parse_intrinsics
+
+    return parse_intrinsics(text, "--K")
 
 
 def _fail(message: str, code: int = 2) -> None:
-    typer.echo(f"ppo-cv sfm: {message}", err=True)
-    raise typer.Exit(code)
+    fail("sfm", message, code)
+
+
+def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads, seed,
+           pri_threshold, overwrite):  # fmt: skip
+    """Every argument checked before the run; returns the camera matrix or None."""
+    from ppo_cv import sfm
+    from ppo_cv.atomic import check_target
+
+    if init not in sfm.INITIALIZATIONS:
+        raise ValueError(f"--init must be one of {', '.join(sfm.INITIALIZATIONS)}, got {init!r}")
+    if seeding not in sfm.SEEDINGS:
+        raise ValueError(f"--seeding must be one of {', '.join(sfm.SEEDINGS)}, got {seeding!r}")
+    check_range("--max-features", max_features, 1, MAX_FEATURES)
+    check_range("--threads", threads, 1, sfm.MAX_THREADS)
+    check_range("--seed", seed, 0, SEED_MAX)
+    check_range("--pri-threshold", pri_threshold, 0.0, 1.0)
+    check_target(out_dir, "folder", overwrite)
+    if database is not None:
+        if database.exists():
+            raise ValueError(f"database {database} already exists; give a new file name")
+        check_target(database, "file")
+    names = sfm.list_images(image_dir)
+    if K is None:
+        warn(
+            "sfm",
+            "no intrinsics given: pycolmap guesses the focal length from EXIF or the image "
+            "size, and pure rotations are not reliably detected; pass --K fx,fy,cx,cy",
+        )
+        return None
+    matrix = parse_K(K)
+    if names:
+        doubt = implausible_intrinsics(matrix, image_size(Path(image_dir) / names[0]))
+        if doubt:
+            warn("sfm", doubt)
+    return matrix
 
 
 def register(app: typer.Typer) -> None:
+    """Add the ``sfm`` command to ``app``."""
+    from ppo_cv.ppo import DEFAULT_PRI_THRESHOLD
+
     @app.command(
         "sfm",
         help="Reconstruct IMAGE_DIR into a COLMAP model in OUT_DIR, never from a pure rotation."
         "\n\npycolmap extracts SIFT features and matches all pairs; PPO ranks the candidate "
         "initial pairs, rejecting pure rotations and pairs without parallax (initial_pairs.txt "
-        "in OUT_DIR); pycolmap's incremental mapper starts from the best pair.",
+        "in OUT_DIR); pycolmap's incremental mapper starts from the best pair. OUT_DIR (and "
+        "--database) are written completely or not at all.",
     )
     def sfm_command(
         image_dir: Annotated[Path, typer.Argument(help="Folder of images of one camera.")],
@@ -61,51 +106,46 @@ def register(app: typer.Typer) -> None:
         database: Annotated[
             Path | None, typer.Option("--database", help="Keep the feature database here (new).")
         ] = None,
+        overwrite: Overwrite = False,
         max_features: Annotated[
-            int, typer.Option("--max-features", help="SIFT features per image.")
+            int,
+            typer.Option("--max-features", help=f"SIFT features per image (1..{MAX_FEATURES})."),
         ] = 8192,
         threads: Annotated[int, typer.Option("--threads", help="Threads for pycolmap.")] = 2,
+        seed: Annotated[int, typer.Option(help=f"RANSAC seed (0..{SEED_MAX}).")] = 0,
+        pri_threshold: PriThreshold = DEFAULT_PRI_THRESHOLD,
         as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,
         verbose: Annotated[bool, typer.Option("--verbose", help="Show pycolmap's log.")] = False,
+        quiet: Quiet = False,
     ) -> None:
         """Features, matches, PPO-ranked initial pair and incremental mapping of a folder."""
-        from ppo_cv import sfm
-        from ppo_cv.checks import as_camera_matrix
+        from ppo_cv import sfm  # imports pycolmap, which replaces the SIGTERM handler
+        from ppo_cv.atomic import sigterm_as_interrupt
 
-        if init not in sfm.INITIALIZATIONS:
-            _fail(f"--init must be one of {', '.join(sfm.INITIALIZATIONS)}, got {init!r}")
-        if seeding not in sfm.SEEDINGS:
-            _fail(f"--seeding must be one of {', '.join(sfm.SEEDINGS)}, got {seeding!r}")
-        if out_dir.exists():
-            _fail(f"output folder {str(out_dir)!r} already exists")
-        if database is not None and database.exists():
-            _fail(f"database {str(database)!r} already exists")
-        if max_features < 1 or threads < 1:
-            _fail("--max-features and --threads must be positive")
+        sigterm_as_interrupt()
+
         try:
-            matrix = as_camera_matrix(parse_K(K), "--K") if K is not None else None
-            sfm.list_images(image_dir)
+            matrix = _check(image_dir, out_dir, K, init, seeding, database, max_features,
+                            threads, seed, pri_threshold, overwrite)  # fmt: skip
         except ValueError as exc:
             _fail(str(exc))
 
         def progress(message: str) -> None:
-            typer.echo(f"[sfm] {message}", err=True)
+            if not quiet:
+                typer.echo(f"ppo-cv sfm: {message}", err=True)
 
         try:
             result = sfm.run_sfm(
-                image_dir, None, K=matrix, initialization=init, seeding=seeding,
-                database_path=database,
-                max_num_features=max_features, num_threads=threads, verbose=verbose,
-                progress=progress,
+                image_dir, out_dir, K=matrix, initialization=init, seeding=seeding,
+                database_path=database, max_num_features=max_features, num_threads=threads,
+                seed=seed, verbose=verbose, progress=progress, overwrite=overwrite,
+                pri_threshold=pri_threshold,
             )  # fmt: skip
-        except ValueError as exc:
-            _fail(str(exc))
+        except (ValueError, OSError) as exc:
+            code = 1 if "nothing was reconstructed" in str(exc) else 2
+            _fail(str(exc), code)
         except RuntimeError as exc:
             _fail(f"pycolmap failed: {exc}", code=1)
-        if result.reconstruction is None:
-            _fail("nothing was reconstructed; no model written", code=1)
-        sfm.write_model(result, out_dir)
-        progress(f"wrote {out_dir}")
         typer.echo(_summary(result, out_dir, as_json))
 
 

@@ -2,12 +2,17 @@
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
 from typing import Annotated
 
 import typer
 
 from ppo_cv.data_gen.names import MOTIONS, SCENES
+
+from .common import ProgressReport, Quiet, fail
+
+__all__ = ["register", "MAX_BLUR", "MAX_NOISE"]
 
 MAX_PAIRS = 10_000
 MAX_SIDE = 4096
@@ -19,20 +24,19 @@ MAX_BASELINE_RATIO = 0.5
 
 
 def _fail(message: str) -> None:
-    typer.echo(f"ppo-cv synth: {message}", err=True)
-    raise typer.Exit(2)
+    fail("synth", message)
 
 
 def _check(out_dir: Path, pairs: int, seed: int, motion: str | None, scene: str | None,
            width: int | None, height: int | None, alpha: float | None, supersample: int,
            noise: float | None, blur: float | None, workers: int | None,
-           baseline_ratio: float | None, warp: bool) -> None:  # fmt: skip
+           baseline_ratio: float | None, warp: bool, overwrite: bool) -> None:  # fmt: skip
     if motion is not None and motion not in MOTIONS:
         _fail(f"unknown motion {motion!r}; choose one of {', '.join(MOTIONS)}")
     if scene is not None and scene not in SCENES:
         _fail(f"unknown scene {scene!r}; choose one of {', '.join(SCENES)}")
-    if seed < 0:
-        _fail(f"--seed must be >= 0, got {seed}")
+    if not 0 <= seed <= 2**32 - 1:
+        _fail(f"--seed must be in 0..{2**32 - 1}, got {seed}")
     if not 1 <= pairs <= MAX_PAIRS:
         _fail(f"--pairs must be in 1..{MAX_PAIRS}, got {pairs}")
     for name, value in (("--width", width), ("--height", height)):
@@ -55,8 +59,8 @@ def _check(out_dir: Path, pairs: int, seed: int, motion: str | None, scene: str 
         _fail(f"--noise must be in [0, {MAX_NOISE:g}], got {noise}")
     if blur is not None and not 0.0 <= blur <= MAX_BLUR:
         _fail(f"--blur must be in [0, {MAX_BLUR:g}], got {blur}")
-    if workers is not None and workers < 1:
-        _fail(f"--workers must be >= 1, got {workers}")
+    if workers is not None and not 1 <= workers <= 256:
+        _fail(f"--workers must be in 1..256, got {workers}")
     if warp:
         if motion not in (None, "panorama"):
             _fail(f"--warp makes tripod pans (--motion panorama), not {motion!r}")
@@ -64,8 +68,12 @@ def _check(out_dir: Path, pairs: int, seed: int, motion: str | None, scene: str 
             _fail("--scene and --alpha do not apply to --warp")
         if len(sides) == 1:
             _fail("--warp needs both --width and --height, or neither")
-    if out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())):
-        _fail(f"{out_dir} exists and is not an empty directory")
+    from ppo_cv.atomic import check_target
+
+    try:
+        check_target(out_dir, "folder", overwrite)
+    except ValueError as exc:
+        _fail(str(exc))
 
 
 def _imperfections(imperfect: bool, noise: float | None, blur: float | None):
@@ -78,6 +86,18 @@ def _imperfections(imperfect: bool, noise: float | None, blur: float | None):
 
     changes = {"noise_std": noise, "blur_sigma": blur}
     return dataclasses.replace(REAL_PHOTO, **{k: v for k, v in changes.items() if v is not None})
+
+
+def _watch(staging: Path, total: int, quiet: bool, stop: threading.Event) -> None:
+    """Progress of a render into ``staging``: counts the finished second images of the pairs."""
+    with ProgressReport("synth", "pairs", total, quiet) as report:
+        pattern = ".render.*/images/pair_*_2.png"
+        while not stop.wait(0.25):
+            done = min(sum(1 for _ in staging.glob(pattern)), total)
+            if done > report.done:
+                report.advance(done - report.done)
+        if (staging / "render").is_dir() and report.done < total:
+            report.advance(total - report.done)  # the rename came before the last look
 
 
 def register(app: typer.Typer) -> None:
@@ -148,12 +168,17 @@ def register(app: typer.Typer) -> None:
         workers: Annotated[
             int | None, typer.Option(help="Worker processes (default: CPUs).")
         ] = None,
+        overwrite: Annotated[
+            bool, typer.Option("--overwrite", help="Replace an existing non-empty OUT_DIR.")
+        ] = False,
+        quiet: Quiet = False,
     ) -> None:
         """Render synthetic pairs with exact ground truth and a freiburg-style pairs file."""
+        from ppo_cv.atomic import atomic_directory
         from ppo_cv.data_gen import make_dataset
 
         _check(out_dir, pairs, seed, motion, scene, width, height, alpha, supersample, noise, blur,
-               workers, baseline_ratio, warp)  # fmt: skip
+               workers, baseline_ratio, warp, overwrite)  # fmt: skip
         if warp_source is not None and not warp:
             _fail("--warp-source needs --warp")
         if warp and different_k:
@@ -165,15 +190,30 @@ def register(app: typer.Typer) -> None:
         elif imperfections is None and (noise or blur):
             _fail("--warp takes --noise and --blur with --imperfect only")
         size = None if width is None and height is None else (width or 640, height or 480)
+        stop = threading.Event()
         try:
-            out = make_dataset(
-                out_dir, pairs=pairs, motion=motion, seed=seed, size=size, scene=scene,
-                alpha=alpha, supersample=supersample, same_intrinsics=not different_k,
-                workers=workers, baseline_ratio=baseline_ratio, imperfections=imperfections,
-                source="warp" if warp else "render", warp_source=warp_source, **photometric,
-            )  # fmt: skip
+            with atomic_directory(out_dir, overwrite) as staging:
+                watcher = threading.Thread(
+                    target=_watch, args=(staging, pairs, quiet, stop), daemon=True
+                )
+                watcher.start()
+                try:
+                    make_dataset(  # its own staging folder lands inside ours
+                        staging / "render", pairs=pairs, motion=motion, seed=seed, size=size,
+                        scene=scene, alpha=alpha, supersample=supersample,
+                        same_intrinsics=not different_k, workers=workers,
+                        baseline_ratio=baseline_ratio, imperfections=imperfections,
+                        source="warp" if warp else "render", warp_source=warp_source,
+                        **photometric,
+                    )  # fmt: skip
+                finally:
+                    stop.set()
+                    watcher.join()
+                for entry in (staging / "render").iterdir():
+                    entry.rename(staging / entry.name)
+                (staging / "render").rmdir()
         except (ValueError, TypeError, OSError) as error:
             _fail(str(error))
         from ppo_cv.data_gen.io import PAIRS_FILE
 
-        typer.echo(f"wrote {pairs} pairs to {out} ({out / PAIRS_FILE})")
+        typer.echo(f"wrote {pairs} pairs to {out_dir} ({out_dir / PAIRS_FILE})")

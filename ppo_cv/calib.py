@@ -89,17 +89,50 @@ def parse_distortion(text: str, name: str = "--dist") -> np.ndarray | None:
 
 
 def _read_opencv(path: str) -> list[Camera]:
+    """Cameras of an OpenCV FileStorage file; ValueError for anything OpenCV cannot parse."""
+    import cv2
+
+    if os.path.getsize(path) == 0:
+        raise ValueError(f"calibration file {path} is empty")
+    try:
+        K1, D1, K2, D2 = _opencv_matrices(path)
+    except (cv2.error, SystemError) as exc:
+        cause = exc.__cause__ or exc.__context__ or exc
+        reason = (str(cause).strip().splitlines() or [type(cause).__name__])[-1]
+        reason = re.sub(r"^OpenCV\(.*?\) \S+: error: \(.*?\) ", "", reason)
+        raise ValueError(f"malformed OpenCV calibration file {path}: {reason}") from None
+    if K1 is None:
+        raise ValueError(f"no camera matrix (camera_matrix, cameraMatrix, K or M1) in {path}")
+    cameras = [Camera(_matrix_from_values(K1, "camera matrix"), as_distortion(D1, "dist"))]
+    if K2 is not None:
+        cameras.append(
+            Camera(_matrix_from_values(K2, "camera matrix 2"), as_distortion(D2, "dist2"))
+        )
+    return cameras
+
+
+def _opencv_matrices(path: str) -> tuple:
     import cv2
 
     storage = cv2.FileStorage(path, cv2.FILE_STORAGE_READ)
     if not storage.isOpened():
         raise ValueError(f"cannot read OpenCV calibration file {path}")
+    if not storage.root().isMap():
+        storage.release()
+        raise ValueError(f"{path} holds no named entries (expected camera_matrix: ...)")
     try:
 
         def matrix(*keys):
             for key in keys:
                 node = storage.getNode(key)
                 if not node.empty():
+                    if not (node.isMap() or node.isSeq()):
+                        raise ValueError(f"{key} in {path} is a scalar, not a matrix")
+                    if node.isSeq():
+                        items = [node.at(i) for i in range(node.size())]
+                        if not all(item.isReal() or item.isInt() for item in items):
+                            raise ValueError(f"{key} in {path} must be a list of numbers")
+                        return np.array([item.real() for item in items], dtype=np.float64)
                     value = node.mat()
                     if value is not None:
                         return np.asarray(value, dtype=np.float64)
@@ -111,14 +144,7 @@ def _read_opencv(path: str) -> list[Camera]:
         D2 = matrix("D2", "dist2", "distortion_coefficients_2")
     finally:
         storage.release()
-    if K1 is None:
-        raise ValueError(f"no camera matrix (camera_matrix, cameraMatrix, K or M1) in {path}")
-    cameras = [Camera(_matrix_from_values(K1, "camera matrix"), as_distortion(D1, "dist"))]
-    if K2 is not None:
-        cameras.append(
-            Camera(_matrix_from_values(K2, "camera matrix 2"), as_distortion(D2, "dist2"))
-        )
-    return cameras
+    return K1, D1, K2, D2
 
 
 def _colmap_camera(model: str, params: np.ndarray, where: str) -> Camera:
@@ -186,6 +212,8 @@ def _read_json(path: str, text: str) -> list[Camera]:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path} is not valid JSON: {exc.msg} (line {exc.lineno})") from None
+    except RecursionError:
+        raise ValueError(f"{path} is nested too deeply to be a calibration file") from None
     try:
         if isinstance(data, dict) and "cameras" in data:
             cameras = [
@@ -197,7 +225,7 @@ def _read_json(path: str, text: str) -> list[Camera]:
                 cameras.append(_json_camera({"K": data["K2"], "dist": data.get("dist2")}, path))
         else:
             cameras = [_json_camera(data, path)]
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, RecursionError) as exc:
         raise ValueError(str(exc) if path in str(exc) else f"{path}: {exc}") from None
     if not cameras:
         raise ValueError(f"no camera in {path}")
@@ -211,8 +239,10 @@ def load_calibration(path: str | os.PathLike) -> list[Camera]:
     anything else a COLMAP ``cameras.txt``.
     """
     path = os.fspath(path)
-    if not os.path.isfile(path):
+    if not os.path.exists(path):
         raise ValueError(f"calibration file not found: {path}")
+    if not os.path.isfile(path):  # a folder, or a FIFO that would block the reader
+        raise ValueError(f"calibration file {path} is not a regular file")
     extension = os.path.splitext(path)[1].lower()
     if extension in (".yml", ".yaml", ".xml"):
         return _read_opencv(path)

@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
-import tempfile
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -416,19 +414,20 @@ def write_outputs(
     names: tuple[str, str] = ("image1.png", "image2.png"),
     dists: tuple[np.ndarray | None, np.ndarray | None] | None = None,
     extra: dict | None = None,
+    overwrite: bool = False,
 ) -> Path:
     """Write ``result.json``, ``points.ply``, ``matches.png`` and ``colmap/`` into ``directory``.
 
-    ``extra`` entries are added to ``result.json``. Files are written to a temporary sibling
-    directory that replaces ``directory`` only when all
-    of them are complete; an existing ``directory`` keeps its other files.
+    ``extra`` entries are added to ``result.json``. Everything is written into a temporary
+    sibling folder renamed to ``directory`` once complete (:func:`ppo_cv.atomic.atomic_directory`):
+    a failure or an interrupt leaves no partial output. An existing non-empty ``directory`` is a
+    ValueError unless ``overwrite``, which replaces it as a whole.
     """
     import cv2
 
-    target = Path(directory)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
-    try:
+    from .atomic import atomic_directory
+
+    with atomic_directory(directory, overwrite=overwrite) as staging:
         (staging / "result.json").write_text(
             json.dumps(result_to_dict(result, **(extra or {})), indent=2) + "\n", encoding="utf-8"
         )
@@ -437,19 +436,4 @@ def write_outputs(
         if not cv2.imwrite(str(staging / "matches.png"), draw_matches(image1, image2, result)):
             raise OSError("could not encode matches.png")
         write_colmap_model(staging / "colmap", result, names, dists)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(staging, 0o777 & ~umask)  # mkdtemp creates it private
-        if target.exists():
-            for entry in staging.iterdir():
-                destination = target / entry.name
-                if destination.is_dir():
-                    shutil.rmtree(destination)
-                os.replace(entry, destination)
-            staging.rmdir()
-        else:
-            os.replace(staging, target)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
-    return target
+    return Path(directory)

@@ -322,6 +322,9 @@ def estimate_pair(
     dist1: Any = None,
     dist2: Any = None,
     options: PairOptions | None = None,
+    *,
+    features1: Features | None = None,
+    features2: Features | None = None,
 ) -> PairResult:
     """Relative pose of two calibrated images.
 
@@ -337,6 +340,10 @@ def estimate_pair(
         OpenCV distortion coefficients ``(k1, k2, p1, p2[, k3, ...])``; ``dist2`` defaults to
         ``dist1`` when ``K2`` is not given.
     options : PairOptions, optional
+    features1, features2 : Features, optional
+        Precomputed features of the images (as :func:`~ppo_cv.features.detect_features` gives
+        with the ``options``); given both, detection is skipped. Batch runs use it to detect
+        each image once.
 
     Returns
     -------
@@ -376,9 +383,20 @@ def estimate_pair(
         raise ValueError("the two images are identical: they carry no relative pose")
     lap("load")
 
-    f1, f2, detected = _detect_both(img1, img2, options)
-    timings["features"], clock = detected - clock, detected
-    lap("pycolmap_import")
+    if features1 is None or features2 is None:
+        f1, f2, detected = _detect_both(img1, img2, options)
+        timings["features"], clock = detected - clock, detected
+        lap("pycolmap_import")
+    else:
+        f1, f2 = features1, features2
+        for name, f in (("features1", f1), ("features2", f2)):
+            if not isinstance(f, Features):
+                raise TypeError(f"{name} must be ppo_cv.features.Features, got {type(f).__name__}")
+            if f.kind != options.features:
+                raise ValueError(
+                    f"{name} are {f.kind} features but options.features is {options.features}"
+                )
+        lap("features")
     for name, f in (("image1", f1), ("image2", f2)):
         if len(f) < MIN_MATCHES:
             raise ValueError(f"{name} has too few features ({len(f)}): blank or textureless image")

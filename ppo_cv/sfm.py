@@ -41,11 +41,13 @@ import numpy as np
 import pycolmap
 
 from . import colmap, ppo
+from .atomic import atomic_directory, check_target, signals_deferred
 from .checks import as_camera_matrix, as_positive
 
 __all__ = [
     "INITIALIZATIONS",
     "SEEDINGS",
+    "MAX_THREADS",
     "PairScore",
     "SfmResult",
     "prepare_database",
@@ -58,6 +60,9 @@ __all__ = [
     "write_model",
     "pose_errors",
 ]
+
+MAX_THREADS = 256
+"""Upper bound of ``num_threads`` (a million threads makes pycolmap abort the process)."""
 
 INITIALIZATIONS = ("ppo", "colmap")
 """``ppo``: the best-scored pair seeds the mapper; ``colmap``: pycolmap's own initialisation."""
@@ -637,6 +642,7 @@ def run_sfm(
     seed: int = 0,
     verbose: bool = False,
     progress: Progress | None = None,
+    overwrite: bool = False,
     **scoring: Any,
 ) -> SfmResult:
     """Structure from motion of an image folder: features, matches, PPO-seeded mapping.
@@ -646,15 +652,19 @@ def run_sfm(
     image_dir : path
     output_dir : path, optional
         Where to write the COLMAP model (``cameras.bin``, ``images.bin``, ``points3D.bin``, ...)
-        and ``initial_pairs.txt`` (the ranking). It must not exist; it is written in a temporary
-        sibling folder and moved into place at the end.
+        and ``initial_pairs.txt`` (the ranking). It must not exist (or be empty, or
+        ``overwrite``); it is checked before any work, written in a temporary sibling folder and
+        moved into place at the end.
     K : array_like, shape (3, 3), optional
         Known intrinsics, held fixed; otherwise pycolmap estimates them.
     initialization : {"ppo", "colmap"}
     seeding : {"two-view", "pair-options"}
         See :func:`reconstruct`.
     database_path : path, optional
-        Where to keep the feature database (a new file); a temporary one by default.
+        Where to keep the feature database (a new file, renamed into place only when the run
+        succeeds); a temporary one by default.
+    overwrite : bool
+        Replace an existing ``output_dir`` (never ``database_path``).
     max_num_features, num_threads, seed, verbose, progress, **scoring
         See :func:`prepare_database` and :func:`reconstruct`.
 
@@ -664,11 +674,17 @@ def run_sfm(
     """
     _check_choices(initialization, seeding)
     image_dir = Path(image_dir)
-    output_dir = Path(output_dir) if output_dir is not None else None
-    if output_dir is not None and output_dir.exists():
-        raise ValueError(f"output folder {str(output_dir)!r} already exists")
-    with tempfile.TemporaryDirectory(prefix="ppo-cv-sfm-") as scratch:
-        database = Path(database_path) if database_path is not None else Path(scratch) / "db.db"
+    if isinstance(num_threads, bool) or not 1 <= int(num_threads) <= MAX_THREADS:
+        raise ValueError(f"num_threads must be in 1..{MAX_THREADS}, got {num_threads}")
+    if output_dir is not None:
+        check_target(output_dir, "folder", overwrite)
+    if database_path is not None:
+        check_target(database_path, "file")
+    with contextlib.ExitStack() as stack:
+        scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="ppo-cv-sfm-")))
+        database = scratch / "db.db"
+        if database_path is not None:  # built beside its target, renamed when complete
+            database = stack.enter_context(_staged_file(database_path))
         prepare_database(
             image_dir, database, K=K, max_num_features=max_num_features,
             num_threads=num_threads, seed=seed, verbose=verbose, progress=progress,
@@ -678,12 +694,32 @@ def run_sfm(
             fix_intrinsics=K is not None,
             num_threads=num_threads, seed=seed, verbose=verbose, progress=progress, **scoring,
         )  # fmt: skip
-    if output_dir is not None:
-        if result.reconstruction is None:
-            raise ValueError("nothing was reconstructed; no model written")
-        write_model(result, output_dir)
-        _say(progress, f"wrote {output_dir}")
+        if output_dir is not None:
+            if result.reconstruction is None:
+                raise ValueError("nothing was reconstructed; no model written")
+            write_model(result, output_dir, overwrite=overwrite)
+            _say(progress, f"wrote {output_dir}")
     return result
+
+
+@contextlib.contextmanager
+def _staged_file(path: str | os.PathLike) -> Iterator[Path]:
+    """A path for a new file (with its side files) in a temporary sibling folder.
+
+    When the block succeeds the file is renamed to ``path``; otherwise the folder and all it
+    holds (a partial SQLite database and its journal) are removed.
+    """
+    target = check_target(path, "file")
+    staging = None
+    try:
+        with signals_deferred():
+            staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+        yield staging / target.name
+        with signals_deferred():
+            os.rename(staging / target.name, target)
+    finally:
+        if staging is not None:
+            shutil.rmtree(staging, ignore_errors=True)
 
 
 def format_pairs(pairs: Sequence[PairScore]) -> str:
@@ -698,21 +734,16 @@ def format_pairs(pairs: Sequence[PairScore]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_model(result: SfmResult, output_dir: str | os.PathLike) -> None:
-    """Write the reconstruction (COLMAP binary) and the pair ranking into a new folder."""
-    output_dir = Path(output_dir)
-    if output_dir.exists():
-        raise ValueError(f"output folder {str(output_dir)!r} already exists")
-    output_dir.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{output_dir.name}-", dir=output_dir.parent))
-    try:
+def write_model(result: SfmResult, output_dir: str | os.PathLike, overwrite: bool = False) -> None:
+    """Write the reconstruction (COLMAP binary) and the pair ranking into a new folder.
+
+    The folder is built beside its target and renamed when complete; an existing non-empty
+    ``output_dir`` is a ValueError unless ``overwrite``.
+    """
+    with atomic_directory(output_dir, overwrite=overwrite) as staging:
         result.reconstruction.write(staging)
         if result.pairs:
             (staging / "initial_pairs.txt").write_text(format_pairs(result.pairs))
-        staging.rename(output_dir)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
 
 
 def pose_errors(reconstruction, gt) -> tuple[list[float], list[float]]:

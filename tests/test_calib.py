@@ -232,3 +232,29 @@ def test_exif_focal_length_is_used(tmp_path):
     expected = 36.0 / np.hypot(36.0, 24.0) * np.hypot(640.0, 480.0)
     np.testing.assert_allclose(camera.K[0, 0], expected, rtol=1e-3)
     np.testing.assert_allclose(camera.K[:2, 2], [320.0, 240.0])
+
+
+@pytest.mark.parametrize(
+    "name, text, message",
+    [
+        ("bad.yml", "%YAML:1.0\n---\ncamera_matrix: [1, 2, 3\n", "malformed OpenCV calibration"),
+        ("empty.yml", "", "is empty"),
+        ("scalar.yml", "%YAML:1.0\n---\ncamera_matrix: 5\n", "is a scalar, not a matrix"),
+        ("top.yml", "%YAML:1.0\n---\n5\n", "malformed OpenCV calibration"),
+        ("bad.xml", '<?xml version="1.0"?>\n<opencv_storage><camera_matrix>1 2', "malformed"),
+        ("deep.json", "[" * 100_000 + "]" * 100_000, "nested too deeply"),
+        ("deep_object.json", '{"K":' * 50_000 + "1" + "}" * 50_000, "nested too deeply"),
+    ],
+)
+def test_unparseable_calibration_files_are_value_errors(tmp_path, name, text, message):
+    (tmp_path / name).write_text(text)
+    with pytest.raises(ValueError, match=message):
+        load_calibration(tmp_path / name)
+
+
+def test_a_plain_list_of_nine_numbers_reads_as_K(tmp_path):
+    path = tmp_path / "list.yml"
+    path.write_text("%YAML:1.0\n---\ncamera_matrix: [500, 0, 320, 0, 510, 240, 0, 0, 1]\n")
+    np.testing.assert_array_equal(
+        load_calibration(path)[0].K, [[500, 0, 320], [0, 510, 240], [0, 0, 1]]
+    )

@@ -196,7 +196,7 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path, bad_files, args, message):
     result = runner.invoke(app, ["pair", *args, "--out", str(out)])
     assert result.exit_code == 2
     lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: ")
+    assert len(lines) == 1 and lines[0].startswith("ppo-cv pair: ")
     assert re.search(message, lines[0])
     assert "Traceback" not in result.output and result.stdout == ""
     assert not out.exists() and list(tmp_path.iterdir()) == []

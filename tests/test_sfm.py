@@ -225,7 +225,7 @@ def test_cli_sfm_writes_a_colmap_model(tripod, tmp_path):
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["--K", "1,2,3"], "--K needs 4 values"),
+        (["--K", "1,2,3"], "--K must be 4 numbers"),
         (["--K", "0,500,320,240"], "zero focal length"),
         (["--K", "a,b,c,d"], "numbers"),
         (["--init", "best"], "--init must be one of"),
@@ -242,9 +242,11 @@ def test_cli_sfm_bad_options(tripod, tmp_path, args, message):
 def test_cli_sfm_bad_folders(tripod, tmp_path):
     existing = tmp_path / "exists"
     existing.mkdir()
+    (existing / "keep.txt").write_text("keep")
     runner = CliRunner()
     run = runner.invoke(app, ["sfm", str(tripod[0]), str(existing)])
-    assert run.exit_code == 2 and "already exists" in run.stderr
+    assert run.exit_code == 2 and "is not an empty directory; pass --overwrite" in run.stderr
+    assert [p.name for p in existing.iterdir()] == ["keep.txt"]
     run = runner.invoke(app, ["sfm", str(tmp_path / "nowhere"), str(tmp_path / "out")])
     assert run.exit_code == 2 and "does not exist" in run.stderr
     empty = tmp_path / "empty"

@@ -1,0 +1,419 @@
+"""``ppo-cv pairs``: many image pairs in parallel, one JSON line each, AUC given ground truth.
+
+Each image's features are computed once per run (a cache keyed by the resolved path and the
+feature options, filled up front by the workers and shared through ``.npz`` files in a temporary
+folder); ``--no-cache`` detects per pair, as :func:`~ppo_cv.pipeline.estimate_pair` alone does.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import json
+import os
+import sys
+import tempfile
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+from .common import (
+    WORKERS_MAX,
+    Backend,
+    Features,
+    MaxFeatures,
+    MaxSize,
+    Overwrite,
+    PriThreshold,
+    ProgressReport,
+    Quiet,
+    Ratio,
+    Seed,
+    Threshold,
+    check_image_file,
+    check_range,
+    fail,
+    warn,
+)
+
+__all__ = ["register", "run_pairs", "read_pairs", "pose_errors", "pose_auc", "FeatureCache"]
+
+_ZERO_TRANSLATION = 1e-9
+
+
+def read_pairs(pairs_file: Path, K: str | None) -> list[dict]:
+    """Rows of a pairs file: names, intrinsics and, when present, the ground-truth motion.
+
+    Lines are ``name1 name2 [0 0 K1(9) K2(9) [T_1to2(16)]]``. Either every line carries a
+    ground-truth ``T`` or none does; a ValueError names the first line that breaks the rule.
+    """
+    import numpy as np
+
+    from ppo_cv.calib import parse_intrinsics
+    from ppo_cv.checks import as_camera_matrix
+
+    if not pairs_file.is_file():
+        raise ValueError(f"pairs file not found: {pairs_file}")
+    default = parse_intrinsics(K, "--K") if K else None
+    try:
+        text = pairs_file.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"cannot read pairs file {pairs_file}: {exc}") from None
+    rows, first_gt = [], None
+    for number, line in enumerate(text.splitlines(), 1):
+        parts = line.split()
+        if not parts or parts[0].startswith("#"):
+            continue
+        where = f"{pairs_file}:{number}"
+        if len(parts) not in (2, 4, 22, 38):
+            raise ValueError(
+                f"{where}: expected 'name1 name2 [0 0 K1(9) K2(9) [T(16)]]', "
+                f"got {len(parts)} fields"
+            )
+        row = {"image1": parts[0], "image2": parts[1], "K1": default, "K2": default, "T": None}
+        try:
+            if len(parts) >= 22:
+                values = np.array(parts[4:], dtype=np.float64)
+                row["K1"] = parse_intrinsics(",".join(parts[4:13]), "K1")
+                row["K2"] = parse_intrinsics(",".join(parts[13:22]), "K2")
+                if len(parts) == 38:
+                    row["T"] = _motion(values[18:34].reshape(4, 4))
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from None
+        if row["K1"] is None:
+            raise ValueError(f"{where}: no intrinsics in the file; pass --K")
+        row["K1"], row["K2"] = as_camera_matrix(row["K1"], "K1"), as_camera_matrix(row["K2"], "K2")
+        has_gt = row["T"] is not None
+        if first_gt is None:
+            first_gt = (has_gt, number)
+        elif has_gt != first_gt[0]:
+            given, missing = (number, first_gt[1]) if has_gt else (first_gt[1], number)
+            raise ValueError(
+                f"{pairs_file}:{number}: line {given} carries a ground-truth motion and line "
+                f"{missing} does not; give it on every line or on none"
+            )
+        row["line"] = number
+        rows.append(row)
+    if not rows:
+        raise ValueError(f"no pairs in {pairs_file}")
+    return rows
+
+
+def _motion(T):
+    import numpy as np
+
+    R = T[:3, :3]
+    if not np.all(np.isfinite(T)) or not np.allclose(R.T @ R, np.eye(3), atol=1e-4):
+        raise ValueError("the ground-truth T_1to2 must be a finite rigid motion [R t; 0 0 0 1]")
+    return T
+
+
+def pose_errors(R, t, T) -> dict:
+    """Rotation, translation-direction and pose errors (degrees) against a ground truth ``T``.
+
+    The translation error is sign-free (the angle between the lines of ``t`` and the true t).
+    The pose error is the larger of the two; where the true t is zero (a pure rotation) the
+    direction is undefined, ``t_err_deg`` is None and the pose error is the rotation error.
+    """
+    import numpy as np
+
+    R_gt, t_gt = T[:3, :3], T[:3, 3]
+    cos_r = np.clip((np.trace(np.asarray(R).T @ R_gt) - 1.0) / 2.0, -1.0, 1.0)
+    r_err = float(np.degrees(np.arccos(cos_r)))
+    norm_gt = float(np.linalg.norm(t_gt))
+    if norm_gt <= _ZERO_TRANSLATION:
+        return {"R_err_deg": r_err, "t_err_deg": None, "pose_err_deg": r_err}
+    norm = float(np.linalg.norm(t)) * norm_gt
+    cos_t = np.clip(abs(float(np.asarray(t) @ t_gt)) / max(norm, 1e-12), -1.0, 1.0)
+    t_err = float(np.degrees(np.arccos(cos_t)))
+    return {"R_err_deg": r_err, "t_err_deg": t_err, "pose_err_deg": max(r_err, t_err)}
+
+
+def pose_auc(errors, thresholds=(5.0, 10.0, 20.0)) -> list[float]:
+    """Area under the recall curve of pose errors (degrees) up to each threshold, in [0, 1]."""
+    import numpy as np
+
+    errors = np.sort(np.asarray(errors, dtype=np.float64))
+    recall = np.arange(1, errors.size + 1) / errors.size
+    errors, recall = np.r_[0.0, errors], np.r_[0.0, recall]
+    areas = []
+    for threshold in thresholds:
+        last = np.searchsorted(errors, threshold)
+        e = np.r_[errors[:last], threshold]
+        r = np.r_[recall[:last], recall[last - 1]]
+        areas.append(float(np.trapezoid(r, x=e) / threshold))
+    return areas
+
+
+def auc_table(results: list[dict]) -> str:
+    """Markdown table of the AUC of the pose errors, failures counted as 180 degrees."""
+    errors = [r.get("pose_err_deg", 180.0) if "error" not in r else 180.0 for r in results]
+    auc = pose_auc(errors)
+    failed = sum("error" in r for r in results)
+    rotations = sum(r.get("t_err_deg", 0.0) is None for r in results)
+    note = (
+        "pose error = max(rotation error, translation-direction error), degrees; failed pairs "
+        "count as 180"
+    )
+    if rotations:
+        note += f"; rotation error alone for the {rotations} pairs whose true t is zero"
+    return (
+        f"{note}\n| pairs | failed | AUC@5 | AUC@10 | AUC@20 |\n|---|---|---|---|---|\n"
+        f"| {len(results)} | {failed} | {100 * auc[0]:.1f} | {100 * auc[1]:.1f} "
+        f"| {100 * auc[2]:.1f} |"
+    )
+
+
+def _init_worker() -> None:
+    import signal
+
+    import cv2
+    import pycolmap  # noqa: F401  (imported before the handlers below: it installs its own)
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops the pool
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # stopped by the parent: quietly
+    cv2.setNumThreads(1)
+
+
+@contextlib.contextmanager
+def _worker_pool(workers: int):
+    """A pool of ``workers`` spawned processes (None for one: run here), stopped on any error."""
+    if workers <= 1:
+        yield None
+        return
+    import multiprocessing
+    import signal
+
+    context = multiprocessing.get_context("spawn")  # no fork of a threaded process
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # inherited: workers ignore Ctrl-C
+    try:  # from their first instruction, not only once _init_worker has run
+        pool = context.Pool(workers, initializer=_init_worker)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    try:
+        yield pool
+    except BaseException:
+        pool.terminate()
+        pool.join()
+        raise
+    pool.close()
+    pool.join()
+
+
+class FeatureCache:
+    """Features of each image of a run, computed once and kept as ``.npz`` files in ``folder``.
+
+    Keyed by the resolved path and the feature options (kind, ``max_features``,
+    ``max_image_size``); an image that cannot be read keeps its error message instead.
+    """
+
+    def __init__(self, folder: str | os.PathLike, options) -> None:
+        self.folder = Path(folder)
+        self.options = options
+        self.files: dict[tuple, str] = {}
+        self.errors: dict[tuple, str] = {}
+
+    def key(self, path: str | os.PathLike) -> tuple:
+        """The cache key of an image path under this run's options."""
+        o = self.options
+        return (os.path.realpath(path), o.features, o.max_features, o.max_image_size)
+
+    def jobs(self, paths) -> list[tuple]:
+        """One detection job per image not yet cached: ``(path, options, npz file)``."""
+        keys = dict.fromkeys(self.key(p) for p in paths)
+        fresh = [k for k in keys if k not in self.files and k not in self.errors]
+        start = len(self.files) + len(self.errors)
+        return [
+            (k[0], self.options, str(self.folder / f"{start + i}.npz")) for i, k in enumerate(fresh)
+        ]
+
+    def store(self, path: str, outcome: tuple[str, str]) -> None:
+        """Record a job's outcome: ``("file", npz path)`` or ``("error", message)``."""
+        kind, value = outcome
+        (self.files if kind == "file" else self.errors)[self.key(path)] = value
+
+    def lookup(self, path: str | os.PathLike) -> tuple[str, str]:
+        """``("file", npz path)`` or ``("error", message)`` for an image of the run."""
+        key = self.key(path)
+        return ("error", self.errors[key]) if key in self.errors else ("file", self.files[key])
+
+
+def _features_job(job: tuple) -> tuple[str, str]:
+    """Detect one image's features into an ``.npz`` file; an unreadable image gives its error."""
+    import numpy as np
+
+    from ppo_cv import features as features_module
+    from ppo_cv.pipeline import load_image
+
+    path, options, target = job
+    try:
+        check_image_file(path)
+        found = features_module.detect_features(
+            load_image(path), options.features, options.max_features, options.max_image_size
+        )
+    except (ValueError, OSError) as exc:
+        return "error", str(exc).splitlines()[0]
+    np.savez(target, keypoints=found.keypoints, descriptors=found.descriptors, kind=found.kind)
+    return "file", target
+
+
+def _load_features(target: str):
+    import numpy as np
+
+    from ppo_cv.features import Features
+
+    with np.load(target) as data:
+        return Features(data["keypoints"], data["descriptors"], str(data["kind"]))
+
+
+def _pair_job(job: tuple) -> dict:
+    """One pair: a JSON-ready dict, with ``error`` instead of a pose on failure."""
+    from ppo_cv.export import result_to_dict
+    from ppo_cv.pipeline import estimate_pair
+
+    row, image_dir, options, cached = job
+    names = {"image1": row["image1"], "image2": row["image2"]}
+    paths = (Path(image_dir) / row["image1"], Path(image_dir) / row["image2"])
+    try:
+        given = {}
+        if cached is not None:
+            for (kind, value), name in zip(cached, ("features1", "features2"), strict=True):
+                if kind == "error":
+                    raise ValueError(value)
+                given[name] = _load_features(value)
+        else:
+            for path in paths:
+                check_image_file(path)
+        result = estimate_pair(*paths, row["K1"], row["K2"], options=options, **given)
+    except (ValueError, OSError) as exc:
+        return {**names, "error": str(exc).splitlines()[0]}
+    data = result_to_dict(result, **names)
+    if row["T"] is not None:
+        data.update(pose_errors(result.R, result.t, row["T"]))
+    return data
+
+
+def _run_all(function, jobs, pool, report: ProgressReport):
+    """Results of ``function`` over ``jobs`` in order, in ``pool`` (or here when None)."""
+    iterator = map(function, jobs) if pool is None else pool.imap(function, jobs)
+    for outcome in iterator:
+        report.advance()
+        yield outcome
+
+
+def run_pairs(
+    pairs_file, image_dir, K, output, workers, options, *, cache=True, quiet=False, overwrite=False
+) -> int:
+    """Run every pair of a pairs file, writing JSON lines to ``output`` (or stdout).
+
+    The output file is written completely or not at all (an interrupt leaves nothing). Returns
+    the exit code; ValueError for bad arguments, raised before any image is read.
+    """
+    from ppo_cv.atomic import atomic_file, check_target, sigterm_as_interrupt
+
+    check_range("--workers", workers, 0, WORKERS_MAX)
+    if output is not None:
+        check_target(output, "file", overwrite)
+    rows = read_pairs(Path(pairs_file), K)
+    if not Path(image_dir).is_dir():
+        raise ValueError(f"image folder not found: {image_dir}")
+    workers = workers or (os.cpu_count() or 1)
+    importlib.import_module("pycolmap")  # before the handler: importing it replaces SIGTERM's
+    sigterm_as_interrupt()
+    sink = atomic_file(output, overwrite) if output is not None else contextlib.nullcontext(None)
+    with contextlib.ExitStack() as stack:
+        scratch = stack.enter_context(tempfile.TemporaryDirectory(prefix="ppo-cv-features-"))
+        handle = stack.enter_context(sink) or sys.stdout
+        pool = stack.enter_context(_worker_pool(workers))
+        features = FeatureCache(scratch, options) if cache else None
+        paths = [Path(image_dir) / r[k] for r in rows for k in ("image1", "image2")]
+        if features is not None:
+            detect = features.jobs(paths)
+            with ProgressReport("pairs", "images (features)", len(detect), quiet) as report:
+                for job, outcome in zip(
+                    detect, _run_all(_features_job, detect, pool, report), strict=True
+                ):
+                    features.store(job[0], outcome)
+        jobs = [
+            (
+                row,
+                str(image_dir),
+                options,
+                None
+                if features is None
+                else tuple(features.lookup(Path(image_dir) / row[k]) for k in ("image1", "image2")),
+            )
+            for row in rows
+        ]
+        results = []
+        with ProgressReport("pairs", "pairs", len(jobs), quiet) as report:
+            for data in _run_all(_pair_job, jobs, pool, report):
+                handle.write(json.dumps(data) + "\n")
+                handle.flush()
+                results.append(data)
+    failed = sum("error" in r for r in results)
+    if rows[0]["T"] is not None:
+        typer.echo(auc_table(results), err=output is None)
+    elif failed:
+        warn("pairs", f"{failed} of {len(results)} pairs failed")
+    return 0
+
+
+def register(app: typer.Typer) -> None:
+    """Add the ``pairs`` command to ``app``."""
+    from ppo_cv.ppo import DEFAULT_PRI_THRESHOLD
+
+    from .pair import pipeline_options
+
+    @app.command(
+        help="Run many pairs in parallel, one JSON line each; AUC@5/10/20 given ground truth."
+        "\n\nFeatures are computed once per image for the whole run (--no-cache: once per "
+        "pair). Progress goes to stderr. With ground truth the AUC is that of the pose error "
+        "max(rotation error, translation-direction error), the rotation error alone where the "
+        "true translation is zero. -o is written completely or not at all.",
+    )
+    def pairs(
+        pairs_file: Annotated[
+            Path, typer.Argument(help="Lines 'name1 name2 [0 0 K1(9) K2(9) [T_1to2(16)]]'.")
+        ],
+        image_dir: Annotated[Path, typer.Argument(help="Folder holding the images.")],
+        K: Annotated[
+            str | None, typer.Option("--K", help="Intrinsics for lines that carry none.")
+        ] = None,
+        output: Annotated[
+            Path | None,
+            typer.Option(
+                "--output", "-o", help="JSON lines file (default: stdout); written at the end."
+            ),
+        ] = None,
+        overwrite: Overwrite = False,
+        workers: Annotated[
+            int, typer.Option(help=f"Worker processes (0: one per CPU; at most {WORKERS_MAX}).")
+        ] = 0,
+        no_cache: Annotated[
+            bool,
+            typer.Option("--no-cache", help="Detect features per pair instead of once per image."),
+        ] = False,
+        quiet: Quiet = False,
+        features: Features = "sift",
+        max_features: MaxFeatures = 8000,
+        max_size: MaxSize = 2000,
+        ratio: Ratio = 0.9,
+        backend: Backend = "pycolmap",
+        threshold: Threshold = 1.0,
+        seed: Seed = 0,
+        pri_threshold: PriThreshold = DEFAULT_PRI_THRESHOLD,
+    ) -> None:
+        """Many pairs, one JSON line each, and the AUC given ground truth."""
+        try:
+            options = pipeline_options(
+                features, max_features, max_size, ratio, backend, threshold, seed, pri_threshold
+            )
+            code = run_pairs(
+                pairs_file, image_dir, K, output, workers, options,
+                cache=not no_cache, quiet=quiet, overwrite=overwrite,
+            )  # fmt: skip
+        except (ValueError, OSError) as exc:
+            fail("pairs", str(exc) or type(exc).__name__)
+        raise typer.Exit(code)

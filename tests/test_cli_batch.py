@@ -1,0 +1,203 @@
+"""``ppo-cv pairs`` as a batch tool: features once per image, AUC of pure rotations, progress."""
+
+from __future__ import annotations
+
+import io
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+import ppo_cv.features
+import ppo_cv.pipeline
+from ppo_cv.cli import batch
+from ppo_cv.cli.common import ProgressReport
+from ppo_cv.cli.main import app
+from ppo_cv.cli.pair import pipeline_options
+
+DATA = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
+DEMO = json.loads((DATA / "demo.json").read_text())
+NAME1, NAME2 = DEMO["image1"], DEMO["image2"]
+fx, fy, cx, cy = DEMO["intrinsics"]
+K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+K_TEXT = ",".join(str(v) for v in DEMO["intrinsics"])
+COMMAND = [sys.executable, "-m", "ppo_cv.cli.main"]
+
+
+def _counting(monkeypatch) -> list:
+    """Count every feature detection, whichever path (cache or per pair) calls it."""
+    calls = []
+    original = ppo_cv.features.detect_features
+
+    def counted(image, *args, **kwargs):
+        calls.append(image.shape)
+        return original(image, *args, **kwargs)
+
+    monkeypatch.setattr(ppo_cv.features, "detect_features", counted)
+    monkeypatch.setattr(ppo_cv.pipeline, "detect_features", counted)
+    return calls
+
+
+def _without_timings(path: Path) -> list[dict]:
+    rows = [json.loads(line) for line in path.read_text().splitlines()]
+    for row in rows:
+        row.pop("timings", None)
+    return rows
+
+
+def test_features_are_computed_once_per_image_and_change_nothing(tmp_path, monkeypatch):
+    lines = [f"{NAME1} {NAME2}", f"{NAME2} {NAME1}", f"{NAME1} {NAME2}", f"{NAME1} missing.png"]
+    (tmp_path / "pairs.txt").write_text("\n".join(lines) + "\n")
+    options = pipeline_options(max_features=2000)
+    calls = _counting(monkeypatch)
+    runs = {}
+    for cache in (True, False):
+        calls.clear()
+        output = tmp_path / f"cache_{cache}.jsonl"
+        code = batch.run_pairs(tmp_path / "pairs.txt", DATA, K_TEXT, output, 1, options,
+                               cache=cache, quiet=True)  # fmt: skip
+        assert code == 0
+        runs[cache] = (len(calls), _without_timings(output))
+    assert runs[True][0] == 2  # two readable images, each detected once for four pairs
+    assert runs[False][0] == 6  # two per pair that reaches detection
+    assert runs[True][1] == runs[False][1]  # same poses, inliers, counts: the cache is exact
+    assert "image not found" in runs[True][1][3]["error"]
+    assert all("error" not in row for row in runs[True][1][:3])
+
+
+def test_feature_cache_is_keyed_by_path_and_options(tmp_path):
+    options = pipeline_options()
+    cache = batch.FeatureCache(tmp_path, options)
+    jobs = cache.jobs([DATA / NAME1, DATA / "." / NAME1, DATA / NAME2])
+    assert len(jobs) == 2  # the same file under two spellings is one entry
+    other = batch.FeatureCache(tmp_path, pipeline_options(max_features=1000))
+    assert cache.key(DATA / NAME1) != other.key(DATA / NAME1)
+
+
+def test_precomputed_features_are_checked():
+    options = pipeline_options()
+    image1, image2 = (str(DATA / n) for n in (NAME1, NAME2))
+    with pytest.raises(TypeError, match="features1 must be ppo_cv.features.Features"):
+        ppo_cv.pipeline.estimate_pair(image1, image2, K, features1="x", features2="y")
+    orb = ppo_cv.features.Features(np.zeros((10, 2)), np.zeros((10, 32), np.uint8), "orb")
+    with pytest.raises(ValueError, match="features1 are orb features but options.features is"):
+        ppo_cv.pipeline.estimate_pair(image1, image2, K, options=options, features1=orb,
+                                      features2=orb)  # fmt: skip
+
+
+def _rotation(axis, degrees) -> np.ndarray:
+    return cv2.Rodrigues(np.radians(degrees) * np.asarray(axis, float))[0]
+
+
+def test_pose_error_of_a_pure_rotation_is_the_rotation_error():
+    R_true = _rotation([0, 1, 0], 5.0)
+    T = np.eye(4)
+    T[:3, :3] = R_true
+    R = _rotation([0, 1, 0], 5.5)
+    errors = batch.pose_errors(R, np.array([0.0, 0.0, 1.0]), T)
+    assert errors["t_err_deg"] is None
+    assert errors["pose_err_deg"] == pytest.approx(errors["R_err_deg"]) == pytest.approx(0.5)
+    T[:3, 3] = [1.0, 0.0, 0.0]
+    moved = batch.pose_errors(R, np.array([0.0, 0.0, 1.0]), T)
+    assert moved["t_err_deg"] == pytest.approx(90.0) == moved["pose_err_deg"]
+
+
+@pytest.fixture(scope="module")
+def rotation_pairs(tmp_path_factory):
+    """Two exact pure rotations of the demo images (warped by K R K^-1), with ground truth."""
+    root = tmp_path_factory.mktemp("rotations")
+    lines = []
+    for index, (name, axis) in enumerate(((NAME1, [0, 1, 0]), (NAME2, [1, 0, 0.3]))):
+        R = _rotation(axis, 4.0)
+        image = cv2.imread(str(DATA / name))
+        warped = cv2.warpPerspective(image, K @ R @ np.linalg.inv(K), image.shape[1::-1])
+        cv2.imwrite(str(root / f"r{index}_1.png"), image)
+        cv2.imwrite(str(root / f"r{index}_2.png"), warped)
+        T = np.eye(4)
+        T[:3, :3] = R
+        numbers = [0, 0, *K.ravel(), *K.ravel(), *T.ravel()]
+        lines.append(f"r{index}_1.png r{index}_2.png " + " ".join(f"{v:.12g}" for v in numbers))
+    (root / "pairs.txt").write_text("\n".join(lines) + "\n")
+    return root
+
+
+def test_pure_rotations_get_an_auc_and_progress_goes_to_stderr(rotation_pairs, tmp_path):
+    pairs = str(rotation_pairs / "pairs.txt")
+    args = [*COMMAND, "pairs", pairs, str(rotation_pairs), "--workers", "1",
+            "--pri-threshold", "0.02", "-o", str(tmp_path / "out.jsonl")]  # fmt: skip
+    out = subprocess.run(args, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    progress = out.stderr.strip().splitlines()
+    assert progress[-1].startswith("ppo-cv pairs: 2/2 pairs, ")
+    assert any(line.startswith("ppo-cv pairs: 1/2 pairs, ") for line in progress)
+    assert "rotation error alone for the 2 pairs whose true t is zero" in out.stdout
+    row = out.stdout.strip().splitlines()[-1]
+    auc = [float(v) for v in row.strip("|").split("|")[2:]]
+    assert min(auc) > 90.0, out.stdout  # the rotations are recovered to a fraction of a degree
+    results = [json.loads(line) for line in (tmp_path / "out.jsonl").read_text().splitlines()]
+    assert [r["pri_threshold"] for r in results] == [0.02, 0.02]
+    assert all(r["t_err_deg"] is None and r["R_err_deg"] < 0.5 for r in results)
+    quiet = subprocess.run([*args[:-2], "-o", str(tmp_path / "quiet.jsonl"), "--quiet"],
+                           capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert quiet.returncode == 0 and quiet.stderr == ""
+
+
+def test_pri_threshold_reaches_the_pipeline():
+    runner = CliRunner()
+    plain = runner.invoke(app, ["pair", "--json"])
+    strict = runner.invoke(app, ["pair", "--json", "--pri-threshold", "1"])
+    assert plain.exit_code == 0 and strict.exit_code == 0, plain.output + strict.output
+    plain, strict = json.loads(plain.stdout), json.loads(strict.stdout)
+    assert plain["pri"] == pytest.approx(strict["pri"]) and plain["pri"] < 1.0
+    assert (plain["pure_rotation"], strict["pure_rotation"]) == (False, True)
+    assert strict["pri_threshold"] == 1.0
+
+
+def test_sfm_passes_its_options_on(monkeypatch, tmp_path):
+    from ppo_cv import sfm
+
+    seen = {}
+
+    def fake_run_sfm(image_dir, output_dir, **kwargs):
+        seen.update(kwargs)
+        raise ValueError("stopped here")
+
+    monkeypatch.setattr(sfm, "run_sfm", fake_run_sfm)
+    images = tmp_path / "images"
+    images.mkdir()
+    args = ["sfm", str(images), str(tmp_path / "model"), "--pri-threshold", "0.03", "--seed", "7"]
+    run = CliRunner().invoke(app, [*args, "--quiet"])
+    assert run.exit_code == 2 and "ppo-cv sfm: stopped here" in run.stderr
+    assert "warning: no intrinsics given" in run.stderr  # sfm warns without --K, as pair does
+    assert seen["pri_threshold"] == 0.03 and seen["seed"] == 7
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+@pytest.mark.parametrize("terminal", [False, True])
+def test_progress_report_plain_lines_or_a_bar(monkeypatch, terminal):
+    stream = _Terminal() if terminal else io.StringIO()
+    monkeypatch.setattr(sys, "stderr", stream)
+    with ProgressReport("pairs", "pairs", 3) as report:
+        for _ in range(3):
+            report.advance()
+    text = stream.getvalue()
+    plain = [line for line in text.splitlines() if line.startswith("ppo-cv pairs: ")]
+    if terminal:
+        assert plain == [] and "3/3" in text  # rich's bar, not the plain lines
+    else:
+        assert plain[0].startswith("ppo-cv pairs: 1/3 pairs, ")
+        assert plain[-1].startswith("ppo-cv pairs: 3/3 pairs, ")
+    quiet = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", quiet)
+    with ProgressReport("pairs", "pairs", 3, quiet=True) as report:
+        report.advance(3)
+    assert quiet.getvalue() == ""

@@ -1,0 +1,356 @@
+"""Hostile input to every command, each in its own process (issue #11, sections 2, 3 and 5).
+
+Every case must end with exit code 2, exactly one line ``ppo-cv <command>: ...`` on stderr
+naming the problem, nothing on stdout, no traceback, and the working folder byte for byte as it
+was (nothing written, nothing deleted). Interrupts (SIGINT, SIGTERM) midway through a run must
+leave no partial output.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+DATA = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
+DEMO = json.loads((DATA / "demo.json").read_text())
+DEMO1, DEMO2 = str(DATA / DEMO["image1"]), str(DATA / DEMO["image2"])
+K_TEXT = ",".join(str(v) for v in DEMO["intrinsics"])
+COMMAND = [sys.executable, "-m", "ppo_cv.cli.main"]
+PAIR = ["pair", DEMO1, DEMO2, "--K", K_TEXT]
+INTRINSICS = " ".join(["0 0"] + ["535.4 0 320.1 0 539.2 247.6 0 0 1"] * 2)
+GT = INTRINSICS + " 1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1"
+PARALLEL = 6  # processes at a time
+
+
+def _workspace(root: Path) -> None:
+    """The hostile files every case may point at, relative to ``root``."""
+    (root / "bad.yml").write_text("%YAML:1.0\n---\ncamera_matrix: [1, 2, 3\n")
+    (root / "empty.yml").write_text("")
+    (root / "scalar.yml").write_text("%YAML:1.0\n---\ncamera_matrix: 5\n")
+    (root / "bad.xml").write_text('<?xml version="1.0"?>\n<opencv_storage><camera_matrix>1 2')
+    (root / "deep.json").write_text("[" * 100_000 + "]" * 100_000)
+    (root / "gt_then_none.txt").write_text(f"a.png b.png {GT}\n#\nc.png d.png {INTRINSICS}\n")
+    (root / "no_gt.txt").write_text("a.png b.png\n")
+    (root / "negative_focal.txt").write_text(
+        f"a.png b.png {INTRINSICS.replace('535.4', '-535.4')}\n"
+    )
+    (root / "afile").write_text("not a folder\n")
+    (root / "images").mkdir()
+    for image in (DEMO1, DEMO2):
+        shutil.copy(image, root / "images")
+    os.mkfifo(root / "fifo.png")
+    (root / "t").mkdir()  # issue 11, section 2: an old file beside where a result would go
+    (root / "t" / "points.ply").write_text("OLD\n")
+    (root / "t" / "colmap").write_text("x\n")
+    (root / "u" / "colmap").mkdir(parents=True)
+    (root / "u" / "colmap" / "database.db").write_text("keep\n")
+    (root / "taken.jsonl").write_text("mine\n")
+    (root / "synth_out").mkdir()
+    (root / "synth_out" / "notes.txt").write_text("mine\n")
+
+
+def _snapshot(root: Path) -> dict:
+    """Every entry under ``root`` with its content (files) or kind (folders, FIFOs)."""
+    entries = {}
+    for path in sorted(root.rglob("*")):
+        key = str(path.relative_to(root))
+        if path.is_fifo():
+            entries[key] = "fifo"
+        elif path.is_dir():
+            entries[key] = "dir"
+        else:
+            entries[key] = path.read_bytes()
+    return entries
+
+
+# (arguments, the command named in the message, a pattern the message must match)
+CASES = [
+    # section 3: calibration files OpenCV or json cannot parse
+    ([*PAIR[:3], "--calib", "bad.yml"], "pair", r"malformed OpenCV calibration file.*bad\.yml"),
+    ([*PAIR[:3], "--calib", "empty.yml"], "pair", r"empty\.yml is empty"),
+    ([*PAIR[:3], "--calib", "scalar.yml"], "pair", r"camera_matrix .* is a scalar"),
+    ([*PAIR[:3], "--calib", "bad.xml"], "pair", r"malformed OpenCV calibration file.*bad\.xml"),
+    ([*PAIR[:3], "--calib", "deep.json"], "pair", r"deep\.json is nested too deeply"),
+    ([*PAIR[:3], "--calib", "fifo.png"], "pair", r"fifo\.png is not a regular file"),
+    # section 3: pairs output paths and inconsistent ground truth
+    (
+        ["pairs", "no_gt.txt", "images", "--K", K_TEXT, "-o", "nodir/x.jsonl"],
+        "pairs",
+        r"folder nodir does not exist",
+    ),
+    (["pairs", "no_gt.txt", "images", "--K", K_TEXT, "-o", "."], "pairs", r"\. is a folder"),
+    (
+        ["pairs", "no_gt.txt", "images", "--K", K_TEXT, "-o", "taken.jsonl"],
+        "pairs",
+        r"taken\.jsonl already exists; pass --overwrite",
+    ),
+    (
+        ["pairs", "gt_then_none.txt", "images"],
+        "pairs",
+        r"gt_then_none\.txt:3: line 1 carries a ground-truth motion and line 3 does not",
+    ),
+    (["pairs", "negative_focal.txt", "images"], "pairs", r"negative_focal\.txt:1: K1 .*focal"),
+    (
+        ["sfm", "images", "out", "--K", K_TEXT, "--database", "taken.jsonl"],
+        "sfm",
+        r"database taken\.jsonl already exists; give a new file name",
+    ),
+    # section 3: numbers out of range, checked before any work
+    ([*PAIR, "--seed", "1099511627776"], "pair", r"--seed must be in 0\.\.2147483647"),
+    ([*PAIR, "--seed", "-1"], "pair", r"--seed must be in 0\.\."),
+    ([*PAIR, "--max-features", "3000000000"], "pair", r"--max-features must be in 8\.\."),
+    ([*PAIR, "--max-size", "-5"], "pair", r"--max-size .* must be in 32\.\."),
+    ([*PAIR, "--pri-threshold", "-0.1"], "pair", r"--pri-threshold must be in 0\.\.1"),
+    ([*PAIR, "--threshold", "inf"], "pair", r"--threshold \(pixels\) must be in"),
+    (
+        ["pairs", "no_gt.txt", "images", "--K", K_TEXT, "--workers", "-1"],
+        "pairs",
+        r"--workers must be in 0\.\.256",
+    ),
+    (
+        ["pairs", "no_gt.txt", "images", "--K", K_TEXT, "--seed", "1099511627776"],
+        "pairs",
+        r"--seed must be in",
+    ),
+    (
+        ["pairs", "no_gt.txt", "images", "--K", K_TEXT, "--max-features", "3000000000"],
+        "pairs",
+        r"--max-features must be in",
+    ),
+    (
+        ["pairs", "no_gt.txt", "images", "--K", K_TEXT, "--max-size", "-5"],
+        "pairs",
+        r"--max-size .* must be in",
+    ),
+    (
+        ["sfm", "images", "out", "--K", K_TEXT, "--seed", "1099511627776"],
+        "sfm",
+        r"--seed must be in",
+    ),
+    (
+        ["sfm", "images", "out", "--K", K_TEXT, "--max-features", "3000000000"],
+        "sfm",
+        r"--max-features must be in 1\.\.",
+    ),
+    (
+        ["sfm", "images", "out", "--K", K_TEXT, "--threads", "1000000"],
+        "sfm",
+        r"--threads must be in 1\.\.256",
+    ),
+    (["sfm", "images", "afile/sub", "--K", K_TEXT], "sfm", r"afile is a file, not a folder"),
+    (
+        ["sfm", "images", "out", "--K", K_TEXT, "--database", "afile/db.db"],
+        "sfm",
+        r"afile is a file, not a folder",
+    ),
+    (["sfm", "images", "t", "--K", K_TEXT], "sfm", r"t exists and is not an empty directory"),
+    # section 2: outputs never written over without --overwrite
+    ([*PAIR, "--out", "t"], "pair", r"t exists and is not an empty directory"),
+    ([*PAIR, "--out", "u"], "pair", r"u exists and is not an empty directory"),
+    ([*PAIR, "--out", "afile"], "pair", r"afile is a file, not a folder"),
+    (
+        ["synth", "synth_out", "--pairs", "1"],
+        "synth",
+        r"synth_out exists and is not an empty directory",
+    ),
+    # section 5: bounded resources, non-regular files
+    (["synth", "new", "--blur", "1000000"], "synth", r"--blur must be in \[0, 50\]"),
+    (["pair", "fifo.png", DEMO2, "--K", K_TEXT], "pair", r"not a regular file: fifo\.png"),
+]
+
+
+def _ids():
+    return [f"{i:02d}-{' '.join(a[:1] + [x for x in a if x.startswith('-')][:2])}" for i, (a, *_) in
+            enumerate(CASES)]  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def outcomes(tmp_path_factory):
+    """Run the cases a few at a time (own process and folder each); collect the outcomes."""
+    results = []
+    for start in range(0, len(CASES), PARALLEL):
+        runs = []
+        for number in range(start, min(start + PARALLEL, len(CASES))):
+            root = tmp_path_factory.mktemp(f"case{number:02d}")
+            _workspace(root)
+            before = _snapshot(root)
+            process = subprocess.Popen([*COMMAND, *CASES[number][0]], cwd=root, text=True,
+                                       stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+            runs.append((root, before, process))
+        for root, before, process in runs:
+            try:
+                out, err = process.communicate(timeout=120)
+            except subprocess.TimeoutExpired:  # a blocked process is a failure, not a hang
+                process.kill()
+                out, err = process.communicate()
+                err = "TIMEOUT " + err
+            results.append((process.returncode, out, err, before, _snapshot(root)))
+    return results
+
+
+@pytest.mark.parametrize("number", range(len(CASES)), ids=_ids())
+def test_hostile_input_is_one_line_exit_2_and_touches_nothing(outcomes, number):
+    _, command, pattern = CASES[number]
+    code, out, err, before, after = outcomes[number]
+    lines = err.strip().splitlines()
+    assert code == 2, err
+    assert len(lines) == 1, err
+    assert lines[0].startswith(f"ppo-cv {command}: "), err
+    assert re.search(pattern, lines[0]), err
+    assert "Traceback" not in err and out == ""
+    assert after == before
+
+
+def _wait_for(process, needle: str) -> str:
+    """stderr lines of ``process`` up to the first holding ``needle``."""
+    seen = []
+    for line in process.stderr:
+        seen.append(line)
+        if needle in line:
+            return "".join(seen)
+    raise AssertionError(f"{needle!r} never appeared; stderr: {''.join(seen)}")
+
+
+def _wait_for_entry(process, root: Path, known: set) -> str:
+    """Wait until ``process`` has created something new in ``root``."""
+    deadline = time.monotonic() + 120
+    while not set(os.listdir(root)) - known:
+        assert process.poll() is None and time.monotonic() < deadline, "nothing was started"
+        time.sleep(0.05)
+    return ""
+
+
+def _interrupt(args, root: Path, needle: str | None, signum: int) -> tuple[int, str]:
+    """Send ``signum`` midway: SIGINT to the process group (Ctrl-C at a terminal reaches the
+    workers too), SIGTERM to the command's process only (as ``kill`` does)."""
+    known = set(os.listdir(root))
+    process = subprocess.Popen([*COMMAND, *args], cwd=root, text=True, start_new_session=True,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+    try:
+        if needle is None:
+            head = _wait_for_entry(process, root, known)
+        else:
+            head = _wait_for(process, needle)
+        if signum == signal.SIGINT:
+            os.killpg(process.pid, signum)
+        else:
+            process.send_signal(signum)
+        _, tail = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    return process.returncode, head + tail
+
+
+@pytest.mark.parametrize(
+    "signum, workers",
+    [(signal.SIGINT, "2"), (signal.SIGTERM, "2"), (signal.SIGTERM, "1")],
+    ids=["SIGINT-group", "SIGTERM-pool", "SIGTERM-in-process"],
+)
+def test_interrupted_pairs_leave_no_jsonl(tmp_path, signum, workers):
+    names = [Path(DEMO1).name, Path(DEMO2).name]
+    (tmp_path / "pairs.txt").write_text("".join(f"{names[i % 2]} {names[1 - i % 2]}\n"
+                                                for i in range(60)))  # fmt: skip
+    args = ["pairs", "pairs.txt", str(DATA), "--K", K_TEXT, "-o", "out.jsonl",
+            "--workers", workers, "--max-features", "600"]  # fmt: skip
+    code, err = _interrupt(args, tmp_path, " pairs, ", signum)
+    assert code == 130, err
+    assert err.strip().splitlines()[-1] == "ppo-cv pairs: interrupted; unfinished output removed"
+    assert "Traceback" not in err and "SIGTERM" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pairs.txt"]
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_interrupted_synth_leaves_no_staging_folder(tmp_path, signum):
+    args = ["synth", "out", "--pairs", "40", "--workers", "2", "--width", "96", "--height", "72",
+            "--supersample", "1"]  # fmt: skip
+    # SIGTERM as soon as the staging folder exists; Ctrl-C once the workers have started
+    code, err = _interrupt(args, tmp_path, None if signum == signal.SIGTERM else " pairs, ", signum)
+    assert code == 130, err
+    assert "Traceback" not in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_interrupted_sfm_leaves_no_database_or_model(tmp_path):
+    images = tmp_path / "images"
+    images.mkdir()
+    for image in (DEMO1, DEMO2):
+        shutil.copy(image, images)
+    args = ["sfm", "images", "model", "--K", K_TEXT, "--database", "db.db", "--threads", "1"]
+    code, err = _interrupt(args, tmp_path, "extracting", signal.SIGTERM)
+    assert code == 130, err
+    assert "Traceback" not in err and "SIGTERM" not in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["images"]
+
+
+def test_overwrite_replaces_a_pair_output_as_a_whole(tmp_path):
+    (tmp_path / "t").mkdir()
+    (tmp_path / "t" / "points.ply").write_text("OLD\n")
+    (tmp_path / "t" / "stale.txt").write_text("old run\n")
+    out = subprocess.run([*COMMAND, *PAIR, "--out", "t", "--overwrite", "--json"], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert sorted(p.name for p in (tmp_path / "t").iterdir()) == [
+        "colmap", "matches.png", "points.ply", "result.json",
+    ]  # fmt: skip
+    assert (tmp_path / "t" / "points.ply").read_bytes().startswith(b"ply\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t"]
+
+
+def test_implausible_intrinsics_warn():
+    out = subprocess.run([*COMMAND, "pair", DEMO1, DEMO2, "--K", "1,2,-400,247.6", "--json"],
+                         capture_output=True, text=True, timeout=120)  # fmt: skip
+    warnings = [line for line in out.stderr.splitlines() if "warning" in line]
+    assert warnings and warnings[0].startswith("ppo-cv pair: warning: --K looks implausible")
+    assert "focal length fx=1 fy=2 px is outside 0.1..10 x 640 px" in warnings[0]
+    assert "principal point (-400, 247.6) is outside the 640x480 image" in warnings[0]
+
+
+# --- the helpers behind it, in process ------------------------------------------------------
+
+
+def test_atomic_file_appears_only_when_complete(tmp_path):
+    from ppo_cv.atomic import atomic_file
+
+    target = tmp_path / "out.jsonl"
+    with pytest.raises(KeyboardInterrupt), atomic_file(target) as handle:
+        handle.write("half\n")
+        raise KeyboardInterrupt
+    assert list(tmp_path.iterdir()) == []
+    with atomic_file(target) as handle:
+        handle.write("whole\n")
+        assert not target.exists()
+    assert target.read_text() == "whole\n" and list(tmp_path.iterdir()) == [target]
+    with pytest.raises(ValueError, match="already exists; pass --overwrite"):
+        with atomic_file(target):
+            pass
+    with atomic_file(target, overwrite=True) as handle:
+        handle.write("new\n")
+    assert target.read_text() == "new\n" and list(tmp_path.iterdir()) == [target]
+
+
+def test_atomic_directory_replaces_only_when_asked_and_complete(tmp_path):
+    from ppo_cv.atomic import atomic_directory
+
+    target = tmp_path / "out"
+    target.mkdir()
+    (target / "old.txt").write_text("old")
+    with pytest.raises(ValueError, match="not an empty directory; pass --overwrite"):
+        with atomic_directory(target):
+            pass
+    with pytest.raises(RuntimeError), atomic_directory(target, overwrite=True) as staging:
+        (staging / "new.txt").write_text("new")
+        raise RuntimeError("failed midway")
+    assert [p.name for p in target.iterdir()] == ["old.txt"]
+    with atomic_directory(target, overwrite=True) as staging:
+        (staging / "new.txt").write_text("new")
+    assert [p.name for p in target.iterdir()] == ["new.txt"]
+    assert [p.name for p in tmp_path.iterdir()] == ["out"]
