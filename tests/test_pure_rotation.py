@@ -7,6 +7,7 @@ from importlib import resources
 import cv2
 import numpy as np
 import pytest
+from imperfect import imperfect_render, warped_rotation_pair
 
 from ppo_cv import estimate_pair
 from ppo_cv.model_selection import ModelResiduals, robust_sigma, select_model
@@ -18,8 +19,6 @@ from ppo_cv.rotation import (
     rotation_residuals,
     rotations_from_two_rays,
 )
-
-from imperfect import imperfect_render, warped_rotation_pair
 
 K_DEMO = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
 
