@@ -289,17 +289,18 @@ def fit_rotation_lens(
     R: np.ndarray,
     *,
     iterations: int = 15,
-    max_focal_change: float = 0.1,
-    max_k1: float = 0.25,
+    max_focal_change: float = 0.05,
+    max_k1: float = 0.15,
+    max_k2: float = 0.0,
 ) -> LensRotationFit:
     """Rotation, focal scale and radial coefficient by Gauss-Newton over the used matches.
 
     The model is ``c(x2) ~ R c(x1)`` with ``c(x) = s x (1 + k1 r^2 + k2 r^4)``, ``r = s |x|``, on
     the given normalised coordinates ``x`` (one camera, or two with the same error): 6
-    parameters, rotation increments
-    ``R = exp([w]_x) R0``. The least-squares cost is the squared transfer error in view 2. A
-    solution outside ``|s - 1| <= max_focal_change`` or ``|k1| <= max_k1`` is not a plausible
-    lens and the plain rotation (``s = 1``, ``k1 = 0``) is returned instead.
+    parameters, rotation increments ``R = exp([w]_x) R0``. The least-squares cost is the
+    squared transfer error in view 2. The lens terms stay in a box of plausible lenses
+    (``|s - 1| <= max_focal_change``, ``|k1| <= max_k1``, ``|k2| <= max_k2``; projected
+    Gauss-Newton): a translation's parallax must not be explained away by an implausible lens.
 
     Parameters
     ----------
@@ -310,9 +311,9 @@ def fit_rotation_lens(
     R : ndarray, shape (3, 3)
         Starting rotation (e.g. :func:`ransac_rotation`'s).
     iterations : int
-        Gauss-Newton steps (each a Levenberg-damped 5 x 5 solve).
-    max_focal_change, max_k1 : float
-        Plausibility bounds on ``s`` and ``k1``.
+        Gauss-Newton steps (each a Levenberg-damped 6 x 6 solve).
+    max_focal_change, max_k1, max_k2 : float
+        Bounds on ``|s - 1|``, ``|k1|`` and ``|k2|``.
 
     Returns
     -------
@@ -322,13 +323,14 @@ def fit_rotation_lens(
     xy1, xy2 = np.asarray(x1, float)[:, :2], np.asarray(x2, float)[:, :2]
     R0 = np.asarray(R, float)
     a, b = xy1[used], xy2[used]
+    bounds = np.array([np.inf, np.inf, np.inf, max_focal_change, max_k1, max_k2])
     params, sigma = np.zeros(_NPARAMS), np.inf
     if len(a) >= 2 * _NPARAMS:
-        params = _gauss_newton(params, R0, a, b, iterations)
-        sigma = _focal_sigma(params, R0, a, b)
-    if abs(params[3]) > max_focal_change or abs(params[4]) > max_k1:
-        params, sigma = np.zeros(_NPARAMS), np.inf
-        params[:3] = _gauss_newton(np.zeros(_NPARAMS), R0, a, b, iterations, free=3)[:3]
+        params = _gauss_newton(params, R0, a, b, iterations, bounds)
+        if abs(params[3]) < max_focal_change:
+            sigma = _focal_sigma(params, R0, a, b)
+    elif len(a) >= 2:
+        params = _gauss_newton(params, R0, a, b, iterations, bounds, free=3)
     R_final = _skew_exp(params[:3]) @ R0
     lens_only = np.r_[0.0, 0.0, 0.0, params[3:]]
     residuals = np.linalg.norm(_lens_transfer(lens_only, R_final, xy1, xy2), axis=1)
@@ -362,7 +364,7 @@ def _focal_sigma(params, R0, a, b) -> float:
     return float(np.sqrt(max(cov[3, 3], 0.0)))
 
 
-def _gauss_newton(params, R0, a, b, iterations, free: int = 6, step: float = 1e-6):
+def _gauss_newton(params, R0, a, b, iterations, bounds, free: int = 6, step: float = 1e-6):
     damping = 1e-6
     residual = _lens_transfer(params, R0, a, b).ravel()
     cost = residual @ residual
@@ -372,6 +374,7 @@ def _gauss_newton(params, R0, a, b, iterations, free: int = 6, step: float = 1e-
         update = np.linalg.solve(H + damping * np.diag(np.diag(H) + 1e-12), -g)
         trial = params.copy()
         trial[:free] += update
+        trial = np.clip(trial, -bounds, bounds)
         new_residual = _lens_transfer(trial, R0, a, b).ravel()
         new_cost = new_residual @ new_residual
         if new_cost < cost:

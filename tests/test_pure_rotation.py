@@ -182,3 +182,18 @@ def test_imperfect_render_with_baseline_is_not_flagged():
         assert not result.pure_rotation and result.model == "general"
         assert result.gric_difference > 0 and result.num_points > 0
     assert wide_result.t_sigma_deg < narrow_result.t_sigma_deg < 180.0
+
+
+def test_score_pose_rejects_a_pair_the_model_comparison_calls_a_rotation():
+    from ppo_cv import recover_pose, sfm
+
+    rng = np.random.default_rng(8)
+    R, t, x1, x2 = _two_view(rng, 1e-9)
+    used = np.ones(len(x1), bool)
+    motion = decide_motion(x1, x2, R, np.array([1.0, 0.0, 0.0]), used, 800.0)
+    _, _, x1g, x2g = _two_view(rng, 1.0)
+    E = np.cross(np.eye(3), np.array([1.0, 0.1, 0.0])) @ R
+    pose = recover_pose(E, x1g[:, :2], x2g[:, :2], np.eye(3))
+    assert sfm.score_pose(pose, min_inliers=10)[2] == ""
+    score, _, rejection = sfm.score_pose(pose, motion=motion, min_inliers=10)
+    assert score == 0.0 and rejection.startswith("pure rotation (rotation model")
