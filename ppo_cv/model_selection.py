@@ -63,9 +63,9 @@ to 1.6 times the residual of an essential matrix) on the rotation side while a t
 parallax, several times the noise, stays far above it.
 """
 
-MODEL_DIMENSIONS = {"rotation": (2, 6), "plane": (2, 8), "general": (3, 5)}
+MODEL_DIMENSIONS = {"rotation": (2, 5), "plane": (2, 8), "general": (3, 5)}
 """Variety dimension ``d`` and parameter count ``k`` of the named models (the rotation absorbs a
-focal scale and two radial coefficients: ``k = 3 + 3``)."""
+focal scale and a radial coefficient: ``k = 3 + 2``)."""
 
 _LAMBDA3 = 2.0
 

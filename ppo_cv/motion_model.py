@@ -24,11 +24,26 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import ppo
-from .model_selection import MODEL_DIMENSIONS, ModelResiduals, ModelSelection, select_model
+from .model_selection import (
+    JOINT_DIMENSION,
+    MODEL_DIMENSIONS,
+    ModelResiduals,
+    ModelSelection,
+    robust_sigma,
+    select_model,
+)
 from .robust import essential_from_pose, sampson_errors
 from .rotation import correct_points, fit_rotation_lens, ransac_rotation
 
 __all__ = ["MotionDecision", "decide_motion", "translation_for_rotation"]
+
+TRANSFER_FACTOR = 2.0
+"""Inlier bound on the rotation's transfer error, in units of the essential matrix's threshold:
+a transfer error carries the noise of both images (a Sampson distance is about half of it)."""
+
+RANSAC_FACTOR = 3.0
+"""The plain rotation of the 2-point RANSAC does not model the lens: its consensus is taken
+this many times wider, then the lens-absorbing fit re-selects at the normal bound."""
 
 
 @dataclass(frozen=True)
@@ -122,7 +137,8 @@ def decide_motion(
     focal : float
         Focal length (pixels) that turns normalised errors into pixels.
     threshold_px : float
-        Inlier threshold (pixels) of both models.
+        Inlier threshold (pixels) of the essential matrix; the rotation's transfer error uses
+        :data:`TRANSFER_FACTOR` times it.
     pri_threshold : float
         PRI threshold (paper: 0.015).
     seed : int
@@ -132,15 +148,22 @@ def decide_motion(
     -------
     MotionDecision
     """
-    threshold = threshold_px / focal
-    fit = ransac_rotation(x1, x2, threshold, seed=seed)
-    lens = fit_rotation_lens(x1, x2, fit.inliers, fit.R)
+    threshold = TRANSFER_FACTOR * threshold_px / focal
+    general_all = sampson_errors(essential_from_pose(R, t), x1, x2)
+    noise = robust_sigma(general_all[inliers], JOINT_DIMENSION - MODEL_DIMENSIONS["general"][0])
+    fit = ransac_rotation(x1, x2, RANSAC_FACTOR * threshold, seed=seed)
+    lens = fit_rotation_lens(x1, x2, fit.inliers, fit.R, noise=noise)
     rotation_inliers = lens.residuals < threshold
-    if np.count_nonzero(rotation_inliers) >= 5:
-        lens = fit_rotation_lens(x1, x2, rotation_inliers, lens.R)
-        rotation_inliers = lens.residuals < threshold
+    for _ in range(4):
+        if np.count_nonzero(rotation_inliers) < 5:
+            break
+        lens = fit_rotation_lens(x1, x2, rotation_inliers, lens.R, noise=noise)
+        within = lens.residuals < threshold
+        if np.array_equal(within, rotation_inliers):
+            break
+        rotation_inliers = within
     scored = inliers | rotation_inliers
-    general = sampson_errors(essential_from_pose(R, t), x1[scored], x2[scored]) * focal
+    general = general_all[scored] * focal
     rotation = lens.residuals[scored] * focal / np.sqrt(2.0)
     d_rot, k_rot = MODEL_DIMENSIONS["rotation"]
     d_gen, k_gen = MODEL_DIMENSIONS["general"]
@@ -150,15 +173,16 @@ def decide_motion(
             ModelResiduals("general", general, d_gen, k_gen),
         ]
     )
-    if lens.focal_significant:
-        R_rot = lens.R
-        c1 = correct_points(x1[rotation_inliers], lens.focal_scale, lens.k1, lens.k2)
-        c2 = correct_points(x2[rotation_inliers], lens.focal_scale, lens.k1, lens.k2)
-    else:
-        c1, c2 = x1[rotation_inliers], x2[rotation_inliers]
-        R_rot = ppo.rotation_from_rays(c1, c2) if len(c1) >= 2 else lens.R
-    t_rot = translation_for_rotation(R_rot, c1, c2)
-    pri = ppo.pure_rotation_indicator(ppo.intersection_scores(c1, c2, R_rot, t_rot))
+    R_rot, t_rot, pri = lens.R, np.asarray(t, dtype=np.float64), float("inf")
+    if np.count_nonzero(rotation_inliers) >= 5:
+        if lens.focal_significant:
+            c1 = correct_points(x1[rotation_inliers], lens.focal_scale, lens.k1)
+            c2 = correct_points(x2[rotation_inliers], lens.focal_scale, lens.k1)
+        else:
+            c1, c2 = x1[rotation_inliers], x2[rotation_inliers]
+            R_rot = ppo.rotation_from_rays(c1, c2)
+        t_rot = translation_for_rotation(R_rot, c1, c2)
+        pri = ppo.pure_rotation_indicator(ppo.intersection_scores(c1, c2, R_rot, t_rot))
     pri_general = ppo.pure_rotation_indicator(
         ppo.intersection_scores(x1[inliers], x2[inliers], R, t)
     )

@@ -9,11 +9,12 @@ Under a pure rotation the bearings of a match obey ``b2 = R b1`` (paper eq. 3 wi
 - :func:`ransac_rotation`: RANSAC over that solver (batches of hypotheses scored against all
   matches at once, trials adapted to the inlier ratio), then the least-squares rotation (Wahba,
   :func:`ppo_cv.ppo.rotation_from_rays`) over its inliers, re-selected until they settle.
-- :func:`fit_rotation_lens`: rotation plus one focal-length scale ``s`` and two radial
-  coefficients ``k1, k2`` shared by the two views, ``c(x) = s x (1 + k1 r^2 + k2 r^4)`` with
-  ``r = s |x|``, ``c(x2) ~ R c(x1)``, by Gauss-Newton over the inliers. A real tripod panorama
-  taken with intrinsics a few percent off and unmodelled distortion is this model; the
-  depth-dependent parallax of a translation is not, so the two models keep apart.
+- :func:`fit_rotation_lens`: rotation plus one focal-length scale ``s`` and one radial
+  coefficient ``k1`` shared by the two views, by Gauss-Newton over the inliers. The given
+  normalised point ``x`` is taken as ``s x = q (1 + k1 |q|^2)`` of the true ray ``(q, 1)``
+  (OpenCV's radial model, inverted exactly by fixed-point iteration), and ``(q2, 1) ~ R (q1, 1)``.
+  A tripod panorama taken with intrinsics a few percent off and unmodelled distortion is this
+  model; the depth-dependent parallax of a translation is not, so the two models keep apart.
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ __all__ = [
 
 _BLOCK = 1 << 18  # hypotheses x matches scored per block
 _BATCH = 64  # hypotheses drawn at once
-_NPARAMS = 6  # rotation increment (3), focal scale, k1, k2
+_NPARAMS = 5  # rotation increment (3), focal scale, k1
 
 
 @dataclass(frozen=True)
@@ -76,8 +77,8 @@ class LensRotationFit:
     R : ndarray, shape (3, 3)
     focal_scale : float
         ``s``: true focal length over the given one.
-    k1, k2 : float
-        Radial coefficients (of the undistortion) in normalised coordinates.
+    k1 : float
+        Radial coefficient (OpenCV's ``k1``) of the true camera.
     focal_scale_sigma : float
         Standard deviation of ``focal_scale`` from the Gauss-Newton covariance (inf when not
         estimated).
@@ -89,7 +90,6 @@ class LensRotationFit:
     R: np.ndarray
     focal_scale: float
     k1: float
-    k2: float
     focal_scale_sigma: float
     residuals: np.ndarray
 
@@ -242,42 +242,41 @@ def _skew_exp(w: np.ndarray) -> np.ndarray:
     return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * K @ K
 
 
-def _lens_map(xy: np.ndarray, scale: float, k1: float, k2: float = 0.0) -> np.ndarray:
-    q = scale * xy
-    r2 = np.sum(q * q, axis=1, keepdims=True)
-    return q * (1.0 + r2 * (k1 + k2 * r2))
+def _lens_map(xy: np.ndarray, scale: float, k1: float, iterations: int = 6) -> np.ndarray:
+    """True normalised points ``q`` (N, 2) of given points ``x``: ``s x = q (1 + k1 |q|^2)``."""
+    distorted = scale * xy
+    q = distorted
+    for _ in range(iterations):
+        q = distorted / (1.0 + k1 * np.sum(q * q, axis=1, keepdims=True))
+    return q
 
 
-def correct_points(x: np.ndarray, focal_scale: float, k1: float, k2: float = 0.0) -> np.ndarray:
-    """Normalised points of the given camera (N, 2 or 3) to homogeneous ``c(x)`` (N, 3).
+def correct_points(x: np.ndarray, focal_scale: float, k1: float) -> np.ndarray:
+    """Normalised points of the given camera (N, 2 or 3) to homogeneous true rays (N, 3).
 
-    ``c(x) = s x (1 + k1 r^2 + k2 r^4)``, ``r = s |x|``: the lens terms of
-    :func:`fit_rotation_lens` applied.
+    The inverse of ``s x = q (1 + k1 |q|^2)``: the lens terms of :func:`fit_rotation_lens`.
     """
-    c = _lens_map(np.asarray(x, dtype=np.float64)[:, :2], focal_scale, k1, k2)
-    return np.column_stack([c, np.ones(len(c))])
+    q = _lens_map(np.asarray(x, dtype=np.float64)[:, :2], focal_scale, k1)
+    return np.column_stack([q, np.ones(len(q))])
 
 
 def _lens_transfer(params: np.ndarray, R0: np.ndarray, xy1: np.ndarray, xy2: np.ndarray):
-    """Residual vectors (N, 2): ``(pi(R c(x1)) - c(x2)) / s`` in given normalised units."""
+    """Residual vectors (N, 2) in view 2, given normalised units: ``x2`` minus the transfer of
+    ``x1`` (``q1`` rotated, distorted and scaled back)."""
     R = _skew_exp(params[:3]) @ R0
-    scale, k1, k2 = 1.0 + params[3], params[4], params[5]
-    c1 = _lens_map(xy1, scale, k1, k2)
-    ray = np.column_stack([c1, np.ones(len(c1))]) @ R.T
+    scale, k1 = 1.0 + params[3], params[4]
+    q1 = _lens_map(xy1, scale, k1)
+    ray = np.column_stack([q1, np.ones(len(q1))]) @ R.T
     z = np.where(np.abs(ray[:, 2]) > 1e-9, ray[:, 2], 1e-9)
-    return (ray[:, :2] / z[:, None] - _lens_map(xy2, scale, k1, k2)) / scale
+    q2 = ray[:, :2] / z[:, None]
+    return q2 * (1.0 + k1 * np.sum(q2 * q2, axis=1, keepdims=True)) / scale - xy2
 
 
 def lens_rotation_residuals(
-    R: np.ndarray,
-    focal_scale: float,
-    k1: float,
-    x1: np.ndarray,
-    x2: np.ndarray,
-    k2: float = 0.0,
+    R: np.ndarray, focal_scale: float, k1: float, x1: np.ndarray, x2: np.ndarray
 ) -> np.ndarray:
     """Transfer error (N,) of matches under :func:`fit_rotation_lens`'s model, normalised units."""
-    params = np.array([0.0, 0.0, 0.0, focal_scale - 1.0, k1, k2])
+    params = np.array([0.0, 0.0, 0.0, focal_scale - 1.0, k1])
     xy1, xy2 = np.asarray(x1, float)[:, :2], np.asarray(x2, float)[:, :2]
     return np.linalg.norm(_lens_transfer(params, np.asarray(R, float), xy1, xy2), axis=1)
 
@@ -291,16 +290,21 @@ def fit_rotation_lens(
     iterations: int = 15,
     max_focal_change: float = 0.05,
     max_k1: float = 0.15,
-    max_k2: float = 0.0,
+    noise: float | None = None,
+    focal_prior: float = 0.03,
+    k1_prior: float = 0.1,
 ) -> LensRotationFit:
     """Rotation, focal scale and radial coefficient by Gauss-Newton over the used matches.
 
-    The model is ``c(x2) ~ R c(x1)`` with ``c(x) = s x (1 + k1 r^2 + k2 r^4)``, ``r = s |x|``, on
-    the given normalised coordinates ``x`` (one camera, or two with the same error): 6
-    parameters, rotation increments ``R = exp([w]_x) R0``. The least-squares cost is the
-    squared transfer error in view 2. The lens terms stay in a box of plausible lenses
-    (``|s - 1| <= max_focal_change``, ``|k1| <= max_k1``, ``|k2| <= max_k2``; projected
-    Gauss-Newton): a translation's parallax must not be explained away by an implausible lens.
+    The model is ``(q2, 1) ~ R (q1, 1)`` with ``s x = q (1 + k1 |q|^2)`` on the given normalised
+    coordinates ``x`` (one camera, or two with the same error): 5 parameters, rotation increments
+    ``R = exp([w]_x) R0``. The least-squares cost is the squared transfer error in view 2. The
+    lens terms must land in a box of plausible lenses (``|s - 1| <= max_focal_change``,
+    ``|k1| <= max_k1``), else they are clipped to it and the rotation alone is re-fitted: a
+    translation's parallax must not be explained away by an implausible lens. Given the
+    ``noise`` of a transfer-error coordinate, the lens terms also get Gaussian priors
+    ``s - 1 ~ N(0, focal_prior^2)`` and ``k1 ~ N(0, k1_prior^2)`` (a few matches, or matches
+    near the centre, do not determine them).
 
     Parameters
     ----------
@@ -311,9 +315,14 @@ def fit_rotation_lens(
     R : ndarray, shape (3, 3)
         Starting rotation (e.g. :func:`ransac_rotation`'s).
     iterations : int
-        Gauss-Newton steps (each a Levenberg-damped 6 x 6 solve).
-    max_focal_change, max_k1, max_k2 : float
-        Bounds on ``|s - 1|``, ``|k1|`` and ``|k2|``.
+        Gauss-Newton steps (each a Levenberg-damped 5 x 5 solve).
+    max_focal_change, max_k1 : float
+        Bounds on ``|s - 1|`` and ``|k1|``.
+    noise : float, optional
+        Standard deviation of one coordinate of the transfer error (normalised units); None
+        fits without the priors.
+    focal_prior, k1_prior : float
+        Standard deviations of the priors on ``s - 1`` and ``k1``.
 
     Returns
     -------
@@ -323,14 +332,20 @@ def fit_rotation_lens(
     xy1, xy2 = np.asarray(x1, float)[:, :2], np.asarray(x2, float)[:, :2]
     R0 = np.asarray(R, float)
     a, b = xy1[used], xy2[used]
-    bounds = np.array([np.inf, np.inf, np.inf, max_focal_change, max_k1, max_k2])
+    bounds = np.array([np.inf, np.inf, np.inf, max_focal_change, max_k1])
+    prior = np.zeros(_NPARAMS)
+    if noise is not None and noise > 0:
+        prior[3:] = noise / np.array([focal_prior, k1_prior])
+    problem = (R0, a, b, prior)
     params, sigma = np.zeros(_NPARAMS), np.inf
     if len(a) >= 2 * _NPARAMS:
-        params = _gauss_newton(params, R0, a, b, iterations, bounds)
-        if abs(params[3]) < max_focal_change:
-            sigma = _focal_sigma(params, R0, a, b)
-    elif len(a) >= 2:
-        params = _gauss_newton(params, R0, a, b, iterations, bounds, free=3)
+        params = _gauss_newton(params, problem, iterations)
+        sigma = _focal_sigma(params, problem)
+    if np.any(np.abs(params) > bounds) or len(a) < 2 * _NPARAMS:
+        params, sigma = np.clip(params, -bounds, bounds), np.inf
+        params[:3] = 0.0
+        if len(a) >= 2:
+            params = _gauss_newton(params, problem, iterations, free=3)
     R_final = _skew_exp(params[:3]) @ R0
     lens_only = np.r_[0.0, 0.0, 0.0, params[3:]]
     residuals = np.linalg.norm(_lens_transfer(lens_only, R_final, xy1, xy2), axis=1)
@@ -338,25 +353,31 @@ def fit_rotation_lens(
         R=R_final,
         focal_scale=1.0 + float(params[3]),
         k1=float(params[4]),
-        k2=float(params[5]),
         focal_scale_sigma=float(sigma),
         residuals=residuals,
     )
 
 
-def _jacobian(params, R0, a, b, free: int = 6, step: float = 1e-6):
-    residual = _lens_transfer(params, R0, a, b).ravel()
+def _objective(params, problem) -> np.ndarray:
+    """Transfer residuals (2I,) followed by the prior rows (5,)."""
+    R0, a, b, prior = problem
+    return np.concatenate([_lens_transfer(params, R0, a, b).ravel(), prior * params])
+
+
+def _jacobian(params, problem, free: int = _NPARAMS, step: float = 1e-6):
+    residual = _objective(params, problem)
     deltas = np.eye(_NPARAMS)[:free] * step
-    columns = [(_lens_transfer(params + d, R0, a, b).ravel() - residual) / step for d in deltas]
+    columns = [(_objective(params + d, problem) - residual) / step for d in deltas]
     return residual, np.stack(columns, axis=1)
 
 
-def _focal_sigma(params, R0, a, b) -> float:
-    """Focal scale deviation, ``sqrt(v (J^T J)^-1)[3, 3]``, ``v = |r|^2 / (2I - 6)``."""
-    residual, J = _jacobian(params, R0, a, b)
-    if len(residual) <= _NPARAMS:
+def _focal_sigma(params, problem) -> float:
+    """Focal scale deviation, ``sqrt(v (J^T J)^-1)[3, 3]``, ``v = |r|^2 / (2I - 5)``."""
+    residual, J = _jacobian(params, problem)
+    transfer = residual[:-_NPARAMS]
+    if len(transfer) <= _NPARAMS:
         return float("inf")
-    variance = float(residual @ residual) / (len(residual) - _NPARAMS)
+    variance = float(transfer @ transfer) / (len(transfer) - _NPARAMS)
     try:
         cov = variance * np.linalg.inv(J.T @ J)
     except np.linalg.LinAlgError:
@@ -364,18 +385,18 @@ def _focal_sigma(params, R0, a, b) -> float:
     return float(np.sqrt(max(cov[3, 3], 0.0)))
 
 
-def _gauss_newton(params, R0, a, b, iterations, bounds, free: int = 6, step: float = 1e-6):
+def _gauss_newton(params, problem, iterations, free: int = _NPARAMS, step=1e-6):
+    """Levenberg-Marquardt on the first ``free`` parameters."""
     damping = 1e-6
-    residual = _lens_transfer(params, R0, a, b).ravel()
+    residual = _objective(params, problem)
     cost = residual @ residual
     for _ in range(iterations):
-        J = _jacobian(params, R0, a, b, free, step)[1]
+        J = _jacobian(params, problem, free, step)[1]
         H, g = J.T @ J, J.T @ residual
         update = np.linalg.solve(H + damping * np.diag(np.diag(H) + 1e-12), -g)
         trial = params.copy()
         trial[:free] += update
-        trial = np.clip(trial, -bounds, bounds)
-        new_residual = _lens_transfer(trial, R0, a, b).ravel()
+        new_residual = _objective(trial, problem)
         new_cost = new_residual @ new_residual
         if new_cost < cost:
             params, residual, damping = trial, new_residual, damping * 0.1
