@@ -174,8 +174,8 @@ def test_imperfect_render_rotation_is_flagged(seed):
 
 
 def test_imperfect_render_with_baseline_is_not_flagged():
-    wide = imperfect_render(1, 0.1)
-    narrow = imperfect_render(1, 0.02)
+    wide = imperfect_render(1, 0.15)
+    narrow = imperfect_render(1, 0.05)
     wide_result = estimate_pair(wide.image1, wide.image2, wide.K_given)
     narrow_result = estimate_pair(narrow.image1, narrow.image2, narrow.K_given)
     for result in (wide_result, narrow_result):
