@@ -197,3 +197,32 @@ def test_score_pose_rejects_a_pair_the_model_comparison_calls_a_rotation():
     assert sfm.score_pose(pose, min_inliers=10)[2] == ""
     score, _, rejection = sfm.score_pose(pose, motion=motion, min_inliers=10)
     assert score == 0.0 and rejection.startswith("pure rotation (rotation model")
+
+
+def _data_gen_result(pair):
+    image1 = np.ascontiguousarray(pair.image1[..., ::-1])
+    image2 = np.ascontiguousarray(pair.image2[..., ::-1])
+    return estimate_pair(image1, image2, pair.K1_given, pair.K2_given)
+
+
+def test_data_gen_panorama_and_warped_photo_are_flagged():
+    from ppo_cv import data_gen
+
+    for pair in (
+        data_gen.make_pair("panorama", seed=0, index=1, imperfections=data_gen.REAL_PHOTO),
+        data_gen.make_warped_pair(seed=0, index=1),
+    ):
+        result = _data_gen_result(pair)
+        assert result.pure_rotation and result.model == "rotation"
+        assert _angle_deg(result.R, pair.R) < 0.5
+
+
+def test_data_gen_tiny_baseline_of_five_percent_is_not_flagged():
+    from ppo_cv import data_gen
+
+    pair = data_gen.make_pair(
+        "tiny-baseline", seed=0, index=1, imperfections=data_gen.REAL_PHOTO, baseline_ratio=0.05
+    )
+    result = _data_gen_result(pair)
+    assert not result.pure_rotation and result.gric_difference > 0
+    assert result.t_sigma_deg < 10.0
