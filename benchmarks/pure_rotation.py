@@ -3,10 +3,12 @@
 Data sets (all with the imperfections of real photos: radial distortion nobody models, the
 focal length given off by up to 3 %, a 25-35 degree field of view, JPEG):
 
-- ``render-rotation``: rendered pure rotations (``t = 0``), 5-20 degrees of pan;
-- ``warped-photo``: the freiburg frames warped by ``K R K^-1`` (exact ``t = 0``, real texture);
-- ``render-baseline``: renders with baseline / scene depth 0.02 and 0.05 (must not be flagged);
-- ``sweep``: baseline / depth from 0.001 to 0.05, to see where the flag switches;
+- ``data_gen ...``: :mod:`ppo_cv.data_gen` with ``imperfections=REAL_PHOTO``: the
+  ``pure-rotation`` and ``panorama`` presets and ``make_warped_pair`` (``t = 0``), the
+  ``tiny-baseline`` preset at baseline / depth 0.02 and 0.05 and ``general`` (translating);
+- ``harness ...``: the harsher pairs of ``tests/imperfect.py`` (480x360, rotations of 5-20
+  degrees, the freiburg frames warped by ``K R K^-1``, renders at baseline / depth 0.02);
+- ``sweep``: ``tiny-baseline`` from 0.001 to 0.05, to see where the flag switches;
 - ``freiburg``: the 85 real translating pairs with pseudo ground truth (must not be flagged).
 
 Every method gets the same matches: ppo_cv's SIFT matches of the pair (``PairResult.matches``).
@@ -149,6 +151,29 @@ def _freiburg_pairs(limit):
 
 
 def _sets(counts: dict, have_photos: bool):
+    from ppo_cv import data_gen
+
+    def official(motion, n, ratio=None):
+        for index in range(n):
+            pair = data_gen.make_pair(
+                motion, seed=0, index=index, imperfections=data_gen.REAL_PHOTO,
+                baseline_ratio=ratio,
+            )  # fmt: skip
+            yield f"index {index}", (
+                np.ascontiguousarray(pair.image1[..., ::-1]),
+                np.ascontiguousarray(pair.image2[..., ::-1]),
+                pair.K1_given, pair.K2_given, pair.R,
+            )  # fmt: skip
+
+    def official_warped(n):
+        for index in range(n):
+            pair = data_gen.make_warped_pair(seed=0, index=index)
+            yield f"index {index}", (
+                np.ascontiguousarray(pair.image1[..., ::-1]),
+                np.ascontiguousarray(pair.image2[..., ::-1]),
+                pair.K1_given, pair.K2_given, pair.R,
+            )  # fmt: skip
+
     def renders(ratio, n, start=0):
         for seed in range(start, start + n):
             pair = imperfect_render(seed, ratio)
@@ -161,13 +186,20 @@ def _sets(counts: dict, have_photos: bool):
             pair = warped_rotation_pair(photo, K_FREIBURG, seed)
             yield f"seed {seed}", (pair.image1, pair.image2, pair.K_given, None, pair.R)
 
-    yield "render-rotation", 1, renders(0.0, counts["rotation"]), True
-    if have_photos:
-        yield "warped-photo", 1, warped(counts["warped"]), True
+    n = counts["official"]
+    yield "data_gen pure-rotation", 1, official("pure-rotation", n), True
+    yield "data_gen panorama", 1, official("panorama", n), True
+    yield "data_gen warped photo", 1, official_warped(n), True
     for ratio in (0.02, 0.05):
-        yield f"render-baseline-{ratio}", 0, renders(ratio, counts["baseline"], 100), True
+        yield f"data_gen tiny-baseline {ratio}", 0, official("tiny-baseline", n, ratio), True
+    yield "data_gen general", 0, official("general", counts["baseline"]), True
+    yield "harness render rotation", 1, renders(0.0, counts["rotation"]), True
+    if have_photos:
+        yield "harness warped freiburg", 1, warped(counts["warped"]), True
+    yield "harness render 0.02", 0, renders(0.02, counts["baseline"], 100), True
     for ratio in SWEEP:
-        yield f"sweep-{ratio}", int(ratio < 0.02), renders(ratio, counts["sweep"], 200), False
+        pairs = official("tiny-baseline", counts["sweep"], ratio)
+        yield f"sweep-{ratio}", int(ratio < 0.02), pairs, False
     if have_photos:
         yield "freiburg", 0, _freiburg_pairs(counts["freiburg"]), True
 
@@ -175,9 +207,16 @@ def _sets(counts: dict, have_photos: bool):
 def run(quick: bool = False) -> dict:
     """Evaluate every set; returns ``{set: {"label": 0/1, "rows": [...]}}``."""
     counts = (
-        {"rotation": 4, "warped": 4, "baseline": 3, "sweep": 2, "freiburg": 6}
+        {"official": 3, "rotation": 2, "warped": 2, "baseline": 2, "sweep": 1, "freiburg": 4}
         if quick
-        else {"rotation": 24, "warped": 24, "baseline": 12, "sweep": 4, "freiburg": 85}
+        else {
+            "official": 14,
+            "rotation": 12,
+            "warped": 12,
+            "baseline": 8,
+            "sweep": 4,
+            "freiburg": 85,
+        }
     )
     have_photos = (FREIBURG / "pairs_with_gt.txt").is_file()
     results = {}
@@ -256,8 +295,8 @@ def report(results: dict, seconds: float, plot: str | None) -> str:
         lines.append(f"- {name}: precision {precision:.0f} %, recall {recall:.0f} %")
     lines += [
         "",
-        "Tiny-baseline sweep (renders; baseline / scene depth; either answer is acceptable "
-        "below 0.02):",
+        "Tiny-baseline sweep (data_gen `tiny-baseline` with REAL_PHOTO; baseline / scene depth; "
+        "either answer is acceptable below 0.02):",
         "",
         "| baseline / depth | pairs | ppo_cv flagged | median GRIC difference "
         "| median t_sigma_deg |",
@@ -292,8 +331,8 @@ def _plot(results: dict, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7.5, 3.6))
     names = [n for n in results if not n.startswith("sweep")]
+    fig, ax = plt.subplots(figsize=(8.0, 1.0 + 0.4 * len(names)))
     for y, name in enumerate(names):
         rows = [r for r in results[name]["rows"] if "gric_difference" in r]
         values = np.array([r["gric_difference"] for r in rows])

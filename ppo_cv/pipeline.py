@@ -174,7 +174,7 @@ class PairResult:
     noise_sigma_px : float
         Noise estimated from the essential matrix's residuals (pixels).
     focal_scale : float
-        Focal scale absorbed by the rotation-only fit (true over given focal).
+        Focal scale absorbed by the rotation-only fit (given focal length over the true one).
     timings : dict
         Seconds per stage; ``features`` is detection alone and ``pycolmap_import`` the wait for
         the first import of pycolmap that overlaps it.

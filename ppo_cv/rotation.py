@@ -76,7 +76,7 @@ class LensRotationFit:
     ----------
     R : ndarray, shape (3, 3)
     focal_scale : float
-        ``s``: true focal length over the given one.
+        ``s``: the given focal length over the true one.
     k1 : float
         Radial coefficient (OpenCV's ``k1``) of the true camera.
     focal_scale_sigma : float
