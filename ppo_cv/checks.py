@@ -17,9 +17,18 @@ __all__ = [
     "as_essential",
     "as_mask",
     "as_positive",
+    "as_nonnegative",
+    "MAX_COORDINATE",
+    "MIN_FOCAL",
+    "MAX_FOCAL",
 ]
 
 MIN_POINTS = 5
+MAX_COORDINATE = 1e8
+"""Largest accepted point coordinate or principal point, pixels: beyond it products overflow."""
+MIN_FOCAL, MAX_FOCAL = 1e-6, 1e8
+"""Accepted focal lengths, pixels (1 for a camera of normalized coordinates)."""
+MAX_RADIAL, MAX_RADIAL_RATIONAL, MAX_TANGENTIAL, MAX_PRISM, MAX_TILT = 10.0, 100.0, 1.0, 1.0, 1.0
 
 
 def _as_real_array(value: Any, name: str) -> np.ndarray:
@@ -44,6 +53,19 @@ def _require_finite(array: np.ndarray, name: str) -> None:
         raise ValueError(f"{name} has {int(bad.sum())} NaN or infinite value(s)")
 
 
+def _require_coordinates(array: np.ndarray, name: str) -> None:
+    """Finite entries of magnitude at most :data:`MAX_COORDINATE`."""
+    if array.size and -MAX_COORDINATE <= array.min() and array.max() <= MAX_COORDINATE:
+        return
+    _require_finite(array, name)
+    if array.size:
+        largest = float(np.abs(array).max())
+        raise ValueError(
+            f"{name} has coordinates up to {largest:.3g} px, beyond {MAX_COORDINATE:.0e}: "
+            "not image points"
+        )
+
+
 def _point_rows(value: Any, name: str) -> np.ndarray:
     """(N, 2) float64 view or copy of OpenCV-shaped points, not yet checked for finiteness."""
     array = _as_real_array(value, name)
@@ -58,7 +80,7 @@ def _point_rows(value: Any, name: str) -> np.ndarray:
 def as_points(value: Any, name: str) -> np.ndarray:
     """Image points as float64 (N, 2), from (N, 2), (N, 1, 2) or (1, N, 2), OpenCV's shapes."""
     array = _point_rows(value, name)
-    _require_finite(array, name)
+    _require_coordinates(array, name)
     return array
 
 
@@ -80,8 +102,8 @@ def as_point_pair(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Both point sets, checked for shape, finiteness, equal length and a minimum count."""
     p1, p2 = _paired_rows(points1, points2, min_points)
-    _require_finite(p1, "points1")
-    _require_finite(p2, "points2")
+    _require_coordinates(p1, "points1")
+    _require_coordinates(p2, "points2")
     return p1, p2
 
 
@@ -98,14 +120,19 @@ def as_homogeneous_pair(points1: Any, points2: Any, min_points: int = MIN_POINTS
     stack[0, :2] = p1.T
     stack[1, :2] = p2.T
     stack[:, 2] = 1.0
-    if not math.isfinite(stack.sum()):
-        _require_finite(p1, "points1")
-        _require_finite(p2, "points2")
+    if not (-MAX_COORDINATE <= stack.min() and stack.max() <= MAX_COORDINATE):
+        _require_coordinates(p1, "points1")
+        _require_coordinates(p2, "points2")
     return stack
 
 
 def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
-    """A 3x3 pinhole matrix with nonzero focal lengths and last row (0, 0, 1)."""
+    """A 3x3 pinhole matrix, last row (0, 0, 1), focal lengths in [MIN_FOCAL, MAX_FOCAL].
+
+    A negative focal length mirrors the image and flips the sign of the recovered ``t``; a
+    focal length near zero or a principal point beyond ``MAX_COORDINATE`` overflows: all are
+    errors naming ``name``.
+    """
     K = _as_real_array(value, name)
     if K.shape != (3, 3):
         raise ValueError(f"{name} must be a 3x3 matrix, got shape {K.shape}")
@@ -117,8 +144,22 @@ def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
         raise ValueError(
             f"{name} must be upper triangular with last row (0, 0, 1), got {K.tolist()}"
         )
-    if fx == 0 or fy == 0:
-        raise ValueError(f"{name} has a zero focal length (fx={fx}, fy={fy})")
+    if not (MIN_FOCAL <= fx <= MAX_FOCAL and MIN_FOCAL <= fy <= MAX_FOCAL):
+        kind = (
+            "a zero"
+            if fx == 0 or fy == 0
+            else "a negative"
+            if min(fx, fy) < 0
+            else "an implausible"
+        )
+        raise ValueError(
+            f"{name} has {kind} focal length (fx={fx}, fy={fy}); focal lengths must be "
+            f"positive, in [{MIN_FOCAL:g}, {MAX_FOCAL:g}] pixels"
+        )
+    if max(abs(rows[0][1]), abs(rows[0][2]), abs(rows[1][2])) > MAX_COORDINATE:
+        raise ValueError(
+            f"{name} has a skew or principal point beyond {MAX_COORDINATE:.0e} px: {K.tolist()}"
+        )
     return K
 
 
@@ -133,11 +174,39 @@ def as_distortion(value: Any, name: str) -> np.ndarray | None:
             f"8, 12 or 14 for the rational models), got {coefficients.size}"
         )
     _require_finite(coefficients, name)
+    _require_physical_distortion(coefficients, name)
     return coefficients if coefficients.any() else None
 
 
+def _require_physical_distortion(coefficients: np.ndarray, name: str) -> None:
+    """OpenCV's order: k1, k2, p1, p2[, k3[, k4, k5, k6[, s1, s2, s3, s4[, tau_x, tau_y]]]].
+
+    Bounds: ``|k1|, |k2|, |k3| <= 10`` (the polynomial model; a radial factor beyond 10 at the
+    edge of a normal field of view folds the image over itself), ``<= 100`` for the rational
+    model, whose numerator and denominator terms grow together; ``|p| <= 1``, ``|s| <= 1`` and
+    the sensor tilt ``|tau| <= 1`` radian.
+    """
+    radial_bound = MAX_RADIAL_RATIONAL if coefficients.size >= 8 else MAX_RADIAL
+    groups = (
+        ("radial k1, k2", coefficients[:2], radial_bound),
+        ("tangential p1, p2", coefficients[2:4], MAX_TANGENTIAL),
+        ("radial k3..k6", coefficients[4:8], radial_bound),
+        ("thin prism s1..s4", coefficients[8:12], MAX_PRISM),
+        ("tilt tau_x, tau_y", coefficients[12:14], MAX_TILT),
+    )
+    for label, values, bound in groups:
+        if values.size and np.abs(values).max() > bound:
+            raise ValueError(
+                f"{name}: {label} {values.tolist()} outside the physical range |value| <= {bound:g}"
+            )
+
+
 def as_essential(value: Any) -> np.ndarray:
-    """A single finite, nonzero 3x3 essential matrix."""
+    """A single finite, nonzero 3x3 essential matrix, rescaled to a largest entry of 1.
+
+    The pose does not depend on the scale of ``E``; the rescaling keeps any finite scale
+    (1e-200 or 1e300) clear of underflow and overflow in the decomposition.
+    """
     E = _as_real_array(value, "E")
     if E.ndim == 2 and E.shape[1] == 3 and E.shape[0] % 3 == 0 and E.shape[0] > 3:
         raise ValueError(
@@ -149,13 +218,19 @@ def as_essential(value: Any) -> np.ndarray:
     entries = E.ravel().tolist()
     if not math.isfinite(sum(entries)):
         _require_finite(E, "E")
-    if not any(entries):
+    largest = max(map(abs, entries))
+    if largest == 0:
         raise ValueError("E is all zeros: it defines no pose")
-    return E
+    return E if largest == 1.0 else E * (1.0 / largest)
 
 
-def as_mask(value: Any, n: int) -> np.ndarray | None:
-    """An inlier mask of n entries (any of OpenCV's shapes) as bool (n,), or None."""
+def as_mask(value: Any, n: int, min_selected: int = MIN_POINTS) -> np.ndarray | None:
+    """An inlier mask of n entries (any of OpenCV's shapes) as bool (n,), or None.
+
+    Entries are bool or whole numbers in 0..255, OpenCV's 8-bit masks (nonzero selects the
+    point); anything else (0.5, 256, -1, NaN) is an error rather than a guess, and so is a mask
+    selecting fewer than ``min_selected`` points.
+    """
     if value is None:
         return None
     mask = np.asarray(value)
@@ -165,15 +240,49 @@ def as_mask(value: Any, n: int) -> np.ndarray | None:
         raise TypeError(f"mask must be numeric or bool, got dtype {mask.dtype}")
     if mask.size != n or (mask.ndim > 1 and max(mask.shape) != n):
         raise ValueError(f"mask must have one entry per point ({n}), got shape {mask.shape}")
-    return mask.reshape(-1) != 0
+    mask = mask.reshape(-1)
+    if mask.dtype.kind not in "bu" or mask.dtype.itemsize > 1:
+        _require_byte_values(mask)
+    used = mask != 0
+    selected = int(np.count_nonzero(used))
+    if selected < min_selected:
+        raise ValueError(
+            f"mask selects {selected} of {n} points; at least {min_selected} are needed"
+        )
+    return used
+
+
+def _require_byte_values(mask: np.ndarray) -> None:
+    with np.errstate(invalid="ignore"):
+        bad = ~((mask >= 0) & (mask <= 255) & (mask == np.round(mask)))
+    if bad.any():
+        example = mask[np.flatnonzero(bad)[0]].item()
+        raise ValueError(
+            f"mask values must be 0..255 whole numbers or bool (nonzero selects a point), "
+            f"got {example} ({int(bad.sum())} such entries)"
+        )
 
 
 def as_positive(value: Any, name: str) -> float:
     """A finite number > 0."""
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a number, got {type(value).__name__}") from None
+    number = _as_float(value, name)
     if not np.isfinite(number) or number <= 0:
         raise ValueError(f"{name} must be a finite number > 0, got {number}")
     return number
+
+
+def as_nonnegative(value: Any, name: str) -> float:
+    """A finite number >= 0."""
+    number = _as_float(value, name)
+    if not np.isfinite(number) or number < 0:
+        raise ValueError(f"{name} must be a finite number >= 0, got {number}")
+    return number
+
+
+def _as_float(value: Any, name: str) -> float:
+    if isinstance(value, (str, bytes)):
+        raise TypeError(f"{name} must be a number, got {type(value).__name__} {value!r}")
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a number, got {type(value).__name__}") from None

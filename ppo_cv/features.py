@@ -15,6 +15,7 @@ __all__ = [
     "FEATURE_TYPES",
     "PIXEL_PAIR_RESOLUTION",
     "Features",
+    "to_uint8",
     "to_gray",
     "detect_features",
     "match_features",
@@ -53,15 +54,42 @@ class Features:
         return int(self.keypoints.shape[0])
 
 
+def to_uint8(image: np.ndarray, name: str = "image") -> np.ndarray:
+    """An image of any depth as uint8, scaled by its actual range.
+
+    uint8 passes through and bool maps to {0, 255}. Values already within 0..255 (integers, or
+    floats beyond 1) are kept; floats within [0, 1] are multiplied by 255; anything else
+    (16-bit, 12-bit in 16, signed, floats of any range) maps ``[min, max]`` linearly onto
+    ``[0, 255]``, so a 12-bit image keeps its contrast. NaN or infinite pixels are a
+    ValueError naming ``name``.
+    """
+    image = np.asarray(image)
+    if image.dtype == np.uint8:
+        return image
+    if image.dtype == np.bool_:
+        return image.view(np.uint8) * np.uint8(255)
+    if image.dtype.kind not in "iuf":
+        raise TypeError(f"{name} must hold numbers, got dtype {image.dtype}")
+    low, high = (float(image.min()), float(image.max())) if image.size else (0.0, 0.0)
+    if not (np.isfinite(low) and np.isfinite(high)):
+        bad = int(np.count_nonzero(~np.isfinite(image)))
+        raise ValueError(f"{name} has {bad} NaN or infinite pixel value(s)")
+    if image.dtype.kind == "f" and low >= 0.0 and high <= 1.0:
+        return np.rint(image * 255.0).astype(np.uint8)
+    if low >= 0.0 and high <= 255.0:
+        return np.rint(image).astype(np.uint8)
+    scale = 255.0 / (high - low)
+    return np.rint((image.astype(np.float32) - np.float32(low)) * np.float32(scale)).astype(
+        np.uint8
+    )
+
+
 def to_gray(image: np.ndarray) -> np.ndarray:
-    """An 8-bit single-channel copy of an image of shape (H, W), (H, W, 3) BGR or (H, W, 4)."""
+    """An 8-bit single-channel copy of an image of shape (H, W), (H, W, 3) BGR or (H, W, 4),
+    of any depth (scaled by :func:`to_uint8`)."""
     import cv2
 
-    image = np.asarray(image)
-    if image.dtype != np.uint8:
-        if np.issubdtype(image.dtype, np.floating) and image.size and float(image.max()) <= 1.0:
-            image = image * 255.0
-        image = np.clip(image, 0, 255).astype(np.uint8)
+    image = to_uint8(image)
     if image.ndim == 2:
         return image
     if image.ndim == 3 and image.shape[2] == 1:

@@ -11,8 +11,20 @@ defaults, array shapes and return tuples::
                 R[, t[, method[, prob[, threshold[, mask]]]]]]]) -> retval, E, R, t, mask
 
 ``retval`` counts the points that satisfy both PPO inequalities, and the output ``mask`` marks
-them (keeping the values of the input mask, 255 where none was given, as OpenCV does).
+them (keeping the values of the input mask, 255 where none was given, as OpenCV does; in the
+fourth form OpenCV overwrites the input mask with the robust estimator's, and so does this).
 ``install()`` puts this function in place of ``cv2.recoverPose``.
+
+As in OpenCV, a positional number after ``cameraMatrix`` is the ``R`` output buffer (first
+form, four outputs); ``distanceThresh`` selects the third form by keyword (or with eight or nine
+positional arguments). ``E`` may have any shape of nine entries (``(9,)``, ``(1, 9)``, ...), and
+``cv2.UMat`` inputs give ``cv2.UMat`` outputs.
+
+Bad input raises :class:`RecoverPoseError` (a ``ValueError``) or :class:`RecoverPoseTypeError`
+(a ``TypeError``), both subclasses of ``cv2.error``, so code written for OpenCV that catches
+``cv2.error`` keeps working under :func:`install`. Unlike OpenCV, a mask selecting fewer than
+five points, mask values other than 0..255 whole numbers, and non-positive focal lengths are
+errors rather than silent zeros or mirrored poses.
 """
 
 from __future__ import annotations
@@ -27,6 +39,9 @@ import numpy as np
 
 from . import ppo
 from .checks import (
+    MAX_COORDINATE,
+    MAX_FOCAL,
+    MIN_FOCAL,
     as_camera_matrix,
     as_distortion,
     as_essential,
@@ -37,9 +52,43 @@ from .checks import (
 )
 from .pose import inverse_camera
 
-__all__ = ["recoverPose", "install", "uninstall", "installed", "is_installed"]
+__all__ = [
+    "recoverPose",
+    "install",
+    "uninstall",
+    "installed",
+    "is_installed",
+    "RecoverPoseError",
+    "RecoverPoseTypeError",
+]
+
+
+class RecoverPoseError(cv2.error, ValueError):
+    """Invalid input to :func:`recoverPose`: a ``ValueError`` and a ``cv2.error``."""
+
+
+class RecoverPoseTypeError(cv2.error, TypeError):
+    """Input of the wrong type to :func:`recoverPose`: a ``TypeError`` and a ``cv2.error``."""
+
 
 _OPENCV_RECOVER_POSE = cv2.recoverPose
+_replaced: list = []  # what install() replaced, restored by uninstall()
+_METHODS = {
+    name: getattr(cv2, name)
+    for name in (
+        "RANSAC",
+        "LMEDS",
+        "USAC_DEFAULT",
+        "USAC_PARALLEL",
+        "USAC_FM_8PTS",
+        "USAC_FAST",
+        "USAC_ACCURATE",
+        "USAC_PROSAC",
+        "USAC_MAGSAC",
+    )
+    if hasattr(cv2, name)
+}
+_MAX_THRESHOLD = 100.0
 _FLIP_XY = np.array([-1.0, -1.0, 1.0])
 _MASK_ON = np.uint8(255)
 _FORM1 = ("E", "points1", "points2", "cameraMatrix", "R", "t", "mask")
@@ -102,7 +151,7 @@ def _form(args: tuple, kwargs: dict) -> tuple[str, ...]:
     has_camera = "cameraMatrix" in kwargs or (len(args) > 3 and args[3] is not None)
     if not has_camera:
         return _FORM2
-    if "distanceThresh" in kwargs or (len(args) > 4 and _is_number(args[4])):
+    if "distanceThresh" in kwargs or (len(args) > len(_FORM1) and _is_number(args[4])):
         return _FORM3
     return _FORM1
 
@@ -139,13 +188,48 @@ def _outputs(
 
 
 def _camera_from_focal(focal: Any, pp: Any) -> np.ndarray:
-    f = float(focal) if focal is not None else 1.0
-    if not np.isfinite(f) or f == 0:
-        raise ValueError(f"focal must be a finite nonzero number, got {f}")
-    cx, cy = (0.0, 0.0) if pp is None else np.asarray(pp, dtype=np.float64).reshape(2)
-    if not (np.isfinite(cx) and np.isfinite(cy)):
-        raise ValueError(f"pp must be two finite numbers, got {pp}")
+    f = 1.0 if focal is None else as_positive(focal, "focal")
+    if not MIN_FOCAL <= f <= MAX_FOCAL:
+        raise ValueError(f"focal must be in [{MIN_FOCAL:g}, {MAX_FOCAL:g}] pixels, got {f}")
+    try:
+        cx, cy = (0.0, 0.0) if pp is None else np.asarray(pp, dtype=np.float64).reshape(2)
+    except (TypeError, ValueError):
+        raise TypeError(f"pp must be two numbers (cx, cy), got {pp!r}") from None
+    if not (abs(cx) <= MAX_COORDINATE and abs(cy) <= MAX_COORDINATE):
+        raise ValueError(f"pp must be two finite numbers within {MAX_COORDINATE:.0e}, got {pp}")
     return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
+
+
+def _method(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"method must be an int flag such as cv2.RANSAC, got {value!r}")
+    if int(value) not in _METHODS.values():
+        raise ValueError(f"method must be one of cv2.{', cv2.'.join(_METHODS)}, got {value}")
+    return int(value)
+
+
+def _probability(value: Any) -> float:
+    prob = as_positive(value, "prob")
+    if not prob < 1:
+        raise ValueError(f"prob must be in (0, 1), got {prob}")
+    return prob
+
+
+def _threshold(value: Any) -> float:
+    threshold = as_positive(value, "threshold")
+    if threshold > _MAX_THRESHOLD:
+        raise ValueError(f"threshold must be in (0, {_MAX_THRESHOLD:g}] pixels, got {threshold}")
+    return threshold
+
+
+def _essential(value: Any) -> np.ndarray:
+    """``E`` as OpenCV reads it: any array of nine entries is one 3x3 matrix."""
+    shape = getattr(value, "shape", None)
+    if shape is not None and len(shape) != 2 and np.size(value) == 9:
+        value = np.reshape(value, (3, 3))
+    elif shape in ((1, 9), (9, 1)):
+        value = np.reshape(value, (3, 3))
+    return as_essential(value)
 
 
 def _recover_from_points(bound: dict) -> tuple:
@@ -153,30 +237,30 @@ def _recover_from_points(bound: dict) -> tuple:
     p1, p2 = as_point_pair(bound.get("points1"), bound.get("points2"))
     K1 = as_camera_matrix(bound.get("cameraMatrix1"), "cameraMatrix1")
     K2 = as_camera_matrix(bound.get("cameraMatrix2"), "cameraMatrix2")
-    n1 = _undistort(p1, K1, bound.get("distCoeffs1"))
-    n2 = _undistort(p2, K2, bound.get("distCoeffs2"))
-    threshold = as_positive(bound.get("threshold", 1.0), "threshold")
+    n1 = _undistort(p1, K1, bound.get("distCoeffs1"), "distCoeffs1")
+    n2 = _undistort(p2, K2, bound.get("distCoeffs2"), "distCoeffs2")
+    threshold = _threshold(bound.get("threshold", 1.0))
+    method = _method(bound.get("method", cv2.RANSAC))
+    prob = _probability(bound.get("prob", 0.999))
     focal = (K1[0, 0] + K1[1, 1] + K2[0, 0] + K2[1, 1]) / 4.0
-    E, ransac_mask = cv2.findEssentialMat(
-        n1,
-        n2,
-        np.eye(3),
-        int(bound.get("method", cv2.RANSAC)),
-        float(bound.get("prob", 0.999)),
-        threshold / abs(focal),
-    )
+    E, ransac_mask = cv2.findEssentialMat(n1, n2, np.eye(3), method, prob, threshold / focal)
     if E is None or ransac_mask is None or not ransac_mask.any():
         raise ValueError("no essential matrix could be estimated from these points")
-    used = ransac_mask.reshape(-1) != 0
-    input_mask = as_mask(bound.get("mask"), p1.shape[0])
-    if input_mask is not None:
-        used &= input_mask
+    used = ransac_mask.reshape(-1) != 0  # OpenCV overwrites the input mask with this one
     points, K_inv = as_homogeneous_pair(n1, n2), np.eye(3)
     candidates = [E[i : i + 3] for i in range(0, E.shape[0], 3)]
     results = [_identify(Ei, points, K_inv, used) for Ei in candidates]
     best = int(np.argmax([np.count_nonzero(inliers) for _, _, inliers in results]))
     retval, R, t, mask = _outputs(*results[best], {**bound, "mask": used})
+    _fill_mask(bound.get("mask"), mask)
     return retval, _out_matrix(bound.get("E"), candidates[best].copy()), R, t, mask
+
+
+def _fill_mask(buffer: Any, mask: np.ndarray) -> None:
+    """OpenCV writes the output mask into a caller's 8-bit mask array of the right size."""
+    if isinstance(buffer, np.ndarray) and buffer.dtype == np.uint8 and buffer.size == mask.size:
+        if buffer.flags.writeable and buffer.flags.c_contiguous:
+            buffer.reshape(-1)[...] = mask.reshape(-1)
 
 
 def _identify(
@@ -214,9 +298,9 @@ def _cached_inverse(K_bytes: bytes) -> np.ndarray:
     return K_inv
 
 
-def _undistort(points: np.ndarray, K: np.ndarray, coefficients: Any) -> np.ndarray:
+def _undistort(points: np.ndarray, K: np.ndarray, coefficients: Any, name: str) -> np.ndarray:
     """Pixel points (N, 2) to normalized points (N, 2) with OpenCV's distortion model."""
-    coefficients = as_distortion(coefficients, "distCoeffs")
+    coefficients = as_distortion(coefficients, name)
     return cv2.undistortPoints(points.reshape(-1, 1, 2), K, coefficients).reshape(-1, 2)
 
 
@@ -228,8 +312,9 @@ def recoverPose(*args: Any, **kwargs: Any) -> tuple:  # noqa: N802 - OpenCV's na
 
     Raises
     ------
-    TypeError, ValueError
-        With a message naming the offending argument.
+    RecoverPoseError, RecoverPoseTypeError
+        With a message naming the offending argument; subclasses of ``ValueError`` and
+        ``TypeError`` respectively, and both of ``cv2.error``.
 
     Examples
     --------
@@ -249,6 +334,32 @@ def recoverPose(*args: Any, **kwargs: Any) -> tuple:  # noqa: N802 - OpenCV's na
     >>> retval, bool(np.allclose(R_est, R, atol=1e-6)), t_est.ravel().round(6).tolist()
     (100, True, [1.0, 0.0, 0.0])
     """
+    try:
+        if any(isinstance(value, cv2.UMat) for value in (*args, *kwargs.values())):
+            return _on_umats(args, kwargs)
+        return _recover_pose(args, kwargs)
+    except cv2.error:
+        raise
+    except ValueError as exc:
+        raise RecoverPoseError(str(exc)) from None
+    except TypeError as exc:
+        raise RecoverPoseTypeError(str(exc)) from None
+
+
+def _on_umats(args: tuple, kwargs: dict) -> tuple:
+    """OpenCV's UMat contract: UMat inputs are read, and array outputs come back as UMats."""
+
+    def read(value: Any) -> Any:
+        return value.get() if isinstance(value, cv2.UMat) else value
+
+    outputs = _recover_pose(
+        tuple(read(value) for value in args), {key: read(v) for key, v in kwargs.items()}
+    )
+    return tuple(cv2.UMat(np.ascontiguousarray(out)) if isinstance(out, np.ndarray) else out
+                 for out in outputs)  # fmt: skip
+
+
+def _recover_pose(args: tuple, kwargs: dict) -> tuple:
     form = _form(args, kwargs)
     bound = _bind(form, args, kwargs)
     if form is _FORM4:
@@ -257,7 +368,7 @@ def recoverPose(*args: Any, **kwargs: Any) -> tuple:  # noqa: N802 - OpenCV's na
         K = _camera_from_focal(bound.get("focal", 1.0), bound.get("pp"))
     else:
         K = bound.get("cameraMatrix")
-    E = as_essential(bound.get("E"))
+    E = _essential(bound.get("E"))
     points = as_homogeneous_pair(bound.get("points1"), bound.get("points2"))
     K_inv = _inverse_camera_matrix(K)
     used = as_mask(bound.get("mask"), points.shape[2])
@@ -278,13 +389,20 @@ def is_installed() -> bool:
 
 
 def install() -> None:
-    """Replace ``cv2.recoverPose`` with :func:`recoverPose` for all code in this process."""
-    cv2.recoverPose = recoverPose
+    """Replace ``cv2.recoverPose`` with :func:`recoverPose` for all code in this process.
+
+    Installing twice is harmless; :func:`uninstall` restores what was there before.
+    """
+    if cv2.recoverPose is not recoverPose:
+        _replaced[:] = [cv2.recoverPose]
+        cv2.recoverPose = recoverPose
 
 
 def uninstall() -> None:
-    """Restore OpenCV's own ``cv2.recoverPose``."""
-    cv2.recoverPose = _OPENCV_RECOVER_POSE
+    """Restore the ``cv2.recoverPose`` that :func:`install` replaced (OpenCV's, or another
+    wrapper installed before); nothing to do when ppo_cv's is not installed."""
+    if cv2.recoverPose is recoverPose:
+        cv2.recoverPose = _replaced.pop() if _replaced else _OPENCV_RECOVER_POSE
 
 
 @contextlib.contextmanager

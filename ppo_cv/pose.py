@@ -8,7 +8,14 @@ from typing import Any
 import numpy as np
 
 from . import ppo
-from .checks import as_camera_matrix, as_essential, as_mask, as_point_pair, as_positive
+from .checks import (
+    as_camera_matrix,
+    as_essential,
+    as_mask,
+    as_nonnegative,
+    as_point_pair,
+    as_positive,
+)
 
 __all__ = ["PoseResult", "recover_pose", "pixel_rays", "inverse_camera"]
 
@@ -119,11 +126,13 @@ def recover_pose(
     points1, points2 : array_like, shape (N, 2), (N, 1, 2) or (1, N, 2)
         Matching pixel coordinates in image 1 and image 2, N >= 5.
     K1 : array_like, shape (3, 3)
-        Intrinsics of camera 1.
+        Intrinsics of camera 1; positive focal lengths (a negative one would mirror the image
+        and flip ``t``: it is an error).
     K2 : array_like, shape (3, 3), optional
         Intrinsics of camera 2; defaults to ``K1``.
     mask : array_like, shape (N,) or (N, 1), optional
-        Nonzero entries select the points to use (e.g. RANSAC inliers).
+        Nonzero entries select the points to use (e.g. RANSAC inliers): bool or whole numbers
+        0..255; it must select at least 5 points.
     pri_threshold : float
         Motion is a pure rotation when PRI is below it (paper: 0.015).
     distance_thresh : float, optional
@@ -149,6 +158,7 @@ def recover_pose(
     (True, 50, False)
     """
     E = as_essential(E)
+    pri_threshold = as_nonnegative(pri_threshold, "pri_threshold")
     p1, p2 = as_point_pair(points1, points2)
     K1 = as_camera_matrix(K1, "K1")
     K2 = K1 if K2 is None else as_camera_matrix(K2, "K2")
@@ -157,7 +167,7 @@ def recover_pose(
     if distance_thresh is not None:
         distance_thresh = as_positive(distance_thresh, "distance_thresh")
     X1, X2 = pixel_rays(p1, K1), pixel_rays(p2, K2)
-    return _recover_rays(E, X1, X2, used, float(pri_threshold), distance_thresh)
+    return _recover_rays(E, X1, X2, used, pri_threshold, distance_thresh)
 
 
 def _recover_normalized(

@@ -92,7 +92,7 @@ def test_zero_focal_length(call, pair):
 
 def test_zero_focal_length_in_focal_form(pair):
     E, p1, p2 = pair
-    with pytest.raises(ValueError, match="focal must be a finite nonzero number"):
+    with pytest.raises(ValueError, match="focal must be a finite number > 0"):
         ppo_cv.recoverPose(E, p1, p2, focal=0.0, pp=(320.0, 240.0))
 
 
@@ -141,7 +141,7 @@ def test_mask_of_wrong_length(call, pair):
 def test_distance_threshold_must_be_positive(pair):
     E, p1, p2 = pair
     with pytest.raises(ValueError, match="distanceThresh must be a finite number > 0"):
-        ppo_cv.recoverPose(E, p1, p2, K, -1.0)
+        ppo_cv.recoverPose(E, p1, p2, K, distanceThresh=-1.0)
     with pytest.raises(ValueError, match="distance_thresh must be a finite number > 0"):
         ppo_cv.recover_pose(E, p1, p2, K, distance_thresh=0.0)
 

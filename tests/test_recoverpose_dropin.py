@@ -54,10 +54,12 @@ def test_form_camera_matrix(scene):
 def test_a_camera_matrix_changed_in_place_is_used_and_a_bad_one_always_rejected(scene):
     K = scene["K"].copy()
     args = (scene["E"], scene["p1"], scene["p2"])
-    first = ppo_cv.recoverPose(*args, K, 50.0)[4]
+    first = ppo_cv.recoverPose(*args, K, distanceThresh=50.0)[4]
     K[0, 2] += 40.0  # same array object, new principal point
-    moved = ppo_cv.recoverPose(*args, K, 50.0)[4]
-    np.testing.assert_array_equal(moved, ppo_cv.recoverPose(*args, K.copy(), 50.0)[4])
+    moved = ppo_cv.recoverPose(*args, K, distanceThresh=50.0)[4]
+    np.testing.assert_array_equal(
+        moved, ppo_cv.recoverPose(*args, K.copy(), distanceThresh=50.0)[4]
+    )
     assert np.abs(moved - first).max() > 1e-3
     K[0, 0] = 0.0
     for _ in range(2):
@@ -82,7 +84,7 @@ def test_form_focal_defaults_to_normalized_points(scene):
 
 
 def test_form_distance_threshold_returns_analytic_points(scene):
-    ours = ppo_cv.recoverPose(scene["E"], scene["p1"], scene["p2"], scene["K"], 50.0)
+    ours = ppo_cv.recoverPose(scene["E"], scene["p1"], scene["p2"], scene["K"], distanceThresh=50.0)
     reference = OPENCV_RECOVER_POSE(
         scene["E"], scene["p1"], scene["p2"], scene["K"], distanceThresh=50.0
     )

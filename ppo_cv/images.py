@@ -1,0 +1,153 @@
+"""Reading images safely: size checked from the header before decoding, any depth to 8 bits.
+
+A small compressed file can declare an enormous image (a 878 KB PNG of 30000 x 30000 pixels
+decodes to 2.7 GB); :func:`load_image` reads the width and height from the file header first
+(PNG by its IHDR chunk, other formats through Pillow's lazy ``Image.open``, which parses only
+the header) and refuses images above ``max_pixels``: by default :data:`DEFAULT_MAX_PIXELS`
+(100 megapixels), overridable per call or by the environment variable ``PPO_CV_MAX_IMAGE_PIXELS``.
+Named pipes, devices and other non-regular files are refused without being opened, so a FIFO
+given as an image cannot block.
+
+Images of 16 bits (or any integer depth) and float images are scaled to 8 bits by their actual
+range (:func:`ppo_cv.features.to_uint8`): a 12-bit PNG keeps its contrast instead of reading
+as blank.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+import struct
+from typing import Any
+
+import numpy as np
+
+from .features import to_uint8
+
+__all__ = ["DEFAULT_MAX_PIXELS", "MAX_PIXELS_ENV", "image_size", "load_image", "as_image"]
+
+DEFAULT_MAX_PIXELS = 100_000_000
+MAX_PIXELS_ENV = "PPO_CV_MAX_IMAGE_PIXELS"
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _max_pixels(max_pixels: int | None) -> int:
+    if max_pixels is None:
+        text = os.environ.get(MAX_PIXELS_ENV)
+        if text is None:
+            return DEFAULT_MAX_PIXELS
+        try:
+            max_pixels = int(text)
+        except ValueError:
+            raise ValueError(f"{MAX_PIXELS_ENV} must be a whole number, got {text!r}") from None
+        name = MAX_PIXELS_ENV
+    else:
+        name = "max_pixels"
+    if isinstance(max_pixels, bool) or not isinstance(max_pixels, (int, np.integer)):
+        raise TypeError(f"{name} must be a whole number, got {max_pixels!r}")
+    if max_pixels < 1:
+        raise ValueError(f"{name} must be >= 1, got {max_pixels}")
+    return int(max_pixels)
+
+
+def _regular_file(path: str) -> None:
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise ValueError(f"image not found: {path}") from None
+    except OSError as exc:
+        raise ValueError(f"cannot read image {path}: {exc.strerror or exc}") from None
+    if stat.S_ISDIR(mode):
+        raise ValueError(f"expected an image file, got a directory: {path}")
+    if not stat.S_ISREG(mode):
+        raise ValueError(f"not a regular file (a pipe, socket or device?): {path}")
+
+
+def image_size(path: str | os.PathLike) -> tuple[int, int] | None:
+    """``(width, height)`` from the file header without decoding, or None when unknown.
+
+    PNG is parsed directly (signature, then the IHDR chunk); other formats go through Pillow,
+    which reads only the header on open.
+    """
+    path = os.fspath(path)
+    with open(path, "rb") as file:
+        head = file.read(24)
+    if head[:8] == _PNG_SIGNATURE and head[12:16] == b"IHDR":
+        width, height = struct.unpack(">II", head[16:24])
+        return int(width), int(height)
+    try:
+        from PIL import Image
+    except ImportError:  # pragma: no cover - Pillow comes with scikit-image
+        return None
+    try:
+        with Image.open(path) as image:
+            return tuple(int(v) for v in image.size)
+    except Image.DecompressionBombError:
+        return (2**31 - 1, 1)  # beyond Pillow's own hard limit: larger than any we accept
+    except Exception:  # not a format Pillow knows: OpenCV may still read it
+        return None
+
+
+def load_image(path: str | os.PathLike, max_pixels: int | None = None) -> np.ndarray:
+    """Read an image file as 8-bit BGR (H, W, 3), checking its size before decoding.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        A regular image file (PNG, JPEG, TIFF, ... anything OpenCV decodes).
+    max_pixels : int, optional
+        Largest accepted ``width * height``; default ``PPO_CV_MAX_IMAGE_PIXELS`` from the
+        environment, else :data:`DEFAULT_MAX_PIXELS` (100 megapixels).
+
+    Returns
+    -------
+    ndarray of uint8, shape (H, W, 3)
+        Deeper images (16-bit, float) scaled to 8 bits by their actual range.
+
+    Raises
+    ------
+    ValueError
+        Naming the file: missing, a directory or non-regular file, larger than ``max_pixels``,
+        or not a readable image.
+    """
+    import cv2
+
+    path = os.fspath(path)
+    limit = _max_pixels(max_pixels)
+    _regular_file(path)
+    size = image_size(path)
+    if size is not None and size[0] * size[1] > limit:
+        raise ValueError(
+            f"image too large: {path} declares {size[0]}x{size[1]} pixels, above the limit of "
+            f"{limit} (max_pixels or {MAX_PIXELS_ENV})"
+        )
+    data = np.fromfile(path, dtype=np.uint8)
+    flags = cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH
+    image = cv2.imdecode(data, flags) if data.size else None
+    if image is None:
+        raise ValueError(f"not a readable image: {path}")
+    if image.shape[0] * image.shape[1] > limit:
+        raise ValueError(
+            f"image too large: {path} is {image.shape[1]}x{image.shape[0]} pixels, above the "
+            f"limit of {limit} (max_pixels or {MAX_PIXELS_ENV})"
+        )
+    return to_uint8(image, path)
+
+
+def as_image(image: Any, name: str) -> np.ndarray:
+    """An image argument as an 8-bit array (H, W) or (H, W, C): a path is loaded, an array
+    checked (shape, numeric, no NaN) and scaled to 8 bits by its range."""
+    if isinstance(image, (str, os.PathLike)):
+        return load_image(image)
+    if image is None:
+        raise TypeError(f"{name} is required: an image array or a path, got None")
+    array = np.asarray(image)
+    if (
+        array.ndim not in (2, 3)
+        or array.size == 0
+        or (array.ndim == 3 and array.shape[2] not in (1, 3, 4))
+    ):
+        raise ValueError(f"{name} must be an image of shape (H, W) or (H, W, 3), got {array.shape}")
+    if array.dtype.kind not in "buif":
+        raise TypeError(f"{name} must hold numbers, got dtype {array.dtype}")
+    return to_uint8(array, name)

@@ -1,0 +1,335 @@
+"""Hostile input to the library: each case is (call, exception type, words naming the argument).
+
+Followed by the behaviours that are not errors: any scale of E, OpenCV's accepted shapes and
+UMats, the positional call OpenCV reads as the first form, and images of any depth.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+import zlib
+
+import cv2
+import numpy as np
+import pytest
+from twoview import make_scene, random_rotation, skew
+
+import ppo_cv
+from ppo_cv.images import load_image
+from ppo_cv.pipeline import PairOptions
+
+K = np.array([[800.0, 0.0, 320.0], [0.0, 800.0, 240.0], [0.0, 0.0, 1.0]])
+OPENCV_RECOVER_POSE = cv2.recoverPose
+
+
+def _scene():
+    rng = np.random.default_rng(11)
+    R = random_rotation(rng, 10.0)
+    t = np.array([1.0, 0.1, 0.3])
+    _, p1, p2 = make_scene(rng, 40, R, t, K)
+    return skew(t) @ R, p1, p2, R, t / np.linalg.norm(t)
+
+
+E, P1, P2, R_TRUE, T_TRUE = _scene()
+GREY = np.random.default_rng(0).integers(0, 256, (48, 64), dtype=np.uint8)
+
+
+def _K(**entries):
+    K_bad = K.copy()
+    for key, value in entries.items():
+        K_bad[{"fx": (0, 0), "fy": (1, 1), "cx": (0, 2)}[key]] = value
+    return K_bad
+
+
+def _mask(value, selected=40):
+    mask = np.zeros(40)
+    mask[:selected] = value
+    return mask
+
+
+def _points(index, value):
+    points = P2.copy()
+    points[index] = value
+    return points
+
+
+def _image_with_nan():
+    image = GREY.astype(np.float32)
+    image[3, 4] = np.nan
+    return image
+
+
+def _pair(**kwargs):
+    args = {"image1": GREY, "image2": GREY[::-1].copy(), "K1": K, **kwargs}
+    return lambda: ppo_cv.estimate_pair(**args)
+
+
+def _form4(**kwargs):
+    args = {"distCoeffs1": None, "distCoeffs2": None, **kwargs}
+    return lambda: ppo_cv.recoverPose(P1, P2, cameraMatrix1=K, cameraMatrix2=K, **args)
+
+
+CASES = {
+    # negative, zero, tiny, huge, non-finite focal lengths (issue section 4)
+    "recoverPose negative fx": (lambda: ppo_cv.recoverPose(E, P1, P2, _K(fx=-800)), ValueError,
+                                "cameraMatrix has a negative focal length"),
+    "recoverPose tiny focal": (lambda: ppo_cv.recoverPose(E, P1, P2, _K(fx=1e-200, fy=1e-200)),
+                               ValueError, "cameraMatrix has an implausible focal"),
+    "recoverPose nan focal": (lambda: ppo_cv.recoverPose(E, P1, P2, _K(fy=np.nan)), ValueError,
+                              "cameraMatrix has 1 NaN"),
+    "recoverPose focal form negative": (lambda: ppo_cv.recoverPose(E, P1, P2, focal=-800.0),
+                                        ValueError, "focal must be a finite number > 0"),
+    "recoverPose focal form inf": (lambda: ppo_cv.recoverPose(E, P1, P2, focal=np.inf),
+                                   ValueError, "focal"),
+    "recoverPose focal form text": (lambda: ppo_cv.recoverPose(E, P1, P2, focal="800"),
+                                    TypeError, "focal must be a number"),
+    "recoverPose pp nan": (lambda: ppo_cv.recoverPose(E, P1, P2, focal=800.0, pp=(np.nan, 1.0)),
+                           ValueError, "pp must be two finite numbers"),
+    "recoverPose pp wrong size": (lambda: ppo_cv.recoverPose(E, P1, P2, focal=800.0, pp=(1, 2, 3)),
+                                  TypeError, "pp must be two numbers"),
+    "recover_pose negative K1": (lambda: ppo_cv.recover_pose(E, P1, P2, _K(fy=-800)), ValueError,
+                                 "K1 has a negative focal length"),
+    "recover_pose zero K2": (lambda: ppo_cv.recover_pose(E, P1, P2, K, _K(fx=0)), ValueError,
+                             "K2 has a zero focal length"),
+    "recover_pose principal point 1e300": (lambda: ppo_cv.recover_pose(E, P1, P2, _K(cx=1e300)),
+                                           ValueError, "K1 has a skew or principal point"),
+    "estimate_pair negative K1": (_pair(K1=_K(fx=-800)), ValueError, "K1 has a negative"),
+    "estimate_pair tiny K2": (_pair(K2=_K(fx=1e-200)), ValueError, "K2 has an implausible"),
+    # points that overflow
+    "recoverPose points 1e300": (lambda: ppo_cv.recoverPose(E, P1, _points(3, 1e300), K),
+                                 ValueError, "points2 has coordinates up to 1e+300"),
+    "recover_pose points 1e9": (lambda: ppo_cv.recover_pose(E, _points(0, -1e9), P2, K),
+                                ValueError, "points1 has coordinates up to 1e+09"),
+    # masks: values OpenCV does not read as 8-bit, too few selected points
+    "recoverPose mask 0.5": (lambda: ppo_cv.recoverPose(E, P1, P2, K, mask=_mask(0.5)),
+                             ValueError, "mask values must be 0..255 whole numbers"),
+    "recoverPose mask 256": (lambda: ppo_cv.recoverPose(E, P1, P2, K, mask=_mask(256)),
+                             ValueError, "mask values"),
+    "recoverPose mask nan": (lambda: ppo_cv.recoverPose(E, P1, P2, K, mask=_mask(np.nan)),
+                             ValueError, "mask values"),
+    "recoverPose mask -1": (lambda: ppo_cv.recoverPose(E, P1, P2, K, mask=_mask(-1)),
+                            ValueError, "mask values"),
+    "recoverPose mask all zero": (lambda: ppo_cv.recoverPose(E, P1, P2, K, mask=_mask(1, 0)),
+                                  ValueError, "mask selects 0 of 40 points"),
+    "recover_pose mask all zero": (lambda: ppo_cv.recover_pose(E, P1, P2, K, mask=_mask(1, 0)),
+                                   ValueError, "mask selects 0 of 40 points"),
+    "recover_pose mask 4 points": (lambda: ppo_cv.recover_pose(E, P1, P2, K, mask=_mask(1, 4)),
+                                   ValueError, "mask selects 4 of 40 points; at least 5"),
+    "recoverPose mask 1 point": (lambda: ppo_cv.recoverPose(E, P1, P2, K, mask=_mask(255, 1)),
+                                 ValueError, "mask selects 1 of 40"),
+    "recoverPose mask text": (lambda: ppo_cv.recoverPose(E, P1, P2, K, mask=np.array(["a"] * 40)),
+                              TypeError, "mask must be numeric"),
+    # other arguments of the drop-in and the rich API
+    "form 4 prob 1.5": (_form4(prob=1.5), ValueError, "prob must be in (0, 1)"),
+    "form 4 prob 0": (_form4(prob=0.0), ValueError, "prob must be a finite number > 0"),
+    "form 4 method unknown": (_form4(method=12345), ValueError, "method must be one of"),
+    "form 4 method text": (_form4(method="ransac"), TypeError, "method must be an int flag"),
+    "form 4 threshold inf": (_form4(threshold=np.inf), ValueError, "threshold must be a finite"),
+    "form 4 threshold 1000": (_form4(threshold=1000.0), ValueError,
+                              "threshold must be in (0, 100]"),
+    "form 4 distortion 1e10": (_form4(distCoeffs1=[1e10, 0, 0, 0]), ValueError,
+                               "distCoeffs1: radial k1, k2"),
+    "form 4 tangential 5": (_form4(distCoeffs2=[0, 0, 5.0, 0]), ValueError,
+                            "distCoeffs2: tangential p1, p2"),
+    "recoverPose distanceThresh nan": (
+        lambda: ppo_cv.recoverPose(E, P1, P2, K, distanceThresh=np.nan), ValueError,
+        "distanceThresh"),
+    "recover_pose pri_threshold -1": (
+        lambda: ppo_cv.recover_pose(E, P1, P2, K, pri_threshold=-1), ValueError,
+        "pri_threshold must be a finite number >= 0"),
+    "recover_pose pri_threshold nan": (
+        lambda: ppo_cv.recover_pose(E, P1, P2, K, pri_threshold=np.nan), ValueError,
+        "pri_threshold"),
+    "recover_pose pri_threshold text": (
+        lambda: ppo_cv.recover_pose(E, P1, P2, K, pri_threshold="x"), TypeError,
+        "pri_threshold must be a number"),
+    # estimate_pair: options, thresholds, distortion, images
+    "estimate_pair options not PairOptions": (_pair(options={"features": "sift"}), TypeError,
+                                              "options must be a PairOptions"),
+    "PairOptions threshold inf": (lambda: PairOptions(ransac_threshold=np.inf), ValueError,
+                                  "ransac_threshold must be in (0, 100]"),
+    "PairOptions threshold nan": (lambda: PairOptions(ransac_threshold=np.nan), ValueError,
+                                  "ransac_threshold"),
+    "PairOptions threshold 101": (lambda: PairOptions(ransac_threshold=101.0), ValueError,
+                                  "ransac_threshold"),
+    "PairOptions pri_threshold -1": (lambda: PairOptions(pri_threshold=-1.0), ValueError,
+                                     "pri_threshold must be a finite number >= 0"),
+    "PairOptions max_log10_nfa nan": (lambda: PairOptions(max_log10_nfa=np.nan), ValueError,
+                                      "max_log10_nfa"),
+    "estimate_pair dist 1e10": (_pair(dist1=[1e10, 0, 0, 0]), ValueError,
+                                "dist1: radial k1, k2 [10000000000.0, 0.0]"),
+    "estimate_pair dist k3 50": (_pair(dist1=[0, 0, 0, 0, 50.0]), ValueError, "dist1: radial k3"),
+    "estimate_pair dist2 tangential": (_pair(K2=K, dist2=[0, 0, 0, 2.0]), ValueError,
+                                       "dist2: tangential"),
+    "estimate_pair NaN pixel": (_pair(image1=_image_with_nan()), ValueError,
+                                "image1 has 1 NaN or infinite pixel"),
+    "estimate_pair image None": (_pair(image2=None), TypeError, "image2 is required"),
+    "estimate_pair sizes differ without K2": (_pair(image2=GREY[:40]), ValueError,
+                                              "pass K2 for image2"),
+    "estimate_pair image text dtype": (_pair(image1=np.full((8, 8), "a")), TypeError,
+                                       "image1 must hold numbers"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", list(CASES), ids=list(CASES))
+def test_hostile_input_is_an_error_naming_the_argument(case):
+    call, exception, words = CASES[case]
+    with pytest.raises(exception) as info:
+        call()
+    assert words in str(info.value)
+
+
+DROPIN_CASES = [case for case in CASES if case.startswith(("recoverPose", "form 4"))]
+
+
+@pytest.mark.parametrize("case", DROPIN_CASES, ids=DROPIN_CASES)
+def test_dropin_errors_are_also_cv2_errors(case):
+    call, exception, words = CASES[case]
+    with ppo_cv.installed(), pytest.raises(cv2.error) as info:
+        call()
+    assert isinstance(info.value, exception) and words in str(info.value)
+
+
+def test_existing_code_catching_cv2_error_keeps_working_under_install():
+    with ppo_cv.installed():
+        try:
+            cv2.recoverPose(E, P1, P2, _K(fx=-800))
+        except cv2.error as exc:
+            assert "negative focal length" in str(exc)
+        else:
+            pytest.fail("no error")
+
+
+@pytest.mark.parametrize("scale", [1e80, 1e-200, 1e300, -3.0, 1e-300])
+def test_any_finite_scale_of_E_gives_the_same_pose(scale):
+    retval, R, t, mask = ppo_cv.recoverPose(E * scale, P1, P2, K)
+    assert retval == 40 and abs(np.linalg.det(R) - 1) < 1e-9
+    np.testing.assert_allclose(R, R_TRUE, atol=1e-9)
+    np.testing.assert_allclose(t.ravel(), T_TRUE, atol=1e-9)
+    result = ppo_cv.recover_pose(E * scale, P1, P2, K)
+    np.testing.assert_allclose(result.R, R_TRUE, atol=1e-9)
+
+
+@pytest.mark.parametrize("shape", [(9,), (1, 9), (9, 1), (3, 3, 1)])
+def test_dropin_reads_E_of_nine_entries_as_opencv_does(shape):
+    reference = OPENCV_RECOVER_POSE(E.reshape(shape), P1, P2, K)
+    ours = ppo_cv.recoverPose(E.reshape(shape), P1, P2, K)
+    assert ours[0] == reference[0] == 40
+    np.testing.assert_allclose(ours[1], reference[1], atol=1e-9)
+
+
+def test_umat_inputs_give_umat_outputs_with_the_same_pose():
+    ours = ppo_cv.recoverPose(cv2.UMat(E), cv2.UMat(P1), cv2.UMat(P2), cv2.UMat(K))
+    reference = OPENCV_RECOVER_POSE(cv2.UMat(E), cv2.UMat(P1), cv2.UMat(P2), cv2.UMat(K))
+    assert [type(out) for out in ours] == [type(out) for out in reference]
+    np.testing.assert_allclose(ours[1].get(), reference[1].get(), atol=1e-9)
+    np.testing.assert_array_equal(ours[3].get(), reference[3].get())
+
+
+def test_a_positional_number_after_the_camera_is_the_R_buffer_as_in_opencv():
+    reference = OPENCV_RECOVER_POSE(E, P1, P2, K, 50.0)
+    ours = ppo_cv.recoverPose(E, P1, P2, K, 50.0)
+    assert len(ours) == len(reference) == 4
+    assert ours[0] == reference[0]
+    np.testing.assert_allclose(ours[1], reference[1], atol=1e-9)
+    np.testing.assert_array_equal(ours[3], reference[3])
+
+
+def test_form_with_points_overwrites_the_input_mask_as_opencv_does():
+    rng = np.random.default_rng(5)
+    noisy = P2 + rng.normal(0, 0.2, P2.shape)
+    plain = ppo_cv.recoverPose(P1, noisy, K, None, K, None)
+    zeros = np.zeros((40, 1), np.uint8)
+    given = ppo_cv.recoverPose(P1, noisy, K, None, K, None, mask=zeros)
+    opencv = OPENCV_RECOVER_POSE(P1, noisy, K, None, K, None, mask=np.zeros((40, 1), np.uint8))
+    assert given[0] == plain[0] > 30 and opencv[0] > 30
+    np.testing.assert_array_equal(given[4], plain[4])
+    assert set(np.unique(given[4])) == set(np.unique(opencv[4])) == {1}
+    np.testing.assert_array_equal(zeros, given[4])  # written in place, as OpenCV does
+
+
+def test_uninstall_restores_what_install_replaced():
+    def wrapper(*args, **kwargs):
+        return OPENCV_RECOVER_POSE(*args, **kwargs)
+
+    saved = cv2.recoverPose
+    cv2.recoverPose = wrapper
+    try:
+        ppo_cv.install()
+        ppo_cv.install()
+        assert cv2.recoverPose is ppo_cv.recoverPose
+        ppo_cv.uninstall()
+        assert cv2.recoverPose is wrapper
+    finally:
+        cv2.recoverPose = saved
+
+
+def _png_header(width: int, height: int) -> bytes:
+    """A PNG whose IHDR declares width x height 16-bit grey, with a token data chunk."""
+    ihdr = struct.pack(">IIBBBBB", width, height, 16, 0, 0, 0, 0)
+
+    def chunk(kind, data):
+        crc = zlib.crc32(kind + data) & 0xFFFFFFFF
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", crc)
+
+    idat = zlib.compress(b"\x00" * 64)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", idat) + chunk(b"IEND", b"")
+
+
+def test_decompression_bomb_is_refused_from_the_header(tmp_path, monkeypatch):
+    bomb = tmp_path / "bomb.png"
+    bomb.write_bytes(_png_header(30000, 30000))
+    with pytest.raises(ValueError, match="bomb.png declares 30000x30000 pixels, above the limit"):
+        load_image(bomb)
+    with pytest.raises(ValueError, match="declares 30000x30000"):
+        ppo_cv.estimate_pair(bomb, bomb, K)
+    small = tmp_path / "small.png"
+    cv2.imwrite(str(small), GREY)
+    with pytest.raises(ValueError, match="declares 64x48 pixels, above the limit of 1000"):
+        load_image(small, max_pixels=1000)
+    monkeypatch.setenv("PPO_CV_MAX_IMAGE_PIXELS", "3072")
+    assert load_image(small).shape == (48, 64, 3)
+    monkeypatch.setenv("PPO_CV_MAX_IMAGE_PIXELS", "3071")
+    with pytest.raises(ValueError, match="above the limit of 3071"):
+        load_image(small)
+    monkeypatch.setenv("PPO_CV_MAX_IMAGE_PIXELS", "lots")
+    with pytest.raises(ValueError, match="PPO_CV_MAX_IMAGE_PIXELS must be a whole number"):
+        load_image(small)
+
+
+def test_jpeg_size_is_read_from_the_header_too(tmp_path):
+    path = tmp_path / "a.jpg"
+    cv2.imwrite(str(path), np.zeros((300, 200, 3), np.uint8))
+    with pytest.raises(ValueError, match="declares 200x300 pixels"):
+        load_image(path, max_pixels=59_999)
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+def test_a_fifo_is_refused_without_blocking(tmp_path):
+    fifo = tmp_path / "pipe.png"
+    os.mkfifo(fifo)
+    with pytest.raises(ValueError, match="not a regular file"):
+        load_image(fifo)
+
+
+def test_missing_file_and_directory(tmp_path):
+    with pytest.raises(ValueError, match="image not found"):
+        load_image(tmp_path / "none.png")
+    with pytest.raises(ValueError, match="got a directory"):
+        load_image(tmp_path)
+
+
+def test_deep_images_are_scaled_by_their_range(tmp_path):
+    ramp = np.tile(np.arange(64, dtype=np.uint16), (48, 1))
+    twelve_bit = tmp_path / "twelve.png"
+    cv2.imwrite(str(twelve_bit), ramp * 65)  # 0 .. 4095
+    loaded = load_image(twelve_bit)
+    assert loaded.dtype == np.uint8 and loaded.min() == 0 and loaded.max() == 255
+    low = tmp_path / "low.png"
+    cv2.imwrite(str(low), ramp * 4)  # a uint16 file holding 0..252: already 8-bit values
+    np.testing.assert_array_equal(load_image(low)[:, :, 0], (ramp * 4).astype(np.uint8))
+    gray = ppo_cv.features.to_gray(ramp.astype(np.uint16) * 1000)
+    assert gray.min() == 0 and gray.max() == 255 and np.all(np.diff(gray[0].astype(int)) >= 0)
+    unit = ppo_cv.features.to_gray(ramp / 63.0)
+    assert unit.max() == 255 and unit.min() == 0
