@@ -162,6 +162,10 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
         f"  camera 1     {camera(result.K1, result.dist1)}",
         f"  camera 2     {camera(result.K2, result.dist2)}",
         f"  PRI          {result.pri:.4f} (threshold {result.pri_threshold:g}): {verdict}",
+        f"  model        {result.model}: median residual rotation "
+        f"{result.rotation_residual_px:.2f} px, general {result.general_residual_px:.2f} px, "
+        f"GRIC difference {result.gric_difference:+.3f} per match",
+        f"  t sigma      {result.t_sigma_deg:.2f} deg (direction of t, one standard deviation)",
         f"  matches      {result.num_matches} putative, {result.num_inliers} inliers, "
         f"{result.num_points} 3D points",
         "  time         "

@@ -121,6 +121,23 @@ def _listed(array: Any) -> list | None:
     return None if array is None else np.asarray(array, dtype=np.float64).tolist()
 
 
+def _model_selection(result: PairResult) -> dict:
+    """``model``, ``t_sigma_deg`` and the decision statistics, for results that carry them."""
+    if not hasattr(result, "model"):
+        return {}
+    return {
+        "model": str(result.model),
+        "t_sigma_deg": float(result.t_sigma_deg),
+        "model_selection": {
+            "rotation_residual_px": float(result.rotation_residual_px),
+            "general_residual_px": float(result.general_residual_px),
+            "gric_difference": float(result.gric_difference),
+            "noise_sigma_px": float(result.noise_sigma_px),
+            "focal_scale": float(result.focal_scale),
+        },
+    }
+
+
 def result_to_dict(result: PairResult, **extra: Any) -> dict:
     """A JSON-ready summary: pose, verdict, counts, intrinsics, distortion, timings (+ ``extra``).
 
@@ -142,6 +159,7 @@ def result_to_dict(result: PairResult, **extra: Any) -> dict:
         "translation_determined": bool(result.translation_determined),
         "pri": float(result.pri),
         "pri_threshold": float(result.pri_threshold),
+        **_model_selection(result),
         "rotation_angle_deg": angle,
         "rotation_axis": axis.tolist(),
         "rotation_euler_deg": camera_euler_degrees(result.R)._asdict(),

@@ -11,8 +11,11 @@ Stages (each timed in ``PairResult.timings``, seconds):
 5. ``ppo``: the pose among the four candidates of ``E`` by the PPO inequalities (same-side M1
    for ``R``, intersection M2 for ``t``), without triangulation.
 6. ``refine``: non-linear refinement of ``(R, t)`` over the inliers (:mod:`ppo_cv.refine`).
-7. ``decision``: PPO decision and PRI on the refined pose; for a pure rotation the rotation is
-   re-fitted on bearings and no point is emitted, otherwise the analytic points (Prop. 3).
+7. ``model``: rotation-only fit on the same matches (2-point RANSAC, then rotation with a focal
+   scale and radial distortion, :mod:`ppo_cv.rotation`) and the choice between "rotation" and
+   "general" (:mod:`ppo_cv.motion_model`); the uncertainty of the direction of ``t``.
+8. ``decision``: for a pure rotation the rotation of the rotation-only fit and no point;
+   otherwise the PPO pose and the analytic points (Prop. 3).
 """
 
 from __future__ import annotations
@@ -30,8 +33,9 @@ from .checks import as_camera_matrix, as_distortion
 from .features import FEATURE_TYPES, Features, detect_features, match_features
 from .images import as_image as _as_image
 from .images import load_image
+from .motion_model import decide_motion
 from .pose import _recover_normalized
-from .refine import fit_rotation, refine_pose
+from .refine import refine_pose, translation_sigma_deg
 from .robust import ROBUST_BACKENDS, essential_from_pose, estimate_essential, sampson_errors
 from .significance import epipolar_significance
 
@@ -154,9 +158,12 @@ class PairResult:
         Unit translation direction. When ``pure_rotation`` is True it is the best unit estimate
         but undetermined (``translation_determined`` is False).
     pure_rotation : bool
-        PRI below ``pri_threshold``: the views share a centre (or the baseline is negligible).
+        The views share a centre, or the baseline is negligible (:mod:`ppo_cv.motion_model`:
+        the rotation model wins GRIC and its PRI is below ``pri_threshold``).
     pri : float
-        Pure-rotation indicator (mean ``|M2|``, eq. 84) of the refined pose over the inliers.
+        Pure-rotation indicator (mean ``|M2|``, eq. 84) of the returned pose over the inliers:
+        the essential matrix's refined pose, or for a pure rotation the rotation-only fit with
+        the ``t`` most consistent with it.
     keypoints1, keypoints2 : ndarray, shape (N1, 2), (N2, 2)
         All detected keypoints, full-resolution pixels.
     matches : ndarray of int, shape (M, 2)
@@ -177,6 +184,25 @@ class PairResult:
         OpenCV distortion coefficients removed from the points; None for none.
     image_size1, image_size2 : tuple of int
         ``(width, height)`` of each image.
+    pri_threshold : float
+        PRI threshold used.
+    model : str
+        ``"rotation"`` or ``"general"`` (``"plane"`` is reserved for homographies).
+    t_sigma_deg : float
+        One standard deviation of the direction of ``t`` (degrees, at most 180) from the
+        Jacobian of the Sampson cost of the refined pose over its inliers
+        (:func:`ppo_cv.refine.translation_sigma_deg`); grows as the baseline shrinks. 180 for a
+        pure rotation: the model has no translation, and the essential matrix's apparent
+        confidence there comes from lens errors its translation absorbs.
+    rotation_residual_px, general_residual_px : float
+        Median residual (pixels, distance in the joint image space) of the rotation-only fit
+        and of the essential matrix over the union of their inliers.
+    gric_difference : float
+        ``(GRIC(rotation) - GRIC(general)) / n``: the decision statistic, negative for a rotation.
+    noise_sigma_px : float
+        Noise estimated from the essential matrix's residuals (pixels).
+    focal_scale : float
+        Focal scale absorbed by the rotation-only fit (given focal length over the true one).
     timings : dict
         Seconds per stage; ``features`` is detection alone and ``pycolmap_import`` the wait for
         the first import of pycolmap that overlaps it.
@@ -202,6 +228,13 @@ class PairResult:
     image_size1: tuple[int, int]
     image_size2: tuple[int, int]
     pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD
+    model: str = "general"
+    t_sigma_deg: float = float("nan")
+    rotation_residual_px: float = float("nan")
+    general_residual_px: float = float("nan")
+    gric_difference: float = float("nan")
+    noise_sigma_px: float = float("nan")
+    focal_scale: float = 1.0
     timings: dict[str, float] = field(default_factory=dict)
     dist1: np.ndarray | None = None
     dist2: np.ndarray | None = None
@@ -440,29 +473,38 @@ def estimate_pair(
         R, t, inliers = _refine(R, t, x1, x2, inliers, focal, options)
     lap("refine")
 
-    final = _recover_normalized(
-        essential_from_pose(R, t), x1[:, :2], x2[:, :2], inliers, float(options.pri_threshold)
-    )
-    if final.pure_rotation:
-        R, _ = fit_rotation(x1, x2, inliers, 2.0 * options.ransac_threshold / focal, R=final.R)
-        t = final.t
-        keep = np.zeros(len(matches), dtype=bool)
+    motion = decide_motion(
+        x1, x2, R, t, inliers, focal,
+        threshold_px=options.ransac_threshold,
+        pri_threshold=float(options.pri_threshold),
+        seed=options.seed,
+    )  # fmt: skip
+    lap("model")
+
+    if motion.pure_rotation:
+        R, t, pri = motion.R, motion.t, motion.pri
+        inliers = motion.rotation_inliers
+        t_sigma = 180.0
+        points3d, keep = np.full((len(matches), 3), np.nan), np.zeros(len(matches), dtype=bool)
     else:
-        R, t = final.R, final.t
+        final = _recover_normalized(essential_from_pose(R, t), x1[:, :2], x2[:, :2], inliers, 0.0)
+        R, t, pri = final.R, final.t, final.pri
         keep = final.inliers & np.all(np.isfinite(final.points3d), axis=1)
+        points3d = np.where(keep[:, None], final.points3d, np.nan)
+        t_sigma = translation_sigma_deg(R, t, x1, x2, inliers)
     point_matches = np.flatnonzero(keep)
     lap("decision")
 
     return PairResult(
         R=R,
         t=t,
-        pure_rotation=final.pure_rotation,
-        pri=float(final.pri),
+        pure_rotation=motion.pure_rotation,
+        pri=float(pri),
         keypoints1=f1.keypoints,
         keypoints2=f2.keypoints,
         matches=matches,
         inliers=inliers,
-        points3d=np.where(keep[:, None], final.points3d, np.nan),
+        points3d=points3d,
         point_matches=point_matches,
         colours=_colours(img1, p1),
         K1=K1,
@@ -470,6 +512,13 @@ def estimate_pair(
         image_size1=(int(img1.shape[1]), int(img1.shape[0])),
         image_size2=(int(img2.shape[1]), int(img2.shape[0])),
         pri_threshold=float(options.pri_threshold),
+        model=motion.model,
+        t_sigma_deg=t_sigma,
+        rotation_residual_px=motion.selection.median_residual_px["rotation"],
+        general_residual_px=motion.selection.median_residual_px["general"],
+        gric_difference=motion.gric_difference,
+        noise_sigma_px=motion.selection.sigma_px,
+        focal_scale=motion.focal_scale,
         timings=timings,
         dist1=dist1,
         dist2=dist2,

@@ -15,7 +15,7 @@ import numpy as np
 from .ppo import rotation_from_rays
 from .robust import virtual_camera
 
-__all__ = ["refine_pose", "fit_rotation", "rotation_residuals"]
+__all__ = ["refine_pose", "fit_rotation", "rotation_residuals", "translation_sigma_deg"]
 
 
 def refine_pose(
@@ -138,3 +138,79 @@ def fit_rotation(
         used = keep
         R = rotation_from_rays(b1[used], b2[used])
     return R, used
+
+
+def _sampson_signed(R: np.ndarray, t: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
+    tx = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
+    E = tx @ R
+    Ex1, Etx2 = x1 @ E.T, x2 @ E
+    denominator = np.sqrt(np.sum(Ex1[:, :2] ** 2, axis=1) + np.sum(Etx2[:, :2] ** 2, axis=1))
+    return np.einsum("ij,ij->i", x2, Ex1) / np.maximum(denominator, 1e-300)
+
+
+def _rotation_increment(w: np.ndarray) -> np.ndarray:
+    angle = float(np.linalg.norm(w))
+    if angle < 1e-15:
+        return np.eye(3)
+    k = w / angle
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * K @ K
+
+
+def translation_sigma_deg(
+    R: np.ndarray,
+    t: np.ndarray,
+    x1: np.ndarray,
+    x2: np.ndarray,
+    inliers: np.ndarray,
+    step: float = 1e-6,
+) -> float:
+    """One standard deviation of the direction of ``t`` (degrees) from the Sampson cost.
+
+    The pose is perturbed as ``R(w) = exp([w]_x) R`` and ``t(v) = (t + v1 u1 + v2 u2) / |.|``
+    with ``(u1, u2)`` an orthonormal basis of the tangent plane of the sphere at ``t`` (5 dof).
+    With ``J`` (I, 5) the Jacobian of the signed Sampson residuals ``r`` of the inliers (central
+    differences) and ``s^2 = |r|^2 / (I - 5)`` the residual variance of the fit, the covariance
+    is ``s^2 (J^T J)^-1``; its ``v`` block (2, 2) is that of the direction of ``t`` in radians,
+    and the value returned is the square root of its largest eigenvalue, capped at 180 degrees.
+    It is large when the matches do not constrain ``t`` (a pure rotation, where every Sampson
+    residual is independent of ``t``), small for a clear baseline.
+
+    Parameters
+    ----------
+    R : ndarray, shape (3, 3)
+    t : ndarray, shape (3,)
+        Refined pose, ``X2 = R X1 + t``.
+    x1, x2 : ndarray, shape (N, 3)
+        Normalised homogeneous coordinates of the matches.
+    inliers : ndarray of bool, shape (N,)
+        Matches of the cost; fewer than 6 gives 180.
+    step : float
+        Finite-difference step (radians).
+
+    Returns
+    -------
+    float
+    """
+    a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
+    if len(a) < 6:
+        return 180.0
+    t = np.asarray(t, float).reshape(3) / np.linalg.norm(t)
+    u1 = np.cross(t, np.eye(3)[int(np.argmin(np.abs(t)))])
+    u1 /= np.linalg.norm(u1)
+    u2 = np.cross(t, u1)
+
+    def residual(p: np.ndarray) -> np.ndarray:
+        tp = t + p[3] * u1 + p[4] * u2
+        return _sampson_signed(_rotation_increment(p[:3]) @ R, tp / np.linalg.norm(tp), a, b)
+
+    r0 = residual(np.zeros(5))
+    steps = np.eye(5) * step
+    J = np.stack([(residual(d) - residual(-d)) / (2.0 * step) for d in steps], axis=1)
+    variance = float(r0 @ r0) / (len(a) - 5)
+    eigenvalues, vectors = np.linalg.eigh(J.T @ J)
+    if eigenvalues[0] <= 1e-12 * max(eigenvalues[-1], 1e-300):
+        return 180.0
+    cov = variance * (vectors / eigenvalues) @ vectors.T
+    largest = float(np.linalg.eigvalsh(cov[3:, 3:])[-1])
+    return float(min(np.degrees(np.sqrt(max(largest, 0.0))), 180.0))

@@ -5,7 +5,8 @@ turning on a tripod, or barely moving) is the classic way it fails: its relative
 triangulated points are unconstrained. Here every verified pair of a COLMAP database gets a PPO
 pose from pycolmap's essential matrix and inlier matches, and a score:
 
-* rejected when PPO reports a pure rotation (PRI below its threshold), when fewer than
+* rejected when PPO reports a pure rotation (PRI below its threshold) or the model comparison
+  of :mod:`ppo_cv.motion_model` judges the pair's inlier matches a pure rotation, when fewer than
   ``min_inliers`` matches satisfy both PPO inequalities, when the median triangulation angle of
   the analytic points is below ``min_tri_angle`` degrees, or for a near forward motion
   (``|t_z| > max_forward_motion``, the epipole deep inside the image);
@@ -43,6 +44,7 @@ import pycolmap
 from . import colmap, ppo
 from .atomic import atomic_directory, check_target, signals_deferred
 from .checks import as_camera_matrix, as_positive
+from .motion_model import decide_motion
 
 __all__ = [
     "INITIALIZATIONS",
@@ -101,7 +103,8 @@ class PairScore:
     pri : float
         Pure-rotation indicator of the pair.
     pure_rotation : bool
-        ``pri < pri_threshold``.
+        ``pri < pri_threshold``, or a rotation-only model explains the matches
+        (:func:`ppo_cv.motion_model.decide_motion`).
     tri_angle : float
         Median triangulation angle of the analytic points of the inliers, degrees.
     score : float
@@ -291,6 +294,7 @@ def prepare_database(
 def score_pose(
     pose: Any,
     *,
+    motion: Any = None,
     min_inliers: int = 50,
     min_tri_angle: float = 1.0,
     target_tri_angle: float = 8.0,
@@ -301,6 +305,8 @@ def score_pose(
     Parameters
     ----------
     pose : PoseResult
+    motion : MotionDecision, optional
+        Rotation-versus-general decision on the pair's matches; a pure rotation is rejected.
     min_inliers : int
         Fewer PPO inliers reject the pair.
     min_tri_angle, target_tri_angle : float
@@ -322,6 +328,11 @@ def score_pose(
     tri_angle = float(np.degrees(colmap.median_tri_angle(pose)))
     if pose.pure_rotation:
         rejection = f"pure rotation (PRI {pose.pri:.4f} < {pose.pri_threshold})"
+    elif motion is not None and motion.pure_rotation:
+        rejection = (
+            f"pure rotation (rotation model: GRIC difference {motion.gric_difference:+.3f} "
+            f"per match, PRI {motion.pri:.4f})"
+        )
     elif pose.num_inliers < min_inliers:
         rejection = f"too few inliers ({pose.num_inliers} < {min_inliers})"
     elif tri_angle < min_tri_angle:
@@ -412,12 +423,35 @@ def _score_geometry(
             **common, num_inliers=0, pri=float("nan"), pure_rotation=False, tri_angle=0.0,
             score=0.0, rejection=f"no pose ({exc})", R=np.eye(3), t=np.zeros(3),
         )  # fmt: skip
-    score, tri_angle, rejection = score_pose(pose, **criteria)
+    motion = _motion_decision(
+        geometry, cameras[image1.camera_id], keypoints[image1.image_id],
+        cameras[image2.camera_id], keypoints[image2.image_id], pose, pri_threshold,
+    )  # fmt: skip
+    score, tri_angle, rejection = score_pose(pose, motion=motion, **criteria)
     return PairScore(
         **common, num_inliers=pose.num_inliers, pri=float(pose.pri),
-        pure_rotation=bool(pose.pure_rotation), tri_angle=tri_angle, score=score,
+        pure_rotation=bool(pose.pure_rotation or (motion is not None and motion.pure_rotation)),
+        tri_angle=tri_angle, score=score,
         rejection=rejection, R=pose.R, t=pose.t,
     )  # fmt: skip
+
+
+def _motion_decision(geometry, camera1, keypoints1, camera2, keypoints2, pose, pri_threshold):
+    """Rotation-versus-general decision on the verified matches (None with fewer than 8)."""
+    matches = np.asarray(geometry.inlier_matches, dtype=np.int64).reshape(-1, 2)
+    if len(matches) < 8:
+        return None
+    x1, x2 = (
+        np.column_stack([xy, np.ones(len(xy))])
+        for xy in (
+            colmap.rays_from_camera(camera, np.asarray(kp, dtype=np.float64)[rows, :2])
+            for camera, kp, rows in ((camera1, keypoints1, matches[:, 0]),
+                                     (camera2, keypoints2, matches[:, 1]))
+        )
+    )  # fmt: skip
+    focal = 0.5 * (camera1.mean_focal_length() + camera2.mean_focal_length())
+    used = np.ones(len(matches), dtype=bool)
+    return decide_motion(x1, x2, pose.R, pose.t, used, focal, pri_threshold=pri_threshold)
 
 
 def _pipeline_options(

@@ -1,0 +1,408 @@
+"""Rotation-only two-view model: robust fit, and a variant that absorbs the lens imperfections.
+
+Under a pure rotation the bearings of a match obey ``b2 = R b1`` (paper eq. 3 with ``t = 0``).
+
+- :func:`rotations_from_two_rays`: the minimal solver. Two rays fix ``R``: the orthonormal
+  triads ``(m, c, m x c)`` built from the bisector ``m`` and the normal ``c`` of each image's pair
+  of rays are mapped onto each other, ``R = T2 T1^T``. Exact on noise-free data, vectorised over
+  hypotheses.
+- :func:`ransac_rotation`: RANSAC over that solver (batches of hypotheses scored against all
+  matches at once, trials adapted to the inlier ratio), then the least-squares rotation (Wahba,
+  :func:`ppo_cv.ppo.rotation_from_rays`) over its inliers, re-selected until they settle.
+- :func:`fit_rotation_lens`: rotation plus one focal-length scale ``s`` and one radial
+  coefficient ``k1`` shared by the two views, by Gauss-Newton over the inliers. The given
+  normalised point ``x`` is taken as ``s x = q (1 + k1 |q|^2)`` of the true ray ``(q, 1)``
+  (OpenCV's radial model, inverted exactly by fixed-point iteration), and ``(q2, 1) ~ R (q1, 1)``.
+  A tripod panorama taken with intrinsics a few percent off and unmodelled distortion is this
+  model; the depth-dependent parallax of a translation is not, so the two models keep apart.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .ppo import rotation_from_rays
+
+__all__ = [
+    "RotationFit",
+    "LensRotationFit",
+    "rotations_from_two_rays",
+    "rotation_residuals",
+    "ransac_rotation",
+    "fit_rotation_lens",
+    "lens_rotation_residuals",
+    "correct_points",
+]
+
+_BLOCK = 1 << 18  # hypotheses x matches scored per block
+_BATCH = 64  # hypotheses drawn at once
+_NPARAMS = 5  # rotation increment (3), focal scale, k1
+
+
+@dataclass(frozen=True)
+class RotationFit:
+    """Robust rotation-only fit.
+
+    Attributes
+    ----------
+    R : ndarray, shape (3, 3)
+        Rotation, ``b2 = R b1``.
+    inliers : ndarray of bool, shape (N,)
+        Matches whose angular residual is below the threshold.
+    residuals : ndarray, shape (N,)
+        Angle (radians) between ``b2`` and ``R b1`` for every match.
+    trials : int
+        RANSAC hypotheses drawn.
+    """
+
+    R: np.ndarray
+    inliers: np.ndarray
+    residuals: np.ndarray
+    trials: int
+
+    @property
+    def num_inliers(self) -> int:
+        """Number of inliers."""
+        return int(np.count_nonzero(self.inliers))
+
+
+@dataclass(frozen=True)
+class LensRotationFit:
+    """Rotation with a shared focal scale and radial coefficient (:func:`fit_rotation_lens`).
+
+    Attributes
+    ----------
+    R : ndarray, shape (3, 3)
+    focal_scale : float
+        ``s``: the given focal length over the true one.
+    k1 : float
+        Radial coefficient (OpenCV's ``k1``) of the true camera.
+    focal_scale_sigma : float
+        Standard deviation of ``focal_scale`` from the Gauss-Newton covariance (inf when not
+        estimated).
+    residuals : ndarray, shape (N,)
+        Transfer error ``|pi(R c(x1)) - c(x2)| / s`` (normalised units of the given camera) of
+        every match.
+    """
+
+    R: np.ndarray
+    focal_scale: float
+    k1: float
+    focal_scale_sigma: float
+    residuals: np.ndarray
+
+    @property
+    def focal_significant(self) -> bool:
+        """The focal scale differs from 1 by more than three standard deviations."""
+        return bool(abs(self.focal_scale - 1.0) > 3.0 * self.focal_scale_sigma)
+
+
+def _unit_rows(v: np.ndarray) -> np.ndarray:
+    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), 1e-300)
+
+
+def _bearings(x: np.ndarray) -> np.ndarray:
+    x = np.asarray(x, dtype=np.float64)
+    if x.shape[-1] == 2:
+        x = np.concatenate([x, np.ones(x.shape[:-1] + (1,))], axis=-1)
+    return _unit_rows(x)
+
+
+def _triads(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Orthonormal frames (..., 3, 3) with columns bisector, normal, their cross product."""
+    m = _unit_rows(a + b)
+    c = _unit_rows(np.cross(a, b))
+    return np.stack([m, c, np.cross(m, c)], axis=-1)
+
+
+def rotations_from_two_rays(
+    a1: np.ndarray, a2: np.ndarray, b1: np.ndarray, b2: np.ndarray
+) -> np.ndarray:
+    """Rotations mapping the ray pair ``(a1, a2)`` of view 1 onto ``(b1, b2)`` of view 2.
+
+    Parameters
+    ----------
+    a1, a2 : ndarray, shape (K, 3)
+        Unit bearings of two matches in view 1.
+    b1, b2 : ndarray, shape (K, 3)
+        Their unit bearings in view 2.
+
+    Returns
+    -------
+    ndarray, shape (K, 3, 3)
+        ``R_k = T(b1_k, b2_k) T(a1_k, a2_k)^T`` with ``T`` the triad of bisector and normal;
+        ``b_j = R a_j`` exactly when the angle between the two rays is the same in both views.
+    """
+    return _triads(b1, b2) @ np.swapaxes(_triads(a1, a2), -1, -2)
+
+
+def rotation_residuals(R: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
+    """Angle (radians) between ``b2_i`` and ``R b1_i`` for every match, shape (N,).
+
+    ``x1, x2`` are normalised points (N, 2), homogeneous points or bearings (N, 3).
+    """
+    b1, b2 = _bearings(x1) @ np.asarray(R).T, _bearings(x2)
+    cross = np.linalg.norm(np.cross(b1, b2), axis=1)
+    return np.arctan2(cross, np.einsum("ij,ij->i", b1, b2))
+
+
+def _count_inliers(Rs: np.ndarray, b1: np.ndarray, b2: np.ndarray, cos_threshold: float):
+    """Inlier count of each hypothesis (K,), all matches scored in blocks."""
+    counts = np.zeros(len(Rs), dtype=np.int64)
+    step = max(1, _BLOCK // max(len(b1), 1))
+    for start in range(0, len(Rs), step):
+        rotated = np.einsum("kij,nj->kni", Rs[start : start + step], b1)
+        cosines = np.einsum("kni,ni->kn", rotated, b2)
+        counts[start : start + step] = np.count_nonzero(cosines > cos_threshold, axis=1)
+    return counts
+
+
+def _required_trials(inlier_ratio: float, confidence: float) -> float:
+    """Trials after which an all-inlier pair is missed with probability ``1 - confidence``."""
+    p_good = inlier_ratio**2
+    if p_good >= 1.0:
+        return 1.0
+    if p_good <= 0.0:
+        return np.inf
+    return np.log1p(-confidence) / np.log1p(-p_good)
+
+
+def _least_squares(b1, b2, used, threshold, rounds: int = 10):
+    R = rotation_from_rays(b1[used], b2[used])
+    for _ in range(rounds):
+        within = rotation_residuals(R, b1, b2) < threshold
+        if np.count_nonzero(within) < 2 or np.array_equal(within, used):
+            break
+        used = within
+        R = rotation_from_rays(b1[used], b2[used])
+    return R
+
+
+def ransac_rotation(
+    x1: np.ndarray,
+    x2: np.ndarray,
+    threshold: float,
+    *,
+    confidence: float = 0.9999,
+    min_trials: int = 50,
+    max_trials: int = 10_000,
+    seed: int = 0,
+) -> RotationFit | None:
+    """Robust rotation ``b2 = R b1`` from putative matches.
+
+    Parameters
+    ----------
+    x1, x2 : ndarray, shape (N, 2) or (N, 3)
+        Normalised (undistorted) points or bearings of the matches, N >= 2.
+    threshold : float
+        Inlier bound on the angle between ``b2`` and ``R b1``, radians (pixels over focal).
+    confidence : float
+        Stop once a better hypothesis is this unlikely to be missed.
+    min_trials, max_trials : int
+        Bounds on the number of hypotheses.
+    seed : int
+        Seed of the sampler; the result is a function of the inputs and the seed.
+
+    Returns
+    -------
+    RotationFit or None
+        None when fewer than two matches are given.
+    """
+    b1, b2 = _bearings(x1), _bearings(x2)
+    n = len(b1)
+    if n < 2:
+        return None
+    rng = np.random.default_rng(seed)
+    cos_threshold = float(np.cos(threshold))
+    best_R, best_count, trials, needed = np.eye(3), -1, 0, float(max_trials)
+    while trials < max(min_trials, min(needed, max_trials)):
+        first = rng.integers(0, n, _BATCH)
+        second = (first + rng.integers(1, n, _BATCH)) % n
+        Rs = rotations_from_two_rays(b1[first], b1[second], b2[first], b2[second])
+        counts = _count_inliers(Rs, b1, b2, cos_threshold)
+        trials += _BATCH
+        k = int(np.argmax(counts))
+        if counts[k] > best_count:
+            best_R, best_count = Rs[k], int(counts[k])
+            needed = _required_trials(best_count / n, confidence)
+    used = rotation_residuals(best_R, b1, b2) < threshold
+    R = _least_squares(b1, b2, used, threshold) if np.count_nonzero(used) >= 2 else best_R
+    residuals = rotation_residuals(R, b1, b2)
+    return RotationFit(R=R, inliers=residuals < threshold, residuals=residuals, trials=trials)
+
+
+def _skew_exp(w: np.ndarray) -> np.ndarray:
+    angle = np.linalg.norm(w)
+    if angle < 1e-12:
+        return np.eye(3)
+    k = w / angle
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * K @ K
+
+
+def _lens_map(xy: np.ndarray, scale: float, k1: float, iterations: int = 6) -> np.ndarray:
+    """True normalised points ``q`` (N, 2) of given points ``x``: ``s x = q (1 + k1 |q|^2)``."""
+    distorted = scale * xy
+    q = distorted
+    for _ in range(iterations):
+        q = distorted / (1.0 + k1 * np.sum(q * q, axis=1, keepdims=True))
+    return q
+
+
+def correct_points(x: np.ndarray, focal_scale: float, k1: float) -> np.ndarray:
+    """Normalised points of the given camera (N, 2 or 3) to homogeneous true rays (N, 3).
+
+    The inverse of ``s x = q (1 + k1 |q|^2)``: the lens terms of :func:`fit_rotation_lens`.
+    """
+    q = _lens_map(np.asarray(x, dtype=np.float64)[:, :2], focal_scale, k1)
+    return np.column_stack([q, np.ones(len(q))])
+
+
+def _lens_transfer(params: np.ndarray, R0: np.ndarray, xy1: np.ndarray, xy2: np.ndarray):
+    """Residual vectors (N, 2) in view 2, given normalised units: ``x2`` minus the transfer of
+    ``x1`` (``q1`` rotated, distorted and scaled back)."""
+    R = _skew_exp(params[:3]) @ R0
+    scale, k1 = 1.0 + params[3], params[4]
+    q1 = _lens_map(xy1, scale, k1)
+    ray = np.column_stack([q1, np.ones(len(q1))]) @ R.T
+    z = np.where(np.abs(ray[:, 2]) > 1e-9, ray[:, 2], 1e-9)
+    q2 = ray[:, :2] / z[:, None]
+    return q2 * (1.0 + k1 * np.sum(q2 * q2, axis=1, keepdims=True)) / scale - xy2
+
+
+def lens_rotation_residuals(
+    R: np.ndarray, focal_scale: float, k1: float, x1: np.ndarray, x2: np.ndarray
+) -> np.ndarray:
+    """Transfer error (N,) of matches under :func:`fit_rotation_lens`'s model, normalised units."""
+    params = np.array([0.0, 0.0, 0.0, focal_scale - 1.0, k1])
+    xy1, xy2 = np.asarray(x1, float)[:, :2], np.asarray(x2, float)[:, :2]
+    return np.linalg.norm(_lens_transfer(params, np.asarray(R, float), xy1, xy2), axis=1)
+
+
+def fit_rotation_lens(
+    x1: np.ndarray,
+    x2: np.ndarray,
+    used: np.ndarray,
+    R: np.ndarray,
+    *,
+    iterations: int = 15,
+    max_focal_change: float = 0.05,
+    max_k1: float = 0.15,
+    noise: float | None = None,
+    focal_prior: float = 0.03,
+    k1_prior: float = 0.1,
+) -> LensRotationFit:
+    """Rotation, focal scale and radial coefficient by Gauss-Newton over the used matches.
+
+    The model is ``(q2, 1) ~ R (q1, 1)`` with ``s x = q (1 + k1 |q|^2)`` on the given normalised
+    coordinates ``x`` (one camera, or two with the same error): 5 parameters, rotation increments
+    ``R = exp([w]_x) R0``. The least-squares cost is the squared transfer error in view 2. The
+    lens terms must land in a box of plausible lenses (``|s - 1| <= max_focal_change``,
+    ``|k1| <= max_k1``), else they are clipped to it and the rotation alone is re-fitted: a
+    translation's parallax must not be explained away by an implausible lens. Given the
+    ``noise`` of a transfer-error coordinate, the lens terms also get Gaussian priors
+    ``s - 1 ~ N(0, focal_prior^2)`` and ``k1 ~ N(0, k1_prior^2)`` (a few matches, or matches
+    near the centre, do not determine them).
+
+    Parameters
+    ----------
+    x1, x2 : ndarray, shape (N, 2) or (N, 3)
+        Normalised points of the matches.
+    used : ndarray of bool, shape (N,)
+        Matches in the cost (at least 12 for the lens terms).
+    R : ndarray, shape (3, 3)
+        Starting rotation (e.g. :func:`ransac_rotation`'s).
+    iterations : int
+        Gauss-Newton steps (each a Levenberg-damped 5 x 5 solve).
+    max_focal_change, max_k1 : float
+        Bounds on ``|s - 1|`` and ``|k1|``.
+    noise : float, optional
+        Standard deviation of one coordinate of the transfer error (normalised units); None
+        fits without the priors.
+    focal_prior, k1_prior : float
+        Standard deviations of the priors on ``s - 1`` and ``k1``.
+
+    Returns
+    -------
+    LensRotationFit
+        Residuals for all N matches.
+    """
+    xy1, xy2 = np.asarray(x1, float)[:, :2], np.asarray(x2, float)[:, :2]
+    R0 = np.asarray(R, float)
+    a, b = xy1[used], xy2[used]
+    bounds = np.array([np.inf, np.inf, np.inf, max_focal_change, max_k1])
+    prior = np.zeros(_NPARAMS)
+    if noise is not None and noise > 0:
+        prior[3:] = noise / np.array([focal_prior, k1_prior])
+    problem = (R0, a, b, prior)
+    params, sigma = np.zeros(_NPARAMS), np.inf
+    if len(a) >= 2 * _NPARAMS:
+        params = _gauss_newton(params, problem, iterations)
+        sigma = _focal_sigma(params, problem)
+    if np.any(np.abs(params) > bounds) or len(a) < 2 * _NPARAMS:
+        params, sigma = np.clip(params, -bounds, bounds), np.inf
+        params[:3] = 0.0
+        if len(a) >= 2:
+            params = _gauss_newton(params, problem, iterations, free=3)
+    R_final = _skew_exp(params[:3]) @ R0
+    lens_only = np.r_[0.0, 0.0, 0.0, params[3:]]
+    residuals = np.linalg.norm(_lens_transfer(lens_only, R_final, xy1, xy2), axis=1)
+    return LensRotationFit(
+        R=R_final,
+        focal_scale=1.0 + float(params[3]),
+        k1=float(params[4]),
+        focal_scale_sigma=float(sigma),
+        residuals=residuals,
+    )
+
+
+def _objective(params, problem) -> np.ndarray:
+    """Transfer residuals (2I,) followed by the prior rows (5,)."""
+    R0, a, b, prior = problem
+    return np.concatenate([_lens_transfer(params, R0, a, b).ravel(), prior * params])
+
+
+def _jacobian(params, problem, free: int = _NPARAMS, step: float = 1e-6):
+    residual = _objective(params, problem)
+    deltas = np.eye(_NPARAMS)[:free] * step
+    columns = [(_objective(params + d, problem) - residual) / step for d in deltas]
+    return residual, np.stack(columns, axis=1)
+
+
+def _focal_sigma(params, problem) -> float:
+    """Focal scale deviation, ``sqrt(v (J^T J)^-1)[3, 3]``, ``v = |r|^2 / (2I - 5)``."""
+    residual, J = _jacobian(params, problem)
+    transfer = residual[:-_NPARAMS]
+    if len(transfer) <= _NPARAMS:
+        return float("inf")
+    variance = float(transfer @ transfer) / (len(transfer) - _NPARAMS)
+    try:
+        cov = variance * np.linalg.inv(J.T @ J)
+    except np.linalg.LinAlgError:
+        return float("inf")
+    return float(np.sqrt(max(cov[3, 3], 0.0)))
+
+
+def _gauss_newton(params, problem, iterations, free: int = _NPARAMS, step=1e-6):
+    """Levenberg-Marquardt on the first ``free`` parameters."""
+    damping = 1e-6
+    residual = _objective(params, problem)
+    cost = residual @ residual
+    for _ in range(iterations):
+        J = _jacobian(params, problem, free, step)[1]
+        H, g = J.T @ J, J.T @ residual
+        update = np.linalg.solve(H + damping * np.diag(np.diag(H) + 1e-12), -g)
+        trial = params.copy()
+        trial[:free] += update
+        new_residual = _objective(trial, problem)
+        new_cost = new_residual @ new_residual
+        if new_cost < cost:
+            params, residual, damping = trial, new_residual, damping * 0.1
+            if cost - new_cost < 1e-12 * cost:
+                break
+            cost = new_cost
+        else:
+            damping *= 10.0
+    return params

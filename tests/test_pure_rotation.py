@@ -1,0 +1,228 @@
+"""Pure rotation on imperfect images: the rotation-only fit, the model decision and t_sigma_deg."""
+
+from __future__ import annotations
+
+from importlib import resources
+
+import cv2
+import numpy as np
+import pytest
+from imperfect import imperfect_render, warped_rotation_pair
+
+from ppo_cv import estimate_pair
+from ppo_cv.model_selection import ModelResiduals, robust_sigma, select_model
+from ppo_cv.motion_model import decide_motion
+from ppo_cv.refine import translation_sigma_deg
+from ppo_cv.rotation import (
+    fit_rotation_lens,
+    ransac_rotation,
+    rotation_residuals,
+    rotations_from_two_rays,
+)
+
+K_DEMO = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
+
+
+def _angle_deg(R: np.ndarray, R_true: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip((np.trace(R.T @ R_true) - 1) / 2, -1, 1))))
+
+
+def _random_rotations(rng: np.random.Generator, n: int, max_angle: float = 0.5) -> np.ndarray:
+    axes = rng.normal(size=(n, 3))
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    angles = rng.uniform(0, max_angle, n)
+    K = np.zeros((n, 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -axes[:, 2], axes[:, 1], -axes[:, 0]
+    K -= np.swapaxes(K, 1, 2)
+    s, c = np.sin(angles)[:, None, None], np.cos(angles)[:, None, None]
+    return np.eye(3) + s * K + (1 - c) * K @ K
+
+
+def _bearings(rng: np.random.Generator, n: int, half_fov: float = 0.3) -> np.ndarray:
+    x = np.column_stack([rng.uniform(-half_fov, half_fov, (n, 2)), np.ones(n)])
+    return x / np.linalg.norm(x, axis=1, keepdims=True)
+
+
+def test_two_ray_solver_exact_on_noise_free_rays():
+    rng = np.random.default_rng(1)
+    Rs = _random_rotations(rng, 200)
+    a1, a2 = _bearings(rng, 200), _bearings(rng, 200)
+    b1, b2 = np.einsum("kij,kj->ki", Rs, a1), np.einsum("kij,kj->ki", Rs, a2)
+    found = rotations_from_two_rays(a1, a2, b1, b2)
+    assert np.abs(found - Rs).max() < 1e-10
+    assert np.allclose(np.linalg.det(found), 1.0)
+
+
+def test_ransac_rotation_finds_rotation_among_outliers_and_is_seeded():
+    rng = np.random.default_rng(2)
+    R = _random_rotations(rng, 1, 0.4)[0]
+    b1 = _bearings(rng, 400)
+    b2 = b1 @ R.T
+    b2[:, :2] += rng.normal(0, 0.3 / 800, (400, 2))  # 0.3 px at f = 800
+    outliers = rng.random(400) < 0.5
+    b2[outliers] = _bearings(rng, int(outliers.sum()))
+    fit = ransac_rotation(b1, b2, 1.5 / 800, seed=3)
+    assert _angle_deg(fit.R, R) < 0.01
+    assert np.array_equal(fit.inliers, rotation_residuals(fit.R, b1, b2) < 1.5 / 800)
+    assert fit.inliers[~outliers].mean() > 0.97 and fit.inliers[outliers].mean() < 0.02
+    again = ransac_rotation(b1, b2, 1.5 / 800, seed=3)
+    assert np.array_equal(again.R, fit.R) and again.trials == fit.trials
+
+
+def test_lens_fit_recovers_focal_scale_and_radial_coefficient():
+    rng = np.random.default_rng(4)
+    c, s = np.cos(0.3), np.sin(0.3)
+    R = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]]) @ _random_rotations(rng, 1, 0.05)[0]
+    true1 = rng.uniform(-0.3, 0.3, (300, 2))
+    ray = np.column_stack([true1, np.ones(300)]) @ R.T
+    true2 = ray[:, :2] / ray[:, 2:]
+    scale, k1 = 1.025, -0.08  # OpenCV radial distortion, then the focal given 2.5 % short
+
+    def observe(q):
+        return q * (1 + k1 * np.sum(q * q, axis=1, keepdims=True)) / scale
+
+    x1, x2 = observe(true1), observe(true2)
+    rough = ransac_rotation(x1, x2, 1e-3).R
+    lens = fit_rotation_lens(x1, x2, np.ones(300, bool), rough)
+    assert abs(lens.focal_scale - scale) < 1e-6 and abs(lens.k1 - k1) < 1e-5
+    assert _angle_deg(lens.R, R) < 0.01 and _angle_deg(rough, R) > 0.2
+    assert np.median(lens.residuals) < 1e-9
+    assert lens.focal_significant
+
+
+def test_select_model_on_synthetic_residuals():
+    rng = np.random.default_rng(5)
+    sigma = 0.4
+    general = np.abs(rng.normal(0, sigma, 800))  # Sampson: 1 dof
+    noise = np.linalg.norm(rng.normal(0, sigma, (800, 2)), axis=1)  # transfer, 2 dof
+    rotation_like = noise * 1.1  # a rotation with a little unmodelled error
+    parallax = np.hypot(noise, rng.uniform(0.5, 4.0, 800))  # depth-dependent parallax
+    pick = select_model(
+        [ModelResiduals("rotation", rotation_like, 2, 5), ModelResiduals("general", general, 3, 5)]
+    )
+    assert pick.model == "rotation" and pick.relative_gric("rotation", "general") < 0
+    assert abs(pick.sigma_px - sigma) < 0.05
+    pick = select_model(
+        [ModelResiduals("rotation", parallax, 2, 5), ModelResiduals("general", general, 3, 5)]
+    )
+    assert pick.model == "general" and pick.margin > 0.5
+    assert abs(robust_sigma(noise, 2) - sigma) < 0.05
+    with pytest.raises(ValueError, match="same matches"):
+        select_model(
+            [ModelResiduals("rotation", noise[:5], 2, 5), ModelResiduals("general", general, 3, 5)]
+        )
+    with pytest.raises(ValueError, match="at least one"):
+        select_model([])
+
+
+def _two_view(rng, baseline: float, n: int = 400, noise_px: float = 0.5, f: float = 800.0):
+    X = np.column_stack([rng.uniform(-2, 2, (n, 2)), rng.uniform(4, 12, n)])
+    R = _random_rotations(rng, 1, 0.2)[0]
+    t = np.array([baseline, 0.1 * baseline, 0.0])
+    x1 = X / X[:, 2:]
+    X2 = X @ R.T + t
+    x2 = X2 / X2[:, 2:]
+    x1[:, :2] += rng.normal(0, noise_px / f, (n, 2))
+    x2[:, :2] += rng.normal(0, noise_px / f, (n, 2))
+    return R, t / np.linalg.norm(t), x1, x2
+
+
+def test_t_sigma_grows_as_the_baseline_shrinks():
+    rng = np.random.default_rng(6)
+    sigmas = []
+    for baseline in (1.0, 0.1, 0.01):
+        R, t, x1, x2 = _two_view(rng, baseline)
+        sigmas.append(translation_sigma_deg(R, t, x1, x2, np.ones(len(x1), bool)))
+    assert sigmas[0] < 1.0 < sigmas[2]
+    assert sigmas[0] < sigmas[1] < sigmas[2]
+
+
+def test_decide_motion_on_synthetic_matches():
+    rng = np.random.default_rng(7)
+    R, t, x1, x2 = _two_view(rng, 0.0 + 1e-9)
+    used = np.ones(len(x1), bool)
+    rotation = decide_motion(x1, x2, R, np.array([1.0, 0, 0]), used, 800.0)
+    assert rotation.pure_rotation and _angle_deg(rotation.R, R) < 0.02
+    R, t, x1, x2 = _two_view(rng, 0.5)
+    general = decide_motion(x1, x2, R, t, used, 800.0)
+    assert general.model == "general" and general.gric_difference > 0.5
+
+
+def _demo_photo() -> np.ndarray:
+    data = resources.files("ppo_cv.data").joinpath("demo1.png").read_bytes()
+    return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_warped_photo_rotation_is_flagged_with_accurate_rotation(seed):
+    pair = warped_rotation_pair(_demo_photo(), K_DEMO, seed, angle_range=(10.0, 15.0))
+    result = estimate_pair(pair.image1, pair.image2, pair.K_given)
+    assert result.pure_rotation and result.model == "rotation"
+    assert not result.translation_determined and result.num_points == 0
+    # the focal error alone explains up to |angle * focal_error| (0.45 deg here)
+    assert _angle_deg(result.R, pair.R) < 0.5
+    assert result.t_sigma_deg == 180.0
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_imperfect_render_rotation_is_flagged(seed):
+    pair = imperfect_render(seed)
+    result = estimate_pair(pair.image1, pair.image2, pair.K_given)
+    assert result.pure_rotation and result.model == "rotation"
+    assert _angle_deg(result.R, pair.R) < 0.5
+    assert result.rotation_residual_px < 1.0
+
+
+def test_imperfect_render_with_baseline_is_not_flagged():
+    wide = imperfect_render(1, 0.15)
+    narrow = imperfect_render(1, 0.05)
+    wide_result = estimate_pair(wide.image1, wide.image2, wide.K_given)
+    narrow_result = estimate_pair(narrow.image1, narrow.image2, narrow.K_given)
+    for result in (wide_result, narrow_result):
+        assert not result.pure_rotation and result.model == "general"
+        assert result.gric_difference > 0 and result.num_points > 0
+    assert wide_result.t_sigma_deg < narrow_result.t_sigma_deg < 180.0
+
+
+def test_score_pose_rejects_a_pair_the_model_comparison_calls_a_rotation():
+    from ppo_cv import recover_pose, sfm
+
+    rng = np.random.default_rng(8)
+    R, t, x1, x2 = _two_view(rng, 1e-9)
+    used = np.ones(len(x1), bool)
+    motion = decide_motion(x1, x2, R, np.array([1.0, 0.0, 0.0]), used, 800.0)
+    _, _, x1g, x2g = _two_view(rng, 1.0)
+    E = np.cross(np.eye(3), np.array([1.0, 0.1, 0.0])) @ R
+    pose = recover_pose(E, x1g[:, :2], x2g[:, :2], np.eye(3))
+    assert sfm.score_pose(pose, min_inliers=10)[2] == ""
+    score, _, rejection = sfm.score_pose(pose, motion=motion, min_inliers=10)
+    assert score == 0.0 and rejection.startswith("pure rotation (rotation model")
+
+
+def _data_gen_result(pair):
+    image1 = np.ascontiguousarray(pair.image1[..., ::-1])
+    image2 = np.ascontiguousarray(pair.image2[..., ::-1])
+    return estimate_pair(image1, image2, pair.K1_given, pair.K2_given)
+
+
+def test_data_gen_panorama_and_warped_photo_are_flagged():
+    from ppo_cv import data_gen
+
+    for pair in (
+        data_gen.make_pair("panorama", seed=0, index=1, imperfections=data_gen.REAL_PHOTO),
+        data_gen.make_warped_pair(seed=0, index=1),
+    ):
+        result = _data_gen_result(pair)
+        assert result.pure_rotation and result.model == "rotation"
+        assert _angle_deg(result.R, pair.R) < 0.5
+
+
+def test_data_gen_tiny_baseline_of_five_percent_is_not_flagged():
+    from ppo_cv import data_gen
+
+    pair = data_gen.make_pair(
+        "tiny-baseline", seed=0, index=1, imperfections=data_gen.REAL_PHOTO, baseline_ratio=0.05
+    )
+    result = _data_gen_result(pair)
+    assert not result.pure_rotation and result.gric_difference > 0
+    assert result.t_sigma_deg < 10.0
