@@ -166,15 +166,21 @@ def atomic_directory(path: str | os.PathLike, overwrite: bool = False) -> Iterat
         raise
 
 
-_LAUNCHERS = {"popen_spawn_posix.py", "popen_forkserver.py", "popen_fork.py"}
+_LAUNCHERS = {
+    ("_launch", "popen_spawn_posix.py"),
+    ("_launch", "popen_forkserver.py"),
+    ("_launch", "popen_fork.py"),
+    ("_start_executor_manager_thread", "process.py"),  # a pool's thread and first workers
+}
 _RETRY_SECONDS = 0.02
 
 
 def _launching_a_process(frame) -> bool:
-    """Whether ``frame`` is inside multiprocessing's hand-over of its data to a new worker."""
+    """Whether ``frame`` is inside the start of a process pool or the hand-over of its data to a
+    new worker."""
     while frame is not None:
         code = frame.f_code
-        if code.co_name == "_launch" and os.path.basename(code.co_filename) in _LAUNCHERS:
+        if (code.co_name, os.path.basename(code.co_filename)) in _LAUNCHERS:
             return True
         frame = frame.f_back
     return False

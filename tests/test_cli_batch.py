@@ -147,15 +147,19 @@ def test_pure_rotations_get_an_auc_and_progress_goes_to_stderr(rotation_pairs, t
     assert quiet.returncode == 0 and quiet.stderr == ""
 
 
-def test_pri_threshold_reaches_the_pipeline():
+def test_pri_threshold_reaches_the_pipeline(rotation_pairs):
+    """A pure rotation is flagged only when its PRI is under the threshold as well (the model
+    comparison alone cannot flag it), so a threshold of almost zero turns the flag off."""
     runner = CliRunner()
-    plain = runner.invoke(app, ["pair", "--json"])
-    strict = runner.invoke(app, ["pair", "--json", "--pri-threshold", "1"])
+    intrinsics = ",".join(str(v) for v in (K[0, 0], K[1, 1], K[0, 2], K[1, 2]))
+    images = [str(rotation_pairs / "r0_1.png"), str(rotation_pairs / "r0_2.png")]
+    pair = ["pair", *images, "--K", intrinsics, "--json"]
+    plain = runner.invoke(app, pair)
+    strict = runner.invoke(app, [*pair, "--pri-threshold", "1e-9"])
     assert plain.exit_code == 0 and strict.exit_code == 0, plain.output + strict.output
     plain, strict = json.loads(plain.stdout), json.loads(strict.stdout)
-    assert plain["pri"] == pytest.approx(strict["pri"]) and plain["pri"] < 1.0
-    assert (plain["pure_rotation"], strict["pure_rotation"]) == (False, True)
-    assert strict["pri_threshold"] == 1.0
+    assert (plain["pure_rotation"], strict["pure_rotation"]) == (True, False)
+    assert strict["pri_threshold"] == 1e-9 and strict["pri"] > 1e-9
 
 
 def test_sfm_passes_its_options_on(monkeypatch, tmp_path):
