@@ -20,7 +20,9 @@ on the wrong side of the baseline. :func:`select_plane_pose` keeps the candidate
 points satisfying both inequalities. When the second rotation also keeps every point in front of
 both cameras, the images of a plane cannot tell the two poses apart (the two-fold ambiguity of a
 homography); the tie is then broken by the matches off the plane when there are any (the
-candidate whose ``E = [t]x R`` explains more of them), else by the larger margin of the scores.
+candidate whose ``E = [t]x R`` explains more of them), else by the prior that the plane faces the
+cameras (:func:`frontality`): the false interpretation exchanges the directions of ``t`` and
+``n`` and so sees the plane obliquely.
 
 This extends the paper, whose inequalities are derived for the candidates of an essential
 matrix, to homographies; see ``docs/homography.md``.
@@ -35,17 +37,22 @@ import numpy as np
 from . import ppo
 
 __all__ = [
+    "MIN_OFF_PLANE",
     "HomographyCandidates",
     "PlanarPose",
     "normalize_homography",
     "homography_from_pose",
     "decompose_homography",
     "candidate_supports",
+    "frontality",
     "select_plane_pose",
     "planar_pose",
 ]
 
 _DEGENERATE = 1e-12
+
+MIN_OFF_PLANE = 8
+"""Fewest off-plane matches that may break the two-fold ambiguity (:func:`select_plane_pose`)."""
 
 
 @dataclass(frozen=True)
@@ -255,7 +262,7 @@ def candidate_supports(
     X1, X2 = _homogeneous(x1), _homogeneous(x2)
     m1 = np.zeros((4, len(X1)))
     m2 = np.zeros((4, len(X1)))
-    for k, (R, t) in enumerate(zip(candidates.R, candidates.t, strict=True)):  # four candidates, not points
+    for k, (R, t) in enumerate(zip(candidates.R, candidates.t, strict=True)):  # 4, not N
         if t @ t > 0:
             m1[k] = ppo.same_side_scores(X1, X2, R, t)
             m2[k] = ppo.intersection_scores(X1, X2, R, t)
@@ -280,13 +287,30 @@ def _epipolar_support(
     return np.asarray(counts)
 
 
-def _margins(m1: np.ndarray, m2: np.ndarray, used: np.ndarray) -> np.ndarray:
-    """Median over used points of the smaller of the two scores, each scaled by its spread."""
-    if not used.any():
-        return np.zeros(len(m1))
-    scaled = [m[:, used] / np.maximum(np.median(np.abs(m[:, used]), 1, keepdims=True), 1e-300)
-              for m in (m1, m2)]  # fmt: skip
-    return np.median(np.minimum(*scaled), axis=1)
+def _significant(counts: np.ndarray, tied: np.ndarray) -> np.ndarray:
+    """``counts`` if the best of the tied candidates beats the next clearly, else zeros.
+
+    Clearly: at least ``MIN_OFF_PLANE`` matches and a lead above three standard deviations of
+    a count, ``3 sqrt(a + b)``. Mismatches fall near a wrong epipolar line by chance; matches
+    off a real plane favour the true pose by far more.
+    """
+    top = np.sort(counts[tied])[::-1]
+    second = top[1] if len(top) > 1 else 0
+    if top[0] >= MIN_OFF_PLANE and top[0] - second > 3.0 * np.sqrt(top[0] + second):
+        return counts
+    return np.zeros_like(counts)
+
+
+def frontality(candidates: HomographyCandidates) -> np.ndarray:
+    """``n_z + (R n)_z`` of each candidate, shape (4,): how squarely the plane faces both cameras.
+
+    The sum of the cosines of the angles between the plane normal and the optical axes of
+    camera 1 (``n``) and camera 2 (``R n``): 2 for a plane seen head-on in both views. Not from
+    the paper: the prior that breaks the two-fold ambiguity of a plane, whose two physical
+    interpretations exchange the directions of ``t`` and ``n`` (to first order) and so tilt the
+    plane of the false one towards the baseline, i.e. obliquely to both views.
+    """
+    return candidates.n[:, 2] + np.einsum("kj,kij->ki", candidates.n, candidates.R)[:, 2]
 
 
 def select_plane_pose(
@@ -303,9 +327,11 @@ def select_plane_pose(
     Rule, in order: (1) the largest support, the number of used points for which both the
     same-side score (eq. 70) and the intersection score (eq. 76) are positive, i.e. points in
     front of both cameras; (2) among candidates tied on support (the two-fold ambiguity of a
-    plane), the one whose essential matrix ``[t]x R`` has the most ``off_plane`` matches within
-    ``threshold`` (matches off the plane see the true epipolar geometry only); (3) the larger
-    median margin of the scaled scores; (4) the lower index.
+    plane), the one whose essential matrix ``[t]x R`` has clearly the most ``off_plane``
+    matches within ``threshold`` (matches off the plane see the true epipolar geometry only;
+    clearly: at least :data:`MIN_OFF_PLANE` and a lead of three standard deviations); (3) the plane
+    facing both cameras more squarely (:func:`frontality`), a prior: the images of a plane
+    cannot tell the two apart; (4) the lower index.
 
     Parameters
     ----------
@@ -336,9 +362,9 @@ def select_plane_pose(
         if off.shape != (len(X1),):
             raise ValueError(f"off_plane must have shape ({len(X1)},), got {off.shape}")
         if off.any():
-            epipolar = _epipolar_support(candidates, X1[off], X2[off], float(threshold))
-    margins = _margins(m1, m2, used_mask)
-    keys = list(zip(supports, epipolar, margins, -np.arange(4), strict=True))
+            counts = _epipolar_support(candidates, X1[off], X2[off], float(threshold))
+            epipolar = _significant(counts, supports == supports.max())
+    keys = list(zip(supports, epipolar, frontality(candidates), -np.arange(4), strict=True))
     best = max(range(4), key=lambda k: keys[k])
     tied = int(np.count_nonzero(supports == supports[best]))
     T = candidates.T[best]
@@ -397,8 +423,8 @@ def planar_pose(
     >>> t = np.array([0.3, 0.0, 0.0])
     >>> x1, x2 = X / X[:, 2:], (X + t) / (X + t)[:, 2:]
     >>> pose = planar_pose(homography_from_pose(np.eye(3), t, [0, 0, 1], 4.0), x1, x2)
-    >>> np.allclose(pose.R, np.eye(3)), pose.t.round(6).tolist(), pose.n.round(6).tolist()
-    (True, [1.0, 0.0, 0.0], [0.0, 0.0, 1.0])
+    >>> np.allclose(pose.R, np.eye(3)), np.allclose(pose.t, [1, 0, 0]), pose.n.round(6) + 0.0
+    (True, True, array([0., 0., 1.]))
     """
     X1, X2 = _homogeneous(x1), _homogeneous(x2)
     used = None if inliers is None else np.asarray(inliers, bool).reshape(-1)
