@@ -95,7 +95,8 @@ class PlanarPose:
     R : ndarray, shape (3, 3)
         Rotation, ``X2 = R X1 + t``.
     t : ndarray, shape (3,)
-        Unit translation direction.
+        Unit translation direction; zero when ``H`` is a rotation (then ``n`` is arbitrary
+        and every support 0: a pure rotation, for the rotation-only model to report).
     n : ndarray, shape (3,)
         Unit normal of the plane in camera 1, ``n^T X1 = d`` with ``d > 0``.
     distance : float
@@ -229,7 +230,7 @@ def decompose_homography(H: np.ndarray) -> HomographyCandidates:
     R = W @ np.swapaxes(U, 1, 2)
     n = U[:, :, 2]
     n = n * np.where(n[:, 2:] < 0, -1.0, 1.0)
-    T = np.einsum("kij,kj->ki", Hn - R, n)
+    T = np.einsum("kij,kj->ki", Hn - R, n) if spread > _DEGENERATE else np.zeros((2, 3))
     order = [0, 0, 1, 1]
     sign = np.array([1.0, -1.0, 1.0, -1.0])[:, None]
     return HomographyCandidates(R=R[order], T=sign * T[order], n=sign * n[order], H=Hn)

@@ -106,6 +106,16 @@ def test_pure_rotation_decomposes_to_zero_translation():
         np.testing.assert_allclose(cand.T[k], 0.0, atol=1e-9)
 
 
+def test_planar_pose_of_a_rotation_has_no_translation():
+    R = euler_to_matrix([3.0, -4.0, 10.0])
+    x1 = np.column_stack([np.random.default_rng(1).uniform(-0.5, 0.5, (20, 2)), np.ones(20)])
+    x2 = x1 @ R.T
+    pose = planar_pose(-3.0 * R, x1, x2 / x2[:, 2:])
+    np.testing.assert_allclose(pose.R, R, atol=1e-9)
+    assert not pose.t.any() and pose.distance == np.inf
+    assert not pose.supports.any() and not pose.ambiguous
+
+
 def test_normalize_fixes_scale_and_sign():
     rng = np.random.default_rng(7)
     R, t, n, d = random_plane_pose(rng)
