@@ -9,35 +9,75 @@ import typer
 
 from ppo_cv.data_gen.names import MOTIONS, SCENES
 
+MAX_PAIRS = 10_000
+MAX_SIDE = 4096
+MAX_SAMPLES = 20_000_000
+"""Bound on ``width * height * supersample^2`` (rays cast per view): about 15 s a pair."""
+MAX_NOISE = 50.0
+MAX_BLUR = 50.0
+MAX_BASELINE_RATIO = 0.5
+
 
 def _fail(message: str) -> None:
     typer.echo(f"ppo-cv synth: {message}", err=True)
     raise typer.Exit(2)
 
 
-def _check(out_dir: Path, pairs: int, seed: int, motion: str, scene: str | None, width: int,
-           height: int, alpha: float | None, supersample: int, noise: float, blur: float,
-           workers: int | None) -> None:  # fmt: skip
-    if motion not in MOTIONS:
+def _check(out_dir: Path, pairs: int, seed: int, motion: str | None, scene: str | None,
+           width: int | None, height: int | None, alpha: float | None, supersample: int,
+           noise: float | None, blur: float | None, workers: int | None,
+           baseline_ratio: float | None, warp: bool) -> None:  # fmt: skip
+    if motion is not None and motion not in MOTIONS:
         _fail(f"unknown motion {motion!r}; choose one of {', '.join(MOTIONS)}")
     if scene is not None and scene not in SCENES:
         _fail(f"unknown scene {scene!r}; choose one of {', '.join(SCENES)}")
     if seed < 0:
         _fail(f"--seed must be >= 0, got {seed}")
-    if pairs < 1:
-        _fail(f"--pairs must be >= 1, got {pairs}")
-    if not (8 <= width <= 8192 and 8 <= height <= 8192):
-        _fail(f"--width and --height must be in 8..8192, got {width}x{height}")
-    if alpha is not None and not 0.0 < alpha <= 1.0:
-        _fail(f"--alpha must be in (0, 1], got {alpha}")
+    if not 1 <= pairs <= MAX_PAIRS:
+        _fail(f"--pairs must be in 1..{MAX_PAIRS}, got {pairs}")
+    for name, value in (("--width", width), ("--height", height)):
+        if value is not None and not 8 <= value <= MAX_SIDE:
+            _fail(f"{name} must be in 8..{MAX_SIDE}, got {value}")
+    sides = [v for v in (width, height) if v is not None]
     if not 1 <= supersample <= 8:
         _fail(f"--supersample must be in 1..8, got {supersample}")
-    if noise < 0 or blur < 0:
-        _fail("--noise and --blur must be >= 0")
+    samples = (width or 640) * (height or 480) * supersample**2
+    if not warp and samples > MAX_SAMPLES:
+        _fail(f"--width x --height x --supersample^2 must be at most {MAX_SAMPLES:,} samples, "
+              f"got {samples:,}")  # fmt: skip
+    if alpha is not None and not 0.0 < alpha <= 1.0:
+        _fail(f"--alpha must be in (0, 1], got {alpha}")
+    if baseline_ratio is not None and not 0.0 <= baseline_ratio <= MAX_BASELINE_RATIO:
+        _fail(f"--baseline-ratio must be in [0, {MAX_BASELINE_RATIO}], got {baseline_ratio}")
+    if baseline_ratio is not None and (motion != "tiny-baseline" or warp):
+        _fail("--baseline-ratio applies to --motion tiny-baseline only")
+    if noise is not None and not 0.0 <= noise <= MAX_NOISE:
+        _fail(f"--noise must be in [0, {MAX_NOISE:g}], got {noise}")
+    if blur is not None and not 0.0 <= blur <= MAX_BLUR:
+        _fail(f"--blur must be in [0, {MAX_BLUR:g}], got {blur}")
     if workers is not None and workers < 1:
         _fail(f"--workers must be >= 1, got {workers}")
+    if warp:
+        if motion not in (None, "panorama"):
+            _fail(f"--warp makes tripod pans (--motion panorama), not {motion!r}")
+        if scene is not None or alpha is not None:
+            _fail("--scene and --alpha do not apply to --warp")
+        if len(sides) == 1:
+            _fail("--warp needs both --width and --height, or neither")
     if out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())):
         _fail(f"{out_dir} exists and is not an empty directory")
+
+
+def _imperfections(imperfect: bool, noise: float | None, blur: float | None):
+    """``REAL_PHOTO`` with the noise and blur asked for, or None without ``--imperfect``."""
+    if not imperfect:
+        return None
+    import dataclasses
+
+    from ppo_cv.data_gen import REAL_PHOTO
+
+    changes = {"noise_std": noise, "blur_sigma": blur}
+    return dataclasses.replace(REAL_PHOTO, **{k: v for k, v in changes.items() if v is not None})
 
 
 def register(app: typer.Typer) -> None:
@@ -47,25 +87,61 @@ def register(app: typer.Typer) -> None:
     def synth(
         out_dir: Annotated[Path, typer.Argument(help="New (or empty) output directory.")],
         pairs: Annotated[int, typer.Option("--pairs", "-n", help="Number of image pairs.")] = 20,
-        motion: Annotated[str, typer.Option(help=f"Motion preset: {'|'.join(MOTIONS)}.")] = (
-            "general"
-        ),
+        motion: Annotated[
+            str | None, typer.Option(help=f"Motion preset: {'|'.join(MOTIONS)} (general).")
+        ] = None,
         seed: Annotated[int, typer.Option(help="Seed (>= 0): same seed, same bytes.")] = 0,
         scene: Annotated[
             str | None,
             typer.Option(help=f"Scene ({'|'.join(SCENES)}); default depends on the motion."),
         ] = None,
-        width: Annotated[int, typer.Option(help="Image width (pixels).")] = 640,
-        height: Annotated[int, typer.Option(help="Image height (pixels).")] = 480,
+        width: Annotated[
+            int | None, typer.Option(help="Image width (pixels); 640, or 0.65 of the photo.")
+        ] = None,
+        height: Annotated[
+            int | None, typer.Option(help="Image height (pixels); 480, or 0.65 of the photo.")
+        ] = None,
         alpha: Annotated[
             float | None,
             typer.Option(help="Parallax factor of small-parallax in (0, 1]; random if omitted."),
         ] = None,
+        baseline_ratio: Annotated[
+            float | None,
+            typer.Option(
+                help="Baseline / median depth of tiny-baseline in [0, 0.5]; log-uniform in "
+                "[0.001, 0.05] if omitted."
+            ),
+        ] = None,
+        imperfect: Annotated[
+            bool,
+            typer.Option(
+                "--imperfect",
+                help="As real photos: unmodelled radial distortion, focal length given 3 % "
+                "off, 25-35 deg field of view, JPEG, noise 1, blur 0.5.",
+            ),
+        ] = False,
+        warp: Annotated[
+            bool,
+            typer.Option(
+                "--warp",
+                help="Warp real photos by a pure rotation K R K^-1 instead of rendering.",
+            ),
+        ] = False,
+        warp_source: Annotated[
+            Path | None,
+            typer.Option(help="Photo or folder of photos for --warp (default: freiburg frames)."),
+        ] = None,
         supersample: Annotated[
             int, typer.Option(help="Anti-aliasing samples per pixel and axis.")
         ] = 2,
-        noise: Annotated[float, typer.Option(help="Gaussian image noise (grey levels).")] = 0.0,
-        blur: Annotated[float, typer.Option(help="Gaussian blur sigma (pixels).")] = 0.0,
+        noise: Annotated[
+            float | None,
+            typer.Option(help="Gaussian image noise (grey levels); 0, or 1 with --imperfect."),
+        ] = None,
+        blur: Annotated[
+            float | None,
+            typer.Option(help="Gaussian blur sigma (pixels); 0, or 0.5 with --imperfect."),
+        ] = None,
         different_k: Annotated[
             bool, typer.Option("--different-k", help="Draw K2 independently of K1.")
         ] = False,
@@ -77,12 +153,24 @@ def register(app: typer.Typer) -> None:
         from ppo_cv.data_gen import make_dataset
 
         _check(out_dir, pairs, seed, motion, scene, width, height, alpha, supersample, noise, blur,
-               workers)  # fmt: skip
+               workers, baseline_ratio, warp)  # fmt: skip
+        if warp_source is not None and not warp:
+            _fail("--warp-source needs --warp")
+        if warp and different_k:
+            _fail("--different-k does not apply to --warp (one camera)")
+        imperfections = _imperfections(imperfect, noise, blur)
+        photometric = {}
+        if imperfections is None and not warp:
+            photometric = {"noise_std": noise or 0.0, "blur_sigma": blur or 0.0}
+        elif imperfections is None and (noise or blur):
+            _fail("--warp takes --noise and --blur with --imperfect only")
+        size = None if width is None and height is None else (width or 640, height or 480)
         try:
             out = make_dataset(
-                out_dir, pairs=pairs, motion=motion, seed=seed, size=(width, height),
-                scene=scene, alpha=alpha, supersample=supersample, noise_std=noise,
-                blur_sigma=blur, same_intrinsics=not different_k, workers=workers,
+                out_dir, pairs=pairs, motion=motion, seed=seed, size=size, scene=scene,
+                alpha=alpha, supersample=supersample, same_intrinsics=not different_k,
+                workers=workers, baseline_ratio=baseline_ratio, imperfections=imperfections,
+                source="warp" if warp else "render", warp_source=warp_source, **photometric,
             )  # fmt: skip
         except (ValueError, TypeError, OSError) as error:
             _fail(str(error))

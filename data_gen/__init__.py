@@ -3,6 +3,9 @@
 * :func:`paper_protocol`: the point-level Monte-Carlo generator of the paper (Section 5).
 * :func:`render_pair` / :func:`make_pair`: ray-cast image pairs of textured planar scenes with
   exact ``K1, K2, R, t`` (``x2 = R x1 + t``) and the depth map of view 1.
+* :class:`Imperfections` / :data:`REAL_PHOTO`: unmodelled distortion, a focal length a few
+  percent off, a narrow field of view, JPEG, noise and blur, for :func:`make_pair`.
+* :func:`warp_pair` / :func:`make_warped_pair`: exact pure rotations of real photos.
 * :func:`make_dataset`: a directory of pairs with a freiburg-style pairs file.
 """
 
@@ -12,6 +15,15 @@ import importlib
 
 _SUBMODULE = {
     "DEFAULT_SCENE": "motion",
+    "DrawnImperfections": "imperfect",
+    "Imperfections": "imperfect",
+    "REAL_PHOTO": "imperfect",
+    "given_intrinsics": "imperfect",
+    "jpeg_roundtrip": "imperfect",
+    "make_warped_pair": "warp",
+    "median_depth": "render",
+    "source_photos": "warp",
+    "warp_pair": "warp",
     "MOTIONS": "names",
     "Motion": "motion",
     "PAIRS_FILE": "io",
@@ -62,6 +74,15 @@ def __dir__() -> list[str]:
 
 __all__ = [
     "DEFAULT_SCENE",
+    "REAL_PHOTO",
+    "DrawnImperfections",
+    "Imperfections",
+    "given_intrinsics",
+    "jpeg_roundtrip",
+    "make_warped_pair",
+    "median_depth",
+    "source_photos",
+    "warp_pair",
     "MOTIONS",
     "PAIRS_FILE",
     "PAPER_K",

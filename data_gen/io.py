@@ -5,37 +5,45 @@ Layout of a dataset directory::
     OUT/pairs_with_gt.txt           one line per pair, same format as the freiburg set
     OUT/images/pair_000_1.png       view 1 (RGB PNG)
     OUT/images/pair_000_2.png       view 2
-    OUT/gt/pair_000.json            K1, K2, R, t, T_1to2, distortion, parameters
+    OUT/gt/pair_000.json            true K1, K2, distortion; K1_given, K2_given; R, t, T_1to2,
+                                    parameters
     OUT/gt/pair_000_depth1.npy      float32 (H, W): Z in camera 1 at each pixel centre (inf:
                                     at infinity)
 
 A pairs-file line is ``name1 name2 0 0 K1(9, row-major) K2(9) T_1to2(16, row-major)`` where
 ``T_1to2 = [[R, t], [0, 0, 0, 1]]`` maps camera-1 to camera-2 coordinates; image names are
-relative to ``OUT/images``.
+relative to ``OUT/images``. The pairs file carries the intrinsics an estimator is given
+(``K1_given``, ``K2_given``: a focal length a few percent off for imperfect pairs), the JSON
+file also the true ones and the lens distortion nobody is told about.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from .motion import DEFAULT_SCENE, MOTIONS, sample_motion
+from .imperfect import Imperfections, given_intrinsics, jpeg_roundtrip
+from .motion import DEFAULT_SCENE, MAX_BASELINE_RATIO, MOTIONS, sample_motion
 from .render import RenderedPair, render_pair
 from .scenes import SCENES, make_scene
 from .textures import texture_pool
+from .warp import make_warped_pair, source_photos
 
 __all__ = ["PAIRS_FILE", "make_dataset", "make_pair", "pairs_line", "read_pairs", "write_pair"]
 
 PAIRS_FILE = "pairs_with_gt.txt"
 
 
-def _check_args(motion, scene, seed, index, size, alpha, supersample, noise_std, blur_sigma):
+def _check_args(motion, scene, seed, index, size, alpha, supersample, noise_std, blur_sigma,
+                baseline_ratio=None, imperfections=None):  # fmt: skip
     """Validate the arguments of :func:`make_pair`; returns the scene name to use."""
     if motion not in MOTIONS:
         raise ValueError(f"unknown motion {motion!r}; choose one of {', '.join(MOTIONS)}")
@@ -55,9 +63,21 @@ def _check_args(motion, scene, seed, index, size, alpha, supersample, noise_std,
         raise ValueError(f"size must be between 8 and 8192 pixels per side, got {size!r}")
     if alpha is not None and not (np.isfinite(alpha) and 0.0 < alpha <= 1.0):
         raise ValueError(f"alpha must be in (0, 1], got {alpha}")
+    if baseline_ratio is not None:
+        if not (np.isfinite(baseline_ratio) and 0.0 <= baseline_ratio <= MAX_BASELINE_RATIO):
+            raise ValueError(
+                f"baseline_ratio must be in [0, {MAX_BASELINE_RATIO}], got {baseline_ratio}"
+            )
+        if motion != "tiny-baseline":
+            raise ValueError(f"baseline_ratio applies to tiny-baseline only, not {motion!r}")
     for name, value in (("noise_std", noise_std), ("blur_sigma", blur_sigma)):
         if not np.isfinite(value) or value < 0:
             raise ValueError(f"{name} must be finite and >= 0, got {value}")
+    if imperfections is not None:
+        if not isinstance(imperfections, Imperfections):
+            raise TypeError(f"imperfections must be Imperfections or None, got {imperfections!r}")
+        if noise_std or blur_sigma:
+            raise ValueError("give noise_std and blur_sigma through imperfections, not both")
     return scene
 
 
@@ -72,6 +92,8 @@ def make_pair(
     noise_std: float = 0.0,
     blur_sigma: float = 0.0,
     same_intrinsics: bool = True,
+    baseline_ratio: float | None = None,
+    imperfections: Imperfections | None = None,
 ) -> RenderedPair:
     """Render pair ``index`` of the dataset ``(motion, seed)``.
 
@@ -94,21 +116,47 @@ def make_pair(
         See :func:`render_pair`.
     same_intrinsics : bool
         ``K2 = K1`` if True.
+    baseline_ratio : float, optional
+        ``baseline / median depth`` of ``tiny-baseline`` in [0, 0.5]; drawn if None.
+    imperfections : Imperfections, optional
+        Render as a real camera would (:class:`Imperfections`): the drawn radial distortion
+        is applied to both views, the field of view drawn in ``hfov_range``, the views blurred,
+        noised and JPEG-compressed, and ``K1_given``, ``K2_given`` carry the focal length off
+        by the drawn factor. ``params`` records ``k1``, ``k2``, ``focal_factor``,
+        ``hfov_deg`` and ``jpeg_quality``. Without it the pair is exactly as before this
+        option existed.
 
     Returns
     -------
     RenderedPair
     """
     scene = _check_args(motion, scene, seed, index, size, alpha, supersample, noise_std,
-                        blur_sigma)  # fmt: skip
+                        blur_sigma, baseline_ratio, imperfections)  # fmt: skip
     rng = np.random.default_rng([seed, index])
     world = make_scene(scene, rng)
-    cams = sample_motion(motion, world, rng, size, alpha, same_intrinsics)
-    return render_pair(
-        world, cams.K1, cams.K2, cams.R, cams.t, size, supersample,
-        noise_std=noise_std, blur_sigma=blur_sigma, seed=[seed, index],
-        params={"seed": int(seed), "index": int(index), **cams.params},
+    drawn = None if imperfections is None else imperfections.draw(rng)
+    dist = None if drawn is None else drawn.dist
+    hfov_range = None if imperfections is None else imperfections.hfov_range
+    cams = sample_motion(motion, world, rng, size, alpha, same_intrinsics, hfov_range,
+                         baseline_ratio, dist)  # fmt: skip
+    params = {"seed": int(seed), "index": int(index), **cams.params}
+    if drawn is not None:
+        noise_std, blur_sigma = drawn.noise_std, drawn.blur_sigma
+        params.update(drawn.record(), hfov_deg=cams.params["hfov1_deg"], imperfect=True,
+                      imperfections=imperfections.record())  # fmt: skip
+    pair = render_pair(
+        world, cams.K1, cams.K2, cams.R, cams.t, size, supersample, dist1=dist, dist2=dist,
+        noise_std=noise_std, blur_sigma=blur_sigma, seed=[seed, index], params=params,
     )  # fmt: skip
+    if drawn is None:
+        return pair
+    return dataclasses.replace(
+        pair,
+        image1=jpeg_roundtrip(pair.image1, drawn.jpeg_quality),
+        image2=jpeg_roundtrip(pair.image2, drawn.jpeg_quality),
+        K1_given=given_intrinsics(pair.K1, drawn.focal_factor),
+        K2_given=given_intrinsics(pair.K2, drawn.focal_factor),
+    )
 
 
 def _matrix_text(values: np.ndarray, fmt: str) -> str:
@@ -172,18 +220,33 @@ def write_pair(pair: RenderedPair, root: str | os.PathLike, name: str) -> str:
         "height": height,
         "K1": pair.K1.tolist(),
         "K2": pair.K2.tolist(),
+        "K1_given": pair.K1_given.tolist(),
+        "K2_given": pair.K2_given.tolist(),
         "R": pair.R.tolist(),
         "t": pair.t.tolist(),
         "T_1to2": T.tolist(),
         "dist1": pair.dist1.tolist(),
         "dist2": pair.dist2.tolist(),
         "depth1": f"gt/{name}_depth1.npy",
-        "depth1_meaning": "float32 (H, W): Z in camera 1 at pixel centres, inf at infinity",
+        "depth1_meaning": "float32 (H, W): Z in camera 1 at pixel centres, inf at infinity, "
+        "NaN unknown",
         "params": pair.params,
     }
     text = json.dumps(record, indent=1, sort_keys=True, default=_json_default)
     (root / "gt" / f"{name}.json").write_text(text + "\n")
-    return pairs_line(image1, image2, pair.K1, pair.K2, pair.R, pair.t)
+    return pairs_line(image1, image2, pair.K1_given, pair.K2_given, pair.R, pair.t)
+
+
+def _check_warp_args(motion, scene, alpha, baseline_ratio, noise_std, blur_sigma, same):
+    if motion not in (None, "panorama"):
+        raise ValueError(f"warped photos are tripod pans (motion panorama), not {motion!r}")
+    for name, value in (("scene", scene), ("alpha", alpha), ("baseline_ratio", baseline_ratio)):
+        if value is not None:
+            raise ValueError(f"{name} does not apply to warped photos")
+    if noise_std or blur_sigma:
+        raise ValueError("give noise_std and blur_sigma of warped photos through imperfections")
+    if not same:
+        raise ValueError("warped photos share one camera: same_intrinsics must be True")
 
 
 def _json_default(value):
@@ -195,7 +258,9 @@ def _json_default(value):
 
 
 def _job(args: tuple) -> str:
-    root, name, kwargs = args
+    root, name, kind, kwargs = args
+    if kind == "warp":
+        return write_pair(make_warped_pair(**kwargs), root, name)
     return write_pair(make_pair(**kwargs), root, name)
 
 
@@ -207,9 +272,9 @@ def _init_worker() -> None:
 def make_dataset(
     out_dir: str | os.PathLike,
     pairs: int = 20,
-    motion: str = "general",
+    motion: str | None = None,
     seed: int = 0,
-    size: tuple[int, int] = (640, 480),
+    size: tuple[int, int] | None = None,
     scene: str | None = None,
     alpha: float | None = None,
     supersample: int = 2,
@@ -217,12 +282,17 @@ def make_dataset(
     blur_sigma: float = 0.0,
     same_intrinsics: bool = True,
     workers: int | None = None,
+    baseline_ratio: float | None = None,
+    imperfections: Imperfections | None = None,
+    source: str = "render",
+    warp_source: str | os.PathLike | Sequence | None = None,
 ) -> Path:
     """Render ``pairs`` pairs of one motion preset into a new directory ``out_dir``.
 
     The directory is built in a temporary sibling and renamed at the end, so ``out_dir``
-    either holds a complete dataset or is not created. Pair ``i`` is :func:`make_pair` with
-    ``index = i``; the bytes written depend only on the arguments, not on ``workers``.
+    either holds a complete dataset or is not created. Pair ``i`` is :func:`make_pair` (or
+    :func:`make_warped_pair`) with ``index = i``; the bytes written depend only on the
+    arguments, not on ``workers``.
 
     Parameters
     ----------
@@ -230,9 +300,21 @@ def make_dataset(
         Must not exist, or be an empty directory.
     pairs : int
         Number of pairs (>= 1).
+    motion : str, optional
+        One of :data:`MOTIONS` (default ``general``); with ``source="warp"`` only
+        ``panorama`` (the default there).
+    size : (int, int), optional
+        Image width and height; default 640x480 for renders, 0.65 of the photo for warps.
     workers : int, optional
         Worker processes (default: number of CPUs, at most ``pairs``).
-    motion, seed, size, scene, alpha, supersample, noise_std, blur_sigma, same_intrinsics
+    source : {"render", "warp"}, default "render"
+        Rendered scenes (:func:`make_pair`) or real photos warped by a pure rotation
+        (:func:`make_warped_pair`; ``scene``, ``alpha``, ``baseline_ratio``, ``supersample``,
+        ``noise_std``, ``blur_sigma`` and ``same_intrinsics`` do not apply).
+    warp_source : path or sequence of paths, optional
+        Photos to warp (see :func:`source_photos`).
+    seed, scene, alpha, supersample, noise_std, blur_sigma, same_intrinsics, baseline_ratio, \
+imperfections
         See :func:`make_pair`.
 
     Returns
@@ -245,19 +327,32 @@ def make_dataset(
         raise ValueError(f"pairs must be a positive integer, got {pairs!r}")
     if out.exists() and (not out.is_dir() or any(out.iterdir())):
         raise FileExistsError(f"{out} exists and is not an empty directory")
-    kwargs = {
-        "motion": motion, "seed": seed, "size": size, "scene": scene, "alpha": alpha,
-        "supersample": supersample, "noise_std": noise_std, "blur_sigma": blur_sigma,
-        "same_intrinsics": same_intrinsics,
-    }  # fmt: skip
-    _check_args(motion, scene, seed, 0, size, alpha, supersample, noise_std, blur_sigma)
+    if source == "render":
+        motion = "general" if motion is None else motion
+        size = (640, 480) if size is None else size
+        kwargs = {
+            "motion": motion, "seed": seed, "size": size, "scene": scene, "alpha": alpha,
+            "supersample": supersample, "noise_std": noise_std, "blur_sigma": blur_sigma,
+            "same_intrinsics": same_intrinsics, "baseline_ratio": baseline_ratio,
+            "imperfections": imperfections,
+        }  # fmt: skip
+        _check_args(motion, scene, seed, 0, size, alpha, supersample, noise_std, blur_sigma,
+                    baseline_ratio, imperfections)  # fmt: skip
+    elif source == "warp":
+        _check_warp_args(motion, scene, alpha, baseline_ratio, noise_std, blur_sigma,
+                         same_intrinsics)  # fmt: skip
+        kwargs = {"seed": seed, "imperfections": imperfections, "size": size,
+                  "source": source_photos(warp_source)}  # fmt: skip
+        make_warped_pair(**kwargs, index=0)
+    else:
+        raise ValueError(f"source must be 'render' or 'warp', got {source!r}")
     workers = min(os.cpu_count() or 1, pairs) if workers is None else int(workers)
     if workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
-        jobs = [(tmp, f"pair_{i:03d}", {**kwargs, "index": i}) for i in range(pairs)]
+        jobs = [(tmp, f"pair_{i:03d}", source, {**kwargs, "index": i}) for i in range(pairs)]
         if workers == 1:
             lines = [_job(job) for job in jobs]
         else:

@@ -19,8 +19,22 @@ so ``t = -R C2``. Presets:
     own axis), ``b ~ U(0.1, 0.2) * depth``, small rotation (sigma 1.5, 1.5, 3 degrees).
 ``planar``
     The ``general`` motion, meant for the single-plane scene.
+``panorama``
+    A tripod pan: ``t = 0`` exactly; yaw (about the camera's Y axis)
+    ``~ U(0.35, 0.7) * hfov`` with a random sign, pitch and roll ``~ N(0, 1.5^2)`` degrees,
+    ``R = Rz(roll) Ry(yaw) Rx(pitch)``. Meant for the ``room`` scene, which surrounds the
+    camera so that textured walls fill both views.
+``tiny-baseline``
+    The ``pure-rotation`` rotation plus a camera-centre displacement in a random, mostly
+    lateral direction with ``||C2|| = baseline_ratio * median depth``, where the median depth
+    is that of the surfaces camera 1 actually sees (ray-cast at the pixel centres) and
+    ``baseline_ratio`` is given or drawn log-uniformly in [0.001, 0.05]. The scene, cameras
+    and rotation are those of ``pure-rotation`` for the same random stream, and a given ratio
+    changes nothing else: a sweep of ``baseline_ratio`` at one seed starts from the
+    ``pure-rotation`` pair (ratio 0 renders it exactly).
 
-Here ``depth`` is the scene's typical depth (:attr:`Scene.depth`).
+Here ``depth`` is the scene's typical depth (:attr:`Scene.depth`), ``hfov`` the horizontal
+field of view of camera 1.
 """
 
 from __future__ import annotations
@@ -42,10 +56,17 @@ DEFAULT_SCENE = {
     "small-parallax": "clutter",
     "forward": "clutter",
     "planar": "plane",
+    "panorama": "room",
+    "tiny-baseline": "clutter",
 }
 """Scene used with each motion preset unless another one is asked for."""
 
 PARALLAX_T_MAX_RATIO = 4.2 / 30.0
+DEFAULT_HFOV_RANGE = (55.0, 70.0)
+PANORAMA_YAW_FRACTION = (0.35, 0.7)
+PANORAMA_TILT_SIGMA_DEG = 1.5
+TINY_BASELINE_RANGE = (1e-3, 0.05)
+MAX_BASELINE_RATIO = 0.5
 
 
 @dataclass(frozen=True)
@@ -105,9 +126,9 @@ def _truncated_normal(rng: np.random.Generator, sigma) -> np.ndarray:
     return np.clip(rng.standard_normal(sigma.shape), -2.0, 2.0) * sigma
 
 
-def _camera_intrinsics(rng: np.random.Generator, size, same: bool) -> tuple:
+def _camera_intrinsics(rng: np.random.Generator, size, same: bool, hfov_range) -> tuple:
     def draw():
-        hfov = rng.uniform(55.0, 70.0)
+        hfov = rng.uniform(*hfov_range)
         offset = rng.uniform(-0.02, 0.02, 2) * np.asarray(size)
         return intrinsics(size, hfov, offset), hfov
 
@@ -123,12 +144,16 @@ def sample_motion(
     size: tuple[int, int] = (640, 480),
     alpha: float | None = None,
     same_intrinsics: bool = True,
+    hfov_range: tuple[float, float] | None = None,
+    baseline_ratio: float | None = None,
+    dist: np.ndarray | None = None,
 ) -> Motion:
     """Draw the cameras of preset ``name`` for ``scene`` (see the module docstring).
 
     Parameters
     ----------
-    name : {"general", "pure-rotation", "small-parallax", "forward", "planar"}
+    name : {"general", "pure-rotation", "small-parallax", "forward", "planar", "panorama", \
+"tiny-baseline"}
     scene : Scene
         Supplies the look-at target and the typical depth.
     rng : numpy.random.Generator
@@ -138,6 +163,12 @@ def sample_motion(
         Parallax factor of ``small-parallax`` in (0, 1]; drawn if None.
     same_intrinsics : bool, default True
         ``K2 = K1`` if True, else both are drawn independently.
+    hfov_range : (float, float), optional
+        Range of the horizontal field of view in degrees (default 55-70).
+    baseline_ratio : float, optional
+        ``baseline / median depth`` of ``tiny-baseline`` in [0, 0.5]; drawn if None.
+    dist : array_like, optional
+        Lens distortion of camera 1, used to find the surfaces it sees (``tiny-baseline``).
 
     Returns
     -------
@@ -147,7 +178,11 @@ def sample_motion(
         raise ValueError(f"unknown motion {name!r}; choose one of {', '.join(MOTIONS)}")
     if alpha is not None and (not np.isfinite(alpha) or not 0.0 < alpha <= 1.0):
         raise ValueError(f"alpha must be in (0, 1], got {alpha}")
-    K1, K2, params = _camera_intrinsics(rng, size, same_intrinsics)
+    ratio = baseline_ratio
+    if ratio is not None and not (np.isfinite(ratio) and 0.0 <= ratio <= MAX_BASELINE_RATIO):
+        raise ValueError(f"baseline_ratio must be in [0, {MAX_BASELINE_RATIO}], got {ratio}")
+    hfov_range = DEFAULT_HFOV_RANGE if hfov_range is None else hfov_range
+    K1, K2, params = _camera_intrinsics(rng, size, same_intrinsics, hfov_range)
     params["motion"] = name
     depth = float(scene.depth)
     if name in ("general", "planar"):
@@ -173,9 +208,41 @@ def sample_motion(
         centre = alpha * t_max * np.array([np.cos(phi), np.sin(phi), 0.0])
         t = -R @ centre
         params.update(alpha=alpha, t_max=t_max, phi=phi, euler_deg=euler.tolist())
+    elif name == "panorama":
+        R, t = _panorama(rng, params["hfov1_deg"], params)
+    elif name == "tiny-baseline":
+        R, t = _tiny_baseline(rng, scene, K1, size, dist, baseline_ratio, params)
     else:
         baseline = rng.uniform(0.1, 0.2) * depth
         euler = _truncated_normal(rng, [1.5, 1.5, 3.0])
         R, t = euler_to_matrix(euler), np.array([0.0, 0.0, -baseline])
         params.update(baseline=baseline, euler_deg=euler.tolist())
     return Motion(K1=K1, K2=K2, R=R, t=np.asarray(t, float), params=params)
+
+
+def _panorama(rng: np.random.Generator, hfov_deg: float, params: dict) -> tuple:
+    """Tripod pan: yaw a fraction of the field of view, small pitch and roll, ``t = 0``."""
+    yaw = rng.uniform(*PANORAMA_YAW_FRACTION) * hfov_deg * (1.0 if rng.random() < 0.5 else -1.0)
+    pitch, roll = rng.normal(0.0, PANORAMA_TILT_SIGMA_DEG, 2)
+    euler = np.array([pitch, yaw, roll])
+    params.update(yaw_deg=float(yaw), pitch_deg=float(pitch), roll_deg=float(roll),
+                  euler_deg=euler.tolist())  # fmt: skip
+    return euler_to_matrix(euler), np.zeros(3)
+
+
+def _tiny_baseline(rng, scene, K1, size, dist, baseline_ratio, params) -> tuple:
+    """``pure-rotation`` rotation, centre ``baseline_ratio * median depth`` away."""
+    from .render import median_depth
+
+    euler = _truncated_normal(rng, [4.0, 6.0, 8.0])
+    direction = rng.standard_normal(3) * np.array([1.0, 0.4, 0.4])
+    direction /= np.linalg.norm(direction)
+    low, high = np.log10(TINY_BASELINE_RANGE)
+    drawn = float(10.0 ** rng.uniform(low, high))
+    ratio = drawn if baseline_ratio is None else float(baseline_ratio)
+    depth = median_depth(scene, K1, size, dist)
+    R = euler_to_matrix(euler)
+    centre = ratio * depth * direction
+    params.update(baseline_ratio=ratio, median_depth=depth, baseline=ratio * depth,
+                  centre=centre.tolist(), euler_deg=euler.tolist())  # fmt: skip
+    return R, -R @ centre

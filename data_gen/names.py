@@ -4,7 +4,15 @@ from __future__ import annotations
 
 __all__ = ["MOTIONS", "SCENES"]
 
-MOTIONS = ("general", "pure-rotation", "small-parallax", "forward", "planar")
+MOTIONS = (
+    "general",
+    "pure-rotation",
+    "small-parallax",
+    "forward",
+    "planar",
+    "panorama",
+    "tiny-baseline",
+)
 """Names accepted by :func:`ppo_cv.data_gen.motion.sample_motion`."""
 
 SCENES = ("room", "clutter", "plane", "backdrop")

@@ -23,7 +23,7 @@ import numpy as np
 
 from .scenes import Quad, Scene
 
-__all__ = ["RenderedPair", "render_pair", "render_view", "project_points"]
+__all__ = ["RenderedPair", "median_depth", "project_points", "render_pair", "render_view"]
 
 BACKGROUND = 0.5
 TINY_W = np.float32(1e-30)
@@ -47,11 +47,15 @@ class RenderedPair:
         Translation (metres; exactly zero for pure rotation).
     depth1 : ndarray, shape (H, W), float32
         Z coordinate in camera 1 of the surface seen at each pixel centre of view 1 (``inf``
-        for the backdrop at infinity or empty background).
+        for the backdrop at infinity or empty background; NaN where unknown, as in pairs
+        warped from photos).
     dist1, dist2 : ndarray, shape (k,), float64
         OpenCV distortion coefficients of each view (empty if none).
     params : dict
         Scene, motion and rendering parameters (JSON-serialisable).
+    K1_given, K2_given : ndarray, shape (3, 3), float64
+        The intrinsics an estimator is told (a focal length a few percent off for imperfect
+        pairs, see :class:`ppo_cv.data_gen.Imperfections`); ``K1``, ``K2`` by default.
     """
 
     image1: np.ndarray
@@ -64,6 +68,14 @@ class RenderedPair:
     dist1: np.ndarray = field(default_factory=lambda: np.zeros(0))
     dist2: np.ndarray = field(default_factory=lambda: np.zeros(0))
     params: dict = field(default_factory=dict)
+    K1_given: np.ndarray | None = None
+    K2_given: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        for name, true in (("K1_given", self.K1), ("K2_given", self.K2)):
+            given = getattr(self, name)
+            value = np.array(true if given is None else given, dtype=np.float64)
+            object.__setattr__(self, name, value)
 
 
 def _check_matrix(name: str, value, shape: tuple) -> np.ndarray:
@@ -389,6 +401,22 @@ def render_view(
     with np.errstate(divide="ignore"):
         depth = np.where(w > TINY_W, np.float32(1.0) / w, np.float32(np.inf))
     return image, depth.astype(np.float32)
+
+
+def median_depth(
+    scene: Scene, K: np.ndarray, size: tuple[int, int], dist: np.ndarray | None = None
+) -> float:
+    """Median Z of the finite-depth surfaces seen at the pixel centres of the camera ``(I, 0)``.
+
+    The same ray casting as :func:`render_view` (one sample per pixel centre). Raises
+    ValueError if the camera sees no surface at a finite distance.
+    """
+    grid = _Grid(_check_intrinsics("K", K), _check_size(size), 1, _check_dist("dist", dist))
+    w = _trace(scene, grid, np.eye(3), np.zeros(3))[1]
+    seen = w[w > TINY_W]
+    if seen.size == 0:
+        raise ValueError(f"scene {scene.name!r} has no surface at a finite distance in view")
+    return float(np.median(np.float32(1.0) / seen))
 
 
 def _finish(

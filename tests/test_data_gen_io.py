@@ -109,3 +109,93 @@ def test_cli_refuses_a_non_empty_directory(tmp_path):
     result = CliRunner().invoke(app, ["synth", str(tmp_path), "--pairs", "1"])
     assert result.exit_code == 2 and "not an empty directory" in result.stderr
     assert [p.name for p in tmp_path.iterdir()] == ["x"]
+
+
+def test_imperfect_dataset_gives_the_estimator_the_given_intrinsics(tmp_path):
+    from ppo_cv.data_gen import REAL_PHOTO
+
+    out = make_dataset(tmp_path / "set", pairs=2, motion="panorama", seed=3, size=SMALL,
+                       imperfections=REAL_PHOTO, workers=1)  # fmt: skip
+    for index, record in enumerate(read_pairs(out / PAIRS_FILE)):
+        pair = make_pair("panorama", seed=3, index=index, size=SMALL, imperfections=REAL_PHOTO)
+        gt = json.loads((out / "gt" / f"pair_{index:03d}.json").read_text())
+        np.testing.assert_allclose(record["K1"], pair.K1_given, atol=1e-6)
+        assert abs(record["K1"][0, 0] / pair.K1[0, 0] - 1) > 1e-4
+        np.testing.assert_array_equal(np.array(gt["K1"]), pair.K1)
+        np.testing.assert_array_equal(np.array(gt["K1_given"]), pair.K1_given)
+        np.testing.assert_array_equal(np.array(gt["dist1"]), pair.dist1)
+        assert gt["params"]["k1"] == pair.params["k1"] and gt["params"]["imperfect"] is True
+        assert np.all(record["t"] == 0.0)
+
+
+def test_warped_dataset(tmp_path):
+    from importlib import resources
+
+    photo = resources.files("ppo_cv") / "data" / "demo2.png"
+    out = make_dataset(tmp_path / "warp", pairs=2, seed=1, source="warp", warp_source=str(photo),
+                       workers=1)  # fmt: skip
+    records = read_pairs(out / PAIRS_FILE)
+    assert len(records) == 2 and all(np.all(r["t"] == 0.0) for r in records)
+    gt = json.loads((out / "gt" / "pair_001.json").read_text())
+    assert gt["params"]["photo"] == "demo2.png" and gt["params"]["motion"] == "panorama"
+    assert gt["dist1"] == [] and (gt["width"], gt["height"]) == (416, 312)
+    assert np.isnan(np.load(out / gt["depth1"])).all()
+    for bad, message in (
+        ({"motion": "general"}, "panorama"),
+        ({"alpha": 0.1}, "alpha"),
+        ({"noise_std": 1.0}, "imperfections"),
+        ({"source": "video"}, "source"),
+    ):
+        kwargs = {"source": "warp", "warp_source": str(photo), **bad}
+        with pytest.raises(ValueError, match=message):
+            make_dataset(tmp_path / "bad", pairs=1, **kwargs)
+    assert not (tmp_path / "bad").exists()
+
+
+def test_cli_imperfect_and_warp(tmp_path):
+    from importlib import resources
+
+    runner = CliRunner()
+    out = tmp_path / "tiny"
+    result = runner.invoke(app, ["synth", str(out), "-n", "1", "--motion", "tiny-baseline",
+                                 "--baseline-ratio", "0.03", "--imperfect", "--width", "64",
+                                 "--height", "48", "--noise", "2", "--workers", "1"])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    gt = json.loads((out / "gt" / "pair_000.json").read_text())
+    assert gt["params"]["baseline_ratio"] == 0.03 and gt["params"]["noise_std"] == 2.0
+    assert gt["params"]["blur_sigma"] == 0.5 and gt["K1"] != gt["K1_given"]
+    folder = resources.files("ppo_cv") / "data"
+    out = tmp_path / "warp"
+    result = runner.invoke(app, ["synth", str(out), "-n", "1", "--warp", "--imperfect",
+                                 "--warp-source", str(folder), "--width", "200", "--height",
+                                 "150", "--workers", "1"])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    gt = json.loads((out / "gt" / "pair_000.json").read_text())
+    assert (gt["width"], gt["height"]) == (200, 150) and gt["params"]["jpeg_quality"] >= 70
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--blur", "51"], "--blur"),
+        (["--noise", "-1"], "--noise"),
+        (["--width", "5000"], "--width"),
+        (["--width", "4096", "--height", "4096", "--supersample", "2"], "samples"),
+        (["--pairs", "100000"], "--pairs"),
+        (["--baseline-ratio", "0.01"], "tiny-baseline only"),
+        (["--motion", "tiny-baseline", "--baseline-ratio", "0.6"], "--baseline-ratio"),
+        (["--warp", "--motion", "general"], "panorama"),
+        (["--warp", "--width", "300"], "both --width and --height"),
+        (["--warp", "--scene", "room"], "--scene"),
+        (["--warp-source", "photos"], "needs --warp"),
+        (["--warp", "--warp-source", "missing.png"], "does not exist"),
+        (["--warp", "--different-k"], "--different-k"),
+    ],
+)
+def test_cli_new_options_bad_input_exits_2_with_one_line(tmp_path, args, message):
+    out = tmp_path / "synth"
+    result = CliRunner().invoke(app, ["synth", str(out), *args])
+    assert result.exit_code == 2, result.output
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0] and "Traceback" not in result.output
+    assert not out.exists()

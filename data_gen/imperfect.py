@@ -1,0 +1,183 @@
+"""Imperfections of real photographs, to make rendered and warped pairs as hard as real ones.
+
+A real photo differs from the exact pinhole renders in ways no estimator is told about:
+
+* unmodelled radial distortion ``(k1, k2)`` of the OpenCV model, applied in rendering but not
+  given to the estimator;
+* a focal length known only to a few percent: the estimator is given ``K_given`` whose ``fx``
+  and ``fy`` are the true ones times one factor ``f ~ U(1 - focal_error, 1 + focal_error)``
+  (principal point unchanged);
+* a narrow horizontal field of view (consumer zooms, 25-35 degrees), which makes rotation and
+  translation hard to tell apart;
+* JPEG compression, sensor noise and a slight optical blur.
+
+:class:`Imperfections` holds the ranges; :meth:`Imperfections.draw` draws one pair's values.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import cv2
+import numpy as np
+
+__all__ = [
+    "REAL_PHOTO",
+    "DrawnImperfections",
+    "Imperfections",
+    "given_intrinsics",
+    "jpeg_roundtrip",
+]
+
+MAX_K1 = 0.5
+MAX_FOCAL_ERROR = 0.5
+MAX_NOISE = 50.0
+MAX_BLUR = 50.0
+
+
+def _pair(name: str, value, low: float, high: float) -> tuple[float, float]:
+    try:
+        a, b = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a pair of numbers (low, high), got {value!r}") from None
+    if not (math.isfinite(a) and math.isfinite(b) and low <= a <= b <= high):
+        raise ValueError(f"{name} must satisfy {low} <= low <= high <= {high}, got {value!r}")
+    return a, b
+
+
+def _scalar(name: str, value, low: float, high: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    if not (math.isfinite(value) and low <= value <= high):
+        raise ValueError(f"{name} must be in [{low}, {high}], got {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class DrawnImperfections:
+    """The imperfections of one pair, drawn by :meth:`Imperfections.draw`.
+
+    Attributes
+    ----------
+    k1, k2 : float
+        Radial distortion of both views (same lens), OpenCV ``dist = (k1, k2, 0, 0, 0)``.
+    focal_factor : float
+        ``fx_given / fx_true = fy_given / fy_true`` for both views.
+    jpeg_quality : int or None
+        JPEG quality both views are encoded at (None: no compression).
+    noise_std, blur_sigma : float
+        Gaussian noise (grey levels) and blur (pixels), as :class:`Imperfections`.
+    """
+
+    k1: float
+    k2: float
+    focal_factor: float
+    jpeg_quality: int | None
+    noise_std: float
+    blur_sigma: float
+
+    @property
+    def dist(self) -> np.ndarray:
+        """OpenCV distortion coefficients ``(k1, k2, 0, 0, 0)``, shape (5,)."""
+        return np.array([self.k1, self.k2, 0.0, 0.0, 0.0])
+
+    def record(self) -> dict:
+        """The drawn values as JSON-serialisable parameters."""
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Imperfections:
+    """Ranges of the imperfections of real photos (see the module docstring).
+
+    Attributes
+    ----------
+    k1_range : (float, float), default (0.02, 0.1)
+        ``|k1| ~ U(k1_range)`` with a random sign; ``0 <= low <= high <= 0.5``.
+    k2_fraction : float, default 0
+        ``k2 = k2_fraction * k1``; ``|k2_fraction| <= 5``.
+    focal_error : float, default 0.03
+        The focal length given to the estimator is the true one times ``U(1 -+ focal_error)``;
+        in ``[0, 0.5]``.
+    hfov_range : (float, float) or None, default (25, 35)
+        Horizontal field of view (degrees) drawn uniformly in this range; None keeps the motion
+        preset's own field of view (55-70 degrees for renders, 25-35 for warped photos).
+    jpeg_quality : (int, int) or None, default (70, 95)
+        JPEG quality drawn uniformly (integers) in this range, in 1..100; None: no JPEG.
+    noise_std : float, default 1
+        Gaussian noise, grey levels (0-255), in ``[0, 50]``.
+    blur_sigma : float, default 0.5
+        Gaussian blur, pixels, in ``[0, 50]``.
+    """
+
+    k1_range: tuple = (0.02, 0.1)
+    k2_fraction: float = 0.0
+    focal_error: float = 0.03
+    hfov_range: tuple | None = (25.0, 35.0)
+    jpeg_quality: tuple | None = (70, 95)
+    noise_std: float = 1.0
+    blur_sigma: float = 0.5
+
+    def __post_init__(self) -> None:
+        put = object.__setattr__
+        put(self, "k1_range", _pair("k1_range", self.k1_range, 0.0, MAX_K1))
+        put(self, "k2_fraction", _scalar("k2_fraction", self.k2_fraction, -5.0, 5.0))
+        put(self, "focal_error", _scalar("focal_error", self.focal_error, 0.0, MAX_FOCAL_ERROR))
+        if self.hfov_range is not None:
+            hfov = _pair("hfov_range", self.hfov_range, 1.0, 179.0)
+            if hfov[0] <= 1.0 or hfov[1] >= 179.0:
+                raise ValueError(f"hfov_range must lie inside (1, 179) degrees, got {hfov}")
+            put(self, "hfov_range", hfov)
+        if self.jpeg_quality is not None:
+            low, high = _pair("jpeg_quality", self.jpeg_quality, 1, 100)
+            if low != int(low) or high != int(high):
+                raise ValueError(f"jpeg_quality must be integers, got {self.jpeg_quality!r}")
+            put(self, "jpeg_quality", (int(low), int(high)))
+        put(self, "noise_std", _scalar("noise_std", self.noise_std, 0.0, MAX_NOISE))
+        put(self, "blur_sigma", _scalar("blur_sigma", self.blur_sigma, 0.0, MAX_BLUR))
+
+    def draw(self, rng: np.random.Generator) -> DrawnImperfections:
+        """Draw one pair's distortion, focal factor and JPEG quality from ``rng``.
+
+        Always makes the same four draws (sign and size of ``k1``, focal factor, quality), so
+        the rest of a pair's random stream does not depend on the settings.
+        """
+        sign = 1.0 if rng.random() < 0.5 else -1.0
+        k1 = sign * float(rng.uniform(*self.k1_range))
+        factor = float(rng.uniform(1.0 - self.focal_error, 1.0 + self.focal_error))
+        quality_draw = rng.random()
+        quality = None
+        if self.jpeg_quality is not None:
+            low, high = self.jpeg_quality
+            quality = min(high, low + int(quality_draw * (high - low + 1)))
+        return DrawnImperfections(
+            k1=k1, k2=self.k2_fraction * k1, focal_factor=factor, jpeg_quality=quality,
+            noise_std=self.noise_std, blur_sigma=self.blur_sigma,
+        )  # fmt: skip
+
+    def record(self) -> dict:
+        """The settings as JSON-serialisable parameters."""
+        return {key: list(v) if isinstance(v, tuple) else v for key, v in asdict(self).items()}
+
+
+REAL_PHOTO = Imperfections()
+"""Imperfections of a consumer camera on a tripod: the defaults of :class:`Imperfections`."""
+
+
+def given_intrinsics(K: np.ndarray, focal_factor: float) -> np.ndarray:
+    """``K`` with ``fx``, ``fy`` (and the skew) scaled by ``focal_factor``, shape (3, 3)."""
+    K_given = np.array(K, dtype=np.float64)
+    K_given[:2, :2] *= focal_factor
+    return K_given
+
+
+def jpeg_roundtrip(image: np.ndarray, quality: int | None) -> np.ndarray:
+    """Encode an RGB uint8 image (H, W, 3) as JPEG at ``quality`` and decode it (None: as is)."""
+    if quality is None:
+        return image
+    ok, data = cv2.imencode(".jpg", cv2.cvtColor(image, cv2.COLOR_RGB2BGR),
+                            [cv2.IMWRITE_JPEG_QUALITY, int(quality)])  # fmt: skip
+    if not ok:
+        raise RuntimeError("JPEG encoding failed")
+    return cv2.cvtColor(cv2.imdecode(data, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
