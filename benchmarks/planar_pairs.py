@@ -2,9 +2,11 @@
 
 Usage (from the repository root)::
 
-    python benchmarks/planar_pairs.py --seeds 0 1 2 --pairs 10 --jobs 2
+    python benchmarks/planar_pairs.py --seeds 0 1 2 --pairs 10 --jobs 2 [--imperfect]
 
-For every pair ``make_pair("planar", seed, index)`` (640x480) the pose error (the larger of the
+For every pair ``make_pair("planar", seed, index)`` (640x480; with ``--imperfect`` the
+imperfections of real photos, ``data_gen.REAL_PHOTO``, and every method given the slightly
+wrong ``K1_given``, ``K2_given``) the pose error (the larger of the
 rotation and translation-direction errors, degrees, as in ``docs/benchmarks.md``) of
 
 ``H + PPO``
@@ -81,12 +83,16 @@ def homography_pose(p1, p2, K1, K2, refine: bool):
     return R, t, pose.ambiguous
 
 
-def evaluate(task: tuple[int, int]) -> dict:
-    from ppo_cv.data_gen import make_pair
+def evaluate(task: tuple[int, int, bool]) -> dict:
+    from ppo_cv.data_gen import REAL_PHOTO, make_pair
 
-    seed, index = task
+    seed, index, imperfect = task
     cv2.setNumThreads(1)
-    pair = make_pair("planar", seed=seed, index=index)
+    pair = make_pair(
+        "planar", seed=seed, index=index, imperfections=REAL_PHOTO if imperfect else None
+    )
+    K1 = pair.K1 if pair.K1_given is None else pair.K1_given
+    K2 = pair.K2 if pair.K2_given is None else pair.K2_given
     bgr1 = cv2.cvtColor(pair.image1, cv2.COLOR_RGB2BGR)
     bgr2 = cv2.cvtColor(pair.image2, cv2.COLOR_RGB2BGR)
     shared = anchors.sift_matches(bgr1, bgr2)
@@ -94,16 +100,16 @@ def evaluate(task: tuple[int, int]) -> dict:
     own = match_features(f1, f2)
     q1, q2 = f1.keypoints[own[:, 0]], f2.keypoints[own[:, 1]]
     poses = {
-        "H + PPO": homography_pose(shared.points1, shared.points2, pair.K1, pair.K2, False),
-        "H + PPO + refine": homography_pose(shared.points1, shared.points2, pair.K1, pair.K2, True),
-        "H + PPO (ppo_cv features)": homography_pose(q1, q2, pair.K1, pair.K2, True),
+        "H + PPO": homography_pose(shared.points1, shared.points2, K1, K2, False),
+        "H + PPO + refine": homography_pose(shared.points1, shared.points2, K1, K2, True),
+        "H + PPO (ppo_cv features)": homography_pose(q1, q2, K1, K2, True),
     }
     try:
-        result = estimate_pair(bgr1, bgr2, pair.K1, pair.K2)
+        result = estimate_pair(bgr1, bgr2, K1, K2)
         poses["estimate_pair"] = (result.R, result.t, False)
     except ValueError:
         poses["estimate_pair"] = None
-    colmap = anchors.run_anchor("pycolmap", shared, pair.K1, pair.K2)
+    colmap = anchors.run_anchor("pycolmap", shared, K1, K2)
     poses["pycolmap"] = None if colmap.R is None else (colmap.R, colmap.t, False)
     errors = {}
     for name, pose in poses.items():
@@ -124,16 +130,18 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--pairs", type=int, default=10, help="pairs per seed")
     parser.add_argument("--jobs", type=int, default=2)
+    parser.add_argument("--imperfect", action="store_true", help="renders with REAL_PHOTO")
     args = parser.parse_args(argv)
-    tasks = [(s, i) for s in args.seeds for i in range(args.pairs)]
+    tasks = [(s, i, args.imperfect) for s in args.seeds for i in range(args.pairs)]
     rows = []
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         for row in pool.map(evaluate, tasks):
             rows.append(row)
             errs = ", ".join(f"{k} {v:.2f}" for k, v in row["errors"].items())
             print(f"planar seed {row['seed']} #{row['index']}: {errs}", flush=True)
-    print(f"\n{len(rows)} rendered planar pairs, 640x480, seeds {args.seeds}; {platform.node()}")
-    print(f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores\n")
+    kind = "imperfect (REAL_PHOTO) " if args.imperfect else ""
+    print(f"\n{len(rows)} {kind}rendered planar pairs, 640x480, seeds {args.seeds}")
+    print(f"{platform.node()}, {platform.machine()}, {os.cpu_count()} cores\n")
     print("| method | AUC@5 | AUC@10 | AUC@20 |")
     print("|---|---:|---:|---:|")
     for name in METHODS:
