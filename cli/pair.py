@@ -97,22 +97,34 @@ def _demo_inputs():
 def _summary(result, name1: str, name2: str, note: str | None, reference=None) -> str:
     import numpy as np
 
-    from ppo_cv.export import euler_zyx_degrees, rotation_angle_axis
+    from ppo_cv.export import POSE_CONVENTION, camera_euler_degrees, rotation_angle_axis
 
     angle, axis = rotation_angle_axis(result.R)
-    yaw, pitch, roll = euler_zyx_degrees(result.R)
+    yaw, pitch, roll = camera_euler_degrees(result.R)
     verdict = (
         "pure rotation: translation undetermined, no 3D points"
         if result.pure_rotation
         else "general motion (translation determined)"
     )
     t = np.asarray(result.t)
+    vector = f"({t[0]:+.4f}, {t[1]:+.4f}, {t[2]:+.4f})"
+
+    def camera(K, dist):
+        text = f"fx {K[0, 0]:.2f}  fy {K[1, 1]:.2f}  cx {K[0, 2]:.2f}  cy {K[1, 2]:.2f}"
+        coefficients = "none" if dist is None else ",".join(f"{v:g}" for v in np.ravel(dist))
+        return f"{text}  distortion {coefficients}"
+
     lines = [
         f"{name1} -> {name2}",
+        f"  convention   {POSE_CONVENTION}; camera axes x right, y down, z forward",
         f"  rotation     {angle:.3f} deg about ({axis[0]:+.4f}, {axis[1]:+.4f}, {axis[2]:+.4f})",
-        f"  euler zyx    yaw {yaw:+.3f}  pitch {pitch:+.3f}  roll {roll:+.3f} deg",
-        f"  translation  ({t[0]:+.4f}, {t[1]:+.4f}, {t[2]:+.4f})"
-        + ("  [undetermined]" if result.pure_rotation else "  [unit direction]"),
+        f"  euler        yaw {yaw:+.3f} (about y)  pitch {pitch:+.3f} (about x)  "
+        f"roll {roll:+.3f} (about z) deg, R = Ry Rx Rz",
+        "  translation  undetermined (pure rotation); best unit guess " + vector
+        if result.pure_rotation
+        else f"  translation  {vector}  [unit direction]",
+        f"  camera 1     {camera(result.K1, result.dist1)}",
+        f"  camera 2     {camera(result.K2, result.dist2)}",
         f"  PRI          {result.pri:.4f} (threshold {result.pri_threshold:g}): {verdict}",
         f"  matches      {result.num_matches} putative, {result.num_inliers} inliers, "
         f"{result.num_points} 3D points",
@@ -382,8 +394,14 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """Relative pose (R, t), pure-rotation verdict and 3D points of two photos.
 
-        Without intrinsics the focal length is read from EXIF (with a warning). Without images
-        it runs on the built-in demo pair.
+        Convention: X2 = R X1 + t maps camera-1 coordinates to camera 2,
+        t of unit length; camera axes x right, y down, z forward. The
+        summary and the JSON state the intrinsics and distortion used.
+        A pure rotation leaves t undetermined: the JSON then has "t": null
+        and the best unit guess under "t_guess".
+
+        Without intrinsics the focal length is read from EXIF (with a
+        warning). Without images it runs on the built-in demo pair.
         """
         try:
             options = _options(features, max_features, max_size, ratio, backend, threshold, seed)

@@ -6,11 +6,20 @@
 * :func:`estimate_pair` goes from two photos to a :class:`PairResult`.
 * :mod:`ppo_cv.ppo` holds the paper's mathematics; :mod:`ppo_cv.colmap` and :mod:`ppo_cv.sfm`
   connect to pycolmap and load on first use.
+
+The subpackages ``ppo_cv.cli`` and ``ppo_cv.data_gen`` live in the top-level folders ``cli/``
+and ``data_gen/`` of the source tree, which installation maps into the package. When this
+package is imported from a source tree (no ``ppo_cv/cli`` beside this file, but ``../cli`` and
+a ``pyproject.toml``), a finder maps the two folders in the same way, so that
+``import ppo_cv.cli.main`` and ``python -m ppo_cv`` work from the root of a clone.
 """
 
 from __future__ import annotations
 
 import importlib
+import importlib.util
+import os
+import sys
 
 from .calib import Camera, camera_from_exif, load_calibration, parse_intrinsics
 from .export import write_outputs
@@ -47,3 +56,36 @@ def __getattr__(name: str):
     if name in _LAZY_SUBMODULES:
         return importlib.import_module(f".{name}", __name__)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+class _SourceTreeFinder:
+    """Meta path finder of ``ppo_cv.cli`` and ``ppo_cv.data_gen`` in a source tree."""
+
+    def __init__(self, folders: dict[str, str]) -> None:
+        self.folders = folders
+
+    def find_spec(self, fullname: str, path=None, target=None):
+        folder = self.folders.get(fullname)
+        if folder is None:
+            return None
+        return importlib.util.spec_from_file_location(
+            fullname, os.path.join(folder, "__init__.py"), submodule_search_locations=[folder]
+        )
+
+
+def _map_source_tree(package: str, here: str, names: tuple[str, ...]) -> None:
+    root = os.path.dirname(here)
+    if not os.path.isfile(os.path.join(root, "pyproject.toml")):
+        return
+    folders = {
+        f"{package}.{name}": os.path.join(root, name)
+        for name in names
+        if not os.path.exists(os.path.join(here, name))
+        and os.path.isfile(os.path.join(root, name, "__init__.py"))
+    }
+    if folders and not any(isinstance(f, _SourceTreeFinder) for f in sys.meta_path):
+        # first: the subpackages belong to this tree, even if another one is installed
+        sys.meta_path.insert(0, _SourceTreeFinder(folders))
+
+
+_map_source_tree(__name__, os.path.dirname(os.path.abspath(__file__)), ("cli", "data_gen"))

@@ -362,8 +362,8 @@ def two_view_reconstruction(
     The world frame is camera 1; camera 2 is ``cam2_from_world = (R, t)`` with the unit
     baseline of ``pose``. Each match that is a PPO inlier, has a finite analytic point and a
     triangulation angle of at least ``min_tri_angle`` degrees becomes a 3D point with a track
-    of length two. Nothing is refined: run ``pycolmap.bundle_adjustment`` on the result if
-    needed.
+    of length two, carrying its mean reprojection error in pixels (COLMAP's point error).
+    Nothing is refined: run ``pycolmap.bundle_adjustment`` on the result if needed.
 
     Parameters
     ----------
@@ -415,4 +415,5 @@ def two_view_reconstruction(
             [pycolmap.TrackElement(id1, index1), pycolmap.TrackElement(id2, index2)]
         )
         reconstruction.add_point3D(xyz, track)
+    reconstruction.update_point_3d_errors()
     return reconstruction

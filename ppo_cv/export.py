@@ -1,5 +1,9 @@
 """Writing a :class:`~ppo_cv.pipeline.PairResult`: JSON, coloured PLY, match image, COLMAP model.
 
+Conventions of every export: ``X2 = R X1 + t`` maps camera-1 coordinates to camera-2
+coordinates, ``t`` has unit length (the images fix no scale), camera axes are x right, y down,
+z forward (OpenCV's), and the 3D points are in camera-1 coordinates with a unit baseline.
+
 ``write_outputs`` builds everything in a temporary directory beside the target and moves it into
 place at the end, so a failure leaves no partial output.
 """
@@ -11,21 +15,82 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from .pipeline import PairResult
 
 __all__ = [
+    "POSE_CONVENTION",
+    "CAMERA_AXES",
+    "EULER_CONVENTION",
+    "CameraEuler",
+    "camera_euler_degrees",
     "result_to_dict",
     "rotation_angle_axis",
     "euler_zyx_degrees",
     "write_ply",
+    "matches_to_draw",
     "draw_matches",
+    "MAX_DRAWN_MATCHES",
     "write_colmap_model",
     "write_outputs",
 ]
+
+POSE_CONVENTION = "X2 = R X1 + t: camera-1 coordinates to camera-2 coordinates, |t| = 1"
+CAMERA_AXES = "x right, y down, z forward"
+EULER_CONVENTION = (
+    "R = Ry(yaw) Rx(pitch) Rz(roll) in camera axes: yaw (pan) about y, pitch (tilt) about x, "
+    "roll about z, degrees"
+)
+MAX_DRAWN_MATCHES = 150
+
+
+class CameraEuler(NamedTuple):
+    """Euler angles of a rotation in camera axes (x right, y down, z forward), degrees.
+
+    ``R = Ry(yaw) @ Rx(pitch) @ Rz(roll)``: yaw (pan) about y, pitch (tilt) about x, roll about
+    the optical axis z, each right-handed.
+    """
+
+    yaw: float
+    pitch: float
+    roll: float
+
+
+def camera_euler_degrees(R: np.ndarray) -> CameraEuler:
+    """Yaw, pitch and roll of a rotation in the camera convention, degrees.
+
+    Parameters
+    ----------
+    R : ndarray, shape (3, 3)
+        Rotation matrix, e.g. the ``R`` of ``X2 = R X1 + t``.
+
+    Returns
+    -------
+    CameraEuler
+        ``(yaw, pitch, roll)`` with ``R = Ry(yaw) Rx(pitch) Rz(roll)``, yaw and roll in
+        (-180, 180], pitch in [-90, 90]. At pitch +-90 (gimbal lock) roll is set to 0.
+
+    Notes
+    -----
+    With ``c = cos``, ``s = sin``: ``R[1, 2] = -s(pitch)``, ``(R[0, 2], R[2, 2]) = c(pitch)
+    (s(yaw), c(yaw))`` and ``(R[1, 0], R[1, 1]) = c(pitch) (s(roll), c(roll))``.
+
+    Examples
+    --------
+    >>> import cv2, numpy as np
+    >>> [round(a, 6) for a in camera_euler_degrees(cv2.Rodrigues(np.radians([0, 10, 0]))[0])]
+    [10.0, 0.0, 0.0]
+    """
+    R = np.asarray(R, dtype=np.float64)
+    pitch = np.arcsin(np.clip(-R[1, 2], -1.0, 1.0))
+    if np.hypot(R[1, 0], R[1, 1]) < 1e-9:
+        yaw, roll = np.arctan2(-R[2, 0], R[0, 0]), 0.0
+    else:
+        yaw, roll = np.arctan2(R[0, 2], R[2, 2]), np.arctan2(R[1, 0], R[1, 1])
+    return CameraEuler(*(float(np.degrees(a)) + 0.0 for a in (yaw, pitch, roll)))
 
 
 def rotation_angle_axis(R: np.ndarray) -> tuple[float, np.ndarray]:
@@ -43,36 +108,54 @@ def rotation_angle_axis(R: np.ndarray) -> tuple[float, np.ndarray]:
 
 
 def euler_zyx_degrees(R: np.ndarray) -> tuple[float, float, float]:
-    """Yaw (about z), pitch (about y) and roll (about x), degrees, with ``R = Rz Ry Rx``."""
+    """Angles about z, y and x (degrees) with ``R = Rz Ry Rx``: the aerospace sequence.
+
+    Kept for existing callers. Its names yaw/pitch/roll fit a body with z up, not a camera
+    (z forward, y down); the exports label angles with :func:`camera_euler_degrees`.
+    """
     pitch = np.arcsin(np.clip(-R[2, 0], -1.0, 1.0))
     yaw = np.arctan2(R[1, 0], R[0, 0])
     roll = np.arctan2(R[2, 1], R[2, 2])
     return float(np.degrees(yaw)), float(np.degrees(pitch)), float(np.degrees(roll))
 
 
-def result_to_dict(result: PairResult, **extra: Any) -> dict:
-    """A JSON-ready summary: pose, verdict, counts, intrinsics and timings (plus ``extra``).
+def _listed(array: Any) -> list | None:
+    return None if array is None else np.asarray(array, dtype=np.float64).tolist()
 
-    ``t`` is always the unit translation estimate; for a pure rotation it is undetermined and
-    ``translation_determined`` is False.
+
+def result_to_dict(result: PairResult, **extra: Any) -> dict:
+    """A JSON-ready summary: pose, verdict, counts, intrinsics, distortion, timings (+ ``extra``).
+
+    ``R`` and ``t`` follow ``X2 = R X1 + t`` with ``|t| = 1`` (``convention``). When the
+    translation is not determined (a pure rotation) ``t`` is None and the best unit guess, which
+    the images do not support, is under ``t_guess``. ``rotation_euler_deg`` holds the yaw, pitch
+    and roll of ``R`` in camera axes (:func:`camera_euler_degrees`). ``dist1`` and ``dist2`` are
+    the OpenCV distortion coefficients removed from the points, None for none.
     """
     angle, axis = rotation_angle_axis(result.R)
+    t = np.asarray(result.t, dtype=np.float64).tolist()
     data = {
+        "convention": POSE_CONVENTION,
+        "camera_axes": CAMERA_AXES,
         "R": np.asarray(result.R).tolist(),
-        "t": np.asarray(result.t).tolist(),
+        "t": t if result.translation_determined else None,
+        **({} if result.translation_determined else {"t_guess": t}),
         "pure_rotation": bool(result.pure_rotation),
         "translation_determined": bool(result.translation_determined),
         "pri": float(result.pri),
         "pri_threshold": float(result.pri_threshold),
         "rotation_angle_deg": angle,
         "rotation_axis": axis.tolist(),
-        "euler_zyx_deg": list(euler_zyx_degrees(result.R)),
+        "rotation_euler_deg": camera_euler_degrees(result.R)._asdict(),
+        "euler_convention": EULER_CONVENTION,
         "num_keypoints": [int(len(result.keypoints1)), int(len(result.keypoints2))],
         "num_matches": result.num_matches,
         "num_inliers": result.num_inliers,
         "num_points": result.num_points,
         "K1": np.asarray(result.K1).tolist(),
         "K2": np.asarray(result.K2).tolist(),
+        "dist1": _listed(result.dist1),
+        "dist2": _listed(result.dist2),
         "image_size1": list(result.image_size1),
         "image_size2": list(result.image_size2),
         "timings": {k: round(float(v), 6) for k, v in result.timings.items()},
@@ -109,27 +192,141 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, colours: np.ndarray) 
         handle.write(vertex.tobytes())
 
 
-def draw_matches(image1: np.ndarray, image2: np.ndarray, result: PairResult) -> np.ndarray:
-    """Side-by-side BGR image with inlier matches in green and outliers in red."""
+def matches_to_draw(
+    inliers: np.ndarray, max_lines: int | None = MAX_DRAWN_MATCHES, seed: int = 0
+) -> np.ndarray:
+    """Rows of the matches to draw: all when they fit in ``max_lines``, else inliers first.
+
+    Parameters
+    ----------
+    inliers : ndarray of bool, shape (M,)
+        Inlier flag of each match.
+    max_lines : int or None
+        Most lines to draw; None draws every match.
+    seed : int
+        Seed of the uniform sample taken within the inliers, then within the outliers.
+
+    Returns
+    -------
+    ndarray of int, shape (D,)
+        Sorted rows, ``D = min(M, max_lines)``.
+    """
+    inliers = np.asarray(inliers, dtype=bool).reshape(-1)
+    if max_lines is None or inliers.size <= max_lines:
+        return np.arange(inliers.size)
+    if max_lines < 0:
+        raise ValueError(f"max_lines must be >= 0 or None, got {max_lines}")
+    rng = np.random.default_rng(seed)
+    inlier_rows, outlier_rows = np.flatnonzero(inliers), np.flatnonzero(~inliers)
+    take = min(inlier_rows.size, max_lines)
+    chosen = (
+        rng.choice(inlier_rows, take, replace=False),
+        rng.choice(outlier_rows, max_lines - take, replace=False),
+    )
+    return np.sort(np.concatenate(chosen))
+
+
+_INLIER_BGR, _OUTLIER_BGR = (0, 200, 0), (0, 0, 255)
+_LEGEND_BGR, _TEXT_BGR = (40, 40, 40), (255, 255, 255)
+
+
+def _as_bgr(image: np.ndarray) -> np.ndarray:
     import cv2
 
-    def bgr(image):
-        image = np.asarray(image)
-        if image.dtype != np.uint8:
-            image = np.clip(image, 0, 255).astype(np.uint8)
-        return cv2.cvtColor(image, cv2.COLOR_GRAY2BGR) if image.ndim == 2 else image[:, :, :3]
+    image = np.asarray(image)
+    if image.dtype != np.uint8:
+        image = np.clip(image, 0, 255).astype(np.uint8)
+    if image.ndim == 3 and image.shape[2] == 1:
+        image = image[:, :, 0]
+    return cv2.cvtColor(image, cv2.COLOR_GRAY2BGR) if image.ndim == 2 else image[:, :, :3]
 
-    a, b = bgr(image1), bgr(image2)
+
+def _legend_lines(result: PairResult, drawn: np.ndarray) -> list[tuple[str, tuple | None]]:
+    inliers = np.asarray(result.inliers, dtype=bool)
+    drawn_in = int(np.count_nonzero(inliers[drawn]))
+    verdict = (
+        f"pure rotation (PRI {result.pri:.4f} < {result.pri_threshold:g}): translation undetermined"
+        if result.pure_rotation
+        else f"general motion (PRI {result.pri:.4f} >= {result.pri_threshold:g})"
+    )
+    return [
+        (f"inliers  {result.num_inliers}  ({drawn_in} drawn)", _INLIER_BGR),
+        (
+            f"outliers {result.num_matches - result.num_inliers}  ({drawn.size - drawn_in} drawn)",
+            _OUTLIER_BGR,
+        ),
+        (f"{drawn.size} of {result.num_matches} matches drawn, inliers first", None),
+        (verdict, None),
+    ]
+
+
+def draw_matches(
+    image1: np.ndarray,
+    image2: np.ndarray,
+    result: PairResult,
+    max_lines: int | None = MAX_DRAWN_MATCHES,
+) -> np.ndarray:
+    """Side-by-side BGR image of the matches with a legend band underneath.
+
+    Inliers are green and outliers red; at most ``max_lines`` matches are drawn
+    (:func:`matches_to_draw`, inliers first). The legend gives the inlier and outlier counts,
+    how many of each are drawn and the pure-rotation verdict with PRI.
+
+    Parameters
+    ----------
+    image1, image2 : ndarray, shape (H, W) or (H, W, 3)
+        The two images, grey or BGR.
+    result : PairResult
+        The estimate whose matches are drawn.
+    max_lines : int or None
+        Most match lines drawn; None draws all.
+
+    Returns
+    -------
+    ndarray of uint8, shape (max(H1, H2) + legend height, W1 + W2, 3)
+    """
+    import cv2
+
+    a, b = _as_bgr(image1), _as_bgr(image2)
+    width = a.shape[1] + b.shape[1]
+    scale = max(0.6, width / 1280.0)  # text readable on the canvas, whatever its width
+    line_height = round(24 * scale)
+    drawn = matches_to_draw(result.inliers, max_lines)
+    legend = _legend_lines(result, drawn)
     height = max(a.shape[0], b.shape[0])
-    canvas = np.zeros((height, a.shape[1] + b.shape[1], 3), dtype=np.uint8)
+    canvas = np.zeros((height + line_height * len(legend) + line_height // 2, width, 3), np.uint8)
     canvas[: a.shape[0], : a.shape[1]] = a
     canvas[: b.shape[0], a.shape[1] :] = b
-    p1 = result.keypoints1[result.matches[:, 0]]
-    p2 = result.keypoints2[result.matches[:, 1]] + (a.shape[1], 0)
+    canvas[height:] = _LEGEND_BGR
+    rows = result.matches[drawn]
+    p1 = result.keypoints1[rows[:, 0]]
+    p2 = result.keypoints2[rows[:, 1]] + (a.shape[1], 0)
     segments = np.rint(np.stack([p1, p2], axis=1)).astype(np.int32)
-    outliers, inliers = segments[~result.inliers], segments[result.inliers]
-    cv2.polylines(canvas, list(outliers), False, (0, 0, 255), 1, cv2.LINE_AA)
-    cv2.polylines(canvas, list(inliers), False, (0, 200, 0), 1, cv2.LINE_AA)
+    inlier = np.asarray(result.inliers, dtype=bool)[drawn]
+    thickness = max(1, round(scale))
+    for colour, chosen in ((_OUTLIER_BGR, ~inlier), (_INLIER_BGR, inlier)):
+        cv2.polylines(canvas, list(segments[chosen]), False, colour, thickness, cv2.LINE_AA)
+    for row, (text, swatch) in enumerate(legend):
+        y = height + (row + 1) * line_height
+        x = round(10 * scale)
+        if swatch is not None:
+            cv2.line(
+                canvas,
+                (x, y - line_height // 3),
+                (x + line_height, y - line_height // 3),
+                swatch,
+                max(2, thickness * 2),
+            )
+        cv2.putText(
+            canvas,
+            text,
+            (x + line_height + x, y),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.55 * scale,
+            _TEXT_BGR,
+            thickness,
+            cv2.LINE_AA,
+        )
     return canvas
 
 
@@ -153,15 +350,18 @@ def write_colmap_model(
     directory: str | os.PathLike,
     result: PairResult,
     names: tuple[str, str] = ("image1.png", "image2.png"),
-    dists: tuple[np.ndarray | None, np.ndarray | None] = (None, None),
+    dists: tuple[np.ndarray | None, np.ndarray | None] | None = None,
 ) -> None:
     """COLMAP text model (cameras, images, points3D) of the two views and the analytic points.
 
     Camera 1 is the world frame; camera 2 has pose ``(R, t)`` (``t`` zero for a pure rotation);
-    the unit is the baseline.
+    the unit is the baseline. Each point's error is its mean reprojection error over the two
+    views in pixels, through the camera models (distortion included), as COLMAP defines it.
+    ``dists`` defaults to the distortion the result was computed with.
     """
     import pycolmap
 
+    dists = (result.dist1, result.dist2) if dists is None else dists
     reconstruction = pycolmap.Reconstruction()
     same = (
         np.allclose(result.K1, result.K2)
@@ -196,12 +396,14 @@ def write_colmap_model(
         reconstruction.add_image_with_trivial_frame(image, pose)
     # Index of each inlier among the inliers: the keypoint index within both images.
     inlier_rank = np.cumsum(result.inliers) - 1
-    for xyz, colour, row in zip(result.points3d, result.colours, result.point_matches, strict=True):
+    rows = result.point_matches
+    for xyz, colour, row in zip(result.points3d[rows], result.colours[rows], rows, strict=True):
         k = int(inlier_rank[row])
         track = pycolmap.Track()
         track.add_element(1, k)
         track.add_element(2, k)
         reconstruction.add_point3D(np.asarray(xyz, float), track, np.asarray(colour, np.uint8))
+    reconstruction.update_point_3d_errors()
     os.makedirs(directory, exist_ok=True)
     reconstruction.write_text(os.fspath(directory))
 
@@ -212,7 +414,7 @@ def write_outputs(
     image1: np.ndarray,
     image2: np.ndarray,
     names: tuple[str, str] = ("image1.png", "image2.png"),
-    dists: tuple[np.ndarray | None, np.ndarray | None] = (None, None),
+    dists: tuple[np.ndarray | None, np.ndarray | None] | None = None,
     extra: dict | None = None,
 ) -> Path:
     """Write ``result.json``, ``points.ply``, ``matches.png`` and ``colmap/`` into ``directory``.
@@ -230,7 +432,8 @@ def write_outputs(
         (staging / "result.json").write_text(
             json.dumps(result_to_dict(result, **(extra or {})), indent=2) + "\n", encoding="utf-8"
         )
-        write_ply(staging / "points.ply", result.points3d, result.colours)
+        rows = result.point_matches
+        write_ply(staging / "points.ply", result.points3d[rows], result.colours[rows])
         if not cv2.imwrite(str(staging / "matches.png"), draw_matches(image1, image2, result)):
             raise OSError("could not encode matches.png")
         write_colmap_model(staging / "colmap", result, names, dists)

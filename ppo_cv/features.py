@@ -11,10 +11,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FEATURE_TYPES", "Features", "to_gray", "detect_features", "match_features"]
+__all__ = [
+    "FEATURE_TYPES",
+    "PIXEL_PAIR_RESOLUTION",
+    "Features",
+    "to_gray",
+    "detect_features",
+    "match_features",
+    "unique_pixel_pairs",
+]
 
 FEATURE_TYPES = ("sift", "orb", "akaze")
 _FLANN_MIN_FEATURES = 12000
+PIXEL_PAIR_RESOLUTION = 0.01
 
 
 @dataclass(frozen=True)
@@ -192,11 +201,15 @@ def match_features(
     ratio: float = 0.8,
     mutual: bool = True,
     flann: bool | None = None,
+    unique: bool = True,
 ) -> np.ndarray:
     """Match descriptors by nearest neighbour with Lowe's ratio test.
 
     A match ``(i, j)`` is kept when ``d(i, j) < ratio * d(i, j')`` for the second nearest ``j'``
     and, with ``mutual``, when ``i`` is also the nearest neighbour of ``j`` in image 1.
+    SIFT detects one location several times (one keypoint per dominant orientation), so
+    several matches can join the same two pixels; with ``unique`` each pixel pair (rounded to
+    ``PIXEL_PAIR_RESOLUTION``) is kept once, by its smallest descriptor distance.
 
     Parameters
     ----------
@@ -209,6 +222,8 @@ def match_features(
     flann : bool, optional
         Approximate search with FLANN kd-trees (float descriptors only); by default used when
         both sets hold more than 12000 descriptors.
+    unique : bool
+        Keep one match per pixel pair.
 
     Returns
     -------
@@ -234,4 +249,43 @@ def match_features(
     if mutual:
         keep &= index21[np.maximum(index12[:, 0], 0)] == np.arange(len(d1))
     rows = np.flatnonzero(keep)
-    return np.stack([rows, index12[rows, 0]], axis=1).astype(np.int64)
+    matches = np.stack([rows, index12[rows, 0]], axis=1).astype(np.int64)
+    if unique:
+        matches = unique_pixel_pairs(
+            matches, features1.keypoints, features2.keypoints, dist12[rows, 0]
+        )
+    return matches
+
+
+def unique_pixel_pairs(
+    matches: np.ndarray,
+    keypoints1: np.ndarray,
+    keypoints2: np.ndarray,
+    distances: np.ndarray,
+    resolution: float | None = None,
+) -> np.ndarray:
+    """One match per pixel pair: the one with the smallest descriptor distance.
+
+    Parameters
+    ----------
+    matches : ndarray of int, shape (M, 2)
+        Index pairs into ``keypoints1`` (N1, 2) and ``keypoints2`` (N2, 2).
+    distances : ndarray, shape (M,)
+        Descriptor distance of each match.
+    resolution : float, optional
+        Pixel coordinates are compared after rounding to this step (default
+        ``PIXEL_PAIR_RESOLUTION``).
+
+    Returns
+    -------
+    ndarray of int, shape (U, 2)
+        The kept rows of ``matches``, in their original order.
+    """
+    step = PIXEL_PAIR_RESOLUTION if resolution is None else float(resolution)
+    if len(matches) < 2:
+        return matches
+    pixels = np.hstack([keypoints1[matches[:, 0]], keypoints2[matches[:, 1]]])
+    keys = np.rint(pixels / step).astype(np.int64)
+    by_distance = np.argsort(distances, kind="stable")
+    _, first = np.unique(keys[by_distance], axis=0, return_index=True)
+    return matches[np.sort(by_distance[first])]

@@ -2,8 +2,9 @@
 
 Stages (each timed in ``PairResult.timings``, seconds):
 
-1. ``features``: SIFT (RootSIFT) keypoints, or ORB / AKAZE (:mod:`ppo_cv.features`).
-2. ``matching``: mutual nearest neighbours with Lowe's ratio test.
+1. ``features``: SIFT (RootSIFT) keypoints, or ORB / AKAZE (:mod:`ppo_cv.features`);
+   ``pycolmap_import`` is the wait for the first import of pycolmap that runs beside it.
+2. ``matching``: mutual nearest neighbours with Lowe's ratio test, one match per pixel pair.
 3. ``undistort``: matched pixels to normalized coordinates ``K^-1 [u, v, 1]``, lens distortion
    removed from the points (never from the images).
 4. ``ransac``: robust essential matrix (:mod:`ppo_cv.robust`).
@@ -134,19 +135,23 @@ class PairResult:
         Putative matches, indices into ``keypoints1`` and ``keypoints2``.
     inliers : ndarray of bool, shape (M,)
         Matches consistent with the estimated two-view geometry.
-    points3d : ndarray, shape (P, 3)
-        Analytic points (Proposition 3) in camera-1 coordinates with unit baseline, for the inliers
-        in front of both cameras; empty for a pure rotation.
+    points3d : ndarray, shape (M, 3)
+        Analytic point (Proposition 3) of each match in camera-1 coordinates with unit
+        baseline; NaN outside the inliers, where the PPO inequalities fail or the rays are
+        parallel, and everywhere for a pure rotation (as ``PoseResult.points3d``).
     point_matches : ndarray of int, shape (P,)
-        Row of ``matches`` of each point.
-    colours : ndarray of uint8, shape (P, 3)
-        RGB colour of each point, sampled from image 1.
+        Rows of ``matches`` with a finite point: ``points3d[point_matches]``.
+    colours : ndarray of uint8, shape (M, 3)
+        RGB colour of each match, sampled from image 1.
     K1, K2 : ndarray, shape (3, 3)
         Intrinsics used.
+    dist1, dist2 : ndarray or None
+        OpenCV distortion coefficients removed from the points; None for none.
     image_size1, image_size2 : tuple of int
         ``(width, height)`` of each image.
     timings : dict
-        Seconds per stage.
+        Seconds per stage; ``features`` is detection alone and ``pycolmap_import`` the wait for
+        the first import of pycolmap that overlaps it.
     """
 
     R: np.ndarray
@@ -166,6 +171,8 @@ class PairResult:
     image_size2: tuple[int, int]
     pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD
     timings: dict[str, float] = field(default_factory=dict)
+    dist1: np.ndarray | None = None
+    dist2: np.ndarray | None = None
 
     @property
     def translation_determined(self) -> bool:
@@ -184,8 +191,8 @@ class PairResult:
 
     @property
     def num_points(self) -> int:
-        """Number of 3D points."""
-        return int(self.points3d.shape[0])
+        """Number of finite 3D points."""
+        return int(self.point_matches.shape[0])
 
     @property
     def inlier_points(self) -> tuple[np.ndarray, np.ndarray]:
@@ -248,23 +255,25 @@ def _colours(image: np.ndarray, points: np.ndarray) -> np.ndarray:
     return np.clip(pixels, 0, 255).astype(np.uint8)
 
 
-def _detect_both(image1, image2, options: PairOptions) -> tuple[Features, Features]:
-    """Features of both images on two threads (OpenCV releases the GIL).
+def _detect_both(image1, image2, options: PairOptions) -> tuple[Features, Features, float]:
+    """Features of both images on two threads (OpenCV releases the GIL), and when both were done.
 
     The first use of pycolmap in a process pays its import; it is overlapped with detection.
+    The returned ``time.perf_counter()`` of the end of detection separates the two.
     """
     from concurrent.futures import ThreadPoolExecutor
 
     def run(image):
-        return detect_features(
+        features = detect_features(
             image, options.features, options.max_features, options.max_image_size
         )
+        return features, time.perf_counter()
 
     with ThreadPoolExecutor(max_workers=3) as pool:
-        if "pycolmap" not in sys.modules:
+        if options.backend == "pycolmap" and "pycolmap" not in sys.modules:
             pool.submit(importlib.import_module, "pycolmap")
-        f1, f2 = pool.map(run, (image1, image2))
-    return f1, f2
+        (f1, done1), (f2, done2) = pool.map(run, (image1, image2))
+    return f1, f2, max(done1, done2)
 
 
 def _refine(R, t, x1, x2, inliers, focal, options: PairOptions, rounds: int = 3):
@@ -333,11 +342,12 @@ def estimate_pair(
         raise ValueError("the two images are identical: they carry no relative pose")
     lap("load")
 
-    f1, f2 = _detect_both(img1, img2, options)
+    f1, f2, detected = _detect_both(img1, img2, options)
+    timings["features"], clock = detected - clock, detected
+    lap("pycolmap_import")
     for name, f in (("image1", f1), ("image2", f2)):
         if len(f) < MIN_MATCHES:
             raise ValueError(f"{name} has too few features ({len(f)}): blank or textureless image")
-    lap("features")
 
     matches = match_features(f1, f2, ratio=options.ratio, mutual=options.mutual)
     if len(matches) < MIN_MATCHES:
@@ -399,13 +409,15 @@ def estimate_pair(
         keypoints2=f2.keypoints,
         matches=matches,
         inliers=inliers,
-        points3d=final.points3d[keep],
+        points3d=np.where(keep[:, None], final.points3d, np.nan),
         point_matches=point_matches,
-        colours=_colours(img1, p1[keep]),
+        colours=_colours(img1, p1),
         K1=K1,
         K2=K2,
         image_size1=(int(img1.shape[1]), int(img1.shape[0])),
         image_size2=(int(img2.shape[1]), int(img2.shape[0])),
         pri_threshold=float(options.pri_threshold),
         timings=timings,
+        dist1=dist1,
+        dist2=dist2,
     )

@@ -36,11 +36,13 @@ class PoseResult:
     m3 : float
         The paper's alternative indicator (eq. 78), mean sine of the parallax angle.
     points3d : ndarray, shape (N, 3)
-        Analytic points in camera-1 coordinates, baseline = 1 (Proposition 3); NaN where the
-        rays are parallel, and everywhere for a pure rotation, which has no structure.
+        Analytic points in camera-1 coordinates, baseline = 1 (Proposition 3), one row per input
+        point: NaN outside ``inliers``, where the rays are parallel, and everywhere for a pure
+        rotation, which has no structure (``PairResult.points3d`` follows the same rule).
     depths : ndarray, shape (N, 2)
-        Depth of each point in camera 1 and camera 2, baseline = 1 (eq. 36); inf where the rays
-        are parallel, and everywhere for a pure rotation.
+        Depth of each point in camera 1 and camera 2, baseline = 1 (eq. 36), outliers included
+        (negative behind a camera); inf where the rays are parallel, and everywhere for a pure
+        rotation.
     support_R, support_R_rejected : int
         Number of used points with positive same-side score for the chosen and the rejected
         rotation (S1 of Table II).
@@ -192,7 +194,8 @@ def _recover_rays(
         inliers = used & (sel.m1 > 0) & (sel.m2 > 0)
         if distance_thresh is not None:
             inliers &= (z1 < distance_thresh) & (z2 < distance_thresh)
-        points3d, depths = ppo._points(X1, X2, R, sel.t, 1e-12).T, np.stack([z1, z2], axis=1)
+        points3d = np.where(inliers[:, None], ppo._points(X1, X2, R, sel.t, 1e-12).T, np.nan)
+        depths = np.stack([z1, z2], axis=1)
     return PoseResult(
         R=R,
         t=sel.t,

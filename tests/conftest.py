@@ -1,4 +1,8 @@
-"""Shared fixtures: the real-pair data set beside the repository, when it is there."""
+"""Shared fixtures: the real-pair data set beside the repository, when it is there.
+
+The test data folder is ``$PPO_CV_SHARED``, by default ``../shared`` beside the clone; every
+test reaches it through :func:`shared_path` or the ``freiburg`` fixture and skips without it.
+"""
 
 from __future__ import annotations
 
@@ -11,19 +15,23 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
-# The tests exercise the installed package. ``python -m pytest`` puts the checkout first on
-# sys.path, where ppo_cv/ lacks the cli and data_gen subpackages that installation maps into it.
+# The tests exercise the installed package, as CI installs it, also under ``python -m pytest``,
+# which puts the checkout first on sys.path (tests/test_source_tree.py covers the checkout).
 sys.path[:] = [entry for entry in sys.path if Path(entry or os.curdir).resolve() != ROOT]
-SHARED = Path(os.environ.get("PPO_CV_SHARED", ROOT.parent / "shared"))
-FREIBURG = SHARED / "data" / "freiburg"
+
+
+def shared_path(*parts: str) -> Path:
+    """A path inside the test data folder: ``$PPO_CV_SHARED``, default ``../shared``."""
+    return Path(os.environ.get("PPO_CV_SHARED") or ROOT.parent / "shared").joinpath(*parts)
 
 
 @pytest.fixture(scope="session")
 def freiburg() -> Path:
     """The freiburg real pairs (images/ and pairs_with_gt.txt); skips when absent."""
-    if not (FREIBURG / "pairs_with_gt.txt").is_file():
-        pytest.skip(f"real-pair data not found at {FREIBURG}")
-    return FREIBURG
+    folder = shared_path("data", "freiburg")
+    if not (folder / "pairs_with_gt.txt").is_file():
+        pytest.skip(f"real-pair data not found at {folder} (set PPO_CV_SHARED)")
+    return folder
 
 
 @pytest.fixture

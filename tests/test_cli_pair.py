@@ -119,13 +119,13 @@ def test_out_directory_files_open(tmp_path):
     assert len(points) == data["num_points"] > 0
     assert np.all(points["z"] > 0) and points["red"].std() > 0
     matches = cv2.imread(str(out / "matches.png"))
-    assert matches.shape == (480, 1280, 3)
+    assert matches.shape[1:] == (1280, 3) and matches.shape[0] > 480  # legend underneath
     model = pycolmap.Reconstruction(str(out / "colmap"))
     assert model.num_images() == 2 and model.num_points3D() == data["num_points"]
     image2 = model.find_image_with_name(Path(DEMO2).name)
     pose = image2.cam_from_world()
     pose = pose() if callable(pose) else pose
-    assert rotation_error(pose.rotation.matrix(), np.array(data["R"])) < 1e-6
+    np.testing.assert_allclose(pose.rotation.matrix(), np.array(data["R"]), atol=1e-9)
     assert model.compute_mean_reprojection_error() < 1.0
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
 

@@ -53,13 +53,8 @@ def test_dataset_contents_match_the_rendered_pairs(tmp_path):
         np.testing.assert_array_equal(np.load(out / gt["depth1"]), pair.depth1)
 
 
-def test_pairs_file_reads_like_the_freiburg_one():
-    from pathlib import Path
-
-    freiburg = Path(__file__).resolve().parents[2] / "shared/data/freiburg/pairs_with_gt.txt"
-    if not freiburg.is_file():
-        pytest.skip("freiburg pairs not available")
-    record = read_pairs(freiburg)[0]
+def test_pairs_file_reads_like_the_freiburg_one(freiburg):
+    record = read_pairs(freiburg / "pairs_with_gt.txt")[0]
     assert record["K1"][0, 0] == pytest.approx(535.4)
     np.testing.assert_allclose(record["R"] @ record["R"].T, np.eye(3), atol=1e-6)
 

@@ -77,15 +77,21 @@ def test_general_motion_matches_ground_truth(general, general_result):
 def test_general_motion_points_match_the_depth_map(general, general_result):
     result = general_result
     assert 0.5 * result.num_inliers < result.num_points <= result.num_inliers
-    assert np.all(result.points3d[:, 2] > 0)
+    # One row per match, finite exactly at point_matches, all of them inliers.
+    assert result.points3d.shape == (result.num_matches, 3)
+    finite_rows = np.flatnonzero(np.isfinite(result.points3d).all(axis=1))
+    np.testing.assert_array_equal(finite_rows, result.point_matches)
+    assert result.inliers[result.point_matches].all()
+    points = result.points3d[result.point_matches]
+    assert np.all(points[:, 2] > 0)
     # Baseline units to metres, then compare with the rendered depth at the keypoints.
-    z = result.points3d[:, 2] * np.linalg.norm(general.t)
+    z = points[:, 2] * np.linalg.norm(general.t)
     uv = np.rint(result.keypoints1[result.matches[result.point_matches, 0]]).astype(int)
     z_true = general.depth1[uv[:, 1], uv[:, 0]]
     finite = np.isfinite(z_true)
     assert finite.mean() > 0.9
     assert np.median(np.abs(z[finite] / z_true[finite] - 1)) < 0.03
-    assert result.colours.shape == (result.num_points, 3) and result.colours.dtype == np.uint8
+    assert result.colours.shape == (result.num_matches, 3) and result.colours.dtype == np.uint8
 
 
 def test_pure_rotation_is_flagged_and_rotation_refined(rotation):
@@ -93,7 +99,8 @@ def test_pure_rotation_is_flagged_and_rotation_refined(rotation):
     assert result.pure_rotation and not result.translation_determined
     assert result.pri < result.pri_threshold
     assert rotation_error(result.R, rotation.R) < 0.1
-    assert result.num_points == 0 and result.points3d.shape == (0, 3)
+    assert result.num_points == 0 and result.points3d.shape == (result.num_matches, 3)
+    assert np.isnan(result.points3d).all()
     assert np.isclose(np.linalg.norm(result.t), 1.0)
 
 
@@ -200,7 +207,7 @@ def test_dense_matcher_equals_opencv_brute_force():
     )
     f1 = Features(np.zeros((300, 2)), d1, "sift")
     f2 = Features(np.zeros((350, 2)), d2, "sift")
-    ours = match_features(f1, f2, ratio=0.8, mutual=True)
+    ours = match_features(f1, f2, ratio=0.8, mutual=True, unique=False)  # equal keypoints
     bf = cv2.BFMatcher(cv2.NORM_L2, crossCheck=False)
     forward = bf.knnMatch(d1, d2, k=2)
     backward = {m.queryIdx: m.trainIdx for m in bf.match(d2, d1)}
@@ -211,7 +218,7 @@ def test_dense_matcher_equals_opencv_brute_force():
     ]
     assert sorted(map(tuple, ours.tolist())) == sorted(expected)
     assert len(expected) >= 190
-    flann = match_features(f1, f2, ratio=0.8, mutual=True, flann=True)
+    flann = match_features(f1, f2, ratio=0.8, mutual=True, flann=True, unique=False)
     assert len(set(map(tuple, flann.tolist())) & set(expected)) >= 0.95 * len(expected)
 
 

@@ -31,7 +31,7 @@ def depth_errors(z, pixels, depth_map):
 pair = make_pair("general", seed=0, index=0, size=(480, 360))
 result = ppo_cv.estimate_pair(pair.image1[..., ::-1], pair.image2[..., ::-1], pair.K1)
 baseline = np.linalg.norm(pair.t)  # points3d have a unit baseline; the images cannot tell more
-points = result.points3d * baseline
+points = result.points3d[result.point_matches] * baseline  # one row per match, NaN if none
 pixels1 = result.keypoints1[result.matches[result.point_matches, 0]]
 errors = depth_errors(points[:, 2], pixels1, pair.depth1)
 print(
@@ -43,7 +43,7 @@ print(
 fields = ("float x", "float y", "float z", "uchar red", "uchar green", "uchar blue")
 header = f"ply\nformat ascii 1.0\nelement vertex {len(points)}\n"
 header += "".join(f"property {field}\n" for field in fields) + "end_header"
-table = np.column_stack([points, result.colours])
+table = np.column_stack([points, result.colours[result.point_matches]])
 np.savetxt(ply_path, table, fmt="%.5f %.5f %.5f %d %d %d", header=header, comments="")
 print(f"wrote {ply_path}")
 
@@ -56,10 +56,12 @@ baseline = np.linalg.norm(pair.t)
 t_unit = pair.t / baseline
 E_true = np.cross(np.eye(3), t_unit) @ pair.R  # [t]x R, the exact essential matrix
 
-# With the default threshold this PRI means "pure rotation" and no points are emitted;
-# pri_threshold=0 asks for the points anyway, since the pose is known here.
+# With the default threshold this PRI means "pure rotation" and recover_pose emits no points;
+# the pose is known here, so eq. 36 gives every match's point (including those where the
+# noise breaks the PPO inequalities, which recover_pose would leave NaN).
 pose = ppo_cv.recover_pose(E_true, pixels1, pixels2, pair.K1, pri_threshold=0.0)
-z_analytic = pose.points3d[:, 2] * baseline
+x1, x2 = ppo_cv.ppo.normalize(pixels1, pair.K1), ppo_cv.ppo.normalize(pixels2, pair.K2)
+z_analytic = ppo_cv.ppo.analytic_points(x1, x2, pair.R, t_unit)[:, 2] * baseline
 
 P1 = pair.K1 @ np.hstack([np.eye(3), np.zeros((3, 1))])
 P2 = pair.K2 @ np.hstack([pair.R, t_unit[:, None]])

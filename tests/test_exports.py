@@ -1,0 +1,195 @@
+"""Exports that open cleanly and mean what they say: one match per pixel pair, real COLMAP
+reprojection errors, a readable ``matches.png`` and one row convention for ``points3d``."""
+
+from __future__ import annotations
+
+import json
+from importlib import resources
+
+import numpy as np
+import pycolmap
+import pytest
+from twoview import make_scene, random_rotation, skew
+
+import ppo_cv
+from ppo_cv import colmap
+from ppo_cv.export import MAX_DRAWN_MATCHES, draw_matches, matches_to_draw, write_outputs
+from ppo_cv.features import Features, detect_features, match_features, unique_pixel_pairs
+from ppo_cv.pipeline import estimate_pair, load_image
+
+K = np.array([[700.0, 0.0, 320.0], [0.0, 700.0, 240.0], [0.0, 0.0, 1.0]])
+
+
+@pytest.fixture(scope="module")
+def demo():
+    """(image1, image2, K) of the built-in demo pair."""
+    data = resources.files("ppo_cv.data")
+    info = json.loads((data / "demo.json").read_text(encoding="utf-8"))
+    fx, fy, cx, cy = info["intrinsics"]
+    K_demo = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+    return load_image(str(data / info["image1"])), load_image(str(data / info["image2"])), K_demo
+
+
+@pytest.fixture(scope="module")
+def demo_result(demo):
+    return estimate_pair(*demo)
+
+
+def pixel_pairs(matches, keypoints1, keypoints2):
+    return np.round(np.hstack([keypoints1[matches[:, 0]], keypoints2[matches[:, 1]]]), 2)
+
+
+def test_sift_repeats_locations_and_matches_keep_each_pixel_pair_once(demo):
+    f1, f2 = detect_features(demo[0]), detect_features(demo[1])
+    raw = match_features(f1, f2, ratio=0.9, unique=False)
+    matches = match_features(f1, f2, ratio=0.9)
+    raw_pairs = pixel_pairs(raw, f1.keypoints, f2.keypoints)
+    pairs = pixel_pairs(matches, f1.keypoints, f2.keypoints)
+    assert len(np.unique(raw_pairs, axis=0)) < len(raw)  # the duplicates this removes
+    assert len(np.unique(pairs, axis=0)) == len(matches) == len(np.unique(raw_pairs, axis=0))
+    assert set(map(tuple, matches.tolist())) <= set(map(tuple, raw.tolist()))
+
+
+def test_estimate_pair_counts_each_correspondence_once(demo_result):
+    result = demo_result
+    pairs = pixel_pairs(result.matches, result.keypoints1, result.keypoints2)
+    assert len(np.unique(pairs, axis=0)) == result.num_matches
+    points = result.points3d[result.point_matches]
+    assert result.num_points > 100
+    assert len(np.unique(np.round(points, 9), axis=0)) == result.num_points
+
+
+def test_duplicates_keep_the_smallest_descriptor_distance():
+    keypoints1 = np.array([[10.0, 20.0], [10.001, 20.0], [30.0, 40.0]])
+    keypoints2 = np.array([[11.0, 21.0], [11.0, 21.002], [31.0, 41.0], [11.0, 21.0]])
+    matches = np.array([[0, 0], [1, 1], [2, 2], [0, 3]])
+    kept = unique_pixel_pairs(matches, keypoints1, keypoints2, np.array([0.5, 0.2, 0.3, 0.1]))
+    np.testing.assert_array_equal(kept, [[2, 2], [0, 3]])
+    coarse = unique_pixel_pairs(matches, keypoints1, keypoints2, np.zeros(4), resolution=1e-4)
+    np.testing.assert_array_equal(coarse, [[0, 0], [1, 1], [2, 2]])
+
+
+def test_binary_features_are_deduplicated_too():
+    rng = np.random.default_rng(0)
+    descriptors = rng.integers(0, 256, (40, 32), dtype=np.uint8)
+    keypoints = rng.uniform(0, 100, (40, 2))
+    keypoints[20:] = keypoints[:20]  # every location twice, with different descriptors
+    f = Features(keypoints, descriptors, "orb")
+    assert len(match_features(f, f, ratio=1.0, unique=False)) == 40
+    assert len(match_features(f, f, ratio=1.0)) == 20
+
+
+def reprojection_errors(points, pixels1, pixels2, R, t, K1, K2):
+    """Mean pixel reprojection error of each point over the two views, by hand."""
+
+    def project(X, K_):
+        x = X @ K_.T
+        return x[:, :2] / x[:, 2:]
+
+    e1 = np.linalg.norm(project(points, K1) - pixels1, axis=1)
+    e2 = np.linalg.norm(project(points @ R.T + t, K2) - pixels2, axis=1)
+    return (e1 + e2) / 2
+
+
+def test_colmap_model_carries_real_reprojection_errors(demo, demo_result, tmp_path):
+    result = demo_result
+    write_outputs(tmp_path / "out", result, demo[0], demo[1], ("a.png", "b.png"))
+    model = pycolmap.Reconstruction(str(tmp_path / "out" / "colmap"))
+    assert model.num_points3D() == result.num_points
+    errors = {tuple(np.round(p.xyz, 6)): p.error for p in model.points3D.values()}
+    rows = result.point_matches
+    m = result.matches[rows]
+    expected = reprojection_errors(
+        result.points3d[rows],
+        result.keypoints1[m[:, 0]],
+        result.keypoints2[m[:, 1]],
+        result.R,
+        result.t,
+        result.K1,
+        result.K2,
+    )
+    ours = np.array([errors[tuple(np.round(p, 6))] for p in result.points3d[rows]])
+    np.testing.assert_allclose(ours, expected, rtol=1e-4, atol=1e-6)
+    assert np.all(ours >= 0) and 0.05 < model.compute_mean_reprojection_error() < 1.0
+    text = (tmp_path / "out" / "colmap" / "points3D.txt").read_text()
+    rows_text = [line.split() for line in text.splitlines() if not line.startswith("#")]
+    assert all(float(row[7]) >= 0 for row in rows_text)  # ERROR column, -1 meant unknown
+
+
+def test_two_view_reconstruction_carries_real_reprojection_errors():
+    rng = np.random.default_rng(3)
+    R, t = random_rotation(rng, 10.0), np.array([1.0, 0.2, 0.1]) / np.linalg.norm([1, 0.2, 0.1])
+    X, p1, p2 = make_scene(rng, 80, R, t, K, noise_px=0.5)
+    pose = ppo_cv.recover_pose(skew(t) @ R, p1, p2, K)
+    camera = colmap.camera_from_K(K, 640, 480)
+    camera.camera_id = 1
+    image1 = pycolmap.Image(name="a.png", camera_id=1, image_id=1)
+    image2 = pycolmap.Image(name="b.png", camera_id=1, image_id=2)
+    matches = np.stack([np.arange(80), np.arange(80)], axis=1)
+    model = colmap.two_view_reconstruction(
+        camera, camera, image1, image2, p1, p2, matches, pose, min_tri_angle=0.0
+    )
+    ids = sorted(model.points3D)
+    points = np.array([model.points3D[i].xyz for i in ids])
+    index = [model.points3D[i].track.elements[0].point2D_idx for i in ids]
+    expected = reprojection_errors(points, p1[index], p2[index], R, t, K, K)
+    np.testing.assert_allclose([model.points3D[i].error for i in ids], expected, rtol=1e-6)
+    assert 0.1 < model.compute_mean_reprojection_error() < 1.0
+
+
+def test_matches_to_draw_caps_and_puts_inliers_first():
+    inliers = np.zeros(500, dtype=bool)
+    inliers[::3] = True  # 167 inliers
+    drawn = matches_to_draw(inliers, 150)
+    assert len(drawn) == 150 == len(np.unique(drawn)) and inliers[drawn].all()
+    few = np.r_[np.ones(100, bool), np.zeros(300, bool)]
+    drawn = matches_to_draw(few, 150)
+    assert len(drawn) == 150 and np.count_nonzero(few[drawn]) == 100
+    np.testing.assert_array_equal(matches_to_draw(few[:120], 150), np.arange(120))
+    assert len(matches_to_draw(inliers, None)) == 500
+    np.testing.assert_array_equal(drawn, matches_to_draw(few, 150))  # deterministic
+
+
+def test_matches_png_has_a_legend_and_a_readable_number_of_lines(demo, demo_result):
+    image1, image2, _ = demo
+    result = demo_result
+    assert result.num_matches > MAX_DRAWN_MATCHES  # the cap applies on the demo pair
+    canvas = draw_matches(image1, image2, result)
+    height, width = image1.shape[:2]
+    assert canvas.shape[1] == 2 * width and canvas.shape[0] > height + 60
+    legend = canvas[height:]
+    background = legend[-1, -1]
+    text = np.any(legend != background, axis=2)
+    assert text.mean() > 0.01  # written on, not an empty band
+    green = np.all(legend == (0, 200, 0), axis=2)
+    red = np.all(legend == (0, 0, 255), axis=2)
+    assert green.any() and red.any()  # the colour keys of inliers and outliers
+    # Lines on the images: far fewer drawn pixels than with every match.
+    everything = draw_matches(image1, image2, result, max_lines=None)
+    lines_capped = np.count_nonzero(np.any(canvas[:height] != _pair_image(image1, image2), axis=2))
+    lines_all = np.count_nonzero(np.any(everything[:height] != _pair_image(image1, image2), axis=2))
+    assert 0 < lines_capped < 0.8 * lines_all
+
+
+def _pair_image(image1, image2):
+    return np.hstack([image1, image2])
+
+
+def test_points3d_rows_are_the_same_rule_in_recover_pose_and_estimate_pair(demo_result):
+    rng = np.random.default_rng(5)
+    R, t = random_rotation(rng, 10.0), np.array([0.0, 0.2, 1.0]) / np.linalg.norm([0, 0.2, 1])
+    X, p1, p2 = make_scene(rng, 60, R, t, K)
+    p2[:10] = p2[:10][::-1] + 40.0  # outliers
+    mask = np.ones(60, dtype=bool)
+    mask[50:] = False  # unused points
+    pose = ppo_cv.recover_pose(skew(t) @ R, p1, p2, K, mask=mask)
+    assert pose.points3d.shape == (60, 3)
+    finite = np.isfinite(pose.points3d).all(axis=1)
+    np.testing.assert_array_equal(finite, pose.inliers)
+    assert not finite[50:].any() and finite[10:50].all() and not pose.inliers[:10].all()
+    np.testing.assert_allclose(pose.points3d[10:50], X[10:50], rtol=1e-7)
+    result = demo_result
+    assert result.points3d.shape == (result.num_matches, 3)
+    finite = np.isfinite(result.points3d).all(axis=1)
+    np.testing.assert_array_equal(np.flatnonzero(finite), result.point_matches)
+    assert result.inliers[finite].all() and result.num_points == finite.sum()
