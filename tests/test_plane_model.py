@@ -105,3 +105,54 @@ def test_json_and_summary_carry_the_plane():
     text = _summary(result, "a.png", "b.png", None)
     assert "plane (translation determined" in text
     assert f"distance {result.plane_distance:.3f} baselines" in text
+
+
+# --- decide_motion on synthetic matches: the rule alone ----------------------------------------
+
+
+def _synthetic(kind: str, n: int = 300, noise_px: float = 0.5, seed: int = 0):
+    """Normalized matches of a plane, a 3D volume or a pure rotation; focal 500 px."""
+    rng = np.random.default_rng(seed)
+    a = np.deg2rad(4.0)
+    R = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
+    xy = rng.uniform(-1.5, 1.5, (n, 2))
+    if kind == "plane":  # tilted plane 0.3 x + z = 5
+        X1 = np.column_stack([xy, 5.0 - 0.3 * xy[:, 0]])
+    else:
+        X1 = np.column_stack([xy, rng.uniform(3.0, 8.0, n)])
+    t = np.zeros(3) if kind == "rotation" else np.array([0.5, 0.05, 0.1])
+    X2 = X1 @ R.T + t
+    focal = 500.0
+    x1 = X1 / X1[:, 2:] + np.append(rng.normal(0, noise_px / focal, (n, 2)), np.zeros((n, 1)), 1)
+    x2 = X2 / X2[:, 2:] + np.append(rng.normal(0, noise_px / focal, (n, 2)), np.zeros((n, 1)), 1)
+    return x1, x2, R, t, focal
+
+
+@pytest.mark.parametrize(("kind", "expected"), [("plane", "plane"), ("volume", "general"),
+                                                ("rotation", "rotation")])  # fmt: skip
+def test_decide_motion_with_a_homography(kind, expected):
+    from ppo_cv.homography import estimate_homography
+    from ppo_cv.motion_model import decide_motion
+    from ppo_cv.ppo import select_pose
+    from ppo_cv.refine import refine_pose
+    from ppo_cv.robust import estimate_essential
+
+    x1, x2, R_true, t_true, focal = _synthetic(kind)
+    fit = estimate_essential(x1, x2, focal, threshold=1.0)
+    chosen = select_pose(fit.E, x1[fit.inliers], x2[fit.inliers])
+    R, t = refine_pose(chosen.R, chosen.t, x1, x2, fit.inliers, focal)
+    homography = estimate_homography(x1, x2, focal, threshold=1.0)
+    motion = decide_motion(x1, x2, R, t, fit.inliers, focal, homography=homography)
+    assert motion.model == expected
+    assert motion.pure_rotation == (expected == "rotation")
+    assert np.isfinite(motion.gric_plane_difference)
+    if expected == "plane":
+        assert motion.gric_plane_difference < 0
+        assert _rotation_error_deg(motion.plane.R, R_true) < 1.0
+        assert _angle_deg(motion.plane.t, t_true) < 5.0
+        normal = np.array([0.3, 0.0, 1.0]) / np.hypot(0.3, 1.0)
+        assert _angle_deg(motion.plane.n, normal) < 5.0
+    # without a homography the decision is the rotation-versus-general one
+    plain = decide_motion(x1, x2, R, t, fit.inliers, focal)
+    assert plain.model == ("rotation" if expected == "rotation" else "general")
+    assert plain.plane is None and np.isnan(plain.gric_plane_difference)
