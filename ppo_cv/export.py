@@ -149,6 +149,7 @@ def _plane_selection(result: PairResult) -> dict:
     return {
         "plane_residual_px": _finite_or_none(result.plane_residual_px),
         "gric_plane_difference": _finite_or_none(result.gric_plane_difference),
+        "plane_epipolar_ratio": _finite_or_none(result.plane_epipolar_ratio),
     }
 
 

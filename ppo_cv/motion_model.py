@@ -30,7 +30,11 @@ plane is one special case of an essential matrix's scene):
 - otherwise **plane** when GRIC, on the union of the three models' inliers and with the smaller
   floor :data:`PLANE_MISMATCH_FLOOR`, prefers the homography to the essential matrix, and the
   PPO choice among the homography's decomposition candidates (:func:`ppo_cv.plane.planar_pose`)
-  is a translation with at least :data:`MIN_PLANE_SUPPORT` matches in front of both cameras. The
+  is a translation with at least :data:`MIN_PLANE_SUPPORT` matches in front of both cameras,
+  and that pose is one of the scene: its essential matrix ``[t]x R`` explains the matches almost
+  as well as the refined one (:attr:`MotionDecision.plane_epipolar_ratio` at most
+  :data:`PLANE_EPIPOLAR_TOLERANCE`; on a plane every ``[t]x R`` of a true decomposition fits all
+  matches, off a plane the matches with parallax betray a wrong pose). The
   homography saves ``ln 4`` per match (one dimension less) and loses on every match off its
   plane: a scene mostly on one plane with some structure off it stays general once that
   structure's parallax pays for the extra dimension. The floor is smaller than the rotation's
@@ -63,7 +67,15 @@ from .plane import PlanarPose, planar_pose
 from .robust import essential_from_pose, sampson_errors
 from .rotation import correct_points, fit_rotation_lens, ransac_rotation
 
-__all__ = ["MIN_PLANE_SUPPORT", "MotionDecision", "decide_motion", "translation_for_rotation"]
+__all__ = [
+    "EPIPOLAR_CAP_FACTOR",
+    "MIN_PLANE_SUPPORT",
+    "PLANE_EPIPOLAR_TOLERANCE",
+    "PLANE_MISMATCH_FLOOR",
+    "MotionDecision",
+    "decide_motion",
+    "translation_for_rotation",
+]
 
 PLANE_MISMATCH_FLOOR = 0.5
 """Mismatch floor of the plane-versus-general comparison (see the module docstring).
@@ -73,6 +85,12 @@ of five ``forward`` pairs, cluttered scenes, were called planes and their pose e
 0.1-0.7 to 6-7 degrees (homography residual 2.2 times the essential matrix's, against 1.75 for
 pure noise on a plane); with 0 one of five ``planar`` pairs stayed general; with 0.5 every
 ``forward`` pair is general and every ``planar`` pair a plane."""
+
+PLANE_EPIPOLAR_TOLERANCE = 1.5
+"""Largest :attr:`MotionDecision.plane_epipolar_ratio` of a plane (see the module docstring)."""
+
+EPIPOLAR_CAP_FACTOR = 5.0
+"""Cap of the squared Sampson errors of that ratio, in inlier thresholds (outliers count once)."""
 
 MIN_PLANE_SUPPORT = 8
 """Fewest homography inliers in front of both cameras (``M1 > 0`` and ``M2 > 0``) for a plane."""
@@ -116,6 +134,13 @@ class MotionDecision:
         PPO choice among the decomposition candidates of the homography, when one was given.
     homography_inliers : ndarray of bool, shape (N,) or None
         Inliers of that homography.
+    plane_selection : ModelSelection or None
+        GRIC of the homography against the essential matrix (floor :data:`PLANE_MISMATCH_FLOOR`).
+    plane_epipolar_ratio : float
+        How much worse ``E = [t]x R`` of the planar pose explains the matches than the refined
+        essential matrix: the ratio of their mean squared Sampson errors, each capped at
+        :data:`EPIPOLAR_CAP_FACTOR` times the threshold (about 1 on a plane, NaN without a
+        homography).
     """
 
     model: str
@@ -131,6 +156,7 @@ class MotionDecision:
     plane: PlanarPose | None = None
     homography_inliers: np.ndarray | None = None
     plane_selection: ModelSelection | None = None
+    plane_epipolar_ratio: float = float("nan")
 
     @property
     def gric_difference(self) -> float:
@@ -245,7 +271,7 @@ def decide_motion(
         ppo.intersection_scores(x1[inliers], x2[inliers], R, t)
     )
     pure = bool(selection.model == "rotation" and pri < pri_threshold)
-    plane, plane_selection = None, None
+    plane, plane_selection, plane_epipolar_ratio = None, None, float("nan")
     if homography is not None:
         plane = planar_pose(
             homography.H, x1, x2, homography.inliers, threshold=threshold_px / focal
@@ -258,7 +284,10 @@ def decide_motion(
             ],
             mismatch_floor=PLANE_MISMATCH_FLOOR,
         )
-    model = "rotation" if pure else _plane_or_general(plane_selection, plane)
+        plane_epipolar_ratio = _epipolar_ratio(
+            plane, x1[union], x2[union], general_all[union] * focal, threshold_px, focal
+        )
+    model = "rotation" if pure else _plane_or_general(plane_selection, plane, plane_epipolar_ratio)
     return MotionDecision(
         model=model,
         pure_rotation=pure,
@@ -273,6 +302,7 @@ def decide_motion(
         plane=plane,
         homography_inliers=None if homography is None else homography.inliers,
         plane_selection=plane_selection,
+        plane_epipolar_ratio=plane_epipolar_ratio,
     )
 
 
@@ -280,9 +310,24 @@ def _candidate(name: str, residuals: np.ndarray) -> ModelResiduals:
     return ModelResiduals(name, residuals, *MODEL_DIMENSIONS[name])
 
 
-def _plane_or_general(selection: ModelSelection | None, plane: PlanarPose | None) -> str:
-    """``"plane"`` when it wins ``selection`` and its pose is a translation."""
+def _epipolar_ratio(plane, x1, x2, general_px, threshold_px: float, focal: float) -> float:
+    """Mean of ``min(e^2, (5 threshold)^2)`` over the Sampson errors (pixels) of ``[t]x R`` of
+    the planar pose, over the same for the refined essential matrix (``general_px``)."""
+    if not float(np.linalg.norm(plane.t)) > 0:
+        return float("inf")
+    cap = (EPIPOLAR_CAP_FACTOR * threshold_px) ** 2
+    planar_px = sampson_errors(essential_from_pose(plane.R, plane.t), x1, x2) * focal
+    rho = [np.mean(np.minimum(e**2, cap)) for e in (planar_px, general_px)]
+    return float(rho[0] / max(rho[1], 1e-300))
+
+
+def _plane_or_general(
+    selection: ModelSelection | None, plane: PlanarPose | None, epipolar_ratio: float
+) -> str:
+    """``"plane"`` when it wins ``selection``, its pose is a translation, and that pose's
+    essential matrix explains the matches almost as well as the refined one."""
     if plane is None or selection is None or selection.model != "plane":
         return "general"
     moving = float(np.linalg.norm(plane.t)) > 0 and np.isfinite(plane.distance)
-    return "plane" if moving and plane.support >= MIN_PLANE_SUPPORT else "general"
+    consistent = epipolar_ratio <= PLANE_EPIPOLAR_TOLERANCE
+    return "plane" if moving and consistent and plane.support >= MIN_PLANE_SUPPORT else "general"

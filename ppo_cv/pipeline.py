@@ -216,6 +216,10 @@ class PairResult:
         matches; NaN when no homography was fitted.
     gric_plane_difference : float
         ``(GRIC(plane) - GRIC(general)) / n``: negative when the plane explains more.
+    plane_epipolar_ratio : float
+        How much worse the essential matrix of the homography's pose explains the matches than
+        the refined one (about 1 on a plane; a plane needs at most
+        :data:`ppo_cv.motion_model.PLANE_EPIPOLAR_TOLERANCE`); NaN without a homography.
     plane_normal : ndarray, shape (3,) or None
         For a plane: its unit normal ``n`` in camera 1, the plane being ``n^T X1 = d``.
     plane_distance : float
@@ -267,6 +271,7 @@ class PairResult:
     log10_nfa: float = float("nan")
     plane_residual_px: float = float("nan")
     gric_plane_difference: float = float("nan")
+    plane_epipolar_ratio: float = float("nan")
     plane_normal: np.ndarray | None = None
     plane_distance: float = float("nan")
     plane_ambiguous: bool = False
@@ -564,6 +569,7 @@ def estimate_pair(
             else motion.plane_selection.median_residual_px["plane"]
         ),
         gric_plane_difference=motion.gric_plane_difference,
+        plane_epipolar_ratio=motion.plane_epipolar_ratio,
         plane_normal=None if plane is None else plane.n,
         plane_distance=float("nan") if plane is None else plane.distance,
         plane_ambiguous=bool(plane is not None and plane.ambiguous),

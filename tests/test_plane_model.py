@@ -46,6 +46,7 @@ def test_rendered_plane_is_a_plane_with_the_true_pose(seed):
     assert _rotation_error_deg(result.R, pair.R) < 0.2
     assert _angle_deg(result.t, pair.t) < 0.5
     assert result.gric_plane_difference < 0
+    assert result.plane_epipolar_ratio == pytest.approx(1.0, abs=0.2)
     assert result.t_sigma_deg < 2.0
     # the plane n^T X = d of the scene, read off the depth map, d in baselines
     K_inv = np.linalg.inv(pair.K1)
@@ -96,6 +97,7 @@ def test_json_and_summary_carry_the_plane():
     assert data["plane"]["distance"] == pytest.approx(result.plane_distance)
     assert data["plane"]["ambiguous"] is bool(result.plane_ambiguous)
     assert data["model_selection"]["gric_plane_difference"] < 0
+    assert data["model_selection"]["plane_epipolar_ratio"] < 1.5
     assert data["t"] == pytest.approx(result.t.tolist())
     general = json.loads(json.dumps(result_to_dict(_estimate("general", 0))))
     assert general["model"] == "general" and general["plane"] is None
