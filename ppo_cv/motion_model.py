@@ -86,8 +86,14 @@ of five ``forward`` pairs, cluttered scenes, were called planes and their pose e
 pure noise on a plane); with 0 one of five ``planar`` pairs stayed general; with 0.5 every
 ``forward`` pair is general and every ``planar`` pair a plane."""
 
-PLANE_EPIPOLAR_TOLERANCE = 1.5
-"""Largest :attr:`MotionDecision.plane_epipolar_ratio` of a plane (see the module docstring)."""
+PLANE_EPIPOLAR_TOLERANCE = 2.0
+"""Largest :attr:`MotionDecision.plane_epipolar_ratio` of a plane (see the module docstring).
+
+Chosen on renders of seeds 5 and 6 (not those of ``docs/benchmarks.md``): every ``general``,
+``forward``, ``tiny-baseline`` and ``small-parallax`` render, clean or imperfect, that GRIC
+alone calls a plane and whose planar pose is worse has a ratio above 2.0 but two imperfect
+``general`` ones at 1.0-1.1 (pose errors 2.0 and 0.7 degrees against 1.6 and 0.1); planar renders
+lie at 1.0-1.5, four of twelve at 2.1-6.7 (left general)."""
 
 EPIPOLAR_CAP_FACTOR = 5.0
 """Cap of the squared Sampson errors of that ratio, in inlier thresholds (outliers count once)."""
