@@ -130,6 +130,29 @@ def _demo_inputs():
     return image1, image2, info
 
 
+def _plane_lines(result) -> list[str]:
+    """Summary lines of the homography: its fit always, the plane when the model is one."""
+    residual = getattr(result, "plane_residual_px", float("nan"))
+    if residual != residual:
+        return []
+    lines = [
+        f"  homography   median residual {residual:.2f} px, GRIC difference plane - general "
+        f"{result.gric_plane_difference:+.3f} per match"
+    ]
+    if result.plane_normal is not None:
+        n = result.plane_normal
+        lines.append(
+            f"  plane        normal ({n[0]:+.4f}, {n[1]:+.4f}, {n[2]:+.4f}) in camera 1, "
+            f"distance {result.plane_distance:.3f} baselines"
+            + (
+                ", two-fold ambiguity broken by the off-plane matches or frontality"
+                if result.plane_ambiguous
+                else ""
+            )
+        )
+    return lines
+
+
 def _summary(result, name1: str, name2: str, note: str | None, reference=None) -> str:
     import numpy as np
 
@@ -140,6 +163,8 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
     verdict = (
         "pure rotation: translation undetermined, no 3D points"
         if result.pure_rotation
+        else "plane (translation determined, pose from its homography)"
+        if result.model == "plane"
         else "general motion (translation determined)"
     )
     t = np.asarray(result.t)
@@ -165,6 +190,7 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
         f"  model        {result.model}: median residual rotation "
         f"{result.rotation_residual_px:.2f} px, general {result.general_residual_px:.2f} px, "
         f"GRIC difference {result.gric_difference:+.3f} per match",
+        *_plane_lines(result),
         f"  t sigma      {result.t_sigma_deg:.2f} deg (direction of t, one standard deviation)",
         f"  matches      {result.num_matches} putative, {result.num_inliers} inliers, "
         f"{result.num_points} 3D points",

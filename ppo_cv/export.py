@@ -134,8 +134,42 @@ def _model_selection(result: PairResult) -> dict:
             "gric_difference": float(result.gric_difference),
             "noise_sigma_px": float(result.noise_sigma_px),
             "focal_scale": float(result.focal_scale),
+            **_plane_selection(result),
         },
+        **_plane(result),
     }
+
+
+def _plane_selection(result: PairResult) -> dict:
+    """The plane-versus-general statistics, for results that carry them."""
+    if not hasattr(result, "gric_plane_difference"):
+        return {}
+    return {
+        "plane_residual_px": _finite_or_none(result.plane_residual_px),
+        "gric_plane_difference": _finite_or_none(result.gric_plane_difference),
+        "plane_epipolar_ratio": _finite_or_none(result.plane_epipolar_ratio),
+    }
+
+
+def _plane(result: PairResult) -> dict:
+    """``plane``: normal (camera 1), distance (baselines) and two-fold ambiguity; None unless
+    the model is a plane."""
+    if not hasattr(result, "plane_normal"):
+        return {}
+    if result.plane_normal is None:
+        return {"plane": None}
+    return {
+        "plane": {
+            "normal": np.asarray(result.plane_normal, dtype=np.float64).tolist(),
+            "distance": float(result.plane_distance),
+            "ambiguous": bool(result.plane_ambiguous),
+        }
+    }
+
+
+def _finite_or_none(value: float) -> float | None:
+    value = float(value)
+    return value if np.isfinite(value) else None
 
 
 def result_to_dict(result: PairResult, **extra: Any) -> dict:
@@ -145,7 +179,10 @@ def result_to_dict(result: PairResult, **extra: Any) -> dict:
     translation is not determined (a pure rotation) ``t`` is None and the best unit guess, which
     the images do not support, is under ``t_guess``. ``rotation_euler_deg`` holds the yaw, pitch
     and roll of ``R`` in camera axes (:func:`camera_euler_degrees`). ``dist1`` and ``dist2`` are
-    the OpenCV distortion coefficients removed from the points, None for none.
+    the OpenCV distortion coefficients removed from the points, None for none. ``model`` is
+    ``"rotation"``, ``"plane"`` or ``"general"``; ``plane`` holds the plane's unit ``normal`` in
+    camera 1, its ``distance`` in baselines and whether the homography's two-fold ambiguity had
+    to be broken (``ambiguous``) for a plane, and is None otherwise.
     """
     angle, axis = rotation_angle_axis(result.R)
     t = np.asarray(result.t, dtype=np.float64).tolist()

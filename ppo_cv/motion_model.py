@@ -1,20 +1,50 @@
-"""Pure rotation or general motion: the decision of :func:`ppo_cv.estimate_pair`.
+"""Pure rotation, plane or general motion: the decision of :func:`ppo_cv.estimate_pair`.
 
 Two tests that fail differently are combined:
 
-1. Model comparison (:mod:`ppo_cv.model_selection`, GRIC with a mismatch floor): the rotation,
-   with a focal scale and radial distortion absorbed (:func:`ppo_cv.rotation.fit_rotation_lens`),
-   against the refined essential matrix, on the union of their inliers. Scale-free.
+1. Model comparison (:mod:`ppo_cv.model_selection`, GRIC with a mismatch floor) of up to three
+   models fitted to the same matches, each residual a distance in the joint image space (pixels):
+
+   - ``"rotation"`` (``d = 2``, ``k = 3 + 2``): the rotation with a focal scale and radial
+     distortion absorbed (:func:`ppo_cv.rotation.fit_rotation_lens`), transfer error / sqrt(2);
+   - ``"plane"`` (``d = 2``, ``k = 8``): the robust homography
+     (:func:`ppo_cv.homography.estimate_homography`), its Sampson error;
+   - ``"general"`` (``d = 3``, ``k = 5``): the refined essential matrix, its Sampson error.
+
+   The noise ``sigma`` is always that of the essential matrix's residuals.
 2. The paper's pure-rotation indicator, PRI = mean ``|M2|`` (eq. 84-85), evaluated on the
    rotation the decision would keep and the translation direction most consistent with it
    (the unit ``t`` minimising ``sum (t . (R b1 x b2))^2``, the epipolar constraint eq. 1 with
    ``R`` fixed).
 
-The pair is a pure rotation when the rotation wins the comparison and the PRI of the kept
-rotation is below the threshold. So a small PRI alone cannot flag a pair whose parallax GRIC
-sees (the PRI of an essential matrix fitted to a narrow-field rotation is not reliable either
-way: its rotation is degrees off), and a GRIC win alone cannot flag a pair whose rays plainly do
-not meet at the centre.
+Rule, the models being nested (a rotation is a homography ``H = R``, and a homography with its
+plane is one special case of an essential matrix's scene):
+
+- **rotation** when GRIC, on the union of the rotation's and the essential matrix's inliers and
+  with :data:`ppo_cv.model_selection.MISMATCH_FLOOR`, prefers the rotation to the essential
+  matrix and the PRI of the kept rotation is below the threshold (the decision of the
+  pure-rotation issue, unchanged). The homography is not consulted: its three extra parameters
+  absorb the lens errors of a real panorama (its residuals are then below the rotation's), and
+  it cannot tell a distant plane from a rotation, so only the rotation-only model may call a
+  pair a rotation, and a plane with a translation GRIC sees is never one;
+- otherwise **plane** when GRIC, on the union of the three models' inliers and with the smaller
+  floor :data:`PLANE_MISMATCH_FLOOR`, prefers the homography to the essential matrix, and the
+  PPO choice among the homography's decomposition candidates (:func:`ppo_cv.plane.planar_pose`)
+  is a translation with at least :data:`MIN_PLANE_SUPPORT` matches in front of both cameras,
+  and that pose is one of the scene: its essential matrix ``[t]x R`` explains the matches almost
+  as well as the refined one (:attr:`MotionDecision.plane_epipolar_ratio` at most
+  :data:`PLANE_EPIPOLAR_TOLERANCE`; on a plane every ``[t]x R`` of a true decomposition fits all
+  matches, off a plane the matches with parallax betray a wrong pose). The
+  homography saves ``ln 4`` per match (one dimension less) and loses on every match off its
+  plane: a scene mostly on one plane with some structure off it stays general once that
+  structure's parallax pays for the extra dimension. The floor is smaller than the rotation's
+  because both models here have a translation to absorb unmodelled errors with;
+- otherwise **general**.
+
+So a small PRI alone cannot flag a pair whose parallax GRIC sees (the PRI of an essential matrix
+fitted to a narrow-field rotation is not reliable either way: its rotation is degrees off), and a
+GRIC win alone cannot flag a pair whose rays plainly do not meet at the centre. Without a
+homography the decision is between "rotation" and "general".
 """
 
 from __future__ import annotations
@@ -24,6 +54,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import ppo
+from .homography import HomographyEstimate
 from .model_selection import (
     JOINT_DIMENSION,
     MODEL_DIMENSIONS,
@@ -32,10 +63,43 @@ from .model_selection import (
     robust_sigma,
     select_model,
 )
+from .plane import PlanarPose, planar_pose
 from .robust import essential_from_pose, sampson_errors
 from .rotation import correct_points, fit_rotation_lens, ransac_rotation
 
-__all__ = ["MotionDecision", "decide_motion", "translation_for_rotation"]
+__all__ = [
+    "EPIPOLAR_CAP_FACTOR",
+    "MIN_PLANE_SUPPORT",
+    "PLANE_EPIPOLAR_TOLERANCE",
+    "PLANE_MISMATCH_FLOOR",
+    "MotionDecision",
+    "decide_motion",
+    "translation_for_rotation",
+]
+
+PLANE_MISMATCH_FLOOR = 0.5
+"""Mismatch floor of the plane-versus-general comparison (see the module docstring).
+
+Chosen on ``ppo_cv.data_gen`` renders (seeds 0-4, 320x240): with 1.0 (the rotation's floor) two
+of five ``forward`` pairs, cluttered scenes, were called planes and their pose error grew from
+0.1-0.7 to 6-7 degrees (homography residual 2.2 times the essential matrix's, against 1.75 for
+pure noise on a plane); with 0 one of five ``planar`` pairs stayed general; with 0.5 every
+``forward`` pair is general and every ``planar`` pair a plane."""
+
+PLANE_EPIPOLAR_TOLERANCE = 2.0
+"""Largest :attr:`MotionDecision.plane_epipolar_ratio` of a plane (see the module docstring).
+
+Chosen on renders of seeds 5 and 6 (not those of ``docs/benchmarks.md``): every ``general``,
+``forward``, ``tiny-baseline`` and ``small-parallax`` render, clean or imperfect, that GRIC
+alone calls a plane and whose planar pose is worse has a ratio above 2.0 but two imperfect
+``general`` ones at 1.0-1.1 (pose errors 2.0 and 0.7 degrees against 1.6 and 0.1); planar renders
+lie at 1.0-1.5, four of twelve at 2.1-6.7 (left general)."""
+
+EPIPOLAR_CAP_FACTOR = 5.0
+"""Cap of the squared Sampson errors of that ratio, in inlier thresholds (outliers count once)."""
+
+MIN_PLANE_SUPPORT = 8
+"""Fewest homography inliers in front of both cameras (``M1 > 0`` and ``M2 > 0``) for a plane."""
 
 TRANSFER_FACTOR = 2.0
 """Inlier bound on the rotation's transfer error, in units of the essential matrix's threshold:
@@ -48,12 +112,12 @@ this many times wider, then the lens-absorbing fit re-selects at the normal boun
 
 @dataclass(frozen=True)
 class MotionDecision:
-    """Rotation-only fit and the rotation-versus-general decision of one pair.
+    """Rotation-only fit and the choice among rotation, plane and general motion of one pair.
 
     Attributes
     ----------
     model : str
-        ``"rotation"`` or ``"general"``.
+        ``"rotation"``, ``"plane"`` or ``"general"``.
     pure_rotation : bool
         ``model == "rotation"``.
     R : ndarray, shape (3, 3)
@@ -72,6 +136,17 @@ class MotionDecision:
         Lens terms of the rotation-only fit.
     selection : ModelSelection
         GRIC of each model, median residuals (pixels), noise estimate.
+    plane : PlanarPose or None
+        PPO choice among the decomposition candidates of the homography, when one was given.
+    homography_inliers : ndarray of bool, shape (N,) or None
+        Inliers of that homography.
+    plane_selection : ModelSelection or None
+        GRIC of the homography against the essential matrix (floor :data:`PLANE_MISMATCH_FLOOR`).
+    plane_epipolar_ratio : float
+        How much worse ``E = [t]x R`` of the planar pose explains the matches than the refined
+        essential matrix: the ratio of their mean squared Sampson errors, each capped at
+        :data:`EPIPOLAR_CAP_FACTOR` times the threshold (about 1 on a plane, NaN without a
+        homography).
     """
 
     model: str
@@ -84,11 +159,23 @@ class MotionDecision:
     focal_scale: float
     k1: float
     selection: ModelSelection
+    plane: PlanarPose | None = None
+    homography_inliers: np.ndarray | None = None
+    plane_selection: ModelSelection | None = None
+    plane_epipolar_ratio: float = float("nan")
 
     @property
     def gric_difference(self) -> float:
         """``(GRIC(rotation) - GRIC(general)) / n``: negative when the rotation explains more."""
         return self.selection.relative_gric("rotation", "general")
+
+    @property
+    def gric_plane_difference(self) -> float:
+        """``(GRIC(plane) - GRIC(general)) / n``: negative when the plane explains more; NaN
+        without a homography."""
+        if self.plane_selection is None:
+            return float("nan")
+        return self.plane_selection.relative_gric("plane", "general")
 
 
 def translation_for_rotation(R: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
@@ -123,8 +210,12 @@ def decide_motion(
     threshold_px: float = 1.0,
     pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD,
     seed: int = 0,
+    homography: HomographyEstimate | None = None,
 ) -> MotionDecision:
-    """Fit a rotation to the matches and decide between pure rotation and general motion.
+    """Fit a rotation to the matches and decide among pure rotation, plane and general motion.
+
+    The rule is the module's: GRIC over the candidate models on the union of their inliers,
+    a rotation only with a PRI below ``pri_threshold``, a plane only with a PPO pose.
 
     Parameters
     ----------
@@ -143,6 +234,9 @@ def decide_motion(
         PRI threshold (paper: 0.015).
     seed : int
         RANSAC seed.
+    homography : HomographyEstimate, optional
+        Robust homography of the same matches (:func:`ppo_cv.homography.estimate_homography`,
+        ``H`` on normalised points, residuals in pixels); without it no plane is considered.
 
     Returns
     -------
@@ -163,14 +257,10 @@ def decide_motion(
             break
         rotation_inliers = within
     scored = inliers | rotation_inliers
-    general = general_all[scored] * focal
-    rotation = lens.residuals[scored] * focal / np.sqrt(2.0)
-    d_rot, k_rot = MODEL_DIMENSIONS["rotation"]
-    d_gen, k_gen = MODEL_DIMENSIONS["general"]
     selection = select_model(
         [
-            ModelResiduals("rotation", rotation, d_rot, k_rot),
-            ModelResiduals("general", general, d_gen, k_gen),
+            _candidate("rotation", lens.residuals[scored] * focal / np.sqrt(2.0)),
+            _candidate("general", general_all[scored] * focal),
         ]
     )
     R_rot, t_rot, pri = lens.R, np.asarray(t, dtype=np.float64), float("inf")
@@ -187,8 +277,25 @@ def decide_motion(
         ppo.intersection_scores(x1[inliers], x2[inliers], R, t)
     )
     pure = bool(selection.model == "rotation" and pri < pri_threshold)
+    plane, plane_selection, plane_epipolar_ratio = None, None, float("nan")
+    if homography is not None:
+        plane = planar_pose(
+            homography.H, x1, x2, homography.inliers, threshold=threshold_px / focal
+        )
+        union = scored | homography.inliers
+        plane_selection = select_model(
+            [
+                _candidate("plane", homography.residuals[union]),
+                _candidate("general", general_all[union] * focal),
+            ],
+            mismatch_floor=PLANE_MISMATCH_FLOOR,
+        )
+        plane_epipolar_ratio = _epipolar_ratio(
+            plane, x1[union], x2[union], general_all[union] * focal, threshold_px, focal
+        )
+    model = "rotation" if pure else _plane_or_general(plane_selection, plane, plane_epipolar_ratio)
     return MotionDecision(
-        model="rotation" if pure else "general",
+        model=model,
         pure_rotation=pure,
         R=R_rot,
         t=t_rot,
@@ -198,4 +305,35 @@ def decide_motion(
         focal_scale=lens.focal_scale,
         k1=lens.k1,
         selection=selection,
+        plane=plane,
+        homography_inliers=None if homography is None else homography.inliers,
+        plane_selection=plane_selection,
+        plane_epipolar_ratio=plane_epipolar_ratio,
     )
+
+
+def _candidate(name: str, residuals: np.ndarray) -> ModelResiduals:
+    return ModelResiduals(name, residuals, *MODEL_DIMENSIONS[name])
+
+
+def _epipolar_ratio(plane, x1, x2, general_px, threshold_px: float, focal: float) -> float:
+    """Mean of ``min(e^2, (5 threshold)^2)`` over the Sampson errors (pixels) of ``[t]x R`` of
+    the planar pose, over the same for the refined essential matrix (``general_px``)."""
+    if not float(np.linalg.norm(plane.t)) > 0:
+        return float("inf")
+    cap = (EPIPOLAR_CAP_FACTOR * threshold_px) ** 2
+    planar_px = sampson_errors(essential_from_pose(plane.R, plane.t), x1, x2) * focal
+    rho = [np.mean(np.minimum(e**2, cap)) for e in (planar_px, general_px)]
+    return float(rho[0] / max(rho[1], 1e-300))
+
+
+def _plane_or_general(
+    selection: ModelSelection | None, plane: PlanarPose | None, epipolar_ratio: float
+) -> str:
+    """``"plane"`` when it wins ``selection``, its pose is a translation, and that pose's
+    essential matrix explains the matches almost as well as the refined one."""
+    if plane is None or selection is None or selection.model != "plane":
+        return "general"
+    moving = float(np.linalg.norm(plane.t)) > 0 and np.isfinite(plane.distance)
+    consistent = epipolar_ratio <= PLANE_EPIPOLAR_TOLERANCE
+    return "plane" if moving and consistent and plane.support >= MIN_PLANE_SUPPORT else "general"

@@ -1,4 +1,4 @@
-"""From two photos to ``(R, t)``, the pure-rotation flag and 3D points.
+"""From two photos to ``(R, t)``, the model (rotation, plane or general) and 3D points.
 
 Stages (each timed in ``PairResult.timings``, seconds):
 
@@ -11,11 +11,17 @@ Stages (each timed in ``PairResult.timings``, seconds):
 5. ``ppo``: the pose among the four candidates of ``E`` by the PPO inequalities (same-side M1
    for ``R``, intersection M2 for ``t``), without triangulation.
 6. ``refine``: non-linear refinement of ``(R, t)`` over the inliers (:mod:`ppo_cv.refine`).
-7. ``model``: rotation-only fit on the same matches (2-point RANSAC, then rotation with a focal
-   scale and radial distortion, :mod:`ppo_cv.rotation`) and the choice between "rotation" and
-   "general" (:mod:`ppo_cv.motion_model`); the uncertainty of the direction of ``t``.
-8. ``decision``: for a pure rotation the rotation of the rotation-only fit and no point;
-   otherwise the PPO pose and the analytic points (Prop. 3).
+7. ``homography``: robust homography on the same matches (:mod:`ppo_cv.homography`).
+8. ``model``: rotation-only fit on the same matches (2-point RANSAC, then rotation with a focal
+   scale and radial distortion, :mod:`ppo_cv.rotation`), the PPO choice among the homography's
+   decomposition candidates (:mod:`ppo_cv.plane`) and the choice among "rotation", "plane" and
+   "general" (:mod:`ppo_cv.motion_model`).
+9. ``decision``: for a pure rotation the rotation of the rotation-only fit and no point; for a
+   plane the PPO pose of the homography, not refined on ``E`` (plane matches leave the
+   essential matrix nearly degenerate), and the analytic points (Prop. 3) of its inliers;
+   otherwise the PPO pose of ``E`` and its analytic points. The uncertainty of the direction
+   of ``t`` comes from the Sampson cost of ``E = [t]x R`` at the reported pose in both moving
+   cases.
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ import numpy as np
 from . import ppo
 from .checks import as_camera_matrix, as_distortion
 from .features import FEATURE_TYPES, Features, detect_features, match_features
+from .homography import estimate_homography
 from .images import as_image as _as_image
 from .images import load_image
 from .motion_model import decide_motion
@@ -92,6 +99,9 @@ class PairOptions:
         Significance bar: the robust fit is a pose only when ``log10`` of its number of false
         alarms (:mod:`ppo_cv.significance`) is at most this; lower is stricter, ``inf`` turns
         the test off.
+    plane : bool
+        Fit a homography too and let the model decision call the pair a plane; False decides
+        between rotation and general only.
     """
 
     features: str = "sift"
@@ -109,6 +119,7 @@ class PairOptions:
     min_inliers: int = 8
     seed: int = 0
     max_log10_nfa: float = DEFAULT_MAX_LOG10_NFA
+    plane: bool = True
 
     def __post_init__(self) -> None:
         if self.features not in FEATURE_TYPES:
@@ -162,14 +173,14 @@ class PairResult:
         the rotation model wins GRIC and its PRI is below ``pri_threshold``).
     pri : float
         Pure-rotation indicator (mean ``|M2|``, eq. 84) of the returned pose over the inliers:
-        the essential matrix's refined pose, or for a pure rotation the rotation-only fit with
-        the ``t`` most consistent with it.
+        the essential matrix's refined pose, for a plane the homography's PPO pose, or for a
+        pure rotation the rotation-only fit with the ``t`` most consistent with it.
     keypoints1, keypoints2 : ndarray, shape (N1, 2), (N2, 2)
         All detected keypoints, full-resolution pixels.
     matches : ndarray of int, shape (M, 2)
         Putative matches, indices into ``keypoints1`` and ``keypoints2``.
     inliers : ndarray of bool, shape (M,)
-        Matches consistent with the estimated two-view geometry.
+        Matches consistent with the estimated two-view geometry (for a plane, the homography).
     points3d : ndarray, shape (M, 3)
         Analytic point (Proposition 3) of each match in camera-1 coordinates with unit
         baseline; NaN outside the inliers, where the PPO inequalities fail or the rays are
@@ -187,18 +198,37 @@ class PairResult:
     pri_threshold : float
         PRI threshold used.
     model : str
-        ``"rotation"`` or ``"general"`` (``"plane"`` is reserved for homographies).
+        ``"rotation"``, ``"plane"`` (the matches lie on one plane: pose from its homography)
+        or ``"general"`` (:mod:`ppo_cv.motion_model`).
     t_sigma_deg : float
         One standard deviation of the direction of ``t`` (degrees, at most 180) from the
-        Jacobian of the Sampson cost of the refined pose over its inliers
-        (:func:`ppo_cv.refine.translation_sigma_deg`); grows as the baseline shrinks. 180 for a
-        pure rotation: the model has no translation, and the essential matrix's apparent
-        confidence there comes from lens errors its translation absorbs.
+        Jacobian of the Sampson cost of ``E = [t]x R`` at the reported pose over its inliers
+        (:func:`ppo_cv.refine.translation_sigma_deg`), for a plane too; grows as the baseline
+        shrinks. 180 for a pure rotation: the model has no translation, and the essential
+        matrix's apparent confidence there comes from lens errors its translation absorbs.
     rotation_residual_px, general_residual_px : float
         Median residual (pixels, distance in the joint image space) of the rotation-only fit
         and of the essential matrix over the union of their inliers.
     gric_difference : float
         ``(GRIC(rotation) - GRIC(general)) / n``: the decision statistic, negative for a rotation.
+    plane_residual_px : float
+        Median residual (pixels, homography Sampson error) of the homography over the same
+        matches; NaN when no homography was fitted.
+    gric_plane_difference : float
+        ``(GRIC(plane) - GRIC(general)) / n``: negative when the plane explains more.
+    plane_epipolar_ratio : float
+        How much worse the essential matrix of the homography's pose explains the matches than
+        the refined one (about 1 on a plane; a plane needs at most
+        :data:`ppo_cv.motion_model.PLANE_EPIPOLAR_TOLERANCE`); NaN without a homography.
+    plane_normal : ndarray, shape (3,) or None
+        For a plane: its unit normal ``n`` in camera 1, the plane being ``n^T X1 = d``.
+    plane_distance : float
+        For a plane: ``d`` in baselines (the unit of ``points3d``); NaN otherwise.
+    plane_ambiguous : bool
+        For a plane: a second decomposition candidate also keeps every point in front of both
+        cameras (the two-fold ambiguity of a homography), and the tie was broken by the matches
+        off the plane or by the prior that the plane faces the cameras
+        (:func:`ppo_cv.plane.select_plane_pose`). False otherwise.
     noise_sigma_px : float
         Noise estimated from the essential matrix's residuals (pixels).
     focal_scale : float
@@ -239,6 +269,12 @@ class PairResult:
     dist1: np.ndarray | None = None
     dist2: np.ndarray | None = None
     log10_nfa: float = float("nan")
+    plane_residual_px: float = float("nan")
+    gric_plane_difference: float = float("nan")
+    plane_epipolar_ratio: float = float("nan")
+    plane_normal: np.ndarray | None = None
+    plane_distance: float = float("nan")
+    plane_ambiguous: bool = False
 
     @property
     def translation_determined(self) -> bool:
@@ -473,19 +509,41 @@ def estimate_pair(
         R, t, inliers = _refine(R, t, x1, x2, inliers, focal, options)
     lap("refine")
 
+    homography = None
+    if options.plane:
+        homography = estimate_homography(
+            x1, x2, focal,
+            backend=options.backend,
+            threshold=options.ransac_threshold,
+            confidence=options.confidence,
+            min_trials=options.min_trials,
+            max_trials=options.max_trials,
+            seed=options.seed,
+        )  # fmt: skip
+    lap("homography")
+
     motion = decide_motion(
         x1, x2, R, t, inliers, focal,
         threshold_px=options.ransac_threshold,
         pri_threshold=float(options.pri_threshold),
         seed=options.seed,
+        homography=homography,
     )  # fmt: skip
     lap("model")
 
+    plane = motion.plane if motion.model == "plane" else None
     if motion.pure_rotation:
         R, t, pri = motion.R, motion.t, motion.pri
         inliers = motion.rotation_inliers
         t_sigma = 180.0
         points3d, keep = np.full((len(matches), 3), np.nan), np.zeros(len(matches), dtype=bool)
+    elif plane is not None:
+        R, t, inliers = plane.R, plane.t, motion.homography_inliers
+        pri = ppo.pure_rotation_indicator(plane.m2[inliers])
+        points3d = ppo.analytic_points(x1, x2, R, t)
+        keep = plane.inliers & np.all(np.isfinite(points3d), axis=1)
+        points3d = np.where(keep[:, None], points3d, np.nan)
+        t_sigma = translation_sigma_deg(R, t, x1, x2, inliers)
     else:
         final = _recover_normalized(essential_from_pose(R, t), x1[:, :2], x2[:, :2], inliers, 0.0)
         R, t, pri = final.R, final.t, final.pri
@@ -523,4 +581,14 @@ def estimate_pair(
         dist1=dist1,
         dist2=dist2,
         log10_nfa=significance.log10_nfa,
+        plane_residual_px=(
+            float("nan")
+            if motion.plane_selection is None
+            else motion.plane_selection.median_residual_px["plane"]
+        ),
+        gric_plane_difference=motion.gric_plane_difference,
+        plane_epipolar_ratio=motion.plane_epipolar_ratio,
+        plane_normal=None if plane is None else plane.n,
+        plane_distance=float("nan") if plane is None else plane.distance,
+        plane_ambiguous=bool(plane is not None and plane.ambiguous),
     )

@@ -44,7 +44,10 @@ import pycolmap
 from . import colmap, ppo
 from .atomic import atomic_directory, check_target, signals_deferred
 from .checks import as_camera_matrix, as_positive
+from .homography import estimate_homography
 from .motion_model import decide_motion
+from .pose import _recover_normalized
+from .robust import essential_from_pose
 
 __all__ = [
     "INITIALIZATIONS",
@@ -113,7 +116,10 @@ class PairScore:
         Why the pair cannot seed a reconstruction; empty when it can.
     R : ndarray, shape (3, 3)
     t : ndarray, shape (3,)
-        PPO pose ``cam2_from_cam1``, unit ``t``.
+        PPO pose ``cam2_from_cam1``, unit ``t``: for a plane, that of its homography.
+    model : str
+        ``"rotation"``, ``"plane"`` or ``"general"`` (:func:`ppo_cv.motion_model.decide_motion`
+        on the verified matches, with a homography fitted to them).
     """
 
     image_id1: int
@@ -129,6 +135,7 @@ class PairScore:
     rejection: str
     R: np.ndarray = field(repr=False)
     t: np.ndarray = field(repr=False)
+    model: str = "general"
 
     @property
     def accepted(self) -> bool:
@@ -306,7 +313,9 @@ def score_pose(
     ----------
     pose : PoseResult
     motion : MotionDecision, optional
-        Rotation-versus-general decision on the pair's matches; a pure rotation is rejected.
+        Model decision on the pair's matches; a pure rotation is always rejected, a plane is
+        scored as any pose (pass the pose of its homography: a planar pair seeds a
+        reconstruction when its parallax is sufficient).
     min_inliers : int
         Fewer PPO inliers reject the pair.
     min_tri_angle, target_tri_angle : float
@@ -423,24 +432,27 @@ def _score_geometry(
             **common, num_inliers=0, pri=float("nan"), pure_rotation=False, tri_angle=0.0,
             score=0.0, rejection=f"no pose ({exc})", R=np.eye(3), t=np.zeros(3),
         )  # fmt: skip
-    motion = _motion_decision(
+    motion, pose = _motion_decision(
         geometry, cameras[image1.camera_id], keypoints[image1.image_id],
         cameras[image2.camera_id], keypoints[image2.image_id], pose, pri_threshold,
     )  # fmt: skip
     score, tri_angle, rejection = score_pose(pose, motion=motion, **criteria)
+    pure = bool(pose.pure_rotation or (motion is not None and motion.pure_rotation))
     return PairScore(
         **common, num_inliers=pose.num_inliers, pri=float(pose.pri),
-        pure_rotation=bool(pose.pure_rotation or (motion is not None and motion.pure_rotation)),
+        pure_rotation=pure,
         tri_angle=tri_angle, score=score,
         rejection=rejection, R=pose.R, t=pose.t,
+        model="rotation" if pure else ("general" if motion is None else motion.model),
     )  # fmt: skip
 
 
 def _motion_decision(geometry, camera1, keypoints1, camera2, keypoints2, pose, pri_threshold):
-    """Rotation-versus-general decision on the verified matches (None with fewer than 8)."""
+    """Model decision on the verified matches (None with fewer than 8), and the pose to score:
+    for a plane the PPO pose of its homography with its analytic points, else ``pose``."""
     matches = np.asarray(geometry.inlier_matches, dtype=np.int64).reshape(-1, 2)
     if len(matches) < 8:
-        return None
+        return None, pose
     x1, x2 = (
         np.column_stack([xy, np.ones(len(xy))])
         for xy in (
@@ -451,7 +463,15 @@ def _motion_decision(geometry, camera1, keypoints1, camera2, keypoints2, pose, p
     )  # fmt: skip
     focal = 0.5 * (camera1.mean_focal_length() + camera2.mean_focal_length())
     used = np.ones(len(matches), dtype=bool)
-    return decide_motion(x1, x2, pose.R, pose.t, used, focal, pri_threshold=pri_threshold)
+    homography = estimate_homography(x1, x2, focal)
+    motion = decide_motion(
+        x1, x2, pose.R, pose.t, used, focal, pri_threshold=pri_threshold, homography=homography
+    )
+    if motion.model != "plane":
+        return motion, pose
+    plane = motion.plane
+    E = essential_from_pose(plane.R, plane.t)
+    return motion, _recover_normalized(E, x1[:, :2], x2[:, :2], plane.inliers, pri_threshold)
 
 
 def _pipeline_options(

@@ -273,3 +273,25 @@ def test_freiburg_sfm_matches_pseudo_ground_truth(freiburg, tmp_path):
     assert len(rotation_errors) == 85
     assert np.median(rotation_errors) < 1.0
     assert np.median(translation_errors) < 2.0
+
+
+# --- a planar pair: valid initial pair with its homography's pose ---------------------------
+
+
+def test_score_pairs_scores_a_planar_pair_with_its_homography_pose(tmp_path):
+    import cv2
+
+    from ppo_cv.data_gen import make_pair
+
+    pair = make_pair("planar", seed=0, size=(640, 480))
+    images = tmp_path / "images"
+    images.mkdir()
+    for name, image in (("a.png", pair.image1), ("b.png", pair.image2)):
+        cv2.imwrite(str(images / name), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+    sfm.prepare_database(images, tmp_path / "db.db", K=pair.K1)
+    (score,) = sfm.score_pairs(tmp_path / "db.db")
+    assert score.model == "plane" and not score.pure_rotation
+    assert score.accepted and score.score > 0 and score.tri_angle > 1.0
+    R, t = (pair.R, pair.t) if score.name1 == "a.png" else (pair.R.T, -pair.R.T @ pair.t)
+    assert rotation_angle_deg(score.R, R) < 0.2
+    assert angle_between_deg(score.t, t) < 0.5

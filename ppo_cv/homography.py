@@ -1,0 +1,218 @@
+"""Robust estimation of a homography between normalized matches, and its residuals.
+
+The companion of :mod:`ppo_cv.robust` for a plane (or a pure rotation): the same inputs
+(normalized homogeneous points ``x = K^-1 [u, v, 1]``, a threshold in pixels converted with one
+focal length ``f``) and two backends, neither hand-written:
+
+- ``"pycolmap"``: COLMAP's LO-RANSAC on the 4-point DLT (``pycolmap.estimate_homography_matrix``),
+  inliers by the transfer error in image 2; the default.
+- ``"opencv"``: OpenCV's USAC with MAGSAC++ scoring (``cv2.findHomography(..., USAC_MAGSAC)``).
+
+Both are fed the points of a virtual pinhole camera ``(f, f, 0, 0)``, ``f * x[:, :2]``, so the
+threshold is in pixels; the returned ``H`` maps normalized points, ``x2 ~ H x1``, scaled to
+``R + T n^T`` (:func:`ppo_cv.plane.normalize_homography`) and ready for
+:func:`ppo_cv.plane.planar_pose`. The per-match residuals are the Sampson error of the homography
+in pixels (:func:`homography_sampson_errors`), the first-order distance of the match to the
+model in the joint image space, which is the residual GRIC-style model selection compares
+across models (Torr, 1998).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .plane import normalize_homography
+
+__all__ = [
+    "HOMOGRAPHY_BACKENDS",
+    "HomographyEstimate",
+    "estimate_homography",
+    "homography_sampson_errors",
+    "symmetric_transfer_errors",
+]
+
+HOMOGRAPHY_BACKENDS = ("pycolmap", "opencv")
+
+
+@dataclass(frozen=True)
+class HomographyEstimate:
+    """Homography and inliers of a robust fit.
+
+    Attributes
+    ----------
+    H : ndarray, shape (3, 3)
+        ``x2 ~ H x1`` on normalized points, middle singular value 1 and ``x2^T H x1 > 0`` on most
+        inliers (the scale of ``R + T n^T``).
+    inliers : ndarray of bool, shape (N,)
+        Matches the backend kept (transfer error in image 2 within the threshold for pycolmap,
+        MAGSAC++ inliers for OpenCV).
+    residuals : ndarray, shape (N,)
+        Sampson error of every match to ``H``, pixels of the virtual camera ``(f, f, 0, 0)``.
+    backend : str
+        The backend that produced it.
+    """
+
+    H: np.ndarray
+    inliers: np.ndarray
+    residuals: np.ndarray
+    backend: str
+
+    @property
+    def num_inliers(self) -> int:
+        """Number of inliers."""
+        return int(np.count_nonzero(self.inliers))
+
+
+def homography_sampson_errors(H: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
+    """Sampson distance (normalized units) of each match to the homography ``x2 ~ H x1``.
+
+    With ``a = H x1``, the first two rows of ``x2 x a`` are the algebraic errors
+    ``e = (v2 a3 - a2, a1 - u2 a3)``, with Jacobian ``J`` (2 x 4) in ``(u1, v1, u2, v2)``. The
+    Sampson distance ``sqrt(e^T (J J^T)^-1 e)`` is the first-order length of the smallest
+    correction of both points that puts the match on the homography (Hartley and Zisserman,
+    Section 4.2.6); it is exact for an affine ``H``. Multiply by the focal length for pixels.
+
+    Parameters
+    ----------
+    H : ndarray, shape (3, 3)
+    x1, x2 : ndarray, shape (N, 3)
+        Normalized homogeneous points (last entry 1).
+
+    Returns
+    -------
+    ndarray, shape (N,)
+    """
+    u2, v2 = x2[:, 0], x2[:, 1]
+    a = x1 @ H.T
+    e1 = v2 * a[:, 2] - a[:, 1]
+    e2 = a[:, 0] - u2 * a[:, 2]
+    j11, j12 = v2 * H[2, 0] - H[1, 0], v2 * H[2, 1] - H[1, 1]  # d e1 / d(u1, v1)
+    j21, j22 = H[0, 0] - u2 * H[2, 0], H[0, 1] - u2 * H[2, 1]  # d e2 / d(u1, v1)
+    a3sq = a[:, 2] ** 2  # |d e1 / d v2| = |d e2 / d u2| = |a3|
+    A = j11**2 + j12**2 + a3sq
+    B = j11 * j21 + j12 * j22
+    C = j21**2 + j22**2 + a3sq
+    det = np.maximum(A * C - B * B, 1e-300)
+    return np.sqrt(np.maximum(C * e1**2 - 2.0 * B * e1 * e2 + A * e2**2, 0.0) / det)
+
+
+def symmetric_transfer_errors(H: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
+    """``sqrt(d(x2, H x1)^2 + d(x1, H^-1 x2)^2)`` for each match (normalized units), shape (N,).
+
+    Points mapped to infinity get an infinite error.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        forward = x1 @ H.T
+        backward = x2 @ np.linalg.inv(H).T
+        d2 = np.sum((forward[:, :2] / forward[:, 2:] - x2[:, :2]) ** 2, axis=1)
+        d1 = np.sum((backward[:, :2] / backward[:, 2:] - x1[:, :2]) ** 2, axis=1)
+        errors = np.sqrt(d1 + d2)
+    return np.where(np.isfinite(errors), errors, np.inf)
+
+
+def _pycolmap(p1, p2, threshold, confidence, min_trials, max_trials, seed):
+    import pycolmap
+
+    options = pycolmap.RANSACOptions()
+    options.max_error = threshold
+    options.confidence = confidence
+    options.max_num_trials = int(max_trials)
+    options.min_num_trials = min(int(min_trials), int(max_trials))
+    options.random_seed = int(seed)
+    found = pycolmap.estimate_homography_matrix(p1, p2, options)
+    if found is None:
+        return None
+    return np.asarray(found["H"]), np.asarray(found["inlier_mask"]).reshape(-1).astype(bool)
+
+
+def _opencv(p1, p2, threshold, confidence, min_trials, max_trials, seed):
+    import cv2
+
+    cv2.setRNGSeed(int(seed))
+    H, mask = cv2.findHomography(
+        p1, p2, cv2.USAC_MAGSAC, threshold, maxIters=int(max_trials), confidence=confidence
+    )
+    if H is None or mask is None:
+        return None
+    return H, mask.reshape(-1) != 0
+
+
+def _check_points(x1, x2) -> tuple[np.ndarray, np.ndarray]:
+    x1 = np.ascontiguousarray(x1, dtype=np.float64)
+    x2 = np.ascontiguousarray(x2, dtype=np.float64)
+    for name, x in (("x1", x1), ("x2", x2)):
+        if x.ndim != 2 or x.shape[1] != 3:
+            raise ValueError(f"{name} must have shape (N, 3), got {x.shape}")
+        if not np.all(np.isfinite(x)):
+            raise ValueError(f"{name} has NaN or infinite values")
+    if len(x1) != len(x2):
+        raise ValueError(f"x1 and x2 must have the same length, got {len(x1)} and {len(x2)}")
+    if len(x1) < 4:
+        raise ValueError(f"at least 4 matches are needed for a homography, got {len(x1)}")
+    return x1, x2
+
+
+def estimate_homography(
+    x1: np.ndarray,
+    x2: np.ndarray,
+    focal: float,
+    *,
+    backend: str = "pycolmap",
+    threshold: float = 1.0,
+    confidence: float = 0.9999,
+    min_trials: int = 100,
+    max_trials: int = 100_000,
+    seed: int = 0,
+) -> HomographyEstimate | None:
+    """Robustly fit a homography ``x2 ~ H x1`` to normalized correspondences.
+
+    Parameters
+    ----------
+    x1, x2 : ndarray, shape (N, 3)
+        Normalized homogeneous image coordinates (last entry 1) of the matches, N >= 4.
+    focal : float
+        Focal length (pixels) that converts ``threshold`` to normalized units.
+    backend : {"pycolmap", "opencv"}
+        Robust estimator.
+    threshold : float
+        Inlier threshold on the transfer error, pixels.
+    confidence : float
+        Stop when a better model is this unlikely to be missed.
+    min_trials, max_trials : int
+        Bounds on the number of hypotheses (``min_trials`` is ignored by OpenCV).
+    seed : int
+        Seed of the sampler, for repeatable results.
+
+    Returns
+    -------
+    HomographyEstimate or None
+        None when the backend finds no model.
+    """
+    if backend not in HOMOGRAPHY_BACKENDS:
+        raise ValueError(
+            f"unknown backend {backend!r}; choose one of {', '.join(HOMOGRAPHY_BACKENDS)}"
+        )
+    if not focal > 0 or not threshold > 0:
+        raise ValueError(f"focal and threshold must be > 0, got {focal} and {threshold}")
+    x1, x2 = _check_points(x1, x2)
+    fit = _pycolmap if backend == "pycolmap" else _opencv
+    focal = float(focal)
+    found = fit(
+        focal * x1[:, :2],
+        focal * x2[:, :2],
+        float(threshold),
+        float(confidence),
+        min_trials,
+        max_trials,
+        seed,
+    )
+    if found is None or not found[1].any() or not np.all(np.isfinite(found[0])):
+        return None
+    scale = np.array([focal, focal, 1.0])
+    H = found[0] * scale[None, :] / scale[:, None]  # diag(1/f) H_virtual diag(f)
+    inliers = found[1]
+    H = normalize_homography(H, x1[inliers], x2[inliers])
+    residuals = focal * homography_sampson_errors(H, x1, x2)
+    return HomographyEstimate(H=H, inliers=inliers, residuals=residuals, backend=backend)

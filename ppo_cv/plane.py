@@ -1,0 +1,439 @@
+"""Pose of a plane from its calibrated homography, chosen by the PPO inequalities (pure numpy).
+
+A plane ``n^T X1 = d`` (unit normal ``n`` in camera 1, distance ``d > 0``) seen by two cameras
+with ``X2 = R X1 + t`` maps the normalized points of view 1 to those of view 2 by
+
+``X2 = (R + t n^T / d) X1``,  i.e.  ``x2 ~ Hn x1``  with  ``Hn = K2^-1 H K1 = R + T n^T``,
+
+``T = t / d``. Scaled so that its middle singular value is 1 and signed so that
+``x2^T Hn x1 > 0`` (points in front of both cameras), ``Hn`` is exactly ``R + T n^T``
+(:func:`normalize_homography`). Its decomposition (:func:`decompose_homography`) has four
+candidates ``(Ra, Ta, na)``, ``(Ra, -Ta, -na)``, ``(Rb, Tb, nb)``, ``(Rb, -Tb, -nb)``.
+
+The right one is chosen as the paper chooses among the four candidates of an essential matrix:
+each candidate is a pose, so the same-side score ``M1`` (eq. 66-70) and the intersection score
+``M2`` (eq. 73-76) of :mod:`ppo_cv.ppo` apply to it unchanged, and by the paper's equivalence
+``M1 > 0`` and ``M2 > 0`` hold exactly for the points that lie in front of both cameras.
+A candidate with the flipped pair ``(-T, -n)`` flips every ``M2`` (``m2(-t) = -m2(t)``): the
+plane behind camera 1. The other rotation generally puts part of the points behind a camera or
+on the wrong side of the baseline. :func:`select_plane_pose` keeps the candidate with the most
+points satisfying both inequalities. When the second rotation also keeps every point in front of
+both cameras, the images of a plane cannot tell the two poses apart (the two-fold ambiguity of a
+homography); the tie is then broken by the matches off the plane when there are any (the
+candidate whose ``E = [t]x R`` explains more of them), else by the prior that the plane faces the
+cameras (:func:`frontality`): the false interpretation exchanges the directions of ``t`` and
+``n`` and so sees the plane obliquely.
+
+This extends the paper, whose inequalities are derived for the candidates of an essential
+matrix, to homographies; see ``docs/homography.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import ppo
+
+__all__ = [
+    "MIN_OFF_PLANE",
+    "HomographyCandidates",
+    "PlanarPose",
+    "normalize_homography",
+    "homography_from_pose",
+    "decompose_homography",
+    "candidate_supports",
+    "frontality",
+    "select_plane_pose",
+    "planar_pose",
+]
+
+_DEGENERATE = 1e-12
+
+MIN_OFF_PLANE = 8
+"""Fewest off-plane matches that may break the two-fold ambiguity (:func:`select_plane_pose`)."""
+
+
+@dataclass(frozen=True)
+class HomographyCandidates:
+    """The four candidate poses ``Hn = R_i + T_i n_i^T`` of a calibrated homography.
+
+    Candidates 0 and 1 share a rotation, as do 2 and 3; ``(T, n)`` of 1 and 3 are those of 0
+    and 2 negated.
+
+    Attributes
+    ----------
+    R : ndarray, shape (4, 3, 3)
+        Rotations, ``X2 = R X1 + t``.
+    T : ndarray, shape (4, 3)
+        Translations divided by the plane distance, ``t / d``; zero for a pure rotation.
+    n : ndarray, shape (4, 3)
+        Unit plane normals in camera 1, the plane being ``n^T X1 = d``.
+    H : ndarray, shape (3, 3)
+        The normalized homography (:func:`normalize_homography`) they decompose.
+    """
+
+    R: np.ndarray
+    T: np.ndarray
+    n: np.ndarray
+    H: np.ndarray
+
+    @property
+    def t(self) -> np.ndarray:
+        """Unit translation directions, shape (4, 3) (zero rows for a pure rotation)."""
+        norms = np.linalg.norm(self.T, axis=1, keepdims=True)
+        return np.divide(self.T, norms, out=np.zeros_like(self.T), where=norms > 0)
+
+
+@dataclass(frozen=True)
+class PlanarPose:
+    """Pose of a plane chosen among the candidates of its homography by the PPO inequalities.
+
+    Attributes
+    ----------
+    R : ndarray, shape (3, 3)
+        Rotation, ``X2 = R X1 + t``.
+    t : ndarray, shape (3,)
+        Unit translation direction; zero when ``H`` is a rotation (then ``n`` is arbitrary
+        and every support 0: a pure rotation, for the rotation-only model to report).
+    n : ndarray, shape (3,)
+        Unit normal of the plane in camera 1, ``n^T X1 = d`` with ``d > 0``.
+    distance : float
+        ``d`` in units of the baseline ``||t||`` (``1 / ||T||``); ``inf`` for a pure rotation.
+    candidate : int
+        Index of the chosen candidate in ``candidates``.
+    supports : ndarray of int, shape (4,)
+        Points (among the used ones) satisfying ``M1 > 0`` and ``M2 > 0`` for each candidate.
+    ambiguous : bool
+        Another candidate has the same support: both poses keep every such point in front of
+        both cameras (the two-fold ambiguity), and the tie-break decided.
+    inliers : ndarray of bool, shape (N,)
+        The used points satisfying both inequalities for the chosen pose.
+    m1, m2 : ndarray, shape (N,)
+        Same-side (eq. 70) and intersection (eq. 76) scores of the chosen pose, all points.
+    candidates : HomographyCandidates
+        The decomposition the choice was made from.
+    """
+
+    R: np.ndarray
+    t: np.ndarray
+    n: np.ndarray
+    distance: float
+    candidate: int
+    supports: np.ndarray
+    ambiguous: bool
+    inliers: np.ndarray
+    m1: np.ndarray
+    m2: np.ndarray
+    candidates: HomographyCandidates
+
+    @property
+    def support(self) -> int:
+        """Points satisfying both inequalities for the chosen pose."""
+        return int(self.supports[self.candidate])
+
+
+def _homogeneous(x: np.ndarray) -> np.ndarray:
+    """(N, 2) or (N, 3) normalized points as homogeneous rows (N, 3) of float64."""
+    x = np.asarray(x, dtype=np.float64)
+    if x.ndim != 2 or x.shape[1] not in (2, 3):
+        raise ValueError(f"points must have shape (N, 2) or (N, 3), got {x.shape}")
+    return np.column_stack([x, np.ones(len(x))]) if x.shape[1] == 2 else x
+
+
+def _as_homography(H: np.ndarray) -> np.ndarray:
+    H = np.asarray(H, dtype=np.float64)
+    if H.shape != (3, 3):
+        raise ValueError(f"H must have shape (3, 3), got {H.shape}")
+    if not np.all(np.isfinite(H)):
+        raise ValueError("H has NaN or infinite entries")
+    return H
+
+
+def normalize_homography(
+    H: np.ndarray, x1: np.ndarray | None = None, x2: np.ndarray | None = None
+) -> np.ndarray:
+    """Scale a calibrated homography to ``R + T n^T``: middle singular value 1, positive depths.
+
+    For ``Hn = R + T n^T`` the middle singular value of ``Hn`` is 1 (Faugeras and Lustman), so
+    dividing any multiple of it by its middle singular value leaves ``+-Hn``. The sign is the
+    one for which ``x2^T Hn x1 > 0`` for most matches: ``z2 x2 = z1 Hn x1`` with positive depths
+    ``z1``, ``z2`` for a point in front of both cameras.
+
+    Parameters
+    ----------
+    H : array_like, shape (3, 3)
+        Homography between normalized points, ``x2 ~ H x1`` (``K2^-1 H_pixels K1``).
+    x1, x2 : ndarray, shape (N, 2) or (N, 3), optional
+        Matches that fix the sign (e.g. the inliers); without them ``det(Hn) > 0`` is used, which
+        is right unless the plane passes between the two centres.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+    """
+    H = _as_homography(H)
+    s = np.linalg.svd(H, compute_uv=False)
+    if not s[1] > 0:
+        raise ValueError("H has rank below 2: not a homography between two views")
+    H = H / s[1]
+    if x1 is None or x2 is None or len(x1) == 0:
+        return H if np.linalg.det(H) > 0 else -H
+    products = np.einsum("ij,ij->i", _homogeneous(x2), _homogeneous(x1) @ H.T)
+    return H if np.count_nonzero(products > 0) >= np.count_nonzero(products < 0) else -H
+
+
+def homography_from_pose(R: np.ndarray, t: np.ndarray, n: np.ndarray, d: float) -> np.ndarray:
+    """``Hn = R + t n^T / d``, the homography of the plane ``n^T X1 = d`` (``x2 ~ Hn x1``)."""
+    return np.asarray(R, float) + np.outer(t, n) / float(d)
+
+
+def decompose_homography(H: np.ndarray) -> HomographyCandidates:
+    """The four candidate poses of a normalized calibrated homography, in closed form.
+
+    The method of Faugeras and Lustman in the form of Ma, Soatto, Kosecka and Sastry (An
+    Invitation to 3-D Vision, Section 5.3): with ``Hn^T Hn = V diag(s1^2, 1, s3^2) V^T``,
+    ``det V = 1``, the vectors ``v2`` and
+    ``u+- = (sqrt(1 - s3^2) v1 +- sqrt(s1^2 - 1) v3) / sqrt(s1^2 - s3^2)`` keep their length
+    under ``Hn``; with ``U = [v2, u, v2 x u]`` and ``W = [Hn v2, Hn u, Hn v2 x Hn u]``,
+    ``R = W U^T``, ``n = v2 x u`` and ``T = (Hn - R) n``. Both bases are orthonormal by
+    construction, so ``R`` is a rotation even for a noisy ``Hn``. Normals are signed to face
+    camera 1 (``n_z > 0``) in candidates 0 and 2; 1 and 3 negate ``(T, n)``.
+
+    For ``s1 = s3`` (a rotation, ``T = 0``) every candidate is ``(Hn, 0, n)``.
+
+    Parameters
+    ----------
+    H : array_like, shape (3, 3)
+        Normalized homography (:func:`normalize_homography`).
+
+    Returns
+    -------
+    HomographyCandidates
+    """
+    H = _as_homography(H)
+    _, s, Vt = np.linalg.svd(H)  # Hn^T Hn = V diag(s^2) V^T
+    V = Vt.T * np.sign(np.linalg.det(Vt))
+    s1, s3 = s[0] ** 2 / s[1] ** 2, s[2] ** 2 / s[1] ** 2  # squared, middle value taken as 1
+    v1, v2, v3 = V.T
+    spread = s1 - s3
+    if spread > _DEGENERATE:
+        a, b = np.sqrt(max(1.0 - s3, 0.0) / spread), np.sqrt(max(s1 - 1.0, 0.0) / spread)
+    else:
+        a, b = 1.0, 0.0
+    Hn = H / s[1]
+    u = np.array([a * v1 + b * v3, a * v1 - b * v3])  # (2, 3)
+    U = np.stack([np.broadcast_to(v2, (2, 3)), u, np.cross(v2, u)], axis=2)  # columns
+    Hv2, Hu = Hn @ v2, u @ Hn.T
+    W = np.stack([np.broadcast_to(Hv2, (2, 3)), Hu, np.cross(Hv2, Hu)], axis=2)
+    R = W @ np.swapaxes(U, 1, 2)
+    n = U[:, :, 2]
+    n = n * np.where(n[:, 2:] < 0, -1.0, 1.0)
+    T = np.einsum("kij,kj->ki", Hn - R, n) if spread > _DEGENERATE else np.zeros((2, 3))
+    order = [0, 0, 1, 1]
+    sign = np.array([1.0, -1.0, 1.0, -1.0])[:, None]
+    return HomographyCandidates(R=R[order], T=sign * T[order], n=sign * n[order], H=Hn)
+
+
+def candidate_supports(
+    candidates: HomographyCandidates,
+    x1: np.ndarray,
+    x2: np.ndarray,
+    used: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Scores ``M1`` (eq. 70) and ``M2`` (eq. 76) of every candidate and their supports.
+
+    Parameters
+    ----------
+    candidates : HomographyCandidates
+    x1, x2 : ndarray, shape (N, 2) or (N, 3)
+        Normalized points.
+    used : ndarray of bool, shape (N,), optional
+        Points that count; all by default.
+
+    Returns
+    -------
+    m1, m2 : ndarray, shape (4, N)
+        Scores of each candidate for all points.
+    supports : ndarray of int, shape (4,)
+        Used points with ``M1 > 0`` and ``M2 > 0``. A pure-rotation candidate (``T = 0``) has
+        no translation to score and support 0.
+    """
+    X1, X2 = _homogeneous(x1), _homogeneous(x2)
+    m1 = np.zeros((4, len(X1)))
+    m2 = np.zeros((4, len(X1)))
+    for k, (R, t) in enumerate(zip(candidates.R, candidates.t, strict=True)):  # 4, not N
+        if t @ t > 0:
+            m1[k] = ppo.same_side_scores(X1, X2, R, t)
+            m2[k] = ppo.intersection_scores(X1, X2, R, t)
+    both = (m1 > 0) & (m2 > 0)
+    if used is not None:
+        both &= np.asarray(used, dtype=bool)[None, :]
+    return m1, m2, np.count_nonzero(both, axis=1)
+
+
+def _epipolar_support(
+    candidates: HomographyCandidates, X1: np.ndarray, X2: np.ndarray, threshold: float
+) -> np.ndarray:
+    """Matches within ``threshold`` (Sampson, normalized units) of each ``E = [t]x R``."""
+    from .robust import essential_from_pose, sampson_errors
+
+    counts = [
+        np.count_nonzero(sampson_errors(essential_from_pose(R, t), X1, X2) < threshold)
+        if t @ t > 0
+        else 0
+        for R, t in zip(candidates.R, candidates.t, strict=True)
+    ]
+    return np.asarray(counts)
+
+
+def _significant(counts: np.ndarray, tied: np.ndarray) -> np.ndarray:
+    """``counts`` if the best of the tied candidates beats the next clearly, else zeros.
+
+    Clearly: at least ``MIN_OFF_PLANE`` matches and a lead above three standard deviations of
+    a count, ``3 sqrt(a + b)``. Mismatches fall near a wrong epipolar line by chance; matches
+    off a real plane favour the true pose by far more.
+    """
+    top = np.sort(counts[tied])[::-1]
+    second = top[1] if len(top) > 1 else 0
+    if top[0] >= MIN_OFF_PLANE and top[0] - second > 3.0 * np.sqrt(top[0] + second):
+        return counts
+    return np.zeros_like(counts)
+
+
+def frontality(candidates: HomographyCandidates) -> np.ndarray:
+    """``n_z + (R n)_z`` of each candidate, shape (4,): how squarely the plane faces both cameras.
+
+    The sum of the cosines of the angles between the plane normal and the optical axes of
+    camera 1 (``n``) and camera 2 (``R n``): 2 for a plane seen head-on in both views. Not from
+    the paper: the prior that breaks the two-fold ambiguity of a plane, whose two physical
+    interpretations exchange the directions of ``t`` and ``n`` (to first order) and so tilt the
+    plane of the false one towards the baseline, i.e. obliquely to both views.
+    """
+    return candidates.n[:, 2] + np.einsum("kj,kij->ki", candidates.n, candidates.R)[:, 2]
+
+
+def select_plane_pose(
+    candidates: HomographyCandidates,
+    x1: np.ndarray,
+    x2: np.ndarray,
+    used: np.ndarray | None = None,
+    *,
+    off_plane: np.ndarray | None = None,
+    threshold: float | None = None,
+) -> PlanarPose:
+    """Choose the candidate with the most points satisfying ``M1 > 0`` and ``M2 > 0``.
+
+    Rule, in order: (1) the largest support, the number of used points for which both the
+    same-side score (eq. 70) and the intersection score (eq. 76) are positive, i.e. points in
+    front of both cameras; (2) among candidates tied on support (the two-fold ambiguity of a
+    plane), the one whose essential matrix ``[t]x R`` has clearly the most ``off_plane``
+    matches within ``threshold`` (matches off the plane see the true epipolar geometry only;
+    clearly: at least :data:`MIN_OFF_PLANE` and a lead of three standard deviations); (3) the plane
+    facing both cameras more squarely (:func:`frontality`), a prior: the images of a plane
+    cannot tell the two apart; (4) the lower index.
+
+    Parameters
+    ----------
+    candidates : HomographyCandidates
+    x1, x2 : ndarray, shape (N, 2) or (N, 3)
+        Normalized points.
+    used : ndarray of bool, shape (N,), optional
+        Points that vote (the homography inliers); all by default.
+    off_plane : ndarray of bool, shape (N,), optional
+        Matches that may lie off the plane (e.g. the homography outliers), for the tie-break.
+    threshold : float, optional
+        Sampson error bound (normalized units) of the tie-break; required with ``off_plane``.
+
+    Returns
+    -------
+    PlanarPose
+    """
+    X1, X2 = _homogeneous(x1), _homogeneous(x2)
+    if X1.shape != X2.shape:
+        raise ValueError(f"x1 and x2 must have the same shape, got {X1.shape} and {X2.shape}")
+    used_mask = np.ones(len(X1), bool) if used is None else np.asarray(used, bool).reshape(-1)
+    if used_mask.shape != (len(X1),):
+        raise ValueError(f"used must have shape ({len(X1)},), got {used_mask.shape}")
+    m1, m2, supports = candidate_supports(candidates, X1, X2, used_mask)
+    epipolar = np.zeros(4, int)
+    if off_plane is not None and threshold is not None:
+        off = np.asarray(off_plane, bool).reshape(-1)
+        if off.shape != (len(X1),):
+            raise ValueError(f"off_plane must have shape ({len(X1)},), got {off.shape}")
+        if off.any():
+            counts = _epipolar_support(candidates, X1[off], X2[off], float(threshold))
+            epipolar = _significant(counts, supports == supports.max())
+    keys = list(zip(supports, epipolar, frontality(candidates), -np.arange(4), strict=True))
+    best = max(range(4), key=lambda k: keys[k])
+    tied = int(np.count_nonzero(supports == supports[best]))
+    T = candidates.T[best]
+    norm = float(np.linalg.norm(T))
+    return PlanarPose(
+        R=candidates.R[best],
+        t=candidates.t[best],
+        n=candidates.n[best],
+        distance=1.0 / norm if norm > 0 else float("inf"),
+        candidate=int(best),
+        supports=supports,
+        ambiguous=tied > 1 and supports[best] > 0,
+        inliers=used_mask & (m1[best] > 0) & (m2[best] > 0),
+        m1=m1[best],
+        m2=m2[best],
+        candidates=candidates,
+    )
+
+
+def planar_pose(
+    H: np.ndarray,
+    x1: np.ndarray,
+    x2: np.ndarray,
+    inliers: np.ndarray | None = None,
+    threshold: float | None = None,
+) -> PlanarPose:
+    """Relative pose from a homography between normalized points, chosen by PPO.
+
+    Normalizes ``H`` on the inliers (:func:`normalize_homography`), decomposes it
+    (:func:`decompose_homography`) and chooses among the candidates with the PPO inequalities
+    (:func:`select_plane_pose`), the homography outliers breaking a tie when ``threshold`` is
+    given.
+
+    Parameters
+    ----------
+    H : array_like, shape (3, 3)
+        ``x2 ~ H x1`` on normalized points (``K2^-1 H_pixels K1``), any scale.
+    x1, x2 : ndarray, shape (N, 2) or (N, 3)
+        Normalized points of all matches.
+    inliers : ndarray of bool, shape (N,), optional
+        Homography inliers; all matches by default.
+    threshold : float, optional
+        Epipolar (Sampson) bound in normalized units for the tie-break on the outliers, e.g.
+        the RANSAC threshold in pixels divided by the focal length.
+
+    Returns
+    -------
+    PlanarPose
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ppo_cv.plane import homography_from_pose, planar_pose
+    >>> rng = np.random.default_rng(0)
+    >>> X = np.column_stack([rng.uniform(-1, 1, (30, 2)), np.full(30, 4.0)])  # plane Z = 4
+    >>> t = np.array([0.3, 0.0, 0.0])
+    >>> x1, x2 = X / X[:, 2:], (X + t) / (X + t)[:, 2:]
+    >>> pose = planar_pose(homography_from_pose(np.eye(3), t, [0, 0, 1], 4.0), x1, x2)
+    >>> np.allclose(pose.R, np.eye(3)), np.allclose(pose.t, [1, 0, 0]), pose.n.round(6) + 0.0
+    (True, True, array([0., 0., 1.]))
+    """
+    X1, X2 = _homogeneous(x1), _homogeneous(x2)
+    used = None if inliers is None else np.asarray(inliers, bool).reshape(-1)
+    if used is not None and used.shape != (len(X1),):
+        raise ValueError(f"inliers must have shape ({len(X1)},), got {used.shape}")
+    sign_from = slice(None) if used is None else used
+    Hn = normalize_homography(H, X1[sign_from], X2[sign_from])
+    off_plane = None if used is None else ~used
+    return select_plane_pose(
+        decompose_homography(Hn), X1, X2, used, off_plane=off_plane, threshold=threshold
+    )

@@ -1,0 +1,160 @@
+"""The plane in the model decision and the pipeline: rendered pairs with ground truth."""
+
+from __future__ import annotations
+
+import functools
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from ppo_cv import estimate_pair
+from ppo_cv.data_gen import make_pair
+from ppo_cv.export import result_to_dict
+from ppo_cv.pipeline import PairOptions
+
+SIZE = (320, 240)
+
+
+def _rotation_error_deg(R: np.ndarray, R_true: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip((np.trace(R.T @ R_true) - 1) / 2, -1, 1))))
+
+
+def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
+    cosine = a @ b / np.linalg.norm(a) / np.linalg.norm(b)
+    return float(np.degrees(np.arccos(np.clip(cosine, -1, 1))))
+
+
+@functools.cache
+def _rendered(motion: str, seed: int):
+    return make_pair(motion, seed=seed, size=SIZE)
+
+
+@functools.cache
+def _estimate(motion: str, seed: int, plane: bool = True):
+    pair = _rendered(motion, seed)
+    images = [cv2.cvtColor(image, cv2.COLOR_RGB2BGR) for image in (pair.image1, pair.image2)]
+    return estimate_pair(*images, pair.K1, pair.K2, options=PairOptions(plane=plane))
+
+
+@pytest.mark.parametrize("seed", [0, 2])
+def test_rendered_plane_is_a_plane_with_the_true_pose(seed):
+    pair, result = _rendered("planar", seed), _estimate("planar", seed)
+    assert result.model == "plane"
+    assert not result.pure_rotation and result.translation_determined
+    assert _rotation_error_deg(result.R, pair.R) < 0.2
+    assert _angle_deg(result.t, pair.t) < 0.5
+    assert result.gric_plane_difference < 0
+    assert result.plane_epipolar_ratio == pytest.approx(1.0, abs=0.2)
+    assert result.t_sigma_deg < 2.0
+    # the plane n^T X = d of the scene, read off the depth map, d in baselines
+    K_inv = np.linalg.inv(pair.K1)
+    for u, v in ((160, 120), (60, 40), (260, 200)):
+        X = pair.depth1[v, u] * K_inv @ np.array([u, v, 1.0]) / np.linalg.norm(pair.t)
+        assert result.plane_normal @ X == pytest.approx(result.plane_distance, rel=0.02)
+    # the analytic points of the inliers lie on that plane
+    points = result.points3d[result.point_matches]
+    assert result.num_points >= 0.9 * result.num_inliers
+    heights = points @ result.plane_normal - result.plane_distance
+    assert np.median(np.abs(heights)) < 0.01 * result.plane_distance
+
+
+def test_plane_beats_the_essential_matrix_on_a_rendered_plane():
+    pair = _rendered("planar", 0)
+    plane, general = _estimate("planar", 0), _estimate("planar", 0, plane=False)
+    assert general.model == "general" and general.plane_normal is None
+    error = max(_rotation_error_deg(plane.R, pair.R), _angle_deg(plane.t, pair.t))
+    error_e = max(_rotation_error_deg(general.R, pair.R), _angle_deg(general.t, pair.t))
+    assert error < error_e
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_pure_rotation_is_a_rotation_not_a_plane(seed):
+    pair, result = _rendered("pure-rotation", seed), _estimate("pure-rotation", seed)
+    assert result.model == "rotation" and result.pure_rotation
+    assert result.plane_normal is None and np.isnan(result.plane_distance)
+    assert _rotation_error_deg(result.R, pair.R) < 0.2
+    assert result.num_points == 0
+
+
+@pytest.mark.parametrize(("motion", "seed"), [("general", 0), ("forward", 1)])
+def test_general_scene_stays_general(motion, seed):
+    # forward seed 1: a cluttered scene that a homography fits to 0.09 px; called a plane, its
+    # pose error grew from 0.1 to 6 degrees
+    pair, result = _rendered(motion, seed), _estimate(motion, seed)
+    assert result.model == "general"
+    assert result.gric_plane_difference > 0
+    assert result.plane_normal is None
+    assert max(_rotation_error_deg(result.R, pair.R), _angle_deg(result.t, pair.t)) < 1.0
+
+
+def test_json_and_summary_carry_the_plane():
+    result = _estimate("planar", 0)
+    data = json.loads(json.dumps(result_to_dict(result)))
+    assert data["model"] == "plane"
+    assert data["plane"]["normal"] == pytest.approx(result.plane_normal.tolist())
+    assert data["plane"]["distance"] == pytest.approx(result.plane_distance)
+    assert data["plane"]["ambiguous"] is bool(result.plane_ambiguous)
+    assert data["model_selection"]["gric_plane_difference"] < 0
+    assert data["model_selection"]["plane_epipolar_ratio"] < 1.5
+    assert data["t"] == pytest.approx(result.t.tolist())
+    general = json.loads(json.dumps(result_to_dict(_estimate("general", 0))))
+    assert general["model"] == "general" and general["plane"] is None
+
+    from ppo_cv.cli.pair import _summary
+
+    text = _summary(result, "a.png", "b.png", None)
+    assert "plane (translation determined" in text
+    assert f"distance {result.plane_distance:.3f} baselines" in text
+
+
+# --- decide_motion on synthetic matches: the rule alone ----------------------------------------
+
+
+def _synthetic(kind: str, n: int = 300, noise_px: float = 0.5, seed: int = 0):
+    """Normalized matches of a plane, a 3D volume or a pure rotation; focal 500 px."""
+    rng = np.random.default_rng(seed)
+    a = np.deg2rad(4.0)
+    R = np.array([[np.cos(a), 0.0, np.sin(a)], [0.0, 1.0, 0.0], [-np.sin(a), 0.0, np.cos(a)]])
+    xy = rng.uniform(-1.5, 1.5, (n, 2))
+    if kind == "plane":  # tilted plane 0.3 x + z = 5
+        X1 = np.column_stack([xy, 5.0 - 0.3 * xy[:, 0]])
+    else:
+        X1 = np.column_stack([xy, rng.uniform(3.0, 8.0, n)])
+    t = np.zeros(3) if kind == "rotation" else np.array([0.5, 0.05, 0.1])
+    X2 = X1 @ R.T + t
+    focal = 500.0
+    x1 = X1 / X1[:, 2:] + np.append(rng.normal(0, noise_px / focal, (n, 2)), np.zeros((n, 1)), 1)
+    x2 = X2 / X2[:, 2:] + np.append(rng.normal(0, noise_px / focal, (n, 2)), np.zeros((n, 1)), 1)
+    return x1, x2, R, t, focal
+
+
+@pytest.mark.parametrize(("kind", "expected"), [("plane", "plane"), ("volume", "general"),
+                                                ("rotation", "rotation")])  # fmt: skip
+def test_decide_motion_with_a_homography(kind, expected):
+    from ppo_cv.homography import estimate_homography
+    from ppo_cv.motion_model import decide_motion
+    from ppo_cv.ppo import select_pose
+    from ppo_cv.refine import refine_pose
+    from ppo_cv.robust import estimate_essential
+
+    x1, x2, R_true, t_true, focal = _synthetic(kind)
+    fit = estimate_essential(x1, x2, focal, threshold=1.0)
+    chosen = select_pose(fit.E, x1[fit.inliers], x2[fit.inliers])
+    R, t = refine_pose(chosen.R, chosen.t, x1, x2, fit.inliers, focal)
+    homography = estimate_homography(x1, x2, focal, threshold=1.0)
+    motion = decide_motion(x1, x2, R, t, fit.inliers, focal, homography=homography)
+    assert motion.model == expected
+    assert motion.pure_rotation == (expected == "rotation")
+    assert np.isfinite(motion.gric_plane_difference)
+    if expected == "plane":
+        assert motion.gric_plane_difference < 0
+        assert _rotation_error_deg(motion.plane.R, R_true) < 1.0
+        assert _angle_deg(motion.plane.t, t_true) < 5.0
+        normal = np.array([0.3, 0.0, 1.0]) / np.hypot(0.3, 1.0)
+        assert _angle_deg(motion.plane.n, normal) < 5.0
+    # without a homography the decision is the rotation-versus-general one
+    plain = decide_motion(x1, x2, R, t, fit.inliers, focal)
+    assert plain.model == ("rotation" if expected == "rotation" else "general")
+    assert plain.plane is None and np.isnan(plain.gric_plane_difference)
