@@ -1,10 +1,12 @@
-"""``ppo-cv pairs`` on the freiburg pairs with the per-run feature cache and without it.
+"""``ppo-cv pairs`` on the freiburg pairs: the old behaviour against the new defaults, one run.
 
-Run ``python benchmarks/pairs_cache.py [--workers 2] [--runs 1]``: runs the command as a user
-does (a subprocess, JSON lines to a file, process start included), alternating
-``--no-cache`` (features detected for every pair, as before the cache) and the default (each
-image's features detected once), and prints the wall times, their ratio, the AUC of each and
-where the time goes (the pipeline stages summed over the pairs), with the machine stated.
+Run ``python benchmarks/pairs_cache.py [--workers 2] [--seeds 0 1 2]``: runs the command as a
+user does (a subprocess, JSON lines to a file, process start included), alternating the old
+behaviour (``--no-cache``, features detected for every pair, with the old defaults written out on
+the command line in ``OLD_DEFAULTS``) and today's defaults (each image's features detected once),
+once per RANSAC seed so that an AUC change is not one lucky draw. Prints each run's wall time
+and AUC, the median wall-time ratio, where the worker time goes (pipeline stages summed over the
+pairs) and the machine (CPU model, CPU count, load average before and after).
 """
 
 from __future__ import annotations
@@ -36,15 +38,18 @@ def _command() -> list[str]:
     return [exe] if exe else [sys.executable, "-m", "ppo_cv.cli.main"]
 
 
-def run_once(cache: bool, workers: int, scratch: Path) -> dict:
+OLD_DEFAULTS = ["--no-cache", "--max-features", "8000", "--ratio", "0.9", "--max-trials", "100000"]
+
+
+def run_once(old: bool, workers: int, seed: int, scratch: Path) -> dict:
     """Wall time, AUC row and summed stage times of one ``ppo-cv pairs`` run."""
-    output = scratch / f"pairs_{'cache' if cache else 'nocache'}_{time.monotonic_ns()}.jsonl"
+    output = scratch / f"pairs_{'old' if old else 'new'}_{time.monotonic_ns()}.jsonl"
     command = [
         *_command(), "pairs", str(FREIBURG / "pairs_with_gt.txt"), str(FREIBURG / "images"),
-        "--workers", str(workers), "-o", str(output), "--quiet",
+        "--workers", str(workers), "--seed", str(seed), "-o", str(output), "--quiet",
     ]  # fmt: skip
-    if not cache:
-        command.append("--no-cache")
+    if old:
+        command += OLD_DEFAULTS
     start = time.perf_counter()
     out = subprocess.run(command, capture_output=True, text=True)
     wall = time.perf_counter() - start
@@ -66,51 +71,69 @@ def run_once(cache: bool, workers: int, scratch: Path) -> dict:
     }
 
 
-def _machine() -> str:
-    load = ", ".join(f"{v:.1f}" for v in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
-    return (
-        f"{platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, "
-        f"load average {load} at the end, Python {platform.python_version()}"
-    )
+def _cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
+def _load() -> str:
+    return ", ".join(f"{v:.1f}" for v in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
 
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--workers", type=int, default=2)
-    parser.add_argument("--runs", type=int, default=1, help="runs of each, alternating")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="RANSAC seeds")
     args = parser.parse_args(argv)
     if not (FREIBURG / "pairs_with_gt.txt").is_file():
         raise SystemExit(f"freiburg pairs not found in {FREIBURG}; set PPO_CV_SHARED")
-    results: dict[bool, list[dict]] = {False: [], True: []}
+    load_before = _load()
+    results: dict[bool, list[dict]] = {True: [], False: []}
     with tempfile.TemporaryDirectory(prefix="ppo-cv-bench-") as scratch:
-        for _ in range(args.runs):
-            for cache in (False, True):
-                results[cache].append(run_once(cache, args.workers, Path(scratch)))
-    walls = {cache: statistics.median(r["wall"] for r in rs) for cache, rs in results.items()}
+        for seed in args.seeds:
+            for old in (True, False):
+                results[old].append(run_once(old, args.workers, seed, Path(scratch)))
+    walls = {old: statistics.median(r["wall"] for r in rs) for old, rs in results.items()}
     print(
-        f"ppo-cv pairs on the {results[True][0]['pairs']} freiburg pairs, --workers "
-        f"{args.workers}, median of {args.runs} run(s) each; {_machine()}"
+        f"ppo-cv pairs on the {results[False][0]['pairs']} freiburg pairs, --workers "
+        f"{args.workers}, seeds {' '.join(map(str, args.seeds))}; {_cpu_model()}, "
+        f"{os.cpu_count()} CPUs, load average (1/5/15 min) {load_before} before and {_load()} "
+        f"after, Python {platform.python_version()}"
     )
-    print("pose error = max(rotation error, translation-direction error)")
+    print(f"old: {' '.join(OLD_DEFAULTS)}; new: the defaults (features once per image)")
+    print("pose error = max(rotation error, translation-direction error); failures count as 180")
     print()
-    print("| features | wall time | AUC@5 / 10 / 20 | failed | speed-up |")
-    print("|---|---:|---|---:|---:|")
-    for cache, label in ((False, "per pair (--no-cache)"), (True, "once per image (default)")):
-        r = results[cache][0]
-        auc = " / ".join(f"{v:.1f}" for v in r["auc"])
-        ratio = walls[False] / walls[cache]
-        print(f"| {label} | {walls[cache]:.1f} s | {auc} | {r['failed']} | {ratio:.2f}x |")
+    print("| run | seed | wall time | AUC@5 / 10 / 20 | failed |")
+    print("|---|---:|---:|---|---:|")
+    for old, label in ((True, "old"), (False, "new")):
+        for seed, r in zip(args.seeds, results[old], strict=True):
+            auc = " / ".join(f"{v:.1f}" for v in r["auc"])
+            print(f"| {label} | {seed} | {r['wall']:.1f} s | {auc} | {r['failed']} |")
+    for old, label in ((True, "old"), (False, "new")):
+        mean = [statistics.mean(r["auc"][i] for r in results[old]) for i in range(3)]
+        print(
+            f"| {label}, mean | | {walls[old]:.1f} s (median) | "
+            + " / ".join(f"{v:.1f}" for v in mean)
+            + " | |"
+        )
+    print()
+    print(f"speed-up (median wall time old / new): {walls[True] / walls[False]:.2f}x")
     print()
     print(
-        "Pipeline stages summed over the pairs (seconds of worker time, first run; with the "
+        "Pipeline stages summed over the pairs (seconds of worker time, first seed; with the "
         "cache, detection runs once per image before the pairs and is not in this table):"
     )
     print()
-    stages = list(results[False][0]["stages"])
-    print("| features | " + " | ".join(stages) + " |")
+    stages = list(results[True][0]["stages"])
+    print("| run | " + " | ".join(stages) + " |")
     print("|---|" + "---:|" * len(stages))
-    for cache, label in ((False, "per pair"), (True, "once per image")):
-        s = results[cache][0]["stages"]
+    for old, label in ((True, "old"), (False, "new")):
+        s = results[old][0]["stages"]
         print(f"| {label} | " + " | ".join(f"{s.get(k, 0.0):.1f}" for k in stages) + " |")
 
 

@@ -8,6 +8,7 @@ folder); ``--no-cache`` detects per pair, as :func:`~ppo_cv.pipeline.estimate_pa
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import importlib
 import json
 import os
@@ -40,6 +41,7 @@ from .common import (
 __all__ = ["register", "run_pairs", "read_pairs", "pose_errors", "pose_auc", "FeatureCache"]
 
 _ZERO_TRANSLATION = 1e-9
+MAX_TRIALS_MAX = 10_000_000
 
 
 def read_pairs(pairs_file: Path, K: str | None) -> list[dict]:
@@ -362,6 +364,7 @@ def run_pairs(
 
 def register(app: typer.Typer) -> None:
     """Add the ``pairs`` command to ``app``."""
+    from ppo_cv.pipeline import PairOptions
     from ppo_cv.ppo import DEFAULT_PRI_THRESHOLD
 
     from .pair import pipeline_options
@@ -404,11 +407,22 @@ def register(app: typer.Typer) -> None:
         threshold: Threshold = 1.0,
         seed: Seed = 0,
         pri_threshold: PriThreshold = DEFAULT_PRI_THRESHOLD,
+        max_trials: Annotated[
+            int,
+            typer.Option(
+                help="Cap on the RANSAC hypotheses per pair (it stops earlier once confident).",
+                rich_help_panel="Pipeline",
+            ),
+        ] = PairOptions.max_trials,
     ) -> None:
         """Many pairs, one JSON line each, and the AUC given ground truth."""
         try:
+            check_range("--max-trials", max_trials, 1, MAX_TRIALS_MAX)
             options = pipeline_options(
                 features, max_features, max_size, ratio, backend, threshold, seed, pri_threshold
+            )
+            options = dataclasses.replace(
+                options, max_trials=max_trials, min_trials=min(options.min_trials, max_trials)
             )
             code = run_pairs(
                 pairs_file, image_dir, K, output, workers, options,

@@ -205,3 +205,28 @@ def test_progress_report_plain_lines_or_a_bar(monkeypatch, terminal):
     with ProgressReport("pairs", "pairs", 3, quiet=True) as report:
         report.advance(3)
     assert quiet.getvalue() == ""
+
+
+def test_max_trials_reaches_ransac_and_is_bounded(monkeypatch, tmp_path):
+    seen = []
+    real = batch.run_pairs
+
+    def spy(*args, **kwargs):
+        seen.append(args[5])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(batch, "run_pairs", spy)
+    pairs = tmp_path / "pairs.txt"
+    pairs.write_text(f"{NAME1} {NAME2}\n")
+    runner = CliRunner()
+    ok = runner.invoke(
+        app,
+        ["pairs", str(pairs), str(DATA), "--K", K_TEXT, "--workers", "1", "--quiet",
+         "--max-trials", "50", "-o", str(tmp_path / "out.jsonl")],
+    )  # fmt: skip
+    assert ok.exit_code == 0, ok.output
+    assert (seen[0].max_trials, seen[0].min_trials) == (50, 50)
+    line = json.loads((tmp_path / "out.jsonl").read_text())
+    assert "error" not in line and len(line["R"]) == 3, line
+    bad = runner.invoke(app, ["pairs", str(pairs), str(DATA), "--K", K_TEXT, "--max-trials", "0"])
+    assert bad.exit_code == 2 and "--max-trials" in bad.output
