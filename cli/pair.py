@@ -24,7 +24,7 @@ def _warn(message: str) -> None:
     typer.echo(f"warning: {message}", err=True)
 
 
-def _options(features, max_features, max_size, ratio, backend, threshold, seed):
+def _options(features, max_features, max_size, ratio, backend, threshold, seed, max_nfa=0.0):
     from ppo_cv.pipeline import PairOptions
 
     return PairOptions(
@@ -35,6 +35,7 @@ def _options(features, max_features, max_size, ratio, backend, threshold, seed):
         backend=backend.lower(),
         ransac_threshold=threshold,
         seed=seed,
+        max_log10_nfa=max_nfa,
     )
 
 
@@ -126,6 +127,7 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
         f"  camera 1     {camera(result.K1, result.dist1)}",
         f"  camera 2     {camera(result.K2, result.dist2)}",
         f"  PRI          {result.pri:.4f} (threshold {result.pri_threshold:g}): {verdict}",
+        f"  log10 NFA    {result.log10_nfa:.1f} (consensus against chance; lower is stronger)",
         f"  matches      {result.num_matches} putative, {result.num_inliers} inliers, "
         f"{result.num_points} 3D points",
         "  time         "
@@ -391,6 +393,14 @@ def register(app: typer.Typer) -> None:
         backend: _Backend = "pycolmap",
         threshold: _Threshold = 1.0,
         seed: _Seed = 0,
+        max_log10_nfa: Annotated[
+            float,
+            typer.Option(
+                help="Significance bar: report a pose only when log10 of the number of false "
+                "alarms of its consensus is at most this (lower is stricter, inf disables).",
+                rich_help_panel=_PANEL,
+            ),
+        ] = 0.0,
     ) -> None:
         """Relative pose (R, t), pure-rotation verdict and 3D points of two photos.
 
@@ -404,7 +414,9 @@ def register(app: typer.Typer) -> None:
         warning). Without images it runs on the built-in demo pair.
         """
         try:
-            options = _options(features, max_features, max_size, ratio, backend, threshold, seed)
+            options = _options(
+                features, max_features, max_size, ratio, backend, threshold, seed, max_log10_nfa
+            )
         except ValueError as exc:
             _fail(str(exc))
         note = reference = None

@@ -142,3 +142,18 @@ def test_freiburg_pairs_keep_their_pose(freiburg):
         result = ppo_cv.estimate_pair(images / fields[0], images / fields[1], K1, K2)
         assert result.log10_nfa < -20
         assert rotation_angle_deg(result.R, T[:3, :3]) < 6.0  # pseudo ground truth
+
+
+def test_cli_reports_the_statistic_and_applies_a_stricter_bar():
+    from typer.testing import CliRunner
+
+    from ppo_cv.cli.main import app
+
+    runner = CliRunner()
+    shown = runner.invoke(app, ["pair", "--json"])
+    assert shown.exit_code == 0, shown.output
+    log10_nfa = json.loads(shown.stdout)["log10_nfa"]
+    assert log10_nfa < -100
+    strict = runner.invoke(app, ["pair", "--max-log10-nfa", str(log10_nfa - 1.0)])
+    assert strict.exit_code == 2
+    assert "no reliable two-view geometry" in strict.output
