@@ -24,8 +24,10 @@ from .common import (
     Backend,
     Features,
     MaxFeatures,
+    MaxLog10Nfa,
     MaxSize,
     Overwrite,
+    Plane,
     PriThreshold,
     ProgressReport,
     Quiet,
@@ -366,6 +368,7 @@ def register(app: typer.Typer) -> None:
     """Add the ``pairs`` command to ``app``."""
     from ppo_cv.pipeline import PairOptions
     from ppo_cv.ppo import DEFAULT_PRI_THRESHOLD
+    from ppo_cv.significance import DEFAULT_MAX_LOG10_NFA
 
     from .pair import pipeline_options
 
@@ -407,6 +410,8 @@ def register(app: typer.Typer) -> None:
         threshold: Threshold = 1.0,
         seed: Seed = 0,
         pri_threshold: PriThreshold = DEFAULT_PRI_THRESHOLD,
+        max_log10_nfa: MaxLog10Nfa = DEFAULT_MAX_LOG10_NFA,
+        plane: Plane = False,
         max_trials: Annotated[
             int,
             typer.Option(
@@ -419,8 +424,9 @@ def register(app: typer.Typer) -> None:
         try:
             check_range("--max-trials", max_trials, 1, MAX_TRIALS_MAX)
             options = pipeline_options(
-                features, max_features, max_size, ratio, backend, threshold, seed, pri_threshold
-            )
+                features, max_features, max_size, ratio, backend, threshold, seed, pri_threshold,
+                max_log10_nfa, plane,
+            )  # fmt: skip
             options = dataclasses.replace(
                 options, max_trials=max_trials, min_trials=min(options.min_trials, max_trials)
             )

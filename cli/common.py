@@ -62,6 +62,23 @@ PriThreshold = Annotated[
         rich_help_panel=_PANEL,
     ),
 ]
+MaxLog10Nfa = Annotated[
+    float,
+    typer.Option(
+        "--max-log10-nfa",
+        help="Significance bar: a pose only when log10 of the number of false alarms of its "
+        "consensus is at most this (lower is stricter; inf disables the test).",
+        rich_help_panel=_PANEL,
+    ),
+]
+Plane = Annotated[
+    bool,
+    typer.Option(
+        "--plane/--no-plane",
+        help="Also fit a homography and let the model decision call the pair a plane.",
+        rich_help_panel=_PANEL,
+    ),
+]
 Overwrite = Annotated[
     bool,
     typer.Option("--overwrite", help="Replace an existing output (never done without it)."),

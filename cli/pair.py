@@ -16,8 +16,10 @@ from .common import (
     Backend,
     Features,
     MaxFeatures,
+    MaxLog10Nfa,
     MaxSize,
     Overwrite,
+    Plane,
     PriThreshold,
     Ratio,
     Seed,
@@ -49,10 +51,13 @@ def pipeline_options(
     threshold: float = 1.0,
     seed: int = 0,
     pri_threshold: float | None = None,
+    max_log10_nfa: float | None = None,
+    plane: bool = False,
 ):
     """PairOptions from command-line values, each bounded up front (ValueError naming it)."""
     from ppo_cv.pipeline import PairOptions
     from ppo_cv.ppo import DEFAULT_PRI_THRESHOLD
+    from ppo_cv.significance import DEFAULT_MAX_LOG10_NFA
 
     check_range("--seed", seed, 0, SEED_MAX)
     check_range("--max-features", max_features, 8, MAX_FEATURES_MAX)
@@ -62,6 +67,9 @@ def pipeline_options(
     check_range("--threshold (pixels)", threshold, 1e-6, 100.0)
     pri_threshold = DEFAULT_PRI_THRESHOLD if pri_threshold is None else pri_threshold
     check_range("--pri-threshold", pri_threshold, 0.0, 1.0)
+    max_log10_nfa = DEFAULT_MAX_LOG10_NFA if max_log10_nfa is None else max_log10_nfa
+    if max_log10_nfa != float("inf"):
+        check_range("--max-log10-nfa", max_log10_nfa, -1e6, 1e6)
     return PairOptions(
         features=features.lower(),
         max_features=max_features,
@@ -71,6 +79,8 @@ def pipeline_options(
         ransac_threshold=threshold,
         seed=seed,
         pri_threshold=pri_threshold,
+        max_log10_nfa=max_log10_nfa,
+        plane=plane,
     )
 
 
@@ -192,6 +202,7 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
         f"GRIC difference {result.gric_difference:+.3f} per match",
         *_plane_lines(result),
         f"  t sigma      {result.t_sigma_deg:.2f} deg (direction of t, one standard deviation)",
+        f"  log10 NFA    {result.log10_nfa:.1f} (consensus against chance; lower is stronger)",
         f"  matches      {result.num_matches} putative, {result.num_inliers} inliers, "
         f"{result.num_points} 3D points",
         "  time         "
@@ -270,6 +281,7 @@ _Out = Annotated[
 def register(app: typer.Typer) -> None:
     """Add ``pair``, ``demo`` and ``pairs`` to ``app``."""
     from ppo_cv.ppo import DEFAULT_PRI_THRESHOLD
+    from ppo_cv.significance import DEFAULT_MAX_LOG10_NFA
 
     from . import batch
 
@@ -308,6 +320,8 @@ def register(app: typer.Typer) -> None:
         threshold: Threshold = 1.0,
         seed: Seed = 0,
         pri_threshold: PriThreshold = DEFAULT_PRI_THRESHOLD,
+        max_log10_nfa: MaxLog10Nfa = DEFAULT_MAX_LOG10_NFA,
+        plane: Plane = False,
     ) -> None:
         """Relative pose (R, t), pure-rotation verdict and 3D points of two photos.
 
@@ -322,8 +336,9 @@ def register(app: typer.Typer) -> None:
         """
         try:
             options = pipeline_options(
-                features, max_features, max_size, ratio, backend, threshold, seed, pri_threshold
-            )
+                features, max_features, max_size, ratio, backend, threshold, seed, pri_threshold,
+                max_log10_nfa, plane,
+            )  # fmt: skip
         except ValueError as exc:
             _fail(str(exc))
         note = reference = None

@@ -197,6 +197,7 @@ def result_to_dict(result: PairResult, **extra: Any) -> dict:
         "pri": float(result.pri),
         "pri_threshold": float(result.pri_threshold),
         **_model_selection(result),
+        "log10_nfa": float(getattr(result, "log10_nfa", float("nan"))),
         "rotation_angle_deg": angle,
         "rotation_axis": axis.tolist(),
         "rotation_euler_deg": camera_euler_degrees(result.R)._asdict(),

@@ -44,7 +44,7 @@ from .motion_model import decide_motion
 from .pose import _recover_normalized
 from .refine import refine_pose, translation_sigma_deg
 from .robust import ROBUST_BACKENDS, essential_from_pose, estimate_essential, sampson_errors
-from .significance import epipolar_significance
+from .significance import DEFAULT_MAX_LOG10_NFA, epipolar_significance
 
 __all__ = [
     "PairOptions",
@@ -58,7 +58,6 @@ __all__ = [
 
 MIN_MATCHES = 8
 MAX_RANSAC_THRESHOLD = 100.0
-DEFAULT_MAX_LOG10_NFA = 0.0
 
 
 @dataclass(frozen=True)

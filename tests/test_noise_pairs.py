@@ -71,10 +71,25 @@ def _photo(name: str) -> np.ndarray:
 
 
 def test_twenty_pairs_of_unrelated_photographs_give_no_pose():
+    """Under the strict bar (fewer than one chance consensus expected) none of the 20 pairs
+    gets a pose; the default bar, set so that real wide-baseline pairs keep theirs, lets through
+    the few whose chance consensus scores between +1.7 and +5 (known gap, README)."""
     photos = {name: _photo(name) for name in PHOTOS}
     pairs = list(itertools.combinations(PHOTOS, 2))[::-1][:20]
-    reasons = [_refused(photos[a], photos[b], K_SMALL) for a, b in pairs]
-    assert any("log10 NFA" in reason for reason in reasons)  # the test itself decided some
+    strict = PairOptions(max_log10_nfa=0.0)
+    for a, b in pairs:
+        with pytest.raises(ValueError, match="|".join(NOT_A_POSE)):
+            ppo_cv.estimate_pair(photos[a], photos[b], K_SMALL, options=strict)
+    refused = 0
+    for a, b in pairs:
+        try:
+            result = ppo_cv.estimate_pair(photos[a], photos[b], K_SMALL)
+        except ValueError as exc:
+            assert str(exc).startswith(NOT_A_POSE), exc
+            refused += 1
+        else:
+            assert 0.0 < result.log10_nfa <= DEFAULT_MAX_LOG10_NFA
+    assert refused >= 17
 
 
 def test_a_threshold_of_infinity_cannot_buy_a_pose():
@@ -142,3 +157,44 @@ def test_freiburg_pairs_keep_their_pose(freiburg):
         result = ppo_cv.estimate_pair(images / fields[0], images / fields[1], K1, K2)
         assert result.log10_nfa < -20
         assert rotation_angle_deg(result.R, T[:3, :3]) < 6.0  # pseudo ground truth
+
+
+MARGINAL_FREIBURG = (
+    ("1341847980.722988.png", "1341847988.769740.png"),
+    ("1341847980.722988.png", "1341847989.802890.png"),
+    ("1341847984.743352.png", "1341847990.810771.png"),
+)
+"""Wide-baseline pairs whose consensus scores log10 NFA between +1.7 and +4.8 with a pose within
+10 degrees of the pseudo ground truth: the default bar must keep them."""
+
+
+def test_marginal_freiburg_pairs_keep_their_pose_under_the_default_bar(freiburg):
+    rows = {
+        tuple(r.split()[:2]): r.split()
+        for r in (freiburg / "pairs_with_gt.txt").read_text().splitlines()
+        if r
+    }
+    for names in MARGINAL_FREIBURG:
+        fields = rows[names]
+        K1 = np.array(fields[4:13], float).reshape(3, 3)
+        K2 = np.array(fields[13:22], float).reshape(3, 3)
+        T = np.array(fields[22:38], float).reshape(4, 4)
+        images = freiburg / "images"
+        result = ppo_cv.estimate_pair(images / names[0], images / names[1], K1, K2)
+        assert 0.0 < result.log10_nfa <= DEFAULT_MAX_LOG10_NFA
+        assert rotation_angle_deg(result.R, T[:3, :3]) < 10.0
+
+
+def test_cli_reports_the_statistic_and_applies_a_stricter_bar():
+    from typer.testing import CliRunner
+
+    from ppo_cv.cli.main import app
+
+    runner = CliRunner()
+    shown = runner.invoke(app, ["pair", "--json"])
+    assert shown.exit_code == 0, shown.output
+    log10_nfa = json.loads(shown.stdout)["log10_nfa"]
+    assert log10_nfa < -100
+    strict = runner.invoke(app, ["pair", "--max-log10-nfa", str(log10_nfa - 1.0)])
+    assert strict.exit_code == 2
+    assert "no reliable two-view geometry" in strict.output
