@@ -484,17 +484,15 @@ def estimate_pair(
     focal = float(np.mean([K1[0, 0], K1[1, 1], K2[0, 0], K2[1, 1]]))
     lap("undistort")
 
-    fit = estimate_essential(
-        x1,
-        x2,
-        focal,
-        backend=options.backend,
-        threshold=options.ransac_threshold,
-        confidence=options.confidence,
-        min_trials=options.min_trials,
-        max_trials=options.max_trials,
-        seed=options.seed,
-    )
+    ransac = {
+        "backend": options.backend,
+        "threshold": options.ransac_threshold,
+        "confidence": options.confidence,
+        "min_trials": options.min_trials,
+        "max_trials": options.max_trials,
+        "seed": options.seed,
+    }
+    fit = estimate_essential(x1, x2, focal, **ransac)
     if fit is None or fit.num_inliers < options.min_inliers:
         found = 0 if fit is None else fit.num_inliers
         raise ValueError(
@@ -515,15 +513,7 @@ def estimate_pair(
 
     homography = None
     if options.plane:
-        homography = estimate_homography(
-            x1, x2, focal,
-            backend=options.backend,
-            threshold=options.ransac_threshold,
-            confidence=options.confidence,
-            min_trials=options.min_trials,
-            max_trials=options.max_trials,
-            seed=options.seed,
-        )  # fmt: skip
+        homography = estimate_homography(x1, x2, focal, **ransac)
     lap("homography")
 
     motion = decide_motion(
