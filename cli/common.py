@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import math
 import os
-import stat
 import sys
 import time
 from typing import Annotated, NoReturn
@@ -110,26 +109,18 @@ def _fmt(value: float) -> str:
 
 def check_image_file(path: str | os.PathLike) -> None:
     """ValueError unless ``path`` is an existing regular file (a FIFO would block a reader)."""
-    try:
-        mode = os.stat(path).st_mode
-    except FileNotFoundError:
-        raise ValueError(f"image not found: {path}") from None
-    except OSError as exc:
-        raise ValueError(f"cannot read image {path}: {exc.strerror}") from None
-    if stat.S_ISDIR(mode):
-        raise ValueError(f"expected an image file, got a directory: {path}")
-    if not stat.S_ISREG(mode):
-        raise ValueError(f"not a regular file: {path}")
+    from ppo_cv.images import check_regular_file
+
+    check_regular_file(path)
 
 
 def image_size(path: str | os.PathLike) -> tuple[int, int] | None:
     """``(width, height)`` from the image header, without decoding; None when unknown."""
-    try:
-        from PIL import Image
+    from ppo_cv.images import image_size as header_size
 
-        with Image.open(path) as image:
-            return int(image.width), int(image.height)
-    except Exception:  # any unreadable header: the size is simply unknown
+    try:
+        return header_size(path)
+    except OSError:
         return None
 
 

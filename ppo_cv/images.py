@@ -24,7 +24,14 @@ import numpy as np
 
 from .features import to_uint8
 
-__all__ = ["DEFAULT_MAX_PIXELS", "MAX_PIXELS_ENV", "image_size", "load_image", "as_image"]
+__all__ = [
+    "DEFAULT_MAX_PIXELS",
+    "MAX_PIXELS_ENV",
+    "as_image",
+    "check_regular_file",
+    "image_size",
+    "load_image",
+]
 
 DEFAULT_MAX_PIXELS = 100_000_000
 MAX_PIXELS_ENV = "PPO_CV_MAX_IMAGE_PIXELS"
@@ -50,7 +57,9 @@ def _max_pixels(max_pixels: int | None) -> int:
     return int(max_pixels)
 
 
-def _regular_file(path: str) -> None:
+def check_regular_file(path: str | os.PathLike) -> None:
+    """ValueError unless ``path`` is an existing regular file; never opens it (a FIFO would
+    block a reader)."""
     try:
         mode = os.stat(path).st_mode
     except FileNotFoundError:
@@ -60,7 +69,7 @@ def _regular_file(path: str) -> None:
     if stat.S_ISDIR(mode):
         raise ValueError(f"expected an image file, got a directory: {path}")
     if not stat.S_ISREG(mode):
-        raise ValueError(f"not a regular file (a pipe, socket or device?): {path}")
+        raise ValueError(f"not a regular file: {path} (a pipe, socket or device?)")
 
 
 def image_size(path: str | os.PathLike) -> tuple[int, int] | None:
@@ -114,7 +123,7 @@ def load_image(path: str | os.PathLike, max_pixels: int | None = None) -> np.nda
 
     path = os.fspath(path)
     limit = _max_pixels(max_pixels)
-    _regular_file(path)
+    check_regular_file(path)
     size = image_size(path)
     if size is not None and size[0] * size[1] > limit:
         raise ValueError(
