@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .plane import normalize_homography
+from .robust import ransac_options
 
 __all__ = [
     "HOMOGRAPHY_BACKENDS",
@@ -115,12 +116,7 @@ def symmetric_transfer_errors(H: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> 
 def _pycolmap(p1, p2, threshold, confidence, min_trials, max_trials, seed):
     import pycolmap
 
-    options = pycolmap.RANSACOptions()
-    options.max_error = threshold
-    options.confidence = confidence
-    options.max_num_trials = int(max_trials)
-    options.min_num_trials = min(int(min_trials), int(max_trials))
-    options.random_seed = int(seed)
+    options = ransac_options(threshold, confidence, min_trials, max_trials, seed)
     found = pycolmap.estimate_homography_matrix(p1, p2, options)
     if found is None:
         return None

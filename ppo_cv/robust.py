@@ -85,7 +85,8 @@ def virtual_camera(focal: float, width: int = 0, height: int = 0):
     )
 
 
-def _pycolmap(x1, x2, focal, threshold, confidence, min_trials, max_trials, seed):
+def ransac_options(threshold, confidence, min_trials, max_trials, seed):
+    """``pycolmap.RANSACOptions`` for a pixel ``threshold``, trial bounds and a seed."""
     import pycolmap
 
     options = pycolmap.RANSACOptions()
@@ -94,6 +95,13 @@ def _pycolmap(x1, x2, focal, threshold, confidence, min_trials, max_trials, seed
     options.max_num_trials = int(max_trials)
     options.min_num_trials = min(int(min_trials), int(max_trials))
     options.random_seed = int(seed)
+    return options
+
+
+def _pycolmap(x1, x2, focal, threshold, confidence, min_trials, max_trials, seed):
+    import pycolmap
+
+    options = ransac_options(threshold, confidence, min_trials, max_trials, seed)
     camera = virtual_camera(focal)
     found = pycolmap.estimate_relative_pose(
         camera, focal * x1[:, :2], camera, focal * x2[:, :2], options
