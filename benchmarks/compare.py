@@ -303,8 +303,9 @@ def main(argv: list[str] | None = None) -> None:
     summary = compare_report.summarise(res)
     compare_report.draw(res, summary, args.out)
     args.report.parent.mkdir(parents=True, exist_ok=True)
+    kept = compare_report.kept_sections(args.report)
     args.report.write_text(
-        compare_report.render(res, summary, os.path.relpath(args.out, args.report.parent))
+        compare_report.render(res, summary, os.path.relpath(args.out, args.report.parent)) + kept
     )
     print(compare_report.headline(summary))
     print(f"wrote {args.report} and {args.out}/ in {time.perf_counter() - start:.0f} s")
