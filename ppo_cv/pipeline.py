@@ -47,7 +47,6 @@ from .robust import ROBUST_BACKENDS, essential_from_pose, estimate_essential, sa
 from .significance import (
     CONFIDENT_LOG10_NFA,
     DEFAULT_MAX_LOG10_NFA,
-    MAX_DISTINCTIVENESS_P,
     descriptor_ratios,
     distinctiveness,
     epipolar_significance,
@@ -391,10 +390,11 @@ def _require_significance(E, x1, x2, K2, shape2, options: PairOptions, f1, f2, m
     if not refused and CONFIDENT_LOG10_NFA < significance.log10_nfa < np.inf:
         ratios = descriptor_ratios(f1.descriptors, f2.descriptors, matches, f1.binary)
         p_value = distinctiveness(ratios, significance.consistent)
-        refused = not p_value <= MAX_DISTINCTIVENESS_P
+        joint = significance.log10_nfa + np.log10(max(p_value, 1e-300))
+        refused = not joint <= CONFIDENT_LOG10_NFA
         detail = (
-            f"log10 NFA {significance.log10_nfa:.1f} > {CONFIDENT_LOG10_NFA:g} and its matches "
-            f"no more distinctive than the others, p = {p_value:.2f} > {MAX_DISTINCTIVENESS_P:g}"
+            f"log10 NFA {significance.log10_nfa:.1f} and distinctiveness p = {p_value:.2f} of its "
+            f"matches: {joint:.1f} > {CONFIDENT_LOG10_NFA:g}"
         )
     if refused:
         raise ValueError(

@@ -55,7 +55,6 @@ import numpy as np
 __all__ = [
     "CONFIDENT_LOG10_NFA",
     "DEFAULT_MAX_LOG10_NFA",
-    "MAX_DISTINCTIVENESS_P",
     "ESSENTIAL_SAMPLE_SIZE",
     "ESSENTIAL_MODELS_PER_SAMPLE",
     "MAX_CONSENSUS_THRESHOLD_PX",
@@ -75,13 +74,12 @@ by chance), but the bound is loose: wide-baseline freiburg pairs with poses with
 score up to +4.4. Between :data:`CONFIDENT_LOG10_NFA` and this bar the consensus must also pass
 the distinctiveness test (module docstring)."""
 
-CONFIDENT_LOG10_NFA = 2.5
-"""Up to this ``log10 NFA`` the epipolar consensus alone suffices; chance consensus of
-unrelated images was measured at +3.0 and above (module docstring)."""
-
-MAX_DISTINCTIVENESS_P = 0.02
-"""Bar on the one-sided rank-sum p-value that the consensus matches have lower Lowe ratios
-than the other matches, applied to consensus sets weaker than :data:`CONFIDENT_LOG10_NFA`."""
+CONFIDENT_LOG10_NFA = 2.8
+"""Up to this ``log10 NFA`` the epipolar consensus alone suffices; above it (up to the bar) the
+consensus must also be distinctive: ``log10 NFA + log10 p <= CONFIDENT_LOG10_NFA``, ``p`` the
+p-value of :func:`distinctiveness`. Chance consensus of unrelated images was measured at
++2.95 and above on that joint figure, real pairs with good poses at +2.6 and below (module
+docstring)."""
 
 ESSENTIAL_SAMPLE_SIZE = 5
 ESSENTIAL_MODELS_PER_SAMPLE = 10
