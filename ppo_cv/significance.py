@@ -12,11 +12,12 @@ pixels of the epipolar line ``l_i`` of match ``i`` with probability
     p_i(eps) <= 2 eps L_i / A              (A: area of image 2),
 
 ``L_i`` the chord of ``l_i`` inside image 2 grown by ``eps`` on every side (every pixel of the
-band projects onto that chord). The chord is per match: an epipolar line that only grazes a
-corner is a much smaller target than one across the image, and the global bound ``L_i <= D``
-(the diagonal) overstates chance by a factor of about 2 per match. With ``n`` matches, a model
-built from a minimal sample of ``s`` of them, and ``k`` matches (the sample included) within
-``eps_k``, the ``k``-th smallest image-2 distance, the number of false alarms is
+band projects onto that chord), at least one pixel. The chord is per match: an epipolar line
+that only grazes a corner is a much smaller target than one across the image, and the global
+bound ``L_i <= D`` (the diagonal) overstates chance by a factor of about 2 per match. With
+``n`` matches, a model built from a minimal sample of ``s`` of them, and ``k`` matches (the
+sample included) within ``eps_k``, the ``k``-th smallest image-2 distance, the number
+of false alarms is
 
     NFA(k) = N_out (n - s) C(n, k) C(k, s) prod_{k - s largest of the k} p_i(eps_k),
 
@@ -218,26 +219,25 @@ def epipolar_significance(
     if k.size == 0:
         return Significance(np.inf, 0, np.nan, np.nan, n, np.zeros(n, dtype=bool))
     eps = eps[k - 1]
-    log_chord = np.log10(np.maximum(chord_lengths(lines[order], image_size2, eps[-1]), 1e-300))
+    log_chord = np.log10(np.maximum(chord_lengths(lines[order], image_size2, eps[-1]), 1.0))
     prefix = np.cumsum(log_chord)[k - 1]
     # the k - s largest chords of the k best: all k minus at least s times the smallest
     log_chords = prefix - sample_size * np.minimum.accumulate(log_chord)[k - 1]
-    with np.errstate(divide="ignore"):
-        log_band = np.log10(2.0 * eps / (width * height))
+    log_band = np.log10(np.maximum(2.0 * eps / (width * height), 1e-300))
     log_p = np.minimum((k - sample_size) * log_band + log_chords, 0.0)
     log10_nfa = (
         np.log10(models_per_sample * (n - sample_size))
         + log10_binomial(n, k)
         + log10_binomial(k, sample_size)
-        + np.where(eps > 0, log_p, -np.inf)
+        + log_p
     )
     best = int(np.argmin(log10_nfa))
-    mean_chord = 10.0 ** ((log_chords[best]) / (k[best] - sample_size))
+    log_mean_chord = min(log_chords[best] / (k[best] - sample_size), 6.0)
     return Significance(
         log10_nfa=float(log10_nfa[best]),
         num_consistent=int(k[best]),
         threshold=float(eps[best]),
-        probability=float(min(2.0 * eps[best] * mean_chord / (width * height), 1.0)),
+        probability=float(min(2.0 * eps[best] * 10.0**log_mean_chord / (width * height), 1.0)),
         num_matches=n,
         consistent=residuals <= eps[best],
     )
