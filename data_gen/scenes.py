@@ -12,12 +12,15 @@ square; values beyond 1 repeat the texture).
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .names import SCENES
-from .textures import Texture, checker_texture, texture_pool
+from .textures import Texture, checker_texture, texture_pool, texture_set_photos
 
 __all__ = [
     "SCENES",
@@ -26,10 +29,33 @@ __all__ = [
     "box_quads",
     "checker_plane",
     "make_scene",
+    "texture_set",
 ]
 
 
 TEXELS_PER_METRE = 256.0
+
+_TEXTURE_SET: ContextVar[int | None] = ContextVar("texture_set", default=None)
+
+
+@contextlib.contextmanager
+def _textures_from(index: int | None) -> Iterator[None]:
+    texture_set_photos(index)
+    token = _TEXTURE_SET.set(index)
+    try:
+        yield
+    finally:
+        _TEXTURE_SET.reset(token)
+
+
+def texture_set(index: int | None) -> contextlib.AbstractContextManager[None]:
+    """Texture the scenes built inside the ``with`` block from texture set ``index`` only.
+
+    Scenes built under different sets (:data:`~.textures.TEXTURE_SETS`) share no image
+    content, so two renders of them are unrelated images; ``None`` restores the shared pool.
+    This also applies to :func:`~.io.make_pair`, which builds its scene with :func:`make_scene`.
+    """
+    return _textures_from(index)
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,7 +119,7 @@ def _textured_quad(
 ) -> Quad:
     """Quad with a random window of a random pool texture, ``density`` texels per metre."""
     u, v = np.asarray(u, float), np.asarray(v, float)
-    pool = texture_pool()
+    pool = texture_pool(texture_set=_TEXTURE_SET.get())
     texture = pool[rng.integers(len(pool))]
     tw, th = texture.size
     s0, q0 = rng.random(2)
@@ -204,7 +230,9 @@ def checker_plane(
     return Scene("checker", (quad,), origin + (u + v) / 2, distance, {"squares": list(squares)})
 
 
-def make_scene(name: str, seed: int | np.random.Generator = 0) -> Scene:
+def make_scene(
+    name: str, seed: int | np.random.Generator = 0, texture_set: int | None = None
+) -> Scene:
     """Build a named random scene.
 
     Parameters
@@ -216,6 +244,10 @@ def make_scene(name: str, seed: int | np.random.Generator = 0) -> Scene:
         plane at infinity with a few boxes 3-7 m in front of it.
     seed : int or numpy.random.Generator
         Seed (or generator) of the layout and textures.
+    texture_set : int, optional
+        Draw the textures from this disjoint texture set only (:func:`texture_set`); by
+        default from the set of the enclosing ``with texture_set(...)`` block, else the shared
+        pool.
 
     Returns
     -------
@@ -223,6 +255,9 @@ def make_scene(name: str, seed: int | np.random.Generator = 0) -> Scene:
     """
     if name not in SCENES:
         raise ValueError(f"unknown scene {name!r}; choose one of {', '.join(SCENES)}")
+    if texture_set is not None:
+        with _textures_from(texture_set):
+            return make_scene(name, seed)
     rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
     if name in ("room", "clutter"):
         quads, params = _room(rng)

@@ -15,12 +15,14 @@ import numpy as np
 
 __all__ = [
     "BUNDLED_PHOTOS",
+    "TEXTURE_SETS",
     "Texture",
     "checker_texture",
     "fractal_noise",
     "load_photo",
     "photo_texture",
     "texture_pool",
+    "texture_set_photos",
 ]
 
 MAX_LEVELS = 6
@@ -45,6 +47,21 @@ BUNDLED_PHOTOS = (
     "page",
 )
 """scikit-image photographs shipped with the package (no download needed)."""
+
+TEXTURE_SETS = 2
+"""Number of disjoint texture sets: set ``j`` draws only from the photographs
+``BUNDLED_PHOTOS[j::TEXTURE_SETS]``, so scenes textured from different sets share no texel."""
+
+
+def texture_set_photos(texture_set: int | None) -> tuple[str, ...]:
+    """The photographs of texture set ``texture_set``; all of them for ``None``."""
+    if texture_set is None:
+        return BUNDLED_PHOTOS
+    if isinstance(texture_set, bool) or not isinstance(texture_set, (int, np.integer)):
+        raise TypeError(f"texture_set must be an int or None, got {type(texture_set).__name__}")
+    if not 0 <= texture_set < TEXTURE_SETS:
+        raise ValueError(f"texture_set must be in [0, {TEXTURE_SETS - 1}], got {texture_set}")
+    return BUNDLED_PHOTOS[int(texture_set) :: TEXTURE_SETS]
 
 
 @functools.cache
@@ -93,9 +110,11 @@ def fractal_noise(
     return (total - lo) / max(hi - lo, 1e-6)
 
 
-def _photo_tile(rng: np.random.Generator, size: int) -> np.ndarray:
-    """A ``size x size`` crop of a random bundled photograph at (about) native resolution."""
-    photo = load_photo(BUNDLED_PHOTOS[rng.integers(len(BUNDLED_PHOTOS))])
+def _photo_tile(
+    rng: np.random.Generator, size: int, photos: tuple[str, ...] = BUNDLED_PHOTOS
+) -> np.ndarray:
+    """A ``size x size`` crop of a random one of ``photos`` at (about) native resolution."""
+    photo = load_photo(photos[rng.integers(len(photos))])
     ph, pw = photo.shape[:2]
     zoom = rng.uniform(0.8, 1.25) * size / min(ph, pw, 1.5 * size)
     crop = max(8, min(int(round(size / zoom)), ph, pw))
@@ -112,18 +131,21 @@ def _photo_tile(rng: np.random.Generator, size: int) -> np.ndarray:
     return tile
 
 
-def photo_texture(rng: np.random.Generator, width: int, height: int) -> np.ndarray:
+def photo_texture(
+    rng: np.random.Generator, width: int, height: int, photos: tuple[str, ...] = BUNDLED_PHOTOS
+) -> np.ndarray:
     """Natural texture of shape (height, width, 3), float32 in [0, 1].
 
-    A mosaic of square crops of the bundled photographs (random photograph, crop, flips and a
-    tint for grey ones) at about their native resolution, modulated by low-frequency fractal
-    noise and enriched with fine procedural grain so that magnified surfaces keep detail.
+    A mosaic of square crops of the bundled photographs ``photos`` (random photograph, crop,
+    flips and a tint for grey ones) at about their native resolution, modulated by
+    low-frequency fractal noise and enriched with fine procedural grain so that magnified
+    surfaces keep detail.
     """
     if width < 8 or height < 8:
         raise ValueError(f"texture size must be at least 8x8, got {width}x{height}")
     tile = int(min(rng.integers(192, 384), max(width, height)))
     nx, ny = -(-width // tile), -(-height // tile)
-    rows = [np.hstack([_photo_tile(rng, tile) for _ in range(nx)]) for _ in range(ny)]
+    rows = [np.hstack([_photo_tile(rng, tile, photos) for _ in range(nx)]) for _ in range(ny)]
     texture = np.vstack(rows)[:height, :width]
     low = fractal_noise(rng, height, width, base_cells=2, octaves=3)
     grain = fractal_noise(rng, height, width, base_cells=max(8, width // 16), octaves=2)
@@ -196,14 +218,20 @@ class Texture:
 
 
 @functools.lru_cache(maxsize=4)
-def texture_pool(size: int = 2048, count: int = 4) -> tuple:
+def texture_pool(size: int = 2048, count: int = 4, texture_set: int | None = None) -> tuple:
     """``count`` fixed ``size x size`` photo mosaics (seeds 0 .. count-1), wrapping Textures.
 
     Scenes draw random windows of these, so building a scene costs no texture synthesis and
-    the same seed always gives the same textures.
+    the same seed always gives the same textures. With ``texture_set`` (see
+    :data:`TEXTURE_SETS`) the mosaics use only that set's photographs: pools of different sets
+    have no image content in common.
     """
+    photos = texture_set_photos(texture_set)
+    seed = [7919] if texture_set is None else [7919, 1 + int(texture_set)]
     pool = tuple(
-        Texture.from_image(photo_texture(np.random.default_rng([7919, k]), size, size), wrap=True)
+        Texture.from_image(
+            photo_texture(np.random.default_rng([*seed, k]), size, size, photos), wrap=True
+        )
         for k in range(count)
     )
     load_photo.cache_clear()

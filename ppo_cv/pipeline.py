@@ -44,7 +44,13 @@ from .motion_model import decide_motion
 from .pose import _recover_normalized
 from .refine import refine_pose, translation_sigma_deg
 from .robust import ROBUST_BACKENDS, essential_from_pose, estimate_essential, sampson_errors
-from .significance import DEFAULT_MAX_LOG10_NFA, epipolar_significance
+from .significance import (
+    CONFIDENT_LOG10_NFA,
+    DEFAULT_MAX_LOG10_NFA,
+    descriptor_ratios,
+    distinctiveness,
+    epipolar_significance,
+)
 
 __all__ = [
     "PairOptions",
@@ -374,13 +380,25 @@ def _require_same_size(image1: np.ndarray, image2: np.ndarray) -> None:
         )
 
 
-def _require_significance(E, x1, x2, focal, shape2, options: PairOptions):
-    """The a-contrario test of the fit over all matches; ValueError when it may be chance."""
-    significance = epipolar_significance(E, x1, x2, focal, (int(shape2[1]), int(shape2[0])))
-    if not significance.log10_nfa <= options.max_log10_nfa:
+def _require_significance(E, x1, x2, K2, shape2, options: PairOptions, f1, f2, matches):
+    """The a-contrario test of the fit over all matches, and for a weak consensus the
+    distinctiveness test of its matches (:mod:`ppo_cv.significance`); ValueError when the
+    consensus may be chance."""
+    significance = epipolar_significance(E, x1, x2, K2, (int(shape2[1]), int(shape2[0])))
+    refused = not significance.log10_nfa <= options.max_log10_nfa
+    detail = f"log10 NFA {significance.log10_nfa:.1f} > {options.max_log10_nfa:g}"
+    if not refused and CONFIDENT_LOG10_NFA < significance.log10_nfa < np.inf:
+        ratios = descriptor_ratios(f1.descriptors, f2.descriptors, matches, f1.binary)
+        p_value = distinctiveness(ratios, significance.consistent)
+        joint = significance.log10_nfa + np.log10(max(p_value, 1e-300))
+        refused = not joint <= CONFIDENT_LOG10_NFA
+        detail = (
+            f"log10 NFA {significance.log10_nfa:.1f} and distinctiveness p = {p_value:.2f} of its "
+            f"matches: {joint:.1f} > {CONFIDENT_LOG10_NFA:g}"
+        )
+    if refused:
         raise ValueError(
-            "no reliable two-view geometry: the consensus may be chance "
-            f"(log10 NFA {significance.log10_nfa:.1f} > {options.max_log10_nfa:g}; best "
+            f"no reliable two-view geometry: the consensus may be chance ({detail}; best "
             f"{significance.num_consistent} of {significance.num_matches} matches within "
             f"{significance.threshold:.2f} px)"
         )
@@ -500,7 +518,7 @@ def estimate_pair(
             f"(need {options.min_inliers})"
         )
     inliers = fit.inliers
-    significance = _require_significance(fit.E, x1, x2, focal, img2.shape, options)
+    significance = _require_significance(fit.E, x1, x2, K2, img2.shape, options, f1, f2, matches)
     lap("ransac")
 
     chosen = ppo.select_pose(fit.E, x1[inliers], x2[inliers])
