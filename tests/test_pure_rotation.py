@@ -142,7 +142,10 @@ def test_decide_motion_on_synthetic_matches():
     R, t, x1, x2 = _two_view(rng, 0.0 + 1e-9)
     used = np.ones(len(x1), bool)
     rotation = decide_motion(x1, x2, R, np.array([1.0, 0, 0]), used, 800.0)
-    assert rotation.pure_rotation and _angle_deg(rotation.R, R) < 0.02
+    # the focal is estimated with the rotation (prior 2 %): its uncertainty costs a little here
+    assert rotation.pure_rotation and _angle_deg(rotation.R, R) < 0.1
+    assert abs(rotation.focal_scale - 1.0) < 0.01
+    assert rotation.t_sigma_deg > 30.0
     R, t, x1, x2 = _two_view(rng, 0.5)
     general = decide_motion(x1, x2, R, t, used, 800.0)
     assert general.model == "general" and general.gric_difference > 0.5
@@ -161,7 +164,7 @@ def test_warped_photo_rotation_is_flagged_with_accurate_rotation(seed):
     assert not result.translation_determined and result.num_points == 0
     # the focal error alone explains up to |angle * focal_error| (0.45 deg here)
     assert _angle_deg(result.R, pair.R) < 0.5
-    assert result.t_sigma_deg == 180.0
+    assert result.t_sigma_deg > 30.0
 
 
 @pytest.mark.parametrize("seed", [0, 3])
