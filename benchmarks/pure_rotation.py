@@ -76,11 +76,12 @@ rotations): no mismatch floor that keeps every rotation flagged refuses it (at 0
 difference is still -0.29 while two true rotations turn positive).
 
 `t_sigma_deg` is computed for every pair from the Hessian of the Sampson cost (not J^T J, which
-would claim 1 / sqrt(n) for any pose): at the refined essential matrix for a translating pair,
-and for a flagged pair at the kept rotation and its most consistent `t` on the rays with the lens
-terms removed, the noise that of the rotation's residuals. There the cost is flat in `t` and the
-value is the cap, 90 deg (a one-sigma cone of 90 deg covers the whole hemisphere cheirality
-leaves); a few flagged pairs get a finite value where the noise happens to curve the cost.
+would claim 1 / sqrt(n) for any pose) less the information the image noise alone puts into the
+translation block (errors in variables, `ppo_cv.refine.translation_sigma_deg`): at the refined
+essential matrix for a translating pair, and for a flagged pair at the kept rotation and its most
+consistent `t` on the rays with the lens terms removed, the noise that of the rotation's
+residuals. There no information is left and the value is the cap, 90 deg (a one-sigma cone of
+90 deg covers the whole hemisphere cheirality leaves).
 """
 
 

@@ -146,9 +146,9 @@ class MotionDecision:
         Direction uncertainty of ``t`` under the rotation model
         (:func:`ppo_cv.refine.translation_sigma_deg` at ``(R, t)`` on the rays with the lens
         terms removed, over ``rotation_inliers``, the noise that of the rotation's residuals);
-        the value to report when the pair is a pure rotation. Where the cost does not curve
-        up in every direction (every ``t`` fits a pure rotation) it is the cap,
-        :data:`ppo_cv.refine.T_SIGMA_CAP_DEG`.
+        the value to report when the pair is a pure rotation. Where the matches carry no
+        information on ``t`` beyond their noise (every ``t`` fits a pure rotation) it is the
+        cap, :data:`ppo_cv.refine.T_SIGMA_CAP_DEG`.
     focal_scale, k1 : float
         Lens terms of the rotation-only fit.
     selection : ModelSelection

@@ -188,7 +188,11 @@ def translation_sigma_deg(
     sphere ``H`` is ``J^T J`` minus the curvature term ``sum r_i^2`` (in the ``v`` block). For a
     pure rotation every ``m_i`` is noise, ``J^T J`` grows like ``n`` times the noise and would
     claim a direction known to ``1 / sqrt(n)`` radians; the exact ``H`` is then a fluctuation
-    around 0 and the value is large, as it should be. With ``s^2`` the noise variance of one
+    around 0. What is left of it is taken away too: noise in the matches puts
+    ``E[m_i m_i^T]`` into the ``v`` block whatever the motion (an errors-in-variables term,
+    computed per match from the noise variance), and only the rest is information a translation
+    created. For a pure rotation the corrected block is not positive and the value is the cap;
+    for a clear baseline the correction is negligible. With ``s^2`` the noise variance of one
     residual (``|r|^2 / (I - 5)`` of the fit, or ``noise^2``) the covariance is ``s^2 H^-1``;
     its ``v`` block (2, 2) is that of the direction of ``t`` in radians, and the value returned
     is the square root of its largest eigenvalue, capped at :data:`T_SIGMA_CAP_DEG` (also when
@@ -230,6 +234,7 @@ def translation_sigma_deg(
     r0 = _sampson_signed(R, t, a, b)
     variance = float(r0 @ r0) / (len(a) - _NPOSE) if noise is None else float(noise) ** 2
     H = _hessian(cost, _NPOSE, step)
+    H[3:, 3:] -= _noise_information(R, t, np.column_stack([u1, u2]), a, b, variance)
     eigenvalues, vectors = np.linalg.eigh(H)
     if eigenvalues[0] <= 1e-12 * max(eigenvalues[-1], 1e-300):
         return T_SIGMA_CAP_DEG
@@ -239,6 +244,34 @@ def translation_sigma_deg(
 
 
 _NPOSE = 5
+
+
+def _noise_information(R, t, U, a, b, variance: float) -> np.ndarray:
+    """Expected part (2, 2) of the ``v`` block of ``H`` that the noise itself contributes.
+
+    ``r_i = t . m_i / d_i`` with ``m_i = R a_i x b_i``, so the ``v`` block holds
+    ``sum (U^T m_i)(U^T m_i)^T / d_i^2``. Image noise of variance ``sigma^2`` per coordinate puts
+    ``E[m m^T] = sigma^2 ([Ra]_x P [Ra]_x^T + [b]_x R P R^T [b]_x^T)`` (``P = diag(1, 1, 0)``)
+    into ``m`` whatever the motion: information about ``t`` that a translation did not create.
+    For a pure rotation it is all there is; for a clear baseline it is negligible.
+    """
+    P = np.diag([1.0, 1.0, 0.0])
+    Ra = a @ R.T
+    A, B = _skew_rows(Ra), _skew_rows(b)
+    C = A @ P @ np.swapaxes(A, 1, 2) + B @ (R @ P @ R.T) @ np.swapaxes(B, 1, 2)
+    tx = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
+    E = tx @ R
+    Ea, Etb = a @ E.T, b @ E
+    d2 = np.sum(Ea[:, :2] ** 2, axis=1) + np.sum(Etb[:, :2] ** 2, axis=1)
+    weighted = np.einsum("nij,n->ij", C, 1.0 / np.maximum(d2, 1e-300))
+    return variance * U.T @ weighted @ U
+
+
+def _skew_rows(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrices (N, 3, 3) of the rows of ``v``."""
+    S = np.zeros((len(v), 3, 3))
+    S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    return S - np.swapaxes(S, 1, 2)
 
 
 def _hessian(f, size: int, step: float) -> np.ndarray:
