@@ -209,8 +209,9 @@ class PairResult:
         Hessian of the Sampson cost of ``E = [t]x R`` at the reported pose over its inliers
         (:func:`ppo_cv.refine.translation_sigma_deg`), for a plane too; grows as the baseline
         shrinks. For a pure rotation it is taken on the rotation model's rays and noise
-        (:attr:`ppo_cv.motion_model.MotionDecision.t_sigma_deg`), usually the cap: the essential
-        matrix's apparent confidence there comes from lens errors its translation absorbs.
+        (:attr:`ppo_cv.motion_model.MotionDecision.t_sigma_deg`), the cap when they carry no
+        information on ``t`` beyond their noise: the essential matrix's apparent confidence
+        there comes from lens errors its translation absorbs.
     rotation_residual_px, general_residual_px : float
         Median residual (pixels, distance in the joint image space) of the rotation-only fit
         and of the essential matrix over the union of their inliers.
