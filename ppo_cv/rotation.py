@@ -15,6 +15,8 @@ Under a pure rotation the bearings of a match obey ``b2 = R b1`` (paper eq. 3 wi
   (OpenCV's radial model, inverted exactly by fixed-point iteration), and ``(q2, 1) ~ R (q1, 1)``.
   A tripod panorama taken with intrinsics a few percent off and unmodelled distortion is this
   model; the depth-dependent parallax of a translation is not, so the two models keep apart.
+  Given the noise, ``s`` and ``k1`` get Gaussian priors (:data:`FOCAL_PRIOR`,
+  :data:`K1_PRIOR`): the fit is then the maximum a posteriori one, defined from 4 matches on.
 """
 
 from __future__ import annotations
