@@ -41,6 +41,15 @@ plane is one special case of an essential matrix's scene):
   because both models here have a translation to absorb unmodelled errors with;
 - otherwise **general**.
 
+The rotation of a pair judged a pure rotation is the lens fit's: the maximum a posteriori
+rotation with the focal scale under the prior :data:`ppo_cv.rotation.FOCAL_PRIOR` (and ``k1``
+under :data:`ppo_cv.rotation.K1_PRIOR`). The given focal alone leaves an error of about
+``angle x focal error`` (0.4 degrees for a 20 degree turn with the focal 2 % off); the fitted
+focal follows the matches where they pin it down and stays near the given one where they do not.
+Where the truth is itself a rotation fitted under the given focal (real tripod panoramas
+measured against a ``K R K^-1`` homography), the price is ``angle x |focal_scale - 1|``: measured
+in ``docs/pure_rotation.md`` on warped photos with the focal given exactly.
+
 So a small PRI alone cannot flag a pair whose parallax GRIC sees (the PRI of an essential matrix
 fitted to a narrow-field rotation is not reliable either way: its rotation is degrees off), and a
 GRIC win alone cannot flag a pair whose rays plainly do not meet at the centre. Without a
@@ -64,6 +73,7 @@ from .model_selection import (
     select_model,
 )
 from .plane import PlanarPose, planar_pose
+from .refine import T_SIGMA_CAP_DEG, translation_sigma_deg
 from .robust import essential_from_pose, sampson_errors
 from .rotation import correct_points, fit_rotation_lens, ransac_rotation
 
@@ -121,9 +131,9 @@ class MotionDecision:
     pure_rotation : bool
         ``model == "rotation"``.
     R : ndarray, shape (3, 3)
-        Rotation of the rotation-only fit over its inliers: with the lens terms when the data
-        determine a focal scale other than 1 (beyond three standard deviations), otherwise the
-        least-squares rotation of the given rays (the focal the user gave is kept).
+        Rotation of the rotation-only fit over its inliers, with its lens terms: the maximum a
+        posteriori rotation under the prior that the given focal length is off by about
+        :data:`ppo_cv.rotation.FOCAL_PRIOR` (see :func:`ppo_cv.rotation.fit_rotation_lens`).
     t : ndarray, shape (3,)
         Unit translation most consistent with ``R`` (undetermined for a pure rotation).
     rotation_inliers : ndarray of bool, shape (N,)
@@ -132,6 +142,13 @@ class MotionDecision:
         PRI (eq. 84) of ``(R, t)`` over ``rotation_inliers``.
     pri_general : float
         PRI of the essential matrix's pose over its inliers.
+    t_sigma_deg : float
+        Direction uncertainty of ``t`` under the rotation model
+        (:func:`ppo_cv.refine.translation_sigma_deg` at ``(R, t)`` on the rays with the lens
+        terms removed, over ``rotation_inliers``, the noise that of the rotation's residuals);
+        the value to report when the pair is a pure rotation. Where the matches carry no
+        information on ``t`` beyond their noise (every ``t`` fits a pure rotation) it is the
+        cap, :data:`ppo_cv.refine.T_SIGMA_CAP_DEG`.
     focal_scale, k1 : float
         Lens terms of the rotation-only fit.
     selection : ModelSelection
@@ -156,6 +173,7 @@ class MotionDecision:
     rotation_inliers: np.ndarray
     pri: float
     pri_general: float
+    t_sigma_deg: float
     focal_scale: float
     k1: float
     selection: ModelSelection
@@ -245,11 +263,12 @@ def decide_motion(
     threshold = TRANSFER_FACTOR * threshold_px / focal
     general_all = sampson_errors(essential_from_pose(R, t), x1, x2)
     noise = robust_sigma(general_all[inliers], JOINT_DIMENSION - MODEL_DIMENSIONS["general"][0])
+    noise *= np.sqrt(2.0)  # a transfer error coordinate carries the noise of both images
     fit = ransac_rotation(x1, x2, RANSAC_FACTOR * threshold, seed=seed)
     lens = fit_rotation_lens(x1, x2, fit.inliers, fit.R, noise=noise)
     rotation_inliers = lens.residuals < threshold
     for _ in range(4):
-        if np.count_nonzero(rotation_inliers) < 5:
+        if np.count_nonzero(rotation_inliers) < 4:
             break
         lens = fit_rotation_lens(x1, x2, rotation_inliers, lens.R, noise=noise)
         within = lens.residuals < threshold
@@ -264,15 +283,15 @@ def decide_motion(
         ]
     )
     R_rot, t_rot, pri = lens.R, np.asarray(t, dtype=np.float64), float("inf")
+    t_sigma = T_SIGMA_CAP_DEG
     if np.count_nonzero(rotation_inliers) >= 5:
-        if lens.focal_significant:
-            c1 = correct_points(x1[rotation_inliers], lens.focal_scale, lens.k1)
-            c2 = correct_points(x2[rotation_inliers], lens.focal_scale, lens.k1)
-        else:
-            c1, c2 = x1[rotation_inliers], x2[rotation_inliers]
-            R_rot = ppo.rotation_from_rays(c1, c2)
+        c1 = correct_points(x1[rotation_inliers], lens.focal_scale, lens.k1)
+        c2 = correct_points(x2[rotation_inliers], lens.focal_scale, lens.k1)
         t_rot = translation_for_rotation(R_rot, c1, c2)
         pri = ppo.pure_rotation_indicator(ppo.intersection_scores(c1, c2, R_rot, t_rot))
+        # one Sampson residual carries half the squared transfer error (noise of both images)
+        noise = float(np.sqrt(np.mean(lens.residuals[rotation_inliers] ** 2) / 4.0))
+        t_sigma = translation_sigma_deg(R_rot, t_rot, c1, c2, np.ones(len(c1), bool), noise)
     pri_general = ppo.pure_rotation_indicator(
         ppo.intersection_scores(x1[inliers], x2[inliers], R, t)
     )
@@ -302,6 +321,7 @@ def decide_motion(
         rotation_inliers=rotation_inliers,
         pri=float(pri),
         pri_general=float(pri_general),
+        t_sigma_deg=float(t_sigma),
         focal_scale=lens.focal_scale,
         k1=lens.k1,
         selection=selection,

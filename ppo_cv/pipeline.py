@@ -211,11 +211,13 @@ class PairResult:
         ``"rotation"``, ``"plane"`` (the matches lie on one plane: pose from its homography)
         or ``"general"`` (:mod:`ppo_cv.motion_model`).
     t_sigma_deg : float
-        One standard deviation of the direction of ``t`` (degrees, at most 180) from the
-        Jacobian of the Sampson cost of ``E = [t]x R`` at the reported pose over its inliers
+        One standard deviation of the direction of ``t`` (degrees, at most 90) from the
+        Hessian of the Sampson cost of ``E = [t]x R`` at the reported pose over its inliers
         (:func:`ppo_cv.refine.translation_sigma_deg`), for a plane too; grows as the baseline
-        shrinks. 180 for a pure rotation: the model has no translation, and the essential
-        matrix's apparent confidence there comes from lens errors its translation absorbs.
+        shrinks. For a pure rotation it is taken on the rotation model's rays and noise
+        (:attr:`ppo_cv.motion_model.MotionDecision.t_sigma_deg`), the cap when they carry no
+        information on ``t`` beyond their noise: the essential matrix's apparent confidence
+        there comes from lens errors its translation absorbs.
     rotation_residual_px, general_residual_px : float
         Median residual (pixels, distance in the joint image space) of the rotation-only fit
         and of the essential matrix over the union of their inliers.
@@ -547,7 +549,7 @@ def estimate_pair(
     if motion.pure_rotation:
         R, t, pri = motion.R, motion.t, motion.pri
         inliers = motion.rotation_inliers
-        t_sigma = 180.0
+        t_sigma = motion.t_sigma_deg
         points3d, keep = np.full((len(matches), 3), np.nan), np.zeros(len(matches), dtype=bool)
     elif plane is not None:
         R, t, inliers = plane.R, plane.t, motion.homography_inliers

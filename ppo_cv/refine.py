@@ -15,7 +15,13 @@ import numpy as np
 from .ppo import rotation_from_rays
 from .robust import virtual_camera
 
-__all__ = ["refine_pose", "fit_rotation", "rotation_residuals", "translation_sigma_deg"]
+__all__ = [
+    "T_SIGMA_CAP_DEG",
+    "refine_pose",
+    "fit_rotation",
+    "rotation_residuals",
+    "translation_sigma_deg",
+]
 
 
 def refine_pose(
@@ -157,34 +163,54 @@ def _rotation_increment(w: np.ndarray) -> np.ndarray:
     return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * K @ K
 
 
+T_SIGMA_CAP_DEG = 90.0
+"""Largest ``t_sigma_deg``. The direction of ``t`` is a point of the unit sphere and cheirality
+fixes its sign, so it lies in the hemisphere around any estimate: a one-sigma cone of 90 degrees
+already covers all of it, and a larger linearised value says no more than "undetermined"."""
+
+
 def translation_sigma_deg(
     R: np.ndarray,
     t: np.ndarray,
     x1: np.ndarray,
     x2: np.ndarray,
     inliers: np.ndarray,
-    step: float = 1e-6,
+    noise: float | None = None,
+    step: float = 1e-4,
 ) -> float:
     """One standard deviation of the direction of ``t`` (degrees) from the Sampson cost.
 
     The pose is perturbed as ``R(w) = exp([w]_x) R`` and ``t(v) = (t + v1 u1 + v2 u2) / |.|``
     with ``(u1, u2)`` an orthonormal basis of the tangent plane of the sphere at ``t`` (5 dof).
-    With ``J`` (I, 5) the Jacobian of the signed Sampson residuals ``r`` of the inliers (central
-    differences) and ``s^2 = |r|^2 / (I - 5)`` the residual variance of the fit, the covariance
-    is ``s^2 (J^T J)^-1``; its ``v`` block (2, 2) is that of the direction of ``t`` in radians,
-    and the value returned is the square root of its largest eigenvalue, capped at 180 degrees.
-    It is large when the matches do not constrain ``t`` (a pure rotation, where every Sampson
-    residual is independent of ``t``), small for a clear baseline.
+    The cost is ``f = 1/2 sum_i r_i^2`` over the signed Sampson residuals ``r`` of the inliers;
+    its Hessian ``H`` (5, 5) is taken by central differences of ``f`` itself, not as the
+    Gauss-Newton ``J^T J``: ``r_i = t . m_i / d_i`` with ``m_i = R x1_i x x2_i``, so on the
+    sphere ``H`` is ``J^T J`` minus the curvature term ``sum r_i^2`` (in the ``v`` block). For a
+    pure rotation every ``m_i`` is noise, ``J^T J`` grows like ``n`` times the noise and would
+    claim a direction known to ``1 / sqrt(n)`` radians; the exact ``H`` is then a fluctuation
+    around 0. What is left of it is taken away too: noise in the matches puts
+    ``E[m_i m_i^T]`` into the ``v`` block whatever the motion (an errors-in-variables term,
+    computed per match from the noise variance), and only the rest is information a translation
+    created. For a pure rotation the corrected block is not positive and the value is the cap;
+    for a clear baseline the correction is negligible. With ``s^2`` the noise variance of one
+    residual (``|r|^2 / (I - 5)`` of the fit, or ``noise^2``) the covariance is ``s^2 H^-1``;
+    its ``v`` block (2, 2) is that of the direction of ``t`` in radians, and the value returned
+    is the square root of its largest eigenvalue, capped at :data:`T_SIGMA_CAP_DEG` (also when
+    ``H`` is not positive definite: the cost does not curve up in every direction).
 
     Parameters
     ----------
     R : ndarray, shape (3, 3)
     t : ndarray, shape (3,)
-        Refined pose, ``X2 = R X1 + t``.
+        Refined pose, ``X2 = R X1 + t``, at the minimum of the Sampson cost.
     x1, x2 : ndarray, shape (N, 3)
         Normalised homogeneous coordinates of the matches.
     inliers : ndarray of bool, shape (N,)
-        Matches of the cost; fewer than 6 gives 180.
+        Matches of the cost; fewer than 6 gives the cap.
+    noise : float, optional
+        Standard deviation of one Sampson residual (normalised units) when the fit's own residuals
+        understate it, e.g. the rotation model's noise for a pair judged a pure rotation (the
+        essential matrix's spurious translation absorbs part of the noise).
     step : float
         Finite-difference step (radians).
 
@@ -194,23 +220,71 @@ def translation_sigma_deg(
     """
     a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
     if len(a) < 6:
-        return 180.0
+        return T_SIGMA_CAP_DEG
     t = np.asarray(t, float).reshape(3) / np.linalg.norm(t)
     u1 = np.cross(t, np.eye(3)[int(np.argmin(np.abs(t)))])
     u1 /= np.linalg.norm(u1)
     u2 = np.cross(t, u1)
 
-    def residual(p: np.ndarray) -> np.ndarray:
+    def cost(p: np.ndarray) -> float:
         tp = t + p[3] * u1 + p[4] * u2
-        return _sampson_signed(_rotation_increment(p[:3]) @ R, tp / np.linalg.norm(tp), a, b)
+        r = _sampson_signed(_rotation_increment(p[:3]) @ R, tp / np.linalg.norm(tp), a, b)
+        return 0.5 * float(r @ r)
 
-    r0 = residual(np.zeros(5))
-    steps = np.eye(5) * step
-    J = np.stack([(residual(d) - residual(-d)) / (2.0 * step) for d in steps], axis=1)
-    variance = float(r0 @ r0) / (len(a) - 5)
-    eigenvalues, vectors = np.linalg.eigh(J.T @ J)
+    r0 = _sampson_signed(R, t, a, b)
+    variance = float(r0 @ r0) / (len(a) - _NPOSE) if noise is None else float(noise) ** 2
+    H = _hessian(cost, _NPOSE, step)
+    H[3:, 3:] -= _noise_information(R, t, np.column_stack([u1, u2]), a, b, variance)
+    eigenvalues, vectors = np.linalg.eigh(H)
     if eigenvalues[0] <= 1e-12 * max(eigenvalues[-1], 1e-300):
-        return 180.0
+        return T_SIGMA_CAP_DEG
     cov = variance * (vectors / eigenvalues) @ vectors.T
     largest = float(np.linalg.eigvalsh(cov[3:, 3:])[-1])
-    return float(min(np.degrees(np.sqrt(max(largest, 0.0))), 180.0))
+    return float(min(np.degrees(np.sqrt(max(largest, 0.0))), T_SIGMA_CAP_DEG))
+
+
+_NPOSE = 5
+
+
+def _noise_information(R, t, U, a, b, variance: float) -> np.ndarray:
+    """Expected part (2, 2) of the ``v`` block of ``H`` that the noise itself contributes.
+
+    ``r_i = t . m_i / d_i`` with ``m_i = R a_i x b_i``, so the ``v`` block holds
+    ``sum (U^T m_i)(U^T m_i)^T / d_i^2``. Image noise of variance ``sigma^2`` per coordinate puts
+    ``E[m m^T] = sigma^2 ([Ra]_x P [Ra]_x^T + [b]_x R P R^T [b]_x^T)`` (``P = diag(1, 1, 0)``)
+    into ``m`` whatever the motion: information about ``t`` that a translation did not create.
+    For a pure rotation it is all there is; for a clear baseline it is negligible.
+    """
+    P = np.diag([1.0, 1.0, 0.0])
+    Ra = a @ R.T
+    A, B = _skew_rows(Ra), _skew_rows(b)
+    C = A @ P @ np.swapaxes(A, 1, 2) + B @ (R @ P @ R.T) @ np.swapaxes(B, 1, 2)
+    tx = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
+    E = tx @ R
+    Ea, Etb = a @ E.T, b @ E
+    d2 = np.sum(Ea[:, :2] ** 2, axis=1) + np.sum(Etb[:, :2] ** 2, axis=1)
+    weighted = np.einsum("nij,n->ij", C, 1.0 / np.maximum(d2, 1e-300))
+    return variance * U.T @ weighted @ U
+
+
+def _skew_rows(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrices (N, 3, 3) of the rows of ``v``."""
+    S = np.zeros((len(v), 3, 3))
+    S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    return S - np.swapaxes(S, 1, 2)
+
+
+def _hessian(f, size: int, step: float) -> np.ndarray:
+    """Hessian (size, size) of a scalar function at 0 by central differences."""
+    basis = np.eye(size) * step
+    H = np.empty((size, size))
+    for j in range(size):
+        for k in range(j, size):
+            value = (
+                f(basis[j] + basis[k])
+                - f(basis[j] - basis[k])
+                - f(-basis[j] + basis[k])
+                + f(-basis[j] - basis[k])
+            ) / (4.0 * step * step)
+            H[j, k] = H[k, j] = value
+    return H

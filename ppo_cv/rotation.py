@@ -15,6 +15,8 @@ Under a pure rotation the bearings of a match obey ``b2 = R b1`` (paper eq. 3 wi
   (OpenCV's radial model, inverted exactly by fixed-point iteration), and ``(q2, 1) ~ R (q1, 1)``.
   A tripod panorama taken with intrinsics a few percent off and unmodelled distortion is this
   model; the depth-dependent parallax of a translation is not, so the two models keep apart.
+  Given the noise, ``s`` and ``k1`` get Gaussian priors (:data:`FOCAL_PRIOR`,
+  :data:`K1_PRIOR`): the fit is then the maximum a posteriori one, defined from 4 matches on.
 """
 
 from __future__ import annotations
@@ -26,6 +28,8 @@ import numpy as np
 from .ppo import rotation_from_rays
 
 __all__ = [
+    "FOCAL_PRIOR",
+    "K1_PRIOR",
     "RotationFit",
     "LensRotationFit",
     "rotations_from_two_rays",
@@ -39,6 +43,18 @@ __all__ = [
 _BLOCK = 1 << 18  # hypotheses x matches scored per block
 _BATCH = 64  # hypotheses drawn at once
 _NPARAMS = 5  # rotation increment (3), focal scale, k1
+FOCAL_PRIOR = 0.02
+"""Standard deviation of the relative error of a focal length given by a user (calibration
+files, EXIF, autostitch): "a few percent". The prior of :func:`fit_rotation_lens` on ``s - 1``.
+With it the returned rotation is the maximum a posteriori one: a focal the matches pin down
+(many matches, a wide turn) is followed, a focal they hardly constrain stays near the given one.
+"""
+
+K1_PRIOR = 0.1
+"""Standard deviation of the radial coefficient nobody modelled (OpenCV's ``k1``; consumer lenses
+at 25-35 degrees of field lie within about +-0.1). The prior of :func:`fit_rotation_lens`."""
+
+_MIN_WITH_PRIOR = 4  # matches for the lens terms once priors regularise them (8 rows, 5 unknowns)
 
 
 @dataclass(frozen=True)
@@ -291,8 +307,8 @@ def fit_rotation_lens(
     max_focal_change: float = 0.05,
     max_k1: float = 0.15,
     noise: float | None = None,
-    focal_prior: float = 0.03,
-    k1_prior: float = 0.1,
+    focal_prior: float = FOCAL_PRIOR,
+    k1_prior: float = K1_PRIOR,
 ) -> LensRotationFit:
     """Rotation, focal scale and radial coefficient by Gauss-Newton over the used matches.
 
@@ -338,10 +354,11 @@ def fit_rotation_lens(
         prior[3:] = noise / np.array([focal_prior, k1_prior])
     problem = (R0, a, b, prior)
     params, sigma = np.zeros(_NPARAMS), np.inf
-    if len(a) >= 2 * _NPARAMS:
+    enough = len(a) >= (_MIN_WITH_PRIOR if prior[3] > 0 else 2 * _NPARAMS)
+    if enough:
         params = _gauss_newton(params, problem, iterations)
         sigma = _focal_sigma(params, problem)
-    if np.any(np.abs(params) > bounds) or len(a) < 2 * _NPARAMS:
+    if np.any(np.abs(params) > bounds) or not enough:
         params, sigma = np.clip(params, -bounds, bounds), np.inf
         params[:3] = 0.0
         if len(a) >= 2:
