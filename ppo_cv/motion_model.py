@@ -34,7 +34,9 @@ plane is one special case of an essential matrix's scene):
   and that pose is one of the scene: its essential matrix ``[t]x R`` explains the matches almost
   as well as the refined one (:attr:`MotionDecision.plane_epipolar_ratio` at most
   :data:`PLANE_EPIPOLAR_TOLERANCE`; on a plane every ``[t]x R`` of a true decomposition fits all
-  matches, off a plane the matches with parallax betray a wrong pose). The
+  matches, off a plane the matches with parallax betray a wrong pose), and at most
+  :data:`MAX_OFF_PLANE_SHARE` of the essential matrix's inliers lie off the homography (a
+  dominant plane with structure beside it is general motion, whose pose those matches fix). The
   homography saves ``ln 4`` per match (one dimension less) and loses on every match off its
   plane: a scene mostly on one plane with some structure off it stays general once that
   structure's parallax pays for the extra dimension. The floor is smaller than the rotation's
@@ -69,6 +71,7 @@ from .rotation import correct_points, fit_rotation_lens, ransac_rotation
 
 __all__ = [
     "EPIPOLAR_CAP_FACTOR",
+    "MAX_OFF_PLANE_SHARE",
     "MIN_PLANE_SUPPORT",
     "PLANE_EPIPOLAR_TOLERANCE",
     "PLANE_MISMATCH_FLOOR",
@@ -97,6 +100,16 @@ lie at 1.0-1.5, four of twelve at 2.1-6.7 (left general)."""
 
 EPIPOLAR_CAP_FACTOR = 5.0
 """Cap of the squared Sampson errors of that ratio, in inlier thresholds (outliers count once)."""
+
+MAX_OFF_PLANE_SHARE = 0.1
+"""Largest :attr:`MotionDecision.plane_off_share` of a plane (see the module docstring).
+
+GRIC saves ``ln 4`` on every match for the homography's missing dimension and its robust cost
+of a match off the plane is capped, so a dominant plane with a quarter of the matches off it
+still wins (a clean ``general`` render of seed 0: 435 of 1703 essential-matrix inliers off the
+plane, pose error 0.26 degrees as a plane against 0.04 as general motion). Renders of a single
+plane have 1-6 % of the essential matrix's inliers off the homography, clean or with
+``REAL_PHOTO`` (mismatches and the corners where distortion exceeds the threshold)."""
 
 MIN_PLANE_SUPPORT = 8
 """Fewest homography inliers in front of both cameras (``M1 > 0`` and ``M2 > 0``) for a plane."""
@@ -163,6 +176,7 @@ class MotionDecision:
     homography_inliers: np.ndarray | None = None
     plane_selection: ModelSelection | None = None
     plane_epipolar_ratio: float = float("nan")
+    plane_off_share: float = float("nan")
 
     @property
     def gric_difference(self) -> float:
@@ -278,6 +292,7 @@ def decide_motion(
     )
     pure = bool(selection.model == "rotation" and pri < pri_threshold)
     plane, plane_selection, plane_epipolar_ratio = None, None, float("nan")
+    plane_off_share = float("nan")
     if homography is not None:
         plane = planar_pose(
             homography.H, x1, x2, homography.inliers, threshold=threshold_px / focal
@@ -293,7 +308,13 @@ def decide_motion(
         plane_epipolar_ratio = _epipolar_ratio(
             plane, x1[union], x2[union], general_all[union] * focal, threshold_px, focal
         )
-    model = "rotation" if pure else _plane_or_general(plane_selection, plane, plane_epipolar_ratio)
+        off = np.count_nonzero(inliers & ~homography.inliers)
+        plane_off_share = off / max(int(np.count_nonzero(inliers)), 1)
+    model = (
+        "rotation"
+        if pure
+        else _plane_or_general(plane_selection, plane, plane_epipolar_ratio, plane_off_share)
+    )
     return MotionDecision(
         model=model,
         pure_rotation=pure,
@@ -309,6 +330,7 @@ def decide_motion(
         homography_inliers=None if homography is None else homography.inliers,
         plane_selection=plane_selection,
         plane_epipolar_ratio=plane_epipolar_ratio,
+        plane_off_share=plane_off_share,
     )
 
 
@@ -328,12 +350,16 @@ def _epipolar_ratio(plane, x1, x2, general_px, threshold_px: float, focal: float
 
 
 def _plane_or_general(
-    selection: ModelSelection | None, plane: PlanarPose | None, epipolar_ratio: float
+    selection: ModelSelection | None,
+    plane: PlanarPose | None,
+    epipolar_ratio: float,
+    off_share: float,
 ) -> str:
-    """``"plane"`` when it wins ``selection``, its pose is a translation, and that pose's
-    essential matrix explains the matches almost as well as the refined one."""
+    """``"plane"`` when it wins ``selection``, its pose is a translation, that pose's
+    essential matrix explains the matches almost as well as the refined one, and few of the
+    refined one's inliers lie off the plane."""
     if plane is None or selection is None or selection.model != "plane":
         return "general"
     moving = float(np.linalg.norm(plane.t)) > 0 and np.isfinite(plane.distance)
-    consistent = epipolar_ratio <= PLANE_EPIPOLAR_TOLERANCE
+    consistent = epipolar_ratio <= PLANE_EPIPOLAR_TOLERANCE and off_share <= MAX_OFF_PLANE_SHARE
     return "plane" if moving and consistent and plane.support >= MIN_PLANE_SUPPORT else "general"

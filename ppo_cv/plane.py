@@ -658,12 +658,15 @@ def _jacobian(model, p, r0, scale, k1_prior, step=1e-7):
 
 
 def _k1_sigma(model, p, scale, k1_prior) -> float:
-    """Standard deviation of ``k1`` from the Gauss-Newton covariance ``s^2 (J^T J)^-1``."""
+    """Standard deviation of ``k1`` from the Gauss-Newton covariance ``2 s^2 (J^T J)^-1``.
+
+    The factor 2: the forward and backward transfer residuals of a match carry the same noise,
+    so ``J^T J`` counts every measurement twice."""
     r = _stacked(model, p, scale, k1_prior)
     J = _jacobian(model, p, r, scale, k1_prior)
     dof = max(len(r) - len(p), 1)
     try:
-        cov = np.linalg.inv(J.T @ J) * (r @ r) / dof
+        cov = 2.0 * np.linalg.inv(J.T @ J) * (r @ r) / dof
     except np.linalg.LinAlgError:
         return float("inf")
     return float(np.sqrt(max(cov[8, 8], 0.0)))
