@@ -101,10 +101,9 @@ class PairOptions:
         alarms (:mod:`ppo_cv.significance`) is at most this; lower is stricter, ``inf`` turns
         the test off.
     plane : bool
-        Fit a homography too and let the model decision call the pair a plane (off by default:
-        on imperfect rendered general and forward motions a few pairs are called planes and
-        lose accuracy, ``docs/benchmarks.md`` section 6); False decides between rotation and
-        general only.
+        Fit a homography too and let the model decision call the pair a plane (on by default:
+        with it no rendered preset and no freiburg AUC drops, ``docs/benchmarks.md`` section
+        6); False decides between rotation and general only.
     """
 
     features: str = "sift"
@@ -125,7 +124,7 @@ class PairOptions:
     min_inliers: int = 8
     seed: int = 0
     max_log10_nfa: float = DEFAULT_MAX_LOG10_NFA
-    plane: bool = False
+    plane: bool = True
 
     def __post_init__(self) -> None:
         if self.features not in FEATURE_TYPES:
