@@ -411,7 +411,7 @@ def register(app: typer.Typer) -> None:
         seed: Seed = 0,
         pri_threshold: PriThreshold = DEFAULT_PRI_THRESHOLD,
         max_log10_nfa: MaxLog10Nfa = DEFAULT_MAX_LOG10_NFA,
-        plane: Plane = False,
+        plane: Plane = True,
         max_trials: Annotated[
             int,
             typer.Option(

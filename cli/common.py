@@ -74,7 +74,8 @@ Plane = Annotated[
     bool,
     typer.Option(
         "--plane/--no-plane",
-        help="Also fit a homography and let the model decision call the pair a plane.",
+        help="Also fit a homography and let the model decision call the pair a plane "
+        "(--no-plane: rotation or general only).",
         rich_help_panel=_PANEL,
     ),
 ]

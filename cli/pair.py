@@ -52,7 +52,7 @@ def pipeline_options(
     seed: int = 0,
     pri_threshold: float | None = None,
     max_log10_nfa: float | None = None,
-    plane: bool = False,
+    plane: bool = True,
 ):
     """PairOptions from command-line values, each bounded up front (ValueError naming it)."""
     from ppo_cv.pipeline import PairOptions
@@ -321,7 +321,7 @@ def register(app: typer.Typer) -> None:
         seed: Seed = 0,
         pri_threshold: PriThreshold = DEFAULT_PRI_THRESHOLD,
         max_log10_nfa: MaxLog10Nfa = DEFAULT_MAX_LOG10_NFA,
-        plane: Plane = False,
+        plane: Plane = True,
     ) -> None:
         """Relative pose (R, t), pure-rotation verdict and 3D points of two photos.
 

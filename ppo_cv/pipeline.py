@@ -17,8 +17,9 @@ Stages (each timed in ``PairResult.timings``, seconds):
    decomposition candidates (:mod:`ppo_cv.plane`) and the choice among "rotation", "plane" and
    "general" (:mod:`ppo_cv.motion_model`).
 9. ``decision``: for a pure rotation the rotation of the rotation-only fit and no point; for a
-   plane the PPO pose of the homography, not refined on ``E`` (plane matches leave the
-   essential matrix nearly degenerate), and the analytic points (Prop. 3) of its inliers;
+   plane the PPO pose of the homography refined on the homography itself with a radial term
+   (:func:`ppo_cv.plane.refine_planar_pose`; not on ``E``: plane matches leave the essential
+   matrix nearly degenerate), and the analytic points (Prop. 3) of its inliers;
    otherwise the PPO pose of ``E`` and its analytic points. The uncertainty of the direction
    of ``t`` comes from the Sampson cost of ``E = [t]x R`` at the reported pose in both moving
    cases.
@@ -41,6 +42,7 @@ from .homography import estimate_homography
 from .images import as_image as _as_image
 from .images import load_image
 from .motion_model import decide_motion
+from .plane import refine_planar_pose, undistort_division
 from .pose import _recover_normalized
 from .refine import refine_pose, translation_sigma_deg
 from .robust import ROBUST_BACKENDS, essential_from_pose, estimate_essential, sampson_errors
@@ -105,10 +107,9 @@ class PairOptions:
         alarms (:mod:`ppo_cv.significance`) is at most this; lower is stricter, ``inf`` turns
         the test off.
     plane : bool
-        Fit a homography too and let the model decision call the pair a plane (off by default:
-        on imperfect rendered general and forward motions a few pairs are called planes and
-        lose accuracy, ``docs/benchmarks.md`` section 6); False decides between rotation and
-        general only.
+        Fit a homography too and let the model decision call the pair a plane (on by default:
+        with it no rendered preset and no freiburg AUC drops, ``docs/benchmarks.md`` section
+        6); False decides between rotation and general only.
     """
 
     features: str = "sift"
@@ -129,7 +130,7 @@ class PairOptions:
     min_inliers: int = 8
     seed: int = 0
     max_log10_nfa: float = DEFAULT_MAX_LOG10_NFA
-    plane: bool = False
+    plane: bool = True
 
     def __post_init__(self) -> None:
         if self.features not in FEATURE_TYPES:
@@ -241,6 +242,9 @@ class PairResult:
         cameras (the two-fold ambiguity of a homography), and the tie was broken by the matches
         off the plane or by the prior that the plane faces the cameras
         (:func:`ppo_cv.plane.select_plane_pose`). False otherwise.
+    plane_k1 : float
+        For a plane: the radial (division-model) coefficient fitted with its homography
+        (:func:`ppo_cv.plane.refine_planar_pose`; 0 when not significant), NaN otherwise.
     noise_sigma_px : float
         Noise estimated from the essential matrix's residuals (pixels).
     focal_scale : float
@@ -287,6 +291,7 @@ class PairResult:
     plane_normal: np.ndarray | None = None
     plane_distance: float = float("nan")
     plane_ambiguous: bool = False
+    plane_k1: float = float("nan")
 
     @property
     def translation_determined(self) -> bool:
@@ -546,18 +551,26 @@ def estimate_pair(
     lap("model")
 
     plane = motion.plane if motion.model == "plane" else None
+    plane_k1, plane_normal, plane_distance = float("nan"), None, float("nan")
     if motion.pure_rotation:
         R, t, pri = motion.R, motion.t, motion.pri
         inliers = motion.rotation_inliers
         t_sigma = motion.t_sigma_deg
         points3d, keep = np.full((len(matches), 3), np.nan), np.zeros(len(matches), dtype=bool)
     elif plane is not None:
-        R, t, inliers = plane.R, plane.t, motion.homography_inliers
-        pri = ppo.pure_rotation_indicator(plane.m2[inliers])
-        points3d = ppo.analytic_points(x1, x2, R, t)
+        inliers = motion.homography_inliers
+        refined = refine_planar_pose(
+            plane.R, plane.candidates.T[plane.candidate], plane.n, x1, x2, inliers,
+            scale=options.ransac_threshold / focal, fit_k1=True,
+        )  # fmt: skip
+        R, t, plane_k1 = refined.R, refined.t, refined.k1
+        plane_normal, plane_distance = refined.n, refined.distance
+        c1, c2 = undistort_division(x1, plane_k1), undistort_division(x2, plane_k1)
+        pri = ppo.pure_rotation_indicator(ppo.intersection_scores(c1[inliers], c2[inliers], R, t))
+        points3d = ppo.analytic_points(c1, c2, R, t)
         keep = plane.inliers & np.all(np.isfinite(points3d), axis=1)
         points3d = np.where(keep[:, None], points3d, np.nan)
-        t_sigma = translation_sigma_deg(R, t, x1, x2, inliers)
+        t_sigma = translation_sigma_deg(R, t, c1, c2, inliers)
     else:
         final = _recover_normalized(essential_from_pose(R, t), x1[:, :2], x2[:, :2], inliers, 0.0)
         R, t, pri = final.R, final.t, final.pri
@@ -602,7 +615,8 @@ def estimate_pair(
         ),
         gric_plane_difference=motion.gric_plane_difference,
         plane_epipolar_ratio=motion.plane_epipolar_ratio,
-        plane_normal=None if plane is None else plane.n,
-        plane_distance=float("nan") if plane is None else plane.distance,
+        plane_normal=plane_normal,
+        plane_distance=plane_distance,
         plane_ambiguous=bool(plane is not None and plane.ambiguous),
+        plane_k1=plane_k1,
     )

@@ -37,6 +37,7 @@ import numpy as np
 from . import ppo
 
 __all__ = [
+    "K1_SIGNIFICANCE",
     "MIN_OFF_PLANE",
     "HomographyCandidates",
     "PlanarPose",
@@ -47,12 +48,19 @@ __all__ = [
     "frontality",
     "select_plane_pose",
     "planar_pose",
+    "RefinedPlanarPose",
+    "refine_planar_pose",
+    "undistort_division",
 ]
 
 _DEGENERATE = 1e-12
 
 MIN_OFF_PLANE = 8
 """Fewest off-plane matches that may break the two-fold ambiguity (:func:`select_plane_pose`)."""
+
+K1_SIGNIFICANCE = 3.0
+"""A fitted division coefficient is kept only beyond this many standard deviations
+(:func:`refine_planar_pose`); below, ``k1`` and the pose trade off within the noise."""
 
 
 @dataclass(frozen=True)
@@ -437,3 +445,250 @@ def planar_pose(
     return select_plane_pose(
         decompose_homography(Hn), X1, X2, used, off_plane=off_plane, threshold=threshold
     )
+
+
+@dataclass(frozen=True)
+class RefinedPlanarPose:
+    """Pose of a plane refined on its homography (:func:`refine_planar_pose`).
+
+    Attributes
+    ----------
+    R : ndarray, shape (3, 3)
+        Rotation, ``X2 = R X1 + t``.
+    t : ndarray, shape (3,)
+        Unit translation direction.
+    n : ndarray, shape (3,)
+        Unit plane normal in camera 1, ``n^T X1 = d``.
+    distance : float
+        ``d`` in baselines, ``1 / ||T||``.
+    k1 : float
+        Division-model coefficient of both views (:func:`undistort_division`); 0 unless fitted
+        and significant.
+    k1_sigma : float
+        Its standard deviation from the Gauss-Newton covariance (``inf`` when not fitted).
+    residuals : ndarray, shape (N,)
+        Symmetric transfer error of every match (normalized units) under the refined model.
+    cost_start, cost : float
+        Robust cost over the used matches before and after.
+    """
+
+    R: np.ndarray
+    t: np.ndarray
+    n: np.ndarray
+    distance: float
+    k1: float
+    k1_sigma: float
+    residuals: np.ndarray
+    cost_start: float
+    cost: float
+
+
+def undistort_division(x: np.ndarray, k1: float) -> np.ndarray:
+    """One-parameter division model (Fitzgibbon, 2001): ``q = x / (1 + k1 |x|^2)``, (N, 3).
+
+    ``x`` are normalized points ``K^-1 (u, v, 1)`` with the distortion unmodelled; to first
+    order ``k1`` equals OpenCV's radial ``k1`` of the lens. Returns homogeneous rows.
+    """
+    X = _homogeneous(x)
+    scale = 1.0 + k1 * np.sum(X[:, :2] ** 2, axis=1)
+    return np.column_stack([X[:, :2] / scale[:, None], np.ones(len(X))])
+
+
+def _rodrigues(w: np.ndarray) -> np.ndarray:
+    theta = float(np.linalg.norm(w))
+    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    if theta < 1e-12:
+        return np.eye(3) + K
+    return np.eye(3) + np.sin(theta) / theta * K + (1 - np.cos(theta)) / theta**2 * K @ K
+
+
+def _tangent_basis(n: np.ndarray) -> np.ndarray:
+    """Two unit vectors orthogonal to ``n`` and to each other, shape (2, 3)."""
+    axis = np.eye(3)[int(np.argmin(np.abs(n)))]
+    a = np.cross(n, axis)
+    a /= np.linalg.norm(a)
+    return np.array([a, np.cross(n, a)])
+
+
+def _transfer(H: np.ndarray, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
+    """Forward and backward transfer residuals, shape (N, 4): ``H q1 - q2``, ``H^-1 q2 - q1``."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        f = q1 @ H.T
+        b = q2 @ np.linalg.inv(H).T
+        r = np.column_stack([f[:, :2] / f[:, 2:] - q2[:, :2], b[:, :2] / b[:, 2:] - q1[:, :2]])
+    return np.where(np.isfinite(r), r, 1e3)
+
+
+class _PlaneModel:
+    """Residuals of the plane-induced homography at ``(R0, T0, n0)`` moved by ``p``."""
+
+    def __init__(self, R0, T0, n0, x1, x2):
+        self.R0, self.T0, self.n0 = R0, T0, n0
+        self.basis = _tangent_basis(n0)
+        self.x1, self.x2 = x1, x2
+
+    def pose(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        n = self.n0 + p[6:8] @ self.basis
+        return _rodrigues(p[:3]) @ self.R0, self.T0 + p[3:6], n / np.linalg.norm(n)
+
+    def residuals(self, p: np.ndarray) -> np.ndarray:
+        R, T, n = self.pose(p)
+        k1 = p[8] if len(p) > 8 else 0.0
+        q1, q2 = undistort_division(self.x1, k1), undistort_division(self.x2, k1)
+        return _transfer(R + np.outer(T, n), q1, q2)
+
+
+def _weights(r: np.ndarray, scale: float) -> np.ndarray:
+    """``sqrt(rho(|r|)) / |r|`` per match: the weighted squares sum to the Huber cost."""
+    norm = np.maximum(np.linalg.norm(r, axis=1), 1e-300)
+    return np.where(norm <= scale, 1.0, np.sqrt(np.maximum(2 * scale * norm - scale**2, 0)) / norm)
+
+
+def _huber(r: np.ndarray, scale: float) -> float:
+    norm = np.linalg.norm(r, axis=1)
+    return float(np.sum(np.where(norm <= scale, norm**2, 2 * scale * norm - scale**2)))
+
+
+def refine_planar_pose(
+    R: np.ndarray,
+    T: np.ndarray,
+    n: np.ndarray,
+    x1: np.ndarray,
+    x2: np.ndarray,
+    used: np.ndarray | None = None,
+    *,
+    fit_k1: bool = False,
+    scale: float = 1e-3,
+    k1_prior: float = 0.1,
+    max_k1: float = 0.3,
+    iterations: int = 30,
+) -> RefinedPlanarPose:
+    """Refine ``(R, T = t / d, n)`` on the symmetric transfer error of ``Hn = R + T n^T``.
+
+    Minimises ``sum_i rho(||(pi(Hn q1_i) - q2_i, pi(Hn^-1 q2_i) - q1_i)||)`` over the used
+    matches, ``pi`` the perspective division, ``rho`` Huber's loss with bound ``scale``, by
+    Levenberg-Marquardt on 8 parameters: a rotation increment ``R = exp([w]x) R0`` (3),
+    ``T`` (3), ``n`` on the unit sphere (2 tangent coordinates). With ``fit_k1`` the points
+    are first undistorted by the division model (:func:`undistort_division`) with one
+    coefficient shared by both views, a ninth parameter with the Gaussian prior
+    ``k1 ~ N(0, k1_prior^2)`` (in units of ``scale``); a radial distortion is observable from
+    one plane, unlike the focal length (any ``Hn`` scaled to a middle singular value 1
+    decomposes as ``R + T n^T``). Start from the PPO-chosen candidate
+    (:func:`select_plane_pose`): the refinement stays in its basin, so it keeps the
+    interpretation PPO chose.
+
+    Parameters
+    ----------
+    R : ndarray, shape (3, 3)
+    T : ndarray, shape (3,)
+        Translation over plane distance, ``t / d`` (not a unit vector).
+    n : ndarray, shape (3,)
+        Plane normal in camera 1.
+    x1, x2 : ndarray, shape (N, 2) or (N, 3)
+        Normalized points.
+    used : ndarray of bool, shape (N,), optional
+        Matches in the cost (the homography inliers); all by default. At least 8 (10 with
+        ``fit_k1``), else the start is returned.
+    fit_k1 : bool
+        Also fit the division-model coefficient.
+    scale : float
+        Huber bound of a match's residual norm, normalized units (e.g. the RANSAC threshold in
+        pixels over the focal length).
+    k1_prior, max_k1 : float
+        Standard deviation of the prior on ``k1``; bound on ``|k1|`` (beyond it ``k1 = 0``).
+    iterations : int
+        Largest number of Levenberg-Marquardt steps.
+
+    Returns
+    -------
+    RefinedPlanarPose
+        The start is kept when the refined cost is not lower.
+    """
+    X1, X2 = _homogeneous(x1), _homogeneous(x2)
+    used = np.ones(len(X1), bool) if used is None else np.asarray(used, bool).reshape(-1)
+    if used.shape != (len(X1),):
+        raise ValueError(f"used must have shape ({len(X1)},), got {used.shape}")
+    R0, T0 = np.asarray(R, float), np.asarray(T, float).reshape(3)
+    n0 = np.asarray(n, float).reshape(3) / np.linalg.norm(n)
+    model = _PlaneModel(R0, T0, n0, X1[used], X2[used])
+    count = int(np.count_nonzero(used))
+    p = np.zeros(8)
+    cost_start = _huber(model.residuals(p), scale)
+    if count >= 9:
+        p = _levenberg_marquardt(model, p, scale, k1_prior, iterations)
+    k1_sigma = float("inf")
+    if fit_k1 and count >= 10:
+        lens = _levenberg_marquardt(model, np.append(p, 0.0), scale, k1_prior, iterations)
+        k1_sigma = _k1_sigma(model, lens, scale, k1_prior)
+        if abs(lens[8]) <= max_k1 and abs(lens[8]) > K1_SIGNIFICANCE * k1_sigma:
+            p = lens
+    cost = _huber(model.residuals(p), scale)
+    if not cost < cost_start:
+        p, cost = np.zeros(8), cost_start
+    Rr, Tr, nr = model.pose(p)
+    k1 = float(p[8]) if len(p) > 8 else 0.0
+    norm = float(np.linalg.norm(Tr))
+    full = _transfer(Rr + np.outer(Tr, nr), undistort_division(X1, k1), undistort_division(X2, k1))
+    return RefinedPlanarPose(
+        R=Rr,
+        t=Tr / norm if norm > 0 else np.zeros(3),
+        n=nr,
+        distance=1.0 / norm if norm > 0 else float("inf"),
+        k1=k1,
+        k1_sigma=k1_sigma,
+        residuals=np.linalg.norm(full, axis=1),
+        cost_start=cost_start,
+        cost=cost,
+    )
+
+
+def _stacked(model, p, scale, k1_prior):
+    """Huber-weighted residuals of the used matches and the prior on ``k1``, flat."""
+    r = model.residuals(p)
+    extra = [scale / k1_prior * p[8:9]] if len(p) > 8 else []
+    return np.concatenate([(_weights(r, scale)[:, None] * r).ravel(), *extra])
+
+
+def _jacobian(model, p, r0, scale, k1_prior, step=1e-7):
+    columns = [
+        (_stacked(model, p + step * np.eye(len(p))[k], scale, k1_prior) - r0) / step
+        for k in range(len(p))  # 8 or 9 parameters, not N
+    ]
+    return np.column_stack(columns)
+
+
+def _k1_sigma(model, p, scale, k1_prior) -> float:
+    """Standard deviation of ``k1`` from the Gauss-Newton covariance ``2 s^2 (J^T J)^-1``.
+
+    The factor 2: the forward and backward transfer residuals of a match carry the same noise,
+    so ``J^T J`` counts every measurement twice."""
+    r = _stacked(model, p, scale, k1_prior)
+    J = _jacobian(model, p, r, scale, k1_prior)
+    dof = max(len(r) - len(p), 1)
+    try:
+        cov = 2.0 * np.linalg.inv(J.T @ J) * (r @ r) / dof
+    except np.linalg.LinAlgError:
+        return float("inf")
+    return float(np.sqrt(max(cov[8, 8], 0.0)))
+
+
+def _levenberg_marquardt(model, p, scale, k1_prior, iterations):
+    """Levenberg-Marquardt on :func:`_stacked` with forward-difference Jacobians."""
+    damping = 1e-3
+    for _ in range(iterations):
+        r0 = _stacked(model, p, scale, k1_prior)
+        J = _jacobian(model, p, r0, scale, k1_prior)
+        A, g = J.T @ J, J.T @ r0
+        delta = np.zeros_like(p)
+        for _ in range(8):
+            delta = -np.linalg.solve(A + damping * np.diag(np.diag(A) + 1e-12), g)
+            trial = _stacked(model, p + delta, scale, k1_prior)
+            if trial @ trial < r0 @ r0:
+                p, damping = p + delta, max(damping / 10, 1e-9)
+                break
+            damping *= 10
+        else:
+            break
+        if np.linalg.norm(delta) < 1e-10:
+            break
+    return p

@@ -18,7 +18,9 @@ from ppo_cv.plane import (
     homography_from_pose,
     normalize_homography,
     planar_pose,
+    refine_planar_pose,
     select_plane_pose,
+    undistort_division,
 )
 
 FOCAL = 800.0
@@ -329,3 +331,83 @@ def test_robust_fit_rejects_bad_input():
         estimate_homography(np.full((10, 3), np.nan), np.ones((10, 3)), FOCAL)
     with pytest.raises(ValueError, match="> 0"):
         estimate_homography(np.ones((10, 3)), np.ones((10, 3)), 0.0)
+
+
+def _distort(x: np.ndarray, k1: float) -> np.ndarray:
+    """OpenCV's radial model ``x (1 + k1 r^2)`` on normalized homogeneous points."""
+    out = x.copy()
+    out[:, :2] *= (1.0 + k1 * np.sum(x[:, :2] ** 2, axis=1))[:, None]
+    return out
+
+
+def _pose_errors(R, t, R_true, t_true) -> tuple[float, float]:
+    cosine = np.clip((np.trace(R.T @ R_true) - 1) / 2, -1, 1)
+    angle = np.clip(t @ t_true / np.linalg.norm(t) / np.linalg.norm(t_true), -1, 1)
+    return float(np.degrees(np.arccos(cosine))), float(np.degrees(np.arccos(angle)))
+
+
+def _distorted_plane(seed: int, k1: float, noise_px: float = 0.5, count: int = 400):
+    rng = np.random.default_rng(seed)
+    R, t, n, d = random_plane_pose(rng)
+    t = 0.3 * d * t / np.linalg.norm(t)
+    x1, X = plane_points(rng, n, d, count, half_width=0.35)
+    X2 = X @ R.T + t
+    x2 = X2 / X2[:, 2:]
+    keep = (X2[:, 2] > 0) & np.all(np.abs(x2[:, :2]) < 0.35, axis=1)
+    y1, y2 = _distort(x1[keep], k1), _distort(x2[keep], k1)
+    y1[:, :2] += rng.normal(0, noise_px / FOCAL, (len(y1), 2))
+    y2[:, :2] += rng.normal(0, noise_px / FOCAL, (len(y2), 2))
+    return (R, t, n, d), y1, y2
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_refinement_with_k1_recovers_the_pose_under_unmodelled_distortion(seed):
+    k1 = 0.08 if seed % 2 else -0.06
+    (R, t, _, _), y1, y2 = _distorted_plane(seed, k1)
+    fit = estimate_homography(y1, y2, FOCAL, threshold=2.0)
+    pose = planar_pose(fit.H, y1, y2, fit.inliers, threshold=1.0 / FOCAL)
+    start = max(_pose_errors(pose.R, pose.t, R, t))
+    T = pose.candidates.T[pose.candidate]
+    refined = refine_planar_pose(
+        pose.R, T, pose.n, y1, y2, fit.inliers, scale=2.0 / FOCAL, fit_k1=True
+    )
+    error = max(_pose_errors(refined.R, refined.t, R, t))
+    assert error < 0.5 * start and error < 2.0
+    assert refined.k1 == pytest.approx(k1, abs=0.03)
+    assert refined.cost < refined.cost_start
+    assert np.median(refined.residuals[fit.inliers]) < np.median(
+        symmetric_transfer_errors(pose.candidates.H, y1, y2)[fit.inliers]
+    )
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_refinement_without_distortion_keeps_k1_zero_and_does_not_lose_accuracy(seed):
+    (R, t, n, d), y1, y2 = _distorted_plane(seed, 0.0, noise_px=0.5)
+    fit = estimate_homography(y1, y2, FOCAL, threshold=2.0)
+    pose = planar_pose(fit.H, y1, y2, fit.inliers, threshold=1.0 / FOCAL)
+    # start from a perturbed candidate: the refinement must bring it back to the data
+    R0 = euler_to_matrix(np.array([2.0, -2.0, 2.0])) @ pose.R
+    T0 = pose.candidates.T[pose.candidate] * 1.2
+    start = max(_pose_errors(R0, T0, R, t))
+    refined = refine_planar_pose(R0, T0, pose.n, y1, y2, fit.inliers, scale=2.0 / FOCAL,
+                                 fit_k1=True)  # fmt: skip
+    error = max(_pose_errors(refined.R, refined.t, R, t))
+    unrefined = max(_pose_errors(pose.R, pose.t, R, t))
+    assert refined.k1 == 0.0 and np.isfinite(refined.k1_sigma)
+    assert error < 0.5 * start and error < 1.1 * unrefined + 0.05
+    assert refined.n @ n > np.cos(np.radians(2.0))
+    assert refined.distance == pytest.approx(d / np.linalg.norm(t), rel=0.05)
+
+
+def test_division_model_undoes_radial_distortion_to_first_order():
+    rng = np.random.default_rng(3)
+    x = np.column_stack([rng.uniform(-0.3, 0.3, (50, 2)), np.ones(50)])
+    back = undistort_division(_distort(x, 0.05), 0.05)
+    assert np.max(np.abs(back - x)) < 2e-4  # second order: k1^2 r^5
+    assert np.array_equal(undistort_division(x[:, :2], 0.0), x)
+
+
+def test_refinement_rejects_mismatched_used_mask():
+    (R, t, n, d), y1, y2 = _distorted_plane(0, 0.0)
+    with pytest.raises(ValueError, match="used must have shape"):
+        refine_planar_pose(R, t / d, n, y1, y2, np.ones(3, bool))

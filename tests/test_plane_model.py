@@ -158,3 +158,55 @@ def test_decide_motion_with_a_homography(kind, expected):
     plain = decide_motion(x1, x2, R, t, fit.inliers, focal)
     assert plain.model == ("rotation" if expected == "rotation" else "general")
     assert plain.plane is None and np.isnan(plain.gric_plane_difference)
+
+
+def test_dominant_plane_with_structure_off_it_is_general():
+    # a wall with boxes in front: GRIC prefers the homography (it saves ln 4 on each match and
+    # caps the cost of the boxes), but a tenth of the essential matrix's inliers lie off it
+    from ppo_cv.homography import estimate_homography
+    from ppo_cv.motion_model import MAX_OFF_PLANE_SHARE, decide_motion
+    from ppo_cv.ppo import select_pose
+    from ppo_cv.refine import refine_pose
+    from ppo_cv.robust import estimate_essential
+
+    p1, p2, R_true, t_true, focal = _synthetic("plane", n=600, seed=3)
+    v1, v2, _, _, _ = _synthetic("volume", n=60, seed=13)
+    x1, x2 = np.vstack([p1, v1]), np.vstack([p2, v2])
+    fit = estimate_essential(x1, x2, focal, threshold=1.0)
+    chosen = select_pose(fit.E, x1[fit.inliers], x2[fit.inliers])
+    R, t = refine_pose(chosen.R, chosen.t, x1, x2, fit.inliers, focal)
+    homography = estimate_homography(x1, x2, focal, threshold=1.0)
+    motion = decide_motion(x1, x2, R, t, fit.inliers, focal, homography=homography)
+    assert motion.plane_selection.model == "plane"
+    assert motion.plane_off_share > MAX_OFF_PLANE_SHARE
+    assert motion.model == "general"
+    on_plane = decide_motion(
+        p1, p2, *refine_pose(*_pose_of(p1, p2, focal), p1, p2, np.ones(len(p1), bool), focal),
+        np.ones(len(p1), bool), focal, homography=estimate_homography(p1, p2, focal),
+    )  # fmt: skip
+    assert on_plane.model == "plane" and on_plane.plane_off_share < MAX_OFF_PLANE_SHARE
+
+
+def _pose_of(x1, x2, focal):
+    from ppo_cv.ppo import select_pose
+    from ppo_cv.robust import estimate_essential
+
+    fit = estimate_essential(x1, x2, focal, threshold=1.0)
+    chosen = select_pose(fit.E, x1[fit.inliers], x2[fit.inliers])
+    return chosen.R, chosen.t
+
+
+def test_rendered_plane_with_unmodelled_distortion_gets_its_radial_term():
+    # k1 alone (true focal length, the preset's field of view): the refined pose recovers what
+    # the homography absorbed, and the reported plane_k1 is near the lens's
+    from ppo_cv.data_gen import Imperfections
+
+    lens_only = Imperfections(focal_error=0.0, hfov_range=None, jpeg_quality=None,
+                              noise_std=0.0, blur_sigma=0.0)  # fmt: skip
+    pair = make_pair("planar", seed=0, index=3, size=SIZE, imperfections=lens_only)
+    images = [cv2.cvtColor(image, cv2.COLOR_RGB2BGR) for image in (pair.image1, pair.image2)]
+    result = estimate_pair(*images, pair.K1_given, pair.K2_given)
+    assert result.model == "plane"
+    assert result.plane_k1 == pytest.approx(pair.params["k1"], abs=0.03)
+    assert _rotation_error_deg(result.R, pair.R) < 0.3
+    assert _angle_deg(result.t, pair.t) < 1.5
