@@ -53,7 +53,7 @@ FALLBACK_MAX_LOG10_NFA = -5.0
 a margin below the textbook a-contrario bar 0 (one consensus this good expected by chance),
 because a wrong model found on the ranked subset can gather a consensus near that bar (on the
 freiburg pairs the bar -5 kept the mean AUC closer to the full fit's than 0)."""
-FALLBACK_MAX_TRIALS = 20_000
+FALLBACK_MAX_TRIALS = 30_000
 """Cap on the hypotheses of the fallback fit over all matches."""
 
 
@@ -298,6 +298,8 @@ def estimate_essential_ordered(
             return fit
     cap = min(int(max_trials), FALLBACK_MAX_TRIALS)
     full = estimate_essential(x1, x2, focal, max_trials=cap, **settings)
+    if full is not None:
+        full = _consensus_fit(full.E, x1, x2, focal, cap, settings) or full
     if full is not None and (fit is None or full.num_inliers > fit.num_inliers):
         return RobustEstimate(full.E, full.inliers, backend, "fallback")
     return fit
