@@ -54,7 +54,8 @@ a margin below the textbook a-contrario bar 0 (one consensus this good expected 
 because a wrong model found on the ranked subset can gather a consensus near that bar (on the
 freiburg pairs the bar -5 kept the mean AUC closer to the full fit's than 0)."""
 FALLBACK_MAX_TRIALS = 30_000
-"""Cap on the hypotheses of the fallback fit over all matches."""
+"""Cap on the hypotheses of the fallback fit over all matches, unless the ordered result would
+be refused outright (``log10 NFA`` above ``max_log10_nfa``): then the full ``max_trials``."""
 
 
 @dataclass(frozen=True)
@@ -233,6 +234,7 @@ def estimate_essential_ordered(
     min_trials: int = 100,
     max_trials: int = 100_000,
     seed: int = 0,
+    max_log10_nfa: float = 5.0,
 ) -> RobustEstimate | None:
     """Robust essential matrix sampling the best-ranked matches first.
 
@@ -244,8 +246,9 @@ def estimate_essential_ordered(
        The inliers are the matches within ``threshold`` of the result.
     3. When the result's ``log10 NFA`` (:func:`ppo_cv.significance.epipolar_significance`) is
        above ``FALLBACK_MAX_LOG10_NFA``, fit all N matches (at most
-       ``min(max_trials, FALLBACK_MAX_TRIALS)`` hypotheses) and keep whichever has more
-       inliers.
+       ``min(max_trials, FALLBACK_MAX_TRIALS)`` hypotheses, or ``max_trials`` when the result
+       would be refused, ``log10 NFA`` above ``max_log10_nfa``), refit that model on its
+       consensus as in step 2, and keep whichever has more inliers.
 
     Parameters
     ----------
@@ -260,6 +263,9 @@ def estimate_essential_ordered(
         ``(width, height)`` of image 2, for the significance test.
     backend, threshold, confidence, min_trials, max_trials, seed
         As :func:`estimate_essential`; ``max_trials`` also caps each stage.
+    max_log10_nfa : float
+        The significance bar the caller refuses a pose above
+        (:attr:`ppo_cv.pipeline.PairOptions.max_log10_nfa`).
 
     Returns
     -------
@@ -289,14 +295,14 @@ def estimate_essential_ordered(
     best = np.argsort(scores, kind="stable")[:size]
     cap = min(int(max_trials), ORDERED_MAX_TRIALS)
     found = estimate_essential(x1[best], x2[best], focal, max_trials=cap, **settings)
-    fit = None
+    fit, nfa = None, np.inf
     if found is not None:
         fit = _consensus_fit(found.E, x1, x2, focal, cap, settings)
     if fit is not None:
         nfa = epipolar_significance(fit.E, x1, x2, focal, image_size).log10_nfa
         if nfa <= FALLBACK_MAX_LOG10_NFA:
             return fit
-    cap = min(int(max_trials), FALLBACK_MAX_TRIALS)
+    cap = int(max_trials) if not nfa <= max_log10_nfa else min(int(max_trials), FALLBACK_MAX_TRIALS)
     full = estimate_essential(x1, x2, focal, max_trials=cap, **settings)
     if full is not None:
         full = _consensus_fit(full.E, x1, x2, focal, cap, settings) or full
