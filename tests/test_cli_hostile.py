@@ -260,7 +260,7 @@ def test_interrupted_pairs_leave_no_jsonl(tmp_path, signum, workers):
     (tmp_path / "pairs.txt").write_text("".join(f"{names[i % 2]} {names[1 - i % 2]}\n"
                                                 for i in range(60)))  # fmt: skip
     args = ["pairs", "pairs.txt", str(DATA), "--K", K_TEXT, "-o", "out.jsonl",
-            "--workers", workers, "--max-features", "600", "--no-ordered-sampling"]  # fmt: skip
+            "--workers", workers, "--max-features", "600"]  # fmt: skip
     code, err = _interrupt(args, tmp_path, " pairs, ", signum)
     assert code == 130, err
     assert err.strip().splitlines()[-1] == "ppo-cv pairs: interrupted; unfinished output removed"
