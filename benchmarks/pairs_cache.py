@@ -38,7 +38,10 @@ def _command() -> list[str]:
     return [exe] if exe else [sys.executable, "-m", "ppo_cv.cli.main"]
 
 
-OLD_DEFAULTS = ["--no-cache", "--max-features", "8000", "--ratio", "0.9", "--max-trials", "100000"]
+OLD_DEFAULTS = [
+    "--no-cache", "--no-ordered-sampling",
+    "--max-features", "8000", "--ratio", "0.9", "--max-trials", "100000",
+]  # fmt: skip
 
 
 def run_once(old: bool, workers: int, seed: int, scratch: Path) -> dict:

@@ -419,6 +419,16 @@ def register(app: typer.Typer) -> None:
                 rich_help_panel="Pipeline",
             ),
         ] = PairOptions.max_trials,
+        ordered_sampling: Annotated[
+            bool,
+            typer.Option(
+                "--ordered-sampling/--no-ordered-sampling",
+                help="Fit E on the best-ranked matches (ratio test) first, over all matches "
+                "only when that is not significant; --no-ordered-sampling: one fit over all "
+                "matches, up to --max-trials hypotheses.",
+                rich_help_panel="Pipeline",
+            ),
+        ] = PairOptions.ordered_sampling,
     ) -> None:
         """Many pairs, one JSON line each, and the AUC given ground truth."""
         try:
@@ -428,7 +438,10 @@ def register(app: typer.Typer) -> None:
                 max_log10_nfa, plane,
             )  # fmt: skip
             options = dataclasses.replace(
-                options, max_trials=max_trials, min_trials=min(options.min_trials, max_trials)
+                options,
+                max_trials=max_trials,
+                min_trials=min(options.min_trials, max_trials),
+                ordered_sampling=ordered_sampling,
             )
             code = run_pairs(
                 pairs_file, image_dir, K, output, workers, options,

@@ -19,6 +19,7 @@ __all__ = [
     "to_gray",
     "detect_features",
     "match_features",
+    "match_features_scored",
     "unique_pixel_pairs",
 ]
 
@@ -258,13 +259,35 @@ def match_features(
     ndarray of int, shape (M, 2)
         Index pairs ``(i, j)`` into ``features1.keypoints`` and ``features2.keypoints``.
     """
+    return match_features_scored(features1, features2, ratio, mutual, flann, unique)[0]
+
+
+def match_features_scored(
+    features1: Features,
+    features2: Features,
+    ratio: float = 0.8,
+    mutual: bool = True,
+    flann: bool | None = None,
+    unique: bool = True,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`match_features` and the distance ratio of each match, its quality score.
+
+    Returns
+    -------
+    matches : ndarray of int, shape (M, 2)
+        As :func:`match_features` returns them.
+    ratios : ndarray, shape (M,)
+        ``d(i, j) / d(i, j')``, nearest over second-nearest descriptor distance, in [0, 1):
+        the lower, the more distinctive the match and the likelier an inlier (Lowe 2004; the
+        ranking PROSAC samples by, Chum and Matas 2005).
+    """
     if features1.kind != features2.kind:
         raise ValueError(f"cannot match {features1.kind} features with {features2.kind} features")
     if not 0 < ratio <= 1:
         raise ValueError(f"ratio must be in (0, 1], got {ratio}")
     d1, d2 = features1.descriptors, features2.descriptors
     if len(d1) < 2 or len(d2) < 2:
-        return np.zeros((0, 2), dtype=np.int64)
+        return np.zeros((0, 2), dtype=np.int64), np.zeros(0)
     binary = features1.binary
     if flann is None:
         flann = min(len(d1), len(d2)) > _FLANN_MIN_FEATURES
@@ -278,11 +301,11 @@ def match_features(
         keep &= index21[np.maximum(index12[:, 0], 0)] == np.arange(len(d1))
     rows = np.flatnonzero(keep)
     matches = np.stack([rows, index12[rows, 0]], axis=1).astype(np.int64)
+    ratios = dist12[rows, 0] / np.maximum(dist12[rows, 1], 1e-300)
     if unique:
-        matches = unique_pixel_pairs(
-            matches, features1.keypoints, features2.keypoints, dist12[rows, 0]
-        )
-    return matches
+        kept = _unique_rows(matches, features1.keypoints, features2.keypoints, dist12[rows, 0])
+        matches, ratios = matches[kept], ratios[kept]
+    return matches, ratios
 
 
 def unique_pixel_pairs(
@@ -309,11 +332,16 @@ def unique_pixel_pairs(
     ndarray of int, shape (U, 2)
         The kept rows of ``matches``, in their original order.
     """
+    return matches[_unique_rows(matches, keypoints1, keypoints2, distances, resolution)]
+
+
+def _unique_rows(matches, keypoints1, keypoints2, distances, resolution=None) -> np.ndarray:
+    """Sorted indices of the rows :func:`unique_pixel_pairs` keeps."""
     step = PIXEL_PAIR_RESOLUTION if resolution is None else float(resolution)
     if len(matches) < 2:
-        return matches
+        return np.arange(len(matches))
     pixels = np.hstack([keypoints1[matches[:, 0]], keypoints2[matches[:, 1]]])
     keys = np.rint(pixels / step).astype(np.int64)
     by_distance = np.argsort(distances, kind="stable")
     _, first = np.unique(keys[by_distance], axis=0, return_index=True)
-    return matches[np.sort(by_distance[first])]
+    return np.sort(by_distance[first])

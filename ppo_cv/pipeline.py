@@ -37,7 +37,7 @@ import numpy as np
 
 from . import ppo
 from .checks import as_camera_matrix, as_distortion
-from .features import FEATURE_TYPES, Features, detect_features, match_features
+from .features import FEATURE_TYPES, Features, detect_features, match_features_scored
 from .homography import estimate_homography
 from .images import as_image as _as_image
 from .images import load_image
@@ -45,7 +45,13 @@ from .motion_model import decide_motion
 from .plane import refine_planar_pose, undistort_division
 from .pose import _recover_normalized
 from .refine import refine_pose, translation_sigma_deg
-from .robust import ROBUST_BACKENDS, essential_from_pose, estimate_essential, sampson_errors
+from .robust import (
+    ROBUST_BACKENDS,
+    essential_from_pose,
+    estimate_essential,
+    estimate_essential_ordered,
+    sampson_errors,
+)
 from .significance import (
     CONFIDENT_LOG10_NFA,
     DEFAULT_MAX_LOG10_NFA,
@@ -94,6 +100,10 @@ class PairOptions:
         RANSAC confidence.
     min_trials, max_trials : int
         Bounds on the number of RANSAC hypotheses.
+    ordered_sampling : bool
+        Fit ``E`` on the best-ranked matches (ratio test) first and over all of them only when
+        that is not significant (:func:`ppo_cv.robust.estimate_essential_ordered`); False
+        runs one fit over all matches, up to ``max_trials`` hypotheses.
     refine : bool
         Refine ``(R, t)`` over the inliers.
     pri_threshold : float
@@ -121,10 +131,11 @@ class PairOptions:
     ransac_threshold: float = 1.0
     confidence: float = 0.9999
     min_trials: int = 100
-    # Kept at 100_000: on the freiburg pairs a cap of 50_000, 30_000 or 10_000 lowered the mean
-    # AUC@5 over seeds 0-2 (README, batch runs), as did ratio 0.8 or 0.85 and COLMAP's
-    # dyn_num_trials_multiplier 1; the hard pairs (10-20 % inliers) need the full budget.
+    # Kept at 100_000 for the uniform fit: on the freiburg pairs a cap of 50_000, 30_000 or
+    # 10_000 lowered the mean AUC@5 over seeds 0-2, as did ratio 0.8 or 0.85; ordered sampling
+    # (README, batch runs) is what makes the hard pairs (10-20 % inliers) cheap.
     max_trials: int = 100_000
+    ordered_sampling: bool = True
     refine: bool = True
     pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD
     min_inliers: int = 8
@@ -499,7 +510,7 @@ def estimate_pair(
         if len(f) < MIN_MATCHES:
             raise ValueError(f"{name} has too few features ({len(f)}): blank or textureless image")
 
-    matches = match_features(f1, f2, ratio=options.ratio, mutual=options.mutual)
+    matches, scores = match_features_scored(f1, f2, ratio=options.ratio, mutual=options.mutual)
     if len(matches) < MIN_MATCHES:
         raise ValueError(f"too few matches between the images ({len(matches)}, need {MIN_MATCHES})")
     lap("matching")
@@ -517,7 +528,13 @@ def estimate_pair(
         "max_trials": options.max_trials,
         "seed": options.seed,
     }
-    fit = estimate_essential(x1, x2, focal, **ransac)
+    if options.ordered_sampling:
+        size2 = (int(img2.shape[1]), int(img2.shape[0]))
+        fit = estimate_essential_ordered(
+            x1, x2, focal, scores, size2, max_log10_nfa=options.max_log10_nfa, **ransac
+        )
+    else:
+        fit = estimate_essential(x1, x2, focal, **ransac)
     if fit is None or fit.num_inliers < options.min_inliers:
         found = 0 if fit is None else fit.num_inliers
         raise ValueError(
