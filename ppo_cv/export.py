@@ -152,8 +152,9 @@ def _plane_selection(result: PairResult) -> dict:
 
 
 def _plane(result: PairResult) -> dict:
-    """``plane``: normal (camera 1), distance (baselines) and two-fold ambiguity; None unless
-    the model is a plane."""
+    """``plane``: normal (camera 1), distance (baselines), two-fold ambiguity and the radial
+    term ``k1`` of the division model fitted with it (None when not modelled); None unless the
+    model is a plane."""
     if not hasattr(result, "plane_normal"):
         return {}
     if result.plane_normal is None:
@@ -163,6 +164,7 @@ def _plane(result: PairResult) -> dict:
             "normal": np.asarray(result.plane_normal, dtype=np.float64).tolist(),
             "distance": float(result.plane_distance),
             "ambiguous": bool(result.plane_ambiguous),
+            "k1": _finite_or_none(getattr(result, "plane_k1", float("nan"))),
         }
     }
 

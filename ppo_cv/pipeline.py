@@ -55,7 +55,6 @@ from .robust import (
 from .significance import (
     CONFIDENT_LOG10_NFA,
     DEFAULT_MAX_LOG10_NFA,
-    descriptor_ratios,
     distinctiveness,
     epipolar_significance,
 )
@@ -398,15 +397,14 @@ def _require_same_size(image1: np.ndarray, image2: np.ndarray) -> None:
         )
 
 
-def _require_significance(E, x1, x2, K2, shape2, options: PairOptions, f1, f2, matches):
+def _require_significance(E, x1, x2, K2, shape2, options: PairOptions, ratios):
     """The a-contrario test of the fit over all matches, and for a weak consensus the
-    distinctiveness test of its matches (:mod:`ppo_cv.significance`); ValueError when the
-    consensus may be chance."""
+    distinctiveness test of its matches by their Lowe ``ratios`` (:mod:`ppo_cv.significance`);
+    ValueError when the consensus may be chance."""
     significance = epipolar_significance(E, x1, x2, K2, (int(shape2[1]), int(shape2[0])))
     refused = not significance.log10_nfa <= options.max_log10_nfa
     detail = f"log10 NFA {significance.log10_nfa:.1f} > {options.max_log10_nfa:g}"
     if not refused and CONFIDENT_LOG10_NFA < significance.log10_nfa < np.inf:
-        ratios = descriptor_ratios(f1.descriptors, f2.descriptors, matches, f1.binary)
         p_value = distinctiveness(ratios, significance.consistent)
         joint = significance.log10_nfa + np.log10(max(p_value, 1e-300))
         refused = not joint <= CONFIDENT_LOG10_NFA
@@ -542,7 +540,7 @@ def estimate_pair(
             f"(need {options.min_inliers})"
         )
     inliers = fit.inliers
-    significance = _require_significance(fit.E, x1, x2, K2, img2.shape, options, f1, f2, matches)
+    significance = _require_significance(fit.E, x1, x2, K2, img2.shape, options, scores)
     lap("ransac")
 
     chosen = ppo.select_pose(fit.E, x1[inliers], x2[inliers])

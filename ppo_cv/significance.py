@@ -68,9 +68,7 @@ __all__ = [
     "MAX_CONSENSUS_THRESHOLD_PX",
     "Significance",
     "chord_lengths",
-    "descriptor_ratios",
     "distinctiveness",
-    "epipolar_distances",
     "epipolar_lines",
     "log10_binomial",
     "epipolar_significance",
@@ -130,22 +128,6 @@ def log10_binomial(n: np.ndarray | int, k: np.ndarray | int) -> np.ndarray:
     n, k = np.asarray(n, dtype=np.int64), np.asarray(k, dtype=np.int64)
     log_factorial = np.concatenate([[0.0], np.cumsum(np.log10(np.arange(1, int(n.max()) + 1)))])
     return log_factorial[n] - log_factorial[k] - log_factorial[n - k]
-
-
-def epipolar_distances(E: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
-    """Larger of the two point-to-epipolar-line distances, normalized units, shape (N,).
-
-    ``|x2^T E x1| / ||(E x1)_{1,2}||`` in image 2 and ``|x2^T E x1| / ||(E^T x2)_{1,2}||`` in
-    image 1, for homogeneous normalized points ``x1``, ``x2`` of shape (N, 3); multiply by the
-    focal length for pixels. A line of zero direction gives ``inf``.
-    """
-    Ex1 = x1 @ E.T
-    Etx2 = x2 @ E
-    algebraic = np.abs(np.einsum("ij,ij->i", x2, Ex1))
-    shortest = np.minimum(np.hypot(Ex1[:, 0], Ex1[:, 1]), np.hypot(Etx2[:, 0], Etx2[:, 1]))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        distance = algebraic / shortest
-    return np.where(shortest > 0, distance, np.inf)
 
 
 def epipolar_lines(E: np.ndarray, x1: np.ndarray, K2: np.ndarray) -> np.ndarray:
@@ -248,38 +230,6 @@ def epipolar_significance(
         num_matches=n,
         consistent=residuals <= eps[best],
     )
-
-
-def descriptor_ratios(
-    descriptors1: np.ndarray, descriptors2: np.ndarray, matches: np.ndarray, binary: bool = False
-) -> np.ndarray:
-    """Lowe ratio ``d(i, j) / d(i, j')`` of each match, shape (M,).
-
-    ``j'`` is the nearest descriptor of image 2 to ``i`` other than ``j``; distances are
-    Euclidean, or the square root of the Hamming distance for ``binary`` (bit-packed uint8)
-    descriptors, which orders ratios as Hamming distances do.
-
-    Parameters
-    ----------
-    descriptors1 : ndarray, shape (N1, D)
-    descriptors2 : ndarray, shape (N2, D)
-    matches : ndarray of int, shape (M, 2)
-        Index pairs ``(i, j)``.
-    binary : bool
-    """
-
-    def as_float(d: np.ndarray) -> np.ndarray:
-        return np.unpackbits(d, axis=1).astype(np.float32) if binary else d.astype(np.float32)
-
-    a, b = as_float(descriptors1[matches[:, 0]]), as_float(descriptors2)
-    squared = np.einsum("ij,ij->i", a, a)[:, None] + np.einsum("ij,ij->i", b, b) - 2.0 * (a @ b.T)
-    rows = np.arange(len(matches))
-    nearest = np.maximum(squared[rows, matches[:, 1]], 0.0)
-    squared[rows, matches[:, 1]] = np.inf
-    second = np.maximum(squared.min(axis=1), 0.0) if b.shape[0] > 1 else np.full(len(a), np.inf)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.sqrt(nearest / second)
-    return np.where(second > 0, ratio, 1.0)
 
 
 def distinctiveness(ratios: np.ndarray, consistent: np.ndarray) -> float:

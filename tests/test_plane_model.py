@@ -96,6 +96,9 @@ def test_json_and_summary_carry_the_plane():
     assert data["plane"]["normal"] == pytest.approx(result.plane_normal.tolist())
     assert data["plane"]["distance"] == pytest.approx(result.plane_distance)
     assert data["plane"]["ambiguous"] is bool(result.plane_ambiguous)
+    k1 = data["plane"]["k1"]
+    assert (k1 is None) == (not np.isfinite(result.plane_k1))
+    assert k1 is None or k1 == pytest.approx(result.plane_k1)
     assert data["model_selection"]["gric_plane_difference"] < 0
     assert data["model_selection"]["plane_epipolar_ratio"] < 1.5
     assert data["t"] == pytest.approx(result.t.tolist())
