@@ -529,7 +529,7 @@ def estimate_pair(
     if options.ordered_sampling:
         size2 = (int(img2.shape[1]), int(img2.shape[0]))
         fit = estimate_essential_ordered(
-            x1, x2, focal, scores, size2, max_log10_nfa=options.max_log10_nfa, **ransac
+            x1, x2, focal, scores, size2, max_log10_nfa=options.max_log10_nfa, K2=K2, **ransac
         )
     else:
         fit = estimate_essential(x1, x2, focal, **ransac)

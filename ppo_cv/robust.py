@@ -235,6 +235,7 @@ def estimate_essential_ordered(
     max_trials: int = 100_000,
     seed: int = 0,
     max_log10_nfa: float = 5.0,
+    K2: np.ndarray | None = None,
 ) -> RobustEstimate | None:
     """Robust essential matrix sampling the best-ranked matches first.
 
@@ -266,6 +267,9 @@ def estimate_essential_ordered(
     max_log10_nfa : float
         The significance bar the caller refuses a pose above
         (:attr:`ppo_cv.pipeline.PairOptions.max_log10_nfa`).
+    K2 : ndarray, shape (3, 3), optional
+        Intrinsics of camera 2 for the significance test; by default ``focal`` with the
+        principal point at the centre of ``image_size``.
 
     Returns
     -------
@@ -290,6 +294,8 @@ def estimate_essential_ordered(
         "min_trials": min_trials,
         "seed": seed,
     }
+    if K2 is None:
+        K2 = np.array([[focal, 0.0, image_size[0] / 2], [0.0, focal, image_size[1] / 2], [0, 0, 1]])
     n = x1.shape[0]
     size = min(n, max(ORDERED_MIN_MATCHES, int(np.ceil(ORDERED_FRACTION * n))))
     best = np.argsort(scores, kind="stable")[:size]
@@ -299,7 +305,7 @@ def estimate_essential_ordered(
     if found is not None:
         fit = _consensus_fit(found.E, x1, x2, focal, cap, settings)
     if fit is not None:
-        nfa = epipolar_significance(fit.E, x1, x2, focal, image_size).log10_nfa
+        nfa = epipolar_significance(fit.E, x1, x2, K2, image_size).log10_nfa
         if nfa <= FALLBACK_MAX_LOG10_NFA:
             return fit
     cap = int(max_trials) if not nfa <= max_log10_nfa else min(int(max_trials), FALLBACK_MAX_TRIALS)
