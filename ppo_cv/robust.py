@@ -34,6 +34,7 @@ __all__ = [
     "CONSENSUS_FACTOR",
     "FALLBACK_MAX_LOG10_NFA",
     "FALLBACK_MAX_TRIALS",
+    "ORDERED_TRUSTED_LOG10_NFA",
     "essential_from_pose",
     "sampson_errors",
 ]
@@ -55,7 +56,15 @@ because a wrong model found on the ranked subset can gather a consensus near tha
 freiburg pairs the bar -5 kept the mean AUC closer to the full fit's than 0)."""
 FALLBACK_MAX_TRIALS = 30_000
 """Cap on the hypotheses of the fallback fit over all matches, unless the ordered result would
-be refused outright (``log10 NFA`` above ``max_log10_nfa``): then the full ``max_trials``."""
+be weak (``log10 NFA`` above ``ORDERED_TRUSTED_LOG10_NFA`` or ``max_log10_nfa``): then the full
+``max_trials``."""
+ORDERED_TRUSTED_LOG10_NFA = 0.0
+"""Above this ``log10 NFA`` an ordered result is always replaced by the full fit over all matches.
+The significance test of :mod:`ppo_cv.significance` (its bar and the distinctiveness test of a
+weak consensus) is calibrated on uniform sampling, under which chance consensus scored +2.95 and
+above; sampling the distinctive matches first let a chance consensus of two unrelated renders
+score +2.79, and biases the distinctiveness test. At the textbook bar 0 (one consensus this good
+expected by chance) and above, the decision is therefore made on the uniform fit."""
 
 
 @dataclass(frozen=True)
@@ -248,8 +257,10 @@ def estimate_essential_ordered(
     3. When the result's ``log10 NFA`` (:func:`ppo_cv.significance.epipolar_significance`) is
        above ``FALLBACK_MAX_LOG10_NFA``, fit all N matches (at most
        ``min(max_trials, FALLBACK_MAX_TRIALS)`` hypotheses, or ``max_trials`` when the result
-       would be refused, ``log10 NFA`` above ``max_log10_nfa``), refit that model on its
-       consensus as in step 2, and keep whichever has more inliers.
+       would be weak, ``log10 NFA`` above ``max_log10_nfa`` or ``ORDERED_TRUSTED_LOG10_NFA``),
+       refit that model on its consensus as in step 2, and keep whichever has more inliers.
+       A weak result is replaced by the full fit as it is (no refit), the consensus that the
+       significance test was calibrated on (chosen by uniform sampling alone).
 
     Parameters
     ----------
@@ -308,8 +319,11 @@ def estimate_essential_ordered(
         nfa = epipolar_significance(fit.E, x1, x2, K2, image_size).log10_nfa
         if nfa <= FALLBACK_MAX_LOG10_NFA:
             return fit
-    cap = int(max_trials) if not nfa <= max_log10_nfa else min(int(max_trials), FALLBACK_MAX_TRIALS)
+    weak = not nfa <= min(max_log10_nfa, ORDERED_TRUSTED_LOG10_NFA)
+    cap = int(max_trials) if weak else min(int(max_trials), FALLBACK_MAX_TRIALS)
     full = estimate_essential(x1, x2, focal, max_trials=cap, **settings)
+    if weak:
+        return None if full is None else RobustEstimate(full.E, full.inliers, backend, "fallback")
     if full is not None:
         full = _consensus_fit(full.E, x1, x2, focal, cap, settings) or full
     if full is not None and (fit is None or full.num_inliers > fit.num_inliers):
