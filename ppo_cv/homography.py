@@ -32,6 +32,7 @@ __all__ = [
     "estimate_homography",
     "homography_sampson_errors",
     "symmetric_transfer_errors",
+    "transfer_errors",
 ]
 
 HOMOGRAPHY_BACKENDS = ("pycolmap", "opencv")
@@ -99,6 +100,17 @@ def homography_sampson_errors(H: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> 
     return np.sqrt(np.maximum(C * e1**2 - 2.0 * B * e1 * e2 + A * e2**2, 0.0) / det)
 
 
+def transfer_errors(H: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
+    """``d(x2, H x1)``, the transfer error in image 2 of each match (normalized units), shape (N,).
+
+    Points mapped to infinity get an infinite error.
+    """
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mapped = x1 @ H.T
+        errors = np.linalg.norm(mapped[:, :2] / mapped[:, 2:] - x2[:, :2], axis=1)
+    return np.where(np.isfinite(errors), errors, np.inf)
+
+
 def symmetric_transfer_errors(H: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
     """``sqrt(d(x2, H x1)^2 + d(x1, H^-1 x2)^2)`` for each match (normalized units), shape (N,).
 
@@ -150,6 +162,17 @@ def _check_points(x1, x2) -> tuple[np.ndarray, np.ndarray]:
     return x1, x2
 
 
+def _fit_selection(fit_on, n: int):
+    if fit_on is None:
+        return slice(None)
+    fit_on = np.asarray(fit_on)
+    if fit_on.dtype != bool or fit_on.shape != (n,):
+        raise ValueError(f"fit_on must be a boolean mask of shape ({n},), got {fit_on.shape}")
+    if np.count_nonzero(fit_on) < 4:
+        raise ValueError("fit_on must select at least 4 matches")
+    return fit_on
+
+
 def estimate_homography(
     x1: np.ndarray,
     x2: np.ndarray,
@@ -161,6 +184,7 @@ def estimate_homography(
     min_trials: int = 100,
     max_trials: int = 100_000,
     seed: int = 0,
+    fit_on: np.ndarray | None = None,
 ) -> HomographyEstimate | None:
     """Robustly fit a homography ``x2 ~ H x1`` to normalized correspondences.
 
@@ -180,6 +204,11 @@ def estimate_homography(
         Bounds on the number of hypotheses (``min_trials`` is ignored by OpenCV).
     seed : int
         Seed of the sampler, for repeatable results.
+    fit_on : ndarray of bool, shape (N,), optional
+        Sample and fit on these matches only (for example the inliers of an essential matrix,
+        where a plane's matches are a much larger share than among all matches, so the
+        adaptive stop comes after far fewer hypotheses); the inliers are then every match whose
+        transfer error in image 2 is within ``threshold``, and the residuals cover all matches.
 
     Returns
     -------
@@ -193,11 +222,12 @@ def estimate_homography(
     if not focal > 0 or not threshold > 0:
         raise ValueError(f"focal and threshold must be > 0, got {focal} and {threshold}")
     x1, x2 = _check_points(x1, x2)
+    pick = _fit_selection(fit_on, len(x1))
     fit = _pycolmap if backend == "pycolmap" else _opencv
     focal = float(focal)
     found = fit(
-        focal * x1[:, :2],
-        focal * x2[:, :2],
+        focal * x1[pick, :2],
+        focal * x2[pick, :2],
         float(threshold),
         float(confidence),
         min_trials,
@@ -208,7 +238,9 @@ def estimate_homography(
         return None
     scale = np.array([focal, focal, 1.0])
     H = found[0] * scale[None, :] / scale[:, None]  # diag(1/f) H_virtual diag(f)
-    inliers = found[1]
+    inliers = found[1] if fit_on is None else focal * transfer_errors(H, x1, x2) < threshold
+    if not inliers.any():
+        return None
     H = normalize_homography(H, x1[inliers], x2[inliers])
     residuals = focal * homography_sampson_errors(H, x1, x2)
     return HomographyEstimate(H=H, inliers=inliers, residuals=residuals, backend=backend)

@@ -11,7 +11,9 @@ Stages (each timed in ``PairResult.timings``, seconds):
 5. ``ppo``: the pose among the four candidates of ``E`` by the PPO inequalities (same-side M1
    for ``R``, intersection M2 for ``t``), without triangulation.
 6. ``refine``: non-linear refinement of ``(R, t)`` over the inliers (:mod:`ppo_cv.refine`).
-7. ``homography``: robust homography on the same matches (:mod:`ppo_cv.homography`).
+7. ``homography``: robust homography on the same matches (:mod:`ppo_cv.homography`); with
+   ordered sampling it samples the essential matrix's inliers only (a plane's matches are
+   nearly all of them) and takes its inliers among all matches.
 8. ``model``: rotation-only fit on the same matches (2-point RANSAC, then rotation with a focal
    scale and radial distortion, :mod:`ppo_cv.rotation`), the PPO choice among the homography's
    decomposition candidates (:mod:`ppo_cv.plane`) and the choice among "rotation", "plane" and
@@ -101,8 +103,9 @@ class PairOptions:
         Bounds on the number of RANSAC hypotheses.
     ordered_sampling : bool
         Fit ``E`` on the best-ranked matches (ratio test) first and over all of them only when
-        that is not significant (:func:`ppo_cv.robust.estimate_essential_ordered`); False
-        runs one fit over all matches, up to ``max_trials`` hypotheses.
+        that is not significant (:func:`ppo_cv.robust.estimate_essential_ordered`), and sample
+        the homography on the essential matrix's inliers; False runs each fit over all
+        matches, up to ``max_trials`` hypotheses.
     refine : bool
         Refine ``(R, t)`` over the inliers.
     pri_threshold : float
@@ -553,7 +556,9 @@ def estimate_pair(
 
     homography = None
     if options.plane:
-        homography = estimate_homography(x1, x2, focal, **ransac)
+        ranked = options.ordered_sampling and np.count_nonzero(inliers) >= MIN_MATCHES
+        fit_on = inliers if ranked else None
+        homography = estimate_homography(x1, x2, focal, **ransac, fit_on=fit_on)
     lap("homography")
 
     motion = decide_motion(

@@ -317,6 +317,24 @@ def test_robust_fit_finds_the_plane_and_its_pose(backend):
     assert np.degrees(np.arccos(pose.t @ t / np.linalg.norm(t))) < 3.0
 
 
+@pytest.mark.parametrize("backend", ["pycolmap", "opencv"])
+def test_fit_on_a_subset_finds_the_plane_among_all_matches(backend):
+    x1, x2, truth, (R, t, n, d) = planar_matches(22, n_inliers=150, n_outliers=300)
+    fit_on = truth.copy()
+    fit_on[np.flatnonzero(truth)[::2]] = False  # half the plane and 10 outliers to fit on
+    fit_on[np.flatnonzero(~truth)[:10]] = True
+    fit = estimate_homography(x1, x2, FOCAL, backend=backend, threshold=2.0, fit_on=fit_on)
+    assert fit is not None
+    assert np.count_nonzero(fit.inliers & truth) >= 0.95 * truth.sum()
+    assert np.count_nonzero(fit.inliers & ~truth) <= 3
+    assert fit.residuals.shape == (len(x1),)
+    assert np.abs(fit.H - homography_from_pose(R, t, n, d)).max() < 0.02
+    with pytest.raises(ValueError, match="fit_on must be a boolean mask"):
+        estimate_homography(x1, x2, FOCAL, fit_on=np.flatnonzero(truth))
+    with pytest.raises(ValueError, match="at least 4"):
+        estimate_homography(x1, x2, FOCAL, fit_on=np.arange(len(x1)) < 3)
+
+
 def test_robust_fit_rejects_bad_input():
     x = np.column_stack([np.zeros((3, 2)), np.ones(3)])
     with pytest.raises(ValueError, match="at least 4"):
