@@ -21,6 +21,7 @@ MAX_SAMPLES = 20_000_000
 MAX_NOISE = 50.0
 MAX_BLUR = 50.0
 MAX_BASELINE_RATIO = 0.5
+MAX_PIVOT_OFFSET = 1.0
 
 
 def _fail(message: str) -> None:
@@ -30,7 +31,8 @@ def _fail(message: str) -> None:
 def _check(out_dir: Path, pairs: int, seed: int, motion: str | None, scene: str | None,
            width: int | None, height: int | None, alpha: float | None, supersample: int,
            noise: float | None, blur: float | None, workers: int | None,
-           baseline_ratio: float | None, warp: bool, overwrite: bool) -> None:  # fmt: skip
+           baseline_ratio: float | None, warp: bool, overwrite: bool,
+           pivot_offset: float = 0.0) -> None:  # fmt: skip
     if motion is not None and motion not in MOTIONS:
         _fail(f"unknown motion {motion!r}; choose one of {', '.join(MOTIONS)}")
     if scene is not None and scene not in SCENES:
@@ -55,6 +57,10 @@ def _check(out_dir: Path, pairs: int, seed: int, motion: str | None, scene: str 
         _fail(f"--baseline-ratio must be in [0, {MAX_BASELINE_RATIO}], got {baseline_ratio}")
     if baseline_ratio is not None and (motion != "tiny-baseline" or warp):
         _fail("--baseline-ratio applies to --motion tiny-baseline only")
+    if not 0.0 <= pivot_offset <= MAX_PIVOT_OFFSET:
+        _fail(f"--pivot-offset must be in [0, {MAX_PIVOT_OFFSET:g}] m, got {pivot_offset}")
+    if pivot_offset and (motion != "panorama" or warp):
+        _fail("--pivot-offset applies to rendered --motion panorama only")
     if noise is not None and not 0.0 <= noise <= MAX_NOISE:
         _fail(f"--noise must be in [0, {MAX_NOISE:g}], got {noise}")
     if blur is not None and not 0.0 <= blur <= MAX_BLUR:
@@ -132,6 +138,13 @@ def register(app: typer.Typer) -> None:
                 "[0.001, 0.05] if omitted."
             ),
         ] = None,
+        pivot_offset: Annotated[
+            float,
+            typer.Option(
+                help="Metres behind the camera of the point a panorama turns about (a tripod "
+                "screw behind the lens), in [0, 1]."
+            ),
+        ] = 0.0,
         imperfect: Annotated[
             bool,
             typer.Option(
@@ -178,7 +191,7 @@ def register(app: typer.Typer) -> None:
         from ppo_cv.data_gen import make_dataset
 
         _check(out_dir, pairs, seed, motion, scene, width, height, alpha, supersample, noise, blur,
-               workers, baseline_ratio, warp, overwrite)  # fmt: skip
+               workers, baseline_ratio, warp, overwrite, pivot_offset)  # fmt: skip
         if warp_source is not None and not warp:
             _fail("--warp-source needs --warp")
         if warp and different_k:
@@ -204,6 +217,7 @@ def register(app: typer.Typer) -> None:
                         same_intrinsics=not different_k, workers=workers,
                         baseline_ratio=baseline_ratio, imperfections=imperfections,
                         source="warp" if warp else "render", warp_source=warp_source,
+                        pivot_offset=pivot_offset,
                         **photometric,
                     )  # fmt: skip
                 finally:

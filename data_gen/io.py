@@ -32,7 +32,7 @@ import cv2
 import numpy as np
 
 from .imperfect import Imperfections, given_intrinsics, jpeg_roundtrip
-from .motion import DEFAULT_SCENE, MAX_BASELINE_RATIO, MOTIONS, sample_motion
+from .motion import DEFAULT_SCENE, MAX_BASELINE_RATIO, MOTIONS, check_pivot_offset, sample_motion
 from .render import RenderedPair, render_pair
 from .scenes import SCENES, make_scene
 from .textures import texture_pool
@@ -44,10 +44,11 @@ PAIRS_FILE = "pairs_with_gt.txt"
 
 
 def _check_args(motion, scene, seed, index, size, alpha, supersample, noise_std, blur_sigma,
-                baseline_ratio=None, imperfections=None):  # fmt: skip
+                baseline_ratio=None, imperfections=None, pivot_offset=0.0):  # fmt: skip
     """Validate the arguments of :func:`make_pair`; returns the scene name to use."""
     if motion not in MOTIONS:
         raise ValueError(f"unknown motion {motion!r}; choose one of {', '.join(MOTIONS)}")
+    check_pivot_offset(motion, pivot_offset)
     scene = DEFAULT_SCENE[motion] if scene is None else scene
     if scene not in SCENES:
         raise ValueError(f"unknown scene {scene!r}; choose one of {', '.join(SCENES)}")
@@ -95,6 +96,7 @@ def make_pair(
     same_intrinsics: bool = True,
     baseline_ratio: float | None = None,
     imperfections: Imperfections | None = None,
+    pivot_offset: float = 0.0,
 ) -> RenderedPair:
     """Render pair ``index`` of the dataset ``(motion, seed)``.
 
@@ -126,20 +128,23 @@ def make_pair(
         by the drawn factor. ``params`` records ``k1``, ``k2``, ``focal_factor``,
         ``hfov_deg`` and ``jpeg_quality``. Without it the pair is exactly as before this
         option existed.
+    pivot_offset : float, default 0
+        ``panorama`` only: the camera turns about a point this many metres behind its centre
+        (a tripod screw behind the lens), so ``t = P - R P`` is a few centimetres instead of 0.
 
     Returns
     -------
     RenderedPair
     """
     scene = _check_args(motion, scene, seed, index, size, alpha, supersample, noise_std,
-                        blur_sigma, baseline_ratio, imperfections)  # fmt: skip
+                        blur_sigma, baseline_ratio, imperfections, pivot_offset)  # fmt: skip
     rng = np.random.default_rng([seed, index])
     world = make_scene(scene, rng)
     drawn = None if imperfections is None else imperfections.draw(rng)
     dist = None if drawn is None else drawn.dist
     hfov_range = None if imperfections is None else imperfections.hfov_range
     cams = sample_motion(motion, world, rng, size, alpha, same_intrinsics, hfov_range,
-                         baseline_ratio, dist)  # fmt: skip
+                         baseline_ratio, dist, pivot_offset)  # fmt: skip
     params = {"seed": int(seed), "index": int(index), **cams.params}
     if drawn is not None:
         noise_std, blur_sigma = drawn.noise_std, drawn.blur_sigma
@@ -288,6 +293,7 @@ def make_dataset(
     imperfections: Imperfections | None = None,
     source: str = "render",
     warp_source: str | os.PathLike | Sequence | None = None,
+    pivot_offset: float = 0.0,
 ) -> Path:
     """Render ``pairs`` pairs of one motion preset into a new directory ``out_dir``.
 
@@ -316,7 +322,7 @@ def make_dataset(
     warp_source : path or sequence of paths, optional
         Photos to warp (see :func:`source_photos`).
     seed, scene, alpha, supersample, noise_std, blur_sigma, same_intrinsics, baseline_ratio, \
-imperfections
+imperfections, pivot_offset
         See :func:`make_pair`.
 
     Returns
@@ -336,13 +342,15 @@ imperfections
             "motion": motion, "seed": seed, "size": size, "scene": scene, "alpha": alpha,
             "supersample": supersample, "noise_std": noise_std, "blur_sigma": blur_sigma,
             "same_intrinsics": same_intrinsics, "baseline_ratio": baseline_ratio,
-            "imperfections": imperfections,
+            "imperfections": imperfections, "pivot_offset": pivot_offset,
         }  # fmt: skip
         _check_args(motion, scene, seed, 0, size, alpha, supersample, noise_std, blur_sigma,
-                    baseline_ratio, imperfections)  # fmt: skip
+                    baseline_ratio, imperfections, pivot_offset)  # fmt: skip
     elif source == "warp":
         _check_warp_args(motion, scene, alpha, baseline_ratio, noise_std, blur_sigma,
                          same_intrinsics)  # fmt: skip
+        if pivot_offset:
+            raise ValueError("pivot_offset does not apply to warped photos")
         kwargs = {"seed": seed, "imperfections": imperfections, "size": size,
                   "source": source_photos(warp_source)}  # fmt: skip
         make_warped_pair(**kwargs, index=0)

@@ -23,7 +23,11 @@ so ``t = -R C2``. Presets:
     A tripod pan: ``t = 0`` exactly; yaw (about the camera's Y axis)
     ``~ U(0.35, 0.7) * hfov`` with a random sign, pitch and roll ``~ N(0, 1.5^2)`` degrees,
     ``R = Rz(roll) Ry(yaw) Rx(pitch)``. Meant for the ``room`` scene, which surrounds the
-    camera so that textured walls fill both views.
+    camera so that textured walls fill both views. With ``pivot_offset = d`` the camera turns
+    about a point ``d`` metres behind its centre on the optical axis, as on a tripod whose
+    screw is not under the lens's entrance pupil: ``P = (0, 0, -d)`` in camera-1 coordinates,
+    ``x2 = R (x1 - P) + P``, so ``t = P - R P`` (``|t| = 2 d sin(angle / 2)``, a few
+    centimetres for a 20 degree turn on a consumer tripod).
 ``tiny-baseline``
     The ``pure-rotation`` rotation plus a camera-centre displacement in a random, mostly
     lateral direction with ``||C2|| = baseline_ratio * median depth``, where the median depth
@@ -47,7 +51,16 @@ from .names import MOTIONS
 from .protocol import euler_to_matrix
 from .scenes import Scene
 
-__all__ = ["MOTIONS", "DEFAULT_SCENE", "Motion", "intrinsics", "look_at", "sample_motion"]
+__all__ = [
+    "MOTIONS",
+    "DEFAULT_SCENE",
+    "MAX_PIVOT_OFFSET",
+    "Motion",
+    "check_pivot_offset",
+    "intrinsics",
+    "look_at",
+    "sample_motion",
+]
 
 
 DEFAULT_SCENE = {
@@ -67,6 +80,8 @@ PANORAMA_YAW_FRACTION = (0.35, 0.7)
 PANORAMA_TILT_SIGMA_DEG = 1.5
 TINY_BASELINE_RANGE = (1e-3, 0.05)
 MAX_BASELINE_RATIO = 0.5
+MAX_PIVOT_OFFSET = 1.0
+"""Largest ``pivot_offset`` of ``panorama``, metres."""
 
 
 @dataclass(frozen=True)
@@ -147,6 +162,7 @@ def sample_motion(
     hfov_range: tuple[float, float] | None = None,
     baseline_ratio: float | None = None,
     dist: np.ndarray | None = None,
+    pivot_offset: float = 0.0,
 ) -> Motion:
     """Draw the cameras of preset ``name`` for ``scene`` (see the module docstring).
 
@@ -169,6 +185,8 @@ def sample_motion(
         ``baseline / median depth`` of ``tiny-baseline`` in [0, 0.5]; drawn if None.
     dist : array_like, optional
         Lens distortion of camera 1, used to find the surfaces it sees (``tiny-baseline``).
+    pivot_offset : float, default 0
+        Distance (metres, in [0, 1]) of the centre of a ``panorama`` turn behind the camera.
 
     Returns
     -------
@@ -181,6 +199,7 @@ def sample_motion(
     ratio = baseline_ratio
     if ratio is not None and not (np.isfinite(ratio) and 0.0 <= ratio <= MAX_BASELINE_RATIO):
         raise ValueError(f"baseline_ratio must be in [0, {MAX_BASELINE_RATIO}], got {ratio}")
+    check_pivot_offset(name, pivot_offset)
     hfov_range = DEFAULT_HFOV_RANGE if hfov_range is None else hfov_range
     K1, K2, params = _camera_intrinsics(rng, size, same_intrinsics, hfov_range)
     params["motion"] = name
@@ -209,7 +228,7 @@ def sample_motion(
         t = -R @ centre
         params.update(alpha=alpha, t_max=t_max, phi=phi, euler_deg=euler.tolist())
     elif name == "panorama":
-        R, t = _panorama(rng, params["hfov1_deg"], params)
+        R, t = _panorama(rng, params["hfov1_deg"], params, float(pivot_offset))
     elif name == "tiny-baseline":
         R, t = _tiny_baseline(rng, scene, K1, size, dist, baseline_ratio, params)
     else:
@@ -220,14 +239,28 @@ def sample_motion(
     return Motion(K1=K1, K2=K2, R=R, t=np.asarray(t, float), params=params)
 
 
-def _panorama(rng: np.random.Generator, hfov_deg: float, params: dict) -> tuple:
-    """Tripod pan: yaw a fraction of the field of view, small pitch and roll, ``t = 0``."""
+def check_pivot_offset(motion: str, pivot_offset) -> None:
+    """ValueError unless ``pivot_offset`` is a distance in [0, MAX_PIVOT_OFFSET] of ``panorama``."""
+    if isinstance(pivot_offset, bool) or not isinstance(pivot_offset, (int, float, np.number)):
+        raise TypeError(f"pivot_offset must be a number, got {type(pivot_offset).__name__}")
+    if not (np.isfinite(pivot_offset) and 0.0 <= pivot_offset <= MAX_PIVOT_OFFSET):
+        raise ValueError(f"pivot_offset must be in [0, {MAX_PIVOT_OFFSET}] m, got {pivot_offset}")
+    if pivot_offset and motion != "panorama":
+        raise ValueError(f"pivot_offset applies to panorama only, not {motion!r}")
+
+
+def _panorama(rng: np.random.Generator, hfov_deg: float, params: dict, pivot: float = 0.0) -> tuple:
+    """Tripod pan: yaw a fraction of the field of view, small pitch and roll, about a pivot."""
     yaw = rng.uniform(*PANORAMA_YAW_FRACTION) * hfov_deg * (1.0 if rng.random() < 0.5 else -1.0)
     pitch, roll = rng.normal(0.0, PANORAMA_TILT_SIGMA_DEG, 2)
     euler = np.array([pitch, yaw, roll])
+    R = euler_to_matrix(euler)
+    P = np.array([0.0, 0.0, -pivot])
     params.update(yaw_deg=float(yaw), pitch_deg=float(pitch), roll_deg=float(roll),
                   euler_deg=euler.tolist())  # fmt: skip
-    return euler_to_matrix(euler), np.zeros(3)
+    if pivot:
+        params["pivot_offset"] = pivot
+    return R, P - R @ P
 
 
 def _tiny_baseline(rng, scene, K1, size, dist, baseline_ratio, params) -> tuple:

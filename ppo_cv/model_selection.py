@@ -17,8 +17,12 @@ What real photos add, and how it is handled:
 
 - The noise ``sigma`` is estimated from the residuals of the most general model (largest ``d``),
   robustly: ``median(e) / sqrt(median of chi2 with r - d degrees of freedom)``, the median of the
-  chi2 quantile taken by the Wilson-Hilferty approximation. Dividing every residual by it makes
-  the rule scale-free: independent of image size, focal length and feature accuracy.
+  chi2 quantile taken by the Wilson-Hilferty approximation, times ``sqrt(n / (n - k))`` for the
+  ``k`` parameters that model fitted to the same ``n`` residuals (the degrees-of-freedom
+  correction of a least-squares variance: an essential matrix fitted to 20 matches of a pure
+  rotation absorbs a quarter of their noise, and the rotation would then pay for noise the
+  essential matrix only appeared to explain). Dividing every residual by it makes the rule
+  scale-free: independent of image size, focal length and feature accuracy.
 - ``sigma`` has a floor, :data:`MISMATCH_FLOOR` times ``sigma`` itself, for the part of the
   residuals no candidate models (higher-order distortion, rolling shutter, a tripod head that
   does not turn about the optical centre): ``sigma_eff = sigma sqrt(1 + MISMATCH_FLOOR^2)``.
@@ -178,7 +182,8 @@ def select_model(
     candidates : sequence of ModelResiduals
         At least one; all with residuals of the same N matches.
     sigma : float, optional
-        Noise in pixels; by default :func:`robust_sigma` of the candidate of largest dimension.
+        Noise in pixels; by default :func:`robust_sigma` of the candidate of largest dimension,
+        corrected for the ``k`` parameters it fitted: ``sqrt(n / (n - k))``.
     mismatch_floor : float
         Unmodelled residual relative to ``sigma``, added in quadrature (:data:`MISMATCH_FLOOR`).
 
@@ -195,6 +200,8 @@ def select_model(
     if sigma is None:
         general = max(candidates, key=lambda c: (c.dimension, c.num_params))
         sigma = robust_sigma(general.residuals, JOINT_DIMENSION - general.dimension)
+        if n > general.num_params:
+            sigma *= float(np.sqrt(n / (n - general.num_params)))
     if not np.isfinite(sigma) or sigma <= 0:
         sigma = 1e-12
     effective = sigma * float(np.sqrt(1.0 + mismatch_floor**2))

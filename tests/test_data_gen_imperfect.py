@@ -165,6 +165,28 @@ def test_tiny_baseline_records_the_ratio_to_the_median_depth_seen():
     np.testing.assert_array_equal(zero.image2, rotation.image2)
 
 
+def test_panorama_turns_about_a_pivot_behind_the_camera():
+    scene = make_scene("room", 0)
+    still = sample_motion("panorama", scene, np.random.default_rng(4))
+    moved = sample_motion("panorama", scene, np.random.default_rng(4), pivot_offset=0.1)
+    np.testing.assert_array_equal(still.R, moved.R)
+    pivot = np.array([0.0, 0.0, -0.1])
+    np.testing.assert_allclose(moved.R @ pivot + moved.t, pivot, atol=1e-15)  # the pivot stays
+    angle = np.arccos(np.clip((np.trace(moved.R) - 1) / 2, -1, 1))
+    assert np.linalg.norm(moved.t) == pytest.approx(2 * 0.1 * np.sin(angle / 2), rel=0.01)
+    assert moved.params["pivot_offset"] == 0.1 and "pivot_offset" not in still.params
+    assert np.all(still.t == 0)
+    pair = make_pair("panorama", seed=2, size=(64, 48), supersample=1, pivot_offset=0.1)
+    np.testing.assert_allclose(pair.R @ pivot + pair.t, pivot, atol=1e-15)
+    with pytest.raises(ValueError, match="panorama only"):
+        make_pair("pure-rotation", size=(32, 24), pivot_offset=0.05)
+    for bad in (-0.01, 1.5, float("nan")):
+        with pytest.raises(ValueError, match="pivot_offset"):
+            make_pair("panorama", size=(32, 24), pivot_offset=bad)
+    with pytest.raises(TypeError, match="pivot_offset"):
+        make_pair("panorama", size=(32, 24), pivot_offset="8 cm")
+
+
 def test_same_seed_same_bytes_and_other_seeds_differ():
     def digest(seed):
         pair = make_pair("tiny-baseline", seed=seed, size=(64, 48), supersample=1,

@@ -159,6 +159,15 @@ def test_cli_imperfect_and_warp(tmp_path):
     gt = json.loads((out / "gt" / "pair_000.json").read_text())
     assert gt["params"]["baseline_ratio"] == 0.03 and gt["params"]["noise_std"] == 2.0
     assert gt["params"]["blur_sigma"] == 0.5 and gt["K1"] != gt["K1_given"]
+    out = tmp_path / "tripod"
+    result = runner.invoke(app, ["synth", str(out), "-n", "1", "--motion", "panorama",
+                                 "--pivot-offset", "0.08", "--width", "64", "--height", "48",
+                                 "--workers", "1"])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    gt = json.loads((out / "gt" / "pair_000.json").read_text())
+    R, t, pivot = np.array(gt["R"]), np.array(gt["t"]), np.array([0.0, 0.0, -0.08])
+    assert gt["params"]["pivot_offset"] == 0.08
+    np.testing.assert_allclose(R @ pivot + t, pivot, atol=1e-12)
     folder = resources.files("ppo_cv") / "data"
     out = tmp_path / "warp"
     result = runner.invoke(app, ["synth", str(out), "-n", "1", "--warp", "--imperfect",
@@ -179,6 +188,9 @@ def test_cli_imperfect_and_warp(tmp_path):
         (["--pairs", "100000"], "--pairs"),
         (["--baseline-ratio", "0.01"], "tiny-baseline only"),
         (["--motion", "tiny-baseline", "--baseline-ratio", "0.6"], "--baseline-ratio"),
+        (["--pivot-offset", "0.08"], "panorama only"),
+        (["--motion", "panorama", "--pivot-offset", "1.5"], "--pivot-offset"),
+        (["--warp", "--pivot-offset", "0.08"], "panorama only"),
         (["--warp", "--motion", "general"], "panorama"),
         (["--warp", "--width", "300"], "both --width and --height"),
         (["--warp", "--scene", "room"], "--scene"),

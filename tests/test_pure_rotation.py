@@ -131,6 +131,27 @@ def test_select_model_on_synthetic_residuals():
         select_model([])
 
 
+def test_noise_estimate_is_corrected_for_the_parameters_the_general_model_fitted():
+    """Residuals of a 5-parameter least-squares fit to 20 matches understate the noise by
+    sqrt(15 / 20); the estimate GRIC divides by must not."""
+    rng = np.random.default_rng(8)
+    sigma, n, k = 0.5, 20, 5
+    corrected, raw = [], []
+    for _ in range(600):
+        A = rng.normal(size=(n, k))
+        noise = rng.normal(0, sigma, n)
+        fitted = noise - A @ np.linalg.lstsq(A, noise, rcond=None)[0]
+        rotation = np.linalg.norm(rng.normal(0, sigma, (n, 2)), axis=1)
+        pick = select_model(
+            [ModelResiduals("rotation", rotation, 2, 5), ModelResiduals("general", fitted, 3, k)]
+        )
+        corrected.append(pick.sigma_px)
+        raw.append(robust_sigma(fitted, 1))
+    assert np.median(corrected) == pytest.approx(sigma, rel=0.05)
+    assert np.median(raw) < 0.92 * sigma
+    assert np.median(corrected) / np.median(raw) == pytest.approx(np.sqrt(n / (n - k)))
+
+
 def _two_view(rng, baseline: float, n: int = 400, noise_px: float = 0.5, f: float = 800.0):
     X = np.column_stack([rng.uniform(-2, 2, (n, 2)), rng.uniform(4, 12, n)])
     R = _random_rotations(rng, 1, 0.2)[0]
@@ -239,6 +260,20 @@ def test_data_gen_panorama_and_warped_photo_are_flagged():
         result = _data_gen_result(pair)
         assert result.pure_rotation and result.model == "rotation"
         assert _angle_deg(result.R, pair.R) < 0.5
+
+
+@pytest.mark.parametrize("index", [0, 1, 2])
+def test_tripod_pan_about_a_point_behind_the_lens_is_flagged(index):
+    """A real tripod turns the camera about its screw, not the lens's centre: t of a few cm."""
+    from ppo_cv import data_gen
+
+    pair = data_gen.make_pair(
+        "panorama", seed=5, index=index, imperfections=data_gen.REAL_PHOTO, pivot_offset=0.08
+    )
+    assert 0.005 < np.linalg.norm(pair.t) < 0.03
+    result = _data_gen_result(pair)
+    assert result.pure_rotation and result.model == "rotation"
+    assert _angle_deg(result.R, pair.R) < 0.3
 
 
 def test_data_gen_tiny_baseline_of_five_percent_is_not_flagged():
