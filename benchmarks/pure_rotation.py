@@ -7,8 +7,8 @@ focal length given off by up to 3 %, a 25-35 degree field of view, JPEG):
   ``pure-rotation`` and ``panorama`` presets and ``make_warped_pair`` (``t = 0``); tripod pans,
   ``panorama`` turning about a point 8 or 15 cm behind the camera (``pivot_offset``, as a
   tripod screw behind the lens: ``|t|`` of 1-5 cm, labelled like real tripod panoramas, to be
-  flagged); the ``tiny-baseline`` preset at baseline / depth 0.02 and 0.05 and ``general``
-  (translating);
+  flagged), also at 1600x1200, where the same parallax is 2.5 times as many pixels; the
+  ``tiny-baseline`` preset at baseline / depth 0.02 and 0.05 and ``general`` (translating);
 - ``harness ...``: the harsher pairs of ``tests/imperfect.py`` (480x360, rotations of 5-20
   degrees, the freiburg frames warped by ``K R K^-1``, renders at baseline / depth 0.02); and
   the warped frames with the focal given exactly, turns of 15-25 degrees: there the truth is
@@ -195,11 +195,11 @@ def _freiburg_pairs(limit):
 def _sets(counts: dict, have_photos: bool):
     from ppo_cv import data_gen
 
-    def official(motion, n, ratio=None, pivot=0.0):
+    def official(motion, n, ratio=None, pivot=0.0, size=(640, 480)):
         for index in range(n):
             pair = data_gen.make_pair(
                 motion, seed=0, index=index, imperfections=data_gen.REAL_PHOTO,
-                baseline_ratio=ratio, pivot_offset=pivot,
+                baseline_ratio=ratio, pivot_offset=pivot, size=size,
             )  # fmt: skip
             yield f"index {index}", (
                 np.ascontiguousarray(pair.image1[..., ::-1]),
@@ -234,6 +234,8 @@ def _sets(counts: dict, have_photos: bool):
     for pivot in TRIPOD_PIVOTS:
         pairs = official("panorama", n, pivot=pivot)
         yield f"data_gen tripod pan, pivot {100 * pivot:.0f} cm", 1, pairs, True
+    pairs = official("panorama", counts["baseline"], pivot=TRIPOD_PIVOTS[0], size=(1600, 1200))
+    yield f"data_gen tripod pan, pivot {100 * TRIPOD_PIVOTS[0]:.0f} cm, 1600x1200", 1, pairs, True
     yield "data_gen warped photo", 1, official_warped(n), True
     for ratio in (0.02, 0.05):
         yield f"data_gen tiny-baseline {ratio}", 0, official("tiny-baseline", n, ratio), True

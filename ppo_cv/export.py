@@ -136,6 +136,7 @@ def _model_selection(result: PairResult) -> dict:
             "focal_scale": float(result.focal_scale),
             **_plane_selection(result),
         },
+        "radial_k1": _finite_or_none(getattr(result, "radial_k1", float("nan"))),
         **_plane(result),
     }
 
@@ -184,7 +185,9 @@ def result_to_dict(result: PairResult, **extra: Any) -> dict:
     the OpenCV distortion coefficients removed from the points, None for none. ``model`` is
     ``"rotation"``, ``"plane"`` or ``"general"``; ``plane`` holds the plane's unit ``normal`` in
     camera 1, its ``distance`` in baselines and whether the homography's two-fold ambiguity had
-    to be broken (``ambiguous``) for a plane, and is None otherwise.
+    to be broken (``ambiguous``) for a plane, and is None otherwise; ``radial_k1`` is the
+    division-model coefficient fitted with a general pose (0 when not kept, None for the other
+    models).
     """
     angle, axis = rotation_angle_axis(result.R)
     t = np.asarray(result.t, dtype=np.float64).tolist()

@@ -22,9 +22,10 @@ Stages (each timed in ``PairResult.timings``, seconds):
    plane the PPO pose of the homography refined on the homography itself with a radial term
    (:func:`ppo_cv.plane.refine_planar_pose`; not on ``E``: plane matches leave the essential
    matrix nearly degenerate), and the analytic points (Prop. 3) of its inliers;
-   otherwise the PPO pose of ``E`` and its analytic points. The uncertainty of the direction
-   of ``t`` comes from the Sampson cost of ``E = [t]x R`` at the reported pose in both moving
-   cases.
+   otherwise the PPO pose of ``E`` refined with a radial distortion term when one is
+   significant (:func:`ppo_cv.refine.refine_pose_radial`) and its analytic points. The
+   uncertainty of the direction of ``t`` comes from the Sampson cost of ``E = [t]x R`` at the
+   reported pose in both moving cases.
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ from .images import load_image
 from .motion_model import decide_motion
 from .plane import refine_planar_pose, undistort_division
 from .pose import _recover_normalized
-from .refine import refine_pose, translation_sigma_deg
+from .refine import refine_pose, refine_pose_radial, translation_sigma_deg
 from .robust import (
     ROBUST_BACKENDS,
     essential_from_pose,
@@ -258,6 +259,10 @@ class PairResult:
     plane_k1 : float
         For a plane: the radial (division-model) coefficient fitted with its homography
         (:func:`ppo_cv.plane.refine_planar_pose`; 0 when not significant), NaN otherwise.
+    radial_k1 : float
+        For a general motion: the radial (division-model) coefficient fitted with the pose
+        (:func:`ppo_cv.refine.refine_pose_radial`; 0 when not kept); ``R``, ``t`` and the
+        points are those of the points it undistorts. NaN otherwise.
     noise_sigma_px : float
         Noise estimated from the essential matrix's residuals (pixels).
     focal_scale : float
@@ -305,6 +310,7 @@ class PairResult:
     plane_distance: float = float("nan")
     plane_ambiguous: bool = False
     plane_k1: float = float("nan")
+    radial_k1: float = float("nan")
 
     @property
     def translation_determined(self) -> bool:
@@ -572,6 +578,7 @@ def estimate_pair(
 
     plane = motion.plane if motion.model == "plane" else None
     plane_k1, plane_normal, plane_distance = float("nan"), None, float("nan")
+    radial_k1 = float("nan")
     if motion.pure_rotation:
         R, t, pri = motion.R, motion.t, motion.pri
         inliers = motion.rotation_inliers
@@ -592,11 +599,18 @@ def estimate_pair(
         points3d = np.where(keep[:, None], points3d, np.nan)
         t_sigma = translation_sigma_deg(R, t, c1, c2, inliers)
     else:
-        final = _recover_normalized(essential_from_pose(R, t), x1[:, :2], x2[:, :2], inliers, 0.0)
+        radial_k1 = 0.0
+        if options.refine:
+            radial = refine_pose_radial(
+                R, t, x1, x2, inliers, scale=options.ransac_threshold / focal
+            )
+            R, t, radial_k1 = radial.R, radial.t, radial.k1
+        c1, c2 = undistort_division(x1, radial_k1), undistort_division(x2, radial_k1)
+        final = _recover_normalized(essential_from_pose(R, t), c1[:, :2], c2[:, :2], inliers, 0.0)
         R, t, pri = final.R, final.t, final.pri
         keep = final.inliers & np.all(np.isfinite(final.points3d), axis=1)
         points3d = np.where(keep[:, None], final.points3d, np.nan)
-        t_sigma = translation_sigma_deg(R, t, x1, x2, inliers)
+        t_sigma = translation_sigma_deg(R, t, c1, c2, inliers)
     point_matches = np.flatnonzero(keep)
     lap("decision")
 
@@ -639,4 +653,5 @@ def estimate_pair(
         plane_distance=plane_distance,
         plane_ambiguous=bool(plane is not None and plane.ambiguous),
         plane_k1=plane_k1,
+        radial_k1=radial_k1,
     )

@@ -1,0 +1,86 @@
+"""The general pose refined with a radial term: recovered when present, absent when not."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ppo_cv import estimate_pair
+from ppo_cv.export import result_to_dict
+from ppo_cv.plane import undistort_division
+from ppo_cv.refine import K1_MIN, refine_pose, refine_pose_radial
+
+FOCAL = 1000.0
+
+
+def _angle_deg(R: np.ndarray, R_true: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip((np.trace(R.T @ R_true) - 1) / 2, -1, 1))))
+
+
+def _direction_deg(t: np.ndarray, t_true: np.ndarray) -> float:
+    cos = abs(t @ t_true) / (np.linalg.norm(t) * np.linalg.norm(t_true))
+    return float(np.degrees(np.arccos(min(cos, 1.0))))
+
+
+def _distort_division(q: np.ndarray, k1: float) -> np.ndarray:
+    """The observed points ``x`` whose division-model undistortion is ``q``."""
+    rq = np.linalg.norm(q[:, :2], axis=1)
+    rx = (1.0 - np.sqrt(1.0 - 4.0 * k1 * rq**2)) / (2.0 * k1 * rq) if k1 else rq
+    return np.column_stack([q[:, :2] * (rx / rq)[:, None], np.ones(len(q))])
+
+
+def _matches(k1: float, seed: int = 3, n: int = 400, noise_px: float = 0.3):
+    rng = np.random.default_rng(seed)
+    X = np.column_stack([rng.uniform(-2.5, 2.5, (n, 2)), rng.uniform(5.0, 12.0, n)])
+    angle, axis = np.radians(6.0), np.array([0.2, 1.0, 0.1])
+    axis /= np.linalg.norm(axis)
+    Kx = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    R = np.eye(3) + np.sin(angle) * Kx + (1 - np.cos(angle)) * Kx @ Kx
+    t = np.array([-1.0, 0.1, 0.2])
+    q1, Y = X / X[:, 2:], X @ R.T + t
+    q2 = Y / Y[:, 2:]
+    x1, x2 = _distort_division(q1, k1), _distort_division(q2, k1)
+    for x in (x1, x2):
+        x[:, :2] += rng.normal(0.0, noise_px / FOCAL, (n, 2))
+    return x1, x2, R, t / np.linalg.norm(t)
+
+
+def test_distortion_nobody_gave_is_recovered_and_the_pose_improves():
+    x1, x2, R, t = _matches(k1=0.08)
+    inliers = np.ones(len(x1), bool)
+    R0, t0 = refine_pose(R, t, x1, x2, inliers, FOCAL)
+    fitted = refine_pose_radial(R0, t0, x1, x2, inliers, scale=1.0 / FOCAL)
+    assert fitted.k1 == pytest.approx(0.08, abs=0.01)
+    assert abs(fitted.k1) > 3 * fitted.k1_sigma
+    assert _angle_deg(fitted.R, R) < 0.5 * _angle_deg(R0, R)
+    assert _direction_deg(fitted.t, t) < 0.5 * _direction_deg(t0, t)
+    np.testing.assert_allclose(
+        undistort_division(_distort_division(x1, 0.08), 0.08)[:, :2], x1[:, :2], atol=1e-12
+    )
+
+
+def test_no_distortion_keeps_the_start():
+    x1, x2, R, t = _matches(k1=0.0)
+    inliers = np.ones(len(x1), bool)
+    R0, t0 = refine_pose(R, t, x1, x2, inliers, FOCAL)
+    fitted = refine_pose_radial(R0, t0, x1, x2, inliers, scale=1.0 / FOCAL)
+    assert fitted.k1 == 0.0
+    np.testing.assert_array_equal(fitted.R, R0)
+    np.testing.assert_allclose(fitted.t, t0 / np.linalg.norm(t0))
+    few = np.arange(len(x1)) < 11
+    assert refine_pose_radial(R0, t0, x1, x2, few, scale=1e-3).k1_sigma == np.inf
+
+
+def test_imperfect_render_reports_its_radial_term_and_a_better_pose():
+    from ppo_cv import data_gen
+
+    pair = data_gen.make_pair("general", seed=0, index=0, imperfections=data_gen.REAL_PHOTO)
+    assert pair.params["k1"] < -K1_MIN
+    image1 = np.ascontiguousarray(pair.image1[..., ::-1])
+    image2 = np.ascontiguousarray(pair.image2[..., ::-1])
+    result = estimate_pair(image1, image2, pair.K1_given, pair.K2_given)
+    assert result.model == "general"
+    assert result.radial_k1 == pytest.approx(pair.params["k1"], abs=0.03)
+    assert _angle_deg(result.R, pair.R) < 0.1
+    assert _direction_deg(result.t, pair.t) < 0.5
+    assert result_to_dict(result)["radial_k1"] == result.radial_k1
