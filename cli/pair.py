@@ -163,6 +163,14 @@ def _plane_lines(result) -> list[str]:
     return lines
 
 
+def _radial_lines(result) -> list[str]:
+    """The radial term fitted with the pose, when one was kept."""
+    k1 = result.radial_k1 if result.model == "general" else result.plane_k1
+    if not k1 or k1 != k1:
+        return []
+    return [f"  radial k1    {k1:+.4f} (division model on normalized points, fitted with the pose)"]
+
+
 def _summary(result, name1: str, name2: str, note: str | None, reference=None) -> str:
     import numpy as np
 
@@ -201,6 +209,7 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
         f"{result.rotation_residual_px:.2f} px, general {result.general_residual_px:.2f} px, "
         f"GRIC difference {result.gric_difference:+.3f} per match",
         *_plane_lines(result),
+        *_radial_lines(result),
         f"  t sigma      {result.t_sigma_deg:.2f} deg (direction of t, one standard deviation)",
         f"  log10 NFA    {result.log10_nfa:.1f} (consensus against chance; lower is stronger)",
         f"  matches      {result.num_matches} putative, {result.num_inliers} inliers, "

@@ -84,3 +84,6 @@ def test_imperfect_render_reports_its_radial_term_and_a_better_pose():
     assert _angle_deg(result.R, pair.R) < 0.1
     assert _direction_deg(result.t, pair.t) < 0.5
     assert result_to_dict(result)["radial_k1"] == result.radial_k1
+    from ppo_cv.cli.pair import _summary
+
+    assert f"radial k1    {result.radial_k1:+.4f}" in _summary(result, "a.png", "b.png", None)
