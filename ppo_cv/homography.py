@@ -116,13 +116,7 @@ def symmetric_transfer_errors(H: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> 
 
     Points mapped to infinity get an infinite error.
     """
-    with np.errstate(divide="ignore", invalid="ignore"):
-        forward = x1 @ H.T
-        backward = x2 @ np.linalg.inv(H).T
-        d2 = np.sum((forward[:, :2] / forward[:, 2:] - x2[:, :2]) ** 2, axis=1)
-        d1 = np.sum((backward[:, :2] / backward[:, 2:] - x1[:, :2]) ** 2, axis=1)
-        errors = np.sqrt(d1 + d2)
-    return np.where(np.isfinite(errors), errors, np.inf)
+    return np.hypot(transfer_errors(H, x1, x2), transfer_errors(np.linalg.inv(H), x2, x1))
 
 
 def _pycolmap(p1, p2, threshold, confidence, min_trials, max_trials, seed):

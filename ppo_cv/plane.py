@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import ppo
+from .lsq import forward_jacobian, huber_weights, levenberg_marquardt, tangent_basis
 
 __all__ = [
     "K1_SIGNIFICANCE",
@@ -502,14 +503,6 @@ def _rodrigues(w: np.ndarray) -> np.ndarray:
     return np.eye(3) + np.sin(theta) / theta * K + (1 - np.cos(theta)) / theta**2 * K @ K
 
 
-def _tangent_basis(n: np.ndarray) -> np.ndarray:
-    """Two unit vectors orthogonal to ``n`` and to each other, shape (2, 3)."""
-    axis = np.eye(3)[int(np.argmin(np.abs(n)))]
-    a = np.cross(n, axis)
-    a /= np.linalg.norm(a)
-    return np.array([a, np.cross(n, a)])
-
-
 def _transfer(H: np.ndarray, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
     """Forward and backward transfer residuals, shape (N, 4): ``H q1 - q2``, ``H^-1 q2 - q1``."""
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -524,7 +517,7 @@ class _PlaneModel:
 
     def __init__(self, R0, T0, n0, x1, x2):
         self.R0, self.T0, self.n0 = R0, T0, n0
-        self.basis = _tangent_basis(n0)
+        self.basis = tangent_basis(n0)
         self.x1, self.x2 = x1, x2
 
     def pose(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -536,12 +529,6 @@ class _PlaneModel:
         k1 = p[8] if len(p) > 8 else 0.0
         q1, q2 = undistort_division(self.x1, k1), undistort_division(self.x2, k1)
         return _transfer(R + np.outer(T, n), q1, q2)
-
-
-def _weights(r: np.ndarray, scale: float) -> np.ndarray:
-    """``sqrt(rho(|r|)) / |r|`` per match: the weighted squares sum to the Huber cost."""
-    norm = np.maximum(np.linalg.norm(r, axis=1), 1e-300)
-    return np.where(norm <= scale, 1.0, np.sqrt(np.maximum(2 * scale * norm - scale**2, 0)) / norm)
 
 
 def _huber(r: np.ndarray, scale: float) -> float:
@@ -646,15 +633,8 @@ def _stacked(model, p, scale, k1_prior):
     """Huber-weighted residuals of the used matches and the prior on ``k1``, flat."""
     r = model.residuals(p)
     extra = [scale / k1_prior * p[8:9]] if len(p) > 8 else []
-    return np.concatenate([(_weights(r, scale)[:, None] * r).ravel(), *extra])
-
-
-def _jacobian(model, p, r0, scale, k1_prior, step=1e-7):
-    columns = [
-        (_stacked(model, p + step * np.eye(len(p))[k], scale, k1_prior) - r0) / step
-        for k in range(len(p))  # 8 or 9 parameters, not N
-    ]
-    return np.column_stack(columns)
+    weights = huber_weights(np.linalg.norm(r, axis=1), scale)
+    return np.concatenate([(weights[:, None] * r).ravel(), *extra])
 
 
 def _k1_sigma(model, p, scale, k1_prior) -> float:
@@ -663,7 +643,7 @@ def _k1_sigma(model, p, scale, k1_prior) -> float:
     The factor 2: the forward and backward transfer residuals of a match carry the same noise,
     so ``J^T J`` counts every measurement twice."""
     r = _stacked(model, p, scale, k1_prior)
-    J = _jacobian(model, p, r, scale, k1_prior)
+    J = forward_jacobian(lambda q: _stacked(model, q, scale, k1_prior), p, r)
     dof = max(len(r) - len(p), 1)
     try:
         cov = 2.0 * np.linalg.inv(J.T @ J) * (r @ r) / dof
@@ -673,22 +653,5 @@ def _k1_sigma(model, p, scale, k1_prior) -> float:
 
 
 def _levenberg_marquardt(model, p, scale, k1_prior, iterations):
-    """Levenberg-Marquardt on :func:`_stacked` with forward-difference Jacobians."""
-    damping = 1e-3
-    for _ in range(iterations):
-        r0 = _stacked(model, p, scale, k1_prior)
-        J = _jacobian(model, p, r0, scale, k1_prior)
-        A, g = J.T @ J, J.T @ r0
-        delta = np.zeros_like(p)
-        for _ in range(8):
-            delta = -np.linalg.solve(A + damping * np.diag(np.diag(A) + 1e-12), g)
-            trial = _stacked(model, p + delta, scale, k1_prior)
-            if trial @ trial < r0 @ r0:
-                p, damping = p + delta, max(damping / 10, 1e-9)
-                break
-            damping *= 10
-        else:
-            break
-        if np.linalg.norm(delta) < 1e-10:
-            break
-    return p
+    """:func:`ppo_cv.lsq.levenberg_marquardt` on :func:`_stacked`."""
+    return levenberg_marquardt(lambda q: _stacked(model, q, scale, k1_prior), p, iterations)[0]

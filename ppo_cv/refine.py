@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .lsq import huber_weights, levenberg_marquardt, tangent_basis
 from .plane import K1_SIGNIFICANCE, undistort_division
 from .ppo import rotation_from_rays
 from .robust import virtual_camera
@@ -164,9 +165,7 @@ def refine_pose_radial(
     a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
     if len(a) < 12:
         return start
-    u1 = np.cross(t0, np.eye(3)[int(np.argmin(np.abs(t0)))])
-    u1 /= np.linalg.norm(u1)
-    U = np.vstack([u1, np.cross(t0, u1)])
+    U = tangent_basis(t0)
 
     def pose(p):
         tp = t0 + p[3:5] @ U
@@ -175,13 +174,10 @@ def refine_pose_radial(
     def stacked(p):
         Rp, tp = pose(p)
         r = _sampson_signed(Rp, tp, undistort_division(a, p[5]), undistort_division(b, p[5]))
-        size = np.maximum(np.abs(r), 1e-300)
-        beyond = np.sqrt(np.maximum(2 * scale * size - scale**2, 0)) / size
-        huber = np.where(size <= scale, 1.0, beyond)
-        return np.append(huber * r, scale * p[5] / k1_prior)
+        return np.append(huber_weights(np.abs(r), scale) * r, scale * p[5] / k1_prior)
 
     r_start = stacked(np.zeros(6))
-    p, J = _levenberg_marquardt(stacked, np.zeros(6), iterations)
+    p, J = levenberg_marquardt(stacked, np.zeros(6), iterations)
     r = stacked(p)
     try:
         cov = np.linalg.inv(J.T @ J) * float(r @ r) / max(len(r) - 6, 1)
@@ -193,33 +189,6 @@ def refine_pose_radial(
         return RadialPose(R0, t0, 0.0, k1_sigma)
     Rp, tp = pose(p)
     return RadialPose(Rp, tp, k1, k1_sigma)
-
-
-def _levenberg_marquardt(f, p, iterations: int, step: float = 1e-7):
-    """Minimise ``f(p) @ f(p)`` (few parameters, many residuals) by Levenberg-Marquardt with
-    forward-difference Jacobians; returns the minimiser and the Jacobian there."""
-    damping = 1e-3
-
-    def jacobian(p, r0):
-        return np.column_stack([(f(p + step * e) - r0) / step for e in np.eye(len(p))])
-
-    r0 = f(p)
-    J = jacobian(p, r0)
-    for _ in range(iterations):
-        A, g = J.T @ J, J.T @ r0
-        for _ in range(8):
-            delta = -np.linalg.solve(A + damping * np.diag(np.diag(A) + 1e-12), g)
-            trial = f(p + delta)
-            if trial @ trial < r0 @ r0:
-                p, r0, damping = p + delta, trial, max(damping / 10, 1e-9)
-                break
-            damping *= 10
-        else:
-            break
-        J = jacobian(p, r0)
-        if np.linalg.norm(delta) < 1e-10:
-            break
-    return p, J
 
 
 def _bearings(x: np.ndarray) -> np.ndarray:
@@ -368,9 +337,7 @@ def translation_sigma_deg(
     if len(a) < 6:
         return T_SIGMA_CAP_DEG
     t = np.asarray(t, float).reshape(3) / np.linalg.norm(t)
-    u1 = np.cross(t, np.eye(3)[int(np.argmin(np.abs(t)))])
-    u1 /= np.linalg.norm(u1)
-    u2 = np.cross(t, u1)
+    u1, u2 = tangent_basis(t)
 
     def cost(p: np.ndarray) -> float:
         tp = t + p[3] * u1 + p[4] * u2

@@ -1,0 +1,67 @@
+"""Small dense least-squares tools shared by the pose refinements.
+
+The refinements of :mod:`ppo_cv.plane` (a pose on its homography) and :mod:`ppo_cv.refine` (a
+pose on its essential matrix with a radial term) have a handful of parameters and many
+residuals: Levenberg-Marquardt with forward-difference Jacobians, Huber weights and a basis of
+the tangent plane of the unit sphere (for a unit translation or normal) are all they need.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+__all__ = ["forward_jacobian", "huber_weights", "levenberg_marquardt", "tangent_basis"]
+
+
+def tangent_basis(n: np.ndarray) -> np.ndarray:
+    """Two unit vectors orthogonal to the unit vector ``n`` and to each other, shape (2, 3)."""
+    axis = np.eye(3)[int(np.argmin(np.abs(n)))]
+    a = np.cross(n, axis)
+    a /= np.linalg.norm(a)
+    return np.array([a, np.cross(n, a)])
+
+
+def huber_weights(size: np.ndarray, scale: float) -> np.ndarray:
+    """``sqrt(rho(s)) / s`` for residual sizes ``s`` (N,): the weighted squares sum to Huber's
+    cost ``rho(s) = s^2`` up to ``scale`` and ``2 scale s - scale^2`` beyond."""
+    size = np.maximum(size, 1e-300)
+    beyond = np.sqrt(np.maximum(2 * scale * size - scale**2, 0)) / size
+    return np.where(size <= scale, 1.0, beyond)
+
+
+def forward_jacobian(
+    f: Callable[[np.ndarray], np.ndarray], p: np.ndarray, r0: np.ndarray, step: float = 1e-7
+) -> np.ndarray:
+    """Jacobian (M, P) of ``f`` at ``p`` by forward differences, ``r0 = f(p)``."""
+    return np.column_stack([(f(p + step * e) - r0) / step for e in np.eye(len(p))])
+
+
+def levenberg_marquardt(
+    f: Callable[[np.ndarray], np.ndarray], p: np.ndarray, iterations: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Minimise ``f(p) @ f(p)`` by Levenberg-Marquardt with forward-difference Jacobians.
+
+    Returns the minimiser and the Jacobian there. A step is taken only when it lowers the cost
+    (up to 8 increases of the damping per iteration); the loop stops when none does, when the
+    step is below 1e-10 or after ``iterations`` steps.
+    """
+    damping = 1e-3
+    r0 = f(p)
+    J = forward_jacobian(f, p, r0)
+    for _ in range(iterations):
+        A, g = J.T @ J, J.T @ r0
+        for _ in range(8):
+            delta = -np.linalg.solve(A + damping * np.diag(np.diag(A) + 1e-12), g)
+            trial = f(p + delta)
+            if trial @ trial < r0 @ r0:
+                p, r0, damping = p + delta, trial, max(damping / 10, 1e-9)
+                break
+            damping *= 10
+        else:
+            break
+        J = forward_jacobian(f, p, r0)
+        if np.linalg.norm(delta) < 1e-10:
+            break
+    return p, J

@@ -1,0 +1,35 @@
+"""The shared least-squares tools: tangent basis, Huber weights, Levenberg-Marquardt."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ppo_cv.lsq import forward_jacobian, huber_weights, levenberg_marquardt, tangent_basis
+
+
+def test_tangent_basis_is_orthonormal_and_orthogonal_to_n():
+    rng = np.random.default_rng(0)
+    for n in [np.eye(3)[2], *rng.normal(size=(20, 3))]:
+        n = n / np.linalg.norm(n)
+        basis = np.vstack([n, tangent_basis(n)])
+        np.testing.assert_allclose(basis @ basis.T, np.eye(3), atol=1e-12)
+
+
+def test_huber_weights_give_the_huber_cost():
+    size, scale = np.array([0.0, 0.5, 1.0, 3.0, 10.0]), 1.0
+    huber = np.where(size <= scale, size**2, 2 * scale * size - scale**2)
+    np.testing.assert_allclose((huber_weights(size, scale) * size) ** 2, huber, atol=1e-12)
+
+
+def test_levenberg_marquardt_solves_a_nonlinear_fit():
+    x = np.linspace(0.0, 2.0, 30)
+    y = 2.0 * np.exp(-1.5 * x)
+
+    def residuals(p):
+        return p[0] * np.exp(-p[1] * x) - y
+
+    p, J = levenberg_marquardt(residuals, np.array([1.0, 0.5]), 50)
+    np.testing.assert_allclose(p, [2.0, 1.5], atol=1e-6)
+    np.testing.assert_allclose(J, forward_jacobian(residuals, p, residuals(p)), atol=1e-12)
+    assert J[:, 0] == pytest.approx(np.exp(-1.5 * x), abs=1e-5)
