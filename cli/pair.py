@@ -171,6 +171,14 @@ def _radial_lines(result) -> list[str]:
     return [f"  radial k1    {k1:+.4f} (division model on normalized points, fitted with the pose)"]
 
 
+def _rotation_sigma_lines(result) -> list[str]:
+    """How well the matches determine the rotation of a pure rotation."""
+    sigma = getattr(result, "rotation_sigma_deg", float("nan"))
+    if not result.pure_rotation or not sigma == sigma:
+        return []
+    return [f"  R sigma      {sigma:.3f} deg (rotation angle error, root mean square)"]
+
+
 def _summary(result, name1: str, name2: str, note: str | None, reference=None) -> str:
     import numpy as np
 
@@ -211,6 +219,7 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
         *_plane_lines(result),
         *_radial_lines(result),
         f"  t sigma      {result.t_sigma_deg:.2f} deg (direction of t, one standard deviation)",
+        *_rotation_sigma_lines(result),
         f"  log10 NFA    {result.log10_nfa:.1f} (consensus against chance; lower is stronger)",
         f"  matches      {result.num_matches} putative, {result.num_inliers} inliers, "
         f"{result.num_points} 3D points",

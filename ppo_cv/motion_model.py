@@ -181,6 +181,10 @@ class MotionDecision:
         cap, :data:`ppo_cv.refine.T_SIGMA_CAP_DEG`.
     focal_scale, k1 : float
         Lens terms of the rotation-only fit.
+    rotation_sigma_deg : float
+        Root-mean-square angle error (degrees) of ``R`` of the rotation-only fit, from its
+        covariance with the lens terms under their priors
+        (:attr:`ppo_cv.rotation.LensRotationFit.rotation_sigma_deg`).
     selection : ModelSelection
         GRIC of each model, median residuals (pixels), noise estimate.
     plane : PlanarPose or None
@@ -212,6 +216,7 @@ class MotionDecision:
     plane_selection: ModelSelection | None = None
     plane_epipolar_ratio: float = float("nan")
     plane_off_share: float = float("nan")
+    rotation_sigma_deg: float = float("inf")
 
     @property
     def gric_difference(self) -> float:
@@ -369,6 +374,7 @@ def decide_motion(
         plane_selection=plane_selection,
         plane_epipolar_ratio=plane_epipolar_ratio,
         plane_off_share=plane_off_share,
+        rotation_sigma_deg=lens.rotation_sigma_deg,
     )
 
 

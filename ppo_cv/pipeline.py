@@ -233,6 +233,12 @@ class PairResult:
         (:attr:`ppo_cv.motion_model.MotionDecision.t_sigma_deg`), the cap when they carry no
         information on ``t`` beyond their noise: the essential matrix's apparent confidence
         there comes from lens errors its translation absorbs.
+    rotation_sigma_deg : float
+        For a pure rotation: root-mean-square angle error (degrees) of ``R``, from the
+        covariance of the rotation-only fit with its focal scale and radial term under their
+        priors (:attr:`ppo_cv.rotation.LensRotationFit.rotation_sigma_deg`): how well these
+        matches determine the rotation when the focal length is known only to a few percent.
+        NaN otherwise.
     rotation_residual_px, general_residual_px : float
         Median residual (pixels, distance in the joint image space) of the rotation-only fit
         and of the essential matrix over the union of their inliers.
@@ -294,6 +300,7 @@ class PairResult:
     pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD
     model: str = "general"
     t_sigma_deg: float = float("nan")
+    rotation_sigma_deg: float = float("nan")
     rotation_residual_px: float = float("nan")
     general_residual_px: float = float("nan")
     gric_difference: float = float("nan")
@@ -633,6 +640,7 @@ def estimate_pair(
         pri_threshold=float(options.pri_threshold),
         model=motion.model,
         t_sigma_deg=t_sigma,
+        rotation_sigma_deg=motion.rotation_sigma_deg if motion.pure_rotation else float("nan"),
         rotation_residual_px=motion.selection.median_residual_px["rotation"],
         general_residual_px=motion.selection.median_residual_px["general"],
         gric_difference=motion.gric_difference,

@@ -98,6 +98,10 @@ class LensRotationFit:
     focal_scale_sigma : float
         Standard deviation of ``focal_scale`` from the Gauss-Newton covariance (inf when not
         estimated).
+    rotation_sigma_deg : float
+        Root-mean-square angle (degrees) of the rotation's error from the same covariance, the
+        lens terms estimated jointly under their priors (inf when they are not estimated): the
+        Cramer-Rao bound of the rotation given these matches, their noise and the priors.
     residuals : ndarray, shape (N,)
         Transfer error ``|pi(R c(x1)) - c(x2)| / s`` (normalised units of the given camera) of
         every match.
@@ -108,6 +112,7 @@ class LensRotationFit:
     k1: float
     focal_scale_sigma: float
     residuals: np.ndarray
+    rotation_sigma_deg: float = float("inf")
 
     @property
     def focal_significant(self) -> bool:
@@ -353,13 +358,13 @@ def fit_rotation_lens(
     if noise is not None and noise > 0:
         prior[3:] = noise / np.array([focal_prior, k1_prior])
     problem = (R0, a, b, prior)
-    params, sigma = np.zeros(_NPARAMS), np.inf
+    params, sigma, rotation_sigma = np.zeros(_NPARAMS), np.inf, np.inf
     enough = len(a) >= (_MIN_WITH_PRIOR if prior[3] > 0 else 2 * _NPARAMS)
     if enough:
         params = _gauss_newton(params, problem, iterations)
-        sigma = _focal_sigma(params, problem)
+        sigma, rotation_sigma = _sigmas(params, problem)
     if np.any(np.abs(params) > bounds) or not enough:
-        params, sigma = np.clip(params, -bounds, bounds), np.inf
+        params, sigma, rotation_sigma = np.clip(params, -bounds, bounds), np.inf, np.inf
         params[:3] = 0.0
         if len(a) >= 2:
             params = _gauss_newton(params, problem, iterations, free=3)
@@ -372,6 +377,7 @@ def fit_rotation_lens(
         k1=float(params[4]),
         focal_scale_sigma=float(sigma),
         residuals=residuals,
+        rotation_sigma_deg=float(rotation_sigma),
     )
 
 
@@ -388,18 +394,20 @@ def _jacobian(params, problem, free: int = _NPARAMS, step: float = 1e-6):
     return residual, np.stack(columns, axis=1)
 
 
-def _focal_sigma(params, problem) -> float:
-    """Focal scale deviation, ``sqrt(v (J^T J)^-1)[3, 3]``, ``v = |r|^2 / (2I - 5)``."""
+def _sigmas(params, problem) -> tuple[float, float]:
+    """Deviations of the focal scale and of the rotation angle (degrees, root-mean-square) from
+    the covariance ``v (J^T J)^-1``, ``v = |r|^2 / (2I - 5)``, ``J`` with the prior rows."""
     residual, J = _jacobian(params, problem)
     transfer = residual[:-_NPARAMS]
     if len(transfer) <= _NPARAMS:
-        return float("inf")
+        return float("inf"), float("inf")
     variance = float(transfer @ transfer) / (len(transfer) - _NPARAMS)
     try:
         cov = variance * np.linalg.inv(J.T @ J)
     except np.linalg.LinAlgError:
-        return float("inf")
-    return float(np.sqrt(max(cov[3, 3], 0.0)))
+        return float("inf"), float("inf")
+    rotation = np.degrees(np.sqrt(max(float(np.trace(cov[:3, :3])), 0.0)))
+    return float(np.sqrt(max(cov[3, 3], 0.0))), float(rotation)
 
 
 def _gauss_newton(params, problem, iterations, free: int = _NPARAMS, step=1e-6):

@@ -133,8 +133,11 @@ def test_pure_rotation_json_has_no_usable_t(pure_rotation_files):
         np.arccos(np.clip((np.trace(np.array(data["R"]).T @ pair.R) - 1) / 2, -1, 1))
     )
     assert R_error < 0.5
+    # the stated rotation uncertainty covers the actual error within a few sigma
+    assert 0.0 < data["rotation_sigma_deg"] < 1.0 and R_error < 4.0 * data["rotation_sigma_deg"]
     summary = subprocess.run([*args, "--K", K], capture_output=True, text=True).stdout
     assert "translation  undetermined (pure rotation); best unit guess" in summary
+    assert f"R sigma      {data['rotation_sigma_deg']:.3f} deg" in summary
 
 
 def test_result_to_dict_keeps_t_for_a_general_motion():

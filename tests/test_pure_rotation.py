@@ -106,6 +106,30 @@ def test_lens_fit_with_priors_works_from_a_few_matches():
     assert _angle_deg(with_priors.R, R) < 0.1
 
 
+def test_rotation_sigma_matches_the_spread_of_the_fitted_rotations():
+    # Narrow field, 10 deg pan; focal scale and k1 drawn from the priors the fit assumes, so its
+    # posterior covariance is the mean squared error of the rotation (Bayesian Cramer-Rao).
+    rng = np.random.default_rng(11)
+    c, s = np.cos(np.radians(10.0)), np.sin(np.radians(10.0))
+    R = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    noise = 0.3 / 900
+    errors, sigmas = [], []
+    for _ in range(60):
+        scale, k1 = 1.0 + rng.normal(0, 0.02), rng.normal(0, 0.1)
+        q1 = np.column_stack([rng.uniform(-0.25, 0.05, 80), rng.uniform(-0.2, 0.2, 80)])
+        ray = np.column_stack([q1, np.ones(80)]) @ R.T
+        q2 = ray[:, :2] / ray[:, 2:]
+        x1, x2 = (q * (1 + k1 * np.sum(q * q, 1, keepdims=True)) / scale for q in (q1, q2))
+        x2 = x2 + rng.normal(0, noise, x2.shape)
+        fit = fit_rotation_lens(x1, x2, np.ones(80, bool), np.eye(3), noise=noise)
+        errors.append(_angle_deg(fit.R, R))
+        sigmas.append(fit.rotation_sigma_deg)
+    rms = float(np.sqrt(np.mean(np.square(errors))))
+    # the bound is far above what noise alone would give: the focal dominates it
+    assert 0.05 < np.median(sigmas) < 0.5
+    assert 0.7 < rms / float(np.median(sigmas)) < 1.4
+
+
 def test_select_model_on_synthetic_residuals():
     rng = np.random.default_rng(5)
     sigma = 0.4
@@ -207,6 +231,7 @@ def test_warped_photo_rotation_is_flagged_with_accurate_rotation(seed):
     # focal of a few dozen matches recovers part of it
     assert _angle_deg(result.R, pair.R) < 0.5
     assert result.t_sigma_deg > 30.0
+    assert 0.0 < result.rotation_sigma_deg < 1.0
 
 
 @pytest.mark.parametrize("seed", [0, 3])
