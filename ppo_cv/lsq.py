@@ -12,7 +12,13 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["forward_jacobian", "huber_weights", "levenberg_marquardt", "tangent_basis"]
+__all__ = [
+    "forward_jacobian",
+    "gauss_newton_covariance",
+    "huber_weights",
+    "levenberg_marquardt",
+    "tangent_basis",
+]
 
 
 def tangent_basis(n: np.ndarray) -> np.ndarray:
@@ -36,6 +42,15 @@ def forward_jacobian(
 ) -> np.ndarray:
     """Jacobian (M, P) of ``f`` at ``p`` by forward differences, ``r0 = f(p)``."""
     return np.column_stack([(f(p + step * e) - r0) / step for e in np.eye(len(p))])
+
+
+def gauss_newton_covariance(J: np.ndarray, variance: float) -> np.ndarray | None:
+    """Covariance ``variance (J^T J)^-1`` (P, P) of the parameters of a least-squares fit with
+    Jacobian ``J`` (M, P) at its minimum; None when ``J^T J`` is singular."""
+    try:
+        return variance * np.linalg.inv(J.T @ J)
+    except np.linalg.LinAlgError:
+        return None
 
 
 def levenberg_marquardt(

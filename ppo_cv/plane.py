@@ -35,7 +35,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import ppo
-from .lsq import forward_jacobian, huber_weights, levenberg_marquardt, tangent_basis
+from .lsq import (
+    forward_jacobian,
+    gauss_newton_covariance,
+    huber_weights,
+    levenberg_marquardt,
+    tangent_basis,
+)
 
 __all__ = [
     "K1_SIGNIFICANCE",
@@ -645,11 +651,8 @@ def _k1_sigma(model, p, scale, k1_prior) -> float:
     r = _stacked(model, p, scale, k1_prior)
     J = forward_jacobian(lambda q: _stacked(model, q, scale, k1_prior), p, r)
     dof = max(len(r) - len(p), 1)
-    try:
-        cov = 2.0 * np.linalg.inv(J.T @ J) * (r @ r) / dof
-    except np.linalg.LinAlgError:
-        return float("inf")
-    return float(np.sqrt(max(cov[8, 8], 0.0)))
+    cov = gauss_newton_covariance(J, 2.0 * float(r @ r) / dof)
+    return float("inf") if cov is None else float(np.sqrt(max(cov[8, 8], 0.0)))
 
 
 def _levenberg_marquardt(model, p, scale, k1_prior, iterations):

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .lsq import huber_weights, levenberg_marquardt, tangent_basis
+from .lsq import gauss_newton_covariance, huber_weights, levenberg_marquardt, tangent_basis
 from .plane import K1_SIGNIFICANCE, undistort_division
 from .ppo import rotation_from_rays
 from .robust import virtual_camera
@@ -179,9 +179,8 @@ def refine_pose_radial(
     r_start = stacked(np.zeros(6))
     p, J = levenberg_marquardt(stacked, np.zeros(6), iterations)
     r = stacked(p)
-    try:
-        cov = np.linalg.inv(J.T @ J) * float(r @ r) / max(len(r) - 6, 1)
-    except np.linalg.LinAlgError:
+    cov = gauss_newton_covariance(J, float(r @ r) / max(len(r) - 6, 1))
+    if cov is None:
         return start
     k1, k1_sigma = float(p[5]), float(np.sqrt(max(cov[5, 5], 0.0)))
     kept = K1_MIN <= abs(k1) <= max_k1 and abs(k1) > K1_SIGNIFICANCE * k1_sigma

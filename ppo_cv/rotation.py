@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .lsq import gauss_newton_covariance
 from .ppo import rotation_from_rays
 
 __all__ = [
@@ -401,10 +402,8 @@ def _sigmas(params, problem) -> tuple[float, float]:
     transfer = residual[:-_NPARAMS]
     if len(transfer) <= _NPARAMS:
         return float("inf"), float("inf")
-    variance = float(transfer @ transfer) / (len(transfer) - _NPARAMS)
-    try:
-        cov = variance * np.linalg.inv(J.T @ J)
-    except np.linalg.LinAlgError:
+    cov = gauss_newton_covariance(J, float(transfer @ transfer) / (len(transfer) - _NPARAMS))
+    if cov is None:
         return float("inf"), float("inf")
     rotation = np.degrees(np.sqrt(max(float(np.trace(cov[:3, :3])), 0.0)))
     return float(np.sqrt(max(cov[3, 3], 0.0))), float(rotation)

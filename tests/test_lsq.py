@@ -1,11 +1,17 @@
-"""The shared least-squares tools: tangent basis, Huber weights, Levenberg-Marquardt."""
+"""The shared least-squares tools: tangent basis, Huber weights, Levenberg-Marquardt, covariance."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from ppo_cv.lsq import forward_jacobian, huber_weights, levenberg_marquardt, tangent_basis
+from ppo_cv.lsq import (
+    forward_jacobian,
+    gauss_newton_covariance,
+    huber_weights,
+    levenberg_marquardt,
+    tangent_basis,
+)
 
 
 def test_tangent_basis_is_orthonormal_and_orthogonal_to_n():
@@ -33,3 +39,14 @@ def test_levenberg_marquardt_solves_a_nonlinear_fit():
     np.testing.assert_allclose(p, [2.0, 1.5], atol=1e-6)
     np.testing.assert_allclose(J, forward_jacobian(residuals, p, residuals(p)), atol=1e-12)
     assert J[:, 0] == pytest.approx(np.exp(-1.5 * x), abs=1e-5)
+
+
+def test_gauss_newton_covariance_of_a_line_fit():
+    # y = a + b x with noise sigma: the textbook covariance sigma^2 (X^T X)^-1
+    rng = np.random.default_rng(3)
+    x = rng.uniform(-1, 1, 200)
+    J = np.column_stack([np.ones_like(x), x])
+    cov = gauss_newton_covariance(J, 0.25)
+    expected = 0.25 * np.array([[x.size, x.sum()], [x.sum(), x @ x]])
+    np.testing.assert_allclose(cov @ expected, 0.25**2 * np.eye(2), atol=1e-12)
+    assert gauss_newton_covariance(np.ones((200, 2)), 1.0) is None  # singular J^T J
