@@ -27,6 +27,7 @@ from .common import (
     MaxLog10Nfa,
     MaxSize,
     Overwrite,
+    Photometric,
     Plane,
     PriThreshold,
     ProgressReport,
@@ -412,6 +413,7 @@ def register(app: typer.Typer) -> None:
         pri_threshold: PriThreshold = DEFAULT_PRI_THRESHOLD,
         max_log10_nfa: MaxLog10Nfa = DEFAULT_MAX_LOG10_NFA,
         plane: Plane = True,
+        photometric: Photometric = True,
         max_trials: Annotated[
             int,
             typer.Option(
@@ -435,7 +437,7 @@ def register(app: typer.Typer) -> None:
             check_range("--max-trials", max_trials, 1, MAX_TRIALS_MAX)
             options = pipeline_options(
                 features, max_features, max_size, ratio, backend, threshold, seed, pri_threshold,
-                max_log10_nfa, plane,
+                max_log10_nfa, plane, photometric,
             )  # fmt: skip
             options = dataclasses.replace(
                 options,

@@ -79,6 +79,15 @@ Plane = Annotated[
         rich_help_panel=_PANEL,
     ),
 ]
+Photometric = Annotated[
+    bool,
+    typer.Option(
+        "--photometric/--no-photometric",
+        help="For a pure rotation, refit the rotation on windows of the images aligned by "
+        "intensity (--no-photometric: the rotation of the feature matches).",
+        rich_help_panel=_PANEL,
+    ),
+]
 Overwrite = Annotated[
     bool,
     typer.Option("--overwrite", help="Replace an existing output (never done without it)."),

@@ -19,6 +19,7 @@ from .common import (
     MaxLog10Nfa,
     MaxSize,
     Overwrite,
+    Photometric,
     Plane,
     PriThreshold,
     Ratio,
@@ -53,6 +54,7 @@ def pipeline_options(
     pri_threshold: float | None = None,
     max_log10_nfa: float | None = None,
     plane: bool = True,
+    photometric: bool = True,
 ):
     """PairOptions from command-line values, each bounded up front (ValueError naming it)."""
     from ppo_cv.pipeline import PairOptions
@@ -81,6 +83,7 @@ def pipeline_options(
         pri_threshold=pri_threshold,
         max_log10_nfa=max_log10_nfa,
         plane=plane,
+        photometric=photometric,
     )
 
 
@@ -176,7 +179,9 @@ def _rotation_sigma_lines(result) -> list[str]:
     sigma = getattr(result, "rotation_sigma_deg", float("nan"))
     if not result.pure_rotation or not sigma == sigma:
         return []
-    return [f"  R sigma      {sigma:.3f} deg (rotation angle error, root mean square)"]
+    tracks = int(getattr(result, "rotation_tracks", 0))
+    source = f"{tracks} intensity-aligned windows" if tracks else "the feature matches"
+    return [f"  R sigma      {sigma:.3f} deg (rotation angle error, root mean square, {source})"]
 
 
 def _summary(result, name1: str, name2: str, note: str | None, reference=None) -> str:
@@ -340,6 +345,7 @@ def register(app: typer.Typer) -> None:
         pri_threshold: PriThreshold = DEFAULT_PRI_THRESHOLD,
         max_log10_nfa: MaxLog10Nfa = DEFAULT_MAX_LOG10_NFA,
         plane: Plane = True,
+        photometric: Photometric = True,
     ) -> None:
         """Relative pose (R, t), pure-rotation verdict and 3D points of two photos.
 
@@ -355,7 +361,7 @@ def register(app: typer.Typer) -> None:
         try:
             options = pipeline_options(
                 features, max_features, max_size, ratio, backend, threshold, seed, pri_threshold,
-                max_log10_nfa, plane,
+                max_log10_nfa, plane, photometric,
             )  # fmt: skip
         except ValueError as exc:
             _fail(str(exc))

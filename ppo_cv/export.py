@@ -129,6 +129,7 @@ def _model_selection(result: PairResult) -> dict:
         "model": str(result.model),
         "t_sigma_deg": float(result.t_sigma_deg),
         "rotation_sigma_deg": _finite_or_none(getattr(result, "rotation_sigma_deg", float("nan"))),
+        "rotation_tracks": int(getattr(result, "rotation_tracks", 0)),
         "model_selection": {
             "rotation_residual_px": float(result.rotation_residual_px),
             "general_residual_px": float(result.general_residual_px),

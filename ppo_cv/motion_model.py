@@ -60,7 +60,7 @@ homography the decision is between "rotation" and "general".
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -77,7 +77,13 @@ from .model_selection import (
 from .plane import PlanarPose, planar_pose
 from .refine import T_SIGMA_CAP_DEG, translation_sigma_deg
 from .robust import essential_from_pose, sampson_errors
-from .rotation import correct_points, fit_rotation_lens, ransac_rotation
+from .rotation import (
+    LensRotationFit,
+    correct_points,
+    fit_rotation_lens,
+    lens_rotation_residuals,
+    ransac_rotation,
+)
 
 __all__ = [
     "EPIPOLAR_CAP_FACTOR",
@@ -89,6 +95,7 @@ __all__ = [
     "MotionDecision",
     "decide_motion",
     "translation_for_rotation",
+    "with_rotation",
 ]
 
 PLANE_MISMATCH_FLOOR = 0.5
@@ -318,16 +325,8 @@ def decide_motion(
             _candidate("general", general_all[scored] * focal),
         ]
     )
-    R_rot, t_rot, pri = lens.R, np.asarray(t, dtype=np.float64), float("inf")
-    t_sigma = T_SIGMA_CAP_DEG
-    if np.count_nonzero(rotation_inliers) >= 5:
-        c1 = correct_points(x1[rotation_inliers], lens.focal_scale, lens.k1)
-        c2 = correct_points(x2[rotation_inliers], lens.focal_scale, lens.k1)
-        t_rot = translation_for_rotation(R_rot, c1, c2)
-        pri = ppo.pure_rotation_indicator(ppo.intersection_scores(c1, c2, R_rot, t_rot))
-        # one Sampson residual carries half the squared transfer error (noise of both images)
-        noise = float(np.sqrt(np.mean(lens.residuals[rotation_inliers] ** 2) / 4.0))
-        t_sigma = translation_sigma_deg(R_rot, t_rot, c1, c2, np.ones(len(c1), bool), noise)
+    R_rot = lens.R
+    t_rot, pri, t_sigma = _rotation_translation(lens, x1, x2, rotation_inliers, t)
     pri_general = ppo.pure_rotation_indicator(
         ppo.intersection_scores(x1[inliers], x2[inliers], R, t)
     )
@@ -374,6 +373,71 @@ def decide_motion(
         plane_selection=plane_selection,
         plane_epipolar_ratio=plane_epipolar_ratio,
         plane_off_share=plane_off_share,
+        rotation_sigma_deg=lens.rotation_sigma_deg,
+    )
+
+
+def _rotation_translation(lens: LensRotationFit, x1, x2, used, t_fallback):
+    """Unit ``t`` most consistent with the lens rotation over ``used``, its PRI and its
+    direction uncertainty; ``t_fallback``, inf and the cap with fewer than 5 matches."""
+    if np.count_nonzero(used) < 5:
+        return np.asarray(t_fallback, dtype=np.float64), float("inf"), T_SIGMA_CAP_DEG
+    c1 = correct_points(x1[used], lens.focal_scale, lens.k1)
+    c2 = correct_points(x2[used], lens.focal_scale, lens.k1)
+    t = translation_for_rotation(lens.R, c1, c2)
+    pri = ppo.pure_rotation_indicator(ppo.intersection_scores(c1, c2, lens.R, t))
+    # one Sampson residual carries half the squared transfer error (noise of both images)
+    noise = float(np.sqrt(np.mean(lens.residuals[used] ** 2) / 4.0))
+    t_sigma = translation_sigma_deg(lens.R, t, c1, c2, np.ones(len(c1), bool), noise)
+    return t, float(pri), float(t_sigma)
+
+
+def with_rotation(
+    motion: MotionDecision,
+    lens: LensRotationFit,
+    x1: np.ndarray,
+    x2: np.ndarray,
+    focal: float,
+    *,
+    threshold_px: float = 1.0,
+) -> MotionDecision:
+    """The decision with its rotation replaced by a better fit of the same model.
+
+    For a pair judged a pure rotation whose rotation was refitted on other evidence
+    (:func:`ppo_cv.photometric.refine_rotation_photometric`): ``R``, the lens terms and
+    ``rotation_sigma_deg`` are ``lens``'s; the rotation inliers among the matches (transfer error
+    below :data:`TRANSFER_FACTOR` times ``threshold_px``), ``t``, PRI and ``t_sigma_deg`` are
+    recomputed under it. The model, the statistics that chose it and the plane are kept.
+
+    Parameters
+    ----------
+    motion : MotionDecision
+    lens : LensRotationFit
+        The new rotation with its focal scale and ``k1`` (its residuals are not used).
+    x1, x2 : ndarray, shape (N, 3)
+        Homogeneous normalised points of all putative matches (as for :func:`decide_motion`).
+    focal : float
+        Focal length, pixels.
+    threshold_px : float
+        Inlier threshold of the essential matrix, pixels.
+
+    Returns
+    -------
+    MotionDecision
+    """
+    residuals = lens_rotation_residuals(lens.R, lens.focal_scale, lens.k1, x1, x2)
+    lens = replace(lens, residuals=residuals)
+    inliers = residuals < TRANSFER_FACTOR * threshold_px / focal
+    t, pri, t_sigma = _rotation_translation(lens, x1, x2, inliers, motion.t)
+    return replace(
+        motion,
+        R=lens.R,
+        t=t,
+        rotation_inliers=inliers,
+        pri=pri,
+        t_sigma_deg=t_sigma,
+        focal_scale=lens.focal_scale,
+        k1=lens.k1,
         rotation_sigma_deg=lens.rotation_sigma_deg,
     )
 

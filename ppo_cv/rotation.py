@@ -39,6 +39,7 @@ __all__ = [
     "fit_rotation_lens",
     "lens_rotation_residuals",
     "correct_points",
+    "transfer_points",
 ]
 
 _BLOCK = 1 << 18  # hypotheses x matches scored per block
@@ -292,6 +293,17 @@ def _lens_transfer(params: np.ndarray, R0: np.ndarray, xy1: np.ndarray, xy2: np.
     z = np.where(np.abs(ray[:, 2]) > 1e-9, ray[:, 2], 1e-9)
     q2 = ray[:, :2] / z[:, None]
     return q2 * (1.0 + k1 * np.sum(q2 * q2, axis=1, keepdims=True)) / scale - xy2
+
+
+def transfer_points(x1: np.ndarray, R: np.ndarray, focal_scale: float, k1: float) -> np.ndarray:
+    """Where the lens rotation of :func:`fit_rotation_lens` takes normalised points of view 1.
+
+    ``x1`` (N, 2 or 3, given camera) is corrected to the true ray ``q1``, rotated by ``R`` and
+    put back through the lens: ``x2 = q2 (1 + k1 |q2|^2) / s``. Returns ``x2``, shape (N, 2).
+    """
+    xy1 = np.asarray(x1, float)[:, :2]
+    params = np.array([0.0, 0.0, 0.0, focal_scale - 1.0, k1])
+    return _lens_transfer(params, np.asarray(R, float), xy1, np.zeros_like(xy1))
 
 
 def lens_rotation_residuals(

@@ -1,0 +1,447 @@
+"""Sub-pixel tracks of a pure rotation from the image intensities.
+
+Feature matches locate a point to a few tenths of a pixel, and in a narrow field the focal length
+and the rotation angle trade off (the image moves by about ``f x angle`` either way): a few
+hundred matches leave the rotation of a pure rotation 0.1-0.5 degrees uncertain
+(:attr:`ppo_cv.rotation.LensRotationFit.rotation_sigma_deg`). Once a pair is judged a pure
+rotation, the lens rotation (:func:`ppo_cv.rotation.fit_rotation_lens`) says where every pixel of
+image 1 lands in image 2, and the intensities fix it far better:
+
+1. corners of image 1 (the minimum eigenvalue of the gradient structure tensor, Shi and Tomasi,
+   "Good features to track", CVPR 1994) whose window the model maps inside image 2;
+2. each window aligned with image 2 seen through the model, up to a shift ``d`` (pixels of
+   image 2): ``min sum_k (g_k I2(T(p + o_k) + d) + b - I1(p + o_k))^2`` over the window's pixels
+   ``o_k``, with ``T`` the model's pixel transfer, ``b`` an offset and a gain ``g_k = g0 + g . o_k``
+   that may vary linearly across the window (exposure changes, vignetting). Each step fits the
+   gain and offset to the current samples in closed form, then takes the Gauss-Newton step of
+   the shift (Lucas-Kanade; the brightness terms as in Baker, Gross and Matthews, "Lucas-Kanade
+   20 years on", part 3, CMU-RI-TR-03-35). The model carries each window's rotation, scale and
+   distortion, so only a small shift is left to estimate; coarser pyramid levels (a constant
+   gain there) cover the few pixels the model is off at first. All windows are solved at once
+   (arrays of windows x window pixels), with exact bilinear interpolation;
+3. the lens rotation refitted on the tracks, outliers (moving objects, occlusions, windows that
+   did not converge) dropped beyond ``3 sqrt(2)`` times the tracks' own noise per coordinate
+   (the 2D residual of an inlier exceeds it with probability ``exp(-9)``); then the
+   windows are aligned once more through the refitted model and the fit repeated.
+
+On renders and warped photos with the imperfections of real ones (distortion, focal 3 % off,
+JPEG) this brings the rotation error of pure rotations from 0.06-0.16 to 0.02-0.03 degrees
+(median, ``docs/pure_rotation.md``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .features import to_gray
+from .model_selection import robust_sigma
+from .rotation import LensRotationFit, fit_rotation_lens, transfer_points
+
+__all__ = [
+    "WINDOW",
+    "MIN_TRACKS",
+    "MAX_CORNERS",
+    "WindowTracks",
+    "PhotometricRotation",
+    "align_windows",
+    "refine_rotation_photometric",
+]
+
+WINDOW = 21
+"""Side (pixels) of the square window aligned around each corner."""
+
+MIN_TRACKS = 20
+"""Fewest tracks that agree with the refitted rotation for its result to be used."""
+
+MAX_CORNERS = 600
+"""Windows aligned at most: beyond a few hundred the rotation's error is set by what the
+windows share (interpolation, JPEG blocks, the lens model's residual), not by their number."""
+
+MIN_NCC = 0.8
+"""Lowest normalised cross-correlation of an aligned window with its template."""
+
+_MAX_LEVELS = 4
+_ITERATIONS = 12
+_CONVERGED = 1e-3  # pixels of shift update
+_OUTLIER_SIGMAS = 3.0
+
+
+@dataclass(frozen=True)
+class WindowTracks:
+    """Windows of image 1 aligned with image 2 (:func:`align_windows`).
+
+    Attributes
+    ----------
+    points1 : ndarray, shape (N, 2)
+        Window centres in image 1 (pixels).
+    points2 : ndarray, shape (N, 2)
+        Where they were found in image 2: the transfer of ``points1`` plus the fitted shift.
+    valid : ndarray of bool, shape (N,)
+        Inside both images, a shift within the range the pyramid searched, well conditioned
+        and ``ncc >= MIN_NCC``.
+    ncc : ndarray, shape (N,)
+        Normalised cross-correlation of each aligned window with its template.
+    """
+
+    points1: np.ndarray
+    points2: np.ndarray
+    valid: np.ndarray
+    ncc: np.ndarray
+
+
+@dataclass(frozen=True)
+class PhotometricRotation:
+    """Lens rotation refitted on intensity-aligned tracks (:func:`refine_rotation_photometric`).
+
+    Attributes
+    ----------
+    fit : LensRotationFit
+        Rotation, focal scale and ``k1`` over the tracks' inliers, residuals for every track.
+    tracks : WindowTracks
+        The tracks of the last alignment.
+    inliers : ndarray of bool, shape (N,)
+        Tracks used by ``fit``.
+    noise_px : float
+        Standard deviation of one coordinate of a track's position (pixels of image 2),
+        estimated robustly from the residuals.
+    """
+
+    fit: LensRotationFit
+    tracks: WindowTracks
+    inliers: np.ndarray
+    noise_px: float
+
+    @property
+    def num_tracks(self) -> int:
+        """Number of tracks used by the fit."""
+        return int(np.count_nonzero(self.inliers))
+
+
+def _bilinear(stack: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """Channels of ``stack`` (H, W, C) float32 at points ``xy`` (n, k, 2), clamped to the image.
+
+    Exact bilinear weights (``cv2.remap`` rounds them to 1/32 pixel, a bias that matters at the
+    hundredths of a pixel sought here): the four neighbours are gathered by nearest-neighbour
+    remaps at integer positions and weighted here.
+    """
+    import cv2
+
+    h, w = stack.shape[:2]
+    x = np.clip(xy[..., 0], 0.0, w - 1.0).astype(np.float32)
+    y = np.clip(xy[..., 1], 0.0, h - 1.0).astype(np.float32)
+    x0, y0 = np.minimum(np.floor(x), w - 2), np.minimum(np.floor(y), h - 2)
+    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
+
+    def gather(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return cv2.remap(stack, u, v, cv2.INTER_NEAREST).reshape(*u.shape, stack.shape[2])
+
+    top_left, top_right = gather(x0, y0), gather(x0 + 1, y0)
+    bottom_left, bottom_right = gather(x0, y0 + 1), gather(x0 + 1, y0 + 1)
+    top = top_left + fx * (top_right - top_left)
+    return top + fy * (bottom_left + fx * (bottom_right - bottom_left) - top)
+
+
+def _pyramid(gray: np.ndarray, levels: int) -> list[np.ndarray]:
+    """Intensity and Scharr gradients (H, W, 3) float32 of each level, finest first."""
+    import cv2
+
+    image, out = gray.astype(np.float32), []
+    for level in range(levels + 1):
+        if level:
+            image = cv2.pyrDown(image)
+        gx = cv2.Scharr(image, cv2.CV_32F, 1, 0, scale=1.0 / 32.0)
+        gy = cv2.Scharr(image, cv2.CV_32F, 0, 1, scale=1.0 / 32.0)
+        out.append(np.dstack([image, gx, gy]))
+    return out
+
+
+def _offsets(window: int) -> np.ndarray:
+    half = window // 2
+    o = np.arange(-half, half + 1, dtype=np.float64)
+    u, v = np.meshgrid(o, o)
+    return np.column_stack([u.ravel(), v.ravel()])
+
+
+def _solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Least squares ``min |A x - b|`` per window: ``A`` (n, k, m), ``b`` (n, k) -> (n, m)."""
+    At = A.transpose(0, 2, 1)
+    H = At @ A
+    H += np.eye(A.shape[2]) * (1e-9 * np.trace(H, axis1=1, axis2=2) + 1e-12)[:, None, None]
+    return np.linalg.solve(H, At @ b[..., None])[..., 0]
+
+
+def _align_level(template, positions, d, level2, ramp, iterations):
+    """Shift (n, 2) of each window at one level, and the samples there (n, k, 3).
+
+    Each step fits the brightness model to the current samples in closed form (gain and offset;
+    with ``ramp`` (k, 2), the window's offsets scaled to [-1, 1], a gain varying linearly across
+    the window, as vignetting does), then takes the Gauss-Newton step of the shift with that
+    model, at most 2 pixels. Alternating keeps the coarse levels, where the first samples may
+    be pixels off, from trading misalignment for brightness.
+    """
+    active = np.ones(len(template), dtype=bool)
+    for _ in range(iterations):
+        idx = np.flatnonzero(active)
+        if not len(idx):
+            break
+        s = _bilinear(level2, positions[idx] + d[idx, None, :])
+        intensity = s[..., 0]
+        columns = [intensity, np.ones_like(intensity)]
+        if ramp is not None:
+            columns[1:1] = [intensity * ramp[:, 0], intensity * ramp[:, 1]]
+        q = _solve(np.stack(columns, axis=-1), template[idx])
+        gain = q[:, :1]
+        if ramp is not None:
+            gain = gain + q[:, 1:2] * ramp[:, 0] + q[:, 2:3] * ramp[:, 1]
+        residual = gain * intensity + q[:, -1:] - template[idx]
+        step = -_solve(np.stack([gain * s[..., 1], gain * s[..., 2]], axis=-1), residual)
+        step = np.clip(step, -2.0, 2.0)
+        d[idx] += step
+        active[idx] = np.abs(step).max(axis=1) > _CONVERGED
+    return d, _bilinear(level2, positions + d[:, None, :])
+
+
+def _ncc(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    a = a - a.mean(axis=1, keepdims=True)
+    b = b - b.mean(axis=1, keepdims=True)
+    den = np.sqrt(np.sum(a * a, axis=1) * np.sum(b * b, axis=1))
+    return np.sum(a * b, axis=1) / np.maximum(den, 1e-12)
+
+
+def align_windows(
+    image1: np.ndarray,
+    image2: np.ndarray,
+    points1: np.ndarray,
+    transfer: Callable[[np.ndarray], np.ndarray],
+    *,
+    window: int = WINDOW,
+    levels: int = 0,
+    iterations: int = _ITERATIONS,
+) -> WindowTracks:
+    """Align a window of image 1 around each point with image 2 seen through ``transfer``.
+
+    For each point ``p``, ``min sum_k (a I2(T(p + o_k) + d) + b - I1(p + o_k))^2`` over the shift
+    ``d`` (pixels of image 2), gain ``a`` and offset ``b``, ``o_k`` the pixels of a
+    ``window x window`` square: Gauss-Newton, all windows at once, from the coarsest of
+    ``levels + 1`` pyramid levels (each half the size, the window the same number of pixels)
+    down to the images themselves.
+
+    Parameters
+    ----------
+    image1, image2 : ndarray, shape (H, W) or (H, W, 3) BGR
+    points1 : ndarray, shape (N, 2)
+        Window centres in image 1, pixels.
+    transfer : callable
+        Pixels of image 1 (M, 2) to their predicted pixels in image 2 (M, 2).
+    window : int
+        Odd window side, pixels.
+    levels : int
+        Pyramid levels above the images (0: the images only). Each level doubles the shift the
+        alignment can recover from (about a quarter of the window at the finest).
+    iterations : int
+        Gauss-Newton steps per level at most.
+
+    Returns
+    -------
+    WindowTracks
+    """
+    points1 = np.asarray(points1, dtype=np.float64).reshape(-1, 2)
+    if window < 5 or window % 2 == 0:
+        raise ValueError(f"window must be an odd number of pixels >= 5, got {window}")
+    pyr1, pyr2 = _pyramid(to_gray(image1), levels), _pyramid(to_gray(image2), levels)
+    offsets = _offsets(window)
+    ramp = offsets / (window // 2)
+    n, k = len(points1), len(offsets)
+    d = np.zeros((n, 2))
+    for level in range(levels, -1, -1):
+        scale = 2.0**level
+        grid = points1[:, None, :] + scale * offsets[None, :, :]
+        positions = transfer(grid.reshape(-1, 2)).reshape(n, k, 2) / scale
+        template = _bilinear(pyr1[level][..., :1], grid / scale)[..., 0]
+        d, s = _align_level(template, positions, d, pyr2[level], None, iterations)
+        if level:
+            d *= 2.0
+    d, s = _align_level(template, positions, d, pyr2[0], ramp, iterations)
+    grid = points1[:, None, :] + offsets[None, :, :]
+    h1, w1 = pyr1[0].shape[:2]
+    h2, w2 = pyr2[0].shape[:2]
+    final = positions + d[:, None, :]
+    inside = _inside(grid, w1, h1) & _inside(final, w2, h2)
+    gx, gy = s[..., 1], s[..., 2]
+    structure = np.stack([np.sum(gx * gx, 1), np.sum(gx * gy, 1), np.sum(gy * gy, 1)], axis=1)
+    smallest = 0.5 * (structure[:, 0] + structure[:, 2]) - np.sqrt(
+        0.25 * (structure[:, 0] - structure[:, 2]) ** 2 + structure[:, 1] ** 2
+    )
+    ncc = _ncc(template, s[..., 0])
+    valid = (
+        inside
+        & np.all(np.isfinite(d), axis=1)
+        & (np.abs(d).max(axis=1) < window / 4.0 * 2.0**levels + 1.0)
+        & (smallest > 1e-3 * k)
+        & (ncc >= MIN_NCC)
+    )
+    points2 = transfer(points1) + d
+    return WindowTracks(points1=points1, points2=points2, valid=valid, ncc=ncc)
+
+
+def _inside(xy: np.ndarray, width: int, height: int) -> np.ndarray:
+    x, y = xy[..., 0], xy[..., 1]
+    return np.all((x >= 0) & (x <= width - 1) & (y >= 0) & (y <= height - 1), axis=1)
+
+
+def _camera_maps(K1, K2, dist1, dist2):
+    """Pixels to normalised points of camera 1, and normalised points to pixels of camera 2."""
+    import cv2
+
+    def to_normalised(pixels: np.ndarray) -> np.ndarray:
+        if dist1 is None:
+            return (pixels - K1[:2, 2]) @ np.linalg.inv(K1[:2, :2]).T
+        return cv2.undistortPoints(pixels.reshape(-1, 1, 2), K1, dist1).reshape(-1, 2)
+
+    def to_pixels(xy: np.ndarray) -> np.ndarray:
+        if dist2 is None:
+            return xy @ K2[:2, :2].T + K2[:2, 2]
+        rays = np.column_stack([xy, np.ones(len(xy))])
+        zero = np.zeros(3)
+        return cv2.projectPoints(rays, zero, zero, K2, dist2)[0].reshape(-1, 2)
+
+    return to_normalised, to_pixels
+
+
+def _corners(gray1, count, window, transfer, shape2) -> np.ndarray:
+    """Strongest corners of image 1 (integer pixels, at least a quarter window apart) whose
+    window lies inside image 1 and whose transfer lies a window inside image 2."""
+    import cv2
+
+    half = window // 2
+    found = cv2.goodFeaturesToTrack(gray1, 4 * count, 0.003, max(half // 2, 3))
+    if found is None:
+        return np.zeros((0, 2))
+    corners = np.round(found.reshape(-1, 2).astype(np.float64))
+    h, w = gray1.shape
+    corners = corners[_within(corners, w, h, half)]
+    if len(corners):
+        corners = corners[_within(transfer(corners), shape2[1], shape2[0], window)]
+    return corners[:count]
+
+
+def _within(xy: np.ndarray, width: int, height: int, margin: float) -> np.ndarray:
+    x, y = xy[:, 0], xy[:, 1]
+    return (x >= margin) & (x <= width - 1 - margin) & (y >= margin) & (y <= height - 1 - margin)
+
+
+def _fit_tracks(y1, y2, valid, R, focal):
+    """Lens rotation over the tracks, outliers beyond ``3 sqrt(2)`` noise deviations dropped;
+    ``(fit, used, noise_px)`` or None when too few tracks remain."""
+    used, noise, fit = valid.copy(), 0.1 / focal, None
+    for _ in range(5):
+        if np.count_nonzero(used) < MIN_TRACKS:
+            return None
+        fit = fit_rotation_lens(y1, y2, used, R if fit is None else fit.R, noise=noise)
+        noise = robust_sigma(fit.residuals[used], 2)
+        within = valid & (fit.residuals < _OUTLIER_SIGMAS * np.sqrt(2.0) * noise)
+        if np.array_equal(within, used):
+            break
+        used = within
+    if not np.isfinite(fit.rotation_sigma_deg) or not noise > 0:
+        return None
+    return fit, used, noise * focal
+
+
+def refine_rotation_photometric(
+    image1: np.ndarray,
+    image2: np.ndarray,
+    K1: np.ndarray,
+    K2: np.ndarray,
+    R: np.ndarray,
+    *,
+    focal_scale: float = 1.0,
+    k1: float = 0.0,
+    rotation_sigma_deg: float = 1.0,
+    dist1: np.ndarray | None = None,
+    dist2: np.ndarray | None = None,
+    window: int = WINDOW,
+    max_corners: int | None = None,
+) -> PhotometricRotation | None:
+    """Refit a pure rotation's lens rotation on windows aligned by intensity.
+
+    Parameters
+    ----------
+    image1, image2 : ndarray, shape (H, W) or (H, W, 3) BGR
+    K1, K2 : ndarray, shape (3, 3)
+        Intrinsics given for the images.
+    R : ndarray, shape (3, 3)
+        Rotation fitted to feature matches, ``b2 = R b1``, with its lens terms ``focal_scale``
+        and ``k1`` (:func:`ppo_cv.rotation.fit_rotation_lens`).
+    rotation_sigma_deg : float
+        Its uncertainty: how far (three times this) the first alignment must search, and the
+        bound on the change: a refit further than ``4 rotation_sigma_deg + 0.1`` degrees from
+        ``R`` is refused (windows locked onto repeated texture).
+    dist1, dist2 : ndarray, optional
+        OpenCV distortion coefficients of the given cameras.
+    window : int
+        Window side, pixels.
+    max_corners : int, optional
+        Windows aligned at most (default :data:`MAX_CORNERS`).
+
+    Returns
+    -------
+    PhotometricRotation or None
+        None when fewer than :data:`MIN_TRACKS` tracks agree with a rotation, or the refit is
+        refused.
+
+    Examples
+    --------
+    A 2 degree pan of a random texture, started from the identity:
+
+    >>> import cv2
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> image1 = cv2.GaussianBlur(rng.uniform(0, 255, (240, 320)), (0, 0), 2).astype(np.uint8)
+    >>> K = np.array([[400.0, 0, 159.5], [0, 400.0, 119.5], [0, 0, 1]])
+    >>> c, s = np.cos(np.radians(2.0)), np.sin(np.radians(2.0))
+    >>> R = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    >>> image2 = cv2.warpPerspective(image1, K @ R @ np.linalg.inv(K), (320, 240))
+    >>> refined = refine_rotation_photometric(image1, image2, K, K, np.eye(3))
+    >>> angle = np.degrees(np.arccos((np.trace(refined.fit.R.T @ R) - 1) / 2))
+    >>> bool(angle < 0.02), refined.num_tracks > 100
+    (True, True)
+    """
+    K1, K2 = np.asarray(K1, dtype=np.float64), np.asarray(K2, dtype=np.float64)
+    to_normalised, to_pixels = _camera_maps(K1, K2, dist1, dist2)
+    to_normalised2 = _camera_maps(K2, K2, dist2, dist2)[0]
+    focal = float(np.mean([K2[0, 0], K2[1, 1]]))
+    gray1, gray2 = to_gray(image1), to_gray(image2)
+    start = (np.asarray(R, dtype=np.float64), float(focal_scale), float(k1))
+
+    def transfer_with(model) -> Callable[[np.ndarray], np.ndarray]:
+        rotation, scale, radial = model
+        return lambda pixels: to_pixels(
+            transfer_points(to_normalised(pixels), rotation, scale, radial)
+        )
+
+    count = MAX_CORNERS if max_corners is None else int(max_corners)
+    corners = _corners(gray1, count, window, transfer_with(start), gray2.shape)
+    if len(corners) < MIN_TRACKS:
+        return None
+    shift = 3.0 * np.radians(min(rotation_sigma_deg, 5.0)) * focal
+    levels = int(np.clip(np.ceil(np.log2(max(shift, 1.0) / (window / 8.0))), 0, _MAX_LEVELS))
+    y1 = to_normalised(corners)
+    model, result = start, None
+    for level_count in (levels, 0):
+        tracks = align_windows(
+            gray1, gray2, corners, transfer_with(model), window=window, levels=level_count
+        )
+        fitted = _fit_tracks(y1, to_normalised2(tracks.points2), tracks.valid, model[0], focal)
+        if fitted is None:
+            return None
+        fit, used, noise_px = fitted
+        model = (fit.R, fit.focal_scale, fit.k1)
+        result = PhotometricRotation(fit=fit, tracks=tracks, inliers=used, noise_px=noise_px)
+    change = np.degrees(np.arccos(np.clip((np.trace(start[0].T @ model[0]) - 1) / 2, -1, 1)))
+    if change > 4.0 * rotation_sigma_deg + 0.1:
+        return None
+    return result

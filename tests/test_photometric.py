@@ -1,0 +1,160 @@
+"""Intensity-aligned tracks of a pure rotation (ppo_cv.photometric) against ground truth."""
+
+from __future__ import annotations
+
+import json
+from importlib import resources
+
+import cv2
+import numpy as np
+import pytest
+from imperfect import imperfect_render, warped_rotation_pair
+
+from ppo_cv import PairOptions, estimate_pair
+from ppo_cv.export import result_to_dict
+from ppo_cv.photometric import MIN_NCC, align_windows, refine_rotation_photometric
+from ppo_cv.rotation import fit_rotation_lens
+
+K_DEMO = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
+
+
+def _angle_deg(R: np.ndarray, R_true: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip((np.trace(R.T @ R_true) - 1) / 2, -1, 1))))
+
+
+def _demo_photo() -> np.ndarray:
+    data = resources.files("ppo_cv.data").joinpath("demo1.png").read_bytes()
+    return cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+
+
+def _vignetted(image: np.ndarray, gain: float, strength: float) -> np.ndarray:
+    """Exposure ``gain`` and a radial fall-off to ``1 - strength`` in the corners."""
+    h, w = image.shape[:2]
+    y, x = np.mgrid[0:h, 0:w]
+    r2 = ((x - w / 2) ** 2 + (y - h / 2) ** 2) / ((w / 2) ** 2 + (h / 2) ** 2)
+    shade = gain * (1.0 - strength * r2)
+    return np.clip(image * shade[..., None], 0, 255).astype(np.uint8)
+
+
+def _matches_fit(pair, result):
+    """The lens rotation of the feature matches of a pipeline result, as the pipeline fits it."""
+    K_inv = np.linalg.inv(pair.K_given)
+    m = result.matches
+    x1 = np.column_stack([result.keypoints1[m[:, 0]], np.ones(len(m))]) @ K_inv.T
+    x2 = np.column_stack([result.keypoints2[m[:, 1]], np.ones(len(m))]) @ K_inv.T
+    noise = 0.5 / pair.K_given[0, 0]
+    return fit_rotation_lens(x1, x2, result.inliers, result.R, noise=noise)
+
+
+def test_windows_find_a_homography_the_transfer_misses_by_pixels():
+    photo = cv2.cvtColor(_demo_photo(), cv2.COLOR_BGR2GRAY)
+    H = np.array([[1.02, 0.01, 6.0], [-0.01, 0.99, -4.0], [2e-5, 1e-5, 1.0]])
+
+    def truth_of(points):
+        p = np.column_stack([points, np.ones(len(points))]) @ H.T
+        return p[:, :2] / p[:, 2:]
+
+    def transfer(points):
+        return truth_of(points) + np.array([2.3, -1.7])
+
+    found = cv2.goodFeaturesToTrack(photo, 400, 0.01, 8).reshape(-1, 2)
+    points = np.round(found[(found[:, 0] > 40) & (found[:, 0] < 600)]).astype(np.float64)
+    points = points[(points[:, 1] > 40) & (points[:, 1] < 440)]
+    truth = truth_of(points)
+    image2 = cv2.warpPerspective(photo, H, photo.shape[::-1], flags=cv2.INTER_CUBIC)
+    image2 = np.clip(image2 * 0.7 + 20, 0, 255).astype(np.uint8)  # exposure and black level
+    u, v = np.round(truth[0]).astype(int)
+    image2[v - 30 : v + 30, u - 30 : u + 30] = 128  # an occluder over the strongest corner
+    occluded = np.all(np.abs(truth - truth[0]) < 20, axis=1)
+
+    tracks = align_windows(photo, image2, points, transfer, levels=1)
+    error = np.linalg.norm(tracks.points2 - truth, axis=1)
+    assert np.count_nonzero(tracks.valid) > 0.8 * len(points)
+    assert np.median(error[tracks.valid]) < 0.05
+    assert np.percentile(error[tracks.valid], 90) < 0.1
+    assert not np.any(tracks.valid & occluded)
+    assert np.all(tracks.ncc[tracks.valid] >= MIN_NCC)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_refit_on_windows_recovers_rotation_and_focal_of_a_warped_photo(seed):
+    pair = warped_rotation_pair(_demo_photo(), K_DEMO, seed, angle_range=(10.0, 15.0))
+    result = estimate_pair(
+        pair.image1, pair.image2, pair.K_given, options=PairOptions(photometric=False)
+    )
+    start = _matches_fit(pair, result)
+    refined = refine_rotation_photometric(
+        pair.image1, pair.image2, pair.K_given, pair.K_given, start.R,
+        focal_scale=start.focal_scale, k1=start.k1, rotation_sigma_deg=start.rotation_sigma_deg,
+    )  # fmt: skip
+    assert refined is not None and refined.num_tracks > 100
+    assert _angle_deg(refined.fit.R, pair.R) < 0.05
+    assert abs(refined.fit.focal_scale - (1.0 + pair.focal_error)) < 0.004
+    assert abs(refined.fit.k1 - pair.k1) < 0.01
+    assert refined.noise_px < 0.15
+
+
+def test_refit_survives_exposure_and_vignetting():
+    pair = warped_rotation_pair(_demo_photo(), K_DEMO, 4, angle_range=(10.0, 15.0))
+    image1 = _vignetted(pair.image1, 1.0, 0.3)
+    image2 = _vignetted(pair.image2, 0.75, 0.3)
+    result = estimate_pair(image1, image2, pair.K_given)
+    assert result.pure_rotation and result.rotation_tracks > 100
+    assert _angle_deg(result.R, pair.R) < 0.06
+
+
+def test_refit_with_the_distortion_given_leaves_no_radial_term():
+    """The pipeline's ``dist`` reaches the windows: told the lens, the fit finds k1 = 0."""
+    pair = warped_rotation_pair(_demo_photo(), K_DEMO, 1, angle_range=(10.0, 15.0))
+    dist = np.array([pair.k1, 0.0, 0.0, 0.0, 0.0])
+    K_true = pair.K_given.copy()
+    K_true[:2, :2] /= 1.0 + pair.focal_error
+    result = estimate_pair(pair.image1, pair.image2, K_true, dist1=dist)
+    assert result.pure_rotation and result.rotation_tracks > 100
+    assert _angle_deg(result.R, pair.R) < 0.03
+    assert abs(result.focal_scale - 1.0) < 0.003
+
+
+def test_refit_is_refused_on_unrelated_images_and_on_a_rotation_far_from_its_bound():
+    pair = warped_rotation_pair(_demo_photo(), K_DEMO, 0, angle_range=(10.0, 15.0))
+    noise = np.random.default_rng(0).integers(0, 255, pair.image2.shape, dtype=np.uint8)
+    unrelated = cv2.GaussianBlur(noise, (0, 0), 1.5)
+    assert (
+        refine_rotation_photometric(pair.image1, unrelated, pair.K_given, pair.K_given, pair.R)
+        is None
+    )
+    c, s = np.cos(np.radians(1.5)), np.sin(np.radians(1.5))
+    off = np.array([[1.0, 0, 0], [0, c, -s], [0, s, c]]) @ pair.R
+    refined = refine_rotation_photometric(
+        pair.image1, pair.image2, pair.K_given, pair.K_given, off, rotation_sigma_deg=0.05
+    )
+    assert refined is None
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_pipeline_rotation_of_imperfect_renders_beats_the_feature_matches(seed):
+    pair = imperfect_render(seed)
+    result = estimate_pair(pair.image1, pair.image2, pair.K_given)
+    matches = estimate_pair(
+        pair.image1, pair.image2, pair.K_given, options=PairOptions(photometric=False)
+    )
+    assert result.pure_rotation and result.rotation_tracks > 100
+    assert matches.rotation_tracks == 0
+    error = _angle_deg(result.R, pair.R)
+    assert error < 0.04 and error < _angle_deg(matches.R, pair.R)
+    assert result.rotation_sigma_deg < matches.rotation_sigma_deg
+    assert error < 5.0 * result.rotation_sigma_deg
+    assert result.t_sigma_deg > 30.0 and result.num_points == 0
+
+
+def test_json_and_summary_name_the_tracks():
+    from ppo_cv.cli.pair import _rotation_sigma_lines
+
+    pair = imperfect_render(0)
+    result = estimate_pair(pair.image1, pair.image2, pair.K_given)
+    record = json.loads(json.dumps(result_to_dict(result)))
+    assert record["rotation_tracks"] == result.rotation_tracks > 100
+    assert f"{result.rotation_tracks} intensity-aligned windows" in _rotation_sigma_lines(result)[0]
+    moving = imperfect_render(1, 0.15)
+    general = estimate_pair(moving.image1, moving.image2, moving.K_given)
+    assert result_to_dict(general)["rotation_tracks"] == 0
