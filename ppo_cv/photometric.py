@@ -144,17 +144,21 @@ def _bilinear(stack: np.ndarray, xy: np.ndarray) -> np.ndarray:
     return top + fy * (bottom_left + fx * (bottom_right - bottom_left) - top)
 
 
-def _pyramid(gray: np.ndarray, levels: int) -> list[np.ndarray]:
-    """Intensity and Scharr gradients (H, W, 3) float32 of each level, finest first."""
+def _pyramid(gray: np.ndarray, levels: int, gradients: bool) -> list[np.ndarray]:
+    """Intensity, and with ``gradients`` its Scharr derivatives, (H, W, 1 or 3) float32 of each
+    level, finest first."""
     import cv2
 
     image, out = gray.astype(np.float32), []
     for level in range(levels + 1):
         if level:
             image = cv2.pyrDown(image)
-        gx = cv2.Scharr(image, cv2.CV_32F, 1, 0, scale=1.0 / 32.0)
-        gy = cv2.Scharr(image, cv2.CV_32F, 0, 1, scale=1.0 / 32.0)
-        out.append(np.dstack([image, gx, gy]))
+        if gradients:
+            gx = cv2.Scharr(image, cv2.CV_32F, 1, 0, scale=1.0 / 32.0)
+            gy = cv2.Scharr(image, cv2.CV_32F, 0, 1, scale=1.0 / 32.0)
+            out.append(np.dstack([image, gx, gy]))
+        else:
+            out.append(image[..., None])
     return out
 
 
@@ -251,7 +255,8 @@ def align_windows(
     points1 = np.asarray(points1, dtype=np.float64).reshape(-1, 2)
     if window < 5 or window % 2 == 0:
         raise ValueError(f"window must be an odd number of pixels >= 5, got {window}")
-    pyr1, pyr2 = _pyramid(to_gray(image1), levels), _pyramid(to_gray(image2), levels)
+    pyr1 = _pyramid(to_gray(image1), levels, gradients=False)
+    pyr2 = _pyramid(to_gray(image2), levels, gradients=True)
     offsets = _offsets(window)
     ramp = offsets / (window // 2)
     n, k = len(points1), len(offsets)
@@ -260,7 +265,7 @@ def align_windows(
         scale = 2.0**level
         grid = points1[:, None, :] + scale * offsets[None, :, :]
         positions = transfer(grid.reshape(-1, 2)).reshape(n, k, 2) / scale
-        template = _bilinear(pyr1[level][..., :1], grid / scale)[..., 0]
+        template = _bilinear(pyr1[level], grid / scale)[..., 0]
         d, s = _align_level(template, positions, d, pyr2[level], None, iterations)
         if level:
             d *= 2.0
