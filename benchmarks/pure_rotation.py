@@ -82,11 +82,12 @@ cannot explain stays under the feature noise, which the mismatch floor of
 the noise: a translation seen at one depth looks like a rotation, and the rotation and focal
 absorb what they can of it. The tracks fit it as closely as the matches do (their residuals
 stay at 0.02-0.07 px), so they move the error rather than shrink it: medians 0.09 and 0.18 deg
-against 0.07 and 0.12 from the matches, better on some pairs and worse on others, and
-`rotation_sigma_deg`, which accounts for noise only, is no bound there. At 1600x1200 the same
-8 cm parallax is 2.5 times as many pixels against the same feature noise: 7 of 8 are flagged,
-and the eighth (GRIC difference +0.59) is called general, its rotation from the essential
-matrix refined with a radial term 0.5 deg off (1-3 deg without that term).
+against 0.07 and 0.12 from the matches, better on some pairs and worse on others.
+`rotation_sigma_deg` accounts for noise only: the root mean square of error / sigma is 0.8-1.5
+on each set of exact rotations and 6-12 on the tripod sets, where it is no bound. At
+1600x1200 the same 8 cm parallax is 2.5 times as many pixels against the same feature noise:
+7 of 8 are flagged, and the eighth (GRIC difference +0.59) is called general, its rotation
+from the essential matrix refined with a radial term 0.5 deg off (1-3 deg without that term).
 
 The noise that GRIC divides by is estimated from the essential matrix's residuals, corrected
 for the 5 parameters it fitted (`sqrt(n / (n - 5))`): without that correction an essential
@@ -337,7 +338,8 @@ def report(results: dict, seconds: float, plot: str | None) -> str:
         "`PairOptions(photometric=False)`, the rotation of the feature matches. ppo_cv R "
         "sigma: median over the flagged pairs of `rotation_sigma_deg`, the root-mean-square "
         "rotation error that the tracks, their noise and the focal and k1 priors allow (the "
-        "Cramer-Rao bound of the rotation-only fit, degrees).",
+        "Cramer-Rao bound of the rotation-only fit, its variance multiplied by how many windows "
+        "share a pixel, degrees).",
         "",
         "| set | label | pairs | ppo_cv flagged | pycolmap flagged | ppo_cv R err "
         "| matches only | ppo_cv R sigma | pycolmap R err | OpenCV R err | PoseLib R err |",

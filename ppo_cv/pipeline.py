@@ -248,7 +248,8 @@ class PairResult:
         priors (:attr:`ppo_cv.rotation.LensRotationFit.rotation_sigma_deg`): how well these
         matches determine the rotation when the focal length is known only to a few percent.
         When ``R`` was refitted on intensity-aligned windows (``rotation_tracks > 0``), the
-        same bound over those tracks. NaN otherwise.
+        same bound over those tracks, its variance multiplied by how many windows share a pixel
+        (:func:`ppo_cv.photometric.window_overlap`). NaN otherwise.
     rotation_tracks : int
         For a pure rotation whose rotation was refitted on windows aligned by intensity
         (:mod:`ppo_cv.photometric`, ``PairOptions.photometric``): the number of tracks behind

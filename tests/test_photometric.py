@@ -158,3 +158,41 @@ def test_json_and_summary_name_the_tracks():
     moving = imperfect_render(1, 0.15)
     general = estimate_pair(moving.image1, moving.image2, moving.K_given)
     assert result_to_dict(general)["rotation_tracks"] == 0
+
+
+def test_rotation_sigma_of_the_tracks_covers_the_actual_errors():
+    """Overlapping windows share pixels: the bound is inflated by their overlap, not below it."""
+    ratios = []
+    for seed in range(4):
+        for pair in (
+            imperfect_render(seed),
+            warped_rotation_pair(_demo_photo(), K_DEMO, seed, angle_range=(10.0, 15.0)),
+        ):
+            result = estimate_pair(pair.image1, pair.image2, pair.K_given)
+            if result.rotation_tracks:
+                ratios.append(_angle_deg(result.R, pair.R) / result.rotation_sigma_deg)
+    assert len(ratios) >= 6
+    rms = float(np.sqrt(np.mean(np.square(ratios))))
+    assert 0.3 < rms < 1.5
+
+
+def test_command_line_switches_the_refit(tmp_path):
+    from typer.testing import CliRunner
+
+    from ppo_cv.cli.main import app
+
+    pair = imperfect_render(0)
+    paths = [str(tmp_path / "a.png"), str(tmp_path / "b.png")]
+    for path, image in zip(paths, (pair.image1, pair.image2), strict=True):
+        cv2.imwrite(path, image)
+    K = pair.K_given
+    k_text = f"{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]}"
+    records = {}
+    for flag in ("--photometric", "--no-photometric"):
+        run = CliRunner().invoke(app, ["pair", *paths, "--K", k_text, "--json", flag])
+        assert run.exit_code == 0, run.output
+        records[flag] = json.loads(run.stdout)
+    assert records["--photometric"]["rotation_tracks"] > 100
+    assert records["--no-photometric"]["rotation_tracks"] == 0
+    errors = {flag: _angle_deg(np.array(r["R"]), pair.R) for flag, r in records.items()}
+    assert errors["--photometric"] < errors["--no-photometric"]
