@@ -196,3 +196,28 @@ def test_command_line_switches_the_refit(tmp_path):
     assert records["--no-photometric"]["rotation_tracks"] == 0
     errors = {flag: _angle_deg(np.array(r["R"]), pair.R) for flag, r in records.items()}
     assert errors["--photometric"] < errors["--no-photometric"]
+
+
+def test_windows_on_an_object_that_moved_are_dropped():
+    pair = warped_rotation_pair(_demo_photo(), K_DEMO, 2, angle_range=(10.0, 15.0))
+    image2 = pair.image2.copy()
+    h, w = image2.shape[:2]
+    top, left = h // 3, w // 3
+    block = (slice(top, top + h // 3), slice(left, left + w // 4))
+    image2[block] = np.roll(pair.image2, (0, 7), axis=(0, 1))[block]  # moved 7 px sideways
+    result = estimate_pair(
+        pair.image1, image2, pair.K_given, options=PairOptions(photometric=False)
+    )
+    start = _matches_fit(pair, result)
+    refined = refine_rotation_photometric(
+        pair.image1, image2, pair.K_given, pair.K_given, start.R,
+        focal_scale=start.focal_scale, k1=start.k1, rotation_sigma_deg=start.rotation_sigma_deg,
+    )  # fmt: skip
+    assert refined is not None
+    p2 = refined.tracks.points2
+    inside = (p2[:, 1] > top + 12) & (p2[:, 1] < top + h // 3 - 12)
+    inside &= (p2[:, 0] > left + 12) & (p2[:, 0] < left + w // 4 - 12)
+    assert np.count_nonzero(inside) >= 10
+    assert not np.any(refined.inliers & inside)
+    error = _angle_deg(refined.fit.R, pair.R)
+    assert error < 0.1 and error < 3.0 * refined.fit.rotation_sigma_deg
