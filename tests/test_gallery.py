@@ -54,6 +54,17 @@ def check_pure_rotation(out: str, cwd: Path) -> None:
     assert ppo_worst < 0.5
 
 
+def check_tripod_panorama(out: str, cwd: Path) -> None:
+    rows = re.findall(r"^\S.*?\s+(True|False)\s+([\d.]+)\s+([\d.]+)\s+[\d.]+\s+(\d+)\s", out, re.M)
+    assert len(rows) == 6 and all(flag == "True" for flag, *_ in rows)
+    assert all(int(windows) > 100 for *_, windows in rows)
+    matches, refit = (
+        numbers(r"median rotation error: matches ([\d.]+) deg, refit [\d.]+", out)[0],
+        numbers(r"median rotation error: matches [\d.]+ deg, refit ([\d.]+)", out)[0],
+    )
+    assert refit < 0.1 and refit < matches
+
+
 def check_analytic_points(out: str, cwd: Path) -> None:
     count = int(numbers(r"general pair: (\d+) analytic points", out)[0])
     assert count > 200
@@ -89,6 +100,7 @@ CHECKS = {
     "analytic_points": check_analytic_points,
     "dropin_opencv": check_dropin_opencv,
     "pure_rotation": check_pure_rotation,
+    "tripod_panorama": check_tripod_panorama,
     "sfm_init": check_sfm_init,
     "visual_odometry": check_visual_odometry,
 }
