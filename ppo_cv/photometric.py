@@ -38,6 +38,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .checks import as_camera_matrix, as_distortion, as_points, as_positive
 from .features import to_gray
 from .model_selection import robust_sigma
 from .rotation import LensRotationFit, fit_rotation_lens, transfer_points
@@ -230,11 +231,11 @@ def align_windows(
 ) -> WindowTracks:
     """Align a window of image 1 around each point with image 2 seen through ``transfer``.
 
-    For each point ``p``, ``min sum_k (a I2(T(p + o_k) + d) + b - I1(p + o_k))^2`` over the shift
-    ``d`` (pixels of image 2), gain ``a`` and offset ``b``, ``o_k`` the pixels of a
-    ``window x window`` square: Gauss-Newton, all windows at once, from the coarsest of
-    ``levels + 1`` pyramid levels (each half the size, the window the same number of pixels)
-    down to the images themselves.
+    For each point ``p``, ``min sum_k (g_k I2(T(p + o_k) + d) + b - I1(p + o_k))^2`` over the
+    shift ``d`` (pixels of image 2), the gain ``g_k`` and the offset ``b``, ``o_k`` the pixels of a
+    ``window x window`` square: all windows at once, from the coarsest of ``levels + 1`` pyramid
+    levels (each half the size, the window the same number of pixels, the gain constant) down
+    to the images themselves, where the gain may also vary linearly across the window.
 
     Parameters
     ----------
@@ -254,10 +255,27 @@ def align_windows(
     Returns
     -------
     WindowTracks
+
+    Raises
+    ------
+    ValueError
+        Points that are not (N, 2) finite pixels, an even or tiny window, levels outside 0..8.
+    TypeError
+        ``transfer`` that is not callable.
     """
-    points1 = np.asarray(points1, dtype=np.float64).reshape(-1, 2)
-    if window < 5 or window % 2 == 0:
-        raise ValueError(f"window must be an odd number of pixels >= 5, got {window}")
+    points1 = as_points(points1, "points1")
+    _require_window(window)
+    if not callable(transfer):
+        raise TypeError(f"transfer must be callable, got {type(transfer).__name__}")
+    if (
+        isinstance(levels, bool)
+        or not isinstance(levels, (int, np.integer))
+        or not 0 <= levels <= 8
+    ):
+        raise ValueError(f"levels must be an integer in 0..8, got {levels!r}")
+    if not len(points1):
+        empty = np.zeros((0, 2))
+        return WindowTracks(empty, empty, np.zeros(0, dtype=bool), np.zeros(0))
     pyr1 = _pyramid(to_gray(image1), levels, gradients=False)
     pyr2 = _pyramid(to_gray(image2), levels, gradients=True)
     offsets = _offsets(window)
@@ -293,6 +311,13 @@ def align_windows(
     )
     points2 = transfer(points1) + d
     return WindowTracks(points1=points1, points2=points2, valid=valid, ncc=ncc)
+
+
+def _require_window(window) -> None:
+    if isinstance(window, bool) or not isinstance(window, (int, np.integer)):
+        raise TypeError(f"window must be an integer, got {type(window).__name__}")
+    if window < 5 or window % 2 == 0:
+        raise ValueError(f"window must be an odd number of pixels >= 5, got {window}")
 
 
 def _inside(xy: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -434,6 +459,12 @@ def refine_rotation_photometric(
         None when fewer than :data:`MIN_TRACKS` tracks agree with a rotation, or the refit is
         refused.
 
+    Raises
+    ------
+    ValueError
+        Intrinsics, distortion, ``R`` (not a rotation) or ``rotation_sigma_deg`` (not > 0) that
+        are not what they claim to be.
+
     Examples
     --------
     A 2 degree pan of a random texture, started from the identity:
@@ -451,7 +482,13 @@ def refine_rotation_photometric(
     >>> bool(angle < 0.02), refined.num_tracks > 100
     (True, True)
     """
-    K1, K2 = np.asarray(K1, dtype=np.float64), np.asarray(K2, dtype=np.float64)
+    K1, K2 = as_camera_matrix(K1, "K1"), as_camera_matrix(K2, "K2")
+    dist1, dist2 = as_distortion(dist1, "dist1"), as_distortion(dist2, "dist2")
+    R = np.asarray(R, dtype=np.float64)
+    if R.shape != (3, 3) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6):
+        raise ValueError(f"R must be a 3x3 rotation matrix, got shape {R.shape}")
+    rotation_sigma_deg = as_positive(rotation_sigma_deg, "rotation_sigma_deg")
+    _require_window(window)
     to_normalised, to_pixels = _camera_maps(K1, K2, dist1, dist2)
     to_normalised2 = _camera_maps(K2, K2, dist2, dist2)[0]
     focal = float(np.mean([K2[0, 0], K2[1, 1]]))

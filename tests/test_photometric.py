@@ -221,3 +221,23 @@ def test_windows_on_an_object_that_moved_are_dropped():
     assert not np.any(refined.inliers & inside)
     error = _angle_deg(refined.fit.R, pair.R)
     assert error < 0.1 and error < 3.0 * refined.fit.rotation_sigma_deg
+
+
+def test_bad_arguments_are_named():
+    image = _demo_photo()
+    K = K_DEMO
+    with pytest.raises(ValueError, match="window"):
+        align_windows(image, image, np.zeros((3, 2)), lambda p: p, window=20)
+    with pytest.raises(ValueError, match="levels"):
+        align_windows(image, image, np.zeros((3, 2)), lambda p: p, levels=-1)
+    with pytest.raises(TypeError, match="transfer"):
+        align_windows(image, image, np.zeros((3, 2)), None)
+    with pytest.raises(ValueError, match="points1"):
+        align_windows(image, image, np.full((3, 2), np.nan), lambda p: p)
+    assert len(align_windows(image, image, np.zeros((0, 2)), lambda p: p).valid) == 0
+    with pytest.raises(ValueError, match="rotation"):
+        refine_rotation_photometric(image, image, K, K, np.ones((3, 3)))
+    with pytest.raises(ValueError, match="rotation_sigma_deg"):
+        refine_rotation_photometric(image, image, K, K, np.eye(3), rotation_sigma_deg=0.0)
+    with pytest.raises(ValueError, match="K2"):
+        refine_rotation_photometric(image, image, K, np.eye(2), np.eye(3))
