@@ -241,3 +241,17 @@ def test_bad_arguments_are_named():
         refine_rotation_photometric(image, image, K, K, np.eye(3), rotation_sigma_deg=0.0)
     with pytest.raises(ValueError, match="K2"):
         refine_rotation_photometric(image, image, K, np.eye(2), np.eye(3))
+
+
+@pytest.mark.parametrize("index", [0, 1])
+def test_a_second_radial_term_nobody_models_does_not_break_the_refit(index):
+    """Real lenses have k2 too; the lens model has k1 only (k2 = 2 k1 here, |k1| 0.05-0.1)."""
+    from ppo_cv import data_gen
+
+    imperfections = data_gen.Imperfections(k1_range=(0.05, 0.1), k2_fraction=2.0)
+    pair = data_gen.make_pair("panorama", seed=0, index=index, imperfections=imperfections)
+    image1 = np.ascontiguousarray(pair.image1[..., ::-1])
+    image2 = np.ascontiguousarray(pair.image2[..., ::-1])
+    result = estimate_pair(image1, image2, pair.K1_given, pair.K2_given)
+    assert result.pure_rotation and result.rotation_tracks > 100
+    assert _angle_deg(result.R, pair.R) < 0.06
