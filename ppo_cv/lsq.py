@@ -2,8 +2,10 @@
 
 The refinements of :mod:`ppo_cv.plane` (a pose on its homography) and :mod:`ppo_cv.refine` (a
 pose on its essential matrix with a radial term) have a handful of parameters and many
-residuals: Levenberg-Marquardt with forward-difference Jacobians, Huber weights and a basis of
-the tangent plane of the unit sphere (for a unit translation or normal) are all they need.
+residuals: Levenberg-Marquardt with forward-difference Jacobians, Huber weights, a basis of
+the tangent plane of the unit sphere (for a unit translation or normal) and the rotation
+increment ``exp([w]x)`` (for a rotation) are all they need; the rotation-only fit of
+:mod:`ppo_cv.rotation` uses the increment too.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ __all__ = [
     "gauss_newton_covariance",
     "huber_weights",
     "levenberg_marquardt",
+    "rotation_increment",
     "tangent_basis",
 ]
 
@@ -27,6 +30,16 @@ def tangent_basis(n: np.ndarray) -> np.ndarray:
     a = np.cross(n, axis)
     a /= np.linalg.norm(a)
     return np.array([a, np.cross(n, a)])
+
+
+def rotation_increment(w: np.ndarray) -> np.ndarray:
+    """``exp([w]x)`` (3, 3): the rotation by ``|w|`` radians about ``w / |w|`` (Rodrigues), to
+    first order ``I + [w]x`` below 1e-12 rad."""
+    theta = float(np.linalg.norm(w))
+    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    if theta < 1e-12:
+        return np.eye(3) + K
+    return np.eye(3) + np.sin(theta) / theta * K + (1.0 - np.cos(theta)) / theta**2 * K @ K
 
 
 def huber_weights(size: np.ndarray, scale: float) -> np.ndarray:

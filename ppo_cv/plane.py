@@ -40,6 +40,7 @@ from .lsq import (
     gauss_newton_covariance,
     huber_weights,
     levenberg_marquardt,
+    rotation_increment,
     tangent_basis,
 )
 
@@ -501,14 +502,6 @@ def undistort_division(x: np.ndarray, k1: float) -> np.ndarray:
     return np.column_stack([X[:, :2] / scale[:, None], np.ones(len(X))])
 
 
-def _rodrigues(w: np.ndarray) -> np.ndarray:
-    theta = float(np.linalg.norm(w))
-    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-    if theta < 1e-12:
-        return np.eye(3) + K
-    return np.eye(3) + np.sin(theta) / theta * K + (1 - np.cos(theta)) / theta**2 * K @ K
-
-
 def _transfer(H: np.ndarray, q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
     """Forward and backward transfer residuals, shape (N, 4): ``H q1 - q2``, ``H^-1 q2 - q1``."""
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -528,7 +521,7 @@ class _PlaneModel:
 
     def pose(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         n = self.n0 + p[6:8] @ self.basis
-        return _rodrigues(p[:3]) @ self.R0, self.T0 + p[3:6], n / np.linalg.norm(n)
+        return rotation_increment(p[:3]) @ self.R0, self.T0 + p[3:6], n / np.linalg.norm(n)
 
     def residuals(self, p: np.ndarray) -> np.ndarray:
         R, T, n = self.pose(p)

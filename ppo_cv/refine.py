@@ -18,7 +18,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .lsq import gauss_newton_covariance, huber_weights, levenberg_marquardt, tangent_basis
+from .lsq import (
+    gauss_newton_covariance,
+    huber_weights,
+    levenberg_marquardt,
+    rotation_increment,
+    tangent_basis,
+)
 from .plane import K1_SIGNIFICANCE, undistort_division
 from .ppo import rotation_from_rays
 from .robust import virtual_camera
@@ -169,7 +175,7 @@ def refine_pose_radial(
 
     def pose(p):
         tp = t0 + p[3:5] @ U
-        return _rotation_increment(p[:3]) @ R0, tp / np.linalg.norm(tp)
+        return rotation_increment(p[:3]) @ R0, tp / np.linalg.norm(tp)
 
     def stacked(p):
         Rp, tp = pose(p)
@@ -268,15 +274,6 @@ def _sampson_signed(R: np.ndarray, t: np.ndarray, x1: np.ndarray, x2: np.ndarray
     return np.einsum("ij,ij->i", x2, Ex1) / np.maximum(denominator, 1e-300)
 
 
-def _rotation_increment(w: np.ndarray) -> np.ndarray:
-    angle = float(np.linalg.norm(w))
-    if angle < 1e-15:
-        return np.eye(3)
-    k = w / angle
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * K @ K
-
-
 T_SIGMA_CAP_DEG = 90.0
 """Largest ``t_sigma_deg``. The direction of ``t`` is a point of the unit sphere and cheirality
 fixes its sign, so it lies in the hemisphere around any estimate: a one-sigma cone of 90 degrees
@@ -340,7 +337,7 @@ def translation_sigma_deg(
 
     def cost(p: np.ndarray) -> float:
         tp = t + p[3] * u1 + p[4] * u2
-        r = _sampson_signed(_rotation_increment(p[:3]) @ R, tp / np.linalg.norm(tp), a, b)
+        r = _sampson_signed(rotation_increment(p[:3]) @ R, tp / np.linalg.norm(tp), a, b)
         return 0.5 * float(r @ r)
 
     r0 = _sampson_signed(R, t, a, b)

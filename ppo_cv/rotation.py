@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .lsq import gauss_newton_covariance
+from .lsq import gauss_newton_covariance, rotation_increment
 from .ppo import rotation_from_rays
 
 __all__ = [
@@ -256,15 +256,6 @@ def ransac_rotation(
     return RotationFit(R=R, inliers=residuals < threshold, residuals=residuals, trials=trials)
 
 
-def _skew_exp(w: np.ndarray) -> np.ndarray:
-    angle = np.linalg.norm(w)
-    if angle < 1e-12:
-        return np.eye(3)
-    k = w / angle
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * K @ K
-
-
 def _lens_map(xy: np.ndarray, scale: float, k1: float, iterations: int = 6) -> np.ndarray:
     """True normalised points ``q`` (N, 2) of given points ``x``: ``s x = q (1 + k1 |q|^2)``."""
     distorted = scale * xy
@@ -286,7 +277,7 @@ def correct_points(x: np.ndarray, focal_scale: float, k1: float) -> np.ndarray:
 def _lens_transfer(params: np.ndarray, R0: np.ndarray, xy1: np.ndarray, xy2: np.ndarray):
     """Residual vectors (N, 2) in view 2, given normalised units: ``x2`` minus the transfer of
     ``x1`` (``q1`` rotated, distorted and scaled back)."""
-    R = _skew_exp(params[:3]) @ R0
+    R = rotation_increment(params[:3]) @ R0
     scale, k1 = 1.0 + params[3], params[4]
     q1 = _lens_map(xy1, scale, k1)
     ray = np.column_stack([q1, np.ones(len(q1))]) @ R.T
@@ -381,7 +372,7 @@ def fit_rotation_lens(
         params[:3] = 0.0
         if len(a) >= 2:
             params = _gauss_newton(params, problem, iterations, free=3)
-    R_final = _skew_exp(params[:3]) @ R0
+    R_final = rotation_increment(params[:3]) @ R0
     lens_only = np.r_[0.0, 0.0, 0.0, params[3:]]
     residuals = np.linalg.norm(_lens_transfer(lens_only, R_final, xy1, xy2), axis=1)
     return LensRotationFit(

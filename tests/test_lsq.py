@@ -50,3 +50,12 @@ def test_gauss_newton_covariance_of_a_line_fit():
     expected = 0.25 * np.array([[x.size, x.sum()], [x.sum(), x @ x]])
     np.testing.assert_allclose(cov @ expected, 0.25**2 * np.eye(2), atol=1e-12)
     assert gauss_newton_covariance(np.ones((200, 2)), 1.0) is None  # singular J^T J
+
+
+def test_rotation_increment_is_rodrigues():
+    import cv2
+
+    from ppo_cv.lsq import rotation_increment
+
+    for w in (np.array([0.3, -0.2, 0.5]), np.array([1e-9, 0.0, 0.0]), np.zeros(3)):
+        np.testing.assert_allclose(rotation_increment(w), cv2.Rodrigues(w)[0], atol=1e-12)
