@@ -14,6 +14,7 @@ __all__ = [
     "as_homogeneous_pair",
     "as_camera_matrix",
     "as_distortion",
+    "as_rotation",
     "as_essential",
     "as_mask",
     "as_positive",
@@ -161,6 +162,18 @@ def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
             f"{name} has a skew or principal point beyond {MAX_COORDINATE:.0e} px: {K.tolist()}"
         )
     return K
+
+
+def as_rotation(value: Any, name: str = "R") -> np.ndarray:
+    """A 3x3 rotation matrix as float64: orthonormal to 1e-6 and of determinant +1 (a mirror is
+    an error naming ``name``)."""
+    R = _as_real_array(value, name)
+    if R.shape != (3, 3):
+        raise ValueError(f"{name} must be a 3x3 rotation matrix, got shape {R.shape}")
+    _require_finite(R, name)
+    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+        raise ValueError(f"{name} is not a rotation matrix (orthonormal, determinant +1)")
+    return R
 
 
 def as_distortion(value: Any, name: str) -> np.ndarray | None:

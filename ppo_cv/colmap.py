@@ -25,7 +25,7 @@ import numpy as np
 import pycolmap
 
 from . import ppo
-from .checks import as_camera_matrix, as_point_pair
+from .checks import as_camera_matrix, as_point_pair, as_rotation
 from .pose import PoseResult, recover_pose
 
 __all__ = [
@@ -128,12 +128,10 @@ def rays_from_camera(camera: pycolmap.Camera, points: np.ndarray) -> np.ndarray:
 
 def rigid3d_from_pose(R: Any, t: Any) -> pycolmap.Rigid3d:
     """``cam2_from_cam1`` as a pycolmap ``Rigid3d`` from ``X2 = R X1 + t``."""
-    R = np.asarray(R, dtype=np.float64)
+    R = as_rotation(R, "R")
     t = np.asarray(t, dtype=np.float64).reshape(-1)
-    if R.shape != (3, 3) or t.shape != (3,):
-        raise ValueError(f"R must be 3x3 and t of length 3, got {R.shape} and {t.shape}")
-    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
-        raise ValueError("R is not a rotation matrix")
+    if t.shape != (3,):
+        raise ValueError(f"t must be of length 3, got shape {t.shape}")
     return pycolmap.Rigid3d(pycolmap.Rotation3d(R), t)
 
 
