@@ -38,7 +38,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .checks import as_camera_matrix, as_distortion, as_points, as_positive
+from .camera import normalized_to_pixels, pixels_to_normalized
+from .checks import as_camera_matrix, as_distortion, as_points, as_positive, as_rotation
 from .features import to_gray
 from .model_selection import robust_sigma
 from .rotation import LensRotationFit, fit_rotation_lens, transfer_points
@@ -325,25 +326,6 @@ def _inside(xy: np.ndarray, width: int, height: int) -> np.ndarray:
     return np.all((x >= 0) & (x <= width - 1) & (y >= 0) & (y <= height - 1), axis=1)
 
 
-def _camera_maps(K1, K2, dist1, dist2):
-    """Pixels to normalised points of camera 1, and normalised points to pixels of camera 2."""
-    import cv2
-
-    def to_normalised(pixels: np.ndarray) -> np.ndarray:
-        if dist1 is None:
-            return (pixels - K1[:2, 2]) @ np.linalg.inv(K1[:2, :2]).T
-        return cv2.undistortPoints(pixels.reshape(-1, 1, 2), K1, dist1).reshape(-1, 2)
-
-    def to_pixels(xy: np.ndarray) -> np.ndarray:
-        if dist2 is None:
-            return xy @ K2[:2, :2].T + K2[:2, 2]
-        rays = np.column_stack([xy, np.ones(len(xy))])
-        zero = np.zeros(3)
-        return cv2.projectPoints(rays, zero, zero, K2, dist2)[0].reshape(-1, 2)
-
-    return to_normalised, to_pixels
-
-
 def _corners(gray1, count, window, transfer, shape2) -> np.ndarray:
     """Strongest corners of image 1 (integer pixels, at least a quarter window apart) whose
     window lies inside image 1 and whose transfer lies a window inside image 2."""
@@ -484,21 +466,19 @@ def refine_rotation_photometric(
     """
     K1, K2 = as_camera_matrix(K1, "K1"), as_camera_matrix(K2, "K2")
     dist1, dist2 = as_distortion(dist1, "dist1"), as_distortion(dist2, "dist2")
-    R = np.asarray(R, dtype=np.float64)
-    if R.shape != (3, 3) or not np.allclose(R @ R.T, np.eye(3), atol=1e-6):
-        raise ValueError(f"R must be a 3x3 rotation matrix, got shape {R.shape}")
+    R = as_rotation(R, "R")
     rotation_sigma_deg = as_positive(rotation_sigma_deg, "rotation_sigma_deg")
     _require_window(window)
-    to_normalised, to_pixels = _camera_maps(K1, K2, dist1, dist2)
-    to_normalised2 = _camera_maps(K2, K2, dist2, dist2)[0]
     focal = float(np.mean([K2[0, 0], K2[1, 1]]))
     gray1, gray2 = to_gray(image1), to_gray(image2)
-    start = (np.asarray(R, dtype=np.float64), float(focal_scale), float(k1))
+    start = (R, float(focal_scale), float(k1))
 
     def transfer_with(model) -> Callable[[np.ndarray], np.ndarray]:
         rotation, scale, radial = model
-        return lambda pixels: to_pixels(
-            transfer_points(to_normalised(pixels), rotation, scale, radial)
+        return lambda pixels: normalized_to_pixels(
+            transfer_points(pixels_to_normalized(pixels, K1, dist1), rotation, scale, radial),
+            K2,
+            dist2,
         )
 
     count = MAX_CORNERS if max_corners is None else int(max_corners)
@@ -507,13 +487,14 @@ def refine_rotation_photometric(
         return None
     shift = 3.0 * np.radians(min(rotation_sigma_deg, 5.0)) * focal
     levels = int(np.clip(np.ceil(np.log2(max(shift, 1.0) / (window / 8.0))), 0, _MAX_LEVELS))
-    y1 = to_normalised(corners)
+    y1 = pixels_to_normalized(corners, K1, dist1)
     model, result = start, None
     for level_count in (levels, 0):
         tracks = align_windows(
             gray1, gray2, corners, transfer_with(model), window=window, levels=level_count
         )
-        fitted = _fit_tracks(y1, to_normalised2(tracks.points2), tracks.valid, model[0], focal)
+        y2 = pixels_to_normalized(tracks.points2, K2, dist2)
+        fitted = _fit_tracks(y1, y2, tracks.valid, model[0], focal)
         if fitted is None:
             return None
         fit, used, noise_px = fitted

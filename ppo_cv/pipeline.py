@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from . import ppo
+from .camera import pixels_to_normalized
 from .checks import as_camera_matrix, as_distortion
 from .features import FEATURE_TYPES, Features, detect_features, match_features_scored
 from .homography import estimate_homography
@@ -365,12 +366,7 @@ class PairResult:
 
 def _normalize(points: np.ndarray, K: np.ndarray, dist: np.ndarray | None) -> np.ndarray:
     """Pixels (N, 2) to homogeneous normalized coordinates (N, 3), distortion removed."""
-    if dist is None:
-        xy = ppo.normalize(points, K)
-    else:
-        import cv2
-
-        xy = cv2.undistortPoints(points.reshape(-1, 1, 2), K, dist).reshape(-1, 2)
+    xy = pixels_to_normalized(points, K, dist)
     return np.column_stack([xy, np.ones(len(xy))])
 
 

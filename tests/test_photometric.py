@@ -237,6 +237,8 @@ def test_bad_arguments_are_named():
     assert len(align_windows(image, image, np.zeros((0, 2)), lambda p: p).valid) == 0
     with pytest.raises(ValueError, match="rotation"):
         refine_rotation_photometric(image, image, K, K, np.ones((3, 3)))
+    with pytest.raises(ValueError, match="not a rotation"):
+        refine_rotation_photometric(image, image, K, K, np.diag([1.0, 1.0, -1.0]))
     with pytest.raises(ValueError, match="rotation_sigma_deg"):
         refine_rotation_photometric(image, image, K, K, np.eye(3), rotation_sigma_deg=0.0)
     with pytest.raises(ValueError, match="K2"):

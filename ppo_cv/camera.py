@@ -1,0 +1,51 @@
+"""The pinhole camera with OpenCV's lens model: pixels to normalised points and back.
+
+``x = K^-1 [u, v, 1]`` for a camera without distortion (:func:`ppo_cv.ppo.normalize`); with
+OpenCV distortion coefficients ``dist`` the pixels are undistorted first
+(``cv2.undistortPoints``) and normalised points are distorted on their way back
+(``cv2.projectPoints``), the model every OpenCV calibration writes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import ppo
+
+__all__ = ["pixels_to_normalized", "normalized_to_pixels"]
+
+
+def pixels_to_normalized(points: np.ndarray, K: np.ndarray, dist: np.ndarray | None) -> np.ndarray:
+    """Pixel points (N, 2) to normalised points (N, 2), distortion ``dist`` removed.
+
+    ``K`` and ``dist`` as checked by :func:`ppo_cv.checks.as_camera_matrix` and
+    :func:`ppo_cv.checks.as_distortion` (None: no distortion).
+    """
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    if dist is None:
+        return ppo.normalize(points, K)
+    import cv2
+
+    return cv2.undistortPoints(points.reshape(-1, 1, 2), K, dist).reshape(-1, 2)
+
+
+def normalized_to_pixels(xy: np.ndarray, K: np.ndarray, dist: np.ndarray | None) -> np.ndarray:
+    """Normalised points (N, 2) to pixel points (N, 2) through the distortion ``dist``.
+
+    Examples
+    --------
+    >>> K = np.array([[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]])
+    >>> dist = np.array([-0.1, 0.01, 0.0, 0.0])
+    >>> pixels = np.array([[100.0, 50.0], [600.0, 400.0]])
+    >>> back = normalized_to_pixels(pixels_to_normalized(pixels, K, dist), K, dist)
+    >>> bool(np.allclose(back, pixels, atol=1e-3))
+    True
+    """
+    xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+    if dist is None:
+        return xy @ K[:2, :2].T + K[:2, 2]
+    import cv2
+
+    rays = np.column_stack([xy, np.ones(len(xy))])
+    zero = np.zeros(3)
+    return cv2.projectPoints(rays, zero, zero, K, dist)[0].reshape(-1, 2)
