@@ -279,6 +279,12 @@ def align_windows(
         return WindowTracks(empty, empty, np.zeros(0, dtype=bool), np.zeros(0))
     pyr1 = _pyramid(to_gray(image1), levels, gradients=False)
     pyr2 = _pyramid(to_gray(image2), levels, gradients=True)
+    return _align_pyramids(pyr1, pyr2, points1, transfer, window, levels, iterations)
+
+
+def _align_pyramids(pyr1, pyr2, points1, transfer, window, levels, iterations) -> WindowTracks:
+    """:func:`align_windows` on pyramids of :func:`_pyramid` with at least ``levels`` levels
+    above the images (checked arguments, at least one point)."""
     offsets = _offsets(window)
     ramp = offsets / (window // 2)
     n, k = len(points1), len(offsets)
@@ -488,10 +494,12 @@ def refine_rotation_photometric(
     shift = 3.0 * np.radians(min(rotation_sigma_deg, 5.0)) * focal
     levels = int(np.clip(np.ceil(np.log2(max(shift, 1.0) / (window / 8.0))), 0, _MAX_LEVELS))
     y1 = pixels_to_normalized(corners, K1, dist1)
+    pyr1 = _pyramid(gray1, levels, gradients=False)
+    pyr2 = _pyramid(gray2, levels, gradients=True)
     model, result = start, None
     for level_count in (levels, 0):
-        tracks = align_windows(
-            gray1, gray2, corners, transfer_with(model), window=window, levels=level_count
+        tracks = _align_pyramids(
+            pyr1, pyr2, corners, transfer_with(model), window, level_count, _ITERATIONS
         )
         y2 = pixels_to_normalized(tracks.points2, K2, dist2)
         fitted = _fit_tracks(y1, y2, tracks.valid, model[0], focal)
