@@ -8,7 +8,7 @@ from typing import Annotated
 
 import typer
 
-from ppo_cv.data_gen.names import MOTIONS, SCENES
+from ppo_cv.data_gen.names import MAX_BASELINE_RATIO, MAX_PIVOT_OFFSET, MOTIONS, SCENES
 
 from .common import ProgressReport, Quiet, fail
 
@@ -20,8 +20,6 @@ MAX_SAMPLES = 20_000_000
 """Bound on ``width * height * supersample^2`` (rays cast per view): about 15 s a pair."""
 MAX_NOISE = 50.0
 MAX_BLUR = 50.0
-MAX_BASELINE_RATIO = 0.5
-MAX_PIVOT_OFFSET = 1.0
 
 
 def _fail(message: str) -> None:

@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .names import MOTIONS
+from .names import MAX_BASELINE_RATIO, MAX_PIVOT_OFFSET, MOTIONS
 from .protocol import euler_to_matrix
 from .scenes import Scene
 
@@ -79,9 +79,6 @@ DEFAULT_HFOV_RANGE = (55.0, 70.0)
 PANORAMA_YAW_FRACTION = (0.35, 0.7)
 PANORAMA_TILT_SIGMA_DEG = 1.5
 TINY_BASELINE_RANGE = (1e-3, 0.05)
-MAX_BASELINE_RATIO = 0.5
-MAX_PIVOT_OFFSET = 1.0
-"""Largest ``pivot_offset`` of ``panorama``, metres."""
 
 
 @dataclass(frozen=True)

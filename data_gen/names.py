@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["MOTIONS", "SCENES"]
+__all__ = ["MOTIONS", "SCENES", "MAX_BASELINE_RATIO", "MAX_PIVOT_OFFSET"]
 
 MOTIONS = (
     "general",
@@ -17,3 +17,9 @@ MOTIONS = (
 
 SCENES = ("room", "clutter", "plane", "backdrop")
 """Names accepted by :func:`ppo_cv.data_gen.scenes.make_scene`."""
+
+MAX_BASELINE_RATIO = 0.5
+"""Largest ``baseline_ratio`` (baseline over scene depth) of ``tiny-baseline``."""
+
+MAX_PIVOT_OFFSET = 1.0
+"""Largest ``pivot_offset`` of ``panorama``, metres."""
