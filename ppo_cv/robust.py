@@ -41,6 +41,9 @@ __all__ = [
 
 ROBUST_BACKENDS = ("pycolmap", "opencv")
 
+POSE_AGREEMENT = 0.5
+"""Share of pycolmap's inliers the pose it returns must explain within the threshold; below it
+the essential matrix of its RANSAC is used instead of that pose."""
 ORDERED_FRACTION = 0.5
 """Share of the matches, best-ranked first, that the first fit of ordered sampling sees."""
 ORDERED_MIN_MATCHES = 30
@@ -147,14 +150,23 @@ def _pycolmap(x1, x2, focal, threshold, confidence, min_trials, max_trials, seed
 
     options = ransac_options(threshold, confidence, min_trials, max_trials, seed)
     camera = virtual_camera(focal)
-    found = pycolmap.estimate_relative_pose(
-        camera, focal * x1[:, :2], camera, focal * x2[:, :2], options
-    )
+    points1, points2 = focal * x1[:, :2], focal * x2[:, :2]
+    found = pycolmap.estimate_relative_pose(camera, points1, camera, points2, options)
     if found is None:
         return None
     pose = found["cam2_from_cam1"]
     E = essential_from_pose(pose.rotation.matrix(), np.asarray(pose.translation).ravel())
-    return E, np.asarray(found["inlier_mask"]).reshape(-1).astype(bool)
+    mask = np.asarray(found["inlier_mask"]).reshape(-1).astype(bool)
+    agree = np.count_nonzero(sampson_errors(E, x1[mask], x2[mask]) < threshold / focal)
+    if agree < POSE_AGREEMENT * np.count_nonzero(mask):
+        # the pose pycolmap decomposed its E into can disagree with it (seen with a principal
+        # point 10 px off: none of the model's inliers fit the pose); then E itself
+        found = pycolmap.estimate_essential_matrix(points1, points2, camera, camera, options)
+        if found is None:
+            return None
+        E = np.asarray(found["E"], dtype=np.float64)
+        E, mask = E / np.linalg.norm(E), np.asarray(found["inlier_mask"]).reshape(-1) != 0
+    return E, mask
 
 
 def _opencv(x1, x2, focal, threshold, confidence, min_trials, max_trials, seed):
