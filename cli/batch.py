@@ -29,6 +29,7 @@ from .common import (
     Overwrite,
     Photometric,
     Plane,
+    PrincipalPoint,
     PriThreshold,
     ProgressReport,
     Quiet,
@@ -414,6 +415,7 @@ def register(app: typer.Typer) -> None:
         max_log10_nfa: MaxLog10Nfa = DEFAULT_MAX_LOG10_NFA,
         plane: Plane = True,
         photometric: Photometric = True,
+        principal_point: PrincipalPoint = "auto",
         max_trials: Annotated[
             int,
             typer.Option(
@@ -437,7 +439,7 @@ def register(app: typer.Typer) -> None:
             check_range("--max-trials", max_trials, 1, MAX_TRIALS_MAX)
             options = pipeline_options(
                 features, max_features, max_size, ratio, backend, threshold, seed, pri_threshold,
-                max_log10_nfa, plane, photometric,
+                max_log10_nfa, plane, photometric, principal_point,
             )  # fmt: skip
             options = dataclasses.replace(
                 options,

@@ -88,6 +88,15 @@ Photometric = Annotated[
         rich_help_panel=_PANEL,
     ),
 ]
+PrincipalPoint = Annotated[
+    str,
+    typer.Option(
+        "--principal-point",
+        help="May a pure rotation's fit move the principal point: auto (when both are given "
+        "at the image centre, a guess), fit (always) or given (never).",
+        rich_help_panel=_PANEL,
+    ),
+]
 Overwrite = Annotated[
     bool,
     typer.Option("--overwrite", help="Replace an existing output (never done without it)."),

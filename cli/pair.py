@@ -21,6 +21,7 @@ from .common import (
     Overwrite,
     Photometric,
     Plane,
+    PrincipalPoint,
     PriThreshold,
     Ratio,
     Seed,
@@ -55,6 +56,7 @@ def pipeline_options(
     max_log10_nfa: float | None = None,
     plane: bool = True,
     photometric: bool = True,
+    principal_point: str = "auto",
 ):
     """PairOptions from command-line values, each bounded up front (ValueError naming it)."""
     from ppo_cv.pipeline import PairOptions
@@ -84,6 +86,7 @@ def pipeline_options(
         max_log10_nfa=max_log10_nfa,
         plane=plane,
         photometric=photometric,
+        principal_point=principal_point.lower(),
     )
 
 
@@ -346,6 +349,7 @@ def register(app: typer.Typer) -> None:
         max_log10_nfa: MaxLog10Nfa = DEFAULT_MAX_LOG10_NFA,
         plane: Plane = True,
         photometric: Photometric = True,
+        principal_point: PrincipalPoint = "auto",
     ) -> None:
         """Relative pose (R, t), pure-rotation verdict and 3D points of two photos.
 
@@ -361,7 +365,7 @@ def register(app: typer.Typer) -> None:
         try:
             options = pipeline_options(
                 features, max_features, max_size, ratio, backend, threshold, seed, pri_threshold,
-                max_log10_nfa, plane, photometric,
+                max_log10_nfa, plane, photometric, principal_point,
             )  # fmt: skip
         except ValueError as exc:
             _fail(str(exc))

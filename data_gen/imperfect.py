@@ -5,8 +5,9 @@ A real photo differs from the exact pinhole renders in ways no estimator is told
 * unmodelled radial distortion ``(k1, k2)`` of the OpenCV model, applied in rendering but not
   given to the estimator;
 * a focal length known only to a few percent: the estimator is given ``K_given`` whose ``fx``
-  and ``fy`` are the true ones times one factor ``f ~ U(1 - focal_error, 1 + focal_error)``
-  (principal point unchanged);
+  and ``fy`` are the true ones times one factor ``f ~ U(1 - focal_error, 1 + focal_error)``;
+* optionally a principal point known only as the image centre (an EXIF or panorama-stitcher
+  focal length comes without one), while the true one lies up to 2 % of the image off it;
 * a narrow horizontal field of view (consumer zooms, 25-35 degrees), which makes rotation and
   translation hard to tell apart;
 * JPEG compression, sensor noise and a slight optical blur.
@@ -109,6 +110,10 @@ class Imperfections:
         Gaussian noise, grey levels (0-255), in ``[0, 50]``.
     blur_sigma : float, default 0.5
         Gaussian blur, pixels, in ``[0, 50]``.
+    centred_principal_point : bool, default False
+        Give the estimator the image centre, ``((w - 1) / 2, (h - 1) / 2)``, as principal point
+        instead of the true one (drawn within 2 % of the image size of the centre by
+        ``ppo_cv.data_gen``'s cameras). Draws nothing: the same pair, told less.
     """
 
     k1_range: tuple = (0.02, 0.1)
@@ -118,9 +123,16 @@ class Imperfections:
     jpeg_quality: tuple | None = (70, 95)
     noise_std: float = 1.0
     blur_sigma: float = 0.5
+    centred_principal_point: bool = False
 
     def __post_init__(self) -> None:
         put = object.__setattr__
+        if not isinstance(self.centred_principal_point, (bool, np.bool_)):
+            raise ValueError(
+                "centred_principal_point must be True or False, got "
+                f"{self.centred_principal_point!r}"
+            )
+        put(self, "centred_principal_point", bool(self.centred_principal_point))
         put(self, "k1_range", _pair("k1_range", self.k1_range, 0.0, MAX_K1))
         put(self, "k2_fraction", _scalar("k2_fraction", self.k2_fraction, -5.0, 5.0))
         put(self, "focal_error", _scalar("focal_error", self.focal_error, 0.0, MAX_FOCAL_ERROR))
@@ -165,10 +177,18 @@ REAL_PHOTO = Imperfections()
 """Imperfections of a consumer camera on a tripod: the defaults of :class:`Imperfections`."""
 
 
-def given_intrinsics(K: np.ndarray, focal_factor: float) -> np.ndarray:
-    """``K`` with ``fx``, ``fy`` (and the skew) scaled by ``focal_factor``, shape (3, 3)."""
+def given_intrinsics(
+    K: np.ndarray, focal_factor: float, centre_of: tuple[int, int] | None = None
+) -> np.ndarray:
+    """``K`` with ``fx``, ``fy`` (and the skew) scaled by ``focal_factor``, shape (3, 3).
+
+    With ``centre_of = (width, height)`` the principal point is that image's centre
+    ``((width - 1) / 2, (height - 1) / 2)`` instead of ``K``'s.
+    """
     K_given = np.array(K, dtype=np.float64)
     K_given[:2, :2] *= focal_factor
+    if centre_of is not None:
+        K_given[:2, 2] = (centre_of[0] - 1) / 2.0, (centre_of[1] - 1) / 2.0
     return K_given
 
 

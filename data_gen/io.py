@@ -156,12 +156,13 @@ def make_pair(
     )  # fmt: skip
     if drawn is None:
         return pair
+    centre = pair.image1.shape[1::-1] if imperfections.centred_principal_point else None
     return dataclasses.replace(
         pair,
         image1=jpeg_roundtrip(pair.image1, drawn.jpeg_quality),
         image2=jpeg_roundtrip(pair.image2, drawn.jpeg_quality),
-        K1_given=given_intrinsics(pair.K1, drawn.focal_factor),
-        K2_given=given_intrinsics(pair.K2, drawn.focal_factor),
+        K1_given=given_intrinsics(pair.K1, drawn.focal_factor, centre),
+        K2_given=given_intrinsics(pair.K2, drawn.focal_factor, centre),
     )
 
 

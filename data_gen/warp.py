@@ -16,6 +16,7 @@ photo is never minified (``upsampling = fx / f_source >= 1``).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
 from collections.abc import Sequence
@@ -320,9 +321,13 @@ def make_warped_pair(
     record["imperfect"] = imperfections is not None
     if imperfections is not None:
         record["imperfections"] = imperfections.record()
-    return warp_pair(
+    pair = warp_pair(
         photo, K, R, drawn.dist if np.any(drawn.dist) else None, size,
         focal_factor=drawn.focal_factor, jpeg_quality=drawn.jpeg_quality,
         noise_std=drawn.noise_std, blur_sigma=drawn.blur_sigma, seed=[seed, index],
         params=record,
     )  # fmt: skip
+    if not settings.centred_principal_point:
+        return pair
+    K_given = given_intrinsics(K, drawn.focal_factor, size)
+    return dataclasses.replace(pair, K1_given=K_given, K2_given=K_given.copy())

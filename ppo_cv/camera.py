@@ -12,7 +12,11 @@ import numpy as np
 
 from . import ppo
 
-__all__ = ["pixels_to_normalized", "normalized_to_pixels"]
+__all__ = ["pixels_to_normalized", "normalized_to_pixels", "principal_point_is_centre"]
+
+CENTRE_TOLERANCE_PX = 0.5
+"""How far from ``(w - 1) / 2`` or ``w / 2`` (likewise ``h``) a principal point may lie and still
+be the image centre; the two conventions are half a pixel apart."""
 
 
 def pixels_to_normalized(points: np.ndarray, K: np.ndarray, dist: np.ndarray | None) -> np.ndarray:
@@ -49,3 +53,24 @@ def normalized_to_pixels(xy: np.ndarray, K: np.ndarray, dist: np.ndarray | None)
     rays = np.column_stack([xy, np.ones(len(xy))])
     zero = np.zeros(3)
     return cv2.projectPoints(rays, zero, zero, K, dist)[0].reshape(-1, 2)
+
+
+def principal_point_is_centre(K: np.ndarray, image_size: tuple[int, int]) -> bool:
+    """Whether ``K``'s principal point is the centre of a ``(width, height)`` image.
+
+    A calibration never lands there exactly; a principal point at the centre was set, not
+    measured (EXIF or stitcher focal lengths), so it may be off by a percent or two.
+
+    Examples
+    --------
+    >>> K = np.array([[500.0, 0, 319.5], [0, 500.0, 240.0], [0, 0, 1]])
+    >>> principal_point_is_centre(K, (640, 480))
+    True
+    >>> principal_point_is_centre(np.array([[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, 1]]),
+    ...                           (640, 480))
+    False
+    """
+    width, height = image_size
+    centre = np.array([(width - 1) / 2.0, (height - 1) / 2.0])
+    offset = np.abs(np.asarray(K, dtype=np.float64)[:2, 2] - centre)
+    return bool(np.all(offset <= CENTRE_TOLERANCE_PX + 1e-9))

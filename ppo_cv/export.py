@@ -136,6 +136,7 @@ def _model_selection(result: PairResult) -> dict:
             "gric_difference": float(result.gric_difference),
             "noise_sigma_px": float(result.noise_sigma_px),
             "focal_scale": float(result.focal_scale),
+            "principal_offset_px": _listed(getattr(result, "principal_offset_px", np.zeros(2))),
             **_plane_selection(result),
         },
         "radial_k1": _finite_or_none(getattr(result, "radial_k1", float("nan"))),

@@ -5,8 +5,9 @@ Two tests that fail differently are combined:
 1. Model comparison (:mod:`ppo_cv.model_selection`, GRIC with a mismatch floor) of up to three
    models fitted to the same matches, each residual a distance in the joint image space (pixels):
 
-   - ``"rotation"`` (``d = 2``, ``k = 3 + 2``): the rotation with a focal scale and radial
-     distortion absorbed (:func:`ppo_cv.rotation.fit_rotation_lens`), transfer error / sqrt(2);
+   - ``"rotation"`` (``d = 2``, ``k = 3 + 2``, or ``3 + 4`` with a principal-point offset): the
+     rotation with a focal scale and radial distortion absorbed, and the principal point when
+     it was only guessed (:func:`ppo_cv.rotation.fit_rotation_lens`), transfer error / sqrt(2);
    - ``"plane"`` (``d = 2``, ``k = 8``): the robust homography
      (:func:`ppo_cv.homography.estimate_homography`), its Sampson error;
    - ``"general"`` (``d = 3``, ``k = 5``): the refined essential matrix, its Sampson error.
@@ -60,7 +61,7 @@ homography the decision is between "rotation" and "general".
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -192,6 +193,9 @@ class MotionDecision:
         Root-mean-square angle error (degrees) of ``R`` of the rotation-only fit, from its
         covariance with the lens terms under their priors
         (:attr:`ppo_cv.rotation.LensRotationFit.rotation_sigma_deg`).
+    principal_offset : ndarray, shape (2,)
+        Principal-point offset of the rotation-only fit (normalised units; zero when not
+        fitted).
     selection : ModelSelection
         GRIC of each model, median residuals (pixels), noise estimate.
     plane : PlanarPose or None
@@ -224,6 +228,7 @@ class MotionDecision:
     plane_epipolar_ratio: float = float("nan")
     plane_off_share: float = float("nan")
     rotation_sigma_deg: float = float("inf")
+    principal_offset: np.ndarray = field(default_factory=lambda: np.zeros(2))
 
     @property
     def gric_difference(self) -> float:
@@ -272,6 +277,7 @@ def decide_motion(
     pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD,
     seed: int = 0,
     homography: HomographyEstimate | None = None,
+    principal_prior: float | None = None,
 ) -> MotionDecision:
     """Fit a rotation to the matches and decide among pure rotation, plane and general motion.
 
@@ -298,6 +304,10 @@ def decide_motion(
     homography : HomographyEstimate, optional
         Robust homography of the same matches (:func:`ppo_cv.homography.estimate_homography`,
         ``H`` on normalised points, residuals in pixels); without it no plane is considered.
+    principal_prior : float, optional
+        Let the rotation-only fit move the principal point, with this prior (normalised
+        units, :func:`ppo_cv.rotation.fit_rotation_lens`); its GRIC then counts two more
+        parameters. None keeps the given principal point.
 
     Returns
     -------
@@ -308,20 +318,23 @@ def decide_motion(
     noise = robust_sigma(general_all[inliers], JOINT_DIMENSION - MODEL_DIMENSIONS["general"][0])
     noise *= np.sqrt(2.0)  # a transfer error coordinate carries the noise of both images
     fit = ransac_rotation(x1, x2, RANSAC_FACTOR * threshold, seed=seed)
-    lens = fit_rotation_lens(x1, x2, fit.inliers, fit.R, noise=noise)
+    lens = fit_rotation_lens(x1, x2, fit.inliers, fit.R, noise=noise,
+                             principal_prior=principal_prior)  # fmt: skip
     rotation_inliers = lens.residuals < threshold
     for _ in range(4):
         if np.count_nonzero(rotation_inliers) < 4:
             break
-        lens = fit_rotation_lens(x1, x2, rotation_inliers, lens.R, noise=noise)
+        lens = fit_rotation_lens(x1, x2, rotation_inliers, lens.R, noise=noise,
+                                 principal_prior=principal_prior)  # fmt: skip
         within = lens.residuals < threshold
         if np.array_equal(within, rotation_inliers):
             break
         rotation_inliers = within
     scored = inliers | rotation_inliers
+    rotation_params = MODEL_DIMENSIONS["rotation"][1] + 2 * bool(np.any(lens.principal_offset))
     selection = select_model(
         [
-            _candidate("rotation", lens.residuals[scored] * focal / np.sqrt(2.0)),
+            _candidate("rotation", lens.residuals[scored] * focal / np.sqrt(2.0), rotation_params),
             _candidate("general", general_all[scored] * focal),
         ]
     )
@@ -374,6 +387,7 @@ def decide_motion(
         plane_epipolar_ratio=plane_epipolar_ratio,
         plane_off_share=plane_off_share,
         rotation_sigma_deg=lens.rotation_sigma_deg,
+        principal_offset=lens.principal_offset,
     )
 
 
@@ -382,8 +396,8 @@ def _rotation_translation(lens: LensRotationFit, x1, x2, used, t_fallback):
     direction uncertainty; ``t_fallback``, inf and the cap with fewer than 5 matches."""
     if np.count_nonzero(used) < 5:
         return np.asarray(t_fallback, dtype=np.float64), float("inf"), T_SIGMA_CAP_DEG
-    c1 = correct_points(x1[used], lens.focal_scale, lens.k1)
-    c2 = correct_points(x2[used], lens.focal_scale, lens.k1)
+    c1 = correct_points(x1[used], lens.focal_scale, lens.k1, lens.principal_offset)
+    c2 = correct_points(x2[used], lens.focal_scale, lens.k1, lens.principal_offset)
     t = translation_for_rotation(lens.R, c1, c2)
     pri = ppo.pure_rotation_indicator(ppo.intersection_scores(c1, c2, lens.R, t))
     # one Sampson residual carries half the squared transfer error (noise of both images)
@@ -425,7 +439,9 @@ def with_rotation(
     -------
     MotionDecision
     """
-    residuals = lens_rotation_residuals(lens.R, lens.focal_scale, lens.k1, x1, x2)
+    residuals = lens_rotation_residuals(
+        lens.R, lens.focal_scale, lens.k1, x1, x2, lens.principal_offset
+    )
     lens = replace(lens, residuals=residuals)
     inliers = residuals < TRANSFER_FACTOR * threshold_px / focal
     t, pri, t_sigma = _rotation_translation(lens, x1, x2, inliers, motion.t)
@@ -439,11 +455,13 @@ def with_rotation(
         focal_scale=lens.focal_scale,
         k1=lens.k1,
         rotation_sigma_deg=lens.rotation_sigma_deg,
+        principal_offset=lens.principal_offset,
     )
 
 
-def _candidate(name: str, residuals: np.ndarray) -> ModelResiduals:
-    return ModelResiduals(name, residuals, *MODEL_DIMENSIONS[name])
+def _candidate(name: str, residuals: np.ndarray, num_params: int | None = None) -> ModelResiduals:
+    dimension, default_params = MODEL_DIMENSIONS[name]
+    return ModelResiduals(name, residuals, dimension, num_params or default_params)
 
 
 def _epipolar_ratio(plane, x1, x2, general_px, threshold_px: float, focal: float) -> float:

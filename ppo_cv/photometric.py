@@ -33,7 +33,7 @@ to 0.01-0.03 degrees (``docs/pure_rotation.md``, made by ``benchmarks/pure_rotat
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -387,14 +387,25 @@ def window_overlap(points: np.ndarray, window: int = WINDOW) -> float:
     return float(flat.size / np.unique(flat).size)
 
 
-def _fit_tracks(y1, y2, valid, R, focal):
+def _as_offset(value) -> np.ndarray:
+    try:
+        offset = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"principal_offset must be two numbers, got {value!r}") from None
+    if offset.shape != (2,) or not np.all(np.isfinite(offset)):
+        raise ValueError(f"principal_offset must be two finite numbers, got {value!r}")
+    return offset
+
+
+def _fit_tracks(y1, y2, valid, R, focal, principal_prior):
     """Lens rotation over the tracks, outliers beyond ``3 sqrt(2)`` noise deviations dropped;
     ``(fit, used, noise_px)`` or None when too few tracks remain."""
     used, noise, fit = valid.copy(), 0.1 / focal, None
     for _ in range(5):
         if np.count_nonzero(used) < MIN_TRACKS:
             return None
-        fit = fit_rotation_lens(y1, y2, used, R if fit is None else fit.R, noise=noise)
+        start = R if fit is None else fit.R
+        fit = fit_rotation_lens(y1, y2, used, start, noise=noise, principal_prior=principal_prior)
         noise = robust_sigma(fit.residuals[used], 2)
         within = valid & (fit.residuals < _OUTLIER_SIGMAS * np.sqrt(2.0) * noise)
         if np.array_equal(within, used):
@@ -414,6 +425,8 @@ def refine_rotation_photometric(
     *,
     focal_scale: float = 1.0,
     k1: float = 0.0,
+    principal_offset: Sequence[float] = (0.0, 0.0),
+    principal_prior: float | None = None,
     rotation_sigma_deg: float = 1.0,
     dist1: np.ndarray | None = None,
     dist2: np.ndarray | None = None,
@@ -428,8 +441,11 @@ def refine_rotation_photometric(
     K1, K2 : ndarray, shape (3, 3)
         Intrinsics given for the images.
     R : ndarray, shape (3, 3)
-        Rotation fitted to feature matches, ``b2 = R b1``, with its lens terms ``focal_scale``
-        and ``k1`` (:func:`ppo_cv.rotation.fit_rotation_lens`).
+        Rotation fitted to feature matches, ``b2 = R b1``, with its lens terms ``focal_scale``,
+        ``k1`` and ``principal_offset`` (:func:`ppo_cv.rotation.fit_rotation_lens`).
+    principal_prior : float, optional
+        Refit the principal-point offset too, under this prior (normalised units); None keeps
+        ``principal_offset``.
     rotation_sigma_deg : float
         Its uncertainty: how far (three times this) the first alignment must search, and the
         bound on the change: a refit further than ``4 rotation_sigma_deg + 0.1`` degrees from
@@ -474,17 +490,16 @@ def refine_rotation_photometric(
     dist1, dist2 = as_distortion(dist1, "dist1"), as_distortion(dist2, "dist2")
     R = as_rotation(R, "R")
     rotation_sigma_deg = as_positive(rotation_sigma_deg, "rotation_sigma_deg")
+    if principal_prior is not None:
+        principal_prior = as_positive(principal_prior, "principal_prior")
     _require_window(window)
     focal = float(np.mean([K2[0, 0], K2[1, 1]]))
     gray1, gray2 = to_gray(image1), to_gray(image2)
-    start = (R, float(focal_scale), float(k1))
+    start = (R, float(focal_scale), float(k1), _as_offset(principal_offset))
 
     def transfer_with(model) -> Callable[[np.ndarray], np.ndarray]:
-        rotation, scale, radial = model
         return lambda pixels: normalized_to_pixels(
-            transfer_points(pixels_to_normalized(pixels, K1, dist1), rotation, scale, radial),
-            K2,
-            dist2,
+            transfer_points(pixels_to_normalized(pixels, K1, dist1), *model), K2, dist2
         )
 
     count = MAX_CORNERS if max_corners is None else int(max_corners)
@@ -502,11 +517,11 @@ def refine_rotation_photometric(
             pyr1, pyr2, corners, transfer_with(model), window, level_count, _ITERATIONS
         )
         y2 = pixels_to_normalized(tracks.points2, K2, dist2)
-        fitted = _fit_tracks(y1, y2, tracks.valid, model[0], focal)
+        fitted = _fit_tracks(y1, y2, tracks.valid, model[0], focal, principal_prior)
         if fitted is None:
             return None
         fit, used, noise_px = fitted
-        model = (fit.R, fit.focal_scale, fit.k1)
+        model = (fit.R, fit.focal_scale, fit.k1, fit.principal_offset)
         inflation = np.sqrt(window_overlap(corners[used], window))
         fit = replace(
             fit,

@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 
 from . import ppo
-from .camera import pixels_to_normalized
+from .camera import pixels_to_normalized, principal_point_is_centre
 from .checks import as_camera_matrix, as_distortion
 from .features import FEATURE_TYPES, Features, detect_features, match_features_scored
 from .homography import estimate_homography
@@ -59,6 +59,7 @@ from .robust import (
     estimate_essential_ordered,
     sampson_errors,
 )
+from .rotation import PRINCIPAL_PRIOR
 from .significance import (
     CONFIDENT_LOG10_NFA,
     DEFAULT_MAX_LOG10_NFA,
@@ -78,6 +79,10 @@ __all__ = [
 
 MIN_MATCHES = 8
 MAX_RANSAC_THRESHOLD = 100.0
+PRINCIPAL_POINT_MODES = ("auto", "fit", "given")
+MAX_SEARCH_SIGMA_DEG = 5.0
+"""Rotation uncertainty handed to the photometric refit when the lens fit has none (a lens
+clipped to its box): the refit searches 3 times this and accepts a change of 4 times it."""
 
 
 @dataclass(frozen=True)
@@ -133,6 +138,14 @@ class PairOptions:
         imperfect renders and warped photos the median rotation error of each set drops from
         0.02-0.16 to 0.01-0.03 degrees (``benchmarks/pure_rotation.py``). False keeps the
         rotation of the feature matches.
+    principal_point : {"auto", "fit", "given"}
+        Whether the rotation-only model may move the principal point
+        (:func:`ppo_cv.rotation.fit_rotation_lens`, prior :data:`ppo_cv.rotation.PRINCIPAL_PRIOR`
+        of the larger image side). ``"auto"`` fits it when both cameras are given theirs at the
+        image centre (within half a pixel of ``(w - 1) / 2`` or ``w / 2``, likewise ``h``): a
+        guess, as from an EXIF or panorama-stitcher focal length, where an offset of 1 % of the
+        image leaves residuals that turn a narrow-field pure rotation into a general motion;
+        a calibrated principal point is kept. ``"fit"`` always, ``"given"`` never.
     """
 
     features: str = "sift"
@@ -156,8 +169,14 @@ class PairOptions:
     max_log10_nfa: float = DEFAULT_MAX_LOG10_NFA
     plane: bool = True
     photometric: bool = True
+    principal_point: str = "auto"
 
     def __post_init__(self) -> None:
+        if self.principal_point not in PRINCIPAL_POINT_MODES:
+            raise ValueError(
+                f"unknown principal_point {self.principal_point!r}; choose one of "
+                f"{', '.join(PRINCIPAL_POINT_MODES)}"
+            )
         if self.features not in FEATURE_TYPES:
             raise ValueError(
                 f"unknown features {self.features!r}; choose one of {', '.join(FEATURE_TYPES)}"
@@ -291,6 +310,9 @@ class PairResult:
         Noise estimated from the essential matrix's residuals (pixels).
     focal_scale : float
         Focal scale absorbed by the rotation-only fit (given focal length over the true one).
+    principal_offset_px : ndarray, shape (2,)
+        Offset of the true principal point from the given one found by the rotation-only fit
+        (pixels; zero when it was not fitted, ``PairOptions.principal_point``).
     timings : dict
         Seconds per stage; ``features`` is detection alone and ``pycolmap_import`` the wait for
         the first import of pycolmap that overlaps it.
@@ -325,6 +347,7 @@ class PairResult:
     gric_difference: float = float("nan")
     noise_sigma_px: float = float("nan")
     focal_scale: float = 1.0
+    principal_offset_px: np.ndarray = field(default_factory=lambda: np.zeros(2))
     timings: dict[str, float] = field(default_factory=dict)
     dist1: np.ndarray | None = None
     dist2: np.ndarray | None = None
@@ -363,6 +386,18 @@ class PairResult:
         """Pixel coordinates (I, 2) of the inlier matches in image 1 and image 2."""
         m = self.matches[self.inliers]
         return self.keypoints1[m[:, 0]], self.keypoints2[m[:, 1]]
+
+
+def _principal_prior(mode: str, K1, K2, shape1, shape2) -> float | None:
+    """Prior of the principal-point offset in normalised units, None to keep the given one."""
+    sizes = [(int(shape[1]), int(shape[0])) for shape in (shape1, shape2)]
+    guessed = all(
+        principal_point_is_centre(K, size) for K, size in zip((K1, K2), sizes, strict=True)
+    )
+    if mode == "given" or (mode == "auto" and not guessed):
+        return None
+    focal = float(np.mean([K1[0, 0], K1[1, 1], K2[0, 0], K2[1, 1]]))
+    return PRINCIPAL_PRIOR * max(max(size) for size in sizes) / focal
 
 
 def _normalize(points: np.ndarray, K: np.ndarray, dist: np.ndarray | None) -> np.ndarray:
@@ -588,12 +623,14 @@ def estimate_pair(
         homography = estimate_homography(x1, x2, focal, **ransac, fit_on=fit_on)
     lap("homography")
 
+    principal_prior = _principal_prior(options.principal_point, K1, K2, img1.shape, img2.shape)
     motion = decide_motion(
         x1, x2, R, t, inliers, focal,
         threshold_px=options.ransac_threshold,
         pri_threshold=float(options.pri_threshold),
         seed=options.seed,
         homography=homography,
+        principal_prior=principal_prior,
     )  # fmt: skip
     lap("model")
 
@@ -602,7 +639,9 @@ def estimate_pair(
         refined = refine_rotation_photometric(
             img1, img2, K1, K2, motion.R,
             focal_scale=motion.focal_scale, k1=motion.k1,
-            rotation_sigma_deg=motion.rotation_sigma_deg, dist1=dist1, dist2=dist2,
+            principal_offset=motion.principal_offset, principal_prior=principal_prior,
+            rotation_sigma_deg=min(motion.rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG),
+            dist1=dist1, dist2=dist2,
         )  # fmt: skip
         if refined is not None:
             motion = with_rotation(
@@ -675,6 +714,7 @@ def estimate_pair(
         gric_difference=motion.gric_difference,
         noise_sigma_px=motion.selection.sigma_px,
         focal_scale=motion.focal_scale,
+        principal_offset_px=motion.principal_offset * focal / motion.focal_scale,
         timings=timings,
         dist1=dist1,
         dist2=dist2,

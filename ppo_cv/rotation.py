@@ -9,21 +9,26 @@ Under a pure rotation the bearings of a match obey ``b2 = R b1`` (paper eq. 3 wi
 - :func:`ransac_rotation`: RANSAC over that solver (batches of hypotheses scored against all
   matches at once, trials adapted to the inlier ratio), then the least-squares rotation (Wahba,
   :func:`ppo_cv.ppo.rotation_from_rays`) over its inliers, re-selected until they settle.
-- :func:`fit_rotation_lens`: rotation plus one focal-length scale ``s`` and one radial
-  coefficient ``k1`` shared by the two views, by Gauss-Newton over the inliers. The given
-  normalised point ``x`` is taken as ``s x = q (1 + k1 |q|^2)`` of the true ray ``(q, 1)``
-  (OpenCV's radial model, inverted exactly by fixed-point iteration), and ``(q2, 1) ~ R (q1, 1)``.
+- :func:`fit_rotation_lens`: rotation plus one focal-length scale ``s``, one radial
+  coefficient ``k1`` and optionally a principal-point offset ``p``, shared by the two views, by
+  Gauss-Newton over the inliers. The given normalised point ``x`` is taken as
+  ``s x = p + q (1 + k1 |q|^2)`` of the true ray ``(q, 1)`` (OpenCV's radial model, inverted
+  exactly by fixed-point iteration), and ``(q2, 1) ~ R (q1, 1)``.
   A tripod panorama taken with intrinsics a few percent off and unmodelled distortion is this
   model; the depth-dependent parallax of a translation is not, so the two models keep apart.
-  Given the noise, ``s`` and ``k1`` get Gaussian priors (:data:`FOCAL_PRIOR`,
-  :data:`K1_PRIOR`): the fit is then the maximum a posteriori one, defined from 4 matches on.
+  Given the noise, ``s``, ``k1`` and ``p`` get Gaussian priors (:data:`FOCAL_PRIOR`,
+  :data:`K1_PRIOR`, :data:`PRINCIPAL_PRIOR`): the fit is then the maximum a posteriori one,
+  defined from 4 matches on. ``p`` matters only with a turn (``A R A^-1 = I`` for ``R = I``,
+  ``A`` the shift of the normalised plane by ``p``), and in a narrow field it is nearly a
+  rotation itself, which is why the prior, not the matches, bounds it.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .lsq import gauss_newton_covariance, rotation_increment
 from .ppo import rotation_from_rays
@@ -31,6 +36,8 @@ from .ppo import rotation_from_rays
 __all__ = [
     "FOCAL_PRIOR",
     "K1_PRIOR",
+    "PRINCIPAL_BOUND",
+    "PRINCIPAL_PRIOR",
     "RotationFit",
     "LensRotationFit",
     "rotations_from_two_rays",
@@ -44,7 +51,8 @@ __all__ = [
 
 _BLOCK = 1 << 18  # hypotheses x matches scored per block
 _BATCH = 64  # hypotheses drawn at once
-_NPARAMS = 5  # rotation increment (3), focal scale, k1
+_NPARAMS = 7  # rotation increment (3), focal scale, k1, principal point offset (2)
+_LENS = 5  # parameters fitted when the principal point is the given one
 FOCAL_PRIOR = 0.02
 """Standard deviation of the relative error of a focal length given by a user (calibration
 files, EXIF, autostitch): "a few percent". The prior of :func:`fit_rotation_lens` on ``s - 1``.
@@ -55,6 +63,18 @@ With it the returned rotation is the maximum a posteriori one: a focal the match
 K1_PRIOR = 0.1
 """Standard deviation of the radial coefficient nobody modelled (OpenCV's ``k1``; consumer lenses
 at 25-35 degrees of field lie within about +-0.1). The prior of :func:`fit_rotation_lens`."""
+
+PRINCIPAL_PRIOR = 0.01
+"""Standard deviation of each coordinate of the offset of the true principal point from the
+image centre, as a fraction of the larger image side: consumer cameras put it within about 2 %,
+and a principal point given at the centre is a guess. In a narrow field a 1 % offset leaves
+0.3 px of median residual on a rotation fitted with the centre (640 px wide, 30 degrees, a
+20 degree pan), growing with the image size; the pipeline converts it to normalised units for
+:func:`fit_rotation_lens`."""
+
+PRINCIPAL_BOUND = 2.0
+"""Largest principal-point offset :func:`fit_rotation_lens` accepts, in prior deviations per
+coordinate: beyond it the offset explains parallax, not a lens, and the given point is kept."""
 
 _MIN_WITH_PRIOR = 4  # matches for the lens terms once priors regularise them (8 rows, 5 unknowns)
 
@@ -107,6 +127,9 @@ class LensRotationFit:
     residuals : ndarray, shape (N,)
         Transfer error ``|pi(R c(x1)) - c(x2)| / s`` (normalised units of the given camera) of
         every match.
+    principal_offset : ndarray, shape (2,)
+        ``p``: the true principal point minus the given one over the true focal length (zero
+        when not fitted).
     """
 
     R: np.ndarray
@@ -115,6 +138,7 @@ class LensRotationFit:
     focal_scale_sigma: float
     residuals: np.ndarray
     rotation_sigma_deg: float = float("inf")
+    principal_offset: np.ndarray = field(default_factory=lambda: np.zeros(2))
 
     @property
     def focal_significant(self) -> bool:
@@ -256,21 +280,25 @@ def ransac_rotation(
     return RotationFit(R=R, inliers=residuals < threshold, residuals=residuals, trials=trials)
 
 
-def _lens_map(xy: np.ndarray, scale: float, k1: float, iterations: int = 6) -> np.ndarray:
-    """True normalised points ``q`` (N, 2) of given points ``x``: ``s x = q (1 + k1 |q|^2)``."""
-    distorted = scale * xy
+def _lens_map(
+    xy: np.ndarray, scale: float, k1: float, offset=(0.0, 0.0), iterations: int = 6
+) -> np.ndarray:
+    """True normalised points ``q`` (N, 2) of given points ``x``: ``s x = p + q (1 + k1 |q|^2)``."""
+    distorted = scale * xy - np.asarray(offset, dtype=np.float64)
     q = distorted
     for _ in range(iterations):
         q = distorted / (1.0 + k1 * np.sum(q * q, axis=1, keepdims=True))
     return q
 
 
-def correct_points(x: np.ndarray, focal_scale: float, k1: float) -> np.ndarray:
+def correct_points(
+    x: np.ndarray, focal_scale: float, k1: float, principal_offset: ArrayLike = (0.0, 0.0)
+) -> np.ndarray:
     """Normalised points of the given camera (N, 2 or 3) to homogeneous true rays (N, 3).
 
-    The inverse of ``s x = q (1 + k1 |q|^2)``: the lens terms of :func:`fit_rotation_lens`.
+    The inverse of ``s x = p + q (1 + k1 |q|^2)``: the lens terms of :func:`fit_rotation_lens`.
     """
-    q = _lens_map(np.asarray(x, dtype=np.float64)[:, :2], focal_scale, k1)
+    q = _lens_map(np.asarray(x, dtype=np.float64)[:, :2], focal_scale, k1, principal_offset)
     return np.column_stack([q, np.ones(len(q))])
 
 
@@ -278,30 +306,46 @@ def _lens_transfer(params: np.ndarray, R0: np.ndarray, xy1: np.ndarray, xy2: np.
     """Residual vectors (N, 2) in view 2, given normalised units: ``x2`` minus the transfer of
     ``x1`` (``q1`` rotated, distorted and scaled back)."""
     R = rotation_increment(params[:3]) @ R0
-    scale, k1 = 1.0 + params[3], params[4]
-    q1 = _lens_map(xy1, scale, k1)
+    scale, k1, offset = 1.0 + params[3], params[4], params[5:7]
+    q1 = _lens_map(xy1, scale, k1, offset)
     ray = np.column_stack([q1, np.ones(len(q1))]) @ R.T
     z = np.where(np.abs(ray[:, 2]) > 1e-9, ray[:, 2], 1e-9)
     q2 = ray[:, :2] / z[:, None]
-    return q2 * (1.0 + k1 * np.sum(q2 * q2, axis=1, keepdims=True)) / scale - xy2
+    return (q2 * (1.0 + k1 * np.sum(q2 * q2, axis=1, keepdims=True)) + offset) / scale - xy2
 
 
-def transfer_points(x1: np.ndarray, R: np.ndarray, focal_scale: float, k1: float) -> np.ndarray:
+def _lens_params(focal_scale: float, k1: float, principal_offset: ArrayLike) -> np.ndarray:
+    offset = np.broadcast_to(np.asarray(principal_offset, dtype=np.float64), (2,))
+    return np.r_[0.0, 0.0, 0.0, focal_scale - 1.0, k1, offset]
+
+
+def transfer_points(
+    x1: np.ndarray,
+    R: np.ndarray,
+    focal_scale: float,
+    k1: float,
+    principal_offset: ArrayLike = (0.0, 0.0),
+) -> np.ndarray:
     """Where the lens rotation of :func:`fit_rotation_lens` takes normalised points of view 1.
 
     ``x1`` (N, 2 or 3, given camera) is corrected to the true ray ``q1``, rotated by ``R`` and
-    put back through the lens: ``x2 = q2 (1 + k1 |q2|^2) / s``. Returns ``x2``, shape (N, 2).
+    put back through the lens: ``x2 = (p + q2 (1 + k1 |q2|^2)) / s``. Returns ``x2``, (N, 2).
     """
     xy1 = np.asarray(x1, float)[:, :2]
-    params = np.array([0.0, 0.0, 0.0, focal_scale - 1.0, k1])
+    params = _lens_params(focal_scale, k1, principal_offset)
     return _lens_transfer(params, np.asarray(R, float), xy1, np.zeros_like(xy1))
 
 
 def lens_rotation_residuals(
-    R: np.ndarray, focal_scale: float, k1: float, x1: np.ndarray, x2: np.ndarray
+    R: np.ndarray,
+    focal_scale: float,
+    k1: float,
+    x1: np.ndarray,
+    x2: np.ndarray,
+    principal_offset: ArrayLike = (0.0, 0.0),
 ) -> np.ndarray:
     """Transfer error (N,) of matches under :func:`fit_rotation_lens`'s model, normalised units."""
-    params = np.array([0.0, 0.0, 0.0, focal_scale - 1.0, k1])
+    params = _lens_params(focal_scale, k1, principal_offset)
     xy1, xy2 = np.asarray(x1, float)[:, :2], np.asarray(x2, float)[:, :2]
     return np.linalg.norm(_lens_transfer(params, np.asarray(R, float), xy1, xy2), axis=1)
 
@@ -318,18 +362,23 @@ def fit_rotation_lens(
     noise: float | None = None,
     focal_prior: float = FOCAL_PRIOR,
     k1_prior: float = K1_PRIOR,
+    principal_prior: float | None = None,
 ) -> LensRotationFit:
-    """Rotation, focal scale and radial coefficient by Gauss-Newton over the used matches.
+    """Rotation, focal scale, radial coefficient (and principal point) by Gauss-Newton.
 
-    The model is ``(q2, 1) ~ R (q1, 1)`` with ``s x = q (1 + k1 |q|^2)`` on the given normalised
-    coordinates ``x`` (one camera, or two with the same error): 5 parameters, rotation increments
-    ``R = exp([w]_x) R0``. The least-squares cost is the squared transfer error in view 2. The
-    lens terms must land in a box of plausible lenses (``|s - 1| <= max_focal_change``,
-    ``|k1| <= max_k1``), else they are clipped to it and the rotation alone is re-fitted: a
-    translation's parallax must not be explained away by an implausible lens. Given the
-    ``noise`` of a transfer-error coordinate, the lens terms also get Gaussian priors
-    ``s - 1 ~ N(0, focal_prior^2)`` and ``k1 ~ N(0, k1_prior^2)`` (a few matches, or matches
-    near the centre, do not determine them).
+    The model is ``(q2, 1) ~ R (q1, 1)`` with ``s x = p + q (1 + k1 |q|^2)`` on the given
+    normalised coordinates ``x`` (one camera, or two with the same error): rotation increments
+    ``R = exp([w]_x) R0``, the focal scale ``s``, ``k1`` and, when ``principal_prior`` is given,
+    the offset ``p`` of the true principal point from the given one (normalised units of the
+    true camera). The least-squares cost is the squared transfer error in view 2. The lens
+    terms must land in a box of plausible lenses (``|s - 1| <= max_focal_change``,
+    ``|k1| <= max_k1``), else they are clipped to it and the rotation alone is re-fitted, and
+    an offset beyond :data:`PRINCIPAL_BOUND` priors on either coordinate is dropped (the given
+    principal point is kept): a translation's parallax must not be explained away by an
+    implausible lens. Given the ``noise`` of a transfer-error coordinate, the lens terms also
+    get Gaussian priors ``s - 1 ~ N(0, focal_prior^2)``, ``k1 ~ N(0, k1_prior^2)`` and
+    ``p ~ N(0, principal_prior^2 I)`` (a few matches, or matches near the centre, do not
+    determine them).
 
     Parameters
     ----------
@@ -340,7 +389,7 @@ def fit_rotation_lens(
     R : ndarray, shape (3, 3)
         Starting rotation (e.g. :func:`ransac_rotation`'s).
     iterations : int
-        Gauss-Newton steps (each a Levenberg-damped 5 x 5 solve).
+        Gauss-Newton steps (each a Levenberg-damped solve).
     max_focal_change, max_k1 : float
         Bounds on ``|s - 1|`` and ``|k1|``.
     noise : float, optional
@@ -348,6 +397,9 @@ def fit_rotation_lens(
         fits without the priors.
     focal_prior, k1_prior : float
         Standard deviations of the priors on ``s - 1`` and ``k1``.
+    principal_prior : float, optional
+        Standard deviation of each coordinate of ``p`` (normalised units: pixels over the focal
+        length); None keeps the given principal point (``p = 0``). Needs ``noise``.
 
     Returns
     -------
@@ -357,15 +409,25 @@ def fit_rotation_lens(
     xy1, xy2 = np.asarray(x1, float)[:, :2], np.asarray(x2, float)[:, :2]
     R0 = np.asarray(R, float)
     a, b = xy1[used], xy2[used]
-    bounds = np.array([np.inf, np.inf, np.inf, max_focal_change, max_k1])
+    with_noise = noise is not None and noise > 0
+    fit_offset = principal_prior is not None and principal_prior > 0 and with_noise
+    free = _NPARAMS if fit_offset else _LENS
+    offset_bound = PRINCIPAL_BOUND * principal_prior if fit_offset else 0.0
+    bounds = np.array([np.inf, np.inf, np.inf, max_focal_change, max_k1, offset_bound,
+                       offset_bound])  # fmt: skip
     prior = np.zeros(_NPARAMS)
-    if noise is not None and noise > 0:
-        prior[3:] = noise / np.array([focal_prior, k1_prior])
-    problem = (R0, a, b, prior)
+    if with_noise:
+        prior[3:5] = noise / np.array([focal_prior, k1_prior])
+    if fit_offset:
+        prior[5:] = noise / principal_prior
+    problem = (R0, a, b, prior, free)
     params, sigma, rotation_sigma = np.zeros(_NPARAMS), np.inf, np.inf
-    enough = len(a) >= (_MIN_WITH_PRIOR if prior[3] > 0 else 2 * _NPARAMS)
+    enough = len(a) >= (_MIN_WITH_PRIOR if prior[3] > 0 else 2 * _LENS)
     if enough:
-        params = _gauss_newton(params, problem, iterations)
+        params = _gauss_newton(params, problem, iterations, free)
+        if fit_offset and np.any(np.abs(params[5:]) > offset_bound):
+            problem = (R0, a, b, prior, _LENS)  # no plausible principal point: the given one
+            params = _gauss_newton(np.zeros(_NPARAMS), problem, iterations, _LENS)
         sigma, rotation_sigma = _sigmas(params, problem)
     if np.any(np.abs(params) > bounds) or not enough:
         params, sigma, rotation_sigma = np.clip(params, -bounds, bounds), np.inf, np.inf
@@ -382,16 +444,18 @@ def fit_rotation_lens(
         focal_scale_sigma=float(sigma),
         residuals=residuals,
         rotation_sigma_deg=float(rotation_sigma),
+        principal_offset=params[5:7].copy(),
     )
 
 
 def _objective(params, problem) -> np.ndarray:
-    """Transfer residuals (2I,) followed by the prior rows (5,)."""
-    R0, a, b, prior = problem
-    return np.concatenate([_lens_transfer(params, R0, a, b).ravel(), prior * params])
+    """Transfer residuals (2I,) followed by the prior rows of the fitted parameters."""
+    R0, a, b, prior, free = problem
+    transfer = _lens_transfer(params, R0, a, b).ravel()
+    return np.concatenate([transfer, (prior * params)[:free]])
 
 
-def _jacobian(params, problem, free: int = _NPARAMS, step: float = 1e-6):
+def _jacobian(params, problem, free: int, step: float = 1e-6):
     residual = _objective(params, problem)
     deltas = np.eye(_NPARAMS)[:free] * step
     columns = [(_objective(params + d, problem) - residual) / step for d in deltas]
@@ -400,19 +464,20 @@ def _jacobian(params, problem, free: int = _NPARAMS, step: float = 1e-6):
 
 def _sigmas(params, problem) -> tuple[float, float]:
     """Deviations of the focal scale and of the rotation angle (degrees, root-mean-square) from
-    the covariance ``v (J^T J)^-1``, ``v = |r|^2 / (2I - 5)``, ``J`` with the prior rows."""
-    residual, J = _jacobian(params, problem)
-    transfer = residual[:-_NPARAMS]
-    if len(transfer) <= _NPARAMS:
+    the covariance ``v (J^T J)^-1``, ``v = |r|^2 / (2I - P)``, ``J`` with the prior rows."""
+    free = problem[4]
+    residual, J = _jacobian(params, problem, free)
+    transfer = residual[:-free]
+    if len(transfer) <= free:
         return float("inf"), float("inf")
-    cov = gauss_newton_covariance(J, float(transfer @ transfer) / (len(transfer) - _NPARAMS))
+    cov = gauss_newton_covariance(J, float(transfer @ transfer) / (len(transfer) - free))
     if cov is None:
         return float("inf"), float("inf")
     rotation = np.degrees(np.sqrt(max(float(np.trace(cov[:3, :3])), 0.0)))
     return float(np.sqrt(max(cov[3, 3], 0.0))), float(rotation)
 
 
-def _gauss_newton(params, problem, iterations, free: int = _NPARAMS, step=1e-6):
+def _gauss_newton(params, problem, iterations, free: int, step=1e-6):
     """Levenberg-Marquardt on the first ``free`` parameters."""
     damping = 1e-6
     residual = _objective(params, problem)

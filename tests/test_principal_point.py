@@ -1,0 +1,183 @@
+"""A principal point given at the image centre: the rotation-only model may move it.
+
+Ground truth: exact correspondences of a camera whose principal point is off the given one,
+and ``ppo_cv.data_gen`` pairs with ``Imperfections(centred_principal_point=True)`` (the true
+principal point within 2 % of the centre, the estimator told the centre).
+"""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from ppo_cv import PairOptions, data_gen, estimate_pair
+from ppo_cv.camera import principal_point_is_centre
+from ppo_cv.export import result_to_dict
+from ppo_cv.rotation import PRINCIPAL_BOUND, fit_rotation_lens
+
+WIDTH, HEIGHT = 640, 480
+
+
+def _angle(A: np.ndarray, B: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip((np.trace(A.T @ B) - 1) / 2, -1, 1))))
+
+
+def _exact_matches(offset_px, hfov=30.0, yaw=20.0):
+    """Normalised matches of a pan seen by a camera whose principal point is ``offset_px`` off
+    the centre, normalised with the centre; the true rotation and focal length."""
+    focal = WIDTH / 2 / np.tan(np.radians(hfov / 2))
+    centre = np.array([(WIDTH - 1) / 2, (HEIGHT - 1) / 2])
+    K_true = np.array([[focal, 0, centre[0] + offset_px[0]], [0, focal, centre[1] + offset_px[1]],
+                       [0, 0, 1.0]])  # fmt: skip
+    K_given = np.array([[focal, 0, centre[0]], [0, focal, centre[1]], [0, 0, 1.0]])
+    R = cv2.Rodrigues(np.radians([1.5, yaw, 0.5]))[0]
+    grid = np.stack(np.meshgrid(np.linspace(0, WIDTH - 1, 30), np.linspace(0, HEIGHT - 1, 20)), -1)
+    u1 = np.column_stack([grid.reshape(-1, 2), np.ones(600)])
+    u2 = u1 @ np.linalg.inv(K_true).T @ R.T @ K_true.T
+    u2 = u2 / u2[:, 2:]
+    inside = (u2[:, 0] >= 0) & (u2[:, 0] < WIDTH) & (u2[:, 1] >= 0) & (u2[:, 1] < HEIGHT)
+    x1 = u1[inside] @ np.linalg.inv(K_given).T
+    x2 = u2[inside] @ np.linalg.inv(K_given).T
+    return x1, x2, R, focal
+
+
+def test_lens_fit_finds_the_principal_point_a_centred_guess_missed():
+    x1, x2, R, focal = _exact_matches((8.0, -5.0))
+    used = np.ones(len(x1), dtype=bool)
+    noise = 0.3 / focal
+    kept = fit_rotation_lens(x1, x2, used, R, noise=noise)
+    moved = fit_rotation_lens(x1, x2, used, R, noise=noise, principal_prior=0.01 * WIDTH / focal)
+    assert np.median(kept.residuals) * focal > 0.2  # the centre alone leaves a pattern
+    assert np.median(moved.residuals) * focal < 0.02
+    assert np.allclose(moved.principal_offset * focal, (8.0, -5.0), atol=0.3)
+    assert _angle(moved.R, R) < 0.005
+    assert _angle(kept.R, R) > 0.05
+    assert np.array_equal(kept.principal_offset, np.zeros(2))
+
+
+def test_an_offset_beyond_the_bound_is_dropped_not_clipped():
+    prior_px = 0.01 * WIDTH
+    x1, x2, R, focal = _exact_matches((1.6 * PRINCIPAL_BOUND * prior_px, 0.0))
+    used = np.ones(len(x1), dtype=bool)
+    fit = fit_rotation_lens(x1, x2, used, R, noise=0.3 / focal, principal_prior=prior_px / focal)
+    assert np.array_equal(fit.principal_offset, np.zeros(2))
+    assert np.median(fit.residuals) * focal > 0.5
+
+
+def test_centre_conventions_and_a_calibrated_principal_point():
+    K = np.array([[500.0, 0, 319.5], [0, 500.0, 239.5], [0, 0, 1]])
+    assert principal_point_is_centre(K, (WIDTH, HEIGHT))
+    K[:2, 2] = 320.0, 240.0
+    assert principal_point_is_centre(K, (WIDTH, HEIGHT))
+    K[0, 2] = 320.6
+    assert not principal_point_is_centre(K, (WIDTH, HEIGHT))
+    assert not principal_point_is_centre(K, (WIDTH + 4, HEIGHT))
+
+
+CENTRED = data_gen.Imperfections(centred_principal_point=True)
+
+
+def _bgr(image: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(image[..., ::-1])
+
+
+def _run(pair, **options):
+    return estimate_pair(
+        _bgr(pair.image1), _bgr(pair.image2), pair.K1_given, pair.K2_given,
+        options=PairOptions(**options),
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("index", [1, 5, 6, 12])
+def test_warped_pans_with_a_centred_principal_point_are_flagged(index):
+    pair = data_gen.make_warped_pair(seed=0, index=index, imperfections=CENTRED)
+    h, w = pair.image1.shape[:2]
+    assert np.allclose(pair.K1_given[:2, 2], ((w - 1) / 2, (h - 1) / 2))
+    assert not np.allclose(pair.K1[:2, 2], pair.K1_given[:2, 2], atol=1.0)
+    result = _run(pair)
+    assert result.pure_rotation
+    assert _angle(result.R, pair.R) < 0.15
+    # in a narrow field the offset is nearly a rotation: the prior, not the matches, holds it
+    assert 1.0 < np.linalg.norm(result.principal_offset_px) < 0.03 * max(w, h)
+    kept = _run(pair, principal_point="given", photometric=False)
+    assert kept.rotation_residual_px > result.rotation_residual_px
+    assert np.array_equal(kept.principal_offset_px, np.zeros(2))
+
+
+def test_a_calibrated_principal_point_is_kept_unless_asked():
+    pair = data_gen.make_warped_pair(seed=0, index=5)
+    assert not principal_point_is_centre(pair.K1_given, pair.image1.shape[1::-1])
+    auto = _run(pair, photometric=False)
+    assert auto.pure_rotation
+    assert np.array_equal(auto.principal_offset_px, np.zeros(2))
+    fitted = _run(pair, photometric=False, principal_point="fit")
+    assert fitted.pure_rotation
+    assert np.any(fitted.principal_offset_px != 0)
+    assert np.linalg.norm(fitted.principal_offset_px) < 0.02 * max(pair.image1.shape)
+
+
+def test_a_translation_with_a_centred_principal_point_stays_general():
+    # pycolmap's pose for this pair disagrees with its own essential matrix (robust._pycolmap)
+    pair = data_gen.make_pair(
+        "tiny-baseline", seed=0, index=1, imperfections=CENTRED, baseline_ratio=0.05
+    )
+    result = _run(pair, photometric=False)
+    assert result.model == "general"
+    assert not result.pure_rotation
+    assert result.inliers.sum() > 0.8 * len(result.matches)
+    assert result.noise_sigma_px < 0.5
+
+
+def test_json_reports_the_offset():
+    pair = data_gen.make_warped_pair(seed=0, index=5, imperfections=CENTRED)
+    result = _run(pair, photometric=False)
+    record = json.loads(json.dumps(result_to_dict(result)))
+    offset = record["model_selection"]["principal_offset_px"]
+    assert np.allclose(offset, result.principal_offset_px)
+    assert np.linalg.norm(offset) > 1.0
+
+
+def test_bad_settings_are_named():
+    from ppo_cv.photometric import refine_rotation_photometric
+
+    with pytest.raises(ValueError, match="principal_point"):
+        PairOptions(principal_point="centre")
+    image = np.zeros((48, 64), np.uint8)
+    K = np.array([[60.0, 0, 31.5], [0, 60.0, 23.5], [0, 0, 1]])
+    for bad, message in (
+        ({"principal_offset": (1.0,)}, "principal_offset"),
+        ({"principal_offset": (np.nan, 0.0)}, "principal_offset"),
+        ({"principal_prior": -1.0}, "principal_prior"),
+    ):
+        with pytest.raises(ValueError, match=message):
+            refine_rotation_photometric(image, image, K, K, np.eye(3), **bad)
+    with pytest.raises(ValueError, match="centred_principal_point"):
+        data_gen.Imperfections(centred_principal_point="yes")
+
+
+def test_command_line_chooses_the_principal_point(tmp_path):
+    from typer.testing import CliRunner
+
+    from ppo_cv.cli.main import app
+
+    pair = data_gen.make_warped_pair(seed=0, index=5, imperfections=CENTRED)
+    paths = [str(tmp_path / "a.png"), str(tmp_path / "b.png")]
+    for path, image in zip(paths, (pair.image1, pair.image2), strict=True):
+        cv2.imwrite(path, _bgr(image))
+    K = pair.K1_given
+    k_text = f"{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]}"
+    base = ["pair", *paths, "--K", k_text, "--json", "--no-photometric"]
+    offsets = {}
+    for mode in ("auto", "given"):
+        run = CliRunner().invoke(app, [*base, "--principal-point", mode])
+        assert run.exit_code == 0, run.output
+        offsets[mode] = json.loads(run.stdout)["model_selection"]["principal_offset_px"]
+    assert np.linalg.norm(offsets["auto"]) > 1.0
+    assert offsets["given"] == [0.0, 0.0]
+    run = CliRunner().invoke(app, [*base, "--principal-point", "centre"])
+    assert run.exit_code == 2
+    assert "unknown principal_point 'centre'" in run.output
+    assert "Traceback" not in run.output
