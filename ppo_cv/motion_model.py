@@ -5,9 +5,9 @@ Two tests that fail differently are combined:
 1. Model comparison (:mod:`ppo_cv.model_selection`, GRIC with a mismatch floor) of up to three
    models fitted to the same matches, each residual a distance in the joint image space (pixels):
 
-   - ``"rotation"`` (``d = 2``, ``k = 3 + 2``, or ``3 + 4`` with a principal-point offset): the
-     rotation with a focal scale and radial distortion absorbed, and the principal point when
-     it was only guessed (:func:`ppo_cv.rotation.fit_rotation_lens`), transfer error / sqrt(2);
+   - ``"rotation"`` (``d = 2``, ``k = 3 + 2``): the rotation with a focal scale and radial
+     distortion absorbed, and the principal point under its prior when it was only guessed
+     (:func:`ppo_cv.rotation.fit_rotation_lens`), transfer error / sqrt(2);
    - ``"plane"`` (``d = 2``, ``k = 8``): the robust homography
      (:func:`ppo_cv.homography.estimate_homography`), its Sampson error;
    - ``"general"`` (``d = 3``, ``k = 5``): the refined essential matrix, its Sampson error.
@@ -306,8 +306,10 @@ def decide_motion(
         ``H`` on normalised points, residuals in pixels); without it no plane is considered.
     principal_prior : float, optional
         Let the rotation-only fit move the principal point, with this prior (normalised
-        units, :func:`ppo_cv.rotation.fit_rotation_lens`); its GRIC then counts two more
-        parameters. None keeps the given principal point.
+        units, :func:`ppo_cv.rotation.fit_rotation_lens`). GRIC counts no parameter for it: in
+        a narrow field the offset is nearly a rotation, and the prior, not the matches, holds
+        it (counted as two, 3 of 12 warped pans with 7-23 matches were called general).
+        None keeps the given principal point.
 
     Returns
     -------
@@ -331,10 +333,9 @@ def decide_motion(
             break
         rotation_inliers = within
     scored = inliers | rotation_inliers
-    rotation_params = MODEL_DIMENSIONS["rotation"][1] + 2 * bool(np.any(lens.principal_offset))
     selection = select_model(
         [
-            _candidate("rotation", lens.residuals[scored] * focal / np.sqrt(2.0), rotation_params),
+            _candidate("rotation", lens.residuals[scored] * focal / np.sqrt(2.0)),
             _candidate("general", general_all[scored] * focal),
         ]
     )
@@ -459,9 +460,8 @@ def with_rotation(
     )
 
 
-def _candidate(name: str, residuals: np.ndarray, num_params: int | None = None) -> ModelResiduals:
-    dimension, default_params = MODEL_DIMENSIONS[name]
-    return ModelResiduals(name, residuals, dimension, num_params or default_params)
+def _candidate(name: str, residuals: np.ndarray) -> ModelResiduals:
+    return ModelResiduals(name, residuals, *MODEL_DIMENSIONS[name])
 
 
 def _epipolar_ratio(plane, x1, x2, general_px, threshold_px: float, focal: float) -> float:
