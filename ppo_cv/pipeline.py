@@ -388,15 +388,15 @@ class PairResult:
         return self.keypoints1[m[:, 0]], self.keypoints2[m[:, 1]]
 
 
-def _principal_prior(mode: str, K1, K2, shape1, shape2) -> float | None:
-    """Prior of the principal-point offset in normalised units, None to keep the given one."""
+def _principal_prior(mode: str, K1, K2, shape1, shape2, focal: float) -> float | None:
+    """Prior of the principal-point offset in normalised units of ``focal`` (pixels), None to
+    keep the given one."""
     sizes = [(int(shape[1]), int(shape[0])) for shape in (shape1, shape2)]
     guessed = all(
         principal_point_is_centre(K, size) for K, size in zip((K1, K2), sizes, strict=True)
     )
     if mode == "given" or (mode == "auto" and not guessed):
         return None
-    focal = float(np.mean([K1[0, 0], K1[1, 1], K2[0, 0], K2[1, 1]]))
     return PRINCIPAL_PRIOR * max(max(size) for size in sizes) / focal
 
 
@@ -623,7 +623,9 @@ def estimate_pair(
         homography = estimate_homography(x1, x2, focal, **ransac, fit_on=fit_on)
     lap("homography")
 
-    principal_prior = _principal_prior(options.principal_point, K1, K2, img1.shape, img2.shape)
+    principal_prior = _principal_prior(
+        options.principal_point, K1, K2, img1.shape, img2.shape, focal
+    )
     motion = decide_motion(
         x1, x2, R, t, inliers, focal,
         threshold_px=options.ransac_threshold,
