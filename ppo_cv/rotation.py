@@ -412,9 +412,7 @@ def fit_rotation_lens(
     with_noise = noise is not None and noise > 0
     fit_offset = principal_prior is not None and principal_prior > 0 and with_noise
     free = _NPARAMS if fit_offset else _LENS
-    offset_bound = PRINCIPAL_BOUND * principal_prior if fit_offset else 0.0
-    bounds = np.array([np.inf, np.inf, np.inf, max_focal_change, max_k1, offset_bound,
-                       offset_bound])  # fmt: skip
+    bounds = np.array([np.inf, np.inf, np.inf, max_focal_change, max_k1, np.inf, np.inf])
     prior = np.zeros(_NPARAMS)
     if with_noise:
         prior[3:5] = noise / np.array([focal_prior, k1_prior])
@@ -425,7 +423,7 @@ def fit_rotation_lens(
     enough = len(a) >= (_MIN_WITH_PRIOR if prior[3] > 0 else 2 * _LENS)
     if enough:
         params = _gauss_newton(params, problem, iterations, free)
-        if fit_offset and np.any(np.abs(params[5:]) > offset_bound):
+        if fit_offset and np.any(np.abs(params[5:]) > PRINCIPAL_BOUND * principal_prior):
             problem = (R0, a, b, prior, _LENS)  # no plausible principal point: the given one
             params = _gauss_newton(np.zeros(_NPARAMS), problem, iterations, _LENS)
         sigma, rotation_sigma = _sigmas(params, problem)
