@@ -12,6 +12,7 @@ import json
 import cv2
 import numpy as np
 import pytest
+from twoview import rotation_angle_deg as _angle
 
 from ppo_cv import PairOptions, data_gen, estimate_pair
 from ppo_cv.camera import principal_point_is_centre
@@ -19,10 +20,6 @@ from ppo_cv.export import result_to_dict
 from ppo_cv.rotation import PRINCIPAL_BOUND, fit_rotation_lens
 
 WIDTH, HEIGHT = 640, 480
-
-
-def _angle(A: np.ndarray, B: np.ndarray) -> float:
-    return float(np.degrees(np.arccos(np.clip((np.trace(A.T @ B) - 1) / 2, -1, 1))))
 
 
 def _exact_matches(offset_px, hfov=30.0, yaw=20.0):
