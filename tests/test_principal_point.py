@@ -55,6 +55,13 @@ def test_lens_fit_finds_the_principal_point_a_centred_guess_missed():
     assert np.array_equal(kept.principal_offset, np.zeros(2))
 
 
+def test_one_percent_off_leaves_the_residual_the_readme_quotes():
+    # README: 1 % of a 640 px image off the centre, 30 deg field, 20 deg pan: 0.3 px median
+    x1, x2, R, focal = _exact_matches((0.01 * WIDTH, 0.0))
+    fit = fit_rotation_lens(x1, x2, np.ones(len(x1), bool), R, noise=0.3 / focal)
+    assert 0.25 < np.median(fit.residuals) * focal < 0.35
+
+
 def test_an_offset_beyond_the_bound_is_dropped_not_clipped():
     prior_px = 0.01 * WIDTH
     x1, x2, R, focal = _exact_matches((1.6 * PRINCIPAL_BOUND * prior_px, 0.0))
