@@ -277,7 +277,7 @@ def decide_motion(
     pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD,
     seed: int = 0,
     homography: HomographyEstimate | None = None,
-    principal_prior: float | None = None,
+    principal_prior: float | np.ndarray | None = None,
 ) -> MotionDecision:
     """Fit a rotation to the matches and decide among pure rotation, plane and general motion.
 
@@ -304,11 +304,12 @@ def decide_motion(
     homography : HomographyEstimate, optional
         Robust homography of the same matches (:func:`ppo_cv.homography.estimate_homography`,
         ``H`` on normalised points, residuals in pixels); without it no plane is considered.
-    principal_prior : float, optional
+    principal_prior : float or array_like of 2 floats, optional
         Let the rotation-only fit move the principal point, with this prior (normalised
-        units, :func:`ppo_cv.rotation.fit_rotation_lens`). GRIC counts no parameter for it: in
-        a narrow field the offset is nearly a rotation, and the prior, not the matches, holds
-        it (counted as two, 3 of 12 warped pans with 7-23 matches were called general).
+        units, one for both coordinates or ``(x, y)``,
+        :func:`ppo_cv.rotation.fit_rotation_lens`). GRIC counts no parameter for it: in a
+        narrow field the offset is nearly a rotation, and the prior, not the matches, holds it
+        (counted as two, 3 of 12 warped pans with 7-23 matches were called general).
         None keeps the given principal point.
 
     Returns

@@ -398,6 +398,19 @@ def _as_offset(value) -> np.ndarray:
     return offset
 
 
+def _as_prior(value) -> np.ndarray:
+    try:
+        prior = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"principal_prior must be one or two numbers, got {value!r}") from None
+    if prior.size not in (1, 2) or prior.ndim > 1:
+        raise ValueError(f"principal_prior must be one or two numbers, got {value!r}")
+    prior = np.broadcast_to(prior, (2,))
+    if not np.all(np.isfinite(prior) & (prior > 0)):
+        raise ValueError(f"principal_prior must be finite numbers > 0, got {value!r}")
+    return prior
+
+
 def _fit_tracks(y1, y2, valid, R, focal, principal_prior):
     """Lens rotation over the tracks, outliers beyond ``3 sqrt(2)`` noise deviations dropped;
     ``(fit, used, noise_px)`` or None when too few tracks remain."""
@@ -427,7 +440,7 @@ def refine_rotation_photometric(
     focal_scale: float = 1.0,
     k1: float = 0.0,
     principal_offset: Sequence[float] = (0.0, 0.0),
-    principal_prior: float | None = None,
+    principal_prior: float | Sequence[float] | None = None,
     rotation_sigma_deg: float = 1.0,
     dist1: np.ndarray | None = None,
     dist2: np.ndarray | None = None,
@@ -444,9 +457,9 @@ def refine_rotation_photometric(
     R : ndarray, shape (3, 3)
         Rotation fitted to feature matches, ``b2 = R b1``, with its lens terms ``focal_scale``,
         ``k1`` and ``principal_offset`` (:func:`ppo_cv.rotation.fit_rotation_lens`).
-    principal_prior : float, optional
-        Refit the principal-point offset too, under this prior (normalised units); None keeps
-        ``principal_offset``.
+    principal_prior : float or array_like of 2 floats, optional
+        Refit the principal-point offset too, under this prior (normalised units, one for both
+        coordinates or ``(x, y)``); None keeps ``principal_offset``.
     rotation_sigma_deg : float
         Its uncertainty: how far (three times this) the first alignment must search, and the
         bound on the change: a refit further than ``4 rotation_sigma_deg + 0.1`` degrees from
@@ -492,7 +505,7 @@ def refine_rotation_photometric(
     R = as_rotation(R, "R")
     rotation_sigma_deg = as_positive(rotation_sigma_deg, "rotation_sigma_deg")
     if principal_prior is not None:
-        principal_prior = as_positive(principal_prior, "principal_prior")
+        principal_prior = _as_prior(principal_prior)
     _require_window(window)
     focal = float(np.mean([K2[0, 0], K2[1, 1]]))
     gray1, gray2 = to_gray(image1), to_gray(image2)

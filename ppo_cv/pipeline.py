@@ -141,11 +141,12 @@ class PairOptions:
     principal_point : {"auto", "fit", "given"}
         Whether the rotation-only model may move the principal point
         (:func:`ppo_cv.rotation.fit_rotation_lens`, prior :data:`ppo_cv.rotation.PRINCIPAL_PRIOR`
-        of the larger image side). ``"auto"`` fits it when both cameras are given theirs at the
-        image centre (within half a pixel of ``(w - 1) / 2`` or ``w / 2``, likewise ``h``): a
-        guess, as from an EXIF or panorama-stitcher focal length, where an offset of 1 % of the
-        image leaves residuals that turn a narrow-field pure rotation into a general motion;
-        a calibrated principal point is kept. ``"fit"`` always, ``"given"`` never.
+        of the image width across and of its height down). ``"auto"`` fits it when both
+        cameras are given theirs at the image centre (within half a pixel of ``(w - 1) / 2`` or
+        ``w / 2``, likewise ``h``): a guess, as from an EXIF or panorama-stitcher focal
+        length, where an offset of 1 % of the image leaves residuals that turn a narrow-field
+        pure rotation into a general motion; a calibrated principal point is kept. ``"fit"``
+        always, ``"given"`` never.
     """
 
     features: str = "sift"
@@ -388,16 +389,16 @@ class PairResult:
         return self.keypoints1[m[:, 0]], self.keypoints2[m[:, 1]]
 
 
-def _principal_prior(mode: str, K1, K2, shape1, shape2, focal: float) -> float | None:
-    """Prior of the principal-point offset in normalised units of ``focal`` (pixels), None to
-    keep the given one."""
+def _principal_prior(mode: str, K1, K2, shape1, shape2, focal: float) -> np.ndarray | None:
+    """Prior ``(x, y)`` of the principal-point offset in normalised units of ``focal`` (pixels),
+    :data:`PRINCIPAL_PRIOR` of the larger width and height, None to keep the given point."""
     sizes = [(int(shape[1]), int(shape[0])) for shape in (shape1, shape2)]
     guessed = all(
         principal_point_is_centre(K, size) for K, size in zip((K1, K2), sizes, strict=True)
     )
     if mode == "given" or (mode == "auto" and not guessed):
         return None
-    return PRINCIPAL_PRIOR * max(max(size) for size in sizes) / focal
+    return PRINCIPAL_PRIOR * np.max(np.array(sizes, dtype=float), axis=0) / focal
 
 
 def _normalize(points: np.ndarray, K: np.ndarray, dist: np.ndarray | None) -> np.ndarray:

@@ -66,15 +66,19 @@ at 25-35 degrees of field lie within about +-0.1). The prior of :func:`fit_rotat
 
 PRINCIPAL_PRIOR = 0.01
 """Standard deviation of each coordinate of the offset of the true principal point from the
-image centre, as a fraction of the larger image side: consumer cameras put it within about 2 %,
-and a principal point given at the centre is a guess. In a narrow field a 1 % offset leaves
-0.3 px of median residual on a rotation fitted with the centre (640 px wide, 30 degrees, a
-20 degree pan), growing with the image size; the pipeline converts it to normalised units for
-:func:`fit_rotation_lens`."""
+image centre, as a fraction of that image side (the width for ``x``, the height for ``y``):
+consumer cameras put it within about 2 % of each side, and a principal point given at the
+centre is a guess. In a narrow field a 1 % offset leaves 0.3 px of median residual on a
+rotation fitted with the centre (640 px wide, 30 degrees, a 20 degree pan), growing with the
+image size; the pipeline converts it to normalised units for :func:`fit_rotation_lens`."""
 
 PRINCIPAL_BOUND = 2.0
 """Largest principal-point offset :func:`fit_rotation_lens` accepts, in prior deviations per
-coordinate: beyond it the offset explains parallax, not a lens, and the given point is kept."""
+coordinate: beyond it the offset explains parallax, not a lens, and the given point is kept.
+With :data:`PRINCIPAL_PRIOR` per side that is 2 % of the width across and 2 % of the height
+down: one prior for both axes (1 % of the larger side) let a translation at baseline / depth
+0.02 move the point 11.8 px down a 480 px high image, beyond 2 % of it, and be called a pure
+rotation (``ppo_cv.data_gen`` ``tiny-baseline`` index 5 with the centre given)."""
 
 _MIN_WITH_PRIOR = 4  # matches for the lens terms once priors regularise them (8 rows, 5 unknowns)
 
@@ -362,7 +366,7 @@ def fit_rotation_lens(
     noise: float | None = None,
     focal_prior: float = FOCAL_PRIOR,
     k1_prior: float = K1_PRIOR,
-    principal_prior: float | None = None,
+    principal_prior: float | np.ndarray | None = None,
 ) -> LensRotationFit:
     """Rotation, focal scale, radial coefficient (and principal point) by Gauss-Newton.
 
@@ -397,9 +401,10 @@ def fit_rotation_lens(
         fits without the priors.
     focal_prior, k1_prior : float
         Standard deviations of the priors on ``s - 1`` and ``k1``.
-    principal_prior : float, optional
+    principal_prior : float or array_like of 2 floats, optional
         Standard deviation of each coordinate of ``p`` (normalised units: pixels over the focal
-        length); None keeps the given principal point (``p = 0``). Needs ``noise``.
+        length), one for both or ``(x, y)``; None keeps the given principal point (``p = 0``).
+        Needs ``noise``.
 
     Returns
     -------
@@ -410,7 +415,9 @@ def fit_rotation_lens(
     R0 = np.asarray(R, float)
     a, b = xy1[used], xy2[used]
     with_noise = noise is not None and noise > 0
-    fit_offset = principal_prior is not None and principal_prior > 0 and with_noise
+    if principal_prior is not None:
+        principal_prior = np.broadcast_to(np.asarray(principal_prior, dtype=float), (2,))
+    fit_offset = principal_prior is not None and bool(np.all(principal_prior > 0)) and with_noise
     free = _NPARAMS if fit_offset else _LENS
     bounds = np.array([np.inf, np.inf, np.inf, max_focal_change, max_k1, np.inf, np.inf])
     prior = np.zeros(_NPARAMS)

@@ -71,6 +71,31 @@ def test_an_offset_beyond_the_bound_is_dropped_not_clipped():
     assert np.median(fit.residuals) * focal > 0.5
 
 
+def test_the_prior_and_its_bound_follow_each_image_side():
+    # 2 % of the height is 9.6 px, 2 % of the width 12.8 px: 11 px is a lens across, parallax up
+    prior = 0.01 * np.array([WIDTH, HEIGHT])
+    for offset, kept in (((11.0, 0.0), True), ((0.0, 11.0), False)):
+        x1, x2, R, focal = _exact_matches(offset)
+        used = np.ones(len(x1), dtype=bool)
+        fit = fit_rotation_lens(x1, x2, used, R, noise=0.3 / focal, principal_prior=prior / focal)
+        if kept:
+            assert np.allclose(fit.principal_offset * focal, offset, atol=0.3)
+        else:
+            assert np.array_equal(fit.principal_offset, np.zeros(2))
+
+
+def test_a_translation_whose_offset_would_pass_only_across_stays_general():
+    # baseline / depth 0.02: with one prior for both axes (1 % of the width) the fit moved the
+    # principal point 12.5 / 11.8 px, inside 2 % of the width but beyond 2 % of the height
+    pair = data_gen.make_pair(
+        "tiny-baseline", seed=0, index=5, imperfections=CENTRED, baseline_ratio=0.02
+    )
+    result = _run(pair, photometric=False)
+    assert not result.pure_rotation
+    assert result.gric_difference > 0.1
+    assert _angle(result.R, pair.R) < 1.0
+
+
 def test_centre_conventions_and_a_calibrated_principal_point():
     K = np.array([[500.0, 0, 319.5], [0, 500.0, 239.5], [0, 0, 1]])
     assert principal_point_is_centre(K, (WIDTH, HEIGHT))
@@ -155,9 +180,13 @@ def test_bad_settings_are_named():
         ({"principal_offset": (1.0,)}, "principal_offset"),
         ({"principal_offset": (np.nan, 0.0)}, "principal_offset"),
         ({"principal_prior": -1.0}, "principal_prior"),
+        ({"principal_prior": (0.01, 0.01, 0.01)}, "principal_prior"),
+        ({"principal_prior": (0.01, 0.0)}, "principal_prior"),
     ):
         with pytest.raises(ValueError, match=message):
             refine_rotation_photometric(image, image, K, K, np.eye(3), **bad)
+    with pytest.raises(TypeError, match="principal_prior"):
+        refine_rotation_photometric(image, image, K, K, np.eye(3), principal_prior="wide")
     with pytest.raises(ValueError, match="centred_principal_point"):
         data_gen.Imperfections(centred_principal_point="yes")
 
