@@ -14,6 +14,10 @@ focal length given off by up to 3 %, a 25-35 degree field of view, JPEG):
   the warped frames with the focal given exactly, turns of 15-25 degrees: there the truth is
   also the rotation fitted under the given focal, as for real tripod panoramas whose truth is a
   rotation homography fitted with the given focal;
+- ``... centre and focal lengths given per photo``: ``data_gen`` pairs told the image centre
+  and a focal length per view, each off by a further factor of its own within +-1 %
+  (``Imperfections(centred_principal_point=True, view_focal_error=0.01)``), as a panorama
+  stitcher reports them;
 - ``sweep``: ``tiny-baseline`` from 0.001 to 0.05, to see where the flag switches;
 - ``freiburg``: the 85 real translating pairs with pseudo ground truth (must not be flagged).
 
@@ -301,6 +305,14 @@ def _sets(counts: dict, have_photos: bool):
     for ratio in (0.02, 0.05):
         pairs = official("tiny-baseline", n, ratio, imperfections=centred)
         yield f"data_gen tiny-baseline {ratio}, {centre}", 0, pairs, True
+    per_photo = data_gen.Imperfections(centred_principal_point=True, view_focal_error=0.01)
+    told = "centre and focal lengths given per photo"
+    yield f"data_gen warped photo, {told}", 1, official_warped(n, per_photo), True
+    pairs = official("panorama", n, pivot=TRIPOD_PIVOTS[0], imperfections=per_photo)
+    yield f"data_gen tripod pan, pivot 8 cm, {told}", 1, pairs, True
+    for ratio in (0.02, 0.05):
+        pairs = official("tiny-baseline", n, ratio, imperfections=per_photo)
+        yield f"data_gen tiny-baseline {ratio}, {told}", 0, pairs, True
     yield "harness render rotation", 1, renders(0.0, counts["rotation"]), True
     if have_photos:
         yield "harness warped freiburg", 1, warped(counts["warped"]), True

@@ -187,6 +187,20 @@ def _rotation_sigma_lines(result) -> list[str]:
     return [f"  R sigma      {sigma:.3f} deg (rotation angle error, root mean square, {source})"]
 
 
+def _lens_lines(result) -> list[str]:
+    """The lens terms a pure rotation's fit absorbed: focal scale, focal ratio, principal point."""
+    if not result.pure_rotation:
+        return []
+    text = f"focal scale {result.focal_scale:.4f} (given / true)"
+    ratio = float(getattr(result, "focal_ratio", 1.0))
+    if ratio != 1.0:
+        text += f", image 2 / image 1 {ratio:.4f}"
+    offset = getattr(result, "principal_offset_px", None)
+    if offset is not None and any(offset):
+        text += f", principal point moved ({offset[0]:+.1f}, {offset[1]:+.1f}) px"
+    return [f"  lens fit     {text}"]
+
+
 def _summary(result, name1: str, name2: str, note: str | None, reference=None) -> str:
     import numpy as np
 
@@ -228,6 +242,7 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
         *_radial_lines(result),
         f"  t sigma      {result.t_sigma_deg:.2f} deg (direction of t, one standard deviation)",
         *_rotation_sigma_lines(result),
+        *_lens_lines(result),
         f"  log10 NFA    {result.log10_nfa:.1f} (consensus against chance; lower is stronger)",
         f"  matches      {result.num_matches} putative, {result.num_inliers} inliers, "
         f"{result.num_points} 3D points",

@@ -80,16 +80,23 @@ def _check(out_dir: Path, pairs: int, seed: int, motion: str | None, scene: str 
         _fail(str(exc))
 
 
-def _imperfections(imperfect: bool, noise: float | None, blur: float | None):
-    """``REAL_PHOTO`` with the noise and blur asked for, or None without ``--imperfect``."""
+def _imperfections(imperfect: bool, noise: float | None, blur: float | None, **told):
+    """``REAL_PHOTO`` with the noise, blur and what the estimator is told (``told``: fields of
+    ``Imperfections``) asked for, or None without ``--imperfect``."""
     if not imperfect:
+        if any(told.values()):
+            _fail("--centred-principal-point and --view-focal-error need --imperfect")
         return None
     import dataclasses
 
     from ppo_cv.data_gen import REAL_PHOTO
 
-    changes = {"noise_std": noise, "blur_sigma": blur}
-    return dataclasses.replace(REAL_PHOTO, **{k: v for k, v in changes.items() if v is not None})
+    changes = {"noise_std": noise, "blur_sigma": blur, **told}
+    changes = {key: value for key, value in changes.items() if value is not None}
+    try:
+        return dataclasses.replace(REAL_PHOTO, **changes)
+    except ValueError as exc:
+        _fail(str(exc))
 
 
 def _watch(staging: Path, total: int, quiet: bool, stop: threading.Event) -> None:
@@ -151,6 +158,21 @@ def register(app: typer.Typer) -> None:
                 "off, 25-35 deg field of view, JPEG, noise 1, blur 0.5.",
             ),
         ] = False,
+        centred_principal_point: Annotated[
+            bool,
+            typer.Option(
+                "--centred-principal-point",
+                help="With --imperfect: write the image centre as principal point (as EXIF or a "
+                "stitcher gives it); the true one lies within 2 % of it.",
+            ),
+        ] = False,
+        view_focal_error: Annotated[
+            float | None,
+            typer.Option(
+                help="With --imperfect: each view's focal length written off by a further "
+                "factor of its own, up to this fraction (focal lengths estimated per photo)."
+            ),
+        ] = None,
         warp: Annotated[
             bool,
             typer.Option(
@@ -194,7 +216,11 @@ def register(app: typer.Typer) -> None:
             _fail("--warp-source needs --warp")
         if warp and different_k:
             _fail("--different-k does not apply to --warp (one camera)")
-        imperfections = _imperfections(imperfect, noise, blur)
+        imperfections = _imperfections(
+            imperfect, noise, blur,
+            centred_principal_point=centred_principal_point or None,
+            view_focal_error=view_focal_error,
+        )  # fmt: skip
         photometric = {}
         if imperfections is None and not warp:
             photometric = {"noise_std": noise or 0.0, "blur_sigma": blur or 0.0}

@@ -6,6 +6,8 @@ A real photo differs from the exact pinhole renders in ways no estimator is told
   given to the estimator;
 * a focal length known only to a few percent: the estimator is given ``K_given`` whose ``fx``
   and ``fy`` are the true ones times one factor ``f ~ U(1 - focal_error, 1 + focal_error)``;
+* optionally focal lengths estimated per photo, as a panorama stitcher gives them: each view's
+  given focal length off by a further factor of its own;
 * optionally a principal point known only as the image centre (an EXIF or panorama-stitcher
   focal length comes without one), while the true one lies up to 2 % of the image off it;
 * a narrow horizontal field of view (consumer zooms, 25-35 degrees), which makes rotation and
@@ -65,6 +67,9 @@ class DrawnImperfections:
         Radial distortion of both views (same lens), OpenCV ``dist = (k1, k2, 0, 0, 0)``.
     focal_factor : float
         ``fx_given / fx_true = fy_given / fy_true`` for both views.
+    view_factors : (float, float)
+        Further factor of each view's given focal length (``(1, 1)`` unless
+        :attr:`Imperfections.view_focal_error`).
     jpeg_quality : int or None
         JPEG quality both views are encoded at (None: no compression).
     noise_std, blur_sigma : float
@@ -77,6 +82,7 @@ class DrawnImperfections:
     jpeg_quality: int | None
     noise_std: float
     blur_sigma: float
+    view_factors: tuple = (1.0, 1.0)
 
     @property
     def dist(self) -> np.ndarray:
@@ -85,7 +91,13 @@ class DrawnImperfections:
 
     def record(self) -> dict:
         """The drawn values as JSON-serialisable parameters."""
-        return asdict(self)
+        record = asdict(self)
+        record["view_factors"] = [float(v) for v in self.view_factors]
+        return record
+
+    def focal_factors(self) -> tuple[float, float]:
+        """Given over true focal length of view 1 and view 2."""
+        return tuple(self.focal_factor * float(v) for v in self.view_factors)
 
 
 @dataclass(frozen=True)
@@ -114,6 +126,11 @@ class Imperfections:
         Give the estimator the image centre, ``((w - 1) / 2, (h - 1) / 2)``, as principal point
         instead of the true one (drawn within 2 % of the image size of the centre by
         ``ppo_cv.data_gen``'s cameras). Draws nothing: the same pair, told less.
+    view_focal_error : float, default 0
+        Focal lengths given per photo: each view's given focal length is further scaled by its
+        own factor ``U(1 -+ view_focal_error)``, in ``[0, 0.5]``. The factors come from a
+        generator seeded with the pair's other draws, so the pair is the same, told
+        differently.
     """
 
     k1_range: tuple = (0.02, 0.1)
@@ -124,6 +141,7 @@ class Imperfections:
     noise_std: float = 1.0
     blur_sigma: float = 0.5
     centred_principal_point: bool = False
+    view_focal_error: float = 0.0
 
     def __post_init__(self) -> None:
         put = object.__setattr__
@@ -136,6 +154,8 @@ class Imperfections:
         put(self, "k1_range", _pair("k1_range", self.k1_range, 0.0, MAX_K1))
         put(self, "k2_fraction", _scalar("k2_fraction", self.k2_fraction, -5.0, 5.0))
         put(self, "focal_error", _scalar("focal_error", self.focal_error, 0.0, MAX_FOCAL_ERROR))
+        put(self, "view_focal_error",
+            _scalar("view_focal_error", self.view_focal_error, 0.0, MAX_FOCAL_ERROR))  # fmt: skip
         if self.hfov_range is not None:
             hfov = _pair("hfov_range", self.hfov_range, 1.0, 179.0)
             if hfov[0] <= 1.0 or hfov[1] >= 179.0:
@@ -163,9 +183,14 @@ class Imperfections:
         if self.jpeg_quality is not None:
             low, high = self.jpeg_quality
             quality = min(high, low + int(quality_draw * (high - low + 1)))
+        views = (1.0, 1.0)
+        if self.view_focal_error > 0:
+            side = np.random.default_rng(np.array([k1, factor, quality_draw]).view(np.uint32))
+            error = self.view_focal_error
+            views = tuple(float(v) for v in side.uniform(1.0 - error, 1.0 + error, 2))
         return DrawnImperfections(
             k1=k1, k2=self.k2_fraction * k1, focal_factor=factor, jpeg_quality=quality,
-            noise_std=self.noise_std, blur_sigma=self.blur_sigma,
+            noise_std=self.noise_std, blur_sigma=self.blur_sigma, view_factors=views,
         )  # fmt: skip
 
     def record(self) -> dict:

@@ -161,8 +161,8 @@ def make_pair(
         pair,
         image1=jpeg_roundtrip(pair.image1, drawn.jpeg_quality),
         image2=jpeg_roundtrip(pair.image2, drawn.jpeg_quality),
-        K1_given=given_intrinsics(pair.K1, drawn.focal_factor, centre),
-        K2_given=given_intrinsics(pair.K2, drawn.focal_factor, centre),
+        K1_given=given_intrinsics(pair.K1, drawn.focal_factors()[0], centre),
+        K2_given=given_intrinsics(pair.K2, drawn.focal_factors()[1], centre),
     )
 
 

@@ -327,7 +327,8 @@ def make_warped_pair(
         noise_std=drawn.noise_std, blur_sigma=drawn.blur_sigma, seed=[seed, index],
         params=record,
     )  # fmt: skip
-    if not settings.centred_principal_point:
+    if not settings.centred_principal_point and drawn.view_factors == (1.0, 1.0):
         return pair
-    K_given = given_intrinsics(K, drawn.focal_factor, size)
-    return dataclasses.replace(pair, K1_given=K_given, K2_given=K_given.copy())
+    centre = size if settings.centred_principal_point else None
+    K1_given, K2_given = (given_intrinsics(K, f, centre) for f in drawn.focal_factors())
+    return dataclasses.replace(pair, K1_given=K1_given, K2_given=K2_given)

@@ -136,6 +136,7 @@ def _model_selection(result: PairResult) -> dict:
             "gric_difference": float(result.gric_difference),
             "noise_sigma_px": float(result.noise_sigma_px),
             "focal_scale": float(result.focal_scale),
+            "focal_ratio": float(getattr(result, "focal_ratio", 1.0)),
             "principal_offset_px": _listed(getattr(result, "principal_offset_px", np.zeros(2))),
             **_plane_selection(result),
         },

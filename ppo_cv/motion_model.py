@@ -6,7 +6,8 @@ Two tests that fail differently are combined:
    models fitted to the same matches, each residual a distance in the joint image space (pixels):
 
    - ``"rotation"`` (``d = 2``, ``k = 3 + 2``): the rotation with a focal scale and radial
-     distortion absorbed, and the principal point under its prior when it was only guessed
+     distortion absorbed, the principal point under its prior when it was only guessed, and
+     the ratio of the two focal lengths (``k + 1``) when they were given different
      (:func:`ppo_cv.rotation.fit_rotation_lens`), transfer error / sqrt(2);
    - ``"plane"`` (``d = 2``, ``k = 8``): the robust homography
      (:func:`ppo_cv.homography.estimate_homography`), its Sampson error;
@@ -189,6 +190,8 @@ class MotionDecision:
         cap, :data:`ppo_cv.refine.T_SIGMA_CAP_DEG`.
     focal_scale, k1 : float
         Lens terms of the rotation-only fit.
+    focal_ratio : float
+        View 2's focal scale over view 1's in that fit (1 unless ``focal_ratio_prior`` freed it).
     rotation_sigma_deg : float
         Root-mean-square angle error (degrees) of ``R`` of the rotation-only fit, from its
         covariance with the lens terms under their priors
@@ -229,6 +232,7 @@ class MotionDecision:
     plane_off_share: float = float("nan")
     rotation_sigma_deg: float = float("inf")
     principal_offset: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    focal_ratio: float = 1.0
 
     @property
     def gric_difference(self) -> float:
@@ -278,6 +282,8 @@ def decide_motion(
     seed: int = 0,
     homography: HomographyEstimate | None = None,
     principal_prior: float | np.ndarray | None = None,
+    focal_ratio_prior: float | None = None,
+    focal_ratio_mean: float = 1.0,
 ) -> MotionDecision:
     """Fit a rotation to the matches and decide among pure rotation, plane and general motion.
 
@@ -311,6 +317,13 @@ def decide_motion(
         narrow field the offset is nearly a rotation, and the prior, not the matches, holds it
         (counted as two, 3 of 12 warped pans with 7-23 matches were called general).
         None keeps the given principal point.
+    focal_ratio_prior : float, optional
+        Let the rotation-only fit scale view 2's focal length against view 1's, with this prior
+        on the ratio about ``focal_ratio_mean`` (:func:`ppo_cv.rotation.fit_rotation_lens`),
+        for focal lengths given per image; GRIC counts it as a parameter. None keeps the given
+        ratio.
+    focal_ratio_mean : float
+        Mean of that prior.
 
     Returns
     -------
@@ -321,14 +334,17 @@ def decide_motion(
     noise = robust_sigma(general_all[inliers], JOINT_DIMENSION - MODEL_DIMENSIONS["general"][0])
     noise *= np.sqrt(2.0)  # a transfer error coordinate carries the noise of both images
     fit = ransac_rotation(x1, x2, RANSAC_FACTOR * threshold, seed=seed)
-    lens = fit_rotation_lens(x1, x2, fit.inliers, fit.R, noise=noise,
-                             principal_prior=principal_prior)  # fmt: skip
+    priors = {
+        "principal_prior": principal_prior,
+        "focal_ratio_prior": focal_ratio_prior,
+        "focal_ratio_mean": focal_ratio_mean,
+    }
+    lens = fit_rotation_lens(x1, x2, fit.inliers, fit.R, noise=noise, **priors)
     rotation_inliers = lens.residuals < threshold
     for _ in range(4):
         if np.count_nonzero(rotation_inliers) < 4:
             break
-        lens = fit_rotation_lens(x1, x2, rotation_inliers, lens.R, noise=noise,
-                                 principal_prior=principal_prior)  # fmt: skip
+        lens = fit_rotation_lens(x1, x2, rotation_inliers, lens.R, noise=noise, **priors)
         within = lens.residuals < threshold
         if np.array_equal(within, rotation_inliers):
             break
@@ -336,7 +352,11 @@ def decide_motion(
     scored = inliers | rotation_inliers
     selection = select_model(
         [
-            _candidate("rotation", lens.residuals[scored] * focal / np.sqrt(2.0)),
+            _candidate(
+                "rotation",
+                lens.residuals[scored] * focal / np.sqrt(2.0),
+                extra=int(focal_ratio_prior is not None),
+            ),
             _candidate("general", general_all[scored] * focal),
         ]
     )
@@ -390,6 +410,7 @@ def decide_motion(
         plane_off_share=plane_off_share,
         rotation_sigma_deg=lens.rotation_sigma_deg,
         principal_offset=lens.principal_offset,
+        focal_ratio=lens.focal_ratio,
     )
 
 
@@ -399,7 +420,7 @@ def _rotation_translation(lens: LensRotationFit, x1, x2, used, t_fallback):
     if np.count_nonzero(used) < 5:
         return np.asarray(t_fallback, dtype=np.float64), float("inf"), T_SIGMA_CAP_DEG
     c1 = correct_points(x1[used], lens.focal_scale, lens.k1, lens.principal_offset)
-    c2 = correct_points(x2[used], lens.focal_scale, lens.k1, lens.principal_offset)
+    c2 = correct_points(x2[used], lens.focal_scale2, lens.k1, lens.principal_offset)
     t = translation_for_rotation(lens.R, c1, c2)
     pri = ppo.pure_rotation_indicator(ppo.intersection_scores(c1, c2, lens.R, t))
     # one Sampson residual carries half the squared transfer error (noise of both images)
@@ -442,7 +463,7 @@ def with_rotation(
     MotionDecision
     """
     residuals = lens_rotation_residuals(
-        lens.R, lens.focal_scale, lens.k1, x1, x2, lens.principal_offset
+        lens.R, lens.focal_scale, lens.k1, x1, x2, lens.principal_offset, lens.focal_ratio
     )
     lens = replace(lens, residuals=residuals)
     inliers = residuals < TRANSFER_FACTOR * threshold_px / focal
@@ -458,11 +479,13 @@ def with_rotation(
         k1=lens.k1,
         rotation_sigma_deg=lens.rotation_sigma_deg,
         principal_offset=lens.principal_offset,
+        focal_ratio=lens.focal_ratio,
     )
 
 
-def _candidate(name: str, residuals: np.ndarray) -> ModelResiduals:
-    return ModelResiduals(name, residuals, *MODEL_DIMENSIONS[name])
+def _candidate(name: str, residuals: np.ndarray, extra: int = 0) -> ModelResiduals:
+    dimension, num_params = MODEL_DIMENSIONS[name]
+    return ModelResiduals(name, residuals, dimension, num_params + extra)
 
 
 def _epipolar_ratio(plane, x1, x2, general_px, threshold_px: float, focal: float) -> float:

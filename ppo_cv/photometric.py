@@ -411,7 +411,7 @@ def _as_prior(value) -> np.ndarray:
     return prior
 
 
-def _fit_tracks(y1, y2, valid, R, focal, principal_prior):
+def _fit_tracks(y1, y2, valid, R, focal, priors):
     """Lens rotation over the tracks, outliers beyond ``3 sqrt(2)`` noise deviations dropped;
     ``(fit, used, noise_px)`` or None when too few tracks remain."""
     used, noise, fit = valid.copy(), 0.1 / focal, None
@@ -419,7 +419,7 @@ def _fit_tracks(y1, y2, valid, R, focal, principal_prior):
         if np.count_nonzero(used) < MIN_TRACKS:
             return None
         start = R if fit is None else fit.R
-        fit = fit_rotation_lens(y1, y2, used, start, noise=noise, principal_prior=principal_prior)
+        fit = fit_rotation_lens(y1, y2, used, start, noise=noise, **priors)
         noise = robust_sigma(fit.residuals[used], 2)
         within = valid & (fit.residuals < _OUTLIER_SIGMAS * np.sqrt(2.0) * noise)
         if np.array_equal(within, used):
@@ -441,6 +441,9 @@ def refine_rotation_photometric(
     k1: float = 0.0,
     principal_offset: Sequence[float] = (0.0, 0.0),
     principal_prior: float | Sequence[float] | None = None,
+    focal_ratio: float = 1.0,
+    focal_ratio_prior: float | None = None,
+    focal_ratio_mean: float = 1.0,
     rotation_sigma_deg: float = 1.0,
     dist1: np.ndarray | None = None,
     dist2: np.ndarray | None = None,
@@ -460,6 +463,13 @@ def refine_rotation_photometric(
     principal_prior : float or array_like of 2 floats, optional
         Refit the principal-point offset too, under this prior (normalised units, one for both
         coordinates or ``(x, y)``); None keeps ``principal_offset``.
+    focal_ratio : float
+        View 2's focal scale over view 1's in that fit.
+    focal_ratio_prior : float, optional
+        Refit the focal ratio too, under this prior about ``focal_ratio_mean``; None keeps
+        ``focal_ratio``.
+    focal_ratio_mean : float
+        Mean of that prior.
     rotation_sigma_deg : float
         Its uncertainty: how far (three times this) the first alignment must search, and the
         bound on the change: a refit further than ``4 rotation_sigma_deg + 0.1`` degrees from
@@ -506,10 +516,19 @@ def refine_rotation_photometric(
     rotation_sigma_deg = as_positive(rotation_sigma_deg, "rotation_sigma_deg")
     if principal_prior is not None:
         principal_prior = _as_prior(principal_prior)
+    focal_ratio = as_positive(focal_ratio, "focal_ratio")
+    if focal_ratio_prior is not None:
+        focal_ratio_prior = as_positive(focal_ratio_prior, "focal_ratio_prior")
+    focal_ratio_mean = as_positive(focal_ratio_mean, "focal_ratio_mean")
+    priors = {
+        "principal_prior": principal_prior,
+        "focal_ratio_prior": focal_ratio_prior,
+        "focal_ratio_mean": focal_ratio_mean,
+    }
     _require_window(window)
     focal = float(np.mean([K2[0, 0], K2[1, 1]]))
     gray1, gray2 = to_gray(image1), to_gray(image2)
-    start = (R, float(focal_scale), float(k1), _as_offset(principal_offset))
+    start = (R, float(focal_scale), float(k1), _as_offset(principal_offset), focal_ratio)
 
     def transfer_with(model) -> Callable[[np.ndarray], np.ndarray]:
         return lambda pixels: normalized_to_pixels(
@@ -531,11 +550,11 @@ def refine_rotation_photometric(
             pyr1, pyr2, corners, transfer_with(model), window, level_count, _ITERATIONS
         )
         y2 = pixels_to_normalized(tracks.points2, K2, dist2)
-        fitted = _fit_tracks(y1, y2, tracks.valid, model[0], focal, principal_prior)
+        fitted = _fit_tracks(y1, y2, tracks.valid, model[0], focal, priors)
         if fitted is None:
             return None
         fit, used, noise_px = fitted
-        model = (fit.R, fit.focal_scale, fit.k1, fit.principal_offset)
+        model = (fit.R, fit.focal_scale, fit.k1, fit.principal_offset, fit.focal_ratio)
         inflation = np.sqrt(window_overlap(corners[used], window))
         fit = replace(
             fit,

@@ -59,7 +59,7 @@ from .robust import (
     estimate_essential_ordered,
     sampson_errors,
 )
-from .rotation import PRINCIPAL_PRIOR
+from .rotation import PRINCIPAL_PRIOR, focal_ratio_prior
 from .significance import (
     CONFIDENT_LOG10_NFA,
     DEFAULT_MAX_LOG10_NFA,
@@ -311,6 +311,10 @@ class PairResult:
         Noise estimated from the essential matrix's residuals (pixels).
     focal_scale : float
         Focal scale absorbed by the rotation-only fit (given focal length over the true one).
+    focal_ratio : float
+        Scale of image 2's focal length against image 1's absorbed by the rotation-only fit
+        when the two were given slightly different (focal lengths estimated per photo, as by a
+        panorama stitcher; :func:`ppo_cv.rotation.focal_ratio_prior`); 1 otherwise.
     principal_offset_px : ndarray, shape (2,)
         Offset of the true principal point from the given one found by the rotation-only fit
         (pixels; zero when it was not fitted, ``PairOptions.principal_point``).
@@ -348,6 +352,7 @@ class PairResult:
     gric_difference: float = float("nan")
     noise_sigma_px: float = float("nan")
     focal_scale: float = 1.0
+    focal_ratio: float = 1.0
     principal_offset_px: np.ndarray = field(default_factory=lambda: np.zeros(2))
     timings: dict[str, float] = field(default_factory=dict)
     dist1: np.ndarray | None = None
@@ -399,6 +404,15 @@ def _principal_prior(mode: str, K1, K2, shape1, shape2, focal: float) -> np.ndar
     if mode == "given" or (mode == "auto" and not guessed):
         return None
     return PRINCIPAL_PRIOR * np.max(np.array(sizes, dtype=float), axis=0) / focal
+
+
+def _focal_ratio_prior(K1: np.ndarray, K2: np.ndarray) -> dict:
+    """Keyword arguments of :func:`ppo_cv.motion_model.decide_motion` for the prior on the ratio
+    of the two focal scales (:func:`ppo_cv.rotation.focal_ratio_prior`); empty to keep it."""
+    prior = focal_ratio_prior(float(np.mean(np.diag(K2)[:2]) / np.mean(np.diag(K1)[:2])))
+    if prior is None:
+        return {}
+    return {"focal_ratio_mean": prior[0], "focal_ratio_prior": prior[1]}
 
 
 def _normalize(points: np.ndarray, K: np.ndarray, dist: np.ndarray | None) -> np.ndarray:
@@ -627,6 +641,7 @@ def estimate_pair(
     principal_prior = _principal_prior(
         options.principal_point, K1, K2, img1.shape, img2.shape, focal
     )
+    ratio_prior = _focal_ratio_prior(K1, K2)
     motion = decide_motion(
         x1, x2, R, t, inliers, focal,
         threshold_px=options.ransac_threshold,
@@ -634,6 +649,7 @@ def estimate_pair(
         seed=options.seed,
         homography=homography,
         principal_prior=principal_prior,
+        **ratio_prior,
     )  # fmt: skip
     lap("model")
 
@@ -643,6 +659,7 @@ def estimate_pair(
             img1, img2, K1, K2, motion.R,
             focal_scale=motion.focal_scale, k1=motion.k1,
             principal_offset=motion.principal_offset, principal_prior=principal_prior,
+            focal_ratio=motion.focal_ratio, **ratio_prior,
             rotation_sigma_deg=min(motion.rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG),
             dist1=dist1, dist2=dist2,
         )  # fmt: skip
@@ -717,6 +734,7 @@ def estimate_pair(
         gric_difference=motion.gric_difference,
         noise_sigma_px=motion.selection.sigma_px,
         focal_scale=motion.focal_scale,
+        focal_ratio=motion.focal_ratio,
         principal_offset_px=motion.principal_offset * focal / motion.focal_scale,
         timings=timings,
         dist1=dist1,

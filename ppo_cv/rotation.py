@@ -10,17 +10,21 @@ Under a pure rotation the bearings of a match obey ``b2 = R b1`` (paper eq. 3 wi
   matches at once, trials adapted to the inlier ratio), then the least-squares rotation (Wahba,
   :func:`ppo_cv.ppo.rotation_from_rays`) over its inliers, re-selected until they settle.
 - :func:`fit_rotation_lens`: rotation plus one focal-length scale ``s``, one radial
-  coefficient ``k1`` and optionally a principal-point offset ``p``, shared by the two views, by
-  Gauss-Newton over the inliers. The given normalised point ``x`` is taken as
-  ``s x = p + q (1 + k1 |q|^2)`` of the true ray ``(q, 1)`` (OpenCV's radial model, inverted
-  exactly by fixed-point iteration), and ``(q2, 1) ~ R (q1, 1)``.
+  coefficient ``k1`` and optionally a principal-point offset ``p``, shared by the two views,
+  and optionally a focal ratio ``rho`` of view 2 to view 1, by Gauss-Newton over the inliers.
+  The given normalised point ``x`` of view 1 is taken as ``s x = p + q (1 + k1 |q|^2)`` of the
+  true ray ``(q, 1)`` (OpenCV's radial model, inverted exactly by fixed-point iteration), that
+  of view 2 as ``s rho x = ...``, and ``(q2, 1) ~ R (q1, 1)``.
   A tripod panorama taken with intrinsics a few percent off and unmodelled distortion is this
   model; the depth-dependent parallax of a translation is not, so the two models keep apart.
   Given the noise, ``s``, ``k1`` and ``p`` get Gaussian priors (:data:`FOCAL_PRIOR`,
   :data:`K1_PRIOR`, :data:`PRINCIPAL_PRIOR`): the fit is then the maximum a posteriori one,
   defined from 4 matches on. ``p`` matters only with a turn (``A R A^-1 = I`` for ``R = I``,
   ``A`` the shift of the normalised plane by ``p``), and in a narrow field it is nearly a
-  rotation itself, which is why the prior, not the matches, bounds it.
+  rotation itself, which is why the prior, not the matches, bounds it. ``rho`` is for focal
+  lengths given per image (a panorama stitcher estimates one per photo): a relative error of
+  the two, uncorrected, is a radial flow that an essential matrix explains as a forward
+  translation (0.5 % of it made 7 of 10 warped pans general, 1 % all of them).
 """
 
 from __future__ import annotations
@@ -35,6 +39,8 @@ from .ppo import rotation_from_rays
 
 __all__ = [
     "FOCAL_PRIOR",
+    "FOCAL_RATIO_BOUND",
+    "FOCAL_RATIO_GAP",
     "K1_PRIOR",
     "PRINCIPAL_BOUND",
     "PRINCIPAL_PRIOR",
@@ -44,6 +50,7 @@ __all__ = [
     "rotation_residuals",
     "ransac_rotation",
     "fit_rotation_lens",
+    "focal_ratio_prior",
     "lens_rotation_residuals",
     "correct_points",
     "transfer_points",
@@ -51,8 +58,11 @@ __all__ = [
 
 _BLOCK = 1 << 18  # hypotheses x matches scored per block
 _BATCH = 64  # hypotheses drawn at once
-_NPARAMS = 7  # rotation increment (3), focal scale, k1, principal point offset (2)
-_LENS = 5  # parameters fitted when the principal point is the given one
+_NPARAMS = 8  # rotation increment (3), focal scale, k1, principal point offset (2), focal ratio
+_ROTATION = np.arange(_NPARAMS) < 3
+_LENS = np.arange(_NPARAMS) < 5  # rotation, focal scale and k1
+_OFFSET = np.isin(np.arange(_NPARAMS), (5, 6))
+_RATIO = np.arange(_NPARAMS) == 7
 FOCAL_PRIOR = 0.02
 """Standard deviation of the relative error of a focal length given by a user (calibration
 files, EXIF, autostitch): "a few percent". The prior of :func:`fit_rotation_lens` on ``s - 1``.
@@ -79,6 +89,18 @@ With :data:`PRINCIPAL_PRIOR` per side that is 2 % of the width across and 2 % of
 down: one prior for both axes (1 % of the larger side) let a translation at baseline / depth
 0.02 move the point 11.8 px down a 480 px high image, beyond 2 % of it, and be called a pure
 rotation (``ppo_cv.data_gen`` ``tiny-baseline`` index 5 with the centre given)."""
+
+FOCAL_RATIO_GAP = 0.05
+"""Largest relative difference of two given focal lengths that :func:`focal_ratio_prior` takes
+for one lens at one zoom, estimated per photo (as a panorama stitcher does); further apart
+they are two lenses or zooms, each given to within :data:`FOCAL_PRIOR`, and the ratio is kept:
+the freedom costs translations along the optical axis (see :func:`focal_ratio_prior`), and a
+few percent of error in each is already what :data:`FOCAL_PRIOR` allows for both."""
+
+FOCAL_RATIO_BOUND = 2.0
+"""Farthest ``rho`` :func:`fit_rotation_lens` accepts from the mean of its prior, in prior
+deviations: beyond it the ratio explains parallax (a forward translation seen at the scene's
+mean depth is a zoom), and the given ratio is kept (``rho = 1``)."""
 
 _MIN_WITH_PRIOR = 4  # matches for the lens terms once priors regularise them (8 rows, 5 unknowns)
 
@@ -134,6 +156,8 @@ class LensRotationFit:
     principal_offset : ndarray, shape (2,)
         ``p``: the true principal point minus the given one over the true focal length (zero
         when not fitted).
+    focal_ratio : float
+        ``rho``: view 2's focal scale over view 1's (1 when not fitted).
     """
 
     R: np.ndarray
@@ -143,6 +167,12 @@ class LensRotationFit:
     residuals: np.ndarray
     rotation_sigma_deg: float = float("inf")
     principal_offset: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    focal_ratio: float = 1.0
+
+    @property
+    def focal_scale2(self) -> float:
+        """``s rho``: the focal scale of view 2 (given focal length over the true one)."""
+        return self.focal_scale * self.focal_ratio
 
     @property
     def focal_significant(self) -> bool:
@@ -308,19 +338,22 @@ def correct_points(
 
 def _lens_transfer(params: np.ndarray, R0: np.ndarray, xy1: np.ndarray, xy2: np.ndarray):
     """Residual vectors (N, 2) in view 2, given normalised units: ``x2`` minus the transfer of
-    ``x1`` (``q1`` rotated, distorted and scaled back)."""
+    ``x1`` (``q1`` rotated, distorted and scaled back by view 2's focal scale)."""
     R = rotation_increment(params[:3]) @ R0
-    scale, k1, offset = 1.0 + params[3], params[4], params[5:7]
+    scale, k1, offset, ratio = 1.0 + params[3], params[4], params[5:7], 1.0 + params[7]
     q1 = _lens_map(xy1, scale, k1, offset)
     ray = np.column_stack([q1, np.ones(len(q1))]) @ R.T
     z = np.where(np.abs(ray[:, 2]) > 1e-9, ray[:, 2], 1e-9)
     q2 = ray[:, :2] / z[:, None]
-    return (q2 * (1.0 + k1 * np.sum(q2 * q2, axis=1, keepdims=True)) + offset) / scale - xy2
+    distorted = q2 * (1.0 + k1 * np.sum(q2 * q2, axis=1, keepdims=True)) + offset
+    return distorted / (scale * ratio) - xy2
 
 
-def _lens_params(focal_scale: float, k1: float, principal_offset: ArrayLike) -> np.ndarray:
+def _lens_params(
+    focal_scale: float, k1: float, principal_offset: ArrayLike, focal_ratio: float = 1.0
+) -> np.ndarray:
     offset = np.broadcast_to(np.asarray(principal_offset, dtype=np.float64), (2,))
-    return np.r_[0.0, 0.0, 0.0, focal_scale - 1.0, k1, offset]
+    return np.r_[0.0, 0.0, 0.0, focal_scale - 1.0, k1, offset, focal_ratio - 1.0]
 
 
 def transfer_points(
@@ -329,14 +362,16 @@ def transfer_points(
     focal_scale: float,
     k1: float,
     principal_offset: ArrayLike = (0.0, 0.0),
+    focal_ratio: float = 1.0,
 ) -> np.ndarray:
     """Where the lens rotation of :func:`fit_rotation_lens` takes normalised points of view 1.
 
     ``x1`` (N, 2 or 3, given camera) is corrected to the true ray ``q1``, rotated by ``R`` and
-    put back through the lens: ``x2 = (p + q2 (1 + k1 |q2|^2)) / s``. Returns ``x2``, (N, 2).
+    put back through the lens: ``x2 = (p + q2 (1 + k1 |q2|^2)) / (s rho)``. Returns ``x2``,
+    (N, 2).
     """
     xy1 = np.asarray(x1, float)[:, :2]
-    params = _lens_params(focal_scale, k1, principal_offset)
+    params = _lens_params(focal_scale, k1, principal_offset, focal_ratio)
     return _lens_transfer(params, np.asarray(R, float), xy1, np.zeros_like(xy1))
 
 
@@ -347,11 +382,41 @@ def lens_rotation_residuals(
     x1: np.ndarray,
     x2: np.ndarray,
     principal_offset: ArrayLike = (0.0, 0.0),
+    focal_ratio: float = 1.0,
 ) -> np.ndarray:
     """Transfer error (N,) of matches under :func:`fit_rotation_lens`'s model, normalised units."""
-    params = _lens_params(focal_scale, k1, principal_offset)
+    params = _lens_params(focal_scale, k1, principal_offset, focal_ratio)
     xy1, xy2 = np.asarray(x1, float)[:, :2], np.asarray(x2, float)[:, :2]
     return np.linalg.norm(_lens_transfer(params, np.asarray(R, float), xy1, xy2), axis=1)
+
+
+def focal_ratio_prior(given_ratio: float) -> tuple[float, float] | None:
+    """Mean and deviation of the prior on ``rho`` of :func:`fit_rotation_lens` for two focal
+    lengths given in the ratio ``r`` (view 2 over view 1); None to keep ``rho = 1``.
+
+    One focal length given for both views (``r = 1``) states one lens at one zoom: the ratio is
+    kept. Two that differ by at most :data:`FOCAL_RATIO_GAP` are taken as two estimates of one
+    lens, each with its own error: the truth lies between ``rho = 1`` (the given lengths right)
+    and ``rho = r`` (the lens the same), so the prior is centred between them with half their
+    distance as deviation. Without the ratio a difference of 0.5 % left 7 of 10 warped pans
+    (``ppo_cv.data_gen``, principal point given at the centre) called general motions, and 1 %
+    all of them; with it all are flagged. The price falls on translations along the optical
+    axis, whose flow at the scene's mean depth is a zoom: with the two focal lengths given 1 %
+    apart and right, 3 of 14 ``tiny-baseline`` pairs at baseline / depth 0.02 were flagged
+    (none with one focal length given for both).
+
+    Examples
+    --------
+    >>> focal_ratio_prior(1.0) is None, focal_ratio_prior(1.2) is None
+    (True, True)
+    >>> mean, sigma = focal_ratio_prior(1.01)
+    >>> round(mean, 4), round(sigma, 4)
+    (1.005, 0.005)
+    """
+    gap = abs(float(given_ratio) - 1.0)
+    if not 1e-6 < gap <= FOCAL_RATIO_GAP:
+        return None
+    return (1.0 + float(given_ratio)) / 2.0, gap / 2.0
 
 
 def fit_rotation_lens(
@@ -367,22 +432,27 @@ def fit_rotation_lens(
     focal_prior: float = FOCAL_PRIOR,
     k1_prior: float = K1_PRIOR,
     principal_prior: float | np.ndarray | None = None,
+    focal_ratio_prior: float | None = None,
+    focal_ratio_mean: float = 1.0,
 ) -> LensRotationFit:
-    """Rotation, focal scale, radial coefficient (and principal point) by Gauss-Newton.
+    """Rotation, focal scale, radial coefficient (principal point, focal ratio) by Gauss-Newton.
 
-    The model is ``(q2, 1) ~ R (q1, 1)`` with ``s x = p + q (1 + k1 |q|^2)`` on the given
-    normalised coordinates ``x`` (one camera, or two with the same error): rotation increments
-    ``R = exp([w]_x) R0``, the focal scale ``s``, ``k1`` and, when ``principal_prior`` is given,
-    the offset ``p`` of the true principal point from the given one (normalised units of the
-    true camera). The least-squares cost is the squared transfer error in view 2. The lens
-    terms must land in a box of plausible lenses (``|s - 1| <= max_focal_change``,
+    The model is ``(q2, 1) ~ R (q1, 1)`` with ``s x1 = p + q1 (1 + k1 |q1|^2)`` and
+    ``s rho x2 = p + q2 (1 + k1 |q2|^2)`` on the given normalised coordinates (one lens, its
+    focal length given with one error, or two with errors ``s`` and ``s rho``): rotation
+    increments ``R = exp([w]_x) R0``, the focal scale ``s``, ``k1``, when ``principal_prior``
+    is given the offset ``p`` of the true principal point from the given one (normalised units
+    of the true camera), and when ``focal_ratio_prior`` is given ``rho`` (else 1). The
+    least-squares cost is the squared transfer error in view 2. The lens terms must land in a
+    box of plausible lenses (``|s - 1|, |rho - 1| <= max_focal_change``,
     ``|k1| <= max_k1``), else they are clipped to it and the rotation alone is re-fitted, and
     an offset beyond :data:`PRINCIPAL_BOUND` priors on either coordinate is dropped (the given
     principal point is kept): a translation's parallax must not be explained away by an
     implausible lens. Given the ``noise`` of a transfer-error coordinate, the lens terms also
-    get Gaussian priors ``s - 1 ~ N(0, focal_prior^2)``, ``k1 ~ N(0, k1_prior^2)`` and
-    ``p ~ N(0, principal_prior^2 I)`` (a few matches, or matches near the centre, do not
-    determine them).
+    get Gaussian priors ``s - 1 ~ N(0, focal_prior^2)``, ``k1 ~ N(0, k1_prior^2)``,
+    ``p ~ N(0, principal_prior^2 I)`` and ``rho ~ N(focal_ratio_mean, focal_ratio_prior^2)``
+    (a few matches, or matches near the centre, do not determine them); a ratio beyond
+    :data:`FOCAL_RATIO_BOUND` priors from its mean is dropped (``rho = 1``).
 
     Parameters
     ----------
@@ -395,7 +465,7 @@ def fit_rotation_lens(
     iterations : int
         Gauss-Newton steps (each a Levenberg-damped solve).
     max_focal_change, max_k1 : float
-        Bounds on ``|s - 1|`` and ``|k1|``.
+        Bounds on ``|s - 1|`` (and ``|rho - 1|``) and ``|k1|``.
     noise : float, optional
         Standard deviation of one coordinate of the transfer error (normalised units); None
         fits without the priors.
@@ -405,11 +475,32 @@ def fit_rotation_lens(
         Standard deviation of each coordinate of ``p`` (normalised units: pixels over the focal
         length), one for both or ``(x, y)``; None keeps the given principal point (``p = 0``).
         Needs ``noise``.
+    focal_ratio_prior : float, optional
+        Standard deviation of ``rho`` (:func:`focal_ratio_prior`); None keeps ``rho = 1``.
+        Needs ``noise``.
+    focal_ratio_mean : float
+        Mean of the prior on ``rho``.
 
     Returns
     -------
     LensRotationFit
         Residuals for all N matches.
+
+    Examples
+    --------
+    A 10 degree pan seen through a focal length given 3 % long for view 2 only:
+
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> q1 = rng.uniform(-0.3, 0.3, (200, 2))
+    >>> c, s = np.cos(np.radians(10.0)), np.sin(np.radians(10.0))
+    >>> R = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    >>> ray = np.column_stack([q1, np.ones(200)]) @ R.T
+    >>> x2 = ray[:, :2] / ray[:, 2:] / 1.03
+    >>> fit = fit_rotation_lens(q1, x2, np.ones(200, bool), np.eye(3), noise=1e-4,
+    ...                         focal_ratio_prior=0.02)
+    >>> round(fit.focal_ratio, 4), bool(np.allclose(fit.R, R, atol=1e-6))
+    (1.03, True)
     """
     xy1, xy2 = np.asarray(x1, float)[:, :2], np.asarray(x2, float)[:, :2]
     R0 = np.asarray(R, float)
@@ -418,27 +509,40 @@ def fit_rotation_lens(
     if principal_prior is not None:
         principal_prior = np.broadcast_to(np.asarray(principal_prior, dtype=float), (2,))
     fit_offset = principal_prior is not None and bool(np.all(principal_prior > 0)) and with_noise
-    free = _NPARAMS if fit_offset else _LENS
-    bounds = np.array([np.inf, np.inf, np.inf, max_focal_change, max_k1, np.inf, np.inf])
+    fit_ratio = focal_ratio_prior is not None and focal_ratio_prior > 0 and with_noise
+    free = _LENS | (_OFFSET if fit_offset else False) | (_RATIO if fit_ratio else False)
+    bounds = np.full(_NPARAMS, np.inf)
+    bounds[[3, 4, 7]] = max_focal_change, max_k1, max_focal_change
     prior = np.zeros(_NPARAMS)
     if with_noise:
         prior[3:5] = noise / np.array([focal_prior, k1_prior])
     if fit_offset:
-        prior[5:] = noise / principal_prior
-    problem = (R0, a, b, prior, free)
-    params, sigma, rotation_sigma = np.zeros(_NPARAMS), np.inf, np.inf
-    enough = len(a) >= (_MIN_WITH_PRIOR if prior[3] > 0 else 2 * _LENS)
+        prior[5:7] = noise / principal_prior
+    centre = np.zeros(_NPARAMS)
+    if fit_ratio:
+        prior[7], centre[7] = noise / focal_ratio_prior, focal_ratio_mean - 1.0
+    problem = (R0, a, b, prior, free, centre)
+    params, sigma, rotation_sigma = centre.copy(), np.inf, np.inf
+    enough = len(a) >= (_MIN_WITH_PRIOR if prior[3] > 0 else 2 * int(np.count_nonzero(_LENS)))
     if enough:
-        params = _gauss_newton(params, problem, iterations, free)
-        if fit_offset and np.any(np.abs(params[5:]) > PRINCIPAL_BOUND * principal_prior):
-            problem = (R0, a, b, prior, _LENS)  # no plausible principal point: the given one
-            params = _gauss_newton(np.zeros(_NPARAMS), problem, iterations, _LENS)
+        params = _gauss_newton(params, problem, iterations)
+        for _ in range(2):  # parallax, not a lens: keep the given principal point, ratio
+            implausible = np.zeros(_NPARAMS, dtype=bool)
+            if free[5] and np.any(np.abs(params[5:7]) > PRINCIPAL_BOUND * principal_prior):
+                implausible |= _OFFSET
+            if free[7] and abs(params[7] - centre[7]) > FOCAL_RATIO_BOUND * focal_ratio_prior:
+                implausible |= _RATIO
+            if not np.any(implausible):
+                break
+            free = free & ~implausible
+            problem = (R0, a, b, prior, free, centre)
+            params = _gauss_newton(np.where(free, centre, 0.0), problem, iterations)
         sigma, rotation_sigma = _sigmas(params, problem)
     if np.any(np.abs(params) > bounds) or not enough:
         params, sigma, rotation_sigma = np.clip(params, -bounds, bounds), np.inf, np.inf
         params[:3] = 0.0
         if len(a) >= 2:
-            params = _gauss_newton(params, problem, iterations, free=3)
+            params = _gauss_newton(params, (R0, a, b, prior, _ROTATION, centre), iterations)
     R_final = rotation_increment(params[:3]) @ R0
     lens_only = np.r_[0.0, 0.0, 0.0, params[3:]]
     residuals = np.linalg.norm(_lens_transfer(lens_only, R_final, xy1, xy2), axis=1)
@@ -450,19 +554,21 @@ def fit_rotation_lens(
         residuals=residuals,
         rotation_sigma_deg=float(rotation_sigma),
         principal_offset=params[5:7].copy(),
+        focal_ratio=1.0 + float(params[7]),
     )
 
 
 def _objective(params, problem) -> np.ndarray:
     """Transfer residuals (2I,) followed by the prior rows of the fitted parameters."""
-    R0, a, b, prior, free = problem
+    R0, a, b, prior, free, centre = problem
     transfer = _lens_transfer(params, R0, a, b).ravel()
-    return np.concatenate([transfer, (prior * params)[:free]])
+    return np.concatenate([transfer, (prior * (params - centre))[free]])
 
 
-def _jacobian(params, problem, free: int, step: float = 1e-6):
+def _jacobian(params, problem, step: float = 1e-6):
+    """Residual and its forward-difference Jacobian in the free parameters of ``problem``."""
     residual = _objective(params, problem)
-    deltas = np.eye(_NPARAMS)[:free] * step
+    deltas = np.eye(_NPARAMS)[problem[4]] * step
     columns = [(_objective(params + d, problem) - residual) / step for d in deltas]
     return residual, np.stack(columns, axis=1)
 
@@ -470,29 +576,30 @@ def _jacobian(params, problem, free: int, step: float = 1e-6):
 def _sigmas(params, problem) -> tuple[float, float]:
     """Deviations of the focal scale and of the rotation angle (degrees, root-mean-square) from
     the covariance ``v (J^T J)^-1``, ``v = |r|^2 / (2I - P)``, ``J`` with the prior rows."""
-    free = problem[4]
-    residual, J = _jacobian(params, problem, free)
-    transfer = residual[:-free]
-    if len(transfer) <= free:
+    count = int(np.count_nonzero(problem[4]))
+    residual, J = _jacobian(params, problem)
+    transfer = residual[:-count]
+    if len(transfer) <= count:
         return float("inf"), float("inf")
-    cov = gauss_newton_covariance(J, float(transfer @ transfer) / (len(transfer) - free))
+    cov = gauss_newton_covariance(J, float(transfer @ transfer) / (len(transfer) - count))
     if cov is None:
         return float("inf"), float("inf")
     rotation = np.degrees(np.sqrt(max(float(np.trace(cov[:3, :3])), 0.0)))
     return float(np.sqrt(max(cov[3, 3], 0.0))), float(rotation)
 
 
-def _gauss_newton(params, problem, iterations, free: int, step=1e-6):
-    """Levenberg-Marquardt on the first ``free`` parameters."""
+def _gauss_newton(params, problem, iterations, step=1e-6):
+    """Levenberg-Marquardt on the free parameters of ``problem`` (a boolean mask, its last)."""
+    free = problem[4]
     damping = 1e-6
     residual = _objective(params, problem)
     cost = residual @ residual
     for _ in range(iterations):
-        J = _jacobian(params, problem, free, step)[1]
+        J = _jacobian(params, problem, step)[1]
         H, g = J.T @ J, J.T @ residual
         update = np.linalg.solve(H + damping * np.diag(np.diag(H) + 1e-12), -g)
         trial = params.copy()
-        trial[:free] += update
+        trial[free] += update
         new_residual = _objective(trial, problem)
         new_cost = new_residual @ new_residual
         if new_cost < cost:

@@ -164,6 +164,16 @@ CASES = [
     ),
     # section 5: bounded resources, non-regular files
     (["synth", "new", "--blur", "1000000"], "synth", r"--blur must be in \[0, 50\]"),
+    (
+        ["synth", "new", "--view-focal-error", "0.01"],
+        "synth",
+        r"--centred-principal-point and --view-focal-error need --imperfect",
+    ),
+    (
+        ["synth", "new", "--imperfect", "--view-focal-error", "0.9"],
+        "synth",
+        r"view_focal_error must be in \[0\.0, 0\.5\]",
+    ),
     (["pair", "fifo.png", DEMO2, "--K", K_TEXT], "pair", r"not a regular file: fifo\.png"),
 ]
 

@@ -227,11 +227,31 @@ def test_sample_motion_new_presets_without_rendering():
         ({"noise_std": -1.0}, "noise_std"),
         ({"blur_sigma": 60.0}, "blur_sigma"),
         ({"k2_fraction": "big"}, "k2_fraction"),
+        ({"view_focal_error": -0.01}, "view_focal_error"),
+        ({"view_focal_error": True}, "view_focal_error"),
     ],
 )
 def test_bad_imperfections_are_rejected(kwargs, message):
     with pytest.raises(ValueError, match=message):
         Imperfections(**kwargs)
+
+
+def test_focal_lengths_given_per_photo_tell_the_same_pair_differently():
+    one = make_pair("tiny-baseline", seed=0, index=3, size=SIZE, baseline_ratio=0.02,
+                    imperfections=EXACT)  # fmt: skip
+    told = dataclasses.replace(EXACT, view_focal_error=0.01)
+    per_photo = make_pair("tiny-baseline", seed=0, index=3, size=SIZE, baseline_ratio=0.02,
+                          imperfections=told)  # fmt: skip
+    assert np.array_equal(one.image1, per_photo.image1)
+    assert np.array_equal(one.image2, per_photo.image2)
+    assert np.array_equal(one.K1, per_photo.K1) and np.array_equal(one.R, per_photo.R)
+    factors = per_photo.params["view_factors"]
+    assert all(0.99 <= f <= 1.01 for f in factors) and factors[0] != factors[1]
+    for given, base, factor in ((per_photo.K1_given, one.K1_given, factors[0]),
+                                (per_photo.K2_given, one.K2_given, factors[1])):  # fmt: skip
+        assert np.allclose(given[:2, :2], base[:2, :2] * factor)
+        assert np.array_equal(given[:2, 2], base[:2, 2])
+    assert one.params["view_factors"] == [1.0, 1.0]
 
 
 def test_bad_make_pair_arguments_are_rejected():
