@@ -83,6 +83,7 @@ from .rotation import (
     LensRotationFit,
     correct_points,
     fit_rotation_lens,
+    focal_ratio_prior,
     lens_rotation_residuals,
     ransac_rotation,
 )
@@ -282,8 +283,7 @@ def decide_motion(
     seed: int = 0,
     homography: HomographyEstimate | None = None,
     principal_prior: float | np.ndarray | None = None,
-    focal_ratio_prior: float | None = None,
-    focal_ratio_mean: float = 1.0,
+    given_focal_ratio: float = 1.0,
 ) -> MotionDecision:
     """Fit a rotation to the matches and decide among pure rotation, plane and general motion.
 
@@ -317,13 +317,11 @@ def decide_motion(
         narrow field the offset is nearly a rotation, and the prior, not the matches, holds it
         (counted as two, 3 of 12 warped pans with 7-23 matches were called general).
         None keeps the given principal point.
-    focal_ratio_prior : float, optional
-        Let the rotation-only fit scale view 2's focal length against view 1's, with this prior
-        on the ratio about ``focal_ratio_mean`` (:func:`ppo_cv.rotation.fit_rotation_lens`),
-        for focal lengths given per image; GRIC counts it as a parameter. None keeps the given
-        ratio.
-    focal_ratio_mean : float
-        Mean of that prior.
+    given_focal_ratio : float
+        Focal length given for view 2 over that given for view 1. When it differs from 1 by
+        at most :data:`ppo_cv.rotation.FOCAL_RATIO_GAP` (focal lengths estimated per photo) the
+        rotation-only fit also scales view 2's focal length against view 1's, under the prior
+        of :func:`ppo_cv.rotation.focal_ratio_prior`, and GRIC counts it as a parameter.
 
     Returns
     -------
@@ -334,11 +332,10 @@ def decide_motion(
     noise = robust_sigma(general_all[inliers], JOINT_DIMENSION - MODEL_DIMENSIONS["general"][0])
     noise *= np.sqrt(2.0)  # a transfer error coordinate carries the noise of both images
     fit = ransac_rotation(x1, x2, RANSAC_FACTOR * threshold, seed=seed)
-    priors = {
-        "principal_prior": principal_prior,
-        "focal_ratio_prior": focal_ratio_prior,
-        "focal_ratio_mean": focal_ratio_mean,
-    }
+    ratio_prior = focal_ratio_prior(given_focal_ratio)
+    priors = {"principal_prior": principal_prior}
+    if ratio_prior is not None:
+        priors.update(focal_ratio_mean=ratio_prior[0], focal_ratio_prior=ratio_prior[1])
     lens = fit_rotation_lens(x1, x2, fit.inliers, fit.R, noise=noise, **priors)
     rotation_inliers = lens.residuals < threshold
     for _ in range(4):
@@ -355,7 +352,7 @@ def decide_motion(
             _candidate(
                 "rotation",
                 lens.residuals[scored] * focal / np.sqrt(2.0),
-                extra=int(focal_ratio_prior is not None),
+                extra=int(ratio_prior is not None),
             ),
             _candidate("general", general_all[scored] * focal),
         ]

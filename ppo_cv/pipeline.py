@@ -406,10 +406,10 @@ def _principal_prior(mode: str, K1, K2, shape1, shape2, focal: float) -> np.ndar
     return PRINCIPAL_PRIOR * np.max(np.array(sizes, dtype=float), axis=0) / focal
 
 
-def _focal_ratio_prior(K1: np.ndarray, K2: np.ndarray) -> dict:
-    """Keyword arguments of :func:`ppo_cv.motion_model.decide_motion` for the prior on the ratio
-    of the two focal scales (:func:`ppo_cv.rotation.focal_ratio_prior`); empty to keep it."""
-    prior = focal_ratio_prior(float(np.mean(np.diag(K2)[:2]) / np.mean(np.diag(K1)[:2])))
+def _focal_ratio_prior(given_ratio: float) -> dict:
+    """Keyword arguments of :func:`ppo_cv.photometric.refine_rotation_photometric` for the prior
+    on the ratio of the two focal scales (:func:`ppo_cv.rotation.focal_ratio_prior`)."""
+    prior = focal_ratio_prior(given_ratio)
     if prior is None:
         return {}
     return {"focal_ratio_mean": prior[0], "focal_ratio_prior": prior[1]}
@@ -641,7 +641,7 @@ def estimate_pair(
     principal_prior = _principal_prior(
         options.principal_point, K1, K2, img1.shape, img2.shape, focal
     )
-    ratio_prior = _focal_ratio_prior(K1, K2)
+    given_ratio = float(np.mean(np.diag(K2)[:2]) / np.mean(np.diag(K1)[:2]))
     motion = decide_motion(
         x1, x2, R, t, inliers, focal,
         threshold_px=options.ransac_threshold,
@@ -649,7 +649,7 @@ def estimate_pair(
         seed=options.seed,
         homography=homography,
         principal_prior=principal_prior,
-        **ratio_prior,
+        given_focal_ratio=given_ratio,
     )  # fmt: skip
     lap("model")
 
@@ -659,7 +659,7 @@ def estimate_pair(
             img1, img2, K1, K2, motion.R,
             focal_scale=motion.focal_scale, k1=motion.k1,
             principal_offset=motion.principal_offset, principal_prior=principal_prior,
-            focal_ratio=motion.focal_ratio, **ratio_prior,
+            focal_ratio=motion.focal_ratio, **_focal_ratio_prior(given_ratio),
             rotation_sigma_deg=min(motion.rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG),
             dist1=dist1, dist2=dist2,
         )  # fmt: skip

@@ -465,8 +465,9 @@ def _motion_decision(geometry, camera1, keypoints1, camera2, keypoints2, pose, p
     used = np.ones(len(matches), dtype=bool)
     homography = estimate_homography(x1, x2, focal)
     motion = decide_motion(
-        x1, x2, pose.R, pose.t, used, focal, pri_threshold=pri_threshold, homography=homography
-    )
+        x1, x2, pose.R, pose.t, used, focal, pri_threshold=pri_threshold, homography=homography,
+        given_focal_ratio=camera2.mean_focal_length() / camera1.mean_focal_length(),
+    )  # fmt: skip
     if motion.model != "plane":
         return motion, pose
     plane = motion.plane
