@@ -192,7 +192,7 @@ class MotionDecision:
     focal_scale, k1 : float
         Lens terms of the rotation-only fit.
     focal_ratio : float
-        View 2's focal scale over view 1's in that fit (1 unless ``focal_ratio_prior`` freed it).
+        View 2's focal scale over view 1's in that fit (1 unless ``given_focal_ratio`` freed it).
     rotation_sigma_deg : float
         Root-mean-square angle error (degrees) of ``R`` of the rotation-only fit, from its
         covariance with the lens terms under their priors
