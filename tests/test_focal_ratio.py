@@ -13,6 +13,7 @@ import json
 import cv2
 import numpy as np
 import pytest
+from twoview import pan_matches
 from twoview import rotation_angle_deg as _angle
 
 from ppo_cv import data_gen, estimate_pair
@@ -37,12 +38,7 @@ def _exact_matches(ratio_given: float, hfov=30.0, yaw=20.0):
     K2_given = K.copy()
     K2_given[:2, :2] *= ratio_given
     R = cv2.Rodrigues(np.radians([1.5, yaw, 0.5]))[0]
-    grid = np.stack(np.meshgrid(np.linspace(0, WIDTH - 1, 30), np.linspace(0, HEIGHT - 1, 20)), -1)
-    u1 = np.column_stack([grid.reshape(-1, 2), np.ones(600)])
-    u2 = u1 @ np.linalg.inv(K).T @ R.T @ K.T
-    u2 = u2 / u2[:, 2:]
-    inside = (u2[:, 0] >= 0) & (u2[:, 0] < WIDTH) & (u2[:, 1] >= 0) & (u2[:, 1] < HEIGHT)
-    return u1[inside] @ np.linalg.inv(K).T, u2[inside] @ np.linalg.inv(K2_given).T, R, focal
+    return (*pan_matches(K, K, K2_given, R, (WIDTH, HEIGHT)), R, focal)
 
 
 def test_lens_fit_absorbs_focal_lengths_given_one_percent_apart():

@@ -12,6 +12,7 @@ import json
 import cv2
 import numpy as np
 import pytest
+from twoview import pan_matches
 from twoview import rotation_angle_deg as _angle
 
 from ppo_cv import PairOptions, data_gen, estimate_pair
@@ -31,13 +32,7 @@ def _exact_matches(offset_px, hfov=30.0, yaw=20.0):
                        [0, 0, 1.0]])  # fmt: skip
     K_given = np.array([[focal, 0, centre[0]], [0, focal, centre[1]], [0, 0, 1.0]])
     R = cv2.Rodrigues(np.radians([1.5, yaw, 0.5]))[0]
-    grid = np.stack(np.meshgrid(np.linspace(0, WIDTH - 1, 30), np.linspace(0, HEIGHT - 1, 20)), -1)
-    u1 = np.column_stack([grid.reshape(-1, 2), np.ones(600)])
-    u2 = u1 @ np.linalg.inv(K_true).T @ R.T @ K_true.T
-    u2 = u2 / u2[:, 2:]
-    inside = (u2[:, 0] >= 0) & (u2[:, 0] < WIDTH) & (u2[:, 1] >= 0) & (u2[:, 1] < HEIGHT)
-    x1 = u1[inside] @ np.linalg.inv(K_given).T
-    x2 = u2[inside] @ np.linalg.inv(K_given).T
+    x1, x2 = pan_matches(K_true, K_given, K_given, R, (WIDTH, HEIGHT))
     return x1, x2, R, focal
 
 

@@ -23,6 +23,21 @@ def project(K, X):
     return (X @ K.T)[:, :2] / X[:, 2:]
 
 
+def pan_matches(K_true, K1_given, K2_given, R, size, grid=(30, 20)):
+    """Exact matches of a pure rotation ``R`` seen by ``K_true``, normalised with the given
+    intrinsics: a ``grid`` of pixels of image 1 (``size = (width, height)``) and where they
+    land inside image 2. Returns homogeneous normalised points ``(x1, x2)``, each (N, 3)."""
+    width, height = size
+    axes = np.linspace(0, width - 1, grid[0]), np.linspace(0, height - 1, grid[1])
+    u1 = np.column_stack(
+        [np.stack(np.meshgrid(*axes), -1).reshape(-1, 2), np.ones(grid[0] * grid[1])]
+    )
+    u2 = u1 @ np.linalg.inv(K_true).T @ R.T @ K_true.T
+    u2 = u2 / u2[:, 2:]
+    inside = (u2[:, 0] >= 0) & (u2[:, 0] < width) & (u2[:, 1] >= 0) & (u2[:, 1] < height)
+    return u1[inside] @ np.linalg.inv(K1_given).T, u2[inside] @ np.linalg.inv(K2_given).T
+
+
 def make_scene(rng, n, R, t, K1, K2=None, noise_px=0.0, depth=(4.0, 12.0)):
     """Points in front of both cameras: returns (X1 (N, 3), pixels1, pixels2)."""
     K2 = K1 if K2 is None else K2
