@@ -318,21 +318,17 @@ def _sets(counts: dict, have_photos: bool):
     for ratio in (0.02, 0.05):
         yield f"data_gen tiny-baseline {ratio}", 0, official("tiny-baseline", n, ratio), True
     yield "data_gen general", 0, official("general", counts["baseline"]), True
-    centre = "principal point given at the centre"
-    yield f"data_gen warped photo, {centre}", 1, official_warped(n, centred), True
-    pairs = official("panorama", n, pivot=TRIPOD_PIVOTS[0], imperfections=centred)
-    yield f"data_gen tripod pan, pivot 8 cm, {centre}", 1, pairs, True
-    for ratio in (0.02, 0.05):
-        pairs = official("tiny-baseline", n, ratio, imperfections=centred)
-        yield f"data_gen tiny-baseline {ratio}, {centre}", 0, pairs, True
     per_photo = data_gen.Imperfections(centred_principal_point=True, view_focal_error=0.01)
-    told = "centre and focal lengths given per photo"
-    yield f"data_gen warped photo, {told}", 1, official_warped(n, per_photo), True
-    pairs = official("panorama", n, pivot=TRIPOD_PIVOTS[0], imperfections=per_photo)
-    yield f"data_gen tripod pan, pivot 8 cm, {told}", 1, pairs, True
-    for ratio in (0.02, 0.05):
-        pairs = official("tiny-baseline", n, ratio, imperfections=per_photo)
-        yield f"data_gen tiny-baseline {ratio}, {told}", 0, pairs, True
+    for told, imperfections in (
+        ("principal point given at the centre", centred),
+        ("centre and focal lengths given per photo", per_photo),
+    ):
+        yield f"data_gen warped photo, {told}", 1, official_warped(n, imperfections), True
+        pairs = official("panorama", n, pivot=TRIPOD_PIVOTS[0], imperfections=imperfections)
+        yield f"data_gen tripod pan, pivot 8 cm, {told}", 1, pairs, True
+        for ratio in (0.02, 0.05):
+            pairs = official("tiny-baseline", n, ratio, imperfections=imperfections)
+            yield f"data_gen tiny-baseline {ratio}, {told}", 0, pairs, True
     yield "harness render rotation", 1, renders(0.0, counts["rotation"]), True
     if have_photos:
         yield "harness warped freiburg", 1, warped(counts["warped"]), True
