@@ -83,7 +83,7 @@ from .rotation import (
     LensRotationFit,
     correct_points,
     fit_rotation_lens,
-    focal_ratio_prior,
+    focal_ratio_keywords,
     lens_rotation_residuals,
     ransac_rotation,
 )
@@ -332,10 +332,8 @@ def decide_motion(
     noise = robust_sigma(general_all[inliers], JOINT_DIMENSION - MODEL_DIMENSIONS["general"][0])
     noise *= np.sqrt(2.0)  # a transfer error coordinate carries the noise of both images
     fit = ransac_rotation(x1, x2, RANSAC_FACTOR * threshold, seed=seed)
-    ratio_prior = focal_ratio_prior(given_focal_ratio)
-    priors = {"principal_prior": principal_prior}
-    if ratio_prior is not None:
-        priors.update(focal_ratio_mean=ratio_prior[0], focal_ratio_prior=ratio_prior[1])
+    ratio_prior = focal_ratio_keywords(given_focal_ratio)
+    priors = {"principal_prior": principal_prior, **ratio_prior}
     lens = fit_rotation_lens(x1, x2, fit.inliers, fit.R, noise=noise, **priors)
     rotation_inliers = lens.residuals < threshold
     for _ in range(4):
@@ -352,7 +350,7 @@ def decide_motion(
             _candidate(
                 "rotation",
                 lens.residuals[scored] * focal / np.sqrt(2.0),
-                extra=int(ratio_prior is not None),
+                extra=int(bool(ratio_prior)),
             ),
             _candidate("general", general_all[scored] * focal),
         ]

@@ -59,7 +59,7 @@ from .robust import (
     estimate_essential_ordered,
     sampson_errors,
 )
-from .rotation import PRINCIPAL_PRIOR, focal_ratio_prior
+from .rotation import PRINCIPAL_PRIOR, focal_ratio_keywords
 from .significance import (
     CONFIDENT_LOG10_NFA,
     DEFAULT_MAX_LOG10_NFA,
@@ -406,15 +406,6 @@ def _principal_prior(mode: str, K1, K2, shape1, shape2, focal: float) -> np.ndar
     return PRINCIPAL_PRIOR * np.max(np.array(sizes, dtype=float), axis=0) / focal
 
 
-def _focal_ratio_prior(given_ratio: float) -> dict:
-    """Keyword arguments of :func:`ppo_cv.photometric.refine_rotation_photometric` for the prior
-    on the ratio of the two focal scales (:func:`ppo_cv.rotation.focal_ratio_prior`)."""
-    prior = focal_ratio_prior(given_ratio)
-    if prior is None:
-        return {}
-    return {"focal_ratio_mean": prior[0], "focal_ratio_prior": prior[1]}
-
-
 def _normalize(points: np.ndarray, K: np.ndarray, dist: np.ndarray | None) -> np.ndarray:
     """Pixels (N, 2) to homogeneous normalized coordinates (N, 3), distortion removed."""
     xy = pixels_to_normalized(points, K, dist)
@@ -659,7 +650,7 @@ def estimate_pair(
             img1, img2, K1, K2, motion.R,
             focal_scale=motion.focal_scale, k1=motion.k1,
             principal_offset=motion.principal_offset, principal_prior=principal_prior,
-            focal_ratio=motion.focal_ratio, **_focal_ratio_prior(given_ratio),
+            focal_ratio=motion.focal_ratio, **focal_ratio_keywords(given_ratio),
             rotation_sigma_deg=min(motion.rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG),
             dist1=dist1, dist2=dist2,
         )  # fmt: skip

@@ -50,6 +50,7 @@ __all__ = [
     "rotation_residuals",
     "ransac_rotation",
     "fit_rotation_lens",
+    "focal_ratio_keywords",
     "focal_ratio_prior",
     "lens_rotation_residuals",
     "correct_points",
@@ -417,6 +418,21 @@ def focal_ratio_prior(given_ratio: float) -> tuple[float, float] | None:
     if not 1e-6 < gap <= FOCAL_RATIO_GAP:
         return None
     return (1.0 + float(given_ratio)) / 2.0, gap / 2.0
+
+
+def focal_ratio_keywords(given_ratio: float) -> dict:
+    """:func:`focal_ratio_prior` as keyword arguments of :func:`fit_rotation_lens` (and of
+    ``ppo_cv.photometric.refine_rotation_photometric``): empty when the ratio is kept.
+
+    >>> focal_ratio_keywords(1.0)
+    {}
+    >>> sorted(focal_ratio_keywords(1.01))
+    ['focal_ratio_mean', 'focal_ratio_prior']
+    """
+    prior = focal_ratio_prior(given_ratio)
+    if prior is None:
+        return {}
+    return {"focal_ratio_mean": prior[0], "focal_ratio_prior": prior[1]}
 
 
 def fit_rotation_lens(
