@@ -17,7 +17,8 @@ focal length given off by up to 3 %, a 25-35 degree field of view, JPEG):
 - ``... centre and focal lengths given per photo``: ``data_gen`` pairs told the image centre
   and a focal length per view, each off by a further factor of its own within +-1 %
   (``Imperfections(centred_principal_point=True, view_focal_error=0.01)``), as a panorama
-  stitcher reports them;
+  stitcher reports them; and the same pairs again with the ratio of the two focal lengths held
+  (``PairOptions(focal_ratio="given")``, a table of its own, not in the precision / recall);
 - ``sweep``: ``tiny-baseline`` from 0.001 to 0.05, to see where the flag switches;
 - ``freiburg``: the 85 real translating pairs with pseudo ground truth (must not be flagged).
 
@@ -34,6 +35,7 @@ Run ``python benchmarks/pure_rotation.py --out docs/benchmarks --report docs/pur
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import platform
@@ -54,12 +56,15 @@ from imperfect import imperfect_render, warped_rotation_pair  # noqa: E402
 
 __all__ = ["run", "main"]
 
+ROWS = ROOT / "benchmarks" / "pure_rotation.json"
 FREIBURG = Path(os.environ.get("PPO_CV_SHARED", ROOT.parent / "shared")) / "data" / "freiburg"
 K_FREIBURG = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
 SWEEP = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05)
 TRIPOD_PIVOTS = (0.08, 0.15)
 """``pivot_offset`` of the tripod pans: the camera turns about a point this far behind it."""
 METHODS = ("ppo_cv", "pycolmap", "opencv", "poselib")
+HELD_RATIO = PairOptions(focal_ratio="given")
+"""The ablation of the focal ratio: focal lengths given per photo, ``rho = 1`` kept."""
 NOTE = """
 How the rotation of a flagged pair is chosen. A pure rotation's error cannot go much below
 `angle x focal error` when the given focal is kept (0.4 deg for a 20 deg turn with the focal 2 %
@@ -122,21 +127,22 @@ warped frames; the flags of every set are unchanged.
 Focal lengths given per photo. A panorama stitcher estimates a focal length for each photo,
 and two estimates of one lens differ by a fraction of a percent to a few percent. With one
 focal scale for both views such a difference is a zoom that no rotation explains and an
-essential matrix does, as a translation along the optical axis: on `data_gen` warped photos
-with the centre given and image 2's focal length told 0.5 % off, 7 of 10 were called general,
-and at 1 % all 10. When the given focal lengths differ by at most 5 %
-(`ppo_cv.rotation.FOCAL_RATIO_GAP`) the rotation-only fit also scales image 2's focal length
-against image 1's (`ppo_cv.rotation.focal_ratio_prior`: a prior centred between 1, the given
-lengths right, and their ratio, one lens, with half their distance as deviation; GRIC counts
-it as a parameter). The `... centre and focal lengths given per photo` sets tell each view its
-focal length with a further error of its own within +-1 %
+essential matrix does, as a translation along the optical axis. When the given focal lengths
+differ by at most 5 % (`ppo_cv.rotation.FOCAL_RATIO_GAP`) the rotation-only fit also scales
+image 2's focal length against image 1's (`ppo_cv.rotation.focal_ratio_prior`: a prior
+centred between 1, the given lengths right, and their ratio, one lens, with half their
+distance as deviation; GRIC counts it as a parameter). The `... centre and focal lengths given
+per photo` sets tell each view its focal length with a further error of its own within +-1 %
 (`Imperfections(view_focal_error=0.01)`): 14 of 14 warped photos (median 0.02 deg) and 14 of
-14 tripod pans are flagged, against 2 of 14 warped photos without the ratio. On translating
-pairs told so, a misreported ratio is itself a zoom, and where it cancels the flow of the
-translation along the optical axis at the scene's mean depth no method can tell the pair from
-a rotation: 3 of 14 `tiny-baseline` pairs at 0.02 and 1 of 14 at 0.05 are flagged (2 and 0
-without the ratio). One focal length given for both views keeps the ratio at 1: every other set
-is unchanged.
+14 tripod pans are flagged; with the ratio held (`PairOptions(focal_ratio="given")`, the
+table above) 6 of 14 and 8 of 14, their rotations leaving 0.43 and 0.15 px of median
+residual instead of 0.11 and 0.10. On translating pairs told so, a misreported ratio is
+itself a zoom, and where it cancels the flow of the translation along the optical axis at the
+scene's mean depth no method can tell the pair from a rotation: 3 of 14 `tiny-baseline` pairs
+at 0.02 and 1 of 14 at 0.05 are flagged (2 and 0 with the ratio held). On each of those the
+fitted ratio lies between 1 and the given ratio (index 1 at 0.02: given 0.9939, fitted
+0.9995), inside its prior, so no tighter bound refuses it. One focal length given for both
+views keeps the ratio at 1: every other set is unchanged.
 
 The noise that GRIC divides by is estimated from the essential matrix's residuals, corrected
 for the 5 parameters it fitted (`sqrt(n / (n - 5))`): without that correction an essential
@@ -216,10 +222,12 @@ def _poselib(p1, p2, K1, K2, size1, size2):
     return pose.R
 
 
-def evaluate_pair(image1, image2, K1, K2, R_true, peers: bool = True) -> dict:
-    """All methods on one pair: flags, rotation errors (deg) and ppo_cv's decision statistics."""
+def evaluate_pair(image1, image2, K1, K2, R_true, peers: bool = True, options=None) -> dict:
+    """All methods on one pair: flags, rotation errors (deg) and ppo_cv's decision statistics
+    (ppo_cv with ``options``, by default ``PairOptions()``)."""
+    options = options or PairOptions()
     try:
-        result = estimate_pair(image1, image2, K1, K2)
+        result = estimate_pair(image1, image2, K1, K2, options=options)
     except ValueError as exc:
         return {"error": str(exc)}
     row = {
@@ -236,7 +244,9 @@ def evaluate_pair(image1, image2, K1, K2, R_true, peers: bool = True) -> dict:
         row["ppo_cv_R_sigma"] = float(result.rotation_sigma_deg)
     if result.pure_rotation:
         row["rotation_tracks"] = int(result.rotation_tracks)
-        matches_only = estimate_pair(image1, image2, K1, K2, options=PairOptions(photometric=False))
+        matches_only = estimate_pair(
+            image1, image2, K1, K2, options=dataclasses.replace(options, photometric=False)
+        )
         row["ppo_cv_matches_R_err"] = _rotation_error(matches_only.R, R_true)
     if not peers:
         return row
@@ -307,39 +317,47 @@ def _sets(counts: dict, have_photos: bool):
             yield f"seed {seed}", (pair.image1, pair.image2, pair.K_given, None, pair.R)
 
     n = counts["official"]
-    yield "data_gen pure-rotation", 1, official("pure-rotation", n), True
-    yield "data_gen panorama", 1, official("panorama", n), True
+    yield "data_gen pure-rotation", 1, official("pure-rotation", n), True, None
+    yield "data_gen panorama", 1, official("panorama", n), True, None
     for pivot in TRIPOD_PIVOTS:
         pairs = official("panorama", n, pivot=pivot)
-        yield f"data_gen tripod pan, pivot {100 * pivot:.0f} cm", 1, pairs, True
+        yield f"data_gen tripod pan, pivot {100 * pivot:.0f} cm", 1, pairs, True, None
     pairs = official("panorama", counts["baseline"], pivot=TRIPOD_PIVOTS[0], size=(1600, 1200))
-    yield f"data_gen tripod pan, pivot {100 * TRIPOD_PIVOTS[0]:.0f} cm, 1600x1200", 1, pairs, True
-    yield "data_gen warped photo", 1, official_warped(n), True
+    yield (
+        f"data_gen tripod pan, pivot {100 * TRIPOD_PIVOTS[0]:.0f} cm, 1600x1200",
+        1,
+        pairs,
+        True,
+        None,
+    )
+    yield "data_gen warped photo", 1, official_warped(n), True, None
     for ratio in (0.02, 0.05):
-        yield f"data_gen tiny-baseline {ratio}", 0, official("tiny-baseline", n, ratio), True
-    yield "data_gen general", 0, official("general", counts["baseline"]), True
+        yield f"data_gen tiny-baseline {ratio}", 0, official("tiny-baseline", n, ratio), True, None
+    yield "data_gen general", 0, official("general", counts["baseline"]), True, None
     per_photo = data_gen.Imperfections(centred_principal_point=True, view_focal_error=0.01)
-    for told, imperfections in (
-        ("principal point given at the centre", centred),
-        ("centre and focal lengths given per photo", per_photo),
+    for told, imperfections, options in (
+        ("principal point given at the centre", centred, None),
+        ("centre and focal lengths given per photo", per_photo, None),
+        ("centre and focal lengths given per photo, ratio held", per_photo, HELD_RATIO),
     ):
-        yield f"data_gen warped photo, {told}", 1, official_warped(n, imperfections), True
+        peers = options is None
+        yield f"data_gen warped photo, {told}", 1, official_warped(n, imperfections), peers, options
         pairs = official("panorama", n, pivot=TRIPOD_PIVOTS[0], imperfections=imperfections)
-        yield f"data_gen tripod pan, pivot 8 cm, {told}", 1, pairs, True
+        yield f"data_gen tripod pan, pivot 8 cm, {told}", 1, pairs, peers, options
         for ratio in (0.02, 0.05):
             pairs = official("tiny-baseline", n, ratio, imperfections=imperfections)
-            yield f"data_gen tiny-baseline {ratio}, {told}", 0, pairs, True
-    yield "harness render rotation", 1, renders(0.0, counts["rotation"]), True
+            yield f"data_gen tiny-baseline {ratio}, {told}", 0, pairs, peers, options
+    yield "harness render rotation", 1, renders(0.0, counts["rotation"]), True, None
     if have_photos:
-        yield "harness warped freiburg", 1, warped(counts["warped"]), True
+        yield "harness warped freiburg", 1, warped(counts["warped"]), True, None
         exact = warped(counts["warped"], 50, focal_error=0.0, angle_range=(15.0, 25.0))
-        yield "harness warped freiburg, focal exact", 1, exact, True
-    yield "harness render 0.02", 0, renders(0.02, counts["baseline"], 100), True
+        yield "harness warped freiburg, focal exact", 1, exact, True, None
+    yield "harness render 0.02", 0, renders(0.02, counts["baseline"], 100), True, None
     for ratio in SWEEP:
         pairs = official("tiny-baseline", counts["sweep"], ratio)
-        yield f"sweep-{ratio}", int(ratio < 0.02), pairs, False
+        yield f"sweep-{ratio}", int(ratio < 0.02), pairs, False, None
     if have_photos:
-        yield "freiburg", 0, _freiburg_pairs(counts["freiburg"]), True
+        yield "freiburg", 0, _freiburg_pairs(counts["freiburg"]), True, None
 
 
 def run(quick: bool = False) -> dict:
@@ -358,14 +376,16 @@ def run(quick: bool = False) -> dict:
     )
     have_photos = (FREIBURG / "pairs_with_gt.txt").is_file()
     results = {}
-    for name, label, pairs, peers in _sets(counts, have_photos):
+    for name, label, pairs, peers, options in _sets(counts, have_photos):
         rows = []
         for tag, (image1, image2, K1, K2, R_true) in pairs:
             K2 = K1 if K2 is None else K2
-            row = evaluate_pair(image1, image2, K1, K2, R_true, peers)
+            row = evaluate_pair(image1, image2, K1, K2, R_true, peers, options)
             rows.append({"pair": tag, **row})
             print(f"{name} {tag}: " + json.dumps(row), flush=True)
         results[name] = {"label": label, "rows": rows}
+        if options is not None:
+            results[name]["focal_ratio"] = options.focal_ratio
     return results
 
 
@@ -382,6 +402,42 @@ def _errors(rows, key):
 def _median(rows, key):
     values = [r[key] for r in rows if key in r]
     return f"{np.median(values):.3f}" if values else "-"
+
+
+def _main_set(name: str, data: dict) -> bool:
+    """A set of the main table: not the sweep, not run with a setting other than the default."""
+    return not name.startswith("sweep") and "focal_ratio" not in data
+
+
+def _held_ratio_lines(results: dict) -> list[str]:
+    """Markdown table of the sets run with the focal ratio held, beside the same sets freed."""
+    held = {name: data for name, data in results.items() if "focal_ratio" in data}
+    if not held:
+        return []
+    lines = [
+        "",
+        "The same pairs told a focal length per photo with the ratio held "
+        '(`PairOptions(focal_ratio="given")`, `--focal-ratio given`), beside the default '
+        "(`auto`, the ratio fitted):",
+        "",
+        "| set | label | pairs | flagged, ratio held | flagged, ratio fitted "
+        "| median rotation residual (px), held / fitted |",
+        "|---|---|---:|---:|---:|---:|",
+    ]
+    for name, data in held.items():
+        fitted = results.get(name.removesuffix(", ratio held"), {"rows": []})["rows"]
+        rows = [r for r in data["rows"] if "error" not in r]
+        fitted = [r for r in fitted if "error" not in r]
+        ours, n = _flag_rate(rows, "ppo_cv_flag")
+        theirs, _ = _flag_rate(fitted, "ppo_cv_flag")
+        label = "t = 0" if data["label"] else "translating"
+        label = "tripod" if "tripod" in name else label
+        lines.append(
+            f"| {name.removesuffix(', ratio held')} | {label} | {n} | {ours:.0f} % | "
+            f"{theirs:.0f} % | {_median(rows, 'rotation_residual_px')} / "
+            f"{_median(fitted, 'rotation_residual_px')} |"
+        )
+    return lines
 
 
 def report(results: dict, seconds: float, plot: str | None) -> str:
@@ -417,7 +473,7 @@ def report(results: dict, seconds: float, plot: str | None) -> str:
     ]
     for name, data in results.items():
         rows = [r for r in data["rows"] if "error" not in r]
-        if name.startswith("sweep"):
+        if not _main_set(name, data):
             continue
         ours, n = _flag_rate(rows, "ppo_cv_flag")
         theirs, _ = _flag_rate(rows, "pycolmap_flag")
@@ -435,7 +491,7 @@ def report(results: dict, seconds: float, plot: str | None) -> str:
                                                    "PLANAR_OR_PANORAMIC")):  # fmt: skip
         tp = fp = fn = 0
         for set_name, data in results.items():
-            if set_name.startswith("sweep"):
+            if not _main_set(set_name, data):
                 continue
             for r in data["rows"]:
                 if key not in r:
@@ -463,6 +519,7 @@ def report(results: dict, seconds: float, plot: str | None) -> str:
         gric = np.median([r["gric_difference"] for r in rows])
         sigma = np.median([r["t_sigma_deg"] for r in rows])
         lines.append(f"| {ratio} | {n} | {rate:.0f} % | {gric:+.2f} | {sigma:.2f} |")
+    lines += _held_ratio_lines(results)
     if plot:
         lines += ["", f"![decision statistic]({plot})", ""]
     lines += [
@@ -484,7 +541,7 @@ def _plot(results: dict, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    names = [n for n in results if not n.startswith("sweep")]
+    names = [n for n, data in results.items() if _main_set(n, data)]
     fig, ax = plt.subplots(figsize=(8.0, 1.0 + 0.4 * len(names)))
     for y, name in enumerate(names):
         rows = [r for r in results[name]["rows"] if "gric_difference" in r]
@@ -508,6 +565,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--from-json", type=Path, help="rewrite the report from the rows of an earlier run"
     )
+    parser.add_argument(
+        "--rows",
+        type=Path,
+        help="JSON file for the raw rows (default with --report and without --quick: "
+        "benchmarks/pure_rotation.json)",
+    )
     args = parser.parse_args(argv)
     if args.from_json is not None:
         saved = json.loads(args.from_json.read_text())
@@ -526,8 +589,9 @@ def main(argv: list[str] | None = None) -> int:
     print(text)
     if args.report is not None:
         args.report.write_text(text)
-        saved = {"_seconds": seconds, **results}
-        (ROOT / "benchmarks" / "pure_rotation.json").write_text(json.dumps(saved, indent=1))
+    rows = args.rows or (None if args.quick or args.report is None else ROWS)
+    if rows is not None and args.from_json is None:
+        rows.write_text(json.dumps({"_seconds": seconds, **results}, indent=1))
     return 0
 
 

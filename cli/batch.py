@@ -23,6 +23,7 @@ from .common import (
     WORKERS_MAX,
     Backend,
     Features,
+    FocalRatio,
     MaxFeatures,
     MaxLog10Nfa,
     MaxSize,
@@ -416,6 +417,7 @@ def register(app: typer.Typer) -> None:
         plane: Plane = True,
         photometric: Photometric = True,
         principal_point: PrincipalPoint = "auto",
+        focal_ratio: FocalRatio = "auto",
         max_trials: Annotated[
             int,
             typer.Option(
@@ -439,7 +441,7 @@ def register(app: typer.Typer) -> None:
             check_range("--max-trials", max_trials, 1, MAX_TRIALS_MAX)
             options = pipeline_options(
                 features, max_features, max_size, ratio, backend, threshold, seed, pri_threshold,
-                max_log10_nfa, plane, photometric, principal_point,
+                max_log10_nfa, plane, photometric, principal_point, focal_ratio,
             )  # fmt: skip
             options = dataclasses.replace(
                 options,

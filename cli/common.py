@@ -97,6 +97,16 @@ PrincipalPoint = Annotated[
         rich_help_panel=_PANEL,
     ),
 ]
+FocalRatio = Annotated[
+    str,
+    typer.Option(
+        "--focal-ratio",
+        help="May a pure rotation's fit scale image 2's focal length against image 1's: auto "
+        "(when the two given focal lengths differ by at most 5 %, two estimates of one lens) or "
+        "given (never: two calibrated cameras).",
+        rich_help_panel=_PANEL,
+    ),
+]
 Overwrite = Annotated[
     bool,
     typer.Option("--overwrite", help="Replace an existing output (never done without it)."),

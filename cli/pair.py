@@ -15,6 +15,7 @@ from .common import (
     SEED_MAX,
     Backend,
     Features,
+    FocalRatio,
     MaxFeatures,
     MaxLog10Nfa,
     MaxSize,
@@ -57,6 +58,7 @@ def pipeline_options(
     plane: bool = True,
     photometric: bool = True,
     principal_point: str = "auto",
+    focal_ratio: str = "auto",
 ):
     """PairOptions from command-line values, each bounded up front (ValueError naming it)."""
     from ppo_cv.pipeline import PairOptions
@@ -87,6 +89,7 @@ def pipeline_options(
         plane=plane,
         photometric=photometric,
         principal_point=principal_point.lower(),
+        focal_ratio=focal_ratio.lower(),
     )
 
 
@@ -365,6 +368,7 @@ def register(app: typer.Typer) -> None:
         plane: Plane = True,
         photometric: Photometric = True,
         principal_point: PrincipalPoint = "auto",
+        focal_ratio: FocalRatio = "auto",
     ) -> None:
         """Relative pose (R, t), pure-rotation verdict and 3D points of two photos.
 
@@ -380,7 +384,7 @@ def register(app: typer.Typer) -> None:
         try:
             options = pipeline_options(
                 features, max_features, max_size, ratio, backend, threshold, seed, pri_threshold,
-                max_log10_nfa, plane, photometric, principal_point,
+                max_log10_nfa, plane, photometric, principal_point, focal_ratio,
             )  # fmt: skip
         except ValueError as exc:
             _fail(str(exc))

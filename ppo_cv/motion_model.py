@@ -83,7 +83,6 @@ from .rotation import (
     LensRotationFit,
     correct_points,
     fit_rotation_lens,
-    focal_ratio_keywords,
     lens_rotation_residuals,
     ransac_rotation,
 )
@@ -192,7 +191,7 @@ class MotionDecision:
     focal_scale, k1 : float
         Lens terms of the rotation-only fit.
     focal_ratio : float
-        View 2's focal scale over view 1's in that fit (1 unless ``given_focal_ratio`` freed it).
+        View 2's focal scale over view 1's in that fit (1 unless ``focal_ratio_prior`` freed it).
     rotation_sigma_deg : float
         Root-mean-square angle error (degrees) of ``R`` of the rotation-only fit, from its
         covariance with the lens terms under their priors
@@ -283,7 +282,8 @@ def decide_motion(
     seed: int = 0,
     homography: HomographyEstimate | None = None,
     principal_prior: float | np.ndarray | None = None,
-    given_focal_ratio: float = 1.0,
+    focal_ratio_prior: float | None = None,
+    focal_ratio_mean: float = 1.0,
 ) -> MotionDecision:
     """Fit a rotation to the matches and decide among pure rotation, plane and general motion.
 
@@ -317,11 +317,14 @@ def decide_motion(
         narrow field the offset is nearly a rotation, and the prior, not the matches, holds it
         (counted as two, 3 of 12 warped pans with 7-23 matches were called general).
         None keeps the given principal point.
-    given_focal_ratio : float
-        Focal length given for view 2 over that given for view 1. When it differs from 1 by
-        at most :data:`ppo_cv.rotation.FOCAL_RATIO_GAP` (focal lengths estimated per photo) the
-        rotation-only fit also scales view 2's focal length against view 1's, under the prior
-        of :func:`ppo_cv.rotation.focal_ratio_prior`, and GRIC counts it as a parameter.
+    focal_ratio_prior : float, optional
+        Deviation of the prior on view 2's focal scale over view 1's, whose mean is
+        ``focal_ratio_mean``: the rotation-only fit then scales view 2's focal length against
+        view 1's (:func:`ppo_cv.rotation.fit_rotation_lens`) and GRIC counts it as a
+        parameter. :func:`ppo_cv.rotation.focal_ratio_prior` of the ratio of the given focal
+        lengths is the rule for focal lengths estimated per photo. None keeps the given ratio.
+    focal_ratio_mean : float
+        Mean of that prior.
 
     Returns
     -------
@@ -332,8 +335,9 @@ def decide_motion(
     noise = robust_sigma(general_all[inliers], JOINT_DIMENSION - MODEL_DIMENSIONS["general"][0])
     noise *= np.sqrt(2.0)  # a transfer error coordinate carries the noise of both images
     fit = ransac_rotation(x1, x2, RANSAC_FACTOR * threshold, seed=seed)
-    ratio_prior = focal_ratio_keywords(given_focal_ratio)
-    priors = {"principal_prior": principal_prior, **ratio_prior}
+    priors = {"principal_prior": principal_prior}
+    if focal_ratio_prior is not None:
+        priors.update(focal_ratio_prior=focal_ratio_prior, focal_ratio_mean=focal_ratio_mean)
     lens = fit_rotation_lens(x1, x2, fit.inliers, fit.R, noise=noise, **priors)
     rotation_inliers = lens.residuals < threshold
     for _ in range(4):
@@ -350,7 +354,7 @@ def decide_motion(
             _candidate(
                 "rotation",
                 lens.residuals[scored] * focal / np.sqrt(2.0),
-                extra=int(bool(ratio_prior)),
+                extra=int(focal_ratio_prior is not None),
             ),
             _candidate("general", general_all[scored] * focal),
         ]

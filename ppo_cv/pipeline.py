@@ -59,7 +59,7 @@ from .robust import (
     estimate_essential_ordered,
     sampson_errors,
 )
-from .rotation import PRINCIPAL_PRIOR, focal_ratio_keywords
+from .rotation import PRINCIPAL_PRIOR, focal_ratio_keywords, focal_ratio_prior
 from .significance import (
     CONFIDENT_LOG10_NFA,
     DEFAULT_MAX_LOG10_NFA,
@@ -80,6 +80,7 @@ __all__ = [
 MIN_MATCHES = 8
 MAX_RANSAC_THRESHOLD = 100.0
 PRINCIPAL_POINT_MODES = ("auto", "fit", "given")
+FOCAL_RATIO_MODES = ("auto", "given")
 MAX_SEARCH_SIGMA_DEG = 5.0
 """Rotation uncertainty handed to the photometric refit when the lens fit has none (a lens
 clipped to its box): the refit searches 3 times this and accepts a change of 4 times it."""
@@ -147,6 +148,13 @@ class PairOptions:
         length, where an offset of 1 % of the image leaves residuals that turn a narrow-field
         pure rotation into a general motion; a calibrated principal point is kept. ``"fit"``
         always, ``"given"`` never.
+    focal_ratio : {"auto", "given"}
+        Whether the rotation-only model may scale image 2's focal length against image 1's.
+        ``"auto"`` does when the two given focal lengths differ by at most
+        :data:`ppo_cv.rotation.FOCAL_RATIO_GAP` (two estimates of one lens, as a panorama
+        stitcher gives them, whose difference is a zoom no rotation explains), under the prior
+        of :func:`ppo_cv.rotation.focal_ratio_prior`; ``"given"`` keeps the given ratio (two
+        calibrated cameras).
     """
 
     features: str = "sift"
@@ -171,13 +179,17 @@ class PairOptions:
     plane: bool = True
     photometric: bool = True
     principal_point: str = "auto"
+    focal_ratio: str = "auto"
 
     def __post_init__(self) -> None:
-        if self.principal_point not in PRINCIPAL_POINT_MODES:
-            raise ValueError(
-                f"unknown principal_point {self.principal_point!r}; choose one of "
-                f"{', '.join(PRINCIPAL_POINT_MODES)}"
-            )
+        for name, modes in (
+            ("principal_point", PRINCIPAL_POINT_MODES),
+            ("focal_ratio", FOCAL_RATIO_MODES),
+        ):
+            if getattr(self, name) not in modes:
+                raise ValueError(
+                    f"unknown {name} {getattr(self, name)!r}; choose one of {', '.join(modes)}"
+                )
         if self.features not in FEATURE_TYPES:
             raise ValueError(
                 f"unknown features {self.features!r}; choose one of {', '.join(FEATURE_TYPES)}"
@@ -314,7 +326,8 @@ class PairResult:
     focal_ratio : float
         Scale of image 2's focal length against image 1's absorbed by the rotation-only fit
         when the two were given slightly different (focal lengths estimated per photo, as by a
-        panorama stitcher; :func:`ppo_cv.rotation.focal_ratio_prior`); 1 otherwise.
+        panorama stitcher; :func:`ppo_cv.rotation.focal_ratio_prior`,
+        ``PairOptions.focal_ratio``); 1 otherwise.
     principal_offset_px : ndarray, shape (2,)
         Offset of the true principal point from the given one found by the rotation-only fit
         (pixels; zero when it was not fitted, ``PairOptions.principal_point``).
@@ -633,6 +646,9 @@ def estimate_pair(
         options.principal_point, K1, K2, img1.shape, img2.shape, focal
     )
     given_ratio = float(np.mean(np.diag(K2)[:2]) / np.mean(np.diag(K1)[:2]))
+    ratio_keywords = focal_ratio_keywords(
+        focal_ratio_prior(given_ratio) if options.focal_ratio == "auto" else None
+    )
     motion = decide_motion(
         x1, x2, R, t, inliers, focal,
         threshold_px=options.ransac_threshold,
@@ -640,7 +656,7 @@ def estimate_pair(
         seed=options.seed,
         homography=homography,
         principal_prior=principal_prior,
-        given_focal_ratio=given_ratio,
+        **ratio_keywords,
     )  # fmt: skip
     lap("model")
 
@@ -650,7 +666,7 @@ def estimate_pair(
             img1, img2, K1, K2, motion.R,
             focal_scale=motion.focal_scale, k1=motion.k1,
             principal_offset=motion.principal_offset, principal_prior=principal_prior,
-            focal_ratio=motion.focal_ratio, **focal_ratio_keywords(given_ratio),
+            focal_ratio=motion.focal_ratio, **ratio_keywords,
             rotation_sigma_deg=min(motion.rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG),
             dist1=dist1, dist2=dist2,
         )  # fmt: skip

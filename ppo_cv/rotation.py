@@ -24,7 +24,8 @@ Under a pure rotation the bearings of a match obey ``b2 = R b1`` (paper eq. 3 wi
   rotation itself, which is why the prior, not the matches, bounds it. ``rho`` is for focal
   lengths given per image (a panorama stitcher estimates one per photo): a relative error of
   the two, uncorrected, is a radial flow that an essential matrix explains as a forward
-  translation (0.5 % of it made 7 of 10 warped pans general, 1 % all of them).
+  translation (held, it made 8 of 14 warped pans told focal lengths per photo general,
+  :func:`focal_ratio_prior`).
 """
 
 from __future__ import annotations
@@ -399,12 +400,12 @@ def focal_ratio_prior(given_ratio: float) -> tuple[float, float] | None:
     kept. Two that differ by at most :data:`FOCAL_RATIO_GAP` are taken as two estimates of one
     lens, each with its own error: the truth lies between ``rho = 1`` (the given lengths right)
     and ``rho = r`` (the lens the same), so the prior is centred between them with half their
-    distance as deviation. Without the ratio a difference of 0.5 % left 7 of 10 warped pans
-    (``ppo_cv.data_gen``, principal point given at the centre) called general motions, and 1 %
-    all of them; with it all are flagged. The price falls on translations along the optical
-    axis, whose flow at the scene's mean depth is a zoom: with the two focal lengths given 1 %
-    apart and right, 3 of 14 ``tiny-baseline`` pairs at baseline / depth 0.02 were flagged
-    (none with one focal length given for both).
+    distance as deviation. With the ratio held, 8 of 14 warped pans (``ppo_cv.data_gen``, the
+    principal point given at the centre and each focal length off by a further +-1 %) were
+    called general motions; with it none (``docs/pure_rotation.md``). The price falls on
+    translations along the optical axis, whose flow at the scene's mean depth is a zoom that a
+    misreported ratio can cancel: 3 of 14 ``tiny-baseline`` pairs at baseline / depth 0.02
+    told focal lengths so were flagged (2 with the ratio held, none told one focal length).
 
     Examples
     --------
@@ -420,19 +421,20 @@ def focal_ratio_prior(given_ratio: float) -> tuple[float, float] | None:
     return (1.0 + float(given_ratio)) / 2.0, gap / 2.0
 
 
-def focal_ratio_keywords(given_ratio: float) -> dict:
-    """:func:`focal_ratio_prior` as keyword arguments of :func:`fit_rotation_lens` (and of
-    ``ppo_cv.photometric.refine_rotation_photometric``): empty when the ratio is kept.
+def focal_ratio_keywords(prior: tuple[float, float] | None) -> dict:
+    """A prior ``(mean, deviation)`` of :func:`focal_ratio_prior` as keyword arguments of
+    :func:`fit_rotation_lens` (and of ``ppo_cv.photometric.refine_rotation_photometric``): empty
+    for None, the ratio kept.
 
-    >>> focal_ratio_keywords(1.0)
+    >>> focal_ratio_keywords(None)
     {}
-    >>> sorted(focal_ratio_keywords(1.01))
+    >>> sorted(focal_ratio_keywords(focal_ratio_prior(1.01)))
     ['focal_ratio_mean', 'focal_ratio_prior']
     """
-    prior = focal_ratio_prior(given_ratio)
     if prior is None:
         return {}
-    return {"focal_ratio_mean": prior[0], "focal_ratio_prior": prior[1]}
+    mean, deviation = prior
+    return {"focal_ratio_mean": float(mean), "focal_ratio_prior": float(deviation)}
 
 
 def fit_rotation_lens(

@@ -48,6 +48,7 @@ from .homography import estimate_homography
 from .motion_model import decide_motion
 from .pose import _recover_normalized
 from .robust import essential_from_pose
+from .rotation import focal_ratio_keywords, focal_ratio_prior
 
 __all__ = [
     "INITIALIZATIONS",
@@ -466,7 +467,9 @@ def _motion_decision(geometry, camera1, keypoints1, camera2, keypoints2, pose, p
     homography = estimate_homography(x1, x2, focal)
     motion = decide_motion(
         x1, x2, pose.R, pose.t, used, focal, pri_threshold=pri_threshold, homography=homography,
-        given_focal_ratio=camera2.mean_focal_length() / camera1.mean_focal_length(),
+        **focal_ratio_keywords(
+            focal_ratio_prior(camera2.mean_focal_length() / camera1.mean_focal_length())
+        ),
     )  # fmt: skip
     if motion.model != "plane":
         return motion, pose

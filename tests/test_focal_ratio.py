@@ -16,7 +16,7 @@ import pytest
 from twoview import pan_matches
 from twoview import rotation_angle_deg as _angle
 
-from ppo_cv import data_gen, estimate_pair
+from ppo_cv import PairOptions, data_gen, estimate_pair
 from ppo_cv.cli.pair import _lens_lines
 from ppo_cv.export import result_to_dict
 from ppo_cv.photometric import refine_rotation_photometric
@@ -107,6 +107,43 @@ def test_pure_rotation_with_focal_lengths_given_per_photo_is_flagged(per_photo_p
     assert f"image 2 / image 1 {result.focal_ratio:.4f}" in _lens_lines(result)[0]
 
 
+def test_the_ratio_held_leaves_the_zoom_and_calls_the_pan_general(per_photo_pan):
+    pair, freed = per_photo_pan
+    options = PairOptions(focal_ratio="given", photometric=False)
+    held = estimate_pair(*_bgr(pair), pair.K1_given, pair.K2_given, options=options)
+    assert held.focal_ratio == 1.0
+    assert held.rotation_residual_px > 0.5 > 2 * freed.rotation_residual_px
+    assert not held.pure_rotation and held.model == "general"
+
+
+def test_command_line_chooses_the_focal_ratio(tmp_path):
+    from typer.testing import CliRunner
+
+    from ppo_cv.cli.main import app
+
+    told = data_gen.Imperfections(centred_principal_point=True, view_focal_error=0.01)
+    pair = data_gen.make_warped_pair(seed=0, index=4, imperfections=told)
+    paths = [str(tmp_path / "a.png"), str(tmp_path / "b.png")]
+    for path, image in zip(paths, _bgr(pair), strict=True):
+        cv2.imwrite(path, image)
+    k_text = [f"{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]}" for K in (pair.K1_given, pair.K2_given)]
+    base = ["pair", *paths, "--K", k_text[0], "--K2", k_text[1], "--json", "--no-photometric"]
+    records = {}
+    for mode in ("auto", "given"):
+        run = CliRunner().invoke(app, [*base, "--focal-ratio", mode])
+        assert run.exit_code == 0, run.output
+        records[mode] = json.loads(run.stdout)
+    true_ratio = pair.params["view_factors"][1] / pair.params["view_factors"][0]
+    assert records["auto"]["pure_rotation"]
+    assert records["auto"]["model_selection"]["focal_ratio"] == pytest.approx(true_ratio, abs=0.002)
+    assert not records["given"]["pure_rotation"]
+    assert records["given"]["model_selection"]["focal_ratio"] == 1.0
+    run = CliRunner().invoke(app, [*base, "--focal-ratio", "fit"])
+    assert run.exit_code == 2
+    assert "unknown focal_ratio 'fit'" in run.output
+    assert "Traceback" not in run.output
+
+
 def test_the_same_pan_told_one_focal_length_keeps_the_ratio():
     told = data_gen.Imperfections(centred_principal_point=True)
     pair = data_gen.make_warped_pair(seed=0, index=2, imperfections=told)
@@ -125,7 +162,9 @@ def test_translation_with_focal_lengths_given_per_photo_stays_general():
     assert _lens_lines(result) == []
 
 
-def test_photometric_refit_checks_the_ratio_arguments():
+def test_bad_ratio_settings_are_named():
+    with pytest.raises(ValueError, match="unknown focal_ratio 'fit'; choose one of auto, given"):
+        PairOptions(focal_ratio="fit")
     image = np.zeros((60, 80), np.uint8)
     K = np.array([[100.0, 0, 40], [0, 100.0, 30], [0, 0, 1]])
     with pytest.raises(ValueError, match="focal_ratio"):
