@@ -409,6 +409,18 @@ def _main_set(name: str, data: dict) -> bool:
     return not name.startswith("sweep") and "focal_ratio" not in data
 
 
+def _label(name: str, data: dict) -> str:
+    """The label column: what the set should be called."""
+    if "tripod" in name:
+        return "tripod"
+    return "t = 0" if data["label"] else "translating"
+
+
+def _evaluated(rows: list[dict]) -> list[dict]:
+    """The rows of the pairs on which ppo_cv returned a pose."""
+    return [r for r in rows if "error" not in r]
+
+
 def _held_ratio_lines(results: dict) -> list[str]:
     """Markdown table of the sets run with the focal ratio held, beside the same sets freed."""
     held = {name: data for name, data in results.items() if "focal_ratio" in data}
@@ -425,15 +437,12 @@ def _held_ratio_lines(results: dict) -> list[str]:
         "|---|---|---:|---:|---:|---:|",
     ]
     for name, data in held.items():
-        fitted = results.get(name.removesuffix(", ratio held"), {"rows": []})["rows"]
-        rows = [r for r in data["rows"] if "error" not in r]
-        fitted = [r for r in fitted if "error" not in r]
+        rows = _evaluated(data["rows"])
+        fitted = _evaluated(results.get(name.removesuffix(", ratio held"), {"rows": []})["rows"])
         ours, n = _flag_rate(rows, "ppo_cv_flag")
         theirs, _ = _flag_rate(fitted, "ppo_cv_flag")
-        label = "t = 0" if data["label"] else "translating"
-        label = "tripod" if "tripod" in name else label
         lines.append(
-            f"| {name.removesuffix(', ratio held')} | {label} | {n} | {ours:.0f} % | "
+            f"| {name.removesuffix(', ratio held')} | {_label(name, data)} | {n} | {ours:.0f} % | "
             f"{theirs:.0f} % | {_median(rows, 'rotation_residual_px')} / "
             f"{_median(fitted, 'rotation_residual_px')} |"
         )
@@ -472,15 +481,13 @@ def report(results: dict, seconds: float, plot: str | None) -> str:
         "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for name, data in results.items():
-        rows = [r for r in data["rows"] if "error" not in r]
         if not _main_set(name, data):
             continue
+        rows = _evaluated(data["rows"])
         ours, n = _flag_rate(rows, "ppo_cv_flag")
         theirs, _ = _flag_rate(rows, "pycolmap_flag")
-        label = "t = 0" if data["label"] else "translating"
-        label = "tripod" if "tripod" in name else label
         lines.append(
-            f"| {name} | {label} | {n} | {ours:.0f} % | {theirs:.0f} % | "
+            f"| {name} | {_label(name, data)} | {n} | {ours:.0f} % | {theirs:.0f} % | "
             f"{_errors(rows, 'ppo_cv_R_err')} | {_errors(rows, 'ppo_cv_matches_R_err')} | "
             f"{_median(rows, 'ppo_cv_R_sigma')} | "
             f"{_errors(rows, 'pycolmap_R_err')} | "
@@ -512,7 +519,7 @@ def report(results: dict, seconds: float, plot: str | None) -> str:
         "|---:|---:|---:|---:|---:|",
     ]
     for ratio in SWEEP:
-        rows = [r for r in results.get(f"sweep-{ratio}", {"rows": []})["rows"] if "error" not in r]
+        rows = _evaluated(results.get(f"sweep-{ratio}", {"rows": []})["rows"])
         if not rows:
             continue
         rate, n = _flag_rate(rows, "ppo_cv_flag")
