@@ -139,10 +139,13 @@ table above) 6 of 14 and 8 of 14, their rotations leaving 0.43 and 0.15 px of me
 residual instead of 0.11 and 0.10. On translating pairs told so, a misreported ratio is
 itself a zoom, and where it cancels the flow of the translation along the optical axis at the
 scene's mean depth no method can tell the pair from a rotation: 3 of 14 `tiny-baseline` pairs
-at 0.02 and 1 of 14 at 0.05 are flagged (2 and 0 with the ratio held). On each of those the
-fitted ratio lies between 1 and the given ratio (index 1 at 0.02: given 0.9939, fitted
-0.9995), inside its prior, so no tighter bound refuses it. One focal length given for both
-views keeps the ratio at 1: every other set is unchanged.
+at 0.02 and 1 of 14 at 0.05 are flagged (2 and 0 with the ratio held). On the three at 0.02
+the fitted ratio lies between 1 and the given ratio (`focal_ratio` and `given_focal_ratio` in
+the rows), where no bound can refuse it. The one at 0.05 (index 6: given 1.0059, fitted
+0.998) lies 0.002 below 1, inside the bound of two deviations (0.997-1.009): the true ratio of
+a pan told so is the given one, at the edge of that interval, and the bound leaves room beyond
+it for the fit's noise. One focal length given for both views keeps the ratio at 1: every other
+set is unchanged.
 
 The noise that GRIC divides by is estimated from the essential matrix's residuals, corrected
 for the 5 parameters it fitted (`sqrt(n / (n - 5))`): without that correction an essential
@@ -239,6 +242,8 @@ def evaluate_pair(image1, image2, K1, K2, R_true, peers: bool = True, options=No
         "pri": float(result.pri),
         "t_sigma_deg": float(result.t_sigma_deg),
         "num_inliers": result.num_inliers,
+        "focal_ratio": float(result.focal_ratio),
+        "given_focal_ratio": float(np.mean(np.diag(K2)[:2]) / np.mean(np.diag(K1)[:2])),
     }
     if np.isfinite(result.rotation_sigma_deg):
         row["ppo_cv_R_sigma"] = float(result.rotation_sigma_deg)
