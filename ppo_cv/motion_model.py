@@ -335,9 +335,11 @@ def decide_motion(
     noise = robust_sigma(general_all[inliers], JOINT_DIMENSION - MODEL_DIMENSIONS["general"][0])
     noise *= np.sqrt(2.0)  # a transfer error coordinate carries the noise of both images
     fit = ransac_rotation(x1, x2, RANSAC_FACTOR * threshold, seed=seed)
-    priors = {"principal_prior": principal_prior}
-    if focal_ratio_prior is not None:
-        priors.update(focal_ratio_prior=focal_ratio_prior, focal_ratio_mean=focal_ratio_mean)
+    priors = {
+        "principal_prior": principal_prior,
+        "focal_ratio_prior": focal_ratio_prior,
+        "focal_ratio_mean": focal_ratio_mean,
+    }
     lens = fit_rotation_lens(x1, x2, fit.inliers, fit.R, noise=noise, **priors)
     rotation_inliers = lens.residuals < threshold
     for _ in range(4):

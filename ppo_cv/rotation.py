@@ -607,7 +607,7 @@ def _sigmas(params, problem) -> tuple[float, float]:
 
 
 def _gauss_newton(params, problem, iterations, step=1e-6):
-    """Levenberg-Marquardt on the free parameters of ``problem`` (a boolean mask, its last)."""
+    """Levenberg-Marquardt on the free parameters of ``problem`` (its boolean mask ``free``)."""
     free = problem[4]
     damping = 1e-6
     residual = _objective(params, problem)
