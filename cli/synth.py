@@ -85,7 +85,8 @@ def _imperfections(imperfect: bool, noise: float | None, blur: float | None, **t
     ``Imperfections``) asked for, or None without ``--imperfect``."""
     if not imperfect:
         if any(told.values()):
-            _fail("--centred-principal-point and --view-focal-error need --imperfect")
+            _fail("--centred-principal-point, --view-focal-error, --exposure-ev and --vignetting "
+                  "need --imperfect")  # fmt: skip
         return None
     import dataclasses
 
@@ -173,6 +174,20 @@ def register(app: typer.Typer) -> None:
                 "factor of its own, up to this fraction (focal lengths estimated per photo)."
             ),
         ] = None,
+        exposure_ev: Annotated[
+            float | None,
+            typer.Option(
+                help="With --imperfect: view 2 exposed up to this many stops brighter or darker "
+                "than view 1 (automatic exposure), clipped at white."
+            ),
+        ] = None,
+        vignetting: Annotated[
+            float | None,
+            typer.Option(
+                help="With --imperfect: share of the light lost in the image corners (0-0.9), "
+                "the same in both views."
+            ),
+        ] = None,
         warp: Annotated[
             bool,
             typer.Option(
@@ -219,7 +234,7 @@ def register(app: typer.Typer) -> None:
         imperfections = _imperfections(
             imperfect, noise, blur,
             centred_principal_point=centred_principal_point or None,
-            view_focal_error=view_focal_error,
+            view_focal_error=view_focal_error, exposure_ev=exposure_ev, vignetting=vignetting,
         )  # fmt: skip
         photometric = {}
         if imperfections is None and not warp:

@@ -12,7 +12,11 @@ A real photo differs from the exact pinhole renders in ways no estimator is told
   focal length comes without one), while the true one lies up to 2 % of the image off it;
 * a narrow horizontal field of view (consumer zooms, 25-35 degrees), which makes rotation and
   translation hard to tell apart;
-* JPEG compression, sensor noise and a slight optical blur.
+* JPEG compression, sensor noise and a slight optical blur;
+* optionally the photometry of a consumer camera: an automatic exposure that changes between
+  the shots, and vignetting, the lens darkening towards the corners (the same in both views,
+  so a scene point seen near the centre of one view and near a corner of the other changes
+  brightness), both applied in linear light and clipped at white.
 
 :class:`Imperfections` holds the ranges; :meth:`Imperfections.draw` draws one pair's values.
 """
@@ -29,6 +33,7 @@ __all__ = [
     "REAL_PHOTO",
     "DrawnImperfections",
     "Imperfections",
+    "expose",
     "given_intrinsics",
     "jpeg_roundtrip",
 ]
@@ -37,6 +42,10 @@ MAX_K1 = 0.5
 MAX_FOCAL_ERROR = 0.5
 MAX_NOISE = 50.0
 MAX_BLUR = 50.0
+MAX_EXPOSURE_EV = 3.0
+MAX_VIGNETTING = 0.9
+GAMMA = 2.2
+"""Power law between the stored grey levels and linear light (close to sRGB's curve)."""
 
 
 def _pair(name: str, value, low: float, high: float) -> tuple[float, float]:
@@ -74,6 +83,11 @@ class DrawnImperfections:
         JPEG quality both views are encoded at (None: no compression).
     noise_std, blur_sigma : float
         Gaussian noise (grey levels) and blur (pixels), as :class:`Imperfections`.
+    exposure_ev : float
+        Exposure of view 2 over view 1, stops (0 unless :attr:`Imperfections.exposure_ev`);
+        view 1 is exposed ``-exposure_ev / 2`` stops, view 2 ``+exposure_ev / 2``.
+    vignetting : float
+        Light lost in the image corners by both views, as :attr:`Imperfections.vignetting`.
     """
 
     k1: float
@@ -83,6 +97,8 @@ class DrawnImperfections:
     noise_std: float
     blur_sigma: float
     view_factors: tuple = (1.0, 1.0)
+    exposure_ev: float = 0.0
+    vignetting: float = 0.0
 
     @property
     def dist(self) -> np.ndarray:
@@ -98,6 +114,18 @@ class DrawnImperfections:
     def focal_factors(self) -> tuple[float, float]:
         """Given over true focal length of view 1 and view 2."""
         return tuple(self.focal_factor * float(v) for v in self.view_factors)
+
+    def gains(self) -> tuple[float, float]:
+        """Exposure gain (linear light) of view 1 and view 2; their ratio is ``2**exposure_ev``."""
+        half = 2.0 ** (0.5 * self.exposure_ev)
+        return 1.0 / half, half
+
+    def finish(self, image1: np.ndarray, image2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Expose (:func:`expose`) and JPEG-compress two RGB uint8 views as drawn."""
+        return tuple(
+            jpeg_roundtrip(expose(image, gain, self.vignetting), self.jpeg_quality)
+            for image, gain in zip((image1, image2), self.gains(), strict=True)
+        )
 
 
 @dataclass(frozen=True)
@@ -131,6 +159,13 @@ class Imperfections:
         own factor ``U(1 -+ view_focal_error)``, in ``[0, 0.5]``. The factors come from a
         generator seeded with the pair's other draws, so the pair is the same, told
         differently.
+    exposure_ev : float, default 0
+        Automatic exposure between the shots: view 2 is exposed ``U(-exposure_ev,
+        exposure_ev)`` stops brighter than view 1 (drawn from a generator of its own, as
+        ``view_focal_error``), in ``[0, 3]``.
+    vignetting : float, default 0
+        Fraction of the light lost in the image corners, ``1 - vignetting * (r / r_corner)^2``
+        at distance ``r`` from the image centre, the same in both views; in ``[0, 0.9]``.
     """
 
     k1_range: tuple = (0.02, 0.1)
@@ -142,6 +177,8 @@ class Imperfections:
     blur_sigma: float = 0.5
     centred_principal_point: bool = False
     view_focal_error: float = 0.0
+    exposure_ev: float = 0.0
+    vignetting: float = 0.0
 
     def __post_init__(self) -> None:
         put = object.__setattr__
@@ -156,6 +193,8 @@ class Imperfections:
         put(self, "focal_error", _scalar("focal_error", self.focal_error, 0.0, MAX_FOCAL_ERROR))
         put(self, "view_focal_error",
             _scalar("view_focal_error", self.view_focal_error, 0.0, MAX_FOCAL_ERROR))  # fmt: skip
+        put(self, "exposure_ev", _scalar("exposure_ev", self.exposure_ev, 0.0, MAX_EXPOSURE_EV))
+        put(self, "vignetting", _scalar("vignetting", self.vignetting, 0.0, MAX_VIGNETTING))
         if self.hfov_range is not None:
             hfov = _pair("hfov_range", self.hfov_range, 1.0, 179.0)
             if hfov[0] <= 1.0 or hfov[1] >= 179.0:
@@ -183,14 +222,20 @@ class Imperfections:
         if self.jpeg_quality is not None:
             low, high = self.jpeg_quality
             quality = min(high, low + int(quality_draw * (high - low + 1)))
+        key = np.array([k1, factor, quality_draw]).view(np.uint32)
         views = (1.0, 1.0)
         if self.view_focal_error > 0:
-            side = np.random.default_rng(np.array([k1, factor, quality_draw]).view(np.uint32))
             error = self.view_focal_error
-            views = tuple(float(v) for v in side.uniform(1.0 - error, 1.0 + error, 2))
+            drawn = np.random.default_rng(key).uniform(1.0 - error, 1.0 + error, 2)
+            views = tuple(float(v) for v in drawn)
+        exposure = 0.0
+        if self.exposure_ev > 0:
+            side = np.random.default_rng([*key.tolist(), 1])
+            exposure = float(side.uniform(-self.exposure_ev, self.exposure_ev))
         return DrawnImperfections(
             k1=k1, k2=self.k2_fraction * k1, focal_factor=factor, jpeg_quality=quality,
             noise_std=self.noise_std, blur_sigma=self.blur_sigma, view_factors=views,
+            exposure_ev=exposure, vignetting=self.vignetting,
         )  # fmt: skip
 
     def record(self) -> dict:
@@ -215,6 +260,28 @@ def given_intrinsics(
     if centre_of is not None:
         K_given[:2, 2] = (centre_of[0] - 1) / 2.0, (centre_of[1] - 1) / 2.0
     return K_given
+
+
+def expose(image: np.ndarray, gain: float = 1.0, vignetting: float = 0.0) -> np.ndarray:
+    """An RGB or grey uint8 image, (H, W, 3) or (H, W), exposed ``gain`` times, vignetted.
+
+    In linear light ``L = (I / 255)^GAMMA`` the image becomes
+    ``L * gain * (1 - vignetting * (r / r_corner)^2)``, ``r`` the distance from the image
+    centre, then clipped at white and stored back through the same power law. A gain of 1
+    without vignetting returns the image itself.
+    """
+    if gain == 1.0 and vignetting == 0.0:
+        return image
+    height, width = image.shape[:2]
+    y, x = np.ogrid[:height, :width]
+    r2 = ((x - (width - 1) / 2.0) ** 2 + (y - (height - 1) / 2.0) ** 2) / (
+        ((width - 1) / 2.0) ** 2 + ((height - 1) / 2.0) ** 2
+    )
+    scale = (gain * (1.0 - vignetting * r2)).astype(np.float32)
+    scale = scale.reshape(scale.shape + (1,) * (image.ndim - 2))
+    linear = (image.astype(np.float32) * np.float32(1 / 255)) ** np.float32(GAMMA) * scale
+    stored = np.minimum(linear, 1.0) ** np.float32(1 / GAMMA) * np.float32(255)
+    return np.rint(stored).astype(np.uint8)
 
 
 def jpeg_roundtrip(image: np.ndarray, quality: int | None) -> np.ndarray:

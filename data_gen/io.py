@@ -31,7 +31,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .imperfect import Imperfections, given_intrinsics, jpeg_roundtrip
+from .imperfect import Imperfections, given_intrinsics
 from .motion import DEFAULT_SCENE, MAX_BASELINE_RATIO, MOTIONS, check_pivot_offset, sample_motion
 from .render import RenderedPair, render_pair
 from .scenes import SCENES, make_scene
@@ -157,10 +157,11 @@ def make_pair(
     if drawn is None:
         return pair
     centre = pair.image1.shape[1::-1] if imperfections.centred_principal_point else None
+    image1, image2 = drawn.finish(pair.image1, pair.image2)
     return dataclasses.replace(
         pair,
-        image1=jpeg_roundtrip(pair.image1, drawn.jpeg_quality),
-        image2=jpeg_roundtrip(pair.image2, drawn.jpeg_quality),
+        image1=image1,
+        image2=image2,
         K1_given=given_intrinsics(pair.K1, drawn.focal_factors()[0], centre),
         K2_given=given_intrinsics(pair.K2, drawn.focal_factors()[1], centre),
     )

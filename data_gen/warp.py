@@ -323,12 +323,12 @@ def make_warped_pair(
         record["imperfections"] = imperfections.record()
     pair = warp_pair(
         photo, K, R, drawn.dist if np.any(drawn.dist) else None, size,
-        focal_factor=drawn.focal_factor, jpeg_quality=drawn.jpeg_quality,
-        noise_std=drawn.noise_std, blur_sigma=drawn.blur_sigma, seed=[seed, index],
-        params=record,
+        focal_factor=drawn.focal_factor, noise_std=drawn.noise_std,
+        blur_sigma=drawn.blur_sigma, seed=[seed, index], params=record,
     )  # fmt: skip
-    if not settings.centred_principal_point and drawn.view_factors == (1.0, 1.0):
-        return pair
     centre = size if settings.centred_principal_point else None
     K1_given, K2_given = (given_intrinsics(K, f, centre) for f in drawn.focal_factors())
-    return dataclasses.replace(pair, K1_given=K1_given, K2_given=K2_given)
+    image1, image2 = drawn.finish(pair.image1, pair.image2)
+    return dataclasses.replace(
+        pair, image1=image1, image2=image2, K1_given=K1_given, K2_given=K2_given
+    )

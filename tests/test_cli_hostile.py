@@ -167,7 +167,13 @@ CASES = [
     (
         ["synth", "new", "--view-focal-error", "0.01"],
         "synth",
-        r"--centred-principal-point and --view-focal-error need --imperfect",
+        r"--centred-principal-point, --view-focal-error, --exposure-ev and --vignetting need "
+        r"--imperfect",
+    ),
+    (
+        ["synth", "new", "--imperfect", "--vignetting", "1.5"],
+        "synth",
+        r"vignetting must be in \[0\.0, 0\.9\]",
     ),
     (
         ["synth", "new", "--imperfect", "--view-focal-error", "0.9"],

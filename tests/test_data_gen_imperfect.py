@@ -229,6 +229,10 @@ def test_sample_motion_new_presets_without_rendering():
         ({"k2_fraction": "big"}, "k2_fraction"),
         ({"view_focal_error": -0.01}, "view_focal_error"),
         ({"view_focal_error": True}, "view_focal_error"),
+        ({"exposure_ev": 3.5}, "exposure_ev"),
+        ({"exposure_ev": -0.5}, "exposure_ev"),
+        ({"vignetting": 1.0}, "vignetting"),
+        ({"vignetting": "strong"}, "vignetting"),
     ],
 )
 def test_bad_imperfections_are_rejected(kwargs, message):
@@ -252,6 +256,43 @@ def test_focal_lengths_given_per_photo_tell_the_same_pair_differently():
         assert np.allclose(given[:2, :2], base[:2, :2] * factor)
         assert np.array_equal(given[:2, 2], base[:2, 2])
     assert one.params["view_factors"] == [1.0, 1.0]
+
+
+def test_exposure_and_vignetting_act_in_linear_light_on_the_same_pair():
+    plain = make_pair("panorama", seed=1, index=2, size=SIZE, imperfections=EXACT)
+    lit = dataclasses.replace(EXACT, exposure_ev=1.0, vignetting=0.4)
+    pair = make_pair("panorama", seed=1, index=2, size=SIZE, imperfections=lit)
+    ev = pair.params["exposure_ev"]
+    assert 0.0 < abs(ev) <= 1.0 and pair.params["vignetting"] == 0.4
+    assert np.array_equal(pair.K1_given, plain.K1_given) and np.array_equal(pair.R, plain.R)
+    h, w = SIZE[1], SIZE[0]
+    centre = (slice(h // 2 - 8, h // 2 + 8), slice(w // 2 - 8, w // 2 + 8))
+    corner = (slice(0, 16), slice(0, 16))
+
+    def linear(image, where):
+        return np.mean((image[where].astype(float) / 255.0) ** 2.2)
+
+    for view, sign in ((0, -1), (1, 1)):
+        before, after = (p.image1 if view == 0 else p.image2 for p in (plain, pair))
+        gain = 2.0 ** (sign * ev / 2)
+        # the centre keeps the gain (little clips there), the corner loses the vignetting too
+        assert linear(after, centre) / linear(before, centre) == pytest.approx(gain, rel=0.05)
+        corner_ratio = linear(after, corner) / linear(before, corner)
+        assert corner_ratio == pytest.approx(gain * (1 - 0.4 * 0.9), rel=0.1)
+    redrawn = make_pair("panorama", seed=1, index=2, size=SIZE, imperfections=lit)
+    assert np.array_equal(redrawn.image2, pair.image2)
+
+
+def test_expose_clips_at_white_and_keeps_the_image_without_change():
+    from ppo_cv.data_gen import expose
+
+    image = np.full((4, 6, 3), 200, np.uint8)
+    assert expose(image) is image
+    assert np.all(expose(image, gain=4.0) == 255)
+    darker = expose(image, gain=0.5)
+    assert np.all(np.abs(darker.astype(float) - 255 * (200 / 255) * 0.5 ** (1 / 2.2)) <= 0.5)
+    grey = expose(image[..., 0], vignetting=0.5)
+    assert grey.shape == (4, 6) and grey[0, 0] < grey[1, 2] <= 200
 
 
 def test_bad_make_pair_arguments_are_rejected():

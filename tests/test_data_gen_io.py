@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import cv2
 import numpy as np
 import pytest
 from typer.testing import CliRunner
@@ -176,6 +177,20 @@ def test_cli_imperfect_and_warp(tmp_path):
     assert result.exit_code == 0, result.output
     gt = json.loads((out / "gt" / "pair_000.json").read_text())
     assert (gt["width"], gt["height"]) == (200, 150) and gt["params"]["jpeg_quality"] >= 70
+    out = tmp_path / "lit"
+    result = runner.invoke(app, ["synth", str(out), "-n", "1", "--warp", "--imperfect",
+                                 "--warp-source", str(folder), "--width", "200", "--height",
+                                 "150", "--exposure-ev", "1", "--vignetting", "0.3",
+                                 "--workers", "1"])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    params = json.loads((out / "gt" / "pair_000.json").read_text())["params"]
+    assert params["vignetting"] == 0.3 and 0 < abs(params["exposure_ev"]) <= 1.0
+    assert params["imperfections"]["exposure_ev"] == 1.0
+    lit = cv2.imread(str(out / "images" / "pair_000_1.png"), cv2.IMREAD_GRAYSCALE)
+    plain = cv2.imread(str(tmp_path / "warp" / "images" / "pair_000_1.png"), cv2.IMREAD_GRAYSCALE)
+    corner, centre = (slice(0, 20), slice(0, 20)), (slice(65, 85), slice(90, 110))
+    darkening = [float(np.mean(lit[w])) / float(np.mean(plain[w])) for w in (corner, centre)]
+    assert darkening[0] < 0.95 * darkening[1]
 
 
 @pytest.mark.parametrize(

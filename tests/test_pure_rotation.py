@@ -312,6 +312,26 @@ def test_data_gen_tiny_baseline_of_five_percent_is_not_flagged():
     assert result.t_sigma_deg < 10.0
 
 
+def test_automatic_exposure_and_vignetting_keep_the_decision():
+    """Shots one stop apart at most, clipped at white, corners 35 % darker: a warped photo and
+    a tripod pan stay flagged with an accurate rotation, a 2 % baseline stays general."""
+    from ppo_cv import data_gen
+
+    lit = data_gen.Imperfections(exposure_ev=1.0, vignetting=0.35)
+    warped = data_gen.make_warped_pair(seed=0, index=6, imperfections=lit)
+    tripod = data_gen.make_pair("panorama", seed=0, index=3, imperfections=lit, pivot_offset=0.08)
+    for pair, bound in ((warped, 0.1), (tripod, 0.2)):
+        assert abs(pair.params["exposure_ev"]) > 0.7
+        result = _data_gen_result(pair)
+        assert result.pure_rotation and _angle_deg(result.R, pair.R) < bound
+    pair = data_gen.make_pair(
+        "tiny-baseline", seed=0, index=4, imperfections=lit, baseline_ratio=0.02
+    )
+    assert abs(pair.params["exposure_ev"]) > 0.7
+    result = _data_gen_result(pair)
+    assert not result.pure_rotation and result.gric_difference > 0.5
+
+
 def test_t_sigma_over_the_tiny_baseline_sweep():
     from ppo_cv import data_gen
 
