@@ -269,7 +269,21 @@ def expose(image: np.ndarray, gain: float = 1.0, vignetting: float = 0.0) -> np.
     ``L * gain * (1 - vignetting * (r / r_corner)^2)``, ``r`` the distance from the image
     centre, then clipped at white and stored back through the same power law. A gain of 1
     without vignetting returns the image itself.
+
+    Raises
+    ------
+    ValueError
+        An image that is not uint8 of shape (H, W) or (H, W, C), a gain that is not a positive
+        number, a vignetting outside ``[0, 0.9]``.
     """
+    image = np.asarray(image)
+    if image.dtype != np.uint8 or image.ndim not in (2, 3):
+        raise ValueError(f"image must be uint8 of shape (H, W) or (H, W, C), got {image.dtype} "
+                         f"{image.shape}")  # fmt: skip
+    gain = _scalar("gain", gain, 0.0, math.inf)
+    vignetting = _scalar("vignetting", vignetting, 0.0, MAX_VIGNETTING)
+    if gain == 0.0:
+        raise ValueError("gain must be > 0")
     if gain == 1.0 and vignetting == 0.0:
         return image
     height, width = image.shape[:2]

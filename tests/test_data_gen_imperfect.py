@@ -293,6 +293,12 @@ def test_expose_clips_at_white_and_keeps_the_image_without_change():
     assert np.all(np.abs(darker.astype(float) - 255 * (200 / 255) * 0.5 ** (1 / 2.2)) <= 0.5)
     grey = expose(image[..., 0], vignetting=0.5)
     assert grey.shape == (4, 6) and grey[0, 0] < grey[1, 2] <= 200
+    for kwargs, message in (({"gain": 0.0}, "gain"), ({"gain": float("nan")}, "gain"),
+                            ({"vignetting": 0.95}, "vignetting")):  # fmt: skip
+        with pytest.raises(ValueError, match=message):
+            expose(image, **kwargs)
+    with pytest.raises(ValueError, match="uint8"):
+        expose(image.astype(np.float32))
 
 
 def test_bad_make_pair_arguments_are_rejected():

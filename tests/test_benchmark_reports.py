@@ -1,0 +1,49 @@
+"""The committed pure-rotation report is what its script makes of the committed rows."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPT = ROOT / "benchmarks" / "pure_rotation.py"
+ROWS = ROOT / "benchmarks" / "pure_rotation.json"
+REPORT = ROOT / "docs" / "pure_rotation.md"
+
+
+@pytest.fixture(scope="module")
+def script():
+    if not (SCRIPT.is_file() and ROWS.is_file() and REPORT.is_file()):
+        pytest.skip("the benchmark script, its rows or its report are not in this tree")
+    spec = importlib.util.spec_from_file_location("pure_rotation_benchmark", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_report_is_regenerated_from_the_stored_rows(script):
+    saved = json.loads(ROWS.read_text())
+    seconds = saved.pop("_seconds")
+    text = script.report(saved, seconds, "benchmarks/pure_rotation_statistic.png")
+    # the paragraph after the title names the versions of the machine that renders it
+    title, made_by, made = text.split("\n\n", 2)
+    committed_title, committed_by, committed = REPORT.read_text().split("\n\n", 2)
+    assert made == committed and title == committed_title
+    assert made_by.startswith("Made by") and f"in one run of {seconds:.0f} s" in committed_by
+
+
+def test_report_counts_flags_as_the_rows_say(script):
+    saved = json.loads(ROWS.read_text())
+    rows = saved["data_gen warped photo, exposure and vignetting"]["rows"]
+    flagged = sum(bool(row["ppo_cv_flag"]) for row in rows)
+    line = next(
+        line
+        for line in REPORT.read_text().splitlines()
+        if line.startswith("| data_gen warped photo, exposure and vignetting |")
+    )
+    cells = [cell.strip() for cell in line.split("|")[1:-1]]
+    assert cells[2] == str(len(rows))
+    assert cells[3] == f"{100.0 * flagged / len(rows):.0f} %"
