@@ -46,13 +46,18 @@ def _matches_fit(pair, result):
     return fit_rotation_lens(x1, x2, result.inliers, result.R, noise=noise)
 
 
+H_DEMO = np.array([[1.02, 0.01, 6.0], [-0.01, 0.99, -4.0], [2e-5, 1e-5, 1.0]])
+"""A homography between the demo frame and its warped copy in the window tests."""
+
+
+def _through_demo_homography(points: np.ndarray) -> np.ndarray:
+    p = np.column_stack([points, np.ones(len(points))]) @ H_DEMO.T
+    return p[:, :2] / p[:, 2:]
+
+
 def test_windows_find_a_homography_the_transfer_misses_by_pixels():
     photo = cv2.cvtColor(_demo_photo(), cv2.COLOR_BGR2GRAY)
-    H = np.array([[1.02, 0.01, 6.0], [-0.01, 0.99, -4.0], [2e-5, 1e-5, 1.0]])
-
-    def truth_of(points):
-        p = np.column_stack([points, np.ones(len(points))]) @ H.T
-        return p[:, :2] / p[:, 2:]
+    H, truth_of = H_DEMO, _through_demo_homography
 
     def transfer(points):
         return truth_of(points) + np.array([2.3, -1.7])
@@ -80,13 +85,8 @@ def test_windows_next_to_highlights_clipped_in_one_shot_keep_their_accuracy():
     from ppo_cv.data_gen import expose
 
     photo = cv2.cvtColor(_demo_photo(), cv2.COLOR_BGR2GRAY)
-    H = np.array([[1.02, 0.01, 6.0], [-0.01, 0.99, -4.0], [2e-5, 1e-5, 1.0]])
-
-    def truth_of(points):
-        p = np.column_stack([points, np.ones(len(points))]) @ H.T
-        return p[:, :2] / p[:, 2:]
-
-    image2 = cv2.warpPerspective(photo, H, photo.shape[::-1], flags=cv2.INTER_CUBIC)
+    truth_of = _through_demo_homography
+    image2 = cv2.warpPerspective(photo, H_DEMO, photo.shape[::-1], flags=cv2.INTER_CUBIC)
     image2 = expose(image2, gain=2.0)  # one stop brighter: 5 % of the pixels clip at white
     found = cv2.goodFeaturesToTrack(photo, 600, 0.01, 8).reshape(-1, 2).astype(np.float64)
     points = found[np.all((found > 40) & (found < (600, 440)), axis=1)]
