@@ -24,7 +24,7 @@ A real photo differs from the exact pinhole renders in ways no estimator is told
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import cv2
 import numpy as np
@@ -120,12 +120,22 @@ class DrawnImperfections:
         half = 2.0 ** (0.5 * self.exposure_ev)
         return 1.0 / half, half
 
-    def finish(self, image1: np.ndarray, image2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Expose (:func:`expose`) and JPEG-compress two RGB uint8 views as drawn."""
-        return tuple(
+    def apply_to(self, pair, centre_of: tuple[int, int] | None = None):
+        """``pair`` (a ``RenderedPair``) as a camera with these imperfections gives it.
+
+        Its views exposed (:func:`expose`) and JPEG-compressed, ``K1_given`` and ``K2_given``
+        its true intrinsics with the drawn focal factors and, with ``centre_of = (width,
+        height)``, the image centre as principal point (:func:`given_intrinsics`).
+        """
+        image1, image2 = (
             jpeg_roundtrip(expose(image, gain, self.vignetting), self.jpeg_quality)
-            for image, gain in zip((image1, image2), self.gains(), strict=True)
+            for image, gain in zip((pair.image1, pair.image2), self.gains(), strict=True)
         )
+        K1_given, K2_given = (
+            given_intrinsics(K, factor, centre_of)
+            for K, factor in zip((pair.K1, pair.K2), self.focal_factors(), strict=True)
+        )
+        return replace(pair, image1=image1, image2=image2, K1_given=K1_given, K2_given=K2_given)
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,6 @@ file also the true ones and the lens distortion nobody is told about.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 import shutil
@@ -31,7 +30,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .imperfect import Imperfections, given_intrinsics
+from .imperfect import Imperfections
 from .motion import DEFAULT_SCENE, MAX_BASELINE_RATIO, MOTIONS, check_pivot_offset, sample_motion
 from .render import RenderedPair, render_pair
 from .scenes import SCENES, make_scene
@@ -157,14 +156,7 @@ def make_pair(
     if drawn is None:
         return pair
     centre = pair.image1.shape[1::-1] if imperfections.centred_principal_point else None
-    image1, image2 = drawn.finish(pair.image1, pair.image2)
-    return dataclasses.replace(
-        pair,
-        image1=image1,
-        image2=image2,
-        K1_given=given_intrinsics(pair.K1, drawn.focal_factors()[0], centre),
-        K2_given=given_intrinsics(pair.K2, drawn.focal_factors()[1], centre),
-    )
+    return drawn.apply_to(pair, centre)
 
 
 def _matrix_text(values: np.ndarray, fmt: str) -> str:

@@ -16,7 +16,6 @@ photo is never minified (``upsampling = fx / f_source >= 1``).
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 import os
 from collections.abc import Sequence
@@ -326,9 +325,4 @@ def make_warped_pair(
         focal_factor=drawn.focal_factor, noise_std=drawn.noise_std,
         blur_sigma=drawn.blur_sigma, seed=[seed, index], params=record,
     )  # fmt: skip
-    centre = size if settings.centred_principal_point else None
-    K1_given, K2_given = (given_intrinsics(K, f, centre) for f in drawn.focal_factors())
-    image1, image2 = drawn.finish(pair.image1, pair.image2)
-    return dataclasses.replace(
-        pair, image1=image1, image2=image2, K1_given=K1_given, K2_given=K2_given
-    )
+    return drawn.apply_to(pair, size if settings.centred_principal_point else None)
