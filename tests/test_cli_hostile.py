@@ -245,12 +245,18 @@ def _wait_for_entry(process, root: Path, known: set) -> str:
     return ""
 
 
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _interrupt(args, root: Path, needle: str | None, signum: int) -> tuple[int, str]:
     """Send ``signum`` midway: SIGINT to the process group (Ctrl-C at a terminal reaches the
     workers too), SIGTERM to the command's process only (as ``kill`` does)."""
     known = set(os.listdir(root))
+    # as at a terminal: a runner started in the background passes SIGINT on ignored
     process = subprocess.Popen([*COMMAND, *args], cwd=root, text=True, start_new_session=True,
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               preexec_fn=_default_sigint)  # fmt: skip
     try:
         if needle is None:
             head = _wait_for_entry(process, root, known)
