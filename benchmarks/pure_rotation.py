@@ -357,10 +357,22 @@ def _freiburg_pairs(limit):
         )  # fmt: skip
 
 
+def _as_item(pair) -> tuple:
+    """A ``data_gen`` pair as the benchmark takes it: BGR views, the given intrinsics, R."""
+    return (
+        np.ascontiguousarray(pair.image1[..., ::-1]),
+        np.ascontiguousarray(pair.image2[..., ::-1]),
+        pair.K1_given, pair.K2_given, pair.R,
+    )  # fmt: skip
+
+
 def _sets(counts: dict, have_photos: bool):
     from ppo_cv import data_gen
 
     centred = data_gen.Imperfections(centred_principal_point=True)
+    stitched = data_gen.Imperfections(
+        centred_principal_point=True, view_focal_error=0.01, exposure_ev=1.0, vignetting=0.35
+    )
 
     def official(motion, n, ratio=None, pivot=0.0, size=(640, 480), imperfections=None):
         for index in range(n):
@@ -368,25 +380,14 @@ def _sets(counts: dict, have_photos: bool):
                 motion, seed=0, index=index, imperfections=imperfections or data_gen.REAL_PHOTO,
                 baseline_ratio=ratio, pivot_offset=pivot, size=size,
             )  # fmt: skip
-            yield f"index {index}", (
-                np.ascontiguousarray(pair.image1[..., ::-1]),
-                np.ascontiguousarray(pair.image2[..., ::-1]),
-                pair.K1_given, pair.K2_given, pair.R,
-            )  # fmt: skip
+            yield f"index {index}", _as_item(pair)
 
     def official_warped(n, imperfections=data_gen.REAL_PHOTO):
         for index in range(n):
             pair = data_gen.make_warped_pair(seed=0, index=index, imperfections=imperfections)
-            yield f"index {index}", (
-                np.ascontiguousarray(pair.image1[..., ::-1]),
-                np.ascontiguousarray(pair.image2[..., ::-1]),
-                pair.K1_given, pair.K2_given, pair.R,
-            )  # fmt: skip
+            yield f"index {index}", _as_item(pair)
 
     def narrow(n, kind):
-        stitched = data_gen.Imperfections(
-            centred_principal_point=True, view_focal_error=0.01, exposure_ev=1.0, vignetting=0.35
-        )
         found = 0
         for index in range(NARROW_SEARCH):
             if kind == "warp":
@@ -398,11 +399,7 @@ def _sets(counts: dict, have_photos: bool):
                 )  # fmt: skip
             if abs(pair.params["yaw_deg"]) < NARROW_OVERLAP * pair.params["hfov_deg"]:
                 continue
-            yield f"index {index}", (
-                np.ascontiguousarray(pair.image1[..., ::-1]),
-                np.ascontiguousarray(pair.image2[..., ::-1]),
-                pair.K1_given, pair.K2_given, pair.R,
-            )  # fmt: skip
+            yield f"index {index}", _as_item(pair)
             found += 1
             if found == n:
                 return
@@ -456,9 +453,6 @@ def _sets(counts: dict, have_photos: bool):
     yield "data_gen tripod pan, pivot 8 cm, exposure and vignetting", 1, pairs, True, None
     pairs = official("tiny-baseline", n, 0.02, imperfections=lit)
     yield "data_gen tiny-baseline 0.02, exposure and vignetting", 0, pairs, True, None
-    stitched = data_gen.Imperfections(
-        centred_principal_point=True, view_focal_error=0.01, exposure_ev=1.0, vignetting=0.35
-    )
     yield "data_gen warped photo, narrow overlap, as stitched", 1, narrow(n, "warp"), True, None
     pairs = narrow(n, "panorama")
     yield "data_gen tripod pan, pivot 8 cm, narrow overlap, as stitched", 1, pairs, True, None
