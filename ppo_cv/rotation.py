@@ -630,10 +630,8 @@ def _offset_beyond_bound(params, problem, principal_prior, noise) -> bool:
     if not np.any(excess > 0):
         return False
     cov = gauss_newton_covariance(_jacobian(params, problem)[1], noise**2)
-    deviation = np.zeros(2)
-    if cov is not None:
-        offset = np.flatnonzero(problem[4]).searchsorted(5)
-        deviation = np.sqrt(np.maximum(np.diag(cov)[offset : offset + 2], 0.0))
+    # rotation, focal scale and k1 are always free: the offset follows them, as in _sigmas
+    deviation = np.zeros(2) if cov is None else np.sqrt(np.maximum(np.diag(cov)[5:7], 0.0))
     return bool(np.any(excess > PRINCIPAL_SIGNIFICANCE * deviation))
 
 
