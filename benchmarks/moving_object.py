@@ -21,14 +21,20 @@ rotation wins).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import platform
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 import ppo_cv
 from ppo_cv import PairOptions, data_gen, estimate_pair
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from pure_rotation import _as_item, _rotation_error  # noqa: E402
 
 CONFIGS = ((0.0, 0.0), (0.02, 4.0), (0.02, 12.0), (0.04, 4.0), (0.04, 12.0))
 """``(area, shift)``: the patch's share of the image and its sideways move in view 2 (pixels)."""
@@ -43,8 +49,8 @@ def _paste(image: np.ndarray, patch: np.ndarray, centre: np.ndarray) -> None:
         image[ya:yb, xa:xb] = patch[ya - y0 : yb - y0, xa - x0 : xb - x0]
 
 
-def with_moving_patch(pair, texture: np.ndarray, area: float, shift: float) -> tuple:
-    """RGB views of ``pair`` with ``texture``'s centre pasted in both, moved ``shift`` px in view 2.
+def with_moving_patch(pair, texture: np.ndarray, area: float, shift: float):
+    """``pair`` with ``texture``'s centre pasted in both views, moved ``shift`` px in view 2.
 
     The patch (``area`` of the image, 1.7 times as tall as wide, like a standing person) is
     centred in view 1 halfway between the image centre and the point view 2's centre comes
@@ -53,7 +59,7 @@ def with_moving_patch(pair, texture: np.ndarray, area: float, shift: float) -> t
     """
     image1, image2 = pair.image1.copy(), pair.image2.copy()
     if area <= 0:
-        return image1, image2
+        return dataclasses.replace(pair, image1=image1, image2=image2)
     h, w = image1.shape[:2]
     pw = int(np.sqrt(area * w * h / 1.7))
     ph = int(1.7 * pw)
@@ -66,12 +72,7 @@ def with_moving_patch(pair, texture: np.ndarray, area: float, shift: float) -> t
     target = H @ np.r_[centre1, 1.0]
     _paste(image1, patch, centre1)
     _paste(image2, patch, target[:2] / target[2] + np.array([shift, 0.0]))
-    return image1, image2
-
-
-def _rotation_error(R, R_true) -> float:
-    cosine = (np.trace(np.asarray(R).T @ R_true) - 1.0) / 2.0
-    return float(np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))))
+    return dataclasses.replace(pair, image1=image1, image2=image2)
 
 
 def run(count: int) -> list[dict]:
@@ -84,9 +85,9 @@ def run(count: int) -> list[dict]:
     for area, shift in CONFIGS:
         flags, errors, grics = [], [], []
         for index, pair in enumerate(pairs[:count]):
-            image1, image2 = with_moving_patch(pair, pairs[index + 7].image1, area, shift)
-            bgr1, bgr2 = (np.ascontiguousarray(image[..., ::-1]) for image in (image1, image2))
-            result = estimate_pair(bgr1, bgr2, pair.K1_given, pair.K2_given, options=PairOptions())
+            moved = with_moving_patch(pair, pairs[index + 7].image1, area, shift)
+            bgr1, bgr2, K1, K2, _ = _as_item(moved)
+            result = estimate_pair(bgr1, bgr2, K1, K2, options=PairOptions())
             flags.append(bool(result.pure_rotation))
             errors.append(_rotation_error(result.R, pair.R))
             grics.append(float(result.gric_difference))

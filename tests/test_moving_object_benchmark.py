@@ -35,7 +35,8 @@ def _found(image: np.ndarray, patch: np.ndarray) -> np.ndarray:
 def test_patch_moves_by_the_rotation_and_the_shift(script, shift):
     pair = data_gen.make_warped_pair(seed=0, index=3, imperfections=None)
     texture = data_gen.make_warped_pair(seed=0, index=10, imperfections=None).image1
-    image1, image2 = script.with_moving_patch(pair, texture, 0.04, shift)
+    moved = script.with_moving_patch(pair, texture, 0.04, shift)
+    image1, image2 = moved.image1, moved.image2
     changed = np.any(image1 != pair.image1, axis=2)
     ys, xs = np.nonzero(changed)
     patch = image1[ys.min() : ys.max() + 1, xs.min() : xs.max() + 1]
@@ -50,5 +51,5 @@ def test_patch_moves_by_the_rotation_and_the_shift(script, shift):
 
 def test_no_area_leaves_the_views_as_they_are(script):
     pair = data_gen.make_warped_pair(seed=0, index=3, imperfections=None)
-    image1, image2 = script.with_moving_patch(pair, pair.image2, 0.0, 12.0)
-    assert np.array_equal(image1, pair.image1) and np.array_equal(image2, pair.image2)
+    moved = script.with_moving_patch(pair, pair.image2, 0.0, 12.0)
+    assert np.array_equal(moved.image1, pair.image1) and np.array_equal(moved.image2, pair.image2)
