@@ -31,6 +31,7 @@ import numpy as np
 
 import ppo_cv
 from ppo_cv import ppo
+from ppo_cv.metrics import direction_error_deg, rotation_error_deg
 
 __all__ = [
     "ANCHORS",
@@ -200,14 +201,13 @@ def pose_error_deg(
     """
     if R is None or t is None:
         return 180.0, 180.0, 180.0
-    cos = np.clip((np.trace(R.T @ R_gt) - 1.0) / 2.0, -1.0, 1.0)
-    e_R = float(np.degrees(np.arccos(cos)))
+    e_R = rotation_error_deg(R, R_gt)
     if np.linalg.norm(t_gt) < 1e-12:
         return e_R, float("nan"), e_R
     norm = np.linalg.norm(t) * np.linalg.norm(t_gt)
     if norm < 1e-12:
         return e_R, 90.0, max(e_R, 90.0)
-    e_t = float(np.degrees(np.arccos(np.clip(abs(t @ t_gt) / norm, -1.0, 1.0))))
+    e_t = direction_error_deg(t, t_gt, signed=False)
     return e_R, e_t, max(e_R, e_t)
 
 

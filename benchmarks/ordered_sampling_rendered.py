@@ -17,17 +17,16 @@ import statistics
 import numpy as np
 
 from ppo_cv.data_gen import MOTIONS, REAL_PHOTO, make_pair
+from ppo_cv.metrics import direction_error_deg, rotation_error_deg
 from ppo_cv.pipeline import PairOptions, estimate_pair
 
 
 def errors(result, pair) -> tuple[float, float | None]:
     """Rotation error and sign-free translation-direction error (None for a zero t), degrees."""
-    cos_r = np.clip((np.trace(result.R.T @ pair.R) - 1) / 2, -1, 1)
-    norm = np.linalg.norm(pair.t)
-    if norm < 1e-12:
-        return float(np.degrees(np.arccos(cos_r))), None
-    cos_t = abs(result.t @ pair.t) / (np.linalg.norm(result.t) * norm)
-    return float(np.degrees(np.arccos(cos_r))), float(np.degrees(np.arccos(min(cos_t, 1.0))))
+    rotation_error = rotation_error_deg(result.R, pair.R)
+    if np.linalg.norm(pair.t) < 1e-12:
+        return rotation_error, None
+    return rotation_error, direction_error_deg(result.t, pair.t, signed=False)
 
 
 def run(pair, ordered: bool) -> tuple[str, float, float]:

@@ -58,6 +58,7 @@ import numpy as np
 
 import ppo_cv
 from ppo_cv import PairOptions, estimate_pair
+from ppo_cv.metrics import rotation_error_deg
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
@@ -257,8 +258,7 @@ residuals. There no information is left and the value is the cap, 90 deg (a one-
 def _rotation_error(R, R_true) -> float:
     if R is None:
         return 180.0
-    cos = (np.trace(np.asarray(R).T @ R_true) - 1.0) / 2.0
-    return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+    return rotation_error_deg(R, R_true)
 
 
 def _camera_dict(K, size):

@@ -125,15 +125,13 @@ def pose_errors(R, t, T) -> dict:
     """
     import numpy as np
 
+    from ppo_cv.metrics import direction_error_deg, rotation_error_deg
+
     R_gt, t_gt = T[:3, :3], T[:3, 3]
-    cos_r = np.clip((np.trace(np.asarray(R).T @ R_gt) - 1.0) / 2.0, -1.0, 1.0)
-    r_err = float(np.degrees(np.arccos(cos_r)))
-    norm_gt = float(np.linalg.norm(t_gt))
-    if norm_gt <= _ZERO_TRANSLATION:
+    r_err = rotation_error_deg(R, R_gt)
+    if float(np.linalg.norm(t_gt)) <= _ZERO_TRANSLATION:
         return {"R_err_deg": r_err, "t_err_deg": None, "pose_err_deg": r_err}
-    norm = float(np.linalg.norm(t)) * norm_gt
-    cos_t = np.clip(abs(float(np.asarray(t) @ t_gt)) / max(norm, 1e-12), -1.0, 1.0)
-    t_err = float(np.degrees(np.arccos(cos_t)))
+    t_err = direction_error_deg(t, t_gt, signed=False)
     return {"R_err_deg": r_err, "t_err_deg": t_err, "pose_err_deg": max(r_err, t_err)}
 
 

@@ -208,6 +208,7 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
     import numpy as np
 
     from ppo_cv.export import POSE_CONVENTION, camera_euler_degrees, rotation_angle_axis
+    from ppo_cv.metrics import direction_error_deg, rotation_error_deg
 
     angle, axis = rotation_angle_axis(result.R)
     yaw, pitch, roll = camera_euler_degrees(result.R)
@@ -255,8 +256,8 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
     ]
     if reference is not None:
         R_ref, t_ref = (np.asarray(v, dtype=np.float64) for v in reference)
-        R_err = np.degrees(np.arccos(np.clip((np.trace(result.R.T @ R_ref) - 1) / 2, -1, 1)))
-        t_err = np.degrees(np.arccos(np.clip(float(t @ t_ref) / np.linalg.norm(t), -1, 1)))
+        R_err = rotation_error_deg(result.R, R_ref)
+        t_err = direction_error_deg(t, t_ref)
         lines.append(
             f"  reference    rotation error {R_err:.2f} deg, translation direction error "
             f"{t_err:.2f} deg (against the pseudo ground truth in demo.json)"

@@ -43,6 +43,7 @@ import numpy as np
 from .camera import normalized_to_pixels, pixels_to_normalized
 from .checks import as_camera_matrix, as_distortion, as_points, as_positive, as_rotation
 from .features import to_gray
+from .metrics import rotation_error_deg
 from .model_selection import robust_sigma
 from .rotation import LensRotationFit, fit_rotation_lens, transfer_points
 
@@ -542,8 +543,8 @@ def refine_rotation_photometric(
     >>> R = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
     >>> image2 = cv2.warpPerspective(image1, K @ R @ np.linalg.inv(K), (320, 240))
     >>> refined = refine_rotation_photometric(image1, image2, K, K, np.eye(3))
-    >>> angle = np.degrees(np.arccos((np.trace(refined.fit.R.T @ R) - 1) / 2))
-    >>> bool(angle < 0.02), refined.num_tracks > 100
+    >>> from ppo_cv.metrics import rotation_error_deg
+    >>> bool(rotation_error_deg(refined.fit.R, R) < 0.02), refined.num_tracks > 100
     (True, True)
     """
     K1, K2 = as_camera_matrix(K1, "K1"), as_camera_matrix(K2, "K2")
@@ -598,7 +599,6 @@ def refine_rotation_photometric(
             rotation_sigma_deg=fit.rotation_sigma_deg * inflation,
         )
         result = PhotometricRotation(fit=fit, tracks=tracks, inliers=used, noise_px=noise_px)
-    change = np.degrees(np.arccos(np.clip((np.trace(start[0].T @ model[0]) - 1) / 2, -1, 1)))
-    if change > 4.0 * rotation_sigma_deg + 0.1:
+    if rotation_error_deg(model[0], start[0]) > 4.0 * rotation_sigma_deg + 0.1:
         return None
     return result

@@ -45,6 +45,7 @@ from . import colmap, ppo
 from .atomic import atomic_directory, check_target, signals_deferred
 from .checks import as_camera_matrix, as_positive
 from .homography import estimate_homography
+from .metrics import direction_error_deg, rotation_error_deg
 from .motion_model import decide_motion
 from .pose import _recover_normalized
 from .robust import essential_from_pose
@@ -815,9 +816,7 @@ def pose_errors(reconstruction, gt) -> tuple[list[float], list[float]]:
         if name1 not in ids or name2 not in ids:
             continue
         R, t = colmap.relative_pose(reconstruction, ids[name1], ids[name2])
-        cos = (np.trace(R.T @ R_gt) - 1.0) / 2.0
-        rotation_errors.append(float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))))
+        rotation_errors.append(rotation_error_deg(R, R_gt))
         if np.linalg.norm(t_gt) > 1e-9 and np.linalg.norm(t) > 1e-12:
-            cos = t @ t_gt / (np.linalg.norm(t) * np.linalg.norm(t_gt))
-            translation_errors.append(float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))))
+            translation_errors.append(direction_error_deg(t, t_gt))
     return rotation_errors, translation_errors

@@ -15,6 +15,12 @@ import pytest
 from typer.testing import CliRunner
 
 from ppo_cv.cli.main import app
+from ppo_cv.metrics import direction_error_deg, rotation_error_deg
+
+
+def direction_error(t, t_true):
+    return direction_error_deg(t, t_true, signed=False)
+
 
 DATA = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
 DEMO = json.loads((DATA / "demo.json").read_text())
@@ -37,17 +43,9 @@ REQUIRED_KEYS = {
 runner = CliRunner()
 
 
-def rotation_error(R, R_true):
-    return np.degrees(np.arccos(np.clip((np.trace(R.T @ R_true) - 1) / 2, -1, 1)))
-
-
-def direction_error(t, t_true):
-    return np.degrees(np.arccos(np.clip(abs(t @ t_true), -1, 1)))
-
-
 def check_demo_pose(data):
     R, t = np.array(data["R"]), np.array(data["t"])
-    assert rotation_error(R, np.array(DEMO["reference_R"])) < 1.0
+    assert rotation_error_deg(R, np.array(DEMO["reference_R"])) < 1.0
     assert direction_error(t, np.array(DEMO["reference_t"])) < 3.0
 
 

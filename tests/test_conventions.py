@@ -23,6 +23,7 @@ from ppo_cv.export import (
     euler_zyx_degrees,
     result_to_dict,
 )
+from ppo_cv.metrics import rotation_error_deg
 
 DEMO_K = "535.4,539.2,320.1,247.6"
 
@@ -129,9 +130,7 @@ def test_pure_rotation_json_has_no_usable_t(pure_rotation_files):
     data = json.loads(done.stdout)
     assert data["pure_rotation"] and not data["translation_determined"]
     assert data["t"] is None and np.linalg.norm(data["t_guess"]) == pytest.approx(1.0)
-    R_error = np.degrees(
-        np.arccos(np.clip((np.trace(np.array(data["R"]).T @ pair.R) - 1) / 2, -1, 1))
-    )
+    R_error = rotation_error_deg(data["R"], pair.R)
     assert R_error < 0.5
     # the stated rotation uncertainty covers the actual error within a few sigma
     assert 0.0 < data["rotation_sigma_deg"] < 1.0 and R_error < 4.0 * data["rotation_sigma_deg"]

@@ -22,18 +22,9 @@ from ppo_cv.data_gen import (
     render_pair,
     sample_motion,
 )
+from ppo_cv.metrics import direction_error_deg, rotation_error_deg
 
 SIZE = (640, 480)
-
-
-def _rotation_error_deg(Ra, Rb):
-    return np.degrees(np.arccos(np.clip((np.trace(Ra.T @ Rb) - 1.0) / 2.0, -1.0, 1.0)))
-
-
-def _direction_error_deg(a, b):
-    a, b = np.ravel(a), np.ravel(b)
-    cosine = a @ b / (np.linalg.norm(a) * np.linalg.norm(b))
-    return np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
 
 
 def _checker_corners(scene: Scene) -> np.ndarray:
@@ -210,8 +201,8 @@ def test_sift_recovers_the_general_motion(general_pair):
     assert len(p1) > 800
     E, mask = cv2.findEssentialMat(p1, p2, pair.K1, cv2.USAC_MAGSAC, 0.9999, 1.0)
     _, R, t, _ = ppo_cv.recoverPose(E[:3], p1, p2, pair.K1, mask=mask)
-    assert _rotation_error_deg(R, pair.R) < 0.5
-    assert _direction_error_deg(t, pair.t) < 2.0
+    assert rotation_error_deg(R, pair.R) < 0.5
+    assert direction_error_deg(t, pair.t) < 2.0
     # the depth map and the pose predict where the matched points go
     inliers = mask.ravel() > 0
     u, v = np.rint(p1[inliers]).astype(int).T
@@ -228,7 +219,7 @@ def test_sift_on_pure_rotation_flags_it(rotation_pair):
     E, mask = cv2.findEssentialMat(p1, p2, pair.K1, cv2.USAC_MAGSAC, 0.9999, 1.0)
     result = ppo_cv.recover_pose(E[:3], p1, p2, pair.K1, mask=mask)
     assert result.pure_rotation
-    assert _rotation_error_deg(result.R, pair.R) < 0.5
+    assert rotation_error_deg(result.R, pair.R) < 0.5
 
 
 @pytest.mark.parametrize("motion", MOTIONS)

@@ -12,6 +12,7 @@ from ppo_cv.homography import (
     homography_sampson_errors,
     symmetric_transfer_errors,
 )
+from ppo_cv.metrics import direction_error_deg, rotation_error_deg
 from ppo_cv.plane import (
     decompose_homography,
     frontality,
@@ -180,8 +181,7 @@ def test_ppo_choice_on_noisy_planes_matches_truth_and_beats_visibility_filter():
         )  # fmt: skip
         right_cv += kept is not None and kept.ravel().tolist() == [truth]
         if pose.candidate == truth:
-            angle = np.degrees(np.arccos(np.clip((np.trace(pose.R.T @ R) - 1) / 2, -1, 1)))
-            assert angle < 2.0
+            assert rotation_error_deg(pose.R, R) < 2.0
     assert right_ppo >= 0.95 * len(problems)
     assert right_ppo >= right_cv
 
@@ -312,9 +312,8 @@ def test_robust_fit_finds_the_plane_and_its_pose(backend):
     H_true = homography_from_pose(R, t, n, d)
     assert np.abs(fit.H - H_true).max() < 0.02
     pose = planar_pose(fit.H, x1, x2, fit.inliers, threshold=2.0 / FOCAL)
-    angle = np.degrees(np.arccos(np.clip((np.trace(pose.R.T @ R) - 1) / 2, -1, 1)))
-    assert angle < 0.5
-    assert np.degrees(np.arccos(pose.t @ t / np.linalg.norm(t))) < 3.0
+    assert rotation_error_deg(pose.R, R) < 0.5
+    assert direction_error_deg(pose.t, t) < 3.0
 
 
 @pytest.mark.parametrize("backend", ["pycolmap", "opencv"])
@@ -359,9 +358,7 @@ def _distort(x: np.ndarray, k1: float) -> np.ndarray:
 
 
 def _pose_errors(R, t, R_true, t_true) -> tuple[float, float]:
-    cosine = np.clip((np.trace(R.T @ R_true) - 1) / 2, -1, 1)
-    angle = np.clip(t @ t_true / np.linalg.norm(t) / np.linalg.norm(t_true), -1, 1)
-    return float(np.degrees(np.arccos(cosine))), float(np.degrees(np.arccos(angle)))
+    return rotation_error_deg(R, R_true), direction_error_deg(t, t_true)
 
 
 def _distorted_plane(seed: int, k1: float, noise_px: float = 0.5, count: int = 400):

@@ -10,13 +10,8 @@ from ppo_cv import ppo
 from ppo_cv.data_gen import make_pair
 from ppo_cv.features import detect_features, match_features
 from ppo_cv.homography import estimate_homography
+from ppo_cv.metrics import direction_error_deg, rotation_error_deg
 from ppo_cv.plane import planar_pose
-
-
-def angle_deg(a: np.ndarray, b: np.ndarray) -> float:
-    return float(
-        np.degrees(np.arccos(np.clip(a @ b / np.linalg.norm(a) / np.linalg.norm(b), -1, 1)))
-    )
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -33,9 +28,9 @@ def test_rendered_plane_pose_from_sift_matches(seed):
     assert fit is not None and fit.num_inliers >= 0.8 * len(matches)
     assert np.median(fit.residuals[fit.inliers]) < 1.0
     pose = planar_pose(fit.H, x1, x2, fit.inliers, threshold=1.0 / focal)
-    rotation_error = np.degrees(np.arccos(np.clip((np.trace(pose.R.T @ pair.R) - 1) / 2, -1, 1)))
+    rotation_error = rotation_error_deg(pose.R, pair.R)
     assert rotation_error < 1.0
-    assert angle_deg(pose.t, pair.t) < 3.0
+    assert direction_error_deg(pose.t, pair.t) < 3.0
     assert pose.support >= 0.95 * fit.num_inliers
     # the plane of the scene: n^T X = d at points read off the depth map, d in baselines
     for u, v in ((160, 120), (60, 40), (260, 200)):

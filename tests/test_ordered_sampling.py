@@ -10,20 +10,17 @@ from ppo_cv import ppo
 from ppo_cv import robust as robust_module
 from ppo_cv.data_gen import make_pair
 from ppo_cv.features import detect_features, match_features, match_features_scored
+from ppo_cv.metrics import direction_error_deg, rotation_error_deg
 from ppo_cv.pipeline import PairOptions, _normalize, estimate_pair
 from ppo_cv.robust import estimate_essential_ordered, sampson_errors
 
+
+def direction_error(t, t_true):
+    return direction_error_deg(t, t_true, signed=False)
+
+
 FOCAL = 500.0
 SIZE = (640, 480)
-
-
-def rotation_error(R, R_true) -> float:
-    return float(np.degrees(np.arccos(np.clip((np.trace(R.T @ R_true) - 1) / 2, -1, 1))))
-
-
-def direction_error(t, t_true) -> float:
-    cos = abs(t @ t_true) / (np.linalg.norm(t) * np.linalg.norm(t_true))
-    return float(np.degrees(np.arccos(np.clip(cos, -1, 1))))
 
 
 def synthetic_matches(num_inliers, num_outliers, seed=0):
@@ -73,7 +70,7 @@ def test_ranked_subset_suffices_when_the_best_matches_are_inliers(trial_caps):
     assert np.count_nonzero(fit.inliers & inlier) >= 55
     assert np.count_nonzero(fit.inliers & ~inlier) <= 5
     R_est, t_est = pose_of(fit, x1, x2)
-    assert rotation_error(R_est, R) < 0.5 and direction_error(t_est, t) < 2.0
+    assert rotation_error_deg(R_est, R) < 0.5 and direction_error(t_est, t) < 2.0
 
 
 @pytest.mark.parametrize(("trusted", "cap"), [(0.0, 100_000), (np.inf, 30_000)])
@@ -87,7 +84,7 @@ def test_falls_back_when_the_ranked_subset_is_all_outliers(trial_caps, monkeypat
     assert trial_caps[2] == cap
     assert np.count_nonzero(fit.inliers & inlier) >= 110
     R_est, t_est = pose_of(fit, x1, x2)
-    assert rotation_error(R_est, R) < 0.5 and direction_error(t_est, t) < 2.0
+    assert rotation_error_deg(R_est, R) < 0.5 and direction_error(t_est, t) < 2.0
 
 
 def test_fallback_respects_a_lower_max_trials(trial_caps):
@@ -138,7 +135,7 @@ def test_ordered_fit_on_a_rendered_pair_matches_ground_truth(rendered):
     fit = estimate_essential_ordered(x1, x2, pair.K1[0, 0], ratios, SIZE)
     assert fit.sampling == "ordered"
     R, t = pose_of(fit, x1, x2)
-    assert rotation_error(R, pair.R) < 1.0 and direction_error(t, pair.t) < 3.0
+    assert rotation_error_deg(R, pair.R) < 1.0 and direction_error(t, pair.t) < 3.0
 
 
 @pytest.mark.parametrize("motion", ["general", "forward"])
@@ -148,7 +145,7 @@ def test_estimate_pair_with_and_without_ordered_sampling(motion):
     for ordered in (True, False):
         options = PairOptions(ordered_sampling=ordered, max_trials=20_000)
         result = estimate_pair(*images, pair.K1_given, pair.K2_given, options=options)
-        assert rotation_error(result.R, pair.R) < 1.0, ordered
+        assert rotation_error_deg(result.R, pair.R) < 1.0, ordered
         assert direction_error(result.t, pair.t) < 3.0, ordered
 
 

@@ -12,14 +12,11 @@ from imperfect import imperfect_render, warped_rotation_pair
 
 from ppo_cv import PairOptions, estimate_pair
 from ppo_cv.export import result_to_dict
+from ppo_cv.metrics import rotation_error_deg
 from ppo_cv.photometric import MIN_NCC, align_windows, refine_rotation_photometric
 from ppo_cv.rotation import fit_rotation_lens
 
 K_DEMO = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
-
-
-def _angle_deg(R: np.ndarray, R_true: np.ndarray) -> float:
-    return float(np.degrees(np.arccos(np.clip((np.trace(R.T @ R_true) - 1) / 2, -1, 1))))
 
 
 def _demo_photo() -> np.ndarray:
@@ -116,7 +113,7 @@ def test_refit_on_windows_recovers_rotation_and_focal_of_a_warped_photo(seed):
         focal_scale=start.focal_scale, k1=start.k1, rotation_sigma_deg=start.rotation_sigma_deg,
     )  # fmt: skip
     assert refined is not None and refined.num_tracks > 100
-    assert _angle_deg(refined.fit.R, pair.R) < 0.05
+    assert rotation_error_deg(refined.fit.R, pair.R) < 0.05
     assert abs(refined.fit.focal_scale - (1.0 + pair.focal_error)) < 0.004
     assert abs(refined.fit.k1 - pair.k1) < 0.01
     assert refined.noise_px < 0.15
@@ -128,7 +125,7 @@ def test_refit_survives_exposure_and_vignetting():
     image2 = _vignetted(pair.image2, 0.75, 0.3)
     result = estimate_pair(image1, image2, pair.K_given)
     assert result.pure_rotation and result.rotation_tracks > 100
-    assert _angle_deg(result.R, pair.R) < 0.06
+    assert rotation_error_deg(result.R, pair.R) < 0.06
 
 
 def test_refit_with_the_distortion_given_leaves_no_radial_term():
@@ -139,7 +136,7 @@ def test_refit_with_the_distortion_given_leaves_no_radial_term():
     K_true[:2, :2] /= 1.0 + pair.focal_error
     result = estimate_pair(pair.image1, pair.image2, K_true, dist1=dist)
     assert result.pure_rotation and result.rotation_tracks > 100
-    assert _angle_deg(result.R, pair.R) < 0.03
+    assert rotation_error_deg(result.R, pair.R) < 0.03
     assert abs(result.focal_scale - 1.0) < 0.003
 
 
@@ -171,8 +168,8 @@ def test_pipeline_rotation_of_imperfect_renders_beats_the_feature_matches(seed):
     )  # fmt: skip
     assert result.pure_rotation and result.rotation_tracks > 100
     assert matches.rotation_tracks == 0
-    error = _angle_deg(result.R, pair.R)
-    assert error < 0.04 and error < _angle_deg(matches.R, pair.R)
+    error = rotation_error_deg(result.R, pair.R)
+    assert error < 0.04 and error < rotation_error_deg(matches.R, pair.R)
     assert result.rotation_sigma_deg < matches.rotation_sigma_deg
     assert error < 5.0 * result.rotation_sigma_deg
     assert result.t_sigma_deg > 30.0 and result.num_points == 0
@@ -201,7 +198,7 @@ def test_rotation_sigma_of_the_tracks_covers_the_actual_errors():
         ):
             result = estimate_pair(pair.image1, pair.image2, pair.K_given)
             if result.rotation_tracks:
-                ratios.append(_angle_deg(result.R, pair.R) / result.rotation_sigma_deg)
+                ratios.append(rotation_error_deg(result.R, pair.R) / result.rotation_sigma_deg)
     assert len(ratios) >= 6
     rms = float(np.sqrt(np.mean(np.square(ratios))))
     assert 0.3 < rms < 1.5
@@ -226,7 +223,7 @@ def test_command_line_switches_the_refit(tmp_path):
         records[flag] = json.loads(run.stdout)
     assert records["--photometric"]["rotation_tracks"] > 100
     assert records["--no-photometric"]["rotation_tracks"] == 0
-    errors = {flag: _angle_deg(np.array(r["R"]), pair.R) for flag, r in records.items()}
+    errors = {flag: rotation_error_deg(np.array(r["R"]), pair.R) for flag, r in records.items()}
     assert errors["--photometric"] < errors["--no-photometric"]
 
 
@@ -251,7 +248,7 @@ def test_windows_on_an_object_that_moved_are_dropped():
     inside &= (p2[:, 0] > left + 12) & (p2[:, 0] < left + w // 4 - 12)
     assert np.count_nonzero(inside) >= 10
     assert not np.any(refined.inliers & inside)
-    error = _angle_deg(refined.fit.R, pair.R)
+    error = rotation_error_deg(refined.fit.R, pair.R)
     assert error < 0.1 and error < 3.0 * refined.fit.rotation_sigma_deg
 
 
@@ -288,4 +285,4 @@ def test_a_second_radial_term_nobody_models_does_not_break_the_refit(index):
     image2 = np.ascontiguousarray(pair.image2[..., ::-1])
     result = estimate_pair(image1, image2, pair.K1_given, pair.K2_given)
     assert result.pure_rotation and result.rotation_tracks > 100
-    assert _angle_deg(result.R, pair.R) < 0.06
+    assert rotation_error_deg(result.R, pair.R) < 0.06

@@ -11,21 +11,13 @@ import pytest
 from ppo_cv import refine as refine_module
 from ppo_cv.data_gen import make_pair, make_scene, render_pair, sample_motion
 from ppo_cv.features import Features, detect_features, match_features
+from ppo_cv.metrics import direction_error_deg, rotation_error_deg
 from ppo_cv.pipeline import PairOptions, estimate_pair
 from ppo_cv.refine import fit_rotation, refine_pose, rotation_residuals
 from ppo_cv.robust import essential_from_pose, estimate_essential, sampson_errors
 
 SIZE = (640, 480)
 DIST = np.array([-0.25, 0.08, 0.0005, -0.0005, 0.0])
-
-
-def rotation_error(R, R_true):
-    return np.degrees(np.arccos(np.clip((np.trace(R.T @ R_true) - 1) / 2, -1, 1)))
-
-
-def direction_error(t, t_true):
-    cos = t @ t_true / (np.linalg.norm(t) * np.linalg.norm(t_true))
-    return np.degrees(np.arccos(np.clip(cos, -1, 1)))
 
 
 def bgr(image):
@@ -68,8 +60,8 @@ def test_general_motion_matches_ground_truth(general, general_result):
     result = general_result
     assert not result.pure_rotation and result.translation_determined
     assert result.pri > result.pri_threshold
-    assert rotation_error(result.R, general.R) < 0.3
-    assert direction_error(result.t, general.t) < 2.0
+    assert rotation_error_deg(result.R, general.R) < 0.3
+    assert direction_error_deg(result.t, general.t) < 2.0
     assert result.num_inliers >= 50 and result.num_inliers <= result.num_matches
     assert set(result.timings) >= {"features", "matching", "ransac", "ppo", "refine"}
 
@@ -98,7 +90,7 @@ def test_pure_rotation_is_flagged_and_rotation_refined(rotation):
     result = estimate_pair(bgr(rotation.image1), bgr(rotation.image2), rotation.K1, rotation.K2)
     assert result.pure_rotation and not result.translation_determined
     assert result.pri < result.pri_threshold
-    assert rotation_error(result.R, rotation.R) < 0.1
+    assert rotation_error_deg(result.R, rotation.R) < 0.1
     assert result.num_points == 0 and result.points3d.shape == (result.num_matches, 3)
     assert np.isnan(result.points3d).all()
     assert np.isclose(np.linalg.norm(result.t), 1.0)
@@ -108,8 +100,8 @@ def test_distortion_is_removed_from_the_points(distorted):
     images = bgr(distorted.image1), bgr(distorted.image2)
     K1, K2 = distorted.K1, distorted.K2
     with_dist = estimate_pair(*images, K1, K2, dist1=DIST, dist2=DIST)
-    assert rotation_error(with_dist.R, distorted.R) < 0.3
-    assert direction_error(with_dist.t, distorted.t) < 2.0
+    assert rotation_error_deg(with_dist.R, distorted.R) < 0.3
+    assert direction_error_deg(with_dist.t, distorted.t) < 2.0
     without = estimate_pair(*images, K1, K2)
     assert with_dist.num_inliers > without.num_inliers
 
@@ -117,7 +109,7 @@ def test_distortion_is_removed_from_the_points(distorted):
 def test_dist2_defaults_to_dist1_for_one_camera(distorted):
     images = bgr(distorted.image1), bgr(distorted.image2)
     result = estimate_pair(*images, distorted.K1, dist1=DIST)
-    assert rotation_error(result.R, distorted.R) < 0.3
+    assert rotation_error_deg(result.R, distorted.R) < 0.3
 
 
 def test_opencv_backend_agrees(general):
@@ -125,16 +117,16 @@ def test_opencv_backend_agrees(general):
     result = estimate_pair(
         bgr(general.image1), bgr(general.image2), general.K1, general.K2, options=options
     )
-    assert rotation_error(result.R, general.R) < 0.5
-    assert direction_error(result.t, general.t) < 3.0
+    assert rotation_error_deg(result.R, general.R) < 0.5
+    assert direction_error_deg(result.t, general.t) < 3.0
 
 
 @pytest.mark.parametrize("features", ["orb", "akaze"])
 def test_binary_features(general, features):
     options = PairOptions(features=features)
     result = estimate_pair(general.image1, general.image2, general.K1, general.K2, options=options)
-    assert rotation_error(result.R, general.R) < 1.0
-    assert direction_error(result.t, general.t) < 5.0
+    assert rotation_error_deg(result.R, general.R) < 1.0
+    assert direction_error_deg(result.t, general.t) < 5.0
 
 
 def test_image_paths_are_accepted(tmp_path, general, general_result):
@@ -272,14 +264,14 @@ def test_refine_pose_reaches_the_least_squares_optimum(noise):
     R1, t1 = refine_pose(R0, t0, x1, x2, good, 500.0)
     assert np.isclose(np.linalg.norm(t1), 1.0)
     if noise == 0:
-        assert rotation_error(R1, R) < 1e-5 and direction_error(t1, t) < 1e-4
+        assert rotation_error_deg(R1, R) < 1e-5 and direction_error_deg(t1, t) < 1e-4
     else:
 
         def cost(R_, t_):
             return np.sum(sampson_errors(essential_from_pose(R_, t_), x1[good], x2[good]) ** 2)
 
         assert cost(R1, t1) <= cost(R, t) < cost(R0, t0)
-        assert rotation_error(R1, R) < 0.3 < rotation_error(R0, R)
+        assert rotation_error_deg(R1, R) < 0.3 < rotation_error_deg(R0, R)
 
 
 def test_fit_rotation_ignores_outliers():
@@ -291,6 +283,6 @@ def test_fit_rotation_ignores_outliers():
     x2[:20, :2] += rng.uniform(-0.2, 0.2, (20, 2))
     R_start = cv2.Rodrigues(np.array([3e-4, 0.0, -3e-4]))[0] @ R
     R_fit, used = fit_rotation(x1, x2, np.ones(100, bool), threshold=1e-3, R=R_start)
-    assert rotation_error(R_fit, R) < 1e-6
+    assert rotation_error_deg(R_fit, R) < 1e-6
     assert not used[:20].any() and used[20:].all()
     assert np.max(rotation_residuals(R_fit, x1[20:], x2[20:])) < 1e-9

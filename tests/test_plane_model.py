@@ -12,18 +12,10 @@ import pytest
 from ppo_cv import estimate_pair
 from ppo_cv.data_gen import make_pair
 from ppo_cv.export import result_to_dict
+from ppo_cv.metrics import direction_error_deg, rotation_error_deg
 from ppo_cv.pipeline import PairOptions
 
 SIZE = (320, 240)
-
-
-def _rotation_error_deg(R: np.ndarray, R_true: np.ndarray) -> float:
-    return float(np.degrees(np.arccos(np.clip((np.trace(R.T @ R_true) - 1) / 2, -1, 1))))
-
-
-def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
-    cosine = a @ b / np.linalg.norm(a) / np.linalg.norm(b)
-    return float(np.degrees(np.arccos(np.clip(cosine, -1, 1))))
 
 
 @functools.cache
@@ -43,8 +35,8 @@ def test_rendered_plane_is_a_plane_with_the_true_pose(seed):
     pair, result = _rendered("planar", seed), _estimate("planar", seed)
     assert result.model == "plane"
     assert not result.pure_rotation and result.translation_determined
-    assert _rotation_error_deg(result.R, pair.R) < 0.2
-    assert _angle_deg(result.t, pair.t) < 0.5
+    assert rotation_error_deg(result.R, pair.R) < 0.2
+    assert direction_error_deg(result.t, pair.t) < 0.5
     assert result.gric_plane_difference < 0
     assert result.plane_epipolar_ratio == pytest.approx(1.0, abs=0.2)
     assert result.t_sigma_deg < 2.0
@@ -64,8 +56,8 @@ def test_plane_beats_the_essential_matrix_on_a_rendered_plane():
     pair = _rendered("planar", 0)
     plane, general = _estimate("planar", 0), _estimate("planar", 0, plane=False)
     assert general.model == "general" and general.plane_normal is None
-    error = max(_rotation_error_deg(plane.R, pair.R), _angle_deg(plane.t, pair.t))
-    error_e = max(_rotation_error_deg(general.R, pair.R), _angle_deg(general.t, pair.t))
+    error = max(rotation_error_deg(plane.R, pair.R), direction_error_deg(plane.t, pair.t))
+    error_e = max(rotation_error_deg(general.R, pair.R), direction_error_deg(general.t, pair.t))
     assert error < error_e
 
 
@@ -74,7 +66,7 @@ def test_pure_rotation_is_a_rotation_not_a_plane(seed):
     pair, result = _rendered("pure-rotation", seed), _estimate("pure-rotation", seed)
     assert result.model == "rotation" and result.pure_rotation
     assert result.plane_normal is None and np.isnan(result.plane_distance)
-    assert _rotation_error_deg(result.R, pair.R) < 0.2
+    assert rotation_error_deg(result.R, pair.R) < 0.2
     assert result.num_points == 0
 
 
@@ -86,7 +78,7 @@ def test_general_scene_stays_general(motion, seed):
     assert result.model == "general"
     assert result.gric_plane_difference > 0
     assert result.plane_normal is None
-    assert max(_rotation_error_deg(result.R, pair.R), _angle_deg(result.t, pair.t)) < 1.0
+    assert max(rotation_error_deg(result.R, pair.R), direction_error_deg(result.t, pair.t)) < 1.0
 
 
 def test_json_and_summary_carry_the_plane():
@@ -153,10 +145,10 @@ def test_decide_motion_with_a_homography(kind, expected):
     assert np.isfinite(motion.gric_plane_difference)
     if expected == "plane":
         assert motion.gric_plane_difference < 0
-        assert _rotation_error_deg(motion.plane.R, R_true) < 1.0
-        assert _angle_deg(motion.plane.t, t_true) < 5.0
+        assert rotation_error_deg(motion.plane.R, R_true) < 1.0
+        assert direction_error_deg(motion.plane.t, t_true) < 5.0
         normal = np.array([0.3, 0.0, 1.0]) / np.hypot(0.3, 1.0)
-        assert _angle_deg(motion.plane.n, normal) < 5.0
+        assert direction_error_deg(motion.plane.n, normal) < 5.0
     # without a homography the decision is the rotation-versus-general one
     plain = decide_motion(x1, x2, R, t, fit.inliers, focal)
     assert plain.model == ("rotation" if expected == "rotation" else "general")
@@ -211,5 +203,5 @@ def test_rendered_plane_with_unmodelled_distortion_gets_its_radial_term():
     result = estimate_pair(*images, pair.K1_given, pair.K2_given)
     assert result.model == "plane"
     assert result.plane_k1 == pytest.approx(pair.params["k1"], abs=0.03)
-    assert _rotation_error_deg(result.R, pair.R) < 0.3
-    assert _angle_deg(result.t, pair.t) < 1.5
+    assert rotation_error_deg(result.R, pair.R) < 0.3
+    assert direction_error_deg(result.t, pair.t) < 1.5

@@ -10,6 +10,7 @@ import pytest
 from imperfect import imperfect_render, warped_rotation_pair
 
 from ppo_cv import estimate_pair
+from ppo_cv.metrics import rotation_error_deg
 from ppo_cv.model_selection import ModelResiduals, robust_sigma, select_model
 from ppo_cv.motion_model import decide_motion
 from ppo_cv.refine import translation_sigma_deg
@@ -21,10 +22,6 @@ from ppo_cv.rotation import (
 )
 
 K_DEMO = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
-
-
-def _angle_deg(R: np.ndarray, R_true: np.ndarray) -> float:
-    return float(np.degrees(np.arccos(np.clip((np.trace(R.T @ R_true) - 1) / 2, -1, 1))))
 
 
 def _random_rotations(rng: np.random.Generator, n: int, max_angle: float = 0.5) -> np.ndarray:
@@ -62,7 +59,7 @@ def test_ransac_rotation_finds_rotation_among_outliers_and_is_seeded():
     outliers = rng.random(400) < 0.5
     b2[outliers] = _bearings(rng, int(outliers.sum()))
     fit = ransac_rotation(b1, b2, 1.5 / 800, seed=3)
-    assert _angle_deg(fit.R, R) < 0.01
+    assert rotation_error_deg(fit.R, R) < 0.01
     assert np.array_equal(fit.inliers, rotation_residuals(fit.R, b1, b2) < 1.5 / 800)
     assert fit.inliers[~outliers].mean() > 0.97 and fit.inliers[outliers].mean() < 0.02
     again = ransac_rotation(b1, b2, 1.5 / 800, seed=3)
@@ -85,7 +82,7 @@ def test_lens_fit_recovers_focal_scale_and_radial_coefficient():
     rough = ransac_rotation(x1, x2, 1e-3).R
     lens = fit_rotation_lens(x1, x2, np.ones(300, bool), rough)
     assert abs(lens.focal_scale - scale) < 1e-6 and abs(lens.k1 - k1) < 1e-5
-    assert _angle_deg(lens.R, R) < 0.01 and _angle_deg(rough, R) > 0.2
+    assert rotation_error_deg(lens.R, R) < 0.01 and rotation_error_deg(rough, R) > 0.2
     assert np.median(lens.residuals) < 1e-9
     assert lens.focal_significant
 
@@ -103,7 +100,7 @@ def test_lens_fit_with_priors_works_from_a_few_matches():
     assert not np.isfinite(without.focal_scale_sigma)  # too few matches for free lens terms
     assert np.isfinite(with_priors.focal_scale_sigma) and with_priors.focal_scale_sigma < 0.03
     assert abs(with_priors.focal_scale - 1.0) < 0.02 and abs(with_priors.k1) < 0.1
-    assert _angle_deg(with_priors.R, R) < 0.1
+    assert rotation_error_deg(with_priors.R, R) < 0.1
 
 
 def test_rotation_sigma_matches_the_spread_of_the_fitted_rotations():
@@ -122,7 +119,7 @@ def test_rotation_sigma_matches_the_spread_of_the_fitted_rotations():
         x1, x2 = (q * (1 + k1 * np.sum(q * q, 1, keepdims=True)) / scale for q in (q1, q2))
         x2 = x2 + rng.normal(0, noise, x2.shape)
         fit = fit_rotation_lens(x1, x2, np.ones(80, bool), np.eye(3), noise=noise)
-        errors.append(_angle_deg(fit.R, R))
+        errors.append(rotation_error_deg(fit.R, R))
         sigmas.append(fit.rotation_sigma_deg)
     rms = float(np.sqrt(np.mean(np.square(errors))))
     # the bound is far above what noise alone would give: the focal dominates it
@@ -208,7 +205,7 @@ def test_decide_motion_on_synthetic_matches():
     used = np.ones(len(x1), bool)
     rotation = decide_motion(x1, x2, R, np.array([1.0, 0, 0]), used, 800.0)
     # the focal is estimated with the rotation (prior 2 %): its uncertainty costs a little here
-    assert rotation.pure_rotation and _angle_deg(rotation.R, R) < 0.1
+    assert rotation.pure_rotation and rotation_error_deg(rotation.R, R) < 0.1
     assert abs(rotation.focal_scale - 1.0) < 0.01
     assert rotation.t_sigma_deg > 30.0
     R, t, x1, x2 = _two_view(rng, 0.5)
@@ -229,7 +226,7 @@ def test_warped_photo_rotation_is_flagged_with_accurate_rotation(seed):
     assert not result.translation_determined and result.num_points == 0
     # the given focal alone would leave |angle * focal_error| (up to 0.45 deg here); the fitted
     # focal of a few dozen matches recovers part of it
-    assert _angle_deg(result.R, pair.R) < 0.5
+    assert rotation_error_deg(result.R, pair.R) < 0.5
     assert result.t_sigma_deg > 30.0
     assert 0.0 < result.rotation_sigma_deg < 1.0
 
@@ -239,7 +236,7 @@ def test_imperfect_render_rotation_is_flagged(seed):
     pair = imperfect_render(seed)
     result = estimate_pair(pair.image1, pair.image2, pair.K_given)
     assert result.pure_rotation and result.model == "rotation"
-    assert _angle_deg(result.R, pair.R) < 0.5
+    assert rotation_error_deg(result.R, pair.R) < 0.5
     assert result.rotation_residual_px < 1.0
 
 
@@ -284,7 +281,7 @@ def test_data_gen_panorama_and_warped_photo_are_flagged():
     ):
         result = _data_gen_result(pair)
         assert result.pure_rotation and result.model == "rotation"
-        assert _angle_deg(result.R, pair.R) < 0.5
+        assert rotation_error_deg(result.R, pair.R) < 0.5
 
 
 @pytest.mark.parametrize("index", [0, 1, 2])
@@ -298,7 +295,7 @@ def test_tripod_pan_about_a_point_behind_the_lens_is_flagged(index):
     assert 0.005 < np.linalg.norm(pair.t) < 0.03
     result = _data_gen_result(pair)
     assert result.pure_rotation and result.model == "rotation"
-    assert _angle_deg(result.R, pair.R) < 0.3
+    assert rotation_error_deg(result.R, pair.R) < 0.3
 
 
 def test_data_gen_tiny_baseline_of_five_percent_is_not_flagged():
@@ -323,7 +320,7 @@ def test_automatic_exposure_and_vignetting_keep_the_decision():
     for pair, bound in ((warped, 0.1), (tripod, 0.2)):
         assert abs(pair.params["exposure_ev"]) > 0.7
         result = _data_gen_result(pair)
-        assert result.pure_rotation and _angle_deg(result.R, pair.R) < bound
+        assert result.pure_rotation and rotation_error_deg(result.R, pair.R) < bound
     pair = data_gen.make_pair(
         "tiny-baseline", seed=0, index=4, imperfections=lit, baseline_ratio=0.02
     )
@@ -367,7 +364,7 @@ def test_the_flag_does_not_rest_on_a_loosely_refined_essential_matrix(monkeypatc
     after = _data_gen_result(pair)
     assert after.general_residual_px < 0.6 * before.general_residual_px
     assert after.gric_difference > before.gric_difference
-    assert after.pure_rotation and _angle_deg(after.R, pair.R) < 0.3
+    assert after.pure_rotation and rotation_error_deg(after.R, pair.R) < 0.3
 
 
 def test_t_sigma_over_the_tiny_baseline_sweep():

@@ -7,19 +7,16 @@ import pytest
 
 from ppo_cv import estimate_pair
 from ppo_cv.export import result_to_dict
+from ppo_cv.metrics import direction_error_deg, rotation_error_deg
 from ppo_cv.plane import undistort_division
 from ppo_cv.refine import K1_MIN, refine_pose, refine_pose_radial
 
+
+def _direction_deg(t, t_true):
+    return direction_error_deg(t, t_true, signed=False)
+
+
 FOCAL = 1000.0
-
-
-def _angle_deg(R: np.ndarray, R_true: np.ndarray) -> float:
-    return float(np.degrees(np.arccos(np.clip((np.trace(R.T @ R_true) - 1) / 2, -1, 1))))
-
-
-def _direction_deg(t: np.ndarray, t_true: np.ndarray) -> float:
-    cos = abs(t @ t_true) / (np.linalg.norm(t) * np.linalg.norm(t_true))
-    return float(np.degrees(np.arccos(min(cos, 1.0))))
 
 
 def _distort_division(q: np.ndarray, k1: float) -> np.ndarray:
@@ -52,7 +49,7 @@ def test_distortion_nobody_gave_is_recovered_and_the_pose_improves():
     fitted = refine_pose_radial(R0, t0, x1, x2, inliers, scale=1.0 / FOCAL)
     assert fitted.k1 == pytest.approx(0.08, abs=0.01)
     assert abs(fitted.k1) > 3 * fitted.k1_sigma
-    assert _angle_deg(fitted.R, R) < 0.5 * _angle_deg(R0, R)
+    assert rotation_error_deg(fitted.R, R) < 0.5 * rotation_error_deg(R0, R)
     assert _direction_deg(fitted.t, t) < 0.5 * _direction_deg(t0, t)
     np.testing.assert_allclose(
         undistort_division(_distort_division(x1, 0.08), 0.08)[:, :2], x1[:, :2], atol=1e-12
@@ -81,7 +78,7 @@ def test_imperfect_render_reports_its_radial_term_and_a_better_pose():
     result = estimate_pair(image1, image2, pair.K1_given, pair.K2_given)
     assert result.model == "general"
     assert result.radial_k1 == pytest.approx(pair.params["k1"], abs=0.03)
-    assert _angle_deg(result.R, pair.R) < 0.1
+    assert rotation_error_deg(result.R, pair.R) < 0.1
     assert _direction_deg(result.t, pair.t) < 0.5
     assert result_to_dict(result)["radial_k1"] == result.radial_k1
     from ppo_cv.cli.pair import _summary

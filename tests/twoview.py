@@ -5,6 +5,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from ppo_cv.metrics import direction_error_deg as angle_between_deg  # noqa: F401
+from ppo_cv.metrics import rotation_error_deg as rotation_angle_deg  # noqa: F401
+
 
 def skew(v):
     """The cross-product matrix ``[v]x``."""
@@ -51,19 +54,6 @@ def make_scene(rng, n, R, t, K1, K2=None, noise_px=0.0, depth=(4.0, 12.0)):
     p1 = project(K1, X) + rng.normal(0, noise_px, (n, 2)) * (noise_px > 0)
     p2 = project(K2, X @ R.T + t) + rng.normal(0, noise_px, (n, 2)) * (noise_px > 0)
     return X, p1, p2
-
-
-def rotation_angle_deg(Ra, Rb):
-    """Angle of ``Ra^T Rb`` in degrees."""
-    c = np.clip((np.trace(Ra.T @ Rb) - 1) / 2, -1, 1)
-    return float(np.degrees(np.arccos(c)))
-
-
-def angle_between_deg(a, b):
-    """Angle between two vectors in degrees."""
-    a, b = np.ravel(a), np.ravel(b)
-    c = np.clip(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)), -1, 1)
-    return float(np.degrees(np.arccos(c)))
 
 
 def pycolmap_relative_pose(camera1, points1, camera2, points2):

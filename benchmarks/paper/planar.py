@@ -48,6 +48,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from ppo_cv.data_gen import paper_protocol  # noqa: E402
+from ppo_cv.metrics import direction_error_deg, rotation_error_deg  # noqa: E402
 from ppo_cv.plane import decompose_homography, normalize_homography, select_plane_pose  # noqa: E402
 
 __all__ = ["planar_protocol", "choose_all", "run_grid", "main"]
@@ -96,9 +97,7 @@ def planar_protocol(
 
 def _errors(cand, R, t) -> np.ndarray:
     """Rotation plus translation-direction error (deg) of each candidate against the truth."""
-    cos_R = (np.einsum("kij,ij->k", cand.R, R) - 1.0) / 2.0
-    cos_t = cand.t @ (t / np.linalg.norm(t))
-    return np.degrees(np.arccos(np.clip(cos_R, -1, 1)) + np.arccos(np.clip(cos_t, -1, 1)))
+    return rotation_error_deg(cand.R, R) + direction_error_deg(cand.t, t)
 
 
 def _nearest(cand, R, t) -> int:

@@ -23,6 +23,7 @@ import numpy as np
 
 from ppo_cv import ppo
 from ppo_cv.data_gen import paper_protocol
+from ppo_cv.metrics import direction_error_deg
 
 __all__ = [
     "CellResult",
@@ -101,10 +102,7 @@ def rotation_discrepancy_deg(R_true: np.ndarray, R_est: np.ndarray) -> np.ndarra
 
 def translation_discrepancy_deg(t_true: np.ndarray, t_est: np.ndarray) -> np.ndarray:
     """Eq. 81: angle between the true and estimated translation, degrees; shapes (..., 3)."""
-    cos = (t_true * t_est).sum(-1) / (
-        np.linalg.norm(t_true, axis=-1) * np.linalg.norm(t_est, axis=-1)
-    )
-    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    return direction_error_deg(t_est, t_true)
 
 
 def rmse(values: np.ndarray) -> float:

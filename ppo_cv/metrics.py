@@ -1,0 +1,97 @@
+"""Angular errors of an estimated relative pose against a reference.
+
+The rotation error is the angle of the rotation that takes one estimate to the other, the
+geodesic distance on SO(3):
+
+    e_R = arccos((trace(R^T R_ref) - 1) / 2).
+
+The translation of a two-view pose is a direction only (the essential matrix fixes its scale
+never, and its sign only with the cheirality or PPO choice), so its error is the angle between
+two directions,
+
+    e_t = arccos(t . t_ref / (|t| |t_ref|)),
+
+or, with ``signed=False``, between the two lines, ``arccos |t . t_ref| / (|t| |t_ref|)``: the
+measure of two-view benchmarks that score the essential matrix rather than the pose. Both clip
+the cosine to [-1, 1] so that rounding never yields NaN, and both take stacks of poses.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+__all__ = ["rotation_error_deg", "direction_error_deg"]
+
+
+def _as_stack(value: ArrayLike, tail: tuple[int, ...], name: str) -> np.ndarray:
+    array = np.asarray(value, dtype=np.float64)
+    if tail == (3,) and array.shape == (3, 1):
+        array = array[:, 0]
+    if array.shape[array.ndim - len(tail) :] != tail:
+        shape = ", ".join(map(str, tail))
+        raise ValueError(f"{name} must have shape (..., {shape}), got {array.shape}")
+    return array
+
+
+def rotation_error_deg(R: ArrayLike, R_ref: ArrayLike) -> float | np.ndarray:
+    """Angle of ``R^T R_ref`` in degrees, in [0, 180].
+
+    Parameters
+    ----------
+    R, R_ref : array_like, shape (3, 3) or (..., 3, 3)
+        Rotation matrices; stacks broadcast against each other.
+
+    Returns
+    -------
+    float or ndarray
+        A float for two single rotations, else an array of the broadcast stack shape.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> c, s = np.cos(np.radians(10.0)), np.sin(np.radians(10.0))
+    >>> R = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+    >>> round(rotation_error_deg(R, np.eye(3)), 6)
+    10.0
+    """
+    R, R_ref = _as_stack(R, (3, 3), "R"), _as_stack(R_ref, (3, 3), "R_ref")
+    cosine = (np.einsum("...ij,...ij->...", R, R_ref) - 1.0) / 2.0
+    angle = np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
+    return float(angle) if np.ndim(angle) == 0 else angle
+
+
+def direction_error_deg(
+    t: ArrayLike, t_ref: ArrayLike, *, signed: bool = True
+) -> float | np.ndarray:
+    """Angle between two directions (``signed``) or between their lines, in degrees.
+
+    Parameters
+    ----------
+    t, t_ref : array_like, shape (3,), (3, 1) or (..., 3)
+        Non-zero vectors of any length (OpenCV's column vector too); stacks broadcast against
+        each other.
+    signed : bool
+        False: the angle between the lines, ``t`` and ``-t`` alike (at most 90).
+
+    Returns
+    -------
+    float or ndarray
+        NaN where either vector is zero.
+
+    Examples
+    --------
+    >>> direction_error_deg([1.0, 0.0, 0.0], [-1.0, 0.0, 0.0])
+    180.0
+    >>> direction_error_deg([1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], signed=False)
+    0.0
+    """
+    t, t_ref = _as_stack(t, (3,), "t"), _as_stack(t_ref, (3,), "t_ref")
+    norms = np.linalg.norm(t, axis=-1) * np.linalg.norm(t_ref, axis=-1)
+    dot = np.einsum("...i,...i->...", t, t_ref)
+    if not signed:
+        dot = np.abs(dot)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        cosine = np.where(norms > 0, dot / np.where(norms > 0, norms, 1.0), np.nan)
+    angle = np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
+    return float(angle) if np.ndim(angle) == 0 else angle

@@ -1,0 +1,54 @@
+"""Angular pose errors of ppo_cv.metrics against OpenCV's angle-axis and known angles."""
+
+import cv2
+import numpy as np
+import pytest
+
+from ppo_cv.metrics import direction_error_deg, rotation_error_deg
+
+
+def _random_rotations(count: int, seed: int = 0) -> np.ndarray:
+    vectors = np.random.default_rng(seed).normal(size=(count, 3))
+    return np.stack([cv2.Rodrigues(v)[0] for v in vectors])
+
+
+def test_rotation_error_is_the_angle_of_the_relative_rotation_opencv_reports():
+    Ra, Rb = _random_rotations(20, seed=1), _random_rotations(20, seed=2)
+    pairs = zip(Ra, Rb, strict=True)
+    expected = [np.degrees(np.linalg.norm(cv2.Rodrigues(a.T @ b)[0])) for a, b in pairs]
+    np.testing.assert_allclose(rotation_error_deg(Ra, Rb), expected, atol=1e-6)
+    assert rotation_error_deg(Ra[0], Rb[0]) == pytest.approx(expected[0], abs=1e-6)
+    assert isinstance(rotation_error_deg(Ra[0], Rb[0]), float)
+
+
+def test_rotation_error_of_identical_and_opposite_rotations_stays_finite():
+    R = _random_rotations(1)[0]
+    half_turn = np.diag([1.0, -1.0, -1.0])
+    assert rotation_error_deg(R, R * (1 + 1e-15)) == pytest.approx(0.0, abs=1e-5)
+    assert rotation_error_deg(R, R @ half_turn) == pytest.approx(180.0, abs=1e-5)
+
+
+def test_direction_error_signed_and_between_lines():
+    t, t_ref = np.array([1.0, 0.0, 0.0]), np.array([-2.0, 2.0, 0.0])
+    assert direction_error_deg(t, t_ref) == pytest.approx(135.0)
+    assert direction_error_deg(t, t_ref, signed=False) == pytest.approx(45.0)
+    assert direction_error_deg(t.reshape(3, 1), t_ref) == pytest.approx(135.0)
+    stacked = direction_error_deg(np.stack([t, -t]), t_ref, signed=False)
+    np.testing.assert_allclose(stacked, [45.0, 45.0])
+
+
+def test_direction_error_of_a_zero_vector_is_nan():
+    assert np.isnan(direction_error_deg(np.zeros(3), [0.0, 0.0, 1.0]))
+
+
+@pytest.mark.parametrize(
+    ("function", "a", "b"),
+    [
+        (rotation_error_deg, np.eye(2), np.eye(2)),
+        (rotation_error_deg, np.eye(3), np.zeros(9)),
+        (direction_error_deg, np.zeros(2), np.ones(3)),
+    ],
+)
+def test_wrong_shapes_are_named(function, a, b):
+    with pytest.raises(ValueError, match="must have shape"):
+        function(a, b)
