@@ -29,6 +29,7 @@ __all__ = [
     "MAX_PIXELS_ENV",
     "as_image",
     "check_regular_file",
+    "decoded_transposed",
     "image_size",
     "load_image",
 ]
@@ -95,6 +96,24 @@ def image_size(path: str | os.PathLike) -> tuple[int, int] | None:
         return (2**31 - 1, 1)  # beyond Pillow's own hard limit: larger than any we accept
     except Exception:  # not a format Pillow knows: OpenCV may still read it
         return None
+
+
+def decoded_transposed(path: str | os.PathLike, width: int, height: int) -> bool:
+    """Whether :func:`load_image` shows a file stored as ``width x height`` pixels turned by a
+    quarter (EXIF orientation 5-8: a camera held upright stores its pixels sideways, and
+    OpenCV decodes them upright). Decides by the aspect of a decode at 1/8 scale; False for
+    square images, unreadable files and files above the pixel limit.
+    """
+    import cv2
+
+    if width == height or width * height > _max_pixels(None):
+        return False
+    data = np.fromfile(os.fspath(path), dtype=np.uint8)
+    shown = cv2.imdecode(data, cv2.IMREAD_REDUCED_GRAYSCALE_8) if data.size else None
+    if shown is None:
+        return False
+    aspect = shown.shape[1] / shown.shape[0]
+    return abs(aspect - height / width) < abs(aspect - width / height)
 
 
 def load_image(path: str | os.PathLike, max_pixels: int | None = None) -> np.ndarray:

@@ -218,6 +218,22 @@ def test_exif_absent_gives_default_guess(tmp_path):
     np.testing.assert_allclose(camera.K, [[768, 0, 320], [0, 768, 240], [0, 0, 1]])
 
 
+def test_exif_camera_of_a_photo_stored_sideways_is_that_of_the_upright_image(tmp_path):
+    from PIL import Image
+
+    path = tmp_path / "portrait.jpg"
+    exif = Image.Exif()
+    exif[0x010F], exif[0x0110], exif[0x0112] = "Maker", "Model", 8  # turn 90 deg to show
+    exif.get_ifd(0x8769)[0xA405] = 36
+    Image.fromarray(np.zeros((480, 640, 3), np.uint8)).save(path, exif=exif)
+    assert cv2.imread(str(path)).shape[:2] == (640, 480)
+    camera, from_exif = camera_from_exif(path)
+    assert from_exif
+    np.testing.assert_allclose(camera.K[:2, 2], [240.0, 320.0])
+    expected = 36.0 / np.hypot(36.0, 24.0) * np.hypot(640.0, 480.0)
+    np.testing.assert_allclose(np.diag(camera.K)[:2], expected, rtol=1e-3)
+
+
 def test_exif_focal_length_is_used(tmp_path):
     from PIL import Image
 

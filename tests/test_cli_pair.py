@@ -148,6 +148,37 @@ def test_missing_intrinsics_fall_back_to_exif_with_a_warning():
     assert np.allclose(json.loads(result.stdout)["K1"][0][0], 768.0)
 
 
+def _phone_jpeg(source, path, orientation: int) -> None:
+    """The demo frame as a phone stores it: pixels turned a quarter when ``orientation`` is 6
+    (shown upright by turning them back), a 28 mm equivalent focal length."""
+    from PIL import Image
+
+    image = Image.open(source).convert("RGB")
+    if orientation == 6:
+        image = image.transpose(Image.Transpose.ROTATE_90)
+    exif = Image.Exif()
+    exif[0x010F], exif[0x0110], exif[0x0112] = "Maker", "Model", orientation
+    exif.get_ifd(0x8769)[0xA405] = 28
+    image.save(path, quality=95, exif=exif.tobytes())
+
+
+def test_exif_orientation_gives_the_camera_of_the_upright_image(tmp_path):
+    runs = {}
+    for orientation in (1, 6):
+        paths = [tmp_path / f"{orientation}_{k}.jpg" for k in (1, 2)]
+        for source, path in zip((DEMO1, DEMO2), paths, strict=True):
+            _phone_jpeg(source, path, orientation)
+        result = runner.invoke(app, ["pair", *map(str, paths), "--json"])
+        assert result.exit_code == 0, result.output
+        runs[orientation] = json.loads(result.stdout)
+    assert cv2.imread(str(tmp_path / "6_1.jpg")).shape == (480, 640, 3)
+    upright, turned = runs[1], runs[6]
+    np.testing.assert_allclose(turned["K1"], upright["K1"])
+    np.testing.assert_allclose(np.array(turned["K1"])[:2, 2], [320.0, 240.0])
+    check_demo_pose(turned)
+    assert rotation_error_deg(turned["R"], upright["R"]) < 0.3
+
+
 @pytest.fixture(scope="module")
 def bad_files(tmp_path_factory):
     root = tmp_path_factory.mktemp("bad")
