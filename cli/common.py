@@ -153,11 +153,25 @@ def image_size(path: str | os.PathLike) -> tuple[int, int] | None:
         return None
 
 
+TURNED_CENTRE_TOLERANCE = 0.02
+"""Distance, as a fraction of the larger image side, within which a principal point counts as
+the centre of the image turned a quarter (:func:`implausible_intrinsics`)."""
+
+
+def _at_turned_centre(cx: float, cy: float, width: int, height: int) -> bool:
+    tolerance = TURNED_CENTRE_TOLERANCE * max(width, height)
+    turned = math.hypot(cx - height / 2, cy - width / 2)
+    centre = math.hypot(cx - width / 2, cy - height / 2)
+    return turned <= tolerance < centre - turned
+
+
 def implausible_intrinsics(K, size: tuple[int, int] | None, name: str = "--K") -> str | None:
     """A warning when ``K`` does not fit an image of ``size`` (width, height), else None.
 
     Plausible: focal lengths within 0.1 to 10 times the larger image side and the principal
-    point inside the image.
+    point inside the image, and not at the centre of the image turned a quarter (a camera
+    matrix of the stored pixels of a photo that its EXIF orientation shows upright), within
+    :data:`TURNED_CENTRE_TOLERANCE` of the larger side and closer to it than to the centre.
     """
     if size is None:
         return None
@@ -169,6 +183,11 @@ def implausible_intrinsics(K, size: tuple[int, int] | None, name: str = "--K") -
         problems.append(f"focal length fx={fx:g} fy={fy:g} px is outside 0.1..10 x {side} px")
     if not (0.0 <= cx <= width and 0.0 <= cy <= height):
         problems.append(f"principal point ({cx:g}, {cy:g}) is outside the {width}x{height} image")
+    elif _at_turned_centre(cx, cy, width, height):
+        problems.append(
+            f"principal point ({cx:g}, {cy:g}) is the centre of a {height}x{width} image: a "
+            "camera for the pixels as stored, where the EXIF orientation turns the image upright?"
+        )
     if not problems:
         return None
     return f"{name} looks implausible for a {width}x{height} image: " + "; ".join(problems)

@@ -336,6 +336,19 @@ def test_implausible_intrinsics_warn():
     assert "principal point (-400, 247.6) is outside the 640x480 image" in warnings[0]
 
 
+def test_camera_of_the_image_turned_a_quarter_is_named():
+    from ppo_cv.cli.common import implausible_intrinsics
+
+    warning = implausible_intrinsics([[525, 0, 239.5], [0, 525, 319.5], [0, 0, 1]], (640, 480))
+    assert warning is not None and "is the centre of a 480x640 image" in warning
+    for K in (
+        [[525, 0, 319.5], [0, 525, 239.5], [0, 0, 1]],
+        [[525, 0, 250], [0, 525, 250], [0, 0, 1]],
+    ):
+        assert implausible_intrinsics(K, (640, 480)) is None
+    assert implausible_intrinsics([[525, 0, 251], [0, 525, 250], [0, 0, 1]], (500, 501)) is None
+
+
 # --- the helpers behind it, in process ------------------------------------------------------
 
 
