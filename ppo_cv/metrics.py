@@ -91,7 +91,6 @@ def direction_error_deg(
     dot = np.einsum("...i,...i->...", t, t_ref)
     if not signed:
         dot = np.abs(dot)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cosine = np.where(norms > 0, dot / np.where(norms > 0, norms, 1.0), np.nan)
+    cosine = np.where(norms > 0, dot / np.where(norms > 0, norms, 1.0), np.nan)
     angle = np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
     return float(angle) if np.ndim(angle) == 0 else angle

@@ -5,10 +5,11 @@ from __future__ import annotations
 import numpy as np
 import pycolmap
 import pytest
-from twoview import angle_between_deg, pycolmap_relative_pose, rotation_angle_deg
+from twoview import pycolmap_relative_pose
 
 import ppo_cv
 from ppo_cv import colmap
+from ppo_cv.metrics import direction_error_deg, rotation_error_deg
 
 Config = pycolmap.TwoViewGeometryConfiguration
 K = np.array([[500.0, 0.0, 320.0], [0.0, 480.0, 240.0], [0.0, 0.0, 1.0]])
@@ -97,11 +98,11 @@ def test_pycolmap_relative_pose_and_ppo_pick_the_same_pose(camera):
     t_gt = np.array([1.0, 0.15, 0.2]) / np.linalg.norm([1.0, 0.15, 0.2])
     p1, p2 = scene(1, R_gt, t_gt)
     R_c, t_c, found = pycolmap_relative_pose(camera, p1, camera, p2)
-    assert rotation_angle_deg(R_c, R_gt) < 0.5 and angle_between_deg(t_c, t_gt) < 2.0
+    assert rotation_error_deg(R_c, R_gt) < 0.5 and direction_error_deg(t_c, t_gt) < 2.0
     E = np.cross(np.eye(3), t_c) @ R_c  # [t]_x R, pycolmap's x2^T E x1 = 0
     result = ppo_cv.recover_pose(E, p1, p2, K, mask=found["inlier_mask"])
-    assert rotation_angle_deg(result.R, R_c) < 1e-4
-    assert angle_between_deg(result.t, t_c) < 1e-4
+    assert rotation_error_deg(result.R, R_c) < 1e-4
+    assert direction_error_deg(result.t, t_c) < 1e-4
     assert not result.pure_rotation
 
 
@@ -141,7 +142,7 @@ def test_pure_rotation_where_relative_pose_reports_a_translation(camera):
     E = np.cross(np.eye(3), t_c) @ R_c
     result = ppo_cv.recover_pose(E, p1, p2, K, mask=found["inlier_mask"])
     assert result.pure_rotation
-    assert rotation_angle_deg(result.R, R_gt) < 1.0
+    assert rotation_error_deg(result.R, R_gt) < 1.0
     geometry = colmap.two_view_geometry_from_pose(result, E)
     assert geometry.config == Config.PANORAMIC
     assert geometry.tri_angle == 0.0
@@ -161,7 +162,7 @@ def test_estimate_two_view_geometry_against_pycolmap(camera, pure):
     np.testing.assert_array_equal(ours.geometry.inlier_matches.shape[1], 2)
     R, t = colmap.pose_from_rigid3d(ours.geometry.cam2_from_cam1)
     R_c, t_c = colmap.pose_from_rigid3d(theirs.cam2_from_cam1)
-    assert rotation_angle_deg(R, R_gt) < 1.0 and rotation_angle_deg(R, R_c) < 1.0
+    assert rotation_error_deg(R, R_gt) < 1.0 and rotation_error_deg(R, R_c) < 1.0
     if pure:
         assert ours.pose.pure_rotation
         assert ours.geometry.config == Config.PANORAMIC
@@ -169,7 +170,7 @@ def test_estimate_two_view_geometry_against_pycolmap(camera, pure):
     else:
         assert not ours.pose.pure_rotation
         assert ours.geometry.config == Config.CALIBRATED == theirs.config
-        assert angle_between_deg(t, t_gt) < 2.0 and angle_between_deg(t, t_c) < 2.0
+        assert direction_error_deg(t, t_gt) < 2.0 and direction_error_deg(t, t_c) < 2.0
         assert ours.geometry.tri_angle == pytest.approx(theirs.tri_angle, rel=0.1)
 
 
@@ -193,7 +194,7 @@ def test_recover_pose_from_geometry_undistorts_by_the_camera_model():
     # Without E (an uncalibrated verification) the five-point solver supplies one.
     geometry.E = np.zeros((3, 3))
     result = colmap.recover_pose_from_geometry(geometry, camera, p1, camera, p2)
-    assert rotation_angle_deg(result.R, R_gt) < 1e-3 and angle_between_deg(result.t, t_gt) < 1e-2
+    assert rotation_error_deg(result.R, R_gt) < 1e-3 and direction_error_deg(result.t, t_gt) < 1e-2
 
 
 def test_estimate_two_view_geometry_without_enough_matches(camera):

@@ -8,12 +8,13 @@ import cv2
 import numpy as np
 import pycolmap
 import pytest
-from twoview import angle_between_deg, pycolmap_relative_pose, rotation_angle_deg
+from twoview import pycolmap_relative_pose
 
 import ppo_cv
 from ppo_cv import colmap
 from ppo_cv.data_gen import make_pair
 from ppo_cv.features import detect_features, match_features
+from ppo_cv.metrics import direction_error_deg, rotation_error_deg
 
 Config = pycolmap.TwoViewGeometryConfiguration
 SIZE = (480, 360)
@@ -66,8 +67,8 @@ def test_rendered_general_motion_agrees_with_pycolmap_and_truth(general_pair):
     R, t = colmap.pose_from_rigid3d(ours.geometry.cam2_from_cam1)
     R_c, t_c = colmap.pose_from_rigid3d(theirs.cam2_from_cam1)
     # Same essential matrix and inliers: PPO and cheirality must pick the same candidate.
-    assert rotation_angle_deg(R, R_c) < 0.1 and angle_between_deg(t, t_c) < 0.5
-    assert rotation_angle_deg(R, pair.R) < 0.3 and angle_between_deg(t, pair.t) < 2.0
+    assert rotation_error_deg(R, R_c) < 0.1 and direction_error_deg(t, t_c) < 0.5
+    assert rotation_error_deg(R, pair.R) < 0.3 and direction_error_deg(t, pair.t) < 2.0
 
 
 def test_rendered_general_motion_from_relative_pose_essential(general_pair):
@@ -78,8 +79,9 @@ def test_rendered_general_motion_from_relative_pose_essential(general_pair):
     E = np.cross(np.eye(3), t_c) @ R_c
     result = ppo_cv.recover_pose(E, points1, points2, pair.K1, pair.K2, mask=found["inlier_mask"])
     assert not result.pure_rotation
-    assert rotation_angle_deg(result.R, R_c) < 1e-4 and angle_between_deg(result.t, t_c) < 1e-4
-    assert rotation_angle_deg(result.R, pair.R) < 1.0 and angle_between_deg(result.t, pair.t) < 5.0
+    assert rotation_error_deg(result.R, R_c) < 1e-4 and direction_error_deg(result.t, t_c) < 1e-4
+    assert rotation_error_deg(result.R, pair.R) < 1.0
+    assert direction_error_deg(result.t, pair.t) < 5.0
 
 
 def test_rendered_pure_rotation(rotation_pair):
@@ -91,7 +93,7 @@ def test_rendered_pure_rotation(rotation_pair):
     assert ours.geometry.config == Config.PANORAMIC
     R, t = colmap.pose_from_rigid3d(ours.geometry.cam2_from_cam1)
     assert not np.any(t)
-    assert rotation_angle_deg(R, pair.R) < 0.3
+    assert rotation_error_deg(R, pair.R) < 0.3
     # pycolmap's five-point solver reports a unit baseline with no sign that it is noise;
     # PPO on its essential matrix keeps the rotation and flags the pure rotation.
     points1, points2 = keypoints1[matches[:, 0]], keypoints2[matches[:, 1]]
@@ -100,7 +102,7 @@ def test_rendered_pure_rotation(rotation_pair):
     E = np.cross(np.eye(3), t_c) @ R_c
     result = ppo_cv.recover_pose(E, points1, points2, pair.K1, pair.K2, mask=found["inlier_mask"])
     assert result.pure_rotation
-    assert rotation_angle_deg(result.R, pair.R) < 1.0
+    assert rotation_error_deg(result.R, pair.R) < 1.0
 
 
 FREIBURG_PAIRS = [
@@ -139,10 +141,10 @@ def test_freiburg_pairs_against_pycolmap(freiburg):
         assert ours.success, (name1, name2)
         R, t = colmap.pose_from_rigid3d(ours.geometry.cam2_from_cam1)
         assert not ours.pose.pure_rotation
-        ours_ok += rotation_angle_deg(R, R_gt) < 3.0 and angle_between_deg(t, t_gt) < 6.0
+        ours_ok += rotation_error_deg(R, R_gt) < 3.0 and direction_error_deg(t, t_gt) < 6.0
         if theirs is not None and theirs.config == Config.CALIBRATED:
             R_c, t_c = colmap.pose_from_rigid3d(theirs.cam2_from_cam1)
-            agree += rotation_angle_deg(R, R_c) < 1.0 and angle_between_deg(t, t_c) < 3.0
+            agree += rotation_error_deg(R, R_c) < 1.0 and direction_error_deg(t, t_c) < 3.0
     assert ours_ok == len(FREIBURG_PAIRS)
     assert agree >= 5
 
@@ -159,4 +161,4 @@ def test_freiburg_short_baseline_pair(freiburg):
     assert not ours.pose.pure_rotation
     assert ours.pose.pri > 2 * ours.pose.pri_threshold
     R, t = colmap.pose_from_rigid3d(ours.geometry.cam2_from_cam1)
-    assert rotation_angle_deg(R, R_gt) < 0.5 and angle_between_deg(t, t_gt) < 3.0
+    assert rotation_error_deg(R, R_gt) < 0.5 and direction_error_deg(t, t_gt) < 3.0

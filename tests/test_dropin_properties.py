@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
-from twoview import make_scene, random_rotation, rotation_angle_deg, skew
+from twoview import make_scene, random_rotation, skew
 
 import ppo_cv
+from ppo_cv.metrics import rotation_error_deg
 
 OPENCV_RECOVER_POSE = cv2.recoverPose
 K = np.array([[700.0, 0.0, 320.0], [0.0, 690.0, 240.0], [0.0, 0.0, 1.0]])
@@ -72,7 +73,7 @@ def test_same_pose_and_mask_as_opencv_where_it_is_right(
     x1, x2 = _shape(p1, shape, dtype), _shape(p2, shape, dtype)
     retval, R_out, t_out, mask_out = ppo_cv.recoverPose(E, x1, x2, K, mask=mask)
     assert R_out.shape == (3, 3) and t_out.shape == (3, 1) and mask_out.shape == (n, 1)
-    assert rotation_angle_deg(R_out, R) < 1e-3  # right even for a pure rotation
+    assert rotation_error_deg(R_out, R) < 1e-3  # right even for a pure rotation
     assert retval == np.count_nonzero(mask_out)
     if mask is not None:
         assert not np.any(mask_out.ravel()[mask.ravel() == 0])

@@ -14,11 +14,11 @@ import cv2
 import numpy as np
 import pytest
 from twoview import pan_matches
-from twoview import rotation_angle_deg as _angle
 
 from ppo_cv import PairOptions, data_gen, estimate_pair
 from ppo_cv.cli.pair import _lens_lines
 from ppo_cv.export import result_to_dict
+from ppo_cv.metrics import rotation_error_deg
 from ppo_cv.photometric import refine_rotation_photometric
 from ppo_cv.rotation import (
     FOCAL_RATIO_BOUND,
@@ -51,11 +51,11 @@ def test_lens_fit_absorbs_focal_lengths_given_one_percent_apart():
         x1, x2, used, R, noise=noise, focal_ratio_prior=sigma, focal_ratio_mean=mean
     )
     assert np.median(held.residuals) * focal > 0.5  # a zoom no rotation explains
-    assert _angle(held.R, R) > 0.1
+    assert rotation_error_deg(held.R, R) > 0.1
     assert np.median(freed.residuals) * focal < 0.02
     assert freed.focal_ratio == pytest.approx(1.01, abs=2e-4)
     assert freed.focal_scale2 == pytest.approx(freed.focal_scale * 1.01, abs=3e-4)
-    assert _angle(freed.R, R) < 0.005
+    assert rotation_error_deg(freed.R, R) < 0.005
     assert held.focal_ratio == 1.0
 
 
@@ -99,7 +99,7 @@ def test_pure_rotation_with_focal_lengths_given_per_photo_is_flagged(per_photo_p
     given = pair.K2_given[0, 0] / pair.K1_given[0, 0]
     assert abs(given - 1.0) > 0.005  # the two views were told focal lengths 0.5 % apart or more
     assert result.pure_rotation and not result.translation_determined
-    assert _angle(result.R, pair.R) < 0.1
+    assert rotation_error_deg(result.R, pair.R) < 0.1
     true_ratio = pair.params["view_factors"][1] / pair.params["view_factors"][0]
     assert result.focal_ratio == pytest.approx(true_ratio, abs=0.002)
     record = json.loads(json.dumps(result_to_dict(result)))
@@ -158,7 +158,7 @@ def test_translation_with_focal_lengths_given_per_photo_stays_general():
     result = estimate_pair(*_bgr(pair), pair.K1_given, pair.K2_given)
     assert pair.K1_given[0, 0] != pair.K2_given[0, 0]
     assert not result.pure_rotation and result.model == "general"
-    assert _angle(result.R, pair.R) < 1.0
+    assert rotation_error_deg(result.R, pair.R) < 1.0
     assert _lens_lines(result) == []
 
 

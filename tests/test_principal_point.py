@@ -13,11 +13,11 @@ import cv2
 import numpy as np
 import pytest
 from twoview import pan_matches
-from twoview import rotation_angle_deg as _angle
 
 from ppo_cv import PairOptions, data_gen, estimate_pair
 from ppo_cv.camera import principal_point_is_centre
 from ppo_cv.export import result_to_dict
+from ppo_cv.metrics import rotation_error_deg
 from ppo_cv.rotation import PRINCIPAL_BOUND, fit_rotation_lens
 
 WIDTH, HEIGHT = 640, 480
@@ -45,8 +45,8 @@ def test_lens_fit_finds_the_principal_point_a_centred_guess_missed():
     assert np.median(kept.residuals) * focal > 0.2  # the centre alone leaves a pattern
     assert np.median(moved.residuals) * focal < 0.02
     assert np.allclose(moved.principal_offset * focal, (8.0, -5.0), atol=0.3)
-    assert _angle(moved.R, R) < 0.005
-    assert _angle(kept.R, R) > 0.05
+    assert rotation_error_deg(moved.R, R) < 0.005
+    assert rotation_error_deg(kept.R, R) > 0.05
     assert np.array_equal(kept.principal_offset, np.zeros(2))
 
 
@@ -90,7 +90,7 @@ def test_an_offset_is_dropped_only_where_the_matches_place_it_beyond_the_bound(n
                             principal_prior=prior)  # fmt: skip
     if kept:
         assert 9.6 < fit.principal_offset[1] * focal < 11.0
-        assert _angle(fit.R, R) < 0.01
+        assert rotation_error_deg(fit.R, R) < 0.01
         assert np.median(fit.residuals) * focal < 0.05
     else:
         assert np.array_equal(fit.principal_offset, np.zeros(2))
@@ -106,7 +106,7 @@ def test_a_translation_whose_offset_would_pass_only_across_stays_general():
     result = _run(pair, photometric=False)
     assert not result.pure_rotation
     assert result.gric_difference > 0.1
-    assert _angle(result.R, pair.R) < 1.0
+    assert rotation_error_deg(result.R, pair.R) < 1.0
 
 
 STITCHED = data_gen.Imperfections(
@@ -131,7 +131,7 @@ def test_a_narrow_pan_whose_principal_point_lies_near_the_bound_is_flagged(make,
     assert 1.7 < np.max(np.abs(true_offset)) < 2.0
     result = _run(pair)
     assert result.pure_rotation and result.gric_difference < -0.3
-    assert _angle(result.R, pair.R) < bound
+    assert rotation_error_deg(result.R, pair.R) < bound
     matches_only = _run(pair, photometric=False)
     fitted = np.abs(matches_only.principal_offset_px) / (0.01 * np.array([w, h]))
     assert matches_only.pure_rotation and np.max(fitted) > PRINCIPAL_BOUND
@@ -169,7 +169,7 @@ def test_warped_pans_with_a_centred_principal_point_are_flagged(index):
     assert not np.allclose(pair.K1[:2, 2], pair.K1_given[:2, 2], atol=1.0)
     result = _run(pair)
     assert result.pure_rotation
-    assert _angle(result.R, pair.R) < 0.15
+    assert rotation_error_deg(result.R, pair.R) < 0.15
     # in a narrow field the offset is nearly a rotation: the prior, not the matches, holds it
     assert 1.0 < np.linalg.norm(result.principal_offset_px) < 0.03 * max(w, h)
     kept = _run(pair, principal_point="given", photometric=False)

@@ -5,9 +5,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from twoview import angle_between_deg, make_scene, random_rotation, rotation_angle_deg
+from twoview import make_scene, random_rotation
 
 import ppo_cv
+from ppo_cv.metrics import direction_error_deg, rotation_error_deg
 
 OPENCV_RECOVER_POSE = cv2.recoverPose
 
@@ -33,8 +34,8 @@ def _check_pose(out, scene, reference):
     assert t.shape == (3, 1) and t.dtype == np.float64
     assert mask.shape == (len(scene["p1"]), 1) and mask.dtype == np.uint8
     assert np.linalg.norm(t) == pytest.approx(1.0)
-    assert rotation_angle_deg(R, reference[1]) < 1e-4
-    assert angle_between_deg(t, reference[2]) < 1e-4
+    assert rotation_error_deg(R, reference[1]) < 1e-4
+    assert direction_error_deg(t, reference[2]) < 1e-4
     assert abs(retval - reference[0]) <= 3
     assert retval == np.count_nonzero(mask)
 
@@ -123,11 +124,11 @@ def test_form_two_cameras_with_distortion():
     out = ppo_cv.recoverPose(p1, p2, K1, d1, K2, d2)
     retval, E, R_out, t_out, mask = out
     assert E.shape == (3, 3) and mask.shape == (200, 1)
-    assert rotation_angle_deg(R_out, R) < 0.05
-    assert angle_between_deg(t_out, t) < 0.5
+    assert rotation_error_deg(R_out, R) < 0.05
+    assert direction_error_deg(t_out, t) < 0.5
     assert retval >= 190
     reference = OPENCV_RECOVER_POSE(p1, p2, K1, d1, K2, d2)
-    assert rotation_angle_deg(R_out, reference[2]) < 0.1
+    assert rotation_error_deg(R_out, reference[2]) < 0.1
     keyword = ppo_cv.recoverPose(
         points1=p1,
         points2=p2,
@@ -139,7 +140,7 @@ def test_form_two_cameras_with_distortion():
         prob=0.999,
         threshold=1.0,
     )
-    assert rotation_angle_deg(keyword[2], R) < 0.05
+    assert rotation_error_deg(keyword[2], R) < 0.05
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
@@ -175,7 +176,7 @@ def test_output_buffers_are_filled_in_place(scene):
     R_buffer, t_buffer = np.zeros((3, 3)), np.zeros((3, 1))
     out = ppo_cv.recoverPose(scene["E"], scene["p1"], scene["p2"], scene["K"], R_buffer, t_buffer)
     assert out[1] is R_buffer and out[2] is t_buffer
-    assert rotation_angle_deg(R_buffer, scene["R"]) < 1.0
+    assert rotation_error_deg(R_buffer, scene["R"]) < 1.0
 
 
 def test_install_uninstall_and_context_manager(scene):
@@ -199,8 +200,8 @@ def test_install_uninstall_and_context_manager(scene):
 def test_installed_form_with_points_does_not_recurse(scene):
     with ppo_cv.installed():
         out = cv2.recoverPose(scene["p1"], scene["p2"], scene["K"], None, scene["K"], None)
-    assert rotation_angle_deg(out[2], scene["R"]) < 1.0
-    assert angle_between_deg(out[3], scene["t"]) < 5.0
+    assert rotation_error_deg(out[2], scene["R"]) < 1.0
+    assert direction_error_deg(out[3], scene["t"]) < 5.0
 
 
 def test_many_points_and_normalized_equivalence():
@@ -212,7 +213,7 @@ def test_many_points_and_normalized_equivalence():
     E = np.cross(np.eye(3), t).T @ R  # [t]x R
     out = ppo_cv.recoverPose(E, p1, p2)
     assert out[0] >= 0.99 * 20000
-    assert rotation_angle_deg(out[1], R) < 1e-6 and angle_between_deg(out[2], t) < 1e-6
+    assert rotation_error_deg(out[1], R) < 1e-6 and direction_error_deg(out[2], t) < 1e-6
 
 
 def test_form_with_points_keeps_the_rotation_and_the_mask_contract_for_pure_rotation():
@@ -221,7 +222,7 @@ def test_form_with_points_keeps_the_rotation_and_the_mask_contract_for_pure_rota
     R = random_rotation(rng, 15.0)
     _, p1, p2 = make_scene(rng, 200, R, np.zeros(3), K, noise_px=0.5)
     retval, E, R_out, t_out, mask = ppo_cv.recoverPose(p1, p2, K, None, K, None)
-    assert rotation_angle_deg(R_out, R) < 1.0
+    assert rotation_error_deg(R_out, R) < 1.0
     x1 = cv2.undistortPoints(p1.reshape(-1, 1, 2), K, None).reshape(-1, 2)
     x2 = cv2.undistortPoints(p2.reshape(-1, 1, 2), K, None).reshape(-1, 2)
     m1 = ppo_cv.ppo.same_side_scores(x1, x2, R_out, t_out.ravel())

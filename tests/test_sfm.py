@@ -9,13 +9,13 @@ from pathlib import Path
 import numpy as np
 import pycolmap
 import pytest
-from twoview import angle_between_deg, rotation_angle_deg
 from typer.testing import CliRunner
 
 import ppo_cv
 from ppo_cv import colmap, sfm
 from ppo_cv.cli.main import app
 from ppo_cv.data_gen import read_pairs, relative_gt_from_poses, render_tripod_then_move
+from ppo_cv.metrics import direction_error_deg, rotation_error_deg
 
 ROOT = Path(__file__).resolve().parents[1]
 FREIBURG_K = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
@@ -85,7 +85,7 @@ def test_score_pairs_on_a_synthesized_database(tmp_path):
             assert pair.rejection.startswith("no pose (DEGENERATE") and pair.score == 0.0
             continue
         R, t = colmap.relative_pose(reconstruction, pair.image_id1, pair.image_id2)
-        assert rotation_angle_deg(pair.R, R) < 1e-4 and angle_between_deg(pair.t, t) < 1e-4
+        assert rotation_error_deg(pair.R, R) < 1e-4 and direction_error_deg(pair.t, t) < 1e-4
         assert pair.num_inliers == pair.num_matches
         assert not pair.pure_rotation and pair.pri > 0.1
 
@@ -140,9 +140,9 @@ def test_pair_poses_match_ground_truth(tripod, tripod_pairs):
     rotation_errors, translation_errors = [], []
     for pair in tripod_pairs:
         R_gt, t_gt = gt_pose(gt, pair.name1, pair.name2)
-        rotation_errors.append(rotation_angle_deg(pair.R, R_gt))
+        rotation_errors.append(rotation_error_deg(pair.R, R_gt))
         if pair.accepted:
-            translation_errors.append(angle_between_deg(pair.t, t_gt))
+            translation_errors.append(direction_error_deg(pair.t, t_gt))
     assert max(rotation_errors) < 3.0 and np.median(rotation_errors) < 0.3
     assert max(translation_errors) < 10.0 and np.median(translation_errors) < 2.0
 
@@ -293,5 +293,5 @@ def test_score_pairs_scores_a_planar_pair_with_its_homography_pose(tmp_path):
     assert score.model == "plane" and not score.pure_rotation
     assert score.accepted and score.score > 0 and score.tri_angle > 1.0
     R, t = (pair.R, pair.t) if score.name1 == "a.png" else (pair.R.T, -pair.R.T @ pair.t)
-    assert rotation_angle_deg(score.R, R) < 0.2
-    assert angle_between_deg(score.t, t) < 0.5
+    assert rotation_error_deg(score.R, R) < 0.2
+    assert direction_error_deg(score.t, t) < 0.5

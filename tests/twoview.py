@@ -5,9 +5,6 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from ppo_cv.metrics import direction_error_deg as angle_between_deg  # noqa: F401
-from ppo_cv.metrics import rotation_error_deg as rotation_angle_deg  # noqa: F401
-
 
 def skew(v):
     """The cross-product matrix ``[v]x``."""
