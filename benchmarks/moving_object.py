@@ -12,7 +12,7 @@ of real texture is pasted (the centre of image 1 of warped pair ``index + 7``, s
 content), covering ``area`` of the image, in the overlap of the two views; in view 2 it lands
 where the rotation takes it plus ``shift`` pixels to the right: an object that moved.
 
-Run ``python benchmarks/moving_object.py`` (about 2 minutes on 2 cores); it prints a markdown
+Run ``python benchmarks/moving_object.py`` (about 30 s on 2 cores); it prints a markdown
 table: for each patch size and shift, how many pairs ppo_cv flags, the median rotation error of
 the flagged pairs, and the median GRIC difference (``PairResult.gric_difference``, below 0 the
 rotation wins).
