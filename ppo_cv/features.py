@@ -211,11 +211,15 @@ def _two_nearest_dense(d1: np.ndarray, d2: np.ndarray, block: int = 2048):
     for start in range(0, n1, block):
         stop = min(start + block, n1)
         dist = sq1[start:stop, None] + sq2[None, :] - 2.0 * (d1[start:stop] @ d2.T)
-        two = np.argpartition(dist, 1, axis=1)[:, :2]
-        pair = np.take_along_axis(dist, two, axis=1)
-        order = np.argsort(pair, axis=1)
-        index12[start:stop] = np.take_along_axis(two, order, axis=1)
-        dist12[start:stop] = np.sqrt(np.maximum(np.take_along_axis(pair, order, axis=1), 0))
+        block_rows = np.arange(stop - start)
+        first = np.argmin(dist, axis=1)  # two row minima: far faster than a partition
+        nearest = dist[block_rows, first]
+        dist[block_rows, first] = np.inf
+        second = np.argmin(dist, axis=1)
+        pair = np.column_stack([nearest, dist[block_rows, second]])
+        dist[block_rows, first] = nearest
+        index12[start:stop] = np.column_stack([first, second])
+        dist12[start:stop] = np.sqrt(np.maximum(pair, 0))
         rows = np.argmin(dist, axis=0)
         column_best = dist[rows, np.arange(dist.shape[1])]
         better = column_best < best21
