@@ -20,6 +20,7 @@ __all__ = [
     "huber_weights",
     "levenberg_marquardt",
     "rotation_increment",
+    "rotation_increments",
     "tangent_basis",
 ]
 
@@ -35,11 +36,20 @@ def tangent_basis(n: np.ndarray) -> np.ndarray:
 def rotation_increment(w: np.ndarray) -> np.ndarray:
     """``exp([w]x)`` (3, 3): the rotation by ``|w|`` radians about ``w / |w|`` (Rodrigues), to
     first order ``I + [w]x`` below 1e-12 rad."""
-    theta = float(np.linalg.norm(w))
-    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-    if theta < 1e-12:
-        return np.eye(3) + K
-    return np.eye(3) + np.sin(theta) / theta * K + (1.0 - np.cos(theta)) / theta**2 * K @ K
+    return rotation_increments(np.asarray(w, dtype=np.float64)[None])[0]
+
+
+def rotation_increments(w: np.ndarray) -> np.ndarray:
+    """:func:`rotation_increment` of each row of ``w`` (P, 3), shape (P, 3, 3)."""
+    theta = np.linalg.norm(w, axis=1)[:, None, None]
+    K = np.zeros((len(w), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+    K -= np.swapaxes(K, 1, 2)
+    small = theta < 1e-12
+    safe = np.where(small, 1.0, theta)
+    a = np.where(small, 1.0, np.sin(safe) / safe)
+    b = np.where(small, 0.0, (1.0 - np.cos(safe)) / safe**2)
+    return np.eye(3) + a * K + b * (K @ K)
 
 
 def huber_weights(size: np.ndarray, scale: float) -> np.ndarray:

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .lsq import gauss_newton_covariance, rotation_increment
+from .lsq import gauss_newton_covariance, rotation_increment, rotation_increments
 from .ppo import rotation_from_rays
 
 __all__ = [
@@ -331,15 +331,19 @@ def ransac_rotation(
     return RotationFit(R=R, inliers=residuals < threshold, residuals=residuals, trials=trials)
 
 
-def _lens_map(
-    xy: np.ndarray, scale: float, k1: float, offset=(0.0, 0.0), iterations: int = 6
-) -> np.ndarray:
-    """True normalised points ``q`` (N, 2) of given points ``x``: ``s x = p + q (1 + k1 |q|^2)``."""
+def _lens_map(xy: np.ndarray, scale, k1, offset=(0.0, 0.0), iterations: int = 6) -> np.ndarray:
+    """True normalised points ``q`` (..., N, 2) of given points ``x``:
+    ``s x = p + q (1 + k1 |q|^2)``; ``scale``, ``k1`` and ``offset`` broadcast against ``q``."""
     distorted = scale * xy - np.asarray(offset, dtype=np.float64)
     q = distorted
     for _ in range(iterations):
-        q = distorted / (1.0 + k1 * np.sum(q * q, axis=1, keepdims=True))
+        q = distorted / (1.0 + k1 * _squared_norms(q))
     return q
+
+
+def _squared_norms(q: np.ndarray) -> np.ndarray:
+    """``|q|^2`` of 2-vectors (..., 2), shape (..., 1)."""
+    return q[..., :1] * q[..., :1] + q[..., 1:] * q[..., 1:]
 
 
 def correct_points(
@@ -353,17 +357,24 @@ def correct_points(
     return np.column_stack([q, np.ones(len(q))])
 
 
-def _lens_transfer(params: np.ndarray, R0: np.ndarray, xy1: np.ndarray, xy2: np.ndarray):
-    """Residual vectors (N, 2) in view 2, given normalised units: ``x2`` minus the transfer of
-    ``x1`` (``q1`` rotated, distorted and scaled back by view 2's focal scale)."""
-    R = rotation_increment(params[:3]) @ R0
-    scale, k1, offset, ratio = 1.0 + params[3], params[4], params[5:7], 1.0 + params[7]
+def _lens_transfers(params: np.ndarray, R0: np.ndarray, xy1: np.ndarray, xy2: np.ndarray):
+    """Residual vectors (P, N, 2) in view 2, given normalised units, of each row of ``params``
+    (P, 8): ``x2`` minus the transfer of ``x1`` (``q1`` rotated, distorted and scaled back by
+    view 2's focal scale)."""
+    R = rotation_increments(params[:, :3]) @ R0
+    scale, k1 = 1.0 + params[:, 3, None, None], params[:, 4, None, None]
+    offset, ratio = params[:, None, 5:7], 1.0 + params[:, 7, None, None]
     q1 = _lens_map(xy1, scale, k1, offset)
-    ray = np.column_stack([q1, np.ones(len(q1))]) @ R.T
-    z = np.where(np.abs(ray[:, 2]) > 1e-9, ray[:, 2], 1e-9)
-    q2 = ray[:, :2] / z[:, None]
-    distorted = q2 * (1.0 + k1 * np.sum(q2 * q2, axis=1, keepdims=True)) + offset
+    ray = q1 @ np.swapaxes(R[:, :, :2], 1, 2) + R[:, None, :, 2]
+    z = np.where(np.abs(ray[..., 2:]) > 1e-9, ray[..., 2:], 1e-9)
+    q2 = ray[..., :2] / z
+    distorted = q2 * (1.0 + k1 * _squared_norms(q2)) + offset
     return distorted / (scale * ratio) - xy2
+
+
+def _lens_transfer(params: np.ndarray, R0: np.ndarray, xy1: np.ndarray, xy2: np.ndarray):
+    """:func:`_lens_transfers` of one parameter vector (8,): residual vectors (N, 2)."""
+    return _lens_transfers(np.asarray(params, dtype=np.float64)[None], R0, xy1, xy2)[0]
 
 
 def _lens_params(
@@ -592,19 +603,25 @@ def fit_rotation_lens(
     )
 
 
-def _objective(params, problem) -> np.ndarray:
-    """Transfer residuals (2I,) followed by the prior rows of the fitted parameters."""
+def _objectives(params: np.ndarray, problem) -> np.ndarray:
+    """Transfer residuals (P, 2I) followed by the prior rows of the fitted parameters, for each
+    row of ``params`` (P, 8)."""
     R0, a, b, prior, free, centre = problem
-    transfer = _lens_transfer(params, R0, a, b).ravel()
-    return np.concatenate([transfer, (prior * (params - centre))[free]])
+    transfer = _lens_transfers(params, R0, a, b).reshape(len(params), -1)
+    return np.concatenate([transfer, (prior * (params - centre))[:, free]], axis=1)
+
+
+def _objective(params, problem) -> np.ndarray:
+    """:func:`_objectives` of one parameter vector."""
+    return _objectives(params[None], problem)[0]
 
 
 def _jacobian(params, problem, step: float = 1e-6):
-    """Residual and its forward-difference Jacobian in the free parameters of ``problem``."""
-    residual = _objective(params, problem)
+    """Residual and its forward-difference Jacobian in the free parameters of ``problem``,
+    every perturbation evaluated in one batch."""
     deltas = np.eye(_NPARAMS)[problem[4]] * step
-    columns = [(_objective(params + d, problem) - residual) / step for d in deltas]
-    return residual, np.stack(columns, axis=1)
+    values = _objectives(params + np.vstack([np.zeros(_NPARAMS), deltas]), problem)
+    return values[0], ((values[1:] - values[0]) / step).T
 
 
 def _sigmas(params, problem) -> tuple[float, float]:

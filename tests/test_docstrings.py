@@ -7,7 +7,13 @@ import importlib
 
 import pytest
 
-MODULES = ["ppo_cv.ppo", "ppo_cv.pose", "ppo_cv.opencv_compat"]
+MODULES = [
+    "ppo_cv.ppo",
+    "ppo_cv.pose",
+    "ppo_cv.opencv_compat",
+    "ppo_cv.rotation",
+    "ppo_cv.motion_model",
+]
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -59,3 +59,15 @@ def test_rotation_increment_is_rodrigues():
 
     for w in (np.array([0.3, -0.2, 0.5]), np.array([1e-9, 0.0, 0.0]), np.zeros(3)):
         np.testing.assert_allclose(rotation_increment(w), cv2.Rodrigues(w)[0], atol=1e-12)
+
+
+def test_rotation_increments_are_rodrigues_row_by_row():
+    import cv2
+
+    from ppo_cv.lsq import rotation_increments
+
+    w = np.vstack([np.random.default_rng(2).normal(0, 0.8, (20, 3)), [1e-13, 0, 0], np.zeros(3)])
+    stacked = rotation_increments(w)
+    assert stacked.shape == (22, 3, 3)
+    for row, R in zip(w, stacked, strict=True):
+        np.testing.assert_allclose(R, cv2.Rodrigues(row)[0], atol=1e-12)
