@@ -47,7 +47,7 @@ from .features import FEATURE_TYPES, Features, detect_features, match_features_s
 from .homography import estimate_homography
 from .images import as_image as _as_image
 from .images import load_image
-from .motion_model import decide_motion, with_rotation
+from .motion_model import decide_motion, plane_ransac_trials, with_rotation
 from .photometric import refine_rotation_photometric
 from .plane import refine_planar_pose, undistort_division
 from .pose import _recover_normalized
@@ -638,8 +638,11 @@ def estimate_pair(
     homography = None
     if options.plane:
         ranked = options.ordered_sampling and np.count_nonzero(inliers) >= MIN_MATCHES
-        fit_on = inliers if ranked else None
-        homography = estimate_homography(x1, x2, focal, **ransac, fit_on=fit_on)
+        fit_on, plane_ransac = (inliers if ranked else None), dict(ransac)
+        if ranked:  # on the essential matrix's inliers a plane is the bulk of them
+            bound = plane_ransac_trials(options.confidence)
+            plane_ransac["max_trials"] = min(options.max_trials, bound)
+        homography = estimate_homography(x1, x2, focal, **plane_ransac, fit_on=fit_on)
     lap("homography")
 
     principal_prior = _principal_prior(

@@ -426,3 +426,33 @@ def test_refinement_rejects_mismatched_used_mask():
     (R, t, n, d), y1, y2 = _distorted_plane(0, 0.0)
     with pytest.raises(ValueError, match="used must have shape"):
         refine_planar_pose(R, t / d, n, y1, y2, np.ones(3, bool))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_bounded_plane_search_finds_a_plane_holding_a_quarter_of_the_matches(seed):
+    from ppo_cv.motion_model import plane_ransac_trials
+
+    rng = np.random.default_rng(40 + seed)
+    R, t, n, d = random_plane_pose(rng)
+    clean1, X1 = plane_points(rng, n, d, 100)
+    x1, x2 = views(X1, R, t, rng, noise_px=0.3)
+    other1, other2 = (
+        np.column_stack([rng.uniform(-0.5, 0.5, (300, 2)), np.ones(300)]) for _ in "12"
+    )
+    x1, x2 = np.vstack([x1, other1]), np.vstack([x2, other2])
+    fits = [
+        estimate_homography(x1, x2, FOCAL, min_trials=1, max_trials=trials)
+        for trials in (plane_ransac_trials(0.9999), 100_000)
+    ]
+    on_plane = [fit.inliers[:100].mean() for fit in fits]
+    assert on_plane[0] > 0.7 and on_plane[0] >= on_plane[1] - 0.03
+    assert fits[0].inliers[100:].mean() < 0.02
+
+
+def test_plane_ransac_trials_refuses_a_confidence_outside_the_unit_interval():
+    from ppo_cv.motion_model import plane_ransac_trials
+
+    assert plane_ransac_trials(0.99) < plane_ransac_trials(0.9999) < 10_000
+    for bad in (0.0, 1.0, 1.5):
+        with pytest.raises(ValueError, match="confidence"):
+            plane_ransac_trials(bad)
