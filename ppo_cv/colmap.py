@@ -26,6 +26,7 @@ import pycolmap
 
 from . import ppo
 from .checks import as_camera_matrix, as_point_pair, as_rotation
+from .metrics import direction_error_deg
 from .pose import PoseResult, recover_pose
 
 __all__ = [
@@ -161,12 +162,7 @@ def triangulation_angles(points3d: np.ndarray, R: np.ndarray, t: np.ndarray) -> 
     give NaN.
     """
     center2 = -np.asarray(R).T @ np.asarray(t)
-    ray1 = points3d
-    ray2 = points3d - center2
-    cos = np.einsum("ij,ij->i", ray1, ray2) / (
-        np.linalg.norm(ray1, axis=1) * np.linalg.norm(ray2, axis=1)
-    )
-    return np.arccos(np.clip(cos, -1.0, 1.0))
+    return np.radians(direction_error_deg(points3d, points3d - center2))
 
 
 def median_tri_angle(pose: PoseResult) -> float:
