@@ -638,10 +638,11 @@ def estimate_pair(
     homography = None
     if options.plane:
         ranked = options.ordered_sampling and np.count_nonzero(inliers) >= MIN_MATCHES
-        fit_on, plane_ransac = (inliers if ranked else None), dict(ransac)
+        plane_ransac = dict(ransac)
         if ranked:  # on the essential matrix's inliers a plane is the bulk of them
             bound = plane_ransac_trials(options.confidence)
             plane_ransac["max_trials"] = min(options.max_trials, bound)
+        fit_on = inliers if ranked else None
         homography = estimate_homography(x1, x2, focal, **plane_ransac, fit_on=fit_on)
     lap("homography")
 

@@ -437,7 +437,7 @@ def test_bounded_plane_search_finds_a_plane_holding_a_quarter_of_the_matches(see
     clean1, X1 = plane_points(rng, n, d, 100)
     x1, x2 = views(X1, R, t, rng, noise_px=0.3)
     other1, other2 = (
-        np.column_stack([rng.uniform(-0.5, 0.5, (300, 2)), np.ones(300)]) for _ in "12"
+        np.column_stack([rng.uniform(-0.5, 0.5, (300, 2)), np.ones(300)]) for _ in range(2)
     )
     x1, x2 = np.vstack([x1, other1]), np.vstack([x2, other2])
     fits = [
