@@ -119,9 +119,10 @@ def imperfect_render(
 
     Narrow field (25-35 deg), one radial ``k1`` for both views, focal given off by up to
     ``focal_error``, grey-level noise 2, JPEG 75-95. The translation is sideways-dominant in a
-    random direction; the rotation is 5-20 deg of pan (pure rotation) or 2-10 deg.
+    random direction, ``|C2| = baseline_ratio`` times the median depth seen by view 1 (the
+    label of the pure-rotation flag); the rotation is 5-20 deg of pan (pure rotation) or 2-10 deg.
     """
-    from ppo_cv.data_gen.render import render_pair
+    from ppo_cv.data_gen.render import median_depth, render_pair
     from ppo_cv.data_gen.scenes import make_scene
 
     rng = np.random.default_rng([seed, 20])
@@ -135,10 +136,11 @@ def imperfect_render(
     else:
         R = _rotation(rng.uniform(2, 10) * rng.choice([-1, 1]), rng.normal(0, 2), rng.normal(0, 2))
         direction = rng.normal(size=3) * np.array([1.0, 0.5, 0.5])
-        centre = baseline_ratio * float(world.depth) * direction / np.linalg.norm(direction)
-        t = -R @ centre
     k1 = rng.uniform(*k1_range) * rng.choice([-1.0, 1.0])
     dist = np.array([k1, 0.0, 0.0, 0.0, 0.0])
+    if baseline_ratio != 0:
+        depth = median_depth(world, K, size, dist)
+        t = -R @ (baseline_ratio * depth * direction / np.linalg.norm(direction))
     pair = render_pair(
         world, K, K, R, t, size, 2, dist1=dist, dist2=dist, noise_std=2.0, seed=[seed, 21]
     )
