@@ -80,6 +80,7 @@ from .plane import PlanarPose, planar_pose
 from .refine import T_SIGMA_CAP_DEG, translation_sigma_deg
 from .robust import essential_from_pose, sampson_errors
 from .rotation import (
+    K1_PRIOR,
     LensRotationFit,
     correct_points,
     fit_rotation_lens,
@@ -451,7 +452,8 @@ def _rotation_translation(lens: LensRotationFit, x1, x2, used, t_fallback):
     pri = ppo.pure_rotation_indicator(ppo.intersection_scores(c1, c2, lens.R, t))
     # one Sampson residual carries half the squared transfer error (noise of both images)
     noise = float(np.sqrt(np.mean(lens.residuals[used] ** 2) / 4.0))
-    t_sigma = translation_sigma_deg(lens.R, t, c1, c2, np.ones(len(c1), bool), noise)
+    used_all = np.ones(len(c1), bool)
+    t_sigma = translation_sigma_deg(lens.R, t, c1, c2, used_all, noise, k1_prior=K1_PRIOR)
     return t, float(pri), float(t_sigma)
 
 

@@ -59,7 +59,7 @@ from .robust import (
     estimate_essential_ordered,
     sampson_errors,
 )
-from .rotation import PRINCIPAL_PRIOR, focal_ratio_keywords, focal_ratio_prior
+from .rotation import K1_PRIOR, PRINCIPAL_PRIOR, focal_ratio_keywords, focal_ratio_prior
 from .significance import (
     CONFIDENT_LOG10_NFA,
     DEFAULT_MAX_LOG10_NFA,
@@ -270,9 +270,12 @@ class PairResult:
         or ``"general"`` (:mod:`ppo_cv.motion_model`).
     t_sigma_deg : float
         One standard deviation of the direction of ``t`` (degrees, at most 90) from the
-        Hessian of the Sampson cost of ``E = [t]x R`` at the reported pose over its inliers
-        (:func:`ppo_cv.refine.translation_sigma_deg`), for a plane too; grows as the baseline
-        shrinks. For a pure rotation it is taken on the rotation model's rays and noise
+        Jacobian of the Sampson cost of ``E = [t]x R`` at the reported pose over its inliers,
+        less what the image noise alone puts there, the given focal length off by
+        :data:`ppo_cv.rotation.FOCAL_PRIOR` and the radial term under
+        :data:`ppo_cv.rotation.K1_PRIOR` (:func:`ppo_cv.refine.translation_sigma_deg`); grows
+        as the baseline shrinks. For a pure rotation it is taken on the rotation model's rays
+        and noise
         (:attr:`ppo_cv.motion_model.MotionDecision.t_sigma_deg`), the cap when they carry no
         information on ``t`` beyond their noise: the essential matrix's apparent confidence
         there comes from lens errors its translation absorbs.
@@ -702,7 +705,7 @@ def estimate_pair(
         points3d = ppo.analytic_points(c1, c2, R, t)
         keep = plane.inliers & np.all(np.isfinite(points3d), axis=1)
         points3d = np.where(keep[:, None], points3d, np.nan)
-        t_sigma = translation_sigma_deg(R, t, c1, c2, inliers)
+        t_sigma = translation_sigma_deg(R, t, c1, c2, inliers, k1_prior=K1_PRIOR)
     else:
         radial_k1 = 0.0
         if options.refine:
@@ -715,7 +718,8 @@ def estimate_pair(
         R, t, pri = final.R, final.t, final.pri
         keep = final.inliers & np.all(np.isfinite(final.points3d), axis=1)
         points3d = np.where(keep[:, None], final.points3d, np.nan)
-        t_sigma = translation_sigma_deg(R, t, c1, c2, inliers)
+        k1_prior = K1_PRIOR if options.refine else None
+        t_sigma = translation_sigma_deg(R, t, c1, c2, inliers, k1_prior=k1_prior)
     point_matches = np.flatnonzero(keep)
     lap("decision")
 

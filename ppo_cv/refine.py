@@ -23,11 +23,13 @@ from .lsq import (
     huber_weights,
     levenberg_marquardt,
     rotation_increment,
+    rotation_increments,
     tangent_basis,
 )
 from .plane import K1_SIGNIFICANCE, undistort_division
 from .ppo import rotation_from_rays
 from .robust import virtual_camera
+from .rotation import FOCAL_PRIOR
 
 __all__ = [
     "K1_MIN",
@@ -287,27 +289,37 @@ def translation_sigma_deg(
     x2: np.ndarray,
     inliers: np.ndarray,
     noise: float | None = None,
-    step: float = 1e-4,
+    step: float = 1e-6,
+    *,
+    focal_prior: float | None = FOCAL_PRIOR,
+    k1_prior: float | None = None,
 ) -> float:
     """One standard deviation of the direction of ``t`` (degrees) from the Sampson cost.
 
-    The pose is perturbed as ``R(w) = exp([w]_x) R`` and ``t(v) = (t + v1 u1 + v2 u2) / |.|``
-    with ``(u1, u2)`` an orthonormal basis of the tangent plane of the sphere at ``t`` (5 dof).
-    The cost is ``f = 1/2 sum_i r_i^2`` over the signed Sampson residuals ``r`` of the inliers;
-    its Hessian ``H`` (5, 5) is taken by central differences of ``f`` itself, not as the
-    Gauss-Newton ``J^T J``: ``r_i = t . m_i / d_i`` with ``m_i = R x1_i x x2_i``, so on the
-    sphere ``H`` is ``J^T J`` minus the curvature term ``sum r_i^2`` (in the ``v`` block). For a
-    pure rotation every ``m_i`` is noise, ``J^T J`` grows like ``n`` times the noise and would
-    claim a direction known to ``1 / sqrt(n)`` radians; the exact ``H`` is then a fluctuation
-    around 0. What is left of it is taken away too: noise in the matches puts
-    ``E[m_i m_i^T]`` into the ``v`` block whatever the motion (an errors-in-variables term,
-    computed per match from the noise variance), and only the rest is information a translation
-    created. For a pure rotation the corrected block is not positive and the value is the cap;
-    for a clear baseline the correction is negligible. With ``s^2`` the noise variance of one
-    residual (``|r|^2 / (I - 5)`` of the fit, or ``noise^2``) the covariance is ``s^2 H^-1``;
-    its ``v`` block (2, 2) is that of the direction of ``t`` in radians, and the value returned
-    is the square root of its largest eigenvalue, capped at :data:`T_SIGMA_CAP_DEG` (also when
-    ``H`` is not positive definite: the cost does not curve up in every direction).
+    The estimated parameters are the pose, ``R(w) = exp([w]_x) R`` and
+    ``t(v) = (t + v1 u1 + v2 u2) / |.|`` with ``(u1, u2)`` an orthonormal basis of the tangent
+    plane of the sphere at ``t``, and with ``k1_prior`` the radial term the refinement fitted,
+    ``x -> x (1 - k1 |x|^2)`` (the first order of the division model of
+    :func:`refine_pose_radial`) under a Gaussian prior. ``r`` are the signed Sampson residuals
+    of the inliers and ``J`` their Jacobian (central differences).
+
+    ``J^T J`` alone would claim for a pure rotation a direction known to ``1 / sqrt(n)``
+    radians: ``r_i = t . m_i / d_i`` with ``m_i = R x1_i x x2_i``, and there every ``m_i`` is
+    noise. That part is taken away (errors in variables): with ``G_i`` the derivative of row
+    ``i`` of ``J`` with respect to the four image coordinates of match ``i``, image noise of
+    variance ``s^2`` per coordinate puts ``s^2 sum_i G_i G_i^T`` into ``J^T J`` whatever the
+    motion. With ``I = J^T J - s^2 sum_i G_i G_i^T`` (plus ``s^2 / k1_prior^2`` on ``k1``) the
+    covariance is ``s^2 I^-1``, the cap :data:`T_SIGMA_CAP_DEG` when ``I`` is not positive
+    definite (the translation created no information beyond the noise).
+
+    The focal length is held at its given value, which is off by a few percent on real
+    photos; in a narrow field that moves ``t`` like a forward translation (0.8 degrees per
+    percent on a 28 degree field). Its error, of deviation ``focal_prior`` (``x -> (1 + e) x``
+    in both views), enters as a considered parameter (Schmidt): with ``c`` its cross
+    information with the estimated ones, ``focal_prior^2 (I^-1 c)(I^-1 c)^T`` is added to the
+    covariance. ``s^2`` is the noise variance of one residual, ``|r|^2 / (n - 5)`` of the fit or
+    ``noise^2``. The value returned is the square root of the largest eigenvalue of the
+    translation's block (2, 2), in degrees, at most the cap.
 
     Parameters
     ----------
@@ -315,7 +327,7 @@ def translation_sigma_deg(
     t : ndarray, shape (3,)
         Refined pose, ``X2 = R X1 + t``, at the minimum of the Sampson cost.
     x1, x2 : ndarray, shape (N, 3)
-        Normalised homogeneous coordinates of the matches.
+        Normalised homogeneous coordinates of the matches (undistorted by any fitted lens term).
     inliers : ndarray of bool, shape (N,)
         Matches of the cost; fewer than 6 gives the cap.
     noise : float, optional
@@ -323,7 +335,13 @@ def translation_sigma_deg(
         understate it, e.g. the rotation model's noise for a pair judged a pure rotation (the
         essential matrix's spurious translation absorbs part of the noise).
     step : float
-        Finite-difference step (radians).
+        Finite-difference step (normalised units and radians).
+    focal_prior : float or None
+        Deviation of the relative error of the given focal length
+        (:data:`ppo_cv.rotation.FOCAL_PRIOR`); None holds the focal length exact.
+    k1_prior : float or None
+        Deviation of the prior on the radial term the refinement fitted
+        (:data:`ppo_cv.rotation.K1_PRIOR`); None: no radial term was fitted.
 
     Returns
     -------
@@ -332,68 +350,103 @@ def translation_sigma_deg(
     a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
     if len(a) < 6:
         return T_SIGMA_CAP_DEG
+    a, b = a / a[:, 2:], b / b[:, 2:]
     t = np.asarray(t, float).reshape(3) / np.linalg.norm(t)
-    u1, u2 = tangent_basis(t)
-
-    def cost(p: np.ndarray) -> float:
-        tp = t + p[3] * u1 + p[4] * u2
-        r = _sampson_signed(rotation_increment(p[:3]) @ R, tp / np.linalg.norm(tp), a, b)
-        return 0.5 * float(r @ r)
-
-    r0 = _sampson_signed(R, t, a, b)
+    residuals = _calibrated_residuals(R, t)
+    r0 = residuals(np.zeros((1, _NPARAMS)), a[None], b[None])[0]
     variance = float(r0 @ r0) / (len(a) - _NPOSE) if noise is None else float(noise) ** 2
-    H = _hessian(cost, _NPOSE, step)
-    H[3:, 3:] -= _noise_information(R, t, np.column_stack([u1, u2]), a, b, variance)
-    eigenvalues, vectors = np.linalg.eigh(H)
-    if eigenvalues[0] <= 1e-12 * max(eigenvalues[-1], 1e-300):
-        return T_SIGMA_CAP_DEG
-    cov = variance * (vectors / eigenvalues) @ vectors.T
-    largest = float(np.linalg.eigvalsh(cov[3:, 3:])[-1])
-    return float(min(np.degrees(np.sqrt(max(largest, 0.0))), T_SIGMA_CAP_DEG))
+    J, noise_info = _jacobian_and_noise(residuals, a, b, step)
+    info = J.T @ J - variance * noise_info
+    estimated = [*range(_NPOSE), *([_K1] if k1_prior is not None else [])]
+    if k1_prior is not None:
+        info[_K1, _K1] += variance / k1_prior**2
+    fixed = info[estimated, _FOCAL] if focal_prior is not None else None
+    return _direction_sigma_deg(info[np.ix_(estimated, estimated)], variance, fixed, focal_prior)
 
 
 _NPOSE = 5
+_NPARAMS = 7  # pose increment (5), focal scale, k1
+_FOCAL, _K1 = 5, 6
+_TRANSLATION = slice(3, 5)
 
 
-def _noise_information(R, t, U, a, b, variance: float) -> np.ndarray:
-    """Expected part (2, 2) of the ``v`` block of ``H`` that the noise itself contributes.
+def _calibrated_residuals(R: np.ndarray, t: np.ndarray):
+    """Signed Sampson residuals (P, N) for parameter rows (P, 7) and points (P or 1, N, 3).
 
-    ``r_i = t . m_i / d_i`` with ``m_i = R a_i x b_i``, so the ``v`` block holds
-    ``sum (U^T m_i)(U^T m_i)^T / d_i^2``. Image noise of variance ``sigma^2`` per coordinate puts
-    ``E[m m^T] = sigma^2 ([Ra]_x P [Ra]_x^T + [b]_x R P R^T [b]_x^T)`` (``P = diag(1, 1, 0)``)
-    into ``m`` whatever the motion: information about ``t`` that a translation did not create.
-    For a pure rotation it is all there is; for a clear baseline it is negligible.
+    A row is (rotation increment ``w`` (3), tangent step ``v`` (2), focal scale ``s - 1``,
+    ``k1``); row ``p`` is evaluated on the points of row ``p`` (or on shared points).
     """
-    P = np.diag([1.0, 1.0, 0.0])
-    Ra = a @ R.T
-    A, B = _skew_rows(Ra), _skew_rows(b)
-    C = A @ P @ np.swapaxes(A, 1, 2) + B @ (R @ P @ R.T) @ np.swapaxes(B, 1, 2)
-    tx = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
-    E = tx @ R
-    Ea, Etb = a @ E.T, b @ E
-    d2 = np.sum(Ea[:, :2] ** 2, axis=1) + np.sum(Etb[:, :2] ** 2, axis=1)
-    weighted = np.einsum("nij,n->ij", C, 1.0 / np.maximum(d2, 1e-300))
-    return variance * U.T @ weighted @ U
+    U = tangent_basis(t)
+
+    def lens(x: np.ndarray, p: np.ndarray) -> np.ndarray:
+        r2 = x[..., 0] ** 2 + x[..., 1] ** 2
+        s = 1.0 + p[:, 5:6]
+        factor = s * (1.0 - p[:, 6:7] * s * s * r2)
+        return np.stack([x[..., 0] * factor, x[..., 1] * factor, np.ones_like(factor)], axis=-1)
+
+    def residuals(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        tp = t + p[:, 3:4] * U[0] + p[:, 4:5] * U[1]
+        tp /= np.linalg.norm(tp, axis=1, keepdims=True)
+        E = _skews(tp) @ rotation_increments(p[:, :3]) @ R
+        a1, b1 = lens(a, p), lens(b, p)
+        Ea, Etb = a1 @ np.swapaxes(E, 1, 2), b1 @ E
+        d2 = Ea[..., 0] ** 2 + Ea[..., 1] ** 2 + Etb[..., 0] ** 2 + Etb[..., 1] ** 2
+        numerator = b1[..., 0] * Ea[..., 0] + b1[..., 1] * Ea[..., 1] + Ea[..., 2]
+        return numerator / np.sqrt(np.maximum(d2, 1e-300))
+
+    return residuals
 
 
-def _skew_rows(v: np.ndarray) -> np.ndarray:
-    """Cross-product matrices (N, 3, 3) of the rows of ``v``."""
+def _skews(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrices (P, 3, 3) of the rows of ``v``."""
     S = np.zeros((len(v), 3, 3))
     S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
     return S - np.swapaxes(S, 1, 2)
 
 
-def _hessian(f, size: int, step: float) -> np.ndarray:
-    """Hessian (size, size) of a scalar function at 0 by central differences."""
-    basis = np.eye(size) * step
-    H = np.empty((size, size))
-    for j in range(size):
-        for k in range(j, size):
-            value = (
-                f(basis[j] + basis[k])
-                - f(basis[j] - basis[k])
-                - f(-basis[j] + basis[k])
-                + f(-basis[j] - basis[k])
-            ) / (4.0 * step * step)
-            H[j, k] = H[k, j] = value
-    return H
+def _jacobian_and_noise(residuals, a: np.ndarray, b: np.ndarray, step: float):
+    """Jacobian ``J`` (N, 7) at 0 and ``sum_i G_i G_i^T`` (7, 7), by central differences.
+
+    ``G_i`` (7, 4), the derivative of row ``i`` of ``J`` with respect to the image coordinates
+    ``(x1, y1, x2, y2)`` of match ``i`` (each moved by ``+-sqrt(step)``), is what unit image
+    noise adds to ``J^T J``. Being an expectation, the sum is estimated on at most
+    :data:`_NOISE_SAMPLE` evenly spaced matches and scaled to all of them.
+    """
+    dp = np.concatenate([np.eye(_NPARAMS), -np.eye(_NPARAMS)]) * step  # (14, 7)
+    r = residuals(dp, a[None], b[None])
+    J = ((r[:_NPARAMS] - r[_NPARAMS:]) / (2.0 * step)).T
+    sample = np.unique(np.linspace(0, len(a) - 1, min(len(a), _NOISE_SAMPLE)).astype(int))
+    h = np.sqrt(step)
+    shifts = np.zeros((8, 2, 1, 3))
+    for k, (view, axis, sign) in enumerate(np.ndindex(2, 2, 2)):
+        shifts[k, view, 0, axis] = -h if sign else h
+    points = np.repeat(np.stack([a[sample], b[sample]])[None] + shifts, len(dp), axis=0)
+    r = residuals(np.tile(dp, (8, 1)), points[:, 0], points[:, 1]).reshape(8, 2, _NPARAMS, -1)
+    jac = (r[:, 0] - r[:, 1]) / (2.0 * step)  # (8, 7, n): coordinate k, moved + (even) or -
+    G = (jac[0::2] - jac[1::2]) / (2.0 * h)  # (4, 7, n)
+    return J, np.einsum("cpn,cqn->pq", G, G) * (len(a) / len(sample))
+
+
+_NOISE_SAMPLE = 256
+
+
+def _direction_sigma_deg(
+    info: np.ndarray, variance: float, fixed: np.ndarray | None, fixed_sigma: float | None
+) -> float:
+    """Deviation (degrees) of the translation of ``variance * info^-1``, with a held parameter.
+
+    ``fixed`` (P,) is the cross information of the estimated parameters with one held at its
+    given value, whose error has deviation ``fixed_sigma``: it moves the estimate by
+    ``S = -info^-1 fixed`` per unit, adding ``fixed_sigma^2 S S^T`` to the covariance (a
+    considered parameter, Schmidt). The cap when ``info`` is not positive definite.
+    """
+    w, V = np.linalg.eigh(info)
+    if w[0] <= 1e-12 * max(abs(w[-1]), 1e-300):
+        return T_SIGMA_CAP_DEG
+    inverse = (V / w) @ V.T
+    cov = variance * inverse
+    if fixed is not None:
+        S = inverse @ fixed
+        cov = cov + fixed_sigma**2 * np.outer(S, S)
+    largest = float(np.linalg.eigvalsh(cov[_TRANSLATION, _TRANSLATION])[-1])
+    return float(min(np.degrees(np.sqrt(max(largest, 0.0))), T_SIGMA_CAP_DEG))
