@@ -77,10 +77,8 @@ from .model_selection import (
     select_model,
 )
 from .plane import PlanarPose, planar_pose
-from .refine import T_SIGMA_CAP_DEG, translation_sigma_deg
 from .robust import essential_from_pose, sampson_errors
 from .rotation import (
-    K1_PRIOR,
     LensRotationFit,
     correct_points,
     fit_rotation_lens,
@@ -194,13 +192,6 @@ class MotionDecision:
         PRI (eq. 84) of ``(R, t)`` over ``rotation_inliers``.
     pri_general : float
         PRI of the essential matrix's pose over its inliers.
-    t_sigma_deg : float
-        Direction uncertainty of ``t`` under the rotation model
-        (:func:`ppo_cv.refine.translation_sigma_deg` at ``(R, t)`` on the rays with the lens
-        terms removed, over ``rotation_inliers``, the noise that of the rotation's residuals);
-        the value to report when the pair is a pure rotation. Where the matches carry no
-        information on ``t`` beyond their noise (every ``t`` fits a pure rotation) it is the
-        cap, :data:`ppo_cv.refine.T_SIGMA_CAP_DEG`.
     focal_scale, k1 : float
         Lens terms of the rotation-only fit.
     focal_ratio : float
@@ -234,7 +225,6 @@ class MotionDecision:
     rotation_inliers: np.ndarray
     pri: float
     pri_general: float
-    t_sigma_deg: float
     focal_scale: float
     k1: float
     selection: ModelSelection
@@ -388,7 +378,7 @@ def decide_motion(
         ]
     )
     R_rot = lens.R
-    t_rot, pri, t_sigma = _rotation_translation(lens, x1, x2, rotation_inliers, t)
+    t_rot, pri = _rotation_translation(lens, x1, x2, rotation_inliers, t)
     pri_general = ppo.pure_rotation_indicator(
         ppo.intersection_scores(x1[inliers], x2[inliers], R, t)
     )
@@ -426,7 +416,6 @@ def decide_motion(
         rotation_inliers=rotation_inliers,
         pri=float(pri),
         pri_general=float(pri_general),
-        t_sigma_deg=float(t_sigma),
         focal_scale=lens.focal_scale,
         k1=lens.k1,
         selection=selection,
@@ -442,19 +431,15 @@ def decide_motion(
 
 
 def _rotation_translation(lens: LensRotationFit, x1, x2, used, t_fallback):
-    """Unit ``t`` most consistent with the lens rotation over ``used``, its PRI and its
-    direction uncertainty; ``t_fallback``, inf and the cap with fewer than 5 matches."""
+    """Unit ``t`` most consistent with the lens rotation over ``used`` and its PRI;
+    ``t_fallback`` and inf with fewer than 5 matches."""
     if np.count_nonzero(used) < 5:
-        return np.asarray(t_fallback, dtype=np.float64), float("inf"), T_SIGMA_CAP_DEG
+        return np.asarray(t_fallback, dtype=np.float64), float("inf")
     c1 = correct_points(x1[used], lens.focal_scale, lens.k1, lens.principal_offset)
     c2 = correct_points(x2[used], lens.focal_scale2, lens.k1, lens.principal_offset)
     t = translation_for_rotation(lens.R, c1, c2)
     pri = ppo.pure_rotation_indicator(ppo.intersection_scores(c1, c2, lens.R, t))
-    # one Sampson residual carries half the squared transfer error (noise of both images)
-    noise = float(np.sqrt(np.mean(lens.residuals[used] ** 2) / 4.0))
-    used_all = np.ones(len(c1), bool)
-    t_sigma = translation_sigma_deg(lens.R, t, c1, c2, used_all, noise, k1_prior=K1_PRIOR)
-    return t, float(pri), float(t_sigma)
+    return t, float(pri)
 
 
 def with_rotation(
@@ -471,8 +456,8 @@ def with_rotation(
     For a pair judged a pure rotation whose rotation was refitted on other evidence
     (:func:`ppo_cv.photometric.refine_rotation_photometric`): ``R``, the lens terms and
     ``rotation_sigma_deg`` are ``lens``'s; the rotation inliers among the matches (transfer error
-    below :data:`TRANSFER_FACTOR` times ``threshold_px``), ``t``, PRI and ``t_sigma_deg`` are
-    recomputed under it. The model, the statistics that chose it and the plane are kept.
+    below :data:`TRANSFER_FACTOR` times ``threshold_px``), ``t`` and PRI are recomputed
+    under it. The model, the statistics that chose it and the plane are kept.
 
     Parameters
     ----------
@@ -495,14 +480,13 @@ def with_rotation(
     )
     lens = replace(lens, residuals=residuals)
     inliers = residuals < TRANSFER_FACTOR * threshold_px / focal
-    t, pri, t_sigma = _rotation_translation(lens, x1, x2, inliers, motion.t)
+    t, pri = _rotation_translation(lens, x1, x2, inliers, motion.t)
     return replace(
         motion,
         R=lens.R,
         t=t,
         rotation_inliers=inliers,
         pri=pri,
-        t_sigma_deg=t_sigma,
         focal_scale=lens.focal_scale,
         k1=lens.k1,
         rotation_sigma_deg=lens.rotation_sigma_deg,

@@ -51,7 +51,7 @@ from .motion_model import decide_motion, plane_ransac_trials, with_rotation
 from .photometric import refine_rotation_photometric
 from .plane import refine_planar_pose, undistort_division
 from .pose import _recover_normalized
-from .refine import refine_pose, refine_pose_radial, translation_sigma_deg
+from .refine import T_SIGMA_CAP_DEG, refine_pose, refine_pose_radial, translation_sigma_deg
 from .robust import (
     ROBUST_BACKENDS,
     essential_from_pose,
@@ -274,11 +274,9 @@ class PairResult:
         less what the image noise alone puts there, the given focal length off by
         :data:`ppo_cv.rotation.FOCAL_PRIOR` and the radial term under
         :data:`ppo_cv.rotation.K1_PRIOR` (:func:`ppo_cv.refine.translation_sigma_deg`); grows
-        as the baseline shrinks. For a pure rotation it is taken on the rotation model's rays
-        and noise
-        (:attr:`ppo_cv.motion_model.MotionDecision.t_sigma_deg`), the cap when they carry no
-        information on ``t`` beyond their noise: the essential matrix's apparent confidence
-        there comes from lens errors its translation absorbs.
+        as the baseline shrinks. For a pure rotation it is the cap: the decision is that the
+        matches do not determine ``t``, and the essential matrix's apparent confidence there
+        comes from lens errors its translation absorbs.
     rotation_sigma_deg : float
         For a pure rotation: root-mean-square angle error (degrees) of ``R``, from the
         covariance of the rotation-only fit with its focal scale and radial term under their
@@ -690,7 +688,7 @@ def estimate_pair(
     if motion.pure_rotation:
         R, t, pri = motion.R, motion.t, motion.pri
         inliers = motion.rotation_inliers
-        t_sigma = motion.t_sigma_deg
+        t_sigma = T_SIGMA_CAP_DEG
         points3d, keep = np.full((len(matches), 3), np.nan), np.zeros(len(matches), dtype=bool)
     elif plane is not None:
         inliers = motion.homography_inliers

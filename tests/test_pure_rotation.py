@@ -207,7 +207,6 @@ def test_decide_motion_on_synthetic_matches():
     # the focal is estimated with the rotation (prior 2 %): its uncertainty costs a little here
     assert rotation.pure_rotation and rotation_error_deg(rotation.R, R) < 0.1
     assert abs(rotation.focal_scale - 1.0) < 0.01
-    assert rotation.t_sigma_deg > 30.0
     R, t, x1, x2 = _two_view(rng, 0.5)
     general = decide_motion(x1, x2, R, t, used, 800.0)
     assert general.model == "general" and general.gric_difference > 0.5
