@@ -10,7 +10,8 @@ focal length given off by up to 3 %, a 25-35 degree field of view, JPEG):
   flagged), also at 1600x1200, where the same parallax is 2.5 times as many pixels; the
   ``tiny-baseline`` preset at baseline / depth 0.02 and 0.05 and ``general`` (translating);
 - ``harness ...``: the harsher pairs of ``tests/imperfect.py`` (480x360, rotations of 5-20
-  degrees, the freiburg frames warped by ``K R K^-1``, renders at baseline / depth 0.02); and
+  degrees, the freiburg frames warped by ``K R K^-1``, renders at baseline / median depth
+  0.02); and
   the warped frames with the focal given exactly, turns of 15-25 degrees: there the truth is
   also the rotation fitted under the given focal, as for real tripod panoramas whose truth is a
   rotation homography fitted with the given focal;
@@ -228,30 +229,47 @@ tables) lands in that closer minimum on its own and is called general at +0.02.
 
 What is left. On data_gen's `tiny-baseline` the flag switches between baseline / depth 0.001
 and 0.02; of the 86 translating renders at 0.02 and above told one focal length for both views,
-two are flagged (2.3 %; with focal lengths given per photo, 4 of 28 more, above, and 2 of 14
-as stitched): `tiny-baseline` index 8 told the centre (below), and harness render seed 103 at
-0.02: the lens terms absorb most of its
-parallax (fitted focal 3.4 % off for a true 0.7 %) and what remains is of the size of the
-feature noise, inside the range of true rotations (median residual ratio rotation / essential
-1.85, up to 2.7 for true rotations): no mismatch floor that keeps every rotation flagged
-refuses it (at 0.5 its GRIC difference is still -0.29 while 4 of the 24 harness rotations turn
-positive). Its tracks do show the parallax: their residual noise under the rotation is 0.18 px,
-against 0.02-0.07 px on the 6 harness rotations and 10 tripod pans (8 and 15 cm) measured the
-same way; the decision does not use them. Two tests on the tracks were measured and not
-adopted. Their noise: a veto at a fraction of a pixel depends on the image quality, and on real
-tripod panoramas the rotation homography leaves 0.5-1.7 px on the matches. Their lens: seed
-103's tracks need a focal scale 5.2 % off (true 0.7 %), just beyond the 5 % box of
-`ppo_cv.rotation.fit_rotation_lens`, while a 15 cm tripod pan needs 4.2 % on its tracks and
-4.8 % on its matches, so the box does not separate them; nor does the agreement of the tracks'
-focal with the matches' (3.8 of the matches' standard deviations apart on another 15 cm pan).
+three are flagged (3.5 %; with focal lengths given per photo, 4 of 28 more, above, and 2 of 14
+as stitched): `tiny-baseline` index 8 told the centre (above), and harness renders seeds 103
+and 105 at 0.02. The harness renders measured their baseline against the scene's nominal depth,
+0.6 of its back wall, so that their "0.02" was 0.012 of the median depth the views see, inside
+the range where either answer is acceptable; they now measure it as `data_gen` does (one of the
+eight was flagged at 0.012, two are at 0.02; over seeds 100-123, 2 of 24). Both are rooms of
+clutter before a back wall. On seed 103 the rotation's lens fit
+ends at the edge of its box (focal scale 1.05) and leaves 14 of the essential matrix's 245
+inliers beyond its bound (GRIC difference -0.12). On seed 105 it leaves 135 of 586 (23 %) beyond
+it: the near clutter. GRIC caps what a match beyond the bound costs, so a rotation that leaves
+a minority of the matches far off pays a fixed price for each while saving a dimension on all,
+and it wins while that minority stays under about 30 %; with the baseline at 0.012 the same
+pair's clutter lay within the bound, dragged the fit and was called general (+0.34). Two tests
+were measured over every set of this report and not adopted. A bound on that share: true
+rotations with 10-20 inliers leave 2-5 of them off (shares up to 0.3), and in
+`benchmarks/moving_object.py` the flagged pairs leave up to 43 % off, the moved object (a
+translating pair at 0.012 cannot be told from a rotation with a moved object from two views
+either). A lens fit at the edge of its box: 3 of the 12 false flags of these sets end there
+(`tiny-baseline` index 6 with focal lengths per photo, at 0.05 and at 0.02 with the ratio
+held, and harness seed 103), no
+flagged exact rotation or tripod pan does, but 15 cm tripod pans, the 1600x1200 pans and the
+narrow overlaps reach 4.8-4.9 % against the box's 5 %, with no margin for a real stitcher's
+focal. At 0.012 seed 103 was flagged too, its parallax of the size of the feature noise once the
+lens terms absorbed most of it (median residual ratio rotation / essential 1.85, up to 2.7 for
+true rotations: no mismatch floor that keeps every rotation flagged refused it); its
+intensity-aligned tracks showed the parallax (residual noise 0.18 px under the rotation against
+0.02-0.07 px on the harness rotations and tripod pans), but a veto at a fraction of a pixel
+depends on the image quality, and real tripod panoramas leave 0.5-1.7 px on their matches.
 
-`t_sigma_deg` is computed for every pair from the Hessian of the Sampson cost (not J^T J, which
-would claim 1 / sqrt(n) for any pose) less the information the image noise alone puts into the
-translation block (errors in variables, `ppo_cv.refine.translation_sigma_deg`): at the refined
-essential matrix for a translating pair, and for a flagged pair at the kept rotation and its most
-consistent `t` on the rays with the lens terms removed, the noise that of the rotation's
-residuals. There no information is left and the value is the cap, 90 deg (a one-sigma cone of
-90 deg covers the whole hemisphere cheirality leaves).
+`t_sigma_deg` is computed for every pair from the Jacobian of the Sampson cost over the
+inliers less what the image noise alone puts into it (errors in variables: for a pure rotation
+every epipolar residual is noise, and `J^T J` alone would claim a direction known to
+1 / sqrt(n)), with the radial term the refinement fitted and the given focal length's error
+of 2 % as a considered parameter (`ppo_cv.refine.translation_sigma_deg`), at the refined pose
+of a translating pair. A flagged pair reports the cap, 90 deg (a one-sigma cone of 90 deg
+covers the whole hemisphere cheirality leaves): the decision is that its matches do not
+determine `t`. Computed on the rays of the rotation model with its lens terms removed, the
+same deviation is finite on 8 of the 42 flagged `data_gen` pure rotations, panoramas and
+8 cm tripod pans (0.3-11 deg): what the lens model leaves is structured, and an essential
+matrix reads it as a translation. How well the deviation matches the actual error of `t` on
+translating pairs: `python benchmarks/translation_sigma.py` (`docs/translation_sigma.md`).
 """
 
 
