@@ -46,7 +46,7 @@ from .atomic import atomic_directory, check_target, signals_deferred
 from .checks import as_camera_matrix, as_positive
 from .homography import estimate_homography
 from .metrics import direction_error_deg, rotation_error_deg
-from .motion_model import decide_motion
+from .motion_model import decide_motion, plane_ransac_trials
 from .pose import _recover_normalized
 from .robust import essential_from_pose
 from .rotation import focal_ratio_keywords, focal_ratio_prior
@@ -86,6 +86,8 @@ _UNUSABLE_CONFIGS = frozenset(
         pycolmap.TwoViewGeometryConfiguration.WATERMARK,
     )
 )
+_HOMOGRAPHY_CONFIDENCE = 0.9999  # of the homography search on a pair's verified matches
+
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".ppm", ".pgm")
 
 Progress = Callable[[str], None]
@@ -465,7 +467,12 @@ def _motion_decision(geometry, camera1, keypoints1, camera2, keypoints2, pose, p
     )  # fmt: skip
     focal = 0.5 * (camera1.mean_focal_length() + camera2.mean_focal_length())
     used = np.ones(len(matches), dtype=bool)
-    homography = estimate_homography(x1, x2, focal)
+    # the verified matches are the inliers of COLMAP's two-view model: a plane worth calling
+    # one is the bulk of them, as on the pipeline's essential-matrix inliers
+    trials = plane_ransac_trials(_HOMOGRAPHY_CONFIDENCE)
+    homography = estimate_homography(
+        x1, x2, focal, confidence=_HOMOGRAPHY_CONFIDENCE, max_trials=trials
+    )
     motion = decide_motion(
         x1, x2, pose.R, pose.t, used, focal, pri_threshold=pri_threshold, homography=homography,
         **focal_ratio_keywords(
