@@ -28,23 +28,20 @@ import sys
 import time
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 import ppo_cv
 from ppo_cv import PairOptions, data_gen, estimate_pair
 from ppo_cv.camera import pixels_to_normalized
+from ppo_cv.metrics import direction_error_deg
 from ppo_cv.plane import undistort_division
 from ppo_cv.refine import T_SIGMA_CAP_DEG, translation_sigma_deg
 from ppo_cv.rotation import K1_PRIOR
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from pure_rotation import FREIBURG, _freiburg_pairs, imperfect_render  # noqa: E402
-
-
-def _direction_error_deg(t: np.ndarray, t_true: np.ndarray) -> float:
-    cos = abs(float(np.ravel(t) @ t_true)) / (np.linalg.norm(t) * np.linalg.norm(t_true))
-    return float(np.degrees(np.arccos(min(cos, 1.0))))
+from pure_rotation import FREIBURG, imperfect_render  # noqa: E402
 
 
 def _focal_exact_sigma(result, K1: np.ndarray, K2: np.ndarray) -> float:
@@ -65,10 +62,9 @@ def _sets(count: int):
     """``(name, pairs)``, each pair ``(image1, image2, K1, K2, t_true)`` with BGR images."""
 
     def freiburg():
-        lines = [line.split() for line in (FREIBURG / "pairs_with_gt.txt").read_text().split("\n")]
-        truths = [np.array(f[22:38], float).reshape(4, 4)[:3, 3] for f in lines if f]
-        for (_, (i1, i2, K1, K2, _)), t in zip(_freiburg_pairs(None), truths, strict=True):
-            yield i1, i2, K1, K2, t
+        for pair in data_gen.read_pairs(FREIBURG / "pairs_with_gt.txt"):
+            i1, i2 = (cv2.imread(str(FREIBURG / "images" / pair[k])) for k in ("name1", "name2"))
+            yield i1, i2, pair["K1"], pair["K2"], pair["t"]
 
     def rendered(motion, ratio):
         for index in range(count):
@@ -108,7 +104,7 @@ def run(count: int) -> list[dict]:
             if result.pure_rotation:
                 flagged += 1
                 continue
-            errors.append(_direction_error_deg(result.t, t_true))
+            errors.append(float(direction_error_deg(result.t, t_true, signed=False)))
             sigmas.append(result.t_sigma_deg)
             exact.append(_focal_exact_sigma(result, K1, K2))
         arrays = (np.array(errors), np.array(sigmas), np.array(exact))

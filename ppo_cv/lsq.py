@@ -15,6 +15,7 @@ from collections.abc import Callable
 import numpy as np
 
 __all__ = [
+    "cross_matrices",
     "forward_jacobian",
     "gauss_newton_covariance",
     "huber_weights",
@@ -39,12 +40,17 @@ def rotation_increment(w: np.ndarray) -> np.ndarray:
     return rotation_increments(np.asarray(w, dtype=np.float64)[None])[0]
 
 
+def cross_matrices(v: np.ndarray) -> np.ndarray:
+    """``[v]_x`` (P, 3, 3) of each row of ``v`` (P, 3): ``[v]_x u = v x u``."""
+    K = np.zeros((len(v), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    return K - np.swapaxes(K, 1, 2)
+
+
 def rotation_increments(w: np.ndarray) -> np.ndarray:
     """:func:`rotation_increment` of each row of ``w`` (P, 3), shape (P, 3, 3)."""
     theta = np.linalg.norm(w, axis=1)[:, None, None]
-    K = np.zeros((len(w), 3, 3))
-    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
-    K -= np.swapaxes(K, 1, 2)
+    K = cross_matrices(w)
     small = theta < 1e-12
     safe = np.where(small, 1.0, theta)
     a = np.where(small, 1.0, np.sin(safe) / safe)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .lsq import (
+    cross_matrices,
     gauss_newton_covariance,
     huber_weights,
     levenberg_marquardt,
@@ -269,11 +270,13 @@ def fit_rotation(
 
 
 def _sampson_signed(R: np.ndarray, t: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
-    tx = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
-    E = tx @ R
-    Ex1, Etx2 = x1 @ E.T, x2 @ E
-    denominator = np.sqrt(np.sum(Ex1[:, :2] ** 2, axis=1) + np.sum(Etx2[:, :2] ** 2, axis=1))
-    return np.einsum("ij,ij->i", x2, Ex1) / np.maximum(denominator, 1e-300)
+    """Signed Sampson residuals of ``E = [t]_x R``: ``R`` (..., 3, 3), ``t`` (..., 3) and the
+    points (..., N, 3) broadcast to (..., N)."""
+    t = np.asarray(t, dtype=np.float64)
+    E = cross_matrices(t.reshape(-1, 3)).reshape(t.shape[:-1] + (3, 3)) @ R
+    Ex1, Etx2 = x1 @ np.swapaxes(E, -1, -2), x2 @ E
+    denominator = np.sqrt(np.sum(Ex1[..., :2] ** 2, axis=-1) + np.sum(Etx2[..., :2] ** 2, axis=-1))
+    return np.sum(x2 * Ex1, axis=-1) / np.maximum(denominator, 1e-300)
 
 
 T_SIGMA_CAP_DEG = 90.0
@@ -331,9 +334,8 @@ def translation_sigma_deg(
     inliers : ndarray of bool, shape (N,)
         Matches of the cost; fewer than 6 gives the cap.
     noise : float, optional
-        Standard deviation of one Sampson residual (normalised units) when the fit's own residuals
-        understate it, e.g. the rotation model's noise for a pair judged a pure rotation (the
-        essential matrix's spurious translation absorbs part of the noise).
+        Standard deviation of one Sampson residual (normalised units) when the fit's own
+        residuals understate it (a model that absorbed part of the noise).
     step : float
         Finite-difference step (normalised units and radians).
     focal_prior : float or None
@@ -387,21 +389,9 @@ def _calibrated_residuals(R: np.ndarray, t: np.ndarray):
     def residuals(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         tp = t + p[:, 3:4] * U[0] + p[:, 4:5] * U[1]
         tp /= np.linalg.norm(tp, axis=1, keepdims=True)
-        E = _skews(tp) @ rotation_increments(p[:, :3]) @ R
-        a1, b1 = lens(a, p), lens(b, p)
-        Ea, Etb = a1 @ np.swapaxes(E, 1, 2), b1 @ E
-        d2 = Ea[..., 0] ** 2 + Ea[..., 1] ** 2 + Etb[..., 0] ** 2 + Etb[..., 1] ** 2
-        numerator = b1[..., 0] * Ea[..., 0] + b1[..., 1] * Ea[..., 1] + Ea[..., 2]
-        return numerator / np.sqrt(np.maximum(d2, 1e-300))
+        return _sampson_signed(rotation_increments(p[:, :3]) @ R, tp, lens(a, p), lens(b, p))
 
     return residuals
-
-
-def _skews(v: np.ndarray) -> np.ndarray:
-    """Cross-product matrices (P, 3, 3) of the rows of ``v``."""
-    S = np.zeros((len(v), 3, 3))
-    S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
-    return S - np.swapaxes(S, 1, 2)
 
 
 def _jacobian_and_noise(residuals, a: np.ndarray, b: np.ndarray, step: float):

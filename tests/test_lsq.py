@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from ppo_cv.lsq import (
+    cross_matrices,
     forward_jacobian,
     gauss_newton_covariance,
     huber_weights,
@@ -50,6 +51,14 @@ def test_gauss_newton_covariance_of_a_line_fit():
     expected = 0.25 * np.array([[x.size, x.sum()], [x.sum(), x @ x]])
     np.testing.assert_allclose(cov @ expected, 0.25**2 * np.eye(2), atol=1e-12)
     assert gauss_newton_covariance(np.ones((200, 2)), 1.0) is None  # singular J^T J
+
+
+def test_cross_matrices_give_the_cross_product():
+    rng = np.random.default_rng(3)
+    v, u = rng.normal(size=(5, 3)), rng.normal(size=(5, 3))
+    K = cross_matrices(v)
+    assert np.allclose(K @ u[:, :, None], np.cross(v, u)[:, :, None])
+    assert np.allclose(K, -np.swapaxes(K, 1, 2))
 
 
 def test_rotation_increment_is_rodrigues():

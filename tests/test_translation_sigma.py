@@ -3,6 +3,7 @@
 import numpy as np
 
 from ppo_cv.lsq import rotation_increment
+from ppo_cv.metrics import direction_error_deg
 from ppo_cv.refine import (
     _calibrated_residuals,
     _jacobian_and_noise,
@@ -23,10 +24,6 @@ def _scene(seed: int, noise_px: float, f: float = 1500.0, n: int = 300):
     x1[:, :2] += rng.normal(0, noise_px / f, (n, 2))
     x2[:, :2] += rng.normal(0, noise_px / f, (n, 2))
     return R, t / np.linalg.norm(t), x1, x2, f
-
-
-def _angle_deg(a, b):
-    return np.degrees(np.arccos(min(1.0, abs(a @ b) / np.linalg.norm(a) / np.linalg.norm(b))))
 
 
 def test_noise_term_is_what_image_noise_adds_to_jtj():
@@ -57,7 +54,7 @@ def test_focal_length_held_off_by_three_percent_is_covered():
         y2[:, :2] *= 1.03
         used = np.ones(len(x1), bool)
         R_est, t_est = refine_pose(R, t, y1, y2, used, f)
-        error = _angle_deg(t_est, t)
+        error = direction_error_deg(t_est, t, signed=False)
         exact = translation_sigma_deg(R_est, t_est, y1, y2, used, focal_prior=None)
         sigma = translation_sigma_deg(R_est, t_est, y1, y2, used)
         within += error < 3.0 * sigma
