@@ -29,6 +29,9 @@ focal length given off by up to 3 %, a 25-35 degree field of view, JPEG):
   degrees in a 30 degree field), told everything a panorama stitcher tells (the centre as
   principal point, a focal length per photo within +-1 %, shots up to a stop apart,
   vignetting 0.35); and ``tiny-baseline`` at 0.02 told the same (translating);
+- ``... sensor noise and blur``: warped photos, 8 cm tripod pans (also at 1600x1200),
+  ``tiny-baseline`` at 0.02 and the narrow overlaps as stitched, their images noisier and
+  blurrier (:data:`NOISY`), so that the features are located about as poorly as on photos;
 - ``sweep``: ``tiny-baseline`` from 0.001 to 0.05, to see where the flag switches;
 - ``freiburg``: the 85 real translating pairs with pseudo ground truth (must not be flagged).
 
@@ -78,6 +81,10 @@ NARROW_OVERLAP = 0.6
 this report stands in for turn about 20 degrees in a 30 degree field (0.67), where the two
 shots share a third of the image."""
 NARROW_SEARCH = 200
+NOISY = {"noise_std": 6.0, "blur_sigma": 1.2}
+"""Sensor noise (grey levels) and blur (pixels) of the ``sensor noise and blur`` sets, against
+``REAL_PHOTO``'s 1 and 0.5: the essential matrix's median residual on the renders rises from
+0.05-0.08 px to 0.10-0.12 px, towards the 0.23 px of the freiburg photos."""
 """Pairs of seed 1 searched for those turning that far (about one in four does)."""
 METHODS = ("ppo_cv", "pycolmap", "opencv", "poselib")
 HELD_RATIO = PairOptions(focal_ratio="given")
@@ -211,6 +218,30 @@ rotation's residuals, parallax being smooth with depth (neighbouring residuals c
 on some exact rotations, whose lens the model misses a little, and 0.02-0.05 on some
 translating pairs).
 
+Sensor noise and blur. SIFT locates the features of `REAL_PHOTO`'s renders to a few
+hundredths of a pixel: the essential matrix leaves a median residual of 0.05-0.08 px on them,
+against 0.23 px on the freiburg photos. The `... sensor noise and blur` sets add noise of 6 grey
+levels and a blur of 1.2 px (`NOISY`: 0.10-0.12 px). GRIC divides by the noise it measures, so
+the same parallax weighs less on noisier images: 8 of 8 tripod pans at 1600x1200 are flagged
+(7 of 8 without), 14 of 14 at 640x480 and 14 of 14 narrow overlaps as stitched (13 of 14), and 2
+of 14 `tiny-baseline` pairs at 0.02 (0 of 14 without; indices 3 and 5, sideways translations
+before a back wall that the rotation explains, the clutter in front a capped minority, as
+harness seed 105 above). The warped photos lose: 10 of 14 flagged (14 of 14 without; the four
+misses have 22-118 inliers, GRIC differences +0.01 to +0.10) and 8 of 14 narrow overlaps (11 of
+14; 12-58 inliers). On narrow warped index 45 the true rotation and lens leave median residuals
+of 0.20 px along the pan and 0.10 px across it (0.13 and 0.07 without the added noise), where
+on rendered narrow pans (seed 1, indices 2 and 22, exact rotations) they leave 0.11 and 0.15:
+SIFT locates the resampled view of a warped photo worse along the direction the warp stretches
+it, and an essential matrix, whose Sampson error measures only the component across its
+epipolar lines (along the pan for the spurious translation of a rotation), absorbs that noise
+as a better fit (on index 45 its median residual is 0.064 px, a quarter of the truth's). Both
+shots of a real panorama are captured, not one resampled from the other, and the rendered pans,
+which show no such excess, stand for them here. Measured and not adopted: the noise from the
+homography's two-dimensional residuals over its inliers sees the excess (1.4-1.6 times the
+essential matrix's estimate on narrow warped indices 29 and 45, 0.4-1.1 on the other misses and
+on the 14 `tiny-baseline` pairs at 0.02), but on a translating pair without a dominant plane
+those residuals carry parallax.
+
 The noise that GRIC divides by is estimated from the essential matrix's residuals, corrected
 for the 5 parameters it fitted (`sqrt(n / (n - 5))`): without that correction an essential
 matrix that happened to fit the 20 matches of a warped pair more closely (ordered sampling
@@ -230,7 +261,7 @@ tables) lands in that closer minimum on its own and is called general at +0.02.
 What is left. On data_gen's `tiny-baseline` the flag switches between baseline / depth 0.001
 and 0.02; of the 86 translating renders at 0.02 and above told one focal length for both views,
 three are flagged (3.5 %; with focal lengths given per photo, 4 of 28 more, above, and 2 of 14
-as stitched): `tiny-baseline` index 8 told the centre (above), and harness renders seeds 103
+as stitched, and 2 of 14 with sensor noise and blur, above): `tiny-baseline` index 8 told the centre (above), and harness renders seeds 103
 and 105 at 0.02. The harness renders measured their baseline against the scene's nominal depth,
 0.6 of its back wall, so that their "0.02" was 0.012 of the median depth the views see, inside
 the range where either answer is acceptable; they now measure it as `data_gen` does (one of the
@@ -405,14 +436,14 @@ def _sets(counts: dict, have_photos: bool):
             pair = data_gen.make_warped_pair(seed=0, index=index, imperfections=imperfections)
             yield f"index {index}", _as_item(pair)
 
-    def narrow(n, kind):
+    def narrow(n, kind, imperfections=stitched):
         found = 0
         for index in range(NARROW_SEARCH):
             if kind == "warp":
-                pair = data_gen.make_warped_pair(seed=1, index=index, imperfections=stitched)
+                pair = data_gen.make_warped_pair(seed=1, index=index, imperfections=imperfections)
             else:
                 pair = data_gen.make_pair(
-                    "panorama", seed=1, index=index, imperfections=stitched,
+                    "panorama", seed=1, index=index, imperfections=imperfections,
                     pivot_offset=TRIPOD_PIVOTS[0],
                 )  # fmt: skip
             if abs(pair.params["yaw_deg"]) < NARROW_OVERLAP * pair.params["hfov_deg"]:
@@ -476,6 +507,7 @@ def _sets(counts: dict, have_photos: bool):
     yield "data_gen tripod pan, pivot 8 cm, narrow overlap, as stitched", 1, pairs, True, None
     pairs = official("tiny-baseline", n, 0.02, imperfections=stitched)
     yield "data_gen tiny-baseline 0.02, as stitched", 0, pairs, True, None
+    yield from _noisy_sets(official, official_warped, narrow, n, counts["baseline"])
     yield "harness render rotation", 1, renders(0.0, counts["rotation"]), True, None
     if have_photos:
         yield "harness warped freiburg", 1, warped(counts["warped"]), True, None
@@ -487,6 +519,37 @@ def _sets(counts: dict, have_photos: bool):
         yield f"sweep-{ratio}", int(ratio < 0.02), pairs, False, None
     if have_photos:
         yield "freiburg", 0, _freiburg_pairs(counts["freiburg"]), True, None
+
+
+def _noisy_sets(official, official_warped, narrow, n, n_large):
+    """The sets again with the sensor noise and blur of :data:`NOISY` (see the report)."""
+    from ppo_cv import data_gen
+
+    noisy = data_gen.Imperfections(**NOISY)
+    stitched = data_gen.Imperfections(
+        centred_principal_point=True, view_focal_error=0.01, exposure_ev=1.0, vignetting=0.35,
+        **NOISY,
+    )  # fmt: skip
+    told = "sensor noise and blur"
+    yield f"data_gen warped photo, {told}", 1, official_warped(n, noisy), True, None
+    pairs = official("panorama", n, pivot=TRIPOD_PIVOTS[0], imperfections=noisy)
+    yield f"data_gen tripod pan, pivot 8 cm, {told}", 1, pairs, True, None
+    pairs = official(
+        "panorama", n_large, pivot=TRIPOD_PIVOTS[0], size=(1600, 1200), imperfections=noisy
+    )
+    yield f"data_gen tripod pan, pivot 8 cm, 1600x1200, {told}", 1, pairs, True, None
+    pairs = official("tiny-baseline", n, 0.02, imperfections=noisy)
+    yield f"data_gen tiny-baseline 0.02, {told}", 0, pairs, True, None
+    pairs = narrow(n, "warp", stitched)
+    yield f"data_gen warped photo, narrow overlap, as stitched, {told}", 1, pairs, True, None
+    pairs = narrow(n, "panorama", stitched)
+    yield (
+        f"data_gen tripod pan, pivot 8 cm, narrow overlap, as stitched, {told}",
+        1,
+        pairs,
+        True,
+        None,
+    )
 
 
 def run(quick: bool = False) -> dict:
