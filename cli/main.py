@@ -7,7 +7,7 @@ import sys
 
 import typer
 
-from ppo_cv.atomic import sigterm_as_interrupt
+from ppo_cv.atomic import sigterm_as_interrupt, stop_listening
 from ppo_cv.cli import pair, sfm, synth
 
 app = typer.Typer(
@@ -79,6 +79,7 @@ def main(argv: list[str] | None = None) -> None:
             raise
         code = _usage_error(exc)
     if code == 130:  # typer turns a KeyboardInterrupt into exit code 130, silently
+        stop_listening()
         typer.echo(f"{_command(argv)}: interrupted; unfinished output removed", err=True)
     sys.exit(code if isinstance(code, int) else 0)
 

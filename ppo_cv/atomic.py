@@ -13,6 +13,7 @@ import os
 import shutil
 import signal
 import tempfile
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -22,6 +23,7 @@ __all__ = [
     "atomic_directory",
     "signals_deferred",
     "sigterm_as_interrupt",
+    "stop_listening",
 ]
 
 
@@ -72,21 +74,34 @@ def check_target(path: str | os.PathLike, kind: str, overwrite: bool = False) ->
 
 
 _DEFERRED = {signal.SIGINT, signal.SIGTERM}
+_held: list[int] = []  # signals that reached :func:`_raise_interrupt` inside a deferred block
+_depth = 0
 
 
 @contextlib.contextmanager
 def signals_deferred() -> Iterator[None]:
-    """Hold SIGINT and SIGTERM back (in this thread) until the block is over.
+    """Hold SIGINT and SIGTERM back until the block is over.
 
     Creating a temporary entry and entering the ``try`` that removes it, or swapping an output
     into place, must not be split by an interrupt; a signal that arrives meanwhile is delivered,
-    and its KeyboardInterrupt raised, as soon as the block ends.
+    and its KeyboardInterrupt raised, as soon as the block ends. The signals are blocked in this
+    thread, and one that the kernel hands to another thread (numpy's and OpenCV's workers do not
+    block it) is held by :func:`_raise_interrupt` until the block ends.
     """
+    global _depth
+    handled_here = threading.current_thread() is threading.main_thread()  # as Python's handlers
     previous = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFERRED)
+    _depth += handled_here
     try:
         yield
     finally:
+        _depth -= handled_here
+        held = _held[-1] if handled_here and _depth == 0 and _held else None
+        if held is not None:
+            _held.clear()
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+        if held is not None:
+            raise KeyboardInterrupt(f"signal {held}")
 
 
 def _visible_mode(path: Path, base: int) -> None:
@@ -192,11 +207,27 @@ def _raise_interrupt(signum, frame) -> None:
     Interrupting the launch would leave the new worker reading a truncated hand-over and dying
     with a traceback; SIGALRM brings the interrupt back once the launch is over.
     """
+    if _depth:
+        _held.append(signum)
+        return
     if _launching_a_process(frame):
         signal.signal(signal.SIGALRM, _raise_interrupt)
         signal.setitimer(signal.ITIMER_REAL, _RETRY_SECONDS)
         return
     raise KeyboardInterrupt(f"signal {signum}")
+
+
+def stop_listening() -> None:
+    """Ignore SIGINT, SIGTERM and a pending retry from now on: the interrupt has been handled.
+
+    Called once the clean-up has run and the process is about to exit, so that a second signal
+    (or a retry armed during a worker launch) cannot turn the exit code 130 into a death by
+    SIGINT halfway through the final message.
+    """
+    with contextlib.suppress(ValueError):  # not the main thread
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGALRM):
+            signal.signal(signum, signal.SIG_IGN)
 
 
 def sigterm_as_interrupt() -> None:

@@ -389,3 +389,42 @@ def test_atomic_directory_replaces_only_when_asked_and_complete(tmp_path):
         (staging / "new.txt").write_text("new")
     assert [p.name for p in target.iterdir()] == ["new.txt"]
     assert [p.name for p in tmp_path.iterdir()] == ["out"]
+
+
+def test_deferred_block_holds_a_signal_that_another_thread_receives():
+    import threading
+
+    from ppo_cv.atomic import _raise_interrupt, signals_deferred
+
+    previous = signal.signal(signal.SIGTERM, _raise_interrupt)
+    try:
+        finished = False
+        with pytest.raises(KeyboardInterrupt, match="signal 15"), signals_deferred():
+            # the main thread blocks SIGTERM, so the kernel hands it to this thread
+            sender = threading.Thread(target=os.kill, args=(os.getpid(), signal.SIGTERM))
+            sender.start()
+            sender.join()
+            time.sleep(0.05)  # bytecode runs: Python's handler is called meanwhile
+            finished = True
+        assert finished
+        with signals_deferred():  # nothing is left over for the next block
+            pass
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def test_no_signal_after_the_interrupt_was_handled():
+    from ppo_cv.atomic import _raise_interrupt, stop_listening
+
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGALRM)}
+    try:
+        signal.signal(signal.SIGTERM, _raise_interrupt)
+        signal.signal(signal.SIGALRM, _raise_interrupt)
+        signal.setitimer(signal.ITIMER_REAL, 0.02)  # as armed during a worker launch
+        stop_listening()
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.1)
+        assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
+    finally:
+        for signum, handler in handlers.items():
+            signal.signal(signum, handler)
