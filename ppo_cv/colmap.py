@@ -26,6 +26,7 @@ import pycolmap
 
 from . import ppo
 from .checks import as_camera_matrix, as_point_pair, as_rotation
+from .lsq import cross_matrices
 from .metrics import direction_error_deg
 from .pose import PoseResult, recover_pose
 
@@ -265,11 +266,7 @@ def _essential_by_five_point(
     if result is None:
         raise ValueError("no essential matrix could be estimated from the inlier matches")
     R, t = pose_from_rigid3d(result["cam2_from_cam1"])
-    return _skew(t) @ R
-
-
-def _skew(t: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
+    return cross_matrices(np.asarray(t, dtype=np.float64).reshape(1, 3))[0] @ R
 
 
 def estimate_two_view_geometry(

@@ -29,7 +29,7 @@ from .lsq import (
 )
 from .plane import K1_SIGNIFICANCE, undistort_division
 from .ppo import rotation_from_rays
-from .robust import virtual_camera
+from .robust import sampson_signed, virtual_camera
 from .rotation import FOCAL_PRIOR
 
 __all__ = [
@@ -274,9 +274,7 @@ def _sampson_signed(R: np.ndarray, t: np.ndarray, x1: np.ndarray, x2: np.ndarray
     points (..., N, 3) broadcast to (..., N)."""
     t = np.asarray(t, dtype=np.float64)
     E = cross_matrices(t.reshape(-1, 3)).reshape(t.shape[:-1] + (3, 3)) @ R
-    Ex1, Etx2 = x1 @ np.swapaxes(E, -1, -2), x2 @ E
-    denominator = np.sqrt(np.sum(Ex1[..., :2] ** 2, axis=-1) + np.sum(Etx2[..., :2] ** 2, axis=-1))
-    return np.sum(x2 * Ex1, axis=-1) / np.maximum(denominator, 1e-300)
+    return sampson_signed(E, x1, x2)
 
 
 T_SIGMA_CAP_DEG = 90.0

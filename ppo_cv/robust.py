@@ -23,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .lsq import cross_matrices
+
 __all__ = [
     "ROBUST_BACKENDS",
     "RobustEstimate",
@@ -37,6 +39,7 @@ __all__ = [
     "ORDERED_TRUSTED_LOG10_NFA",
     "essential_from_pose",
     "sampson_errors",
+    "sampson_signed",
 ]
 
 ROBUST_BACKENDS = ("pycolmap", "opencv")
@@ -101,23 +104,26 @@ class RobustEstimate:
 
 def essential_from_pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
     """``E = [t]_x R`` normalised to unit Frobenius norm."""
-    tx = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
-    E = tx @ R
+    E = cross_matrices(np.asarray(t, dtype=np.float64).reshape(1, 3))[0] @ R
     return E / max(np.linalg.norm(E), 1e-300)
 
 
-def sampson_errors(E: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
-    """Sampson distance (normalized units) of each match to ``E``, shape (N,).
+def sampson_signed(E: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
+    """Signed Sampson residual (normalized units) of each match to ``E``.
 
-    ``|x2^T E x1| / sqrt((E x1)_1^2 + (E x1)_2^2 + (E^T x2)_1^2 + (E^T x2)_2^2)``, the first-order
-    geometric distance of the match to the epipolar constraint; multiply by the focal length for
-    pixels.
+    ``x2^T E x1 / sqrt((E x1)_1^2 + (E x1)_2^2 + (E^T x2)_1^2 + (E^T x2)_2^2)``, the first-order
+    geometric distance of the match to the epipolar constraint with the sign of ``x2^T E x1``.
+    ``E`` (..., 3, 3) and the points (..., N, 3) broadcast to (..., N).
     """
-    Ex1 = x1 @ E.T
-    Etx2 = x2 @ E
-    numerator = np.abs(np.einsum("ij,ij->i", x2, Ex1))
-    denominator = np.sqrt(np.sum(Ex1[:, :2] ** 2, axis=1) + np.sum(Etx2[:, :2] ** 2, axis=1))
-    return numerator / np.maximum(denominator, 1e-300)
+    Ex1, Etx2 = x1 @ np.swapaxes(E, -1, -2), x2 @ E
+    denominator = np.sqrt(np.sum(Ex1[..., :2] ** 2, axis=-1) + np.sum(Etx2[..., :2] ** 2, axis=-1))
+    return np.sum(x2 * Ex1, axis=-1) / np.maximum(denominator, 1e-300)
+
+
+def sampson_errors(E: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
+    """Sampson distance (normalized units) of each match to ``E``, shape (N,): the absolute
+    value of :func:`sampson_signed`; multiply by the focal length for pixels."""
+    return np.abs(sampson_signed(E, x1, x2))
 
 
 def virtual_camera(focal: float, width: int = 0, height: int = 0):

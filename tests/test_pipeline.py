@@ -254,6 +254,26 @@ def test_sampson_error_of_exact_matches_is_zero():
     assert np.max(sampson_errors(essential_from_pose(R, t), x1, x2)) < 1e-12
 
 
+def test_sampson_residual_is_the_first_order_distance_to_the_epipolar_line():
+    from ppo_cv.robust import sampson_signed
+
+    x1, x2, R, t, _ = _synthetic_correspondences(np.random.default_rng(3), outliers=0, noise=0)
+    E = essential_from_pose(R, t)
+    line = x1 @ E.T  # epipolar line of x1 in image 2
+    normal = line[:, :2] / np.linalg.norm(line[:, :2], axis=1, keepdims=True)
+    moved = x2.copy()
+    moved[:, :2] += 1e-4 * normal  # 1e-4 off the line, along its normal, in image 2 only
+    signed = sampson_signed(E, x1, moved)
+    # both images share the residual: the Sampson distance is about 1e-4 * |l2| / |(l1, l2)|
+    share = np.linalg.norm(line[:, :2], axis=1) / np.sqrt(
+        np.sum(line[:, :2] ** 2, axis=1) + np.sum((moved @ E)[:, :2] ** 2, axis=1)
+    )
+    np.testing.assert_allclose(signed, 1e-4 * share, rtol=1e-3)
+    np.testing.assert_allclose(sampson_errors(E, x1, moved), np.abs(signed))
+    stacked = sampson_signed(np.stack([E, -E]), x1, moved)  # broadcast over a leading axis
+    np.testing.assert_allclose(stacked, np.stack([signed, -signed]))
+
+
 @pytest.mark.parametrize("noise", [0.0, 0.3])
 def test_refine_pose_reaches_the_least_squares_optimum(noise):
     x1, x2, R, t, good = _synthetic_correspondences(
