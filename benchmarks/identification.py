@@ -22,6 +22,7 @@ import numpy as np
 
 import ppo_cv
 from ppo_cv.data_gen import paper_protocol
+from ppo_cv.robust import essential_from_pose
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "paper"))
 from timing import per_call  # noqa: E402
@@ -36,9 +37,7 @@ def identification_problem(n_points: int, seed: int = 0) -> tuple[np.ndarray, ..
     """``(E, points1, points2, K, R, t)`` for one pose of the paper's protocol with N points."""
     sample = paper_protocol(1, n_points, alpha=0.5, noise_px=1.0, seed=seed)
     R, t = sample.R[0], sample.t[0]
-    tx = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
-    E = tx @ R
-    return E / np.linalg.norm(E), sample.points1[0], sample.points2[0], sample.K, R, t
+    return essential_from_pose(R, t), sample.points1[0], sample.points2[0], sample.K, R, t
 
 
 def time_call(fn, repeats: int, min_seconds: float = 0.02, best_of: int = 3) -> np.ndarray:

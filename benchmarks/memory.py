@@ -52,11 +52,16 @@ def _reset_high_water_mark() -> bool:
 def _problem(n: int) -> tuple[np.ndarray, ...]:
     """Exact E and N matches of one pose of the paper's protocol (d = 30 m, alpha 0.5, 1 px)."""
     from ppo_cv.data_gen import paper_protocol
+    from ppo_cv.lsq import cross_matrix
 
     s = paper_protocol(1, n, alpha=0.5, noise_px=1.0, seed=0)
     R, t = s.R[0], s.t[0]
-    tx = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
-    return tx @ R, np.ascontiguousarray(s.points1[0]), np.ascontiguousarray(s.points2[0]), s.K
+    return (
+        cross_matrix(t) @ R,
+        np.ascontiguousarray(s.points1[0]),
+        np.ascontiguousarray(s.points2[0]),
+        s.K,
+    )
 
 
 def measure(method: str, n: int) -> dict:

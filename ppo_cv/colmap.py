@@ -26,7 +26,7 @@ import pycolmap
 
 from . import ppo
 from .checks import as_camera_matrix, as_point_pair, as_rotation
-from .lsq import cross_matrices
+from .lsq import cross_matrix
 from .metrics import direction_error_deg
 from .pose import PoseResult, recover_pose
 
@@ -266,7 +266,7 @@ def _essential_by_five_point(
     if result is None:
         raise ValueError("no essential matrix could be estimated from the inlier matches")
     R, t = pose_from_rigid3d(result["cam2_from_cam1"])
-    return cross_matrices(np.asarray(t, dtype=np.float64).reshape(1, 3))[0] @ R
+    return cross_matrix(t) @ R
 
 
 def estimate_two_view_geometry(

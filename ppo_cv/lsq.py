@@ -15,6 +15,7 @@ from collections.abc import Callable
 import numpy as np
 
 __all__ = [
+    "cross_matrix",
     "cross_matrices",
     "forward_jacobian",
     "gauss_newton_covariance",
@@ -38,6 +39,11 @@ def rotation_increment(w: np.ndarray) -> np.ndarray:
     """``exp([w]x)`` (3, 3): the rotation by ``|w|`` radians about ``w / |w|`` (Rodrigues), to
     first order ``I + [w]x`` below 1e-12 rad."""
     return rotation_increments(np.asarray(w, dtype=np.float64)[None])[0]
+
+
+def cross_matrix(v: np.ndarray) -> np.ndarray:
+    """``[v]_x`` (3, 3) of one vector ``v`` (3,): ``[v]_x u = v x u``."""
+    return cross_matrices(np.asarray(v, dtype=np.float64).reshape(1, 3))[0]
 
 
 def cross_matrices(v: np.ndarray) -> np.ndarray:

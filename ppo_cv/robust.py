@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .lsq import cross_matrices
+from .lsq import cross_matrix
 
 __all__ = [
     "ROBUST_BACKENDS",
@@ -104,7 +104,7 @@ class RobustEstimate:
 
 def essential_from_pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
     """``E = [t]_x R`` normalised to unit Frobenius norm."""
-    E = cross_matrices(np.asarray(t, dtype=np.float64).reshape(1, 3))[0] @ R
+    E = cross_matrix(t) @ R
     return E / max(np.linalg.norm(E), 1e-300)
 
 

@@ -7,6 +7,7 @@ import pytest
 
 from ppo_cv.lsq import (
     cross_matrices,
+    cross_matrix,
     forward_jacobian,
     gauss_newton_covariance,
     huber_weights,
@@ -59,6 +60,7 @@ def test_cross_matrices_give_the_cross_product():
     K = cross_matrices(v)
     assert np.allclose(K @ u[:, :, None], np.cross(v, u)[:, :, None])
     assert np.allclose(K, -np.swapaxes(K, 1, 2))
+    assert np.allclose(cross_matrix(v[0]) @ u[0], np.cross(v[0], u[0]))
 
 
 def test_rotation_increment_is_rodrigues():
