@@ -74,7 +74,7 @@ def check_target(path: str | os.PathLike, kind: str, overwrite: bool = False) ->
 
 
 _DEFERRED = {signal.SIGINT, signal.SIGTERM}
-_held: list[int] = []  # signals that reached :func:`_raise_interrupt` inside a deferred block
+_held: int | None = None  # a signal that reached :func:`_raise_interrupt` in a deferred block
 _depth = 0
 
 
@@ -88,7 +88,7 @@ def signals_deferred() -> Iterator[None]:
     thread, and one that the kernel hands to another thread (numpy's and OpenCV's workers do not
     block it) is held by :func:`_raise_interrupt` until the block ends.
     """
-    global _depth
+    global _depth, _held
     handled_here = threading.current_thread() is threading.main_thread()  # as Python's handlers
     previous = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFERRED)
     _depth += handled_here
@@ -96,9 +96,9 @@ def signals_deferred() -> Iterator[None]:
         yield
     finally:
         _depth -= handled_here
-        held = _held[-1] if handled_here and _depth == 0 and _held else None
-        if held is not None:
-            _held.clear()
+        held = None
+        if handled_here and _depth == 0:
+            held, _held = _held, None
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
         if held is not None:
             raise KeyboardInterrupt(f"signal {held}")
@@ -207,8 +207,9 @@ def _raise_interrupt(signum, frame) -> None:
     Interrupting the launch would leave the new worker reading a truncated hand-over and dying
     with a traceback; SIGALRM brings the interrupt back once the launch is over.
     """
+    global _held
     if _depth:
-        _held.append(signum)
+        _held = signum
         return
     if _launching_a_process(frame):
         signal.signal(signal.SIGALRM, _raise_interrupt)
