@@ -175,6 +175,11 @@ class LensRotationFit:
         when not fitted).
     focal_ratio : float
         ``rho``: view 2's focal scale over view 1's (1 when not fitted).
+    lens_excess : float
+        How far the fitted ``s``, ``k1`` and ``rho`` lay beyond their box before they were
+        clipped to it, in their own posterior deviations (``noise^2 (J^T J)^-1``): the largest
+        of ``(|s - 1| - max_focal_change) / sd(s)`` and its likes, negative inside the box,
+        ``-inf`` when the lens terms were not estimated.
     """
 
     R: np.ndarray
@@ -185,6 +190,7 @@ class LensRotationFit:
     rotation_sigma_deg: float = float("inf")
     principal_offset: np.ndarray = field(default_factory=lambda: np.zeros(2))
     focal_ratio: float = 1.0
+    lens_excess: float = float("-inf")
 
     @property
     def focal_scale2(self) -> float:
@@ -567,7 +573,7 @@ def fit_rotation_lens(
     if fit_ratio:
         prior[7], centre[7] = noise / focal_ratio_prior, focal_ratio_mean - 1.0
     problem = (R0, a, b, prior, free, centre)
-    params, sigma, rotation_sigma = centre.copy(), np.inf, np.inf
+    params, sigma, rotation_sigma, excess = centre.copy(), np.inf, np.inf, -np.inf
     enough = len(a) >= (_MIN_WITH_PRIOR if prior[3] > 0 else 2 * int(np.count_nonzero(_LENS)))
     if enough:
         params = _gauss_newton(params, problem, iterations)
@@ -583,6 +589,8 @@ def fit_rotation_lens(
             problem = (R0, a, b, prior, free, centre)
             params = _gauss_newton(np.where(free, centre, 0.0), problem, iterations)
         sigma, rotation_sigma = _sigmas(params, problem)
+        if with_noise:
+            excess = _lens_excess(params, problem, bounds, noise)
     if np.any(np.abs(params) > bounds) or not enough:
         params, sigma, rotation_sigma = np.clip(params, -bounds, bounds), np.inf, np.inf
         params[:3] = 0.0
@@ -600,6 +608,7 @@ def fit_rotation_lens(
         rotation_sigma_deg=float(rotation_sigma),
         principal_offset=params[5:7].copy(),
         focal_ratio=1.0 + float(params[7]),
+        lens_excess=excess,
     )
 
 
@@ -650,6 +659,21 @@ def _offset_beyond_bound(params, problem, principal_prior, noise) -> bool:
     # rotation, focal scale and k1 are always free: the offset follows them, as in _sigmas
     deviation = np.zeros(2) if cov is None else np.sqrt(np.maximum(np.diag(cov)[5:7], 0.0))
     return bool(np.any(excess > PRINCIPAL_SIGNIFICANCE * deviation))
+
+
+def _lens_excess(params, problem, bounds, noise) -> float:
+    """Largest ``(|param| - bound) / deviation`` over the free focal scale, ``k1`` and focal
+    ratio, the deviations from ``noise^2 (J^T J)^-1`` as in :func:`_offset_beyond_bound` (inf
+    beyond the box when that is singular)."""
+    free = problem[4]
+    bounded = np.flatnonzero(free & np.isfinite(bounds))
+    excess = np.abs(params[bounded]) - bounds[bounded]
+    cov = gauss_newton_covariance(_jacobian(params, problem)[1], noise**2)
+    if cov is None:
+        return float("inf") if np.any(excess > 0) else float("-inf")
+    position = np.cumsum(free) - 1  # column of each free parameter in the covariance
+    deviation = np.sqrt(np.maximum(np.diag(cov)[position[bounded]], 1e-300))
+    return float(np.max(excess / deviation))
 
 
 def _gauss_newton(params, problem, iterations, step=1e-6):

@@ -12,7 +12,7 @@ from imperfect import imperfect_render, warped_rotation_pair
 from ppo_cv import estimate_pair
 from ppo_cv.metrics import rotation_error_deg
 from ppo_cv.model_selection import ModelResiduals, robust_sigma, select_model
-from ppo_cv.motion_model import decide_motion
+from ppo_cv.motion_model import LENS_SIGNIFICANCE, decide_motion
 from ppo_cv.refine import translation_sigma_deg
 from ppo_cv.rotation import (
     fit_rotation_lens,
@@ -101,6 +101,32 @@ def test_lens_fit_with_priors_works_from_a_few_matches():
     assert np.isfinite(with_priors.focal_scale_sigma) and with_priors.focal_scale_sigma < 0.03
     assert abs(with_priors.focal_scale - 1.0) < 0.02 and abs(with_priors.k1) < 0.1
     assert rotation_error_deg(with_priors.R, R) < 0.1
+
+
+def test_lens_excess_is_the_distance_beyond_the_box_in_posterior_deviations():
+    # A 25 deg pan over 400 matches pins the focal to about 0.2 %: the clipped fit reports how
+    # far the free one lay beyond |s - 1| <= 0.05, the free one measured with a wider box.
+    rng = np.random.default_rng(12)
+    c, s = np.cos(np.radians(25.0)), np.sin(np.radians(25.0))
+    R = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    noise = 0.3 / 800
+    q1 = np.column_stack([rng.uniform(-0.5, 0.05, 400), rng.uniform(-0.35, 0.35, 400)])
+    ray = np.column_stack([q1, np.ones(400)]) @ R.T
+    q2, used = ray[:, :2] / ray[:, 2:], np.ones(400, bool)
+    excesses = []
+    for scale in (1.03, 1.10, 0.90):
+        x1, x2 = (q / scale + rng.normal(0, noise, q.shape) for q in (q1, q2))
+        fit = fit_rotation_lens(x1, x2, used, np.eye(3), noise=noise * np.sqrt(2))
+        free = fit_rotation_lens(
+            x1, x2, used, np.eye(3), noise=noise * np.sqrt(2), max_focal_change=0.2
+        )
+        assert abs(free.focal_scale - scale) < 0.01
+        beyond = (abs(free.focal_scale - 1.0) - 0.05) / free.focal_scale_sigma
+        assert fit.lens_excess == pytest.approx(beyond, rel=0.15)
+        excesses.append(fit.lens_excess)
+    assert excesses[0] < 0 < LENS_SIGNIFICANCE < min(excesses[1:])
+    assert fit.focal_scale == pytest.approx(0.95) and fit.focal_scale_sigma == np.inf
+    assert fit_rotation_lens(x1, x2, used, np.eye(3)).lens_excess == -np.inf  # no noise, no prior
 
 
 def test_rotation_sigma_matches_the_spread_of_the_fitted_rotations():
@@ -306,6 +332,20 @@ def test_data_gen_tiny_baseline_of_five_percent_is_not_flagged():
     result = _data_gen_result(pair)
     assert not result.pure_rotation and result.gric_difference > 0
     assert result.t_sigma_deg < 10.0
+
+
+def test_a_small_baseline_whose_rotation_needs_an_implausible_focal_is_not_flagged():
+    """Baseline / depth 0.02 toward a back wall with boxes before it: the rotation explains the
+    matches only with a focal 9 % short, far beyond the 5 % a given focal may be off."""
+    from ppo_cv import data_gen
+
+    pair = data_gen.make_pair(
+        "tiny-baseline", seed=0, index=32, imperfections=data_gen.REAL_PHOTO, baseline_ratio=0.02
+    )
+    assert abs(pair.params["focal_factor"] - 1.0) < 0.01 and pair.params["scene"] == "clutter"
+    result = _data_gen_result(pair)
+    assert not result.pure_rotation and result.model != "rotation"
+    assert result.translation_determined
 
 
 def test_automatic_exposure_and_vignetting_keep_the_decision():
