@@ -381,6 +381,7 @@ def evaluate_pair(image1, image2, K1, K2, R_true, peers: bool = True, options=No
         "ppo_cv_flag": bool(result.pure_rotation),
         "ppo_cv_R_err": _rotation_error(result.R, R_true),
         "gric_difference": float(result.gric_difference),
+        "lens_excess": float(result.lens_excess),
         "rotation_residual_px": float(result.rotation_residual_px),
         "general_residual_px": float(result.general_residual_px),
         "pri": float(result.pri),

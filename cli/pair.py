@@ -191,7 +191,16 @@ def _rotation_sigma_lines(result) -> list[str]:
 
 
 def _lens_lines(result) -> list[str]:
-    """The lens terms a pure rotation's fit absorbed: focal scale, focal ratio, principal point."""
+    """The lens terms a pure rotation's fit absorbed (focal scale, focal ratio, principal point),
+    or why a rotation that won the model comparison was refused."""
+    from ppo_cv.motion_model import LENS_SIGNIFICANCE
+
+    excess = float(getattr(result, "lens_excess", float("nan")))
+    if not result.pure_rotation and result.gric_difference < 0 and excess > LENS_SIGNIFICANCE:
+        return [
+            f"  lens fit     a rotation would need a lens {excess:.1f} deviations beyond "
+            "the plausible (focal +-5 %, k1 +-0.15): parallax, not a pure rotation"
+        ]
     if not result.pure_rotation:
         return []
     text = f"focal scale {result.focal_scale:.4f} (given / true)"

@@ -134,6 +134,7 @@ def _model_selection(result: PairResult) -> dict:
             "rotation_residual_px": float(result.rotation_residual_px),
             "general_residual_px": float(result.general_residual_px),
             "gric_difference": float(result.gric_difference),
+            "lens_excess": _finite_or_none(getattr(result, "lens_excess", float("nan"))),
             "noise_sigma_px": float(result.noise_sigma_px),
             "focal_scale": float(result.focal_scale),
             "focal_ratio": float(getattr(result, "focal_ratio", 1.0)),

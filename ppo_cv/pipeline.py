@@ -295,6 +295,12 @@ class PairResult:
         and of the essential matrix over the union of their inliers.
     gric_difference : float
         ``(GRIC(rotation) - GRIC(general)) / n``: the decision statistic, negative for a rotation.
+    lens_excess : float
+        How far the lens the rotation-only fit needed (focal scale, ``k1``, focal ratio) lay
+        beyond the box of plausible lenses, in its own posterior deviations
+        (:attr:`ppo_cv.motion_model.MotionDecision.lens_excess`): above
+        :data:`ppo_cv.motion_model.LENS_SIGNIFICANCE` no pair is a pure rotation, whatever
+        ``gric_difference`` says. Negative inside the box; NaN when not estimated.
     plane_residual_px : float
         Median residual (pixels, homography Sampson error) of the homography over the same
         matches; NaN when no homography was fitted.
@@ -364,6 +370,7 @@ class PairResult:
     rotation_residual_px: float = float("nan")
     general_residual_px: float = float("nan")
     gric_difference: float = float("nan")
+    lens_excess: float = float("nan")
     noise_sigma_px: float = float("nan")
     focal_scale: float = 1.0
     focal_ratio: float = 1.0
@@ -745,6 +752,7 @@ def estimate_pair(
         rotation_residual_px=motion.selection.median_residual_px["rotation"],
         general_residual_px=motion.selection.median_residual_px["general"],
         gric_difference=motion.gric_difference,
+        lens_excess=motion.lens_excess if motion.lens_excess > -np.inf else float("nan"),
         noise_sigma_px=motion.selection.sigma_px,
         focal_scale=motion.focal_scale,
         focal_ratio=motion.focal_ratio,

@@ -346,6 +346,15 @@ def test_a_small_baseline_whose_rotation_needs_an_implausible_focal_is_not_flagg
     result = _data_gen_result(pair)
     assert not result.pure_rotation and result.model != "rotation"
     assert result.translation_determined
+    # the rotation won the comparison; its lens, clipped to the box, is what refused it
+    assert result.gric_difference < 0 and result.lens_excess > LENS_SIGNIFICANCE
+    from ppo_cv.cli.pair import _summary
+    from ppo_cv.export import result_to_dict
+
+    record = result_to_dict(result)["model_selection"]
+    assert record["lens_excess"] == pytest.approx(result.lens_excess)
+    text = _summary(result, "a.png", "b.png", None)
+    assert f"lens {result.lens_excess:.1f} deviations beyond the plausible" in text
 
 
 def test_automatic_exposure_and_vignetting_keep_the_decision():
