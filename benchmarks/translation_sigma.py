@@ -153,7 +153,7 @@ def table(rows: list[dict]) -> str:
 
 
 FINDINGS = """\
-On the renders the median of error / `t_sigma_deg` is 0.67-1.97, and 1.43-3.05 with the focal
+On the renders the median of error / `t_sigma_deg` is 0.64-1.81, and 1.40-2.84 with the focal
 length held exact: the given focal, up to 3 % off, moves `t` by 0.8 degree per percent in a
 28 degree field, which the noise alone does not account for. On freiburg it is 2.43 (3.10
 held exact) against a median `t_sigma_deg` of 0.42 degree, of the size of the pseudo ground

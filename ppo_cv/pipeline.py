@@ -51,7 +51,13 @@ from .motion_model import decide_motion, plane_ransac_trials, with_rotation
 from .photometric import refine_rotation_photometric
 from .plane import refine_planar_pose, undistort_division
 from .pose import _recover_normalized
-from .refine import T_SIGMA_CAP_DEG, refine_pose, refine_pose_radial, translation_sigma_deg
+from .refine import (
+    HUBER_NOISE_FACTOR,
+    T_SIGMA_CAP_DEG,
+    refine_pose,
+    refine_pose_radial,
+    translation_sigma_deg,
+)
 from .robust import (
     ROBUST_BACKENDS,
     essential_from_pose,
@@ -714,9 +720,9 @@ def estimate_pair(
     else:
         radial_k1 = 0.0
         if options.refine:
-            radial = refine_pose_radial(
-                R, t, x1, x2, inliers, scale=options.ransac_threshold / focal
-            )
+            bound = HUBER_NOISE_FACTOR * motion.selection.sigma_px
+            bound = min(options.ransac_threshold, bound) if bound > 0 else options.ransac_threshold
+            radial = refine_pose_radial(R, t, x1, x2, inliers, scale=bound / focal)
             R, t, radial_k1 = radial.R, radial.t, radial.k1
         c1, c2 = undistort_division(x1, radial_k1), undistort_division(x2, radial_k1)
         final = _recover_normalized(essential_from_pose(R, t), c1[:, :2], c2[:, :2], inliers, 0.0)
