@@ -13,7 +13,9 @@ Two tests that fail differently are combined:
      (:func:`ppo_cv.homography.estimate_homography`), its Sampson error;
    - ``"general"`` (``d = 3``, ``k = 5``): the refined essential matrix, its Sampson error.
 
-   The noise ``sigma`` is always that of the essential matrix's residuals.
+   The noise ``sigma`` is that of the essential matrix's residuals, or, when larger, the part of
+   the rotation's residuals that changes from a match to its nearest neighbour
+   (:func:`ppo_cv.model_selection.incoherent_sigma`): noise, which parallax is not.
 2. The paper's pure-rotation indicator, PRI = mean ``|M2|`` (eq. 84-85), evaluated on the
    rotation the decision would keep and the translation direction most consistent with it
    (the unit ``t`` minimising ``sum (t . (R b1 x b2))^2``, the epipolar constraint eq. 1 with
@@ -76,6 +78,9 @@ from .model_selection import (
     MODEL_DIMENSIONS,
     ModelResiduals,
     ModelSelection,
+    incoherent_sigma,
+    model_noise,
+    nearest_neighbours,
     robust_sigma,
     select_model,
 )
@@ -86,6 +91,7 @@ from .rotation import (
     correct_points,
     fit_rotation_lens,
     lens_rotation_residuals,
+    lens_rotation_transfers,
     ransac_rotation,
 )
 
@@ -224,7 +230,14 @@ class MotionDecision:
         :attr:`ppo_cv.rotation.LensRotationFit.lens_excess` of the rotation-only fit: above
         :data:`LENS_SIGNIFICANCE` the pair is not a pure rotation.
     selection : ModelSelection
-        GRIC of each model, median residuals (pixels), noise estimate.
+        GRIC of each model, median residuals (pixels), the noise GRIC divided by: the larger
+        of ``noise_px`` and ``rotation_noise_px``.
+    noise_px : float
+        Noise per image coordinate (pixels) of the essential matrix's residuals
+        (:func:`ppo_cv.model_selection.model_noise`).
+    rotation_noise_px : float
+        Noise per image coordinate (pixels) of the rotation's residuals that changes from a
+        match to its nearest neighbour (:func:`ppo_cv.model_selection.incoherent_sigma`).
     plane : PlanarPose or None
         PPO choice among the decomposition candidates of the homography, when one was given.
     homography_inliers : ndarray of bool, shape (N,) or None
@@ -257,6 +270,8 @@ class MotionDecision:
     principal_offset: np.ndarray = field(default_factory=lambda: np.zeros(2))
     focal_ratio: float = 1.0
     lens_excess: float = float("-inf")
+    noise_px: float = float("nan")
+    rotation_noise_px: float = float("nan")
 
     @property
     def gric_difference(self) -> float:
@@ -388,16 +403,17 @@ def decide_motion(
             break
         rotation_inliers = within
     scored = inliers | rotation_inliers
-    selection = select_model(
-        [
-            _candidate(
-                "rotation",
-                lens.residuals[scored] * focal / np.sqrt(2.0),
-                extra=int(focal_ratio_prior is not None),
-            ),
-            _candidate("general", general_all[scored] * focal),
-        ]
-    )
+    candidates = [
+        _candidate(
+            "rotation",
+            lens.residuals[scored] * focal / np.sqrt(2.0),
+            extra=int(focal_ratio_prior is not None),
+        ),
+        _candidate("general", general_all[scored] * focal),
+    ]
+    noise_px = model_noise(candidates)
+    rotation_noise_px = _rotation_noise_px(lens, x1[scored], x2[scored], focal)
+    selection = select_model(candidates, sigma=np.nanmax([noise_px, rotation_noise_px]))
     R_rot = lens.R
     t_rot, pri = _rotation_translation(lens, x1, x2, rotation_inliers, t)
     pri_general = ppo.pure_rotation_indicator(
@@ -450,7 +466,22 @@ def decide_motion(
         principal_offset=lens.principal_offset,
         focal_ratio=lens.focal_ratio,
         lens_excess=lens.lens_excess,
+        noise_px=float(noise_px),
+        rotation_noise_px=float(rotation_noise_px),
     )
+
+
+def _rotation_noise_px(lens: LensRotationFit, x1, x2, focal: float) -> float:
+    """Noise per image coordinate (pixels) of the rotation's transfer errors that varies from a
+    match to its nearest neighbour (:func:`ppo_cv.model_selection.incoherent_sigma`; a
+    transfer error carries the noise of both images)."""
+    if len(x1) < 3:
+        return float("nan")
+    transfers = lens_rotation_transfers(
+        lens.R, lens.focal_scale, lens.k1, x1, x2, lens.principal_offset, lens.focal_ratio
+    )
+    neighbours = nearest_neighbours(x1[:, :2])
+    return incoherent_sigma(transfers * focal, neighbours) / np.sqrt(2.0)
 
 
 def _rotation_translation(lens: LensRotationFit, x1, x2, used, t_fallback):

@@ -334,6 +334,10 @@ class PairResult:
         points are those of the points it undistorts. NaN otherwise.
     noise_sigma_px : float
         Noise estimated from the essential matrix's residuals (pixels).
+    rotation_noise_px : float
+        Noise of the rotation-only fit's residuals that changes from a match to its nearest
+        neighbour (pixels, :func:`ppo_cv.model_selection.incoherent_sigma`); the model
+        comparison divides by the larger of the two.
     focal_scale : float
         Focal scale absorbed by the rotation-only fit (given focal length over the true one).
     focal_ratio : float
@@ -378,6 +382,7 @@ class PairResult:
     gric_difference: float = float("nan")
     lens_excess: float = float("nan")
     noise_sigma_px: float = float("nan")
+    rotation_noise_px: float = float("nan")
     focal_scale: float = 1.0
     focal_ratio: float = 1.0
     principal_offset_px: np.ndarray = field(default_factory=lambda: np.zeros(2))
@@ -720,7 +725,7 @@ def estimate_pair(
     else:
         radial_k1 = 0.0
         if options.refine:
-            bound = HUBER_NOISE_FACTOR * motion.selection.sigma_px
+            bound = HUBER_NOISE_FACTOR * motion.noise_px
             bound = min(options.ransac_threshold, bound) if bound > 0 else options.ransac_threshold
             radial = refine_pose_radial(R, t, x1, x2, inliers, scale=bound / focal)
             R, t, radial_k1 = radial.R, radial.t, radial.k1
@@ -759,7 +764,8 @@ def estimate_pair(
         general_residual_px=motion.selection.median_residual_px["general"],
         gric_difference=motion.gric_difference,
         lens_excess=motion.lens_excess if motion.lens_excess > -np.inf else float("nan"),
-        noise_sigma_px=motion.selection.sigma_px,
+        noise_sigma_px=motion.noise_px,
+        rotation_noise_px=motion.rotation_noise_px,
         focal_scale=motion.focal_scale,
         focal_ratio=motion.focal_ratio,
         principal_offset_px=motion.principal_offset * focal / motion.focal_scale,

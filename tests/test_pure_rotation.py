@@ -11,7 +11,13 @@ from imperfect import imperfect_render, warped_rotation_pair
 
 from ppo_cv import estimate_pair
 from ppo_cv.metrics import rotation_error_deg
-from ppo_cv.model_selection import ModelResiduals, robust_sigma, select_model
+from ppo_cv.model_selection import (
+    ModelResiduals,
+    incoherent_sigma,
+    nearest_neighbours,
+    robust_sigma,
+    select_model,
+)
 from ppo_cv.motion_model import LENS_SIGNIFICANCE, decide_motion
 from ppo_cv.refine import translation_sigma_deg
 from ppo_cv.rotation import (
@@ -199,6 +205,26 @@ def test_noise_estimate_is_corrected_for_the_parameters_the_general_model_fitted
     assert np.median(corrected) / np.median(raw) == pytest.approx(np.sqrt(n / (n - k)))
 
 
+def test_incoherent_sigma_sees_noise_and_not_a_smooth_field():
+    rng = np.random.default_rng(9)
+    points = rng.uniform(0, 640, (1500, 2))
+    neighbours = nearest_neighbours(points)
+    distances = np.linalg.norm(points[:, None] - points[None], axis=2)
+    np.fill_diagonal(distances, np.inf)
+    np.testing.assert_array_equal(neighbours, np.argmin(distances, axis=1))
+    parallax = np.column_stack([2.0 + np.sin(points[:, 0] / 90), 0.5 * np.cos(points[:, 1] / 70)])
+    noise = rng.normal(0, 0.3, (1500, 2))
+    assert incoherent_sigma(parallax, neighbours) < 0.03
+    assert incoherent_sigma(noise, neighbours) == pytest.approx(0.3, rel=0.1)
+    assert incoherent_sigma(parallax + noise, neighbours) == pytest.approx(0.3, rel=0.1)
+    # noise along x only: the estimate per coordinate is its root mean square over both
+    along = noise * [np.sqrt(2.0), 0.0]
+    assert incoherent_sigma(along, neighbours) == pytest.approx(0.3, rel=0.15)
+    assert np.isnan(incoherent_sigma(noise[:2], neighbours[:2] % 2))
+    twins = nearest_neighbours(np.array([[0.0, 0.0], [0.0, 0.0], [5.0, 5.0]]))
+    assert twins[0] == 1 and twins[1] == 0 and twins[2] in (0, 1)
+
+
 def _two_view(rng, baseline: float, n: int = 400, noise_px: float = 0.5, f: float = 800.0):
     X = np.column_stack([rng.uniform(-2, 2, (n, 2)), rng.uniform(4, 12, n)])
     R = _random_rotations(rng, 1, 0.2)[0]
@@ -355,6 +381,29 @@ def test_a_small_baseline_whose_rotation_needs_an_implausible_focal_is_not_flagg
     assert record["lens_excess"] == pytest.approx(result.lens_excess)
     text = _summary(result, "a.png", "b.png", None)
     assert f"lens {result.lens_excess:.1f} deviations beyond the plausible" in text
+
+
+@pytest.mark.parametrize("index", [8, 11])
+def test_a_rotation_whose_features_are_worse_along_the_pan_is_flagged(index):
+    """Sensor noise and blur on a warped photo locate the features worse along the pan than
+    across it; the essential matrix, seeing only the component across its epipolar lines,
+    understated the noise and won GRIC (+0.02 and +0.10 per match). The rotation's residuals,
+    incoherent from a match to its neighbour, carry the noise GRIC divides by."""
+    import dataclasses
+
+    from ppo_cv import data_gen
+
+    noisy = dataclasses.replace(data_gen.REAL_PHOTO, noise_std=6.0, blur_sigma=1.2)
+    pair = data_gen.make_warped_pair(seed=0, index=index, imperfections=noisy)
+    result = _data_gen_result(pair)
+    assert result.pure_rotation and result.model == "rotation"
+    assert result.gric_difference < -0.2
+    assert rotation_error_deg(result.R, pair.R) < 0.3
+    assert result.rotation_noise_px > 1.4 * result.noise_sigma_px
+    from ppo_cv.export import result_to_dict
+
+    record = result_to_dict(result)["model_selection"]
+    assert record["rotation_noise_px"] == pytest.approx(result.rotation_noise_px)
 
 
 def test_automatic_exposure_and_vignetting_keep_the_decision():
