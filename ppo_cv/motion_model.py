@@ -91,7 +91,6 @@ from .rotation import (
     correct_points,
     fit_rotation_lens,
     lens_rotation_residuals,
-    lens_rotation_transfers,
     ransac_rotation,
 )
 
@@ -477,9 +476,10 @@ def _rotation_noise_px(lens: LensRotationFit, x1, x2, focal: float) -> float:
     transfer error carries the noise of both images)."""
     if len(x1) < 3:
         return float("nan")
-    transfers = lens_rotation_transfers(
-        lens.R, lens.focal_scale, lens.k1, x1, x2, lens.principal_offset, lens.focal_ratio
-    )
+    transfers = lens_rotation_residuals(
+        lens.R, lens.focal_scale, lens.k1, x1, x2, lens.principal_offset, lens.focal_ratio,
+        vectors=True,
+    )  # fmt: skip
     neighbours = nearest_neighbours(x1[:, :2])
     return incoherent_sigma(transfers * focal, neighbours) / np.sqrt(2.0)
 

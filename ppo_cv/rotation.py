@@ -55,7 +55,6 @@ __all__ = [
     "focal_ratio_keywords",
     "focal_ratio_prior",
     "lens_rotation_residuals",
-    "lens_rotation_transfers",
     "correct_points",
     "transfer_points",
 ]
@@ -410,22 +409,6 @@ def transfer_points(
     return _lens_transfer(params, np.asarray(R, float), xy1, np.zeros_like(xy1))
 
 
-def lens_rotation_transfers(
-    R: np.ndarray,
-    focal_scale: float,
-    k1: float,
-    x1: np.ndarray,
-    x2: np.ndarray,
-    principal_offset: ArrayLike = (0.0, 0.0),
-    focal_ratio: float = 1.0,
-) -> np.ndarray:
-    """Transfer error vectors (N, 2) of matches under :func:`fit_rotation_lens`'s model:
-    ``x2`` minus the transfer of ``x1``, normalised units of view 2."""
-    params = _lens_params(focal_scale, k1, principal_offset, focal_ratio)
-    xy1, xy2 = np.asarray(x1, float)[:, :2], np.asarray(x2, float)[:, :2]
-    return _lens_transfer(params, np.asarray(R, float), xy1, xy2)
-
-
 def lens_rotation_residuals(
     R: np.ndarray,
     focal_scale: float,
@@ -434,10 +417,15 @@ def lens_rotation_residuals(
     x2: np.ndarray,
     principal_offset: ArrayLike = (0.0, 0.0),
     focal_ratio: float = 1.0,
+    *,
+    vectors: bool = False,
 ) -> np.ndarray:
-    """Transfer error (N,) of matches under :func:`fit_rotation_lens`'s model, normalised units."""
-    transfers = lens_rotation_transfers(R, focal_scale, k1, x1, x2, principal_offset, focal_ratio)
-    return np.linalg.norm(transfers, axis=1)
+    """Transfer error (N,) of matches under :func:`fit_rotation_lens`'s model, normalised units
+    of view 2; with ``vectors`` the error vectors (N, 2), ``x2`` minus the transfer of ``x1``."""
+    params = _lens_params(focal_scale, k1, principal_offset, focal_ratio)
+    xy1, xy2 = np.asarray(x1, float)[:, :2], np.asarray(x2, float)[:, :2]
+    transfers = _lens_transfer(params, np.asarray(R, float), xy1, xy2)
+    return transfers if vectors else np.linalg.norm(transfers, axis=1)
 
 
 def focal_ratio_prior(given_ratio: float) -> tuple[float, float] | None:
