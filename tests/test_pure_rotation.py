@@ -406,6 +406,51 @@ def test_a_rotation_whose_features_are_worse_along_the_pan_is_flagged(index):
     assert record["rotation_noise_px"] == pytest.approx(result.rotation_noise_px)
 
 
+def _foliage_pair(seed: int, ratio: float):
+    """Three hundred small quads 3-12 m away before a backdrop, as leaves: depth changes from
+    one feature to the next. A translation of ``ratio`` times the median depth."""
+    from imperfect import _jpeg, _rotation, _virtual_K
+
+    from ppo_cv.data_gen.render import median_depth, render_pair
+    from ppo_cv.data_gen.scenes import Scene, _textured_quad, _vec, make_scene
+
+    rng = np.random.default_rng([seed, 77])
+    quads = list(make_scene("backdrop", rng).quads)
+    for _ in range(300):
+        z = rng.uniform(3, 12)
+        side = rng.uniform(0.1, 0.35) * z / 5
+        x, y = rng.uniform(-0.3, 0.3, 2) * z
+        quads.append(_textured_quad(rng, _vec(x, y, z), _vec(side, 0, 0), _vec(0, side, side / 5)))
+    scene = Scene("foliage", tuple(quads), _vec(0, 0, 6), 6.0, {})
+    K = _virtual_K((640, 480), rng.uniform(25, 35))
+    R = _rotation(rng.uniform(2, 8) * rng.choice([-1, 1]), rng.normal(0, 2), rng.normal(0, 2))
+    dist = np.array([rng.uniform(0.02, 0.1) * rng.choice([-1.0, 1.0]), 0, 0, 0, 0])
+    direction = rng.normal(size=3) * [1.0, 0.5, 0.5]
+    baseline = ratio * median_depth(scene, K, (640, 480), dist)
+    t = -R @ (baseline * direction / np.linalg.norm(direction))
+    pair = render_pair(scene, K, K, R, t, (640, 480), 2, dist, dist, noise_std=1.0, seed=seed)
+    image1, image2 = (
+        _jpeg(np.ascontiguousarray(v[:, :, ::-1]), 85) for v in (pair.image1, pair.image2)
+    )
+    K_given = K * [[1.02], [1.02], [1.0]]
+    return image1, image2, K_given, R
+
+
+@pytest.mark.parametrize("ratio", [0.0, 0.02])
+def test_leaves_at_many_depths_do_not_pass_for_noise(ratio):
+    """The rotation's incoherent noise is measured between nearest neighbours; before foliage,
+    where the depth jumps from one feature to the next, it must still see a translation's
+    parallax as parallax, and a rotation as a rotation."""
+    image1, image2, K, R = _foliage_pair(3, ratio)
+    result = estimate_pair(image1, image2, K, K)
+    assert result.pure_rotation == (ratio == 0.0)
+    assert result.rotation_noise_px < 1.5 * result.noise_sigma_px
+    if ratio == 0.0:
+        assert rotation_error_deg(result.R, R) < 0.1
+    else:
+        assert result.gric_difference > 0.5
+
+
 def test_automatic_exposure_and_vignetting_keep_the_decision():
     """Shots one stop apart at most, clipped at white, corners 35 % darker: a warped photo and
     a tripod pan stay flagged with an accurate rotation, a 2 % baseline stays general."""
