@@ -412,7 +412,8 @@ def decide_motion(
     ]
     noise_px = model_noise(candidates)
     rotation_noise_px = _rotation_noise_px(lens, x1[scored], x2[scored], focal)
-    selection = select_model(candidates, sigma=np.nanmax([noise_px, rotation_noise_px]))
+    sigma = rotation_noise_px if rotation_noise_px > noise_px else noise_px
+    selection = select_model(candidates, sigma=sigma)
     R_rot = lens.R
     t_rot, pri = _rotation_translation(lens, x1, x2, rotation_inliers, t)
     pri_general = ppo.pure_rotation_indicator(

@@ -659,25 +659,33 @@ def _offset_beyond_bound(params, problem, principal_prior, noise) -> bool:
     excess = np.abs(params[5:7]) - PRINCIPAL_BOUND * principal_prior
     if not np.any(excess > 0):
         return False
-    cov = gauss_newton_covariance(_jacobian(params, problem)[1], noise**2)
-    # rotation, focal scale and k1 are always free: the offset follows them, as in _sigmas
-    deviation = np.zeros(2) if cov is None else np.sqrt(np.maximum(np.diag(cov)[5:7], 0.0))
+    deviation = _posterior_deviations(params, problem, noise)
+    deviation = np.zeros(2) if deviation is None else deviation[5:7]
     return bool(np.any(excess > PRINCIPAL_SIGNIFICANCE * deviation))
 
 
 def _lens_excess(params, problem, bounds, noise) -> float:
     """Largest ``(|param| - bound) / deviation`` over the free focal scale, ``k1`` and focal
-    ratio, the deviations from ``noise^2 (J^T J)^-1`` as in :func:`_offset_beyond_bound` (inf
-    beyond the box when that is singular)."""
-    free = problem[4]
-    bounded = np.flatnonzero(free & np.isfinite(bounds))
+    ratio, the deviations those of :func:`_posterior_deviations` (inf beyond the box when the
+    covariance is singular)."""
+    bounded = np.flatnonzero(problem[4] & np.isfinite(bounds))
     excess = np.abs(params[bounded]) - bounds[bounded]
+    deviation = _posterior_deviations(params, problem, noise)
+    if deviation is None:
+        return float("inf") if np.any(excess > 0) else float("-inf")
+    return float(np.max(excess / np.maximum(deviation[bounded], np.sqrt(1e-300))))
+
+
+def _posterior_deviations(params, problem, noise) -> np.ndarray | None:
+    """Posterior deviation of each parameter (8,), from ``noise^2 (J^T J)^-1`` with ``J`` the
+    Jacobian of the residuals and the prior rows (NaN for the held ones); None when singular."""
+    free = problem[4]
     cov = gauss_newton_covariance(_jacobian(params, problem)[1], noise**2)
     if cov is None:
-        return float("inf") if np.any(excess > 0) else float("-inf")
-    position = np.cumsum(free) - 1  # column of each free parameter in the covariance
-    deviation = np.sqrt(np.maximum(np.diag(cov)[position[bounded]], 1e-300))
-    return float(np.max(excess / deviation))
+        return None
+    deviation = np.full(free.size, np.nan)
+    deviation[free] = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    return deviation
 
 
 def _gauss_newton(params, problem, iterations, step=1e-6):
