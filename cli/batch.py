@@ -35,6 +35,7 @@ from .common import (
     ProgressReport,
     Quiet,
     Ratio,
+    RedetectBelow,
     Seed,
     Threshold,
     check_image_file,
@@ -416,6 +417,7 @@ def register(app: typer.Typer) -> None:
         photometric: Photometric = True,
         principal_point: PrincipalPoint = "auto",
         focal_ratio: FocalRatio = "auto",
+        redetect_below: RedetectBelow = 100,
         max_trials: Annotated[
             int,
             typer.Option(
@@ -439,7 +441,7 @@ def register(app: typer.Typer) -> None:
             check_range("--max-trials", max_trials, 1, MAX_TRIALS_MAX)
             options = pipeline_options(
                 features, max_features, max_size, ratio, backend, threshold, seed, pri_threshold,
-                max_log10_nfa, plane, photometric, principal_point, focal_ratio,
+                max_log10_nfa, plane, photometric, principal_point, focal_ratio, redetect_below,
             )  # fmt: skip
             options = dataclasses.replace(
                 options,

@@ -17,6 +17,7 @@ import typer
 __all__ = [
     "SEED_MAX",
     "MAX_FEATURES_MAX",
+    "RedetectBelow",
     "fail",
     "warn",
     "check_range",
@@ -104,6 +105,15 @@ FocalRatio = Annotated[
         help="May a pure rotation's fit scale image 2's focal length against image 1's: auto "
         "(when the two given focal lengths differ by at most 5 %, two estimates of one lens) or "
         "given (never: two calibrated cameras).",
+        rich_help_panel=_PANEL,
+    ),
+]
+RedetectBelow = Annotated[
+    int,
+    typer.Option(
+        "--redetect-below",
+        help="When E finds fewer inliers than this, detect again at a quarter of the detector's "
+        "threshold and keep the consensus chance explains less (0: never).",
         rich_help_panel=_PANEL,
     ),
 ]

@@ -25,6 +25,7 @@ from .common import (
     PrincipalPoint,
     PriThreshold,
     Ratio,
+    RedetectBelow,
     Seed,
     Threshold,
     check_image_file,
@@ -59,6 +60,7 @@ def pipeline_options(
     photometric: bool = True,
     principal_point: str = "auto",
     focal_ratio: str = "auto",
+    redetect_below: int = 100,
 ):
     """PairOptions from command-line values, each bounded up front (ValueError naming it)."""
     from ppo_cv.pipeline import PairOptions
@@ -70,6 +72,7 @@ def pipeline_options(
     if max_size != 0:
         check_range("--max-size (0: full size)", max_size, 32, MAX_SIZE_MAX)
     check_range("--ratio", ratio, 1e-6, 1.0)
+    check_range("--redetect-below", redetect_below, 0, MAX_FEATURES_MAX)
     check_range("--threshold (pixels)", threshold, 1e-6, 100.0)
     pri_threshold = DEFAULT_PRI_THRESHOLD if pri_threshold is None else pri_threshold
     check_range("--pri-threshold", pri_threshold, 0.0, 1.0)
@@ -90,6 +93,7 @@ def pipeline_options(
         photometric=photometric,
         principal_point=principal_point.lower(),
         focal_ratio=focal_ratio.lower(),
+        redetect_below=redetect_below,
     )
 
 
@@ -180,6 +184,13 @@ def _radial_lines(result) -> list[str]:
     return [f"  radial k1    {k1:+.4f} (division model on normalized points, fitted with the pose)"]
 
 
+def _denser_note(result) -> str:
+    """Says when the features are those of the second, lower-threshold detection."""
+    if result.threshold_scale == 1.0:
+        return ""
+    return f" (features detected again at {result.threshold_scale:g} x the threshold)"
+
+
 def _rotation_sigma_lines(result) -> list[str]:
     """How well the matches determine the rotation of a pure rotation."""
     sigma = getattr(result, "rotation_sigma_deg", float("nan"))
@@ -258,7 +269,7 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
         *_lens_lines(result),
         f"  log10 NFA    {result.log10_nfa:.1f} (consensus against chance; lower is stronger)",
         f"  matches      {result.num_matches} putative, {result.num_inliers} inliers, "
-        f"{result.num_points} 3D points",
+        f"{result.num_points} 3D points" + _denser_note(result),
         "  time         "
         + ", ".join(f"{k} {1000 * v:.1f} ms" for k, v in result.timings.items())
         + f" (total {1000 * sum(result.timings.values()):.0f} ms)",
@@ -379,6 +390,7 @@ def register(app: typer.Typer) -> None:
         photometric: Photometric = True,
         principal_point: PrincipalPoint = "auto",
         focal_ratio: FocalRatio = "auto",
+        redetect_below: RedetectBelow = 100,
     ) -> None:
         """Relative pose (R, t), pure-rotation verdict and 3D points of two photos.
 
@@ -394,7 +406,7 @@ def register(app: typer.Typer) -> None:
         try:
             options = pipeline_options(
                 features, max_features, max_size, ratio, backend, threshold, seed, pri_threshold,
-                max_log10_nfa, plane, photometric, principal_point, focal_ratio,
+                max_log10_nfa, plane, photometric, principal_point, focal_ratio, redetect_below,
             )  # fmt: skip
         except ValueError as exc:
             _fail(str(exc))

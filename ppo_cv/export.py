@@ -193,7 +193,8 @@ def result_to_dict(result: PairResult, **extra: Any) -> dict:
     camera 1, its ``distance`` in baselines and whether the homography's two-fold ambiguity had
     to be broken (``ambiguous``) for a plane, and is None otherwise; ``radial_k1`` is the
     division-model coefficient fitted with a general pose (0 when not kept, None for the other
-    models).
+    models). ``threshold_scale`` is the detector threshold scale of the features behind the
+    result (below 1 after a second, denser detection: ``PairOptions.redetect_below``).
     """
     angle, axis = rotation_angle_axis(result.R)
     t = np.asarray(result.t, dtype=np.float64).tolist()
@@ -214,6 +215,7 @@ def result_to_dict(result: PairResult, **extra: Any) -> dict:
         "rotation_euler_deg": camera_euler_degrees(result.R)._asdict(),
         "euler_convention": EULER_CONVENTION,
         "num_keypoints": [int(len(result.keypoints1)), int(len(result.keypoints2))],
+        "threshold_scale": float(getattr(result, "threshold_scale", 1.0)),
         "num_matches": result.num_matches,
         "num_inliers": result.num_inliers,
         "num_points": result.num_points,

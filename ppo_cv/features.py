@@ -101,17 +101,19 @@ def to_gray(image: np.ndarray) -> np.ndarray:
     raise ValueError(f"image must have shape (H, W), (H, W, 3) or (H, W, 4), got {image.shape}")
 
 
-def _detector(kind: str, max_features: int):
+def _detector(kind: str, max_features: int, threshold_scale: float = 1.0):
     import cv2
 
     if kind == "sift":
-        return cv2.SIFT_create(nfeatures=max_features)
+        return cv2.SIFT_create(nfeatures=max_features, contrastThreshold=0.04 * threshold_scale)
     if kind == "orb":
-        return cv2.ORB_create(nfeatures=max_features, fastThreshold=10)
+        return cv2.ORB_create(
+            nfeatures=max_features, fastThreshold=max(1, round(10 * threshold_scale))
+        )
     if kind == "akaze":
         # OpenCV 5 moved AKAZE to the contrib module xfeatures2d.
         create = getattr(cv2, "AKAZE_create", None) or cv2.xfeatures2d.AKAZE_create
-        return create(threshold=5e-4)
+        return create(threshold=5e-4 * threshold_scale)
     raise ValueError(f"unknown feature type {kind!r}; choose one of {', '.join(FEATURE_TYPES)}")
 
 
@@ -125,6 +127,7 @@ def detect_features(
     kind: str = "sift",
     max_features: int = 8000,
     max_image_size: int | None = None,
+    threshold_scale: float = 1.0,
 ) -> Features:
     """Detect keypoints and compute descriptors.
 
@@ -139,6 +142,9 @@ def detect_features(
     max_image_size : int, optional
         Detect on a copy whose longer side is at most this many pixels; keypoints are mapped back
         to full resolution (``u_full = (u + 0.5) * s - 0.5``).
+    threshold_scale : float
+        Multiplies the detector's response threshold (SIFT contrast 0.04, ORB FAST 10, AKAZE
+        5e-4): below 1 it keeps weaker keypoints, for images that give few.
 
     Returns
     -------
@@ -150,13 +156,16 @@ def detect_features(
         raise ValueError(f"unknown feature type {kind!r}; choose one of {', '.join(FEATURE_TYPES)}")
     if int(max_features) < 1:
         raise ValueError(f"max_features must be >= 1, got {max_features}")
+    if not 0 < float(threshold_scale) < np.inf:
+        raise ValueError(f"threshold_scale must be a positive number, got {threshold_scale}")
     gray = to_gray(image)
     scale = 1.0
     if max_image_size is not None and max(gray.shape) > max_image_size:
         scale = max(gray.shape) / float(max_image_size)
         size = (round(gray.shape[1] / scale), round(gray.shape[0] / scale))
         gray = cv2.resize(gray, size, interpolation=cv2.INTER_AREA)
-    keypoints, descriptors = _detector(kind, int(max_features)).detectAndCompute(gray, None)
+    detector = _detector(kind, int(max_features), float(threshold_scale))
+    keypoints, descriptors = detector.detectAndCompute(gray, None)
     if descriptors is None or not keypoints:
         dim = 32 if kind != "sift" else 128
         dtype = np.uint8 if kind != "sift" else np.float32

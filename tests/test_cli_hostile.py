@@ -111,6 +111,12 @@ CASES = [
     ([*PAIR, "--max-size", "-5"], "pair", r"--max-size .* must be in 32\.\."),
     ([*PAIR, "--pri-threshold", "-0.1"], "pair", r"--pri-threshold must be in 0\.\.1"),
     ([*PAIR, "--threshold", "inf"], "pair", r"--threshold \(pixels\) must be in"),
+    ([*PAIR, "--redetect-below", "-1"], "pair", r"--redetect-below must be in 0\.\."),
+    (
+        ["pairs", "no_gt.txt", "images", "--K", K_TEXT, "--redetect-below", "-1"],
+        "pairs",
+        r"--redetect-below must be in 0\.\.",
+    ),
     (
         ["pairs", "no_gt.txt", "images", "--K", K_TEXT, "--workers", "-1"],
         "pairs",

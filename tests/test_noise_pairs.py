@@ -135,9 +135,13 @@ def test_demo_pair_keeps_its_pose_and_reports_the_statistic():
         resources.as_file(folder / meta["image2"]) as p2,
     ):
         result = ppo_cv.estimate_pair(p1, p2, K)
-        strict = PairOptions(max_log10_nfa=result.log10_nfa - 1.0)
+        bar = result.log10_nfa - 1.0
+        strict = PairOptions(max_log10_nfa=bar, redetect_below=0)
         with pytest.raises(ValueError, match=r"no reliable two-view geometry.*log10 NFA"):
             ppo_cv.estimate_pair(p1, p2, K, options=strict)
+        # Refused, the consensus is sought again on denser features, which pass only under the bar.
+        denser = ppo_cv.estimate_pair(p1, p2, K, options=PairOptions(max_log10_nfa=bar))
+    assert denser.threshold_scale < 1.0 and denser.log10_nfa <= bar
     assert result.log10_nfa < DEFAULT_MAX_LOG10_NFA - 20
     assert rotation_error_deg(result.R, np.array(meta["reference_R"])) < 2.0
 
@@ -242,6 +246,8 @@ def test_cli_reports_the_statistic_and_applies_a_stricter_bar():
     assert shown.exit_code == 0, shown.output
     log10_nfa = json.loads(shown.stdout)["log10_nfa"]
     assert log10_nfa < -100
-    strict = runner.invoke(app, ["pair", "--max-log10-nfa", str(log10_nfa - 1.0)])
+    strict = runner.invoke(
+        app, ["pair", "--max-log10-nfa", str(log10_nfa - 1.0), "--redetect-below", "0"]
+    )
     assert strict.exit_code == 2
     assert "no reliable two-view geometry" in strict.output

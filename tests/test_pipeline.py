@@ -162,6 +162,7 @@ def test_unrelated_images_are_rejected(general):
         ({"ratio": 1.5}, "ratio"),
         ({"ransac_threshold": 0}, "ransac_threshold"),
         ({"min_trials": 10, "max_trials": 5}, "min_trials"),
+        ({"redetect_below": -1}, "redetect_below"),
     ],
 )
 def test_pair_options_are_checked(kwargs, message):
