@@ -56,14 +56,15 @@ from .photometric import refine_rotation_photometric
 from .plane import refine_planar_pose, undistort_division
 from .pose import _recover_normalized
 from .refine import (
-    HUBER_NOISE_FACTOR,
     T_SIGMA_CAP_DEG,
+    huber_bound_px,
     refine_pose,
     refine_pose_radial,
     translation_sigma_deg,
 )
 from .robust import (
     ROBUST_BACKENDS,
+    RobustEstimate,
     essential_from_pose,
     estimate_essential,
     estimate_essential_ordered,
@@ -73,6 +74,7 @@ from .rotation import K1_PRIOR, PRINCIPAL_PRIOR, focal_ratio_keywords, focal_rat
 from .significance import (
     CONFIDENT_LOG10_NFA,
     DEFAULT_MAX_LOG10_NFA,
+    Significance,
     distinctiveness,
     epipolar_significance,
 )
@@ -96,8 +98,9 @@ REDETECT_THRESHOLD_SCALE = 0.25
 A few dozen matches can neither tell a rotation from a general motion nor pin a pose. On the
 narrow overlaps with sensor noise of ``benchmarks/pure_rotation.py`` (24-78 matches at
 OpenCV's SIFT contrast threshold 0.04) 9 of 14 pure rotations were flagged, 14 of 14 at 0.01;
-on freiburg the AUC@5/10/20 rises from 62.4 / 74.7 / 82.7 to 65.2 / 77.6 / 85.3 (40 of 85
-pairs redetected, at 0.02 the gain at AUC@5 and @10 was about half). Detecting at a lower
+on freiburg the AUC@5/10/20 rises from 62.4 / 74.7 / 82.7 to 65.2 / 77.6 / 85.3 (46 of 85
+pairs detected again, 37 keeping the denser features; at 0.02 the gain at AUC@5 and @10 was
+about half). Detecting at a lower
 threshold on every pair costs the pairs with many inliers accuracy, weak keypoints being
 located worse: at 0.02 throughout, freiburg's AUC@5 fell to 60.6."""
 MAX_SEARCH_SIGMA_DEG = 5.0
@@ -573,11 +576,13 @@ class _Consensus:
     matches: np.ndarray
     x1: np.ndarray
     x2: np.ndarray
-    fit: Any
-    significance: Any
+    fit: RobustEstimate
+    significance: Significance
 
 
-def _consensus(f1, f2, threshold_scale, K1, K2, dist1, dist2, shape2, options, lap) -> _Consensus:
+def _consensus(
+    f1, f2, threshold_scale, K1, K2, dist1, dist2, focal, shape2, options, lap
+) -> _Consensus:
     """Match, normalise and fit ``E`` robustly (stages 2-4); ValueError names what is missing."""
     for name, f in (("image1", f1), ("image2", f2)):
         if len(f) < MIN_MATCHES:
@@ -589,7 +594,6 @@ def _consensus(f1, f2, threshold_scale, K1, K2, dist1, dist2, shape2, options, l
 
     x1 = _normalize(f1.keypoints[matches[:, 0]], K1, dist1)
     x2 = _normalize(f2.keypoints[matches[:, 1]], K2, dist2)
-    focal = float(np.mean([K1[0, 0], K1[1, 1], K2[0, 0], K2[1, 1]]))
     lap("undistort")
 
     ransac = _ransac_keywords(options)
@@ -611,12 +615,12 @@ def _consensus(f1, f2, threshold_scale, K1, K2, dist1, dist2, shape2, options, l
     return _Consensus(f1, f2, threshold_scale, matches, x1, x2, fit, significance)
 
 
-def _best_consensus(f1, f2, img1, img2, K1, K2, dist1, dist2, options, lap) -> _Consensus:
+def _best_consensus(f1, f2, img1, img2, K1, K2, dist1, dist2, focal, options, lap) -> _Consensus:
     """The consensus of the given features, or of features detected at
     :data:`REDETECT_THRESHOLD_SCALE` when that one is weak (``PairOptions.redetect_below``)
     and chance explains the denser one less (lower ``log10`` NFA, which counts the matches
     each was drawn from); the first failure's ValueError when neither holds."""
-    camera = (K1, K2, dist1, dist2, img2.shape, options, lap)
+    camera = (K1, K2, dist1, dist2, focal, img2.shape, options, lap)
     try:
         found, failure = _consensus(f1, f2, 1.0, *camera), None
     except ValueError as exc:
@@ -722,11 +726,11 @@ def estimate_pair(
                     f"{name} are {f.kind} features but options.features is {options.features}"
                 )
         lap("features")
-    found = _best_consensus(f1, f2, img1, img2, K1, K2, dist1, dist2, options, lap)
+    focal = float(np.mean([K1[0, 0], K1[1, 1], K2[0, 0], K2[1, 1]]))
+    found = _best_consensus(f1, f2, img1, img2, K1, K2, dist1, dist2, focal, options, lap)
     f1, f2, matches, x1, x2 = found.features1, found.features2, found.matches, found.x1, found.x2
     fit, significance, inliers = found.fit, found.significance, found.fit.inliers
     p1 = f1.keypoints[matches[:, 0]]
-    focal = float(np.mean([K1[0, 0], K1[1, 1], K2[0, 0], K2[1, 1]]))
 
     chosen = ppo.select_pose(fit.E, x1[inliers], x2[inliers])
     lap("ppo")
@@ -807,8 +811,7 @@ def estimate_pair(
     else:
         radial_k1 = 0.0
         if options.refine:
-            bound = HUBER_NOISE_FACTOR * motion.noise_px
-            bound = min(options.ransac_threshold, bound) if bound > 0 else options.ransac_threshold
+            bound = huber_bound_px(options.ransac_threshold, motion.noise_px)
             radial = refine_pose_radial(R, t, x1, x2, inliers, scale=bound / focal)
             R, t, radial_k1 = radial.R, radial.t, radial.k1
         c1, c2 = undistort_division(x1, radial_k1), undistort_division(x2, radial_k1)

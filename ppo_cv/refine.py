@@ -35,6 +35,7 @@ from .rotation import FOCAL_PRIOR
 __all__ = [
     "HUBER_NOISE_FACTOR",
     "K1_MIN",
+    "huber_bound_px",
     "RadialPose",
     "T_SIGMA_CAP_DEG",
     "refine_pose",
@@ -109,6 +110,15 @@ bounded at five deviations the median error of ``t`` over the set falls from 4.1
 degrees (1.13 to 1.03 at 0.05, 0.70 to 0.69 on ``general``; three deviations reach 2.1 at
 0.02 but lose 0.1 of freiburg's AUC@5), the freiburg AUC unchanged
 (``benchmarks/translation_sigma.py``)."""
+
+
+def huber_bound_px(threshold_px: float, noise_px: float) -> float:
+    """Huber bound of :func:`refine_pose_radial` (pixels): :data:`HUBER_NOISE_FACTOR`
+    deviations of the measured image noise ``noise_px``, at most the RANSAC threshold
+    ``threshold_px``, which is kept when the noise was not measured (NaN or 0)."""
+    bound = HUBER_NOISE_FACTOR * noise_px
+    return min(threshold_px, bound) if bound > 0 else threshold_px
+
 
 K1_MIN = 0.02
 """Smallest division coefficient :func:`refine_pose_radial` keeps. Below it the coefficient

@@ -9,7 +9,13 @@ from ppo_cv import estimate_pair
 from ppo_cv.export import result_to_dict
 from ppo_cv.metrics import direction_error_deg, rotation_error_deg
 from ppo_cv.plane import undistort_division
-from ppo_cv.refine import K1_MIN, refine_pose, refine_pose_radial
+from ppo_cv.refine import (
+    HUBER_NOISE_FACTOR,
+    K1_MIN,
+    huber_bound_px,
+    refine_pose,
+    refine_pose_radial,
+)
 
 FOCAL = 1000.0
 
@@ -99,3 +105,10 @@ def test_a_small_baseline_is_refined_against_the_noise_not_the_ransac_threshold(
     error = direction_error_deg(result.t, pair.t, signed=False)
     assert error < 2.0 and error < result.t_sigma_deg
     assert rotation_error_deg(result.R, pair.R) < 0.1
+
+
+def test_huber_bound_is_the_noise_scaled_up_to_the_threshold():
+    assert huber_bound_px(1.0, 0.05) == pytest.approx(HUBER_NOISE_FACTOR * 0.05)
+    assert huber_bound_px(1.0, 0.5) == 1.0
+    assert huber_bound_px(1.0, float("nan")) == 1.0
+    assert huber_bound_px(1.0, 0.0) == 1.0
