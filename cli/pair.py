@@ -204,13 +204,20 @@ def _rotation_sigma_lines(result) -> list[str]:
 def _lens_lines(result) -> list[str]:
     """The lens terms a pure rotation's fit absorbed (focal scale, focal ratio, principal point),
     or why a rotation that won the model comparison was refused."""
-    from ppo_cv.motion_model import LENS_SIGNIFICANCE
+    from ppo_cv.motion_model import LENS_SIGNIFICANCE, MAX_COHERENT_SHARE
 
     excess = float(getattr(result, "lens_excess", float("nan")))
-    if not result.pure_rotation and result.gric_difference < 0 and excess > LENS_SIGNIFICANCE:
+    share = float(getattr(result, "coherent_share", 0.0))
+    won = not result.pure_rotation and result.gric_difference < 0
+    if won and excess > LENS_SIGNIFICANCE:
         return [
             f"  lens fit     a rotation would need a lens {excess:.1f} deviations beyond "
             "the plausible (focal +-5 %, k1 +-0.15): parallax, not a pure rotation"
+        ]
+    if won and share > MAX_COHERENT_SHARE:
+        return [
+            f"  parallax     {100 * share:.0f} % of the matches move together off the rotation "
+            "(a nearer surface, or an object that moved): not called a pure rotation"
         ]
     if not result.pure_rotation:
         return []

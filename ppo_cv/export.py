@@ -137,6 +137,7 @@ def _model_selection(result: PairResult) -> dict:
             "lens_excess": _finite_or_none(getattr(result, "lens_excess", float("nan"))),
             "noise_sigma_px": float(result.noise_sigma_px),
             "rotation_noise_px": _finite_or_none(getattr(result, "rotation_noise_px", np.nan)),
+            "coherent_share": float(getattr(result, "coherent_share", 0.0)),
             "focal_scale": float(result.focal_scale),
             "focal_ratio": float(getattr(result, "focal_ratio", 1.0)),
             "principal_offset_px": _listed(getattr(result, "principal_offset_px", np.zeros(2))),

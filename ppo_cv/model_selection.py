@@ -55,11 +55,13 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = [
+    "COHERENT_AGREEMENT",
     "JOINT_DIMENSION",
     "MISMATCH_FLOOR",
     "MODEL_DIMENSIONS",
     "ModelResiduals",
     "ModelSelection",
+    "coherent_share",
     "gric",
     "incoherent_sigma",
     "model_noise",
@@ -269,6 +271,49 @@ def incoherent_sigma(vectors: np.ndarray, neighbours: np.ndarray) -> float:
         return float("nan")
     differences = np.linalg.norm(v - v[np.asarray(neighbours)], axis=1)
     return float(np.median(differences) / np.sqrt(2.0 * _chi2_median(2)))
+
+
+COHERENT_AGREEMENT = 0.5
+"""Two residual vectors move together when their difference is below this fraction of the
+first one's length (:func:`coherent_share`)."""
+
+
+def coherent_share(vectors: np.ndarray, neighbours: np.ndarray, outlying: np.ndarray) -> float:
+    """Share of the matches that are outlying and move with their nearest neighbour.
+
+    Outliers a model leaves by chance (noise in a tail, a mismatch) are scattered: the nearest
+    neighbour of one is most likely an inlier, or an outlier displaced another way. Outliers of a
+    surface the model does not explain (parallax, a moving object) come in patches whose
+    residuals agree. Match ``i`` counts when it and its neighbour ``j(i)`` are both outlying and
+    ``|v_i - v_j(i)| < COHERENT_AGREEMENT |v_i|``.
+
+    Parameters
+    ----------
+    vectors : ndarray, shape (N, 2)
+        Residual vectors of the matches under the model.
+    neighbours : ndarray of int, shape (N,)
+        Index of the nearest other match of each in the image (:func:`nearest_neighbours`).
+    outlying : ndarray of bool, shape (N,)
+        Matches the model does not explain.
+
+    Returns
+    -------
+    float
+        In [0, 1]; 0 for no matches.
+
+    Examples
+    --------
+    >>> v = np.array([[5.0, 0.0], [5.2, 0.1], [0.0, 0.1], [-4.0, 3.0]])
+    >>> coherent_share(v, np.array([1, 0, 1, 2]), np.array([True, True, False, True]))
+    0.5
+    """
+    v = np.asarray(vectors, dtype=np.float64)
+    outlying = np.asarray(outlying, dtype=bool)
+    if len(v) == 0:
+        return 0.0
+    j = np.asarray(neighbours)
+    agree = np.linalg.norm(v - v[j], axis=1) < COHERENT_AGREEMENT * np.linalg.norm(v, axis=1)
+    return float(np.mean(outlying & outlying[j] & agree))
 
 
 def gric(residuals: np.ndarray, sigma: float, dimension: int, num_params: int) -> float:

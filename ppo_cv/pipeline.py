@@ -362,6 +362,11 @@ class PairResult:
         Noise of the rotation-only fit's residuals that changes from a match to its nearest
         neighbour (pixels, :func:`ppo_cv.model_selection.incoherent_sigma`); the model
         comparison divides by the larger of the two.
+    coherent_share : float
+        Share of the compared matches that the essential matrix explains, the rotation-only
+        fit does not, and that move with their nearest neighbour (a surface with parallax or a
+        moving object, :func:`ppo_cv.model_selection.coherent_share`); above
+        :data:`ppo_cv.motion_model.MAX_COHERENT_SHARE` the pair is not a pure rotation.
     focal_scale : float
         Focal scale absorbed by the rotation-only fit (given focal length over the true one).
     focal_ratio : float
@@ -411,6 +416,7 @@ class PairResult:
     lens_excess: float = float("nan")
     noise_sigma_px: float = float("nan")
     rotation_noise_px: float = float("nan")
+    coherent_share: float = 0.0
     focal_scale: float = 1.0
     focal_ratio: float = 1.0
     principal_offset_px: np.ndarray = field(default_factory=lambda: np.zeros(2))
@@ -851,6 +857,7 @@ def estimate_pair(
         lens_excess=motion.lens_excess if motion.lens_excess > -np.inf else float("nan"),
         noise_sigma_px=motion.noise_px,
         rotation_noise_px=motion.rotation_noise_px,
+        coherent_share=motion.coherent_share,
         focal_scale=motion.focal_scale,
         focal_ratio=motion.focal_ratio,
         principal_offset_px=motion.principal_offset * focal / motion.focal_scale,
