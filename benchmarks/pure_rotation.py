@@ -163,13 +163,15 @@ per photo` sets tell each view its focal length with a further error of its own 
 table above) 6 of 14 and 9 of 14, their rotations leaving 0.42 and 0.14 px of median
 residual instead of 0.15 and 0.10. On translating pairs told so, a misreported ratio is
 itself a zoom, and where it cancels the flow of the translation along the optical axis at the
-scene's mean depth no method can tell the pair from a rotation: 3 of 14 `tiny-baseline` pairs
-at 0.02 and 1 of 14 at 0.05 are flagged (3 and 0 with the ratio held). On the three at 0.02
-the fitted ratio lies between 1 and the given ratio (`focal_ratio` and `given_focal_ratio` in
-the rows), where no bound can refuse it. The one at 0.05 (index 6: given 1.0059, fitted
-0.998) lies 0.002 below 1, inside the bound of two deviations (0.997-1.009): the true ratio of
-a pan told so is the given one, at the edge of that interval, and the bound leaves room beyond
-it for the fit's noise. One focal length given for both views keeps the ratio at 1: every other
+scene's mean depth no method can tell the pair from a rotation: 2 of 14 `tiny-baseline` pairs
+at 0.02 and none at 0.05 are flagged (2 and 0 with the ratio held). On those two the fitted
+ratio lies between 1 and the given ratio (`focal_ratio` and `given_focal_ratio` in the rows),
+where no bound can refuse it. Index 6, flagged at 0.02 and at 0.05 before the bound on a
+surface off the rotation (below), is refused by it; its fitted ratio at 0.05 (given 1.0059,
+fitted 0.998) lies 0.002 below 1, inside the bound of two deviations (0.997-1.009): the true
+ratio of a pan told so is the given one, at the edge of that interval, and the bound leaves
+room beyond it for the fit's noise. One focal length given for both views keeps the ratio at 1:
+every other
 set is unchanged.
 
 Exposure and vignetting. A consumer camera on automatic exposure takes the shots of a
@@ -227,8 +229,8 @@ levels and a blur of 1.2 px (`NOISY`: 0.10-0.12 px). GRIC divides by the noise i
 the same parallax weighs less on noisier images: 8 of 8 tripod pans at 1600x1200 are flagged
 (7 of 8 without), 14 of 14 at 640x480 and 14 of 14 narrow overlaps as stitched (13 of 14), and 1
 of 14 `tiny-baseline` pairs at 0.02 (0 of 14 without; index 5, a sideways translation before a
-back wall that the rotation explains, the clutter in front a capped minority, as harness seed
-105 above; index 3 was too, until its implausible lens refused it, below). The warped photos
+back wall that the rotation explains, the clutter in front a capped minority; index 3 was too,
+until its implausible lens refused it, below). The warped photos
 keep their recall: 14 of 14 flagged, and 14 of 14 narrow overlaps (9 of 14 before the second
 detection of weak pairs, "Few matches" below; the five misses had 12-48 inliers, four of them
 12-16).
@@ -305,20 +307,39 @@ either, nor index 50 told the centre (10.6), which leaves 1 of 40 and 2 of 40: i
 `k1` lies 0.3-0.6 deviations beyond the box, and index 34 told the centre, inside it. Over 70
 pure rotations with `REAL_PHOTO`'s imperfections (14 each of pure-rotation, panorama, tripod
 pivots 8 and 15 cm and warped photos) the largest excess is -0.1 deviations, a focal 4.9 % off
-on a warped photo. The false flags that remain lie inside the box or within the margin
-(`tiny-baseline` index 6 with focal lengths per photo at 0.05: +0.7; index 8 told the centre:
--2.0; index 5 with sensor noise: -6.2): their lens is plausible and their parallax is what
-the capped minority above describes.
+on a warped photo. The false flags that remain lie inside the box (`tiny-baseline` index 8
+told the centre: -2.0; index 5 with sensor noise: -6.2): their lens is plausible and their
+parallax is what the capped minority above describes.
+
+A surface off the rotation. GRIC caps what a match the rotation leaves costs, so a rotation
+wins while up to about a third of the matches lie far off it, and the matches a translation
+moves off it are not scattered like noise: they are a surface, a patch whose residuals agree.
+A pair is a rotation only when at most a fifth of the compared matches lie on the essential
+matrix, off the rotation, and move with their nearest neighbour in the image (within half the
+residual's length; `ppo_cv.model_selection.coherent_share`,
+`ppo_cv.motion_model.MAX_COHERENT_SHARE`, `PairResult.coherent_share`). In this report the
+rule turns five translating pairs from rotation to general and no other flag: `tiny-baseline`
+index 6 at 0.02 with focal lengths per photo (with the ratio fitted and held) and as stitched,
+and at 0.05 with focal lengths per photo, a box face before the back wall whose matches, a
+quarter of them, all lie 17-19 px off the rotation (shares 0.27, 0.27 and 0.22), and harness
+render seed 105 at 0.02, its near clutter (0.22). The pure rotations have 0-0.06, the noisy
+narrow warps too, though a quarter of their matches lie beyond the rotation's bound: those
+are scattered. The price is a moving object that holds more than a fifth of the matches
+(`benchmarks/moving_object.py`: a patch of 4 % of the image moved 12 px holds up to 40 % of
+them, and 8 of 14 such pairs stay flagged, 13 of 14 without the rule); a nearer surface seen
+by a translating camera and an object that moved are the same thing to two views.
 
 What is left. On data_gen's `tiny-baseline` the flag switches between baseline / depth 0.001
 and 0.02; of the 86 translating renders at 0.02 and above told one focal length for both views,
-three are flagged (3.5 %; with focal lengths given per photo, 4 of 28 more, above, 2 of 14
-as stitched, and 1 of 14 with sensor noise and blur, above): `tiny-baseline` index 8 told the
-centre (above), and harness renders seeds 103 and 105 at 0.02. The harness renders measured
+two are flagged (2.3 %; with focal lengths given per photo, 2 of 28 more, 1 of 14 as
+stitched, and 1 of 14 with sensor noise and blur, above): `tiny-baseline` index 8 told the
+centre (above), and harness render seed 103 at 0.02 (seed 105 was flagged before the bound on
+a surface off the rotation, above). The harness renders measured
 their baseline against the scene's nominal depth,
 0.6 of its back wall, so that their "0.02" was 0.012 of the median depth the views see, inside
 the range where either answer is acceptable; they now measure it as `data_gen` does (one of the
-eight was flagged at 0.012, two are at 0.02; over seeds 100-123, 2 of 24). Both are rooms of
+eight was flagged at 0.012, two were at 0.02; over seeds 100-123, 2 of 24; one is since the
+bound on a surface off the rotation). Both are rooms of
 clutter before a back wall. On seed 103 the rotation's lens fit
 ends at the edge of its box (focal scale 1.05) and leaves 14 of the essential matrix's 245
 inliers beyond its bound (GRIC difference -0.12). On seed 105 it leaves 135 of 586 (23 %) beyond
@@ -330,7 +351,9 @@ were measured over every set of this report and not adopted. A bound on that sha
 rotations with 10-20 inliers leave 2-5 of them off (shares up to 0.3), and in
 `benchmarks/moving_object.py` the flagged pairs leave up to 43 % off, the moved object (a
 translating pair at 0.012 cannot be told from a rotation with a moved object from two views
-either). A lens fit at the edge of its box: 3 of the 12 false flags of these sets end there
+either); the bound adopted since counts only the matches that move with their neighbour (a
+surface off the rotation, above): it refuses seed 105 (0.22), not seed 103 (0.03). A lens fit
+at the edge of its box: 3 of the 12 false flags of these sets ended there before that bound
 (`tiny-baseline` index 6 with focal lengths per photo, at 0.05 and at 0.02 with the ratio
 held, and harness seed 103), no
 flagged exact rotation or tripod pan does, but 15 cm tripod pans, the 1600x1200 pans and the
