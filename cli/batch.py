@@ -184,27 +184,15 @@ def _init_worker() -> None:
 
 @contextlib.contextmanager
 def _worker_pool(workers: int):
-    """A pool of ``workers`` spawned processes (None for one: run here), stopped on any error."""
+    """A pool of ``workers`` spawned processes (None for one: run here), stopped on any error
+    (:func:`ppo_cv.atomic.worker_pool`)."""
     if workers <= 1:
         yield None
         return
-    import multiprocessing
-    import signal
+    from ppo_cv.atomic import worker_pool
 
-    context = multiprocessing.get_context("spawn")  # no fork of a threaded process
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # inherited: workers ignore Ctrl-C
-    try:  # from their first instruction, not only once _init_worker has run
-        pool = context.Pool(workers, initializer=_init_worker)
-    finally:
-        signal.signal(signal.SIGINT, previous)
-    try:
+    with worker_pool(workers, _init_worker) as pool:
         yield pool
-    except BaseException:
-        pool.terminate()
-        pool.join()
-        raise
-    pool.close()
-    pool.join()
 
 
 class FeatureCache:

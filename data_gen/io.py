@@ -30,6 +30,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ppo_cv.atomic import worker_pool
+
 from .imperfect import Imperfections
 from .motion import DEFAULT_SCENE, MAX_BASELINE_RATIO, MOTIONS, check_pivot_offset, sample_motion
 from .render import RenderedPair, render_pair
@@ -266,6 +268,7 @@ def _job(args: tuple) -> str:
 
 def _init_worker() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # stopped by the parent: quietly
     cv2.setNumThreads(1)
     texture_pool()
 
@@ -360,12 +363,8 @@ imperfections, pivot_offset
         if workers == 1:
             lines = [_job(job) for job in jobs]
         else:
-            import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor
-
-            context = multiprocessing.get_context("spawn")
-            with ProcessPoolExecutor(workers, context, initializer=_init_worker) as pool:
-                lines = list(pool.map(_job, jobs))
+            with worker_pool(workers, _init_worker) as pool:
+                lines = pool.map(_job, jobs)
         (tmp / PAIRS_FILE).write_text("\n".join(lines) + "\n")
         tmp.chmod(0o755)
         if out.exists():

@@ -14,8 +14,9 @@ import shutil
 import signal
 import tempfile
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 __all__ = [
     "check_target",
@@ -24,6 +25,7 @@ __all__ = [
     "signals_deferred",
     "sigterm_as_interrupt",
     "stop_listening",
+    "worker_pool",
 ]
 
 
@@ -102,6 +104,33 @@ def signals_deferred() -> Iterator[None]:
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
         if held is not None:
             raise KeyboardInterrupt(f"signal {held}")
+
+
+@contextlib.contextmanager
+def worker_pool(workers: int, initializer: Callable[[], None]) -> Iterator[Any]:
+    """A ``multiprocessing`` pool of ``workers`` spawned processes, stopped on any error.
+
+    The pool starts with SIGINT and SIGTERM deferred (:func:`signals_deferred`): an interrupt
+    that lands while a worker is being launched would leave it reading its start-up data from
+    a closed pipe, and dying of that with a traceback. ``initializer`` runs in each worker (a
+    module-level function: it is pickled). On an exception or an interrupt in the block the
+    workers are stopped and joined before it propagates: none is left writing into an output
+    the caller then removes.
+    """
+    import multiprocessing
+
+    pool = None
+    try:
+        with signals_deferred():
+            pool = multiprocessing.get_context("spawn").Pool(workers, initializer=initializer)
+        yield pool
+    except BaseException:
+        if pool is not None:
+            pool.terminate()
+            pool.join()
+        raise
+    pool.close()
+    pool.join()
 
 
 def _visible_mode(path: Path, base: int) -> None:

@@ -419,6 +419,22 @@ def test_deferred_block_holds_a_signal_that_another_thread_receives():
         signal.signal(signal.SIGTERM, previous)
 
 
+def test_worker_pool_is_stopped_on_an_interrupt():
+    from ppo_cv.atomic import _raise_interrupt, worker_pool
+
+    previous = signal.signal(signal.SIGTERM, _raise_interrupt)
+    try:
+        with pytest.raises(KeyboardInterrupt), worker_pool(2, os.getpid) as pool:
+            pids = set(pool.starmap(os.getpid, [()] * 4))
+            workers = list(pool._pool)
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(1.0)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert pids and pids <= {worker.pid for worker in workers}
+    assert not any(worker.is_alive() for worker in workers)
+
+
 def test_no_signal_after_the_interrupt_was_handled():
     from ppo_cv.atomic import _raise_interrupt, stop_listening
 
