@@ -153,12 +153,12 @@ def table(rows: list[dict]) -> str:
 
 
 FINDINGS = """\
-On the renders the median of error / `t_sigma_deg` is 0.64-1.81, and 1.40-2.84 with the focal
+On the renders the median of error / `t_sigma_deg` is 0.64-1.48, and 1.40-2.29 with the focal
 length held exact: the given focal, up to 3 % off, moves `t` by 0.8 degree per percent in a
 28 degree field, which the noise alone does not account for. On freiburg it is 2.54 (3.04
 held exact) against a median `t_sigma_deg` of 0.39 degree, of the size of the pseudo ground
 truth's own error. The tails are heavier than a Gaussian's (error below 3 `t_sigma_deg` on
-60-93 % of the pairs of a set): a deviation describes the spread around the solution found,
+64-93 % of the pairs of a set): a deviation describes the spread around the solution found,
 not the choice of a wrong one, such as a harness render at 0.02 whose `t` is 73 degrees off
 with its rotation 1.6 degrees off. Capped (90) are pairs whose translation the matches do not
 determine beyond their noise: 2 of the 14 harness renders at 0.02 and at 0.05, one
