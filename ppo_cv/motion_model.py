@@ -450,8 +450,11 @@ def decide_motion(
     pri_general = ppo.pure_rotation_indicator(
         ppo.intersection_scores(x1[inliers], x2[inliers], R, t)
     )
-    plausible = lens.lens_excess <= LENS_SIGNIFICANCE and share <= MAX_COHERENT_SHARE
-    pure = bool(selection.model == "rotation" and pri < pri_threshold and plausible)
+    plausible_lens = lens.lens_excess <= LENS_SIGNIFICANCE
+    scattered = share <= MAX_COHERENT_SHARE
+    pure = bool(
+        selection.model == "rotation" and pri < pri_threshold and plausible_lens and scattered
+    )
     plane, plane_selection, plane_epipolar_ratio = None, None, float("nan")
     plane_off_share = float("nan")
     if homography is not None:
