@@ -156,23 +156,26 @@ def test_refit_is_refused_on_unrelated_images_and_on_a_rotation_far_from_its_bou
     assert refined is None
 
 
-@pytest.mark.parametrize("seed", [0, 3])
-def test_pipeline_rotation_of_imperfect_renders_beats_the_feature_matches(seed):
-    pair = imperfect_render(seed)
-    # the render's principal point is exactly the centre it is given: keep it
-    given = PairOptions(principal_point="given")
-    result = estimate_pair(pair.image1, pair.image2, pair.K_given, options=given)
-    matches = estimate_pair(
-        pair.image1, pair.image2, pair.K_given,
-        options=PairOptions(photometric=False, principal_point="given"),
-    )  # fmt: skip
-    assert result.pure_rotation and result.rotation_tracks > 100
-    assert matches.rotation_tracks == 0
-    error = rotation_error_deg(result.R, pair.R)
-    assert error < 0.04 and error < rotation_error_deg(matches.R, pair.R)
-    assert result.rotation_sigma_deg < matches.rotation_sigma_deg
-    assert error < 5.0 * result.rotation_sigma_deg
-    assert result.t_sigma_deg > 30.0 and result.num_points == 0
+def test_pipeline_rotation_of_imperfect_renders_beats_the_feature_matches():
+    errors, matches_errors = [], []
+    for seed in range(4):
+        pair = imperfect_render(seed)
+        # the render's principal point is exactly the centre it is given: keep it
+        given = PairOptions(principal_point="given")
+        result = estimate_pair(pair.image1, pair.image2, pair.K_given, options=given)
+        matches = estimate_pair(
+            pair.image1, pair.image2, pair.K_given,
+            options=PairOptions(photometric=False, principal_point="given"),
+        )  # fmt: skip
+        assert result.pure_rotation and result.rotation_tracks > 100
+        assert matches.rotation_tracks == 0
+        errors.append(rotation_error_deg(result.R, pair.R))
+        matches_errors.append(rotation_error_deg(matches.R, pair.R))
+        assert result.rotation_sigma_deg < matches.rotation_sigma_deg
+        assert errors[-1] < 5.0 * result.rotation_sigma_deg
+        assert result.t_sigma_deg > 30.0 and result.num_points == 0
+    assert max(errors) < 0.04
+    assert np.mean(errors) < 0.5 * np.mean(matches_errors)
 
 
 def test_json_and_summary_name_the_tracks():
