@@ -102,9 +102,10 @@ on the images (`ppo_cv.photometric`): up to 600 windows around corners of image 
 31 pixels wide, the refit of the smaller bound kept), aligned with
 image 2 seen through that rotation up to a sub-pixel shift, a gain varying linearly across the
 window and an offset, are tracks located to 0.02-0.07 px, which pin the focal to a few tenths
-of a percent. On every set of exact rotations (label t = 0) the median error is then 0.00-0.04
-deg (from 0.02-0.18; 0.07 with the shots a stop apart and vignetted, 0.08-0.10 with sensor
-noise and blur, below), and 0.07 (from 0.12) on the warped frames with the focal given exactly,
+of a percent. On every set of exact rotations (label t = 0) in full overlap the median error is
+then 0.00-0.04 deg (from 0.02-0.18; 0.07 with the shots a stop apart and vignetted, 0.08-0.10
+with sensor noise and blur, below), 0.09 in narrow overlaps as stitched (from 0.25), and 0.07
+(from 0.12) on the warped frames with the focal given exactly,
 whose truth is also the given-focal rotation, as on real tripod panoramas measured against a
 `K R K^-1` homography. Its pair with the fewest matches (seed 55: 9 inliers at OpenCV's
 detector threshold, on which every method failed; 15 on the features of a second detection,

@@ -163,8 +163,9 @@ class PairOptions:
     photometric : bool
         For a pair judged a pure rotation, refit the rotation on windows of the images aligned
         by intensity through the rotation of the matches (:mod:`ppo_cv.photometric`): on
-        imperfect renders and warped photos the median rotation error of each set drops from
-        0.02-0.16 to 0.01-0.04 degrees, and from 0.13 to 0.07 against the given-focal rotation
+        imperfect renders and warped photos in full overlap the median rotation error of each
+        set drops from 0.02-0.18 to 0.00-0.04 degrees, and from 0.12 to 0.07 against the
+        given-focal rotation
         (``benchmarks/pure_rotation.py``). False keeps the rotation of the feature matches.
     principal_point : {"auto", "fit", "given"}
         Whether the rotation-only model may move the principal point
