@@ -219,6 +219,13 @@ def _lens_lines(result) -> list[str]:
             f"  parallax     {100 * share:.0f} % of the matches move together off the rotation "
             "(a nearer surface, or an object that moved): not called a pure rotation"
         ]
+    parallax = float(getattr(result, "track_parallax", float("nan")))
+    if not result.pure_rotation and parallax == parallax:
+        sigma = float(getattr(result, "track_parallax_sigma", float("nan")))
+        return [
+            f"  parallax     the intensity-aligned windows fit a plane that moved "
+            f"{parallax:.4f} +- {sigma:.4f} of its distance: not called a pure rotation"
+        ]
     if not result.pure_rotation:
         return []
     text = f"focal scale {result.focal_scale:.4f} (given / true)"

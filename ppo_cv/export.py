@@ -138,6 +138,10 @@ def _model_selection(result: PairResult) -> dict:
             "noise_sigma_px": float(result.noise_sigma_px),
             "rotation_noise_px": _finite_or_none(getattr(result, "rotation_noise_px", np.nan)),
             "coherent_share": float(getattr(result, "coherent_share", 0.0)),
+            "track_parallax": _finite_or_none(getattr(result, "track_parallax", np.nan)),
+            "track_parallax_sigma": _finite_or_none(
+                getattr(result, "track_parallax_sigma", np.nan)
+            ),
             "focal_scale": float(result.focal_scale),
             "focal_ratio": float(getattr(result, "focal_ratio", 1.0)),
             "principal_offset_px": _listed(getattr(result, "principal_offset_px", np.zeros(2))),

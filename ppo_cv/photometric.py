@@ -49,7 +49,8 @@ from .checks import as_camera_matrix, as_distortion, as_points, as_positive, as_
 from .features import to_gray
 from .metrics import rotation_error_deg
 from .model_selection import robust_sigma
-from .rotation import LensRotationFit, fit_rotation_lens, transfer_points
+from .parallax import PlaneParallax, fit_plane_parallax
+from .rotation import LensRotationFit, correct_points, fit_rotation_lens, transfer_points
 
 __all__ = [
     "WINDOW",
@@ -148,12 +149,22 @@ class PhotometricRotation:
     noise_px : float
         Standard deviation of one coordinate of a track's position (pixels of image 2),
         estimated robustly from the residuals.
+    window : int
+        Side of the aligned windows (pixels).
+    parallax : PlaneParallax or None
+        The homography of the same tracks, lens corrected by ``fit``, and the parallax of its
+        plane (:func:`ppo_cv.parallax.fit_plane_parallax`), its deviation multiplied by the
+        square root of the windows' overlap as the fit's are; None with fewer than 8 tracks.
+        A rotation leaves it near zero; a translation before a surface that the rotation
+        absorbed to a fraction of a pixel does not (:data:`ppo_cv.motion_model.MAX_TRACK_PARALLAX`).
     """
 
     fit: LensRotationFit
     tracks: WindowTracks
     inliers: np.ndarray
     noise_px: float
+    window: int = WINDOW
+    parallax: PlaneParallax | None = None
 
     @property
     def num_tracks(self) -> int:
@@ -654,4 +665,17 @@ def _refine_windows(
             rotation_sigma_deg=fit.rotation_sigma_deg * inflation,
         )
         result = PhotometricRotation(fit=fit, tracks=tracks, inliers=used, noise_px=noise_px)
-    return result
+    y2 = normalize2(result.tracks.points2)
+    parallax = _plane_parallax(y1[result.inliers], y2[result.inliers], result.fit, inflation)
+    return replace(result, window=window, parallax=parallax)
+
+
+def _plane_parallax(y1, y2, fit: LensRotationFit, inflation: float) -> PlaneParallax | None:
+    """:func:`ppo_cv.parallax.fit_plane_parallax` of tracks (normalised points of the given
+    cameras) corrected by the lens terms of ``fit``, its deviation times ``inflation``."""
+    if len(y1) < 8:
+        return None
+    q1 = correct_points(y1, fit.focal_scale, fit.k1, fit.principal_offset)
+    q2 = correct_points(y2, fit.focal_scale2, fit.k1, fit.principal_offset)
+    found = fit_plane_parallax(q1, q2)
+    return replace(found, sigma=found.sigma * inflation)

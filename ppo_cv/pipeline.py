@@ -51,7 +51,7 @@ from .features import FEATURE_TYPES, Features, detect_features, match_features_s
 from .homography import estimate_homography
 from .images import as_image as _as_image
 from .images import load_image
-from .motion_model import decide_motion, plane_ransac_trials, with_rotation
+from .motion_model import decide_motion, plane_ransac_trials, with_tracks
 from .photometric import refine_rotation_photometric
 from .plane import refine_planar_pose, undistort_division
 from .pose import _recover_normalized
@@ -368,6 +368,13 @@ class PairResult:
         fit does not, and that move with their nearest neighbour (a surface with parallax or a
         moving object, :func:`ppo_cv.model_selection.coherent_share`); above
         :data:`ppo_cv.motion_model.MAX_COHERENT_SHARE` the pair is not a pure rotation.
+    track_parallax, track_parallax_sigma : float
+        For a pair the matches called a pure rotation and whose windows were aligned by
+        intensity: the baseline over the distance of the plane those tracks fit best, and its
+        deviation (:mod:`ppo_cv.parallax`); beyond
+        :data:`ppo_cv.motion_model.MAX_TRACK_PARALLAX` by
+        :data:`ppo_cv.motion_model.PARALLAX_SIGNIFICANCE` deviations the pair is not a pure
+        rotation (:func:`ppo_cv.motion_model.with_tracks`). NaN otherwise.
     focal_scale : float
         Focal scale absorbed by the rotation-only fit (given focal length over the true one).
     focal_ratio : float
@@ -418,6 +425,8 @@ class PairResult:
     noise_sigma_px: float = float("nan")
     rotation_noise_px: float = float("nan")
     coherent_share: float = 0.0
+    track_parallax: float = float("nan")
+    track_parallax_sigma: float = float("nan")
     focal_scale: float = 1.0
     focal_ratio: float = 1.0
     principal_offset_px: np.ndarray = field(default_factory=lambda: np.zeros(2))
@@ -787,10 +796,11 @@ def estimate_pair(
             dist1=dist1, dist2=dist2,
         )  # fmt: skip
         if refined is not None:
-            motion = with_rotation(
-                motion, refined.fit, x1, x2, focal, threshold_px=options.ransac_threshold
-            )
-            rotation_tracks = refined.num_tracks
+            motion = with_tracks(
+                motion, refined.fit, refined.parallax, x1, x2, focal,
+                threshold_px=options.ransac_threshold,
+            )  # fmt: skip
+            rotation_tracks = refined.num_tracks if motion.pure_rotation else 0
     lap("photometric")
 
     plane = motion.plane if motion.model == "plane" else None
@@ -859,6 +869,8 @@ def estimate_pair(
         noise_sigma_px=motion.noise_px,
         rotation_noise_px=motion.rotation_noise_px,
         coherent_share=motion.coherent_share,
+        track_parallax=motion.track_parallax,
+        track_parallax_sigma=motion.track_parallax_sigma,
         focal_scale=motion.focal_scale,
         focal_ratio=motion.focal_ratio,
         principal_offset_px=motion.principal_offset * focal / motion.focal_scale,

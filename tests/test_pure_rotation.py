@@ -18,7 +18,12 @@ from ppo_cv.model_selection import (
     robust_sigma,
     select_model,
 )
-from ppo_cv.motion_model import LENS_SIGNIFICANCE, decide_motion
+from ppo_cv.motion_model import (
+    LENS_SIGNIFICANCE,
+    MAX_TRACK_PARALLAX,
+    PARALLAX_SIGNIFICANCE,
+    decide_motion,
+)
 from ppo_cv.refine import translation_sigma_deg
 from ppo_cv.rotation import (
     fit_rotation_lens,
@@ -347,6 +352,8 @@ def test_tripod_pan_about_a_point_behind_the_lens_is_flagged(index):
     result = _data_gen_result(pair)
     assert result.pure_rotation and result.model == "rotation"
     assert rotation_error_deg(result.R, pair.R) < 0.3
+    assert result.rotation_tracks > 100
+    assert result.track_parallax < 0.5 * MAX_TRACK_PARALLAX
 
 
 def test_data_gen_tiny_baseline_of_five_percent_is_not_flagged():
@@ -381,6 +388,35 @@ def test_a_small_baseline_whose_rotation_needs_an_implausible_focal_is_not_flagg
     assert record["lens_excess"] == pytest.approx(result.lens_excess)
     text = _summary(result, "a.png", "b.png", None)
     assert f"lens {result.lens_excess:.1f} deviations beyond the plausible" in text
+
+
+def test_a_sideways_step_before_a_wall_that_the_matches_take_for_a_rotation_is_not_flagged():
+    """Baseline / depth 0.02 across a back wall, principal point guessed at the centre: the
+    rotation absorbs the nearly uniform shift on the feature matches and wins, but the plane of
+    the intensity-aligned tracks moved about 1.3 % of its distance."""
+    from ppo_cv import data_gen
+    from ppo_cv.cli.pair import _summary
+    from ppo_cv.export import result_to_dict
+
+    told = data_gen.Imperfections(centred_principal_point=True)
+    pair = data_gen.make_pair(
+        "tiny-baseline", seed=0, index=8, imperfections=told, baseline_ratio=0.02
+    )
+    image1 = np.ascontiguousarray(pair.image1[..., ::-1])
+    image2 = np.ascontiguousarray(pair.image2[..., ::-1])
+    matches = estimate_pair(
+        image1, image2, pair.K1_given, pair.K2_given, options=PairOptions(photometric=False)
+    )
+    assert matches.pure_rotation and np.isnan(matches.track_parallax)
+    result = estimate_pair(image1, image2, pair.K1_given, pair.K2_given)
+    assert not result.pure_rotation and result.model != "rotation"
+    assert result.rotation_tracks == 0 and result.translation_determined
+    bound = MAX_TRACK_PARALLAX + PARALLAX_SIGNIFICANCE * result.track_parallax_sigma
+    assert bound < result.track_parallax < 0.02
+    assert result.t_sigma_deg < matches.t_sigma_deg
+    record = result_to_dict(result)["model_selection"]
+    assert record["track_parallax"] == pytest.approx(result.track_parallax)
+    assert f"moved {result.track_parallax:.4f} +-" in _summary(result, "a.png", "b.png", None)
 
 
 @pytest.mark.parametrize("index", [8, 11])

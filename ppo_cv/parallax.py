@@ -1,0 +1,185 @@
+"""How far from a rotation a homography is: the baseline over the distance of its plane.
+
+A plane ``n^T X1 = d`` seen from two centres ``t`` apart maps normalised points by
+``Hn = R + t n^T / d = R (I + u n^T)`` with ``u = R^T t / d``, the baseline in camera 1 over
+the plane's distance (:mod:`ppo_cv.plane`). A rotation has three equal singular values.
+``I + u n^T`` with ``u`` across ``n`` has ``(sqrt(1 + tau^2 / 4) + tau / 2, 1,
+sqrt(1 + tau^2 / 4) - tau / 2)``, ``tau = |u|``; with ``u`` along ``n`` it has
+``(1 + tau, 1, 1)``, which is also what a change of focal length between the views makes
+(``diag(r, r, 1) R``), so the images cannot tell a move toward the plane from a zoom. Hence
+
+``parallax = 2 min(ln(s1 / s2), ln(s2 / s3)) = 2 asinh(tau / 2) = tau + O(tau^3)``
+
+for a motion along the plane, less for an oblique one, and zero for a rotation with or without a
+zoom. A sideways translation before a wall is the hard case of a narrow field of view: to first
+order in the field it moves every point alike, as a rotation does, and only the second-order
+terms (``tau x^2``, ``tau x y`` in normalised units) tell the two apart; on tracks located to a
+few hundredths of a pixel (:mod:`ppo_cv.photometric`) they are plain (``docs/pure_rotation.md``).
+
+:func:`fit_plane_parallax` fits the homography to such tracks (the direct linear transform on
+normalised coordinates, Hartley 1997, then Gauss-Newton on the transfer error) and gives the
+parallax with its standard deviation from the fit's covariance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .lsq import forward_jacobian, gauss_newton_covariance, levenberg_marquardt
+from .model_selection import robust_sigma
+
+__all__ = ["PlaneParallax", "fit_plane_parallax", "homography_parallax"]
+
+_MIN_POINTS = 8
+_ITERATIONS = 5
+
+
+@dataclass(frozen=True)
+class PlaneParallax:
+    """Homography fitted to precise point pairs and the parallax of its plane.
+
+    Attributes
+    ----------
+    H : ndarray, shape (3, 3)
+        ``x2 ~ H x1`` on the normalised points, ``det H = 1``.
+    parallax : float
+        :func:`homography_parallax` of ``H``: about the baseline over the plane's distance.
+    sigma : float
+        Its standard deviation under the noise the fit was given (inf when the fit is
+        singular).
+    residuals : ndarray, shape (N,)
+        Transfer error of each pair in view 2, normalised units.
+    """
+
+    H: np.ndarray
+    parallax: float
+    sigma: float
+    residuals: np.ndarray
+
+
+def homography_parallax(H: np.ndarray) -> float:
+    """``2 min(ln(s1 / s2), ln(s2 / s3))`` of the singular values of ``H`` (3, 3): zero for a
+    rotation, with or without a change of focal length, about ``|t| / d`` for
+    ``R + t n^T / d`` with ``t`` along the plane (see the module docstring).
+
+    >>> import numpy as np
+    >>> H = np.eye(3) + np.outer([0.02, 0.0, 0.0], [0.0, 0.0, 1.0])
+    >>> round(homography_parallax(H), 4)
+    0.02
+    """
+    s = np.linalg.svd(np.asarray(H, dtype=np.float64), compute_uv=False)
+    if not s[2] > 0:
+        return float("inf")
+    return float(2.0 * min(np.log(s[0] / s[1]), np.log(s[1] / s[2])))
+
+
+def _conditioner(xy: np.ndarray) -> np.ndarray:
+    """Similarity (3, 3) moving ``xy`` (N, 2) to zero mean and mean distance ``sqrt(2)``."""
+    centre = xy.mean(axis=0)
+    spread = np.mean(np.linalg.norm(xy - centre, axis=1))
+    s = np.sqrt(2.0) / max(spread, 1e-300)
+    return np.array([[s, 0.0, -s * centre[0]], [0.0, s, -s * centre[1]], [0.0, 0.0, 1.0]])
+
+
+def _direct_linear(xy1: np.ndarray, xy2: np.ndarray) -> np.ndarray:
+    """Least-squares homography of the direct linear transform on conditioned points."""
+    T1, T2 = _conditioner(xy1), _conditioner(xy2)
+    a = np.column_stack([xy1, np.ones(len(xy1))]) @ T1.T
+    b = np.column_stack([xy2, np.ones(len(xy2))]) @ T2.T
+    A = np.zeros((2 * len(a), 9))
+    A[0::2, 0:3], A[0::2, 6:9] = a, -b[:, :1] * a
+    A[1::2, 3:6], A[1::2, 6:9] = a, -b[:, 1:2] * a
+    H = np.linalg.svd(A, full_matrices=False)[2][-1].reshape(3, 3)
+    return np.linalg.inv(T2) @ H @ T1
+
+
+def _unit_determinant(H: np.ndarray) -> np.ndarray:
+    return H / np.cbrt(np.linalg.det(H))
+
+
+def _transfer(H: np.ndarray, xy1: np.ndarray, xy2: np.ndarray) -> np.ndarray:
+    """Transfer error vectors (N, 2) of ``xy1`` through ``H`` against ``xy2``."""
+    h = xy1 @ H[:, :2].T + H[:, 2]
+    z = np.where(np.abs(h[:, 2:]) > 1e-12, h[:, 2:], 1e-12)
+    return h[:, :2] / z - xy2
+
+
+def _perturbed(H0: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """``H0 (I + P)`` with the 8 entries of ``P`` other than the last given by ``p``."""
+    return H0 @ (np.eye(3) + np.append(p, 0.0).reshape(3, 3))
+
+
+def fit_plane_parallax(x1: np.ndarray, x2: np.ndarray, noise: float | None = None) -> PlaneParallax:
+    """Homography of point pairs and the parallax of its plane, with its uncertainty.
+
+    Parameters
+    ----------
+    x1, x2 : ndarray, shape (N, 2) or (N, 3)
+        Normalised points of the two views (lens corrected), ``N >= 8``, outliers removed.
+    noise : float, optional
+        Standard deviation of one coordinate of a transfer error (normalised units), > 0;
+        by default estimated robustly from the fit's own residuals
+        (:func:`ppo_cv.model_selection.robust_sigma`).
+
+    Returns
+    -------
+    PlaneParallax
+        ``sigma`` is ``sqrt(g^T C g)``: ``C = noise^2 (J^T J)^-1`` the covariance of the
+        homography's 8 parameters, ``g`` the gradient of the parallax in them.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 8 pairs, mismatched shapes, or a noise that is not positive.
+
+    Examples
+    --------
+    A translation of 2 % of the distance of a wall, seen by a 30 degree field of view:
+
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> x1 = rng.uniform(-0.27, 0.27, (300, 2))
+    >>> H = np.eye(3) + np.outer([0.02, 0.0, 0.0], [0.0, 0.0, 1.0])
+    >>> h = np.column_stack([x1, np.ones(300)]) @ H.T
+    >>> x2 = h[:, :2] / h[:, 2:] + rng.normal(0.0, 2e-5, (300, 2))
+    >>> fit = fit_plane_parallax(x1, x2)
+    >>> bool(abs(fit.parallax - 0.02) < 3 * fit.sigma), bool(fit.sigma < 0.001)
+    (True, True)
+    """
+    xy1, xy2 = _as_points(x1, "x1"), _as_points(x2, "x2")
+    if xy1.shape != xy2.shape:
+        raise ValueError(f"x1 and x2 must have the same shape, got {xy1.shape} and {xy2.shape}")
+    if len(xy1) < _MIN_POINTS:
+        raise ValueError(f"at least {_MIN_POINTS} point pairs are needed, got {len(xy1)}")
+    if noise is not None and not (np.isfinite(noise) and noise > 0):
+        raise ValueError(f"noise must be a positive number, got {noise}")
+    H0 = _unit_determinant(_direct_linear(xy1, xy2))
+
+    def residuals(p: np.ndarray) -> np.ndarray:
+        return _transfer(_perturbed(H0, p), xy1, xy2).ravel()
+
+    p, J = levenberg_marquardt(residuals, np.zeros(8), _ITERATIONS)
+    H = _unit_determinant(_perturbed(H0, p))
+    parallax = homography_parallax(H)
+    errors = np.linalg.norm(_transfer(H, xy1, xy2), axis=1)
+    if noise is None:
+        noise = robust_sigma(errors, 2)
+    covariance = gauss_newton_covariance(J, noise**2) if noise > 0 else None
+    sigma = float("inf")
+    if covariance is not None:
+        g = forward_jacobian(
+            lambda q: np.array([homography_parallax(_perturbed(H0, q))]), p, np.array([parallax])
+        )[0]
+        sigma = float(np.sqrt(max(g @ covariance @ g, 0.0)))
+    return PlaneParallax(H=H, parallax=parallax, sigma=sigma, residuals=errors)
+
+
+def _as_points(x: np.ndarray, name: str) -> np.ndarray:
+    x = np.asarray(x, dtype=np.float64)
+    if x.ndim != 2 or x.shape[1] not in (2, 3):
+        raise ValueError(f"{name} must have shape (N, 2) or (N, 3), got {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError(f"{name} has non-finite values")
+    return x[:, :2] / x[:, 2:] if x.shape[1] == 3 else x
