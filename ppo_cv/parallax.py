@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .checks import as_positive
 from .lsq import forward_jacobian, gauss_newton_covariance, levenberg_marquardt
 from .model_selection import robust_sigma
 
@@ -132,7 +133,9 @@ def fit_plane_parallax(x1: np.ndarray, x2: np.ndarray, noise: float | None = Non
     Raises
     ------
     ValueError
-        Fewer than 8 pairs, mismatched shapes, or a noise that is not positive.
+        Fewer than 8 pairs, mismatched shapes, or a noise that is not a finite number > 0.
+    TypeError
+        A noise that is not a number.
 
     Examples
     --------
@@ -153,8 +156,8 @@ def fit_plane_parallax(x1: np.ndarray, x2: np.ndarray, noise: float | None = Non
         raise ValueError(f"x1 and x2 must have the same shape, got {xy1.shape} and {xy2.shape}")
     if len(xy1) < _MIN_POINTS:
         raise ValueError(f"at least {_MIN_POINTS} point pairs are needed, got {len(xy1)}")
-    if noise is not None and not (np.isfinite(noise) and noise > 0):
-        raise ValueError(f"noise must be a positive number, got {noise}")
+    if noise is not None:
+        noise = as_positive(noise, "noise")
     H0 = _unit_determinant(_direct_linear(xy1, xy2))
 
     def residuals(p: np.ndarray) -> np.ndarray:

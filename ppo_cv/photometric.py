@@ -154,7 +154,7 @@ class PhotometricRotation:
     parallax : PlaneParallax or None
         The homography of the same tracks, lens corrected by ``fit``, and the parallax of its
         plane (:func:`ppo_cv.parallax.fit_plane_parallax`), its deviation multiplied by the
-        square root of the windows' overlap as the fit's are; None with fewer than 8 tracks.
+        square root of the windows' overlap as the fit's are; None when not measured.
         A rotation leaves it near zero; a translation before a surface that the rotation
         absorbed to a fraction of a pixel does not (:data:`ppo_cv.motion_model.MAX_TRACK_PARALLAX`).
     """
@@ -638,7 +638,8 @@ def refine_rotation_photometric(
             results.append(refined)
     if not results:
         return None
-    return min(results, key=lambda refined: refined.fit.rotation_sigma_deg)
+    best = min(results, key=lambda refined: refined.fit.rotation_sigma_deg)
+    return replace(best, parallax=_plane_parallax(best, K1, K2, dist1, dist2))
 
 
 def _refine_windows(
@@ -664,18 +665,22 @@ def _refine_windows(
             focal_scale_sigma=fit.focal_scale_sigma * inflation,
             rotation_sigma_deg=fit.rotation_sigma_deg * inflation,
         )
-        result = PhotometricRotation(fit=fit, tracks=tracks, inliers=used, noise_px=noise_px)
-    y2 = normalize2(result.tracks.points2)
-    parallax = _plane_parallax(y1[result.inliers], y2[result.inliers], result.fit, inflation)
-    return replace(result, window=window, parallax=parallax)
+        result = PhotometricRotation(
+            fit=fit, tracks=tracks, inliers=used, noise_px=noise_px, window=window
+        )
+    return result
 
 
-def _plane_parallax(y1, y2, fit: LensRotationFit, inflation: float) -> PlaneParallax | None:
-    """:func:`ppo_cv.parallax.fit_plane_parallax` of tracks (normalised points of the given
-    cameras) corrected by the lens terms of ``fit``, its deviation times ``inflation``."""
-    if len(y1) < 8:
-        return None
+def _plane_parallax(refined: PhotometricRotation, K1, K2, dist1, dist2) -> PlaneParallax:
+    """:func:`ppo_cv.parallax.fit_plane_parallax` of the tracks ``refined`` used, corrected by
+    its lens terms, the deviation multiplied by the square root of the windows' overlap as the
+    fit's are (``_fit_tracks`` keeps at least :data:`MIN_TRACKS` tracks)."""
+    fit, used = refined.fit, refined.inliers
+    points1, points2 = refined.tracks.points1[used], refined.tracks.points2[used]
+    y1 = pixels_to_normalized(points1, K1, dist1)
+    y2 = pixels_to_normalized(points2, K2, dist2)
     q1 = correct_points(y1, fit.focal_scale, fit.k1, fit.principal_offset)
     q2 = correct_points(y2, fit.focal_scale2, fit.k1, fit.principal_offset)
     found = fit_plane_parallax(q1, q2)
+    inflation = np.sqrt(window_overlap(points1, refined.window))
     return replace(found, sigma=found.sigma * inflation)
