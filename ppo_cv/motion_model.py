@@ -173,7 +173,9 @@ plane moved 0.0115-0.018 of its distance, each to 0.0003. Pure rotations leave 0
 (exact ones) and tripod pans, which do move, 0.0003-0.002 (pivot 8 and 15 cm); the largest seen
 on a rotation is 0.0108 +- 0.0005 on a tripod pan in a narrow overlap as stitched with sensor
 noise, where an error of the principal point times the 20 degree turn mimics a translation
-(``S R S^-1`` with ``S`` the shift of the principal point is not a rotation)."""
+(``S R S^-1`` with ``S`` the shift of the principal point is not a rotation). A radial term
+``k2 = -+2 k1`` that no model has keeps narrow pans under 0.008. Per set:
+``docs/pure_rotation.md``, made by ``benchmarks/pure_rotation.py``."""
 
 PARALLAX_SIGNIFICANCE = 3.0
 """Deviations by which the tracks' parallax must exceed :data:`MAX_TRACK_PARALLAX`: narrow
