@@ -2,18 +2,31 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
-import matplotlib
+import numpy as np
+from anchors import auc
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from anchors import auc  # noqa: E402
-
-__all__ = ["summarise", "draw", "render", "headline"]
+__all__ = ["summarise", "draw", "render", "headline", "pure_rotation_lines"]
 
 THRESHOLDS = (5, 10, 20)
+PURE_ROTATION_ROWS = Path(__file__).resolve().parent / "pure_rotation.json"
+"""Rows of ``pure_rotation.py``'s last full run, summarised in section 3."""
+PURE_ROTATION_GROUPS = {
+    "exact rotations (t = 0)": lambda name, label: label == 1 and "tripod" not in name,
+    "tripod pans (pivot 8-15 cm)": lambda name, label: "tripod" in name,
+    "translating renders, baseline / depth >= 0.02": (
+        lambda name, label: label == 0 and name != "freiburg"
+    ),
+    "freiburg (real, translating)": lambda name, label: name == "freiburg",
+}
+PURE_ROTATION_METHODS = {
+    "ppo_cv_R_err": "ppo_cv",
+    "pycolmap_R_err": "pycolmap",
+    "opencv_R_err": "OpenCV",
+    "poselib_R_err": "PoseLib",
+}
 LABELS = {
     "ppo_cv": "ppo_cv estimate_pair",
     "opencv": "OpenCV",
@@ -248,6 +261,11 @@ def _f1(d: dict) -> float:
 
 
 def draw(res: dict, s: dict, out: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
     sizes = [r["n"] for r in s["identification"]]
     fig, ax = plt.subplots(figsize=(6.5, 4.2))
     for name in ("ppo_cv.recoverPose", "cv2.recoverPose", "pycolmap pose from E"):
@@ -387,6 +405,73 @@ def _pct(x: float) -> str:
     return "n/a" if not np.isfinite(x) else f"{100 * x:.0f} %"
 
 
+def _pure_rotation_sets(saved: dict) -> dict[str, list[dict]]:
+    """The rows of the main sets of ``pure_rotation.py`` (not the sweep, not the ablation with
+    the focal ratio held), per group of :data:`PURE_ROTATION_GROUPS`, with a pose."""
+    groups: dict[str, list[dict]] = {group: [] for group in PURE_ROTATION_GROUPS}
+    for name, data in saved.items():
+        if name.startswith(("_", "sweep")) or "focal_ratio" in data:
+            continue
+        for group, member in PURE_ROTATION_GROUPS.items():
+            if member(name, data["label"]):
+                groups[group] += [{"label": data["label"], **r} for r in data["rows"]]
+    return {g: [r for r in rows if "error" not in r] for g, rows in groups.items()}
+
+
+def _precision_recall(rows: list[dict], key: str) -> str:
+    flags = np.array([bool(r[key]) for r in rows if key in r])
+    labels = np.array([bool(r["label"]) for r in rows if key in r])
+    true = np.sum(flags & labels)
+    return f"precision {true} / {np.sum(flags)}, recall {true} / {np.sum(labels)}"
+
+
+def pure_rotation_lines(figdir: str, path: Path = PURE_ROTATION_ROWS) -> list[str]:
+    """Markdown summary of ``pure_rotation.py``'s rows (``path``): the flag rates and median
+    rotation errors per group of sets, the precision and recall over them, and its plot in
+    ``figdir``; [] without rows."""
+    if not path.is_file():
+        return []
+    saved = json.loads(path.read_text())
+    groups = _pure_rotation_sets(saved)
+    lines = [
+        f"Summary of that report ({saved['_seconds']:.0f} s run, rows in "
+        "`benchmarks/pure_rotation.json`): the share of pairs flagged as pure rotations, and "
+        "the median / max rotation error (degrees) of each method on the same matches.",
+        "",
+        "| sets | pairs | ppo_cv flagged | pycolmap flagged | "
+        + " | ".join(f"{m} R err" for m in PURE_ROTATION_METHODS.values())
+        + " |",
+        "|---|---:|---:|---:|" + "---:|" * len(PURE_ROTATION_METHODS),
+    ]
+    for group, rows in groups.items():
+        if not rows:
+            continue
+        rates = [
+            np.mean([bool(r[k]) for r in rows if k in r]) for k in ("ppo_cv_flag", "pycolmap_flag")
+        ]
+        errors = [
+            np.array([r[k] for r in rows if np.isfinite(r.get(k, np.nan))])
+            for k in PURE_ROTATION_METHODS
+        ]
+        lines.append(
+            f"| {group} | {len(rows)} | {_pct(rates[0])} | {_pct(rates[1])} | "
+            + " | ".join(f"{np.median(e):.2f} / {np.max(e):.2f}" if e.size else "-" for e in errors)
+            + " |"
+        )
+    every = [r for rows in groups.values() for r in rows]
+    lines += [
+        "",
+        "True flags over all flags and over all pure rotations and tripod pans: ppo_cv "
+        f"{_precision_recall(every, 'ppo_cv_flag')}; pycolmap PANORAMIC or "
+        f"PLANAR_OR_PANORAMIC {_precision_recall(every, 'pycolmap_flag')}. The decision "
+        "statistic of every pair, pure rotations against translating pairs:",
+        "",
+        f"![decision statistic]({figdir}/pure_rotation_statistic.png)",
+        "",
+    ]
+    return lines
+
+
 def render(res: dict, s: dict, figdir: str) -> str:
     st = s["settings"]
     v = st["versions"]
@@ -462,8 +547,10 @@ def render(res: dict, s: dict, figdir: str) -> str:
         "Pure rotations with the imperfections of real photos (unmodelled distortion, focal "
         "error, narrow field), warped photos and real translating pairs, with the model "
         "comparison of `estimate_pair` next to pycolmap's PANORAMIC configuration: "
-        "[pure_rotation.md](pure_rotation.md) (`benchmarks/pure_rotation.py`). Below, the clean "
-        "renders of this run.",
+        "[pure_rotation.md](pure_rotation.md) (`benchmarks/pure_rotation.py`).",
+        "",
+        *pure_rotation_lines(figdir),
+        "Below, the clean renders of this run.",
         "",
         f"![detection]({figdir}/{FILES['detection']})",
         "",

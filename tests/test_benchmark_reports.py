@@ -47,3 +47,29 @@ def test_report_counts_flags_as_the_rows_say(script):
     cells = [cell.strip() for cell in line.split("|")[1:-1]]
     assert cells[2] == str(len(rows))
     assert cells[3] == f"{100.0 * flagged / len(rows):.0f} %"
+
+
+def test_benchmarks_page_summarises_the_stored_rows(script, monkeypatch):
+    """Section 3 of docs/benchmarks.md is what compare_report makes of the committed rows."""
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    spec = importlib.util.spec_from_file_location(
+        "compare_report_under_test", ROOT / "benchmarks" / "compare_report.py"
+    )
+    compare_report = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(compare_report)
+    lines = compare_report.pure_rotation_lines("benchmarks", ROWS)
+    page = (ROOT / "docs" / "benchmarks.md").read_text()
+    assert "\n".join(lines) in page
+    saved = json.loads(ROWS.read_text())
+    translating = [
+        row
+        for name, data in saved.items()
+        if not name.startswith(("_", "sweep")) and "focal_ratio" not in data
+        and data["label"] == 0 and name != "freiburg"
+        for row in data["rows"]
+        if "error" not in row
+    ]  # fmt: skip
+    flagged = sum(bool(row["ppo_cv_flag"]) for row in translating)
+    line = next(line for line in lines if line.startswith("| translating renders"))
+    cells = [cell.strip() for cell in line.split("|")[1:-1]]
+    assert cells[1:3] == [str(len(translating)), f"{100.0 * flagged / len(translating):.0f} %"]
