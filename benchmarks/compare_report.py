@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 from anchors import auc
+from rotation_rows import evaluated, flag_counts, main_set
 
 __all__ = ["summarise", "draw", "render", "headline", "pure_rotation_lines"]
 
@@ -410,19 +411,17 @@ def _pure_rotation_sets(saved: dict) -> dict[str, list[dict]]:
     the focal ratio held), per group of :data:`PURE_ROTATION_GROUPS`, with a pose."""
     groups: dict[str, list[dict]] = {group: [] for group in PURE_ROTATION_GROUPS}
     for name, data in saved.items():
-        if name.startswith(("_", "sweep")) or "focal_ratio" in data:
+        if not main_set(name, data):
             continue
         for group, member in PURE_ROTATION_GROUPS.items():
             if member(name, data["label"]):
-                groups[group] += [{"label": data["label"], **r} for r in data["rows"]]
-    return {g: [r for r in rows if "error" not in r] for g, rows in groups.items()}
+                groups[group] += evaluated(data["rows"])
+    return groups
 
 
-def _precision_recall(rows: list[dict], key: str) -> str:
-    flags = np.array([bool(r[key]) for r in rows if key in r])
-    labels = np.array([bool(r["label"]) for r in rows if key in r])
-    true = np.sum(flags & labels)
-    return f"precision {true} / {np.sum(flags)}, recall {true} / {np.sum(labels)}"
+def _precision_recall(saved: dict, key: str) -> str:
+    true, flagged, positives = flag_counts(saved, key)
+    return f"precision {true} / {flagged}, recall {true} / {positives}"
 
 
 def pure_rotation_lines(figdir: str, path: Path = PURE_ROTATION_ROWS) -> list[str]:
@@ -458,12 +457,11 @@ def pure_rotation_lines(figdir: str, path: Path = PURE_ROTATION_ROWS) -> list[st
             + " | ".join(f"{np.median(e):.2f} / {np.max(e):.2f}" if e.size else "-" for e in errors)
             + " |"
         )
-    every = [r for rows in groups.values() for r in rows]
     lines += [
         "",
         "True flags over all flags and over all pure rotations and tripod pans: ppo_cv "
-        f"{_precision_recall(every, 'ppo_cv_flag')}; pycolmap PANORAMIC or "
-        f"PLANAR_OR_PANORAMIC {_precision_recall(every, 'pycolmap_flag')}. The decision "
+        f"{_precision_recall(saved, 'ppo_cv_flag')}; pycolmap PANORAMIC or "
+        f"PLANAR_OR_PANORAMIC {_precision_recall(saved, 'pycolmap_flag')}. The decision "
         "statistic of every pair, pure rotations against translating pairs:",
         "",
         f"![decision statistic]({figdir}/pure_rotation_statistic.png)",

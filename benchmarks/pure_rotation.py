@@ -67,7 +67,9 @@ from ppo_cv.motion_model import MAX_TRACK_PARALLAX, PARALLAX_SIGNIFICANCE
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "benchmarks"))
 from imperfect import imperfect_render, warped_rotation_pair  # noqa: E402
+from rotation_rows import evaluated, flag_counts, main_set  # noqa: E402
 
 __all__ = ["run", "main"]
 
@@ -712,21 +714,11 @@ def _median(rows, key):
     return f"{np.median(values):.3f}" if values else "-"
 
 
-def _main_set(name: str, data: dict) -> bool:
-    """A set of the main table: not the sweep, not run with a setting other than the default."""
-    return not name.startswith("sweep") and "focal_ratio" not in data
-
-
 def _label(name: str, data: dict) -> str:
     """The label column: what the set should be called."""
     if "tripod" in name:
         return "tripod"
     return "t = 0" if data["label"] else "translating"
-
-
-def _evaluated(rows: list[dict]) -> list[dict]:
-    """The rows of the pairs on which ppo_cv returned a pose."""
-    return [r for r in rows if "error" not in r]
 
 
 def _held_ratio_lines(results: dict) -> list[str]:
@@ -745,8 +737,8 @@ def _held_ratio_lines(results: dict) -> list[str]:
         "|---|---|---:|---:|---:|---:|",
     ]
     for name, data in held.items():
-        rows = _evaluated(data["rows"])
-        fitted = _evaluated(results.get(name.removesuffix(", ratio held"), {"rows": []})["rows"])
+        rows = evaluated(data["rows"])
+        fitted = evaluated(results.get(name.removesuffix(", ratio held"), {"rows": []})["rows"])
         ours, n = _flag_rate(rows, "ppo_cv_flag")
         theirs, _ = _flag_rate(fitted, "ppo_cv_flag")
         lines.append(
@@ -779,7 +771,7 @@ def _parallax_lines(results: dict) -> list[str]:
     ]
     for name, data in results.items():
         rows = [r for r in data["rows"] if "track_parallax" in r]
-        if not _main_set(name, data) or not rows:
+        if not main_set(name, data) or not rows:
             continue
         parallax = np.array([r["track_parallax"] for r in rows])
         statistic = np.array([_track_statistic(r) for r in rows])
@@ -823,9 +815,9 @@ def report(results: dict, seconds: float, plot: str | None) -> str:
         "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for name, data in results.items():
-        if not _main_set(name, data):
+        if not main_set(name, data):
             continue
-        rows = _evaluated(data["rows"])
+        rows = evaluated(data["rows"])
         ours, n = _flag_rate(rows, "ppo_cv_flag")
         theirs, _ = _flag_rate(rows, "pycolmap_flag")
         lines.append(
@@ -838,18 +830,9 @@ def report(results: dict, seconds: float, plot: str | None) -> str:
     lines += ["", "Precision / recall of the flag over all labelled sets above:", ""]
     for key, name in (("ppo_cv_flag", "ppo_cv"), ("pycolmap_flag", "pycolmap PANORAMIC or "
                                                    "PLANAR_OR_PANORAMIC")):  # fmt: skip
-        tp = fp = fn = 0
-        for set_name, data in results.items():
-            if not _main_set(set_name, data):
-                continue
-            for r in data["rows"]:
-                if key not in r:
-                    continue
-                tp += r[key] and data["label"]
-                fp += r[key] and not data["label"]
-                fn += (not r[key]) and data["label"]
-        precision = 100.0 * tp / max(tp + fp, 1)
-        recall = 100.0 * tp / max(tp + fn, 1)
+        tp, flagged, positives = flag_counts(results, key)
+        precision = 100.0 * tp / max(flagged, 1)
+        recall = 100.0 * tp / max(positives, 1)
         lines.append(f"- {name}: precision {precision:.0f} %, recall {recall:.0f} %")
     lines += [
         "",
@@ -861,7 +844,7 @@ def report(results: dict, seconds: float, plot: str | None) -> str:
         "|---:|---:|---:|---:|---:|",
     ]
     for ratio in SWEEP:
-        rows = _evaluated(results.get(f"sweep-{ratio}", {"rows": []})["rows"])
+        rows = evaluated(results.get(f"sweep-{ratio}", {"rows": []})["rows"])
         if not rows:
             continue
         rate, n = _flag_rate(rows, "ppo_cv_flag")
@@ -892,7 +875,7 @@ def _plot(results: dict, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    names = [n for n, data in results.items() if _main_set(n, data)]
+    names = [n for n, data in results.items() if main_set(n, data)]
     fig, ax = plt.subplots(figsize=(8.0, 1.0 + 0.4 * len(names)))
     for y, name in enumerate(names):
         rows = [r for r in results[name]["rows"] if "gric_difference" in r]
