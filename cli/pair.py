@@ -202,8 +202,9 @@ def _rotation_sigma_lines(result) -> list[str]:
 
 
 def _lens_lines(result) -> list[str]:
-    """The lens terms a pure rotation's fit absorbed (focal scale, focal ratio, principal point),
-    or why a rotation that won the model comparison was refused."""
+    """The lens terms a pure rotation's fit absorbed (focal scale, focal ratio, principal point)
+    and, when the matches saw a translation, the negligible parallax that overruled them; or why
+    a rotation was refused."""
     from ppo_cv.motion_model import LENS_SIGNIFICANCE, MAX_COHERENT_SHARE
 
     excess = float(getattr(result, "lens_excess", float("nan")))
@@ -228,6 +229,13 @@ def _lens_lines(result) -> list[str]:
         ]
     if not result.pure_rotation:
         return []
+    lines = []
+    if parallax == parallax and result.gric_difference > 0:
+        sigma = float(getattr(result, "track_parallax_sigma", float("nan")))
+        lines.append(
+            f"  parallax     the matches see a translation, but the intensity-aligned windows "
+            f"fit a plane that moved {parallax:.4f} +- {sigma:.4f} of its distance: negligible"
+        )
     text = f"focal scale {result.focal_scale:.4f} (given / true)"
     ratio = float(getattr(result, "focal_ratio", 1.0))
     if ratio != 1.0:
@@ -235,7 +243,7 @@ def _lens_lines(result) -> list[str]:
     offset = getattr(result, "principal_offset_px", None)
     if offset is not None and any(offset):
         text += f", principal point moved ({offset[0]:+.1f}, {offset[1]:+.1f}) px"
-    return [f"  lens fit     {text}"]
+    return [*lines, f"  lens fit     {text}"]
 
 
 def _summary(result, name1: str, name2: str, note: str | None, reference=None) -> str:

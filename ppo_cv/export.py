@@ -142,6 +142,7 @@ def _model_selection(result: PairResult) -> dict:
             "track_parallax_sigma": _finite_or_none(
                 getattr(result, "track_parallax_sigma", np.nan)
             ),
+            "rotation_gap_deg": _finite_or_none(getattr(result, "rotation_gap_deg", np.nan)),
             "focal_scale": float(result.focal_scale),
             "focal_ratio": float(getattr(result, "focal_ratio", 1.0)),
             "principal_offset_px": _listed(getattr(result, "principal_offset_px", np.zeros(2))),

@@ -71,10 +71,22 @@ general motion after all. This catches the sideways translation before a wall th
 field shows as an almost uniform shift, which the rotation with its lens terms absorbs to the
 matches' accuracy.
 
-So a small PRI alone cannot flag a pair whose parallax GRIC sees (the PRI of an essential matrix
-fitted to a narrow-field rotation is not reliable either way: its rotation is degrees off), and a
-GRIC win alone cannot flag a pair whose rays plainly do not meet at the centre. Without a
-homography the decision is between "rotation" and "general".
+The same tracks settle the opposite case. GRIC asks whether a translation is significant, and
+with many well-located matches it is even when it is tiny: a tripod turning the camera about
+its screw, a few centimetres behind the lens, in 1600 px wide images. The label is about size
+instead, so a pair GRIC calls general or a plane, whose rotation-only fit passes every other
+test and explains the matches to :data:`MAX_CANDIDATE_RESIDUAL` radians, while the essential
+matrix bent its rotation more than a negligible translation would
+(:data:`MIN_CANDIDATE_ROTATION_GAP`; :attr:`MotionDecision.rotation_candidate`), has its windows
+aligned too. Its parallax must stay
+below :data:`NEGLIGIBLE_PARALLAX` with :data:`PARALLAX_SIGNIFICANCE` deviations to spare for the
+pair to be called a pure rotation, with the tracks' rotation. Tracks that fit no rotation leave
+the decision as it was.
+
+So a small PRI alone cannot flag a pair whose parallax GRIC sees and the tracks measure (the
+PRI of an essential matrix fitted to a narrow-field rotation is not reliable either way: its
+rotation is degrees off), and a GRIC win alone cannot flag a pair whose rays plainly do not meet
+at the centre. Without a homography the decision is between "rotation" and "general".
 """
 
 from __future__ import annotations
@@ -85,6 +97,7 @@ import numpy as np
 
 from . import ppo
 from .homography import HomographyEstimate
+from .metrics import rotation_error_deg
 from .model_selection import (
     JOINT_DIMENSION,
     MODEL_DIMENSIONS,
@@ -111,6 +124,8 @@ from .rotation import (
 __all__ = [
     "EPIPOLAR_CAP_FACTOR",
     "LENS_SIGNIFICANCE",
+    "MAX_CANDIDATE_RESIDUAL",
+    "MIN_CANDIDATE_ROTATION_GAP",
     "MAX_COHERENT_SHARE",
     "MAX_OFF_PLANE_SHARE",
     "OFF_PLANE_SIGMAS",
@@ -119,6 +134,7 @@ __all__ = [
     "PLANE_EPIPOLAR_TOLERANCE",
     "PLANE_MISMATCH_FLOOR",
     "MAX_TRACK_PARALLAX",
+    "NEGLIGIBLE_PARALLAX",
     "PARALLAX_SIGNIFICANCE",
     "MotionDecision",
     "decide_motion",
@@ -181,6 +197,44 @@ PARALLAX_SIGNIFICANCE = 3.0
 """Deviations by which the tracks' parallax must exceed :data:`MAX_TRACK_PARALLAX`: narrow
 overlaps with sensor noise leave 36-360 tracks in a strip, whose homography's parallax reads
 0.002-0.022 with deviations of 0.003-0.013 on exact rotations."""
+
+NEGLIGIBLE_PARALLAX = 0.003
+"""Parallax of the intensity-aligned tracks below which, with :data:`PARALLAX_SIGNIFICANCE`
+deviations to spare, a :attr:`MotionDecision.rotation_candidate` is called a pure rotation
+(:func:`with_tracks`): a sixth of the baseline / depth of 0.02 from which a translation must
+not be called a rotation, the translation's effect on the scene's plane too small to matter.
+
+A tripod pan at 1600 x 1200 px, 15 cm before the axis, told the centre and a focal length per
+photo (``ppo_cv.data_gen`` panorama seed 1 index 25) is called general by GRIC, its essential
+matrix's rotation 4.4 degrees off; its tracks read 0.0007 +- 0.0001, and flagged its rotation
+is 0.43 degrees off. Translations at baseline / depth 0.02-0.05 that are candidates read
+0.0060-0.035 with deviations of 0.0002-0.0007, 0.0080 at least with three of them added
+(``tiny-baseline``, every way of telling the intrinsics, ``docs/pure_rotation.md``), and
+forced through the windows at 0.01 they read 0.0067-0.0070. Freiburg's pairs are no
+candidates, and forced through the windows 82 of 83 have their rotation refit refused (the
+tracks fit no rotation)."""
+
+MAX_CANDIDATE_RESIDUAL = 2e-3
+"""Largest median residual of the rotation-only fit (radians: pixels of the joint image space
+over the focal length) of a :attr:`MotionDecision.rotation_candidate`, so that the windows
+(1.5-1.9 s at 640 x 480 on 2 cores) are aligned only where a rotation is close. Translations at
+baseline / depth 0.02-0.05 that pass the other tests leave 1.8e-4 to 5.3e-4, the tripod pan
+of :data:`NEGLIGIBLE_PARALLAX` 0.8e-4; the rotation-only fits of freiburg's pairs leave
+3.5e-3 at least (median 3.7e-2)."""
+
+MIN_CANDIDATE_ROTATION_GAP = NEGLIGIBLE_PARALLAX
+"""Least angle (radians) between the essential matrix's rotation and the rotation-only fit of a
+:attr:`MotionDecision.rotation_candidate`. A translation ``t`` seen at distance ``d`` tilts the
+rotation that best explains its flow by about ``|t| / d``, so under a negligible translation
+the two rotations agree to about :data:`NEGLIGIBLE_PARALLAX` radians. An essential matrix whose
+rotation lies further off bent it to let a spurious translation absorb what the rotation's lens
+terms explain (the 4-7 degrees of real tripod panoramas in a narrow field); one that agrees
+measured its small translation consistently, and its ``t`` with ``t_sigma_deg`` is the better
+answer. A clean 61 degree render at baseline / depth 0.004 (``ppo_cv.data_gen``
+``small-parallax`` seed 0 index 2, ``benchmarks/compare.py``) has rotations 0.03 degrees apart
+and ``t`` 1.1 degrees off as a general motion, though its tracks' parallax, 0.0011 +- 0.0006,
+would pass as negligible; the tripod pans at 1600 x 1200 px that GRIC calls general are 0.65 and
+4.8 degrees apart."""
 
 PLANE_MISMATCH_FLOOR = 0.5
 """Mismatch floor of the plane-versus-general comparison (see the module docstring).
@@ -305,6 +359,14 @@ class MotionDecision:
         Parallax of the plane of the homography fitted to the intensity-aligned tracks of a
         rotation, and its deviation (:attr:`ppo_cv.photometric.PhotometricRotation.parallax`,
         :func:`with_tracks`); NaN when no tracks were aligned.
+    rotation_candidate : bool
+        Not a pure rotation, but only because GRIC preferred the essential matrix: the
+        rotation-only fit passed the PRI, lens and coherent-share tests, explains the matches
+        to :data:`MAX_CANDIDATE_RESIDUAL` radians and lies more than
+        :data:`MIN_CANDIDATE_ROTATION_GAP` from the essential matrix's rotation. The
+        intensity-aligned tracks then measure the translation's size (:func:`with_tracks`).
+    rotation_gap : float
+        Angle (radians) between the essential matrix's rotation ``R`` and the rotation-only fit.
     plane : PlanarPose or None
         PPO choice among the decomposition candidates of the homography, when one was given.
     homography_inliers : ndarray of bool, shape (N,) or None
@@ -342,6 +404,8 @@ class MotionDecision:
     coherent_share: float = 0.0
     track_parallax: float = float("nan")
     track_parallax_sigma: float = float("nan")
+    rotation_candidate: bool = False
+    rotation_gap: float = float("nan")
 
     @property
     def gric_difference(self) -> float:
@@ -494,9 +558,10 @@ def decide_motion(
     )
     plausible_lens = lens.lens_excess <= LENS_SIGNIFICANCE
     scattered = share <= MAX_COHERENT_SHARE
-    pure = bool(
-        selection.model == "rotation" and pri < pri_threshold and plausible_lens and scattered
-    )
+    admissible = bool(pri < pri_threshold and plausible_lens and scattered)
+    pure = admissible and selection.model == "rotation"
+    close = selection.median_residual_px["rotation"] / focal <= MAX_CANDIDATE_RESIDUAL
+    rotation_gap = float(np.radians(rotation_error_deg(R, lens.R)))
     plane, plane_selection, plane_epipolar_ratio = None, None, float("nan")
     plane_off_share = float("nan")
     if homography is not None:
@@ -545,6 +610,10 @@ def decide_motion(
         noise_px=float(noise_px),
         rotation_noise_px=float(rotation_noise_px),
         coherent_share=share,
+        rotation_candidate=bool(
+            admissible and not pure and close and rotation_gap > MIN_CANDIDATE_ROTATION_GAP
+        ),
+        rotation_gap=rotation_gap,
     )
 
 
@@ -641,20 +710,26 @@ def with_tracks(
     *,
     threshold_px: float = 1.0,
 ) -> MotionDecision:
-    """A pure rotation's decision revisited on its intensity-aligned tracks.
+    """A decision revisited on the intensity-aligned tracks of its rotation.
 
     The tracks (:func:`ppo_cv.photometric.refine_rotation_photometric`) are located far better
     than feature matches, and a homography fitted to them says how far the scene's dominant
-    plane moved against its distance (:mod:`ppo_cv.parallax`). When that parallax exceeds
-    :data:`MAX_TRACK_PARALLAX` by more than :data:`PARALLAX_SIGNIFICANCE` of its deviations,
-    the pair is not a pure rotation: its model becomes the plane or general motion that
-    :func:`decide_motion` would have chosen without the rotation. Otherwise the rotation is
-    the tracks' (:func:`with_rotation`).
+    plane moved against its distance (:mod:`ppo_cv.parallax`).
+
+    - A pure rotation whose parallax exceeds :data:`MAX_TRACK_PARALLAX` by more than
+      :data:`PARALLAX_SIGNIFICANCE` of its deviations is not one: its model becomes the plane
+      or general motion that :func:`decide_motion` would have chosen without the rotation.
+    - A :attr:`MotionDecision.rotation_candidate` whose parallax stays below
+      :data:`NEGLIGIBLE_PARALLAX` with that many deviations to spare is a pure rotation: the
+      translation GRIC saw is real but negligible.
+
+    A pair that is or becomes a pure rotation takes the tracks' rotation
+    (:func:`with_rotation`); any other keeps its decision.
 
     Parameters
     ----------
     motion : MotionDecision
-        A decision of a pure rotation.
+        A decision of a pure rotation, or of a rotation candidate.
     lens : LensRotationFit
         The rotation refitted on the tracks.
     parallax : PlaneParallax or None
@@ -670,12 +745,17 @@ def with_tracks(
     value = float("nan") if parallax is None else parallax.parallax
     sigma = float("nan") if parallax is None else parallax.sigma
     motion = replace(motion, track_parallax=value, track_parallax_sigma=sigma)
-    if value - PARALLAX_SIGNIFICANCE * sigma > MAX_TRACK_PARALLAX:
+    if motion.pure_rotation and value - PARALLAX_SIGNIFICANCE * sigma > MAX_TRACK_PARALLAX:
         model = _plane_or_general(
             motion.plane_selection, motion.plane, motion.plane_epipolar_ratio,
             motion.plane_off_share,
         )  # fmt: skip
         return replace(motion, model=model, pure_rotation=False)
+    if not motion.pure_rotation:
+        negligible = value + PARALLAX_SIGNIFICANCE * sigma <= NEGLIGIBLE_PARALLAX
+        if not (motion.rotation_candidate and negligible):
+            return motion
+        motion = replace(motion, model="rotation", pure_rotation=True)
     return with_rotation(motion, lens, x1, x2, focal, threshold_px=threshold_px)
 
 

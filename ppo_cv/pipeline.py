@@ -22,8 +22,10 @@ Stages (each timed in ``PairResult.timings``, seconds):
    scale and radial distortion, :mod:`ppo_cv.rotation`), the PPO choice among the homography's
    decomposition candidates (:mod:`ppo_cv.plane`) and the choice among "rotation", "plane" and
    "general" (:mod:`ppo_cv.motion_model`).
-9. ``photometric``: for a pure rotation, the rotation refitted on windows of the images aligned
-   by intensity through the rotation-only fit (:mod:`ppo_cv.photometric`).
+9. ``photometric``: for a pure rotation or a rotation candidate, the rotation refitted on
+   windows of the images aligned by intensity through the rotation-only fit
+   (:mod:`ppo_cv.photometric`), and the decision revisited on the parallax of those tracks
+   (:func:`ppo_cv.motion_model.with_tracks`).
 10. ``decision``: for a pure rotation the rotation of the rotation-only fit and no point; for a
     plane the PPO pose of the homography refined on the homography itself with a radial term
     (:func:`ppo_cv.plane.refine_planar_pose`; not on ``E``: plane matches leave the essential
@@ -166,7 +168,10 @@ class PairOptions:
         imperfect renders and warped photos in full overlap the median rotation error of each
         set drops from 0.02-0.18 to 0.00-0.04 degrees, and from 0.12 to 0.07 against the
         given-focal rotation
-        (``benchmarks/pure_rotation.py``). False keeps the rotation of the feature matches.
+        (``benchmarks/pure_rotation.py``). The same tracks veto a rotation whose plane moved
+        and call a rotation candidate whose parallax is negligible a pure rotation
+        (:func:`ppo_cv.motion_model.with_tracks`). False keeps the rotation and the decision of
+        the feature matches.
     principal_point : {"auto", "fit", "given"}
         Whether the rotation-only model may move the principal point
         (:func:`ppo_cv.rotation.fit_rotation_lens`, prior :data:`ppo_cv.rotation.PRINCIPAL_PRIOR`
@@ -269,7 +274,9 @@ class PairResult:
         but undetermined (``translation_determined`` is False).
     pure_rotation : bool
         The views share a centre, or the baseline is negligible (:mod:`ppo_cv.motion_model`:
-        the rotation model wins GRIC and its PRI is below ``pri_threshold``).
+        the rotation model wins GRIC and its PRI is below ``pri_threshold``, or GRIC sees a
+        translation whose parallax the intensity-aligned windows measure as negligible, with
+        ``gric_difference`` then positive).
     pri : float
         Pure-rotation indicator (mean ``|M2|``, eq. 84) of the returned pose over the inliers:
         the essential matrix's refined pose, for a plane the homography's PPO pose, or for a
@@ -369,12 +376,19 @@ class PairResult:
         moving object, :func:`ppo_cv.model_selection.coherent_share`); above
         :data:`ppo_cv.motion_model.MAX_COHERENT_SHARE` the pair is not a pure rotation.
     track_parallax, track_parallax_sigma : float
-        For a pair the matches called a pure rotation and whose windows were aligned by
-        intensity: the baseline over the distance of the plane those tracks fit best, and its
-        deviation (:mod:`ppo_cv.parallax`); beyond
+        For a pair the matches called a pure rotation, or a rotation candidate
+        (:attr:`ppo_cv.motion_model.MotionDecision.rotation_candidate`), whose windows were
+        aligned by intensity: the baseline over the distance of the plane those tracks fit
+        best, and its deviation (:mod:`ppo_cv.parallax`). Beyond
         :data:`ppo_cv.motion_model.MAX_TRACK_PARALLAX` by
-        :data:`ppo_cv.motion_model.PARALLAX_SIGNIFICANCE` deviations the pair is not a pure
-        rotation (:func:`ppo_cv.motion_model.with_tracks`). NaN otherwise.
+        :data:`ppo_cv.motion_model.PARALLAX_SIGNIFICANCE` deviations a pure rotation is not
+        one; below :data:`ppo_cv.motion_model.NEGLIGIBLE_PARALLAX` with that many deviations to
+        spare a candidate is one (:func:`ppo_cv.motion_model.with_tracks`). NaN otherwise.
+    rotation_gap_deg : float
+        Angle (degrees) between the refined essential matrix's rotation and the rotation-only
+        fit. Beyond :data:`ppo_cv.motion_model.MIN_CANDIDATE_ROTATION_GAP` the essential matrix
+        bent its rotation more than a negligible translation would, and a pair GRIC calls
+        general may be a rotation candidate (``track_parallax``).
     focal_scale : float
         Focal scale absorbed by the rotation-only fit (given focal length over the true one).
     focal_ratio : float
@@ -427,6 +441,7 @@ class PairResult:
     coherent_share: float = 0.0
     track_parallax: float = float("nan")
     track_parallax_sigma: float = float("nan")
+    rotation_gap_deg: float = float("nan")
     focal_scale: float = 1.0
     focal_ratio: float = 1.0
     principal_offset_px: np.ndarray = field(default_factory=lambda: np.zeros(2))
@@ -786,7 +801,7 @@ def estimate_pair(
     lap("model")
 
     rotation_tracks = 0
-    if motion.pure_rotation and options.photometric:
+    if options.photometric and (motion.pure_rotation or motion.rotation_candidate):
         refined = refine_rotation_photometric(
             img1, img2, K1, K2, motion.R,
             focal_scale=motion.focal_scale, k1=motion.k1,
@@ -871,6 +886,7 @@ def estimate_pair(
         coherent_share=motion.coherent_share,
         track_parallax=motion.track_parallax,
         track_parallax_sigma=motion.track_parallax_sigma,
+        rotation_gap_deg=float(np.degrees(motion.rotation_gap)),
         focal_scale=motion.focal_scale,
         focal_ratio=motion.focal_ratio,
         principal_offset_px=motion.principal_offset * focal / motion.focal_scale,

@@ -317,9 +317,12 @@ def score_pose(
     ----------
     pose : PoseResult
     motion : MotionDecision, optional
-        Model decision on the pair's matches; a pure rotation is always rejected, a plane is
-        scored as any pose (pass the pose of its homography: a planar pair seeds a
-        reconstruction when its parallax is sufficient).
+        Model decision on the pair's matches; a pure rotation is always rejected, and so is a
+        rotation candidate (:attr:`ppo_cv.motion_model.MotionDecision.rotation_candidate`:
+        without the images its translation cannot be measured, and
+        :func:`ppo_cv.estimate_pair` may call it a pure rotation); a plane is scored as any
+        pose (pass the pose of its homography: a planar pair seeds a reconstruction when its
+        parallax is sufficient).
     min_inliers : int
         Fewer PPO inliers reject the pair.
     min_tri_angle, target_tri_angle : float
@@ -345,6 +348,11 @@ def score_pose(
         rejection = (
             f"pure rotation (rotation model: GRIC difference {motion.gric_difference:+.3f} "
             f"per match, PRI {motion.pri:.4f})"
+        )
+    elif motion is not None and motion.rotation_candidate:
+        rejection = (
+            "rotation not ruled out (the rotation model passes every test but GRIC, "
+            f"difference {motion.gric_difference:+.3f} per match)"
         )
     elif pose.num_inliers < min_inliers:
         rejection = f"too few inliers ({pose.num_inliers} < {min_inliers})"
