@@ -78,10 +78,9 @@ instead, so a pair GRIC calls general or a plane, whose rotation-only fit passes
 test and explains the matches to :data:`MAX_CANDIDATE_RESIDUAL` radians, while the essential
 matrix bent its rotation more than a negligible translation would
 (:data:`MIN_CANDIDATE_ROTATION_GAP`; :attr:`MotionDecision.rotation_candidate`), has its windows
-aligned too. Its parallax must stay
-below :data:`NEGLIGIBLE_PARALLAX` with :data:`PARALLAX_SIGNIFICANCE` deviations to spare for the
-pair to be called a pure rotation, with the tracks' rotation. Tracks that fit no rotation leave
-the decision as it was.
+aligned too. Its parallax must stay below :data:`NEGLIGIBLE_PARALLAX` with
+:data:`PARALLAX_SIGNIFICANCE` deviations to spare for the pair to be called a pure rotation,
+with the tracks' rotation. Tracks that fit no rotation leave the decision as it was.
 
 So a small PRI alone cannot flag a pair whose parallax GRIC sees and the tracks measure (the
 PRI of an essential matrix fitted to a narrow-field rotation is not reliable either way: its
@@ -745,17 +744,17 @@ def with_tracks(
     value = float("nan") if parallax is None else parallax.parallax
     sigma = float("nan") if parallax is None else parallax.sigma
     motion = replace(motion, track_parallax=value, track_parallax_sigma=sigma)
-    if motion.pure_rotation and value - PARALLAX_SIGNIFICANCE * sigma > MAX_TRACK_PARALLAX:
-        model = _plane_or_general(
-            motion.plane_selection, motion.plane, motion.plane_epipolar_ratio,
-            motion.plane_off_share,
-        )  # fmt: skip
-        return replace(motion, model=model, pure_rotation=False)
-    if not motion.pure_rotation:
-        negligible = value + PARALLAX_SIGNIFICANCE * sigma <= NEGLIGIBLE_PARALLAX
-        if not (motion.rotation_candidate and negligible):
-            return motion
+    if motion.pure_rotation:
+        if value - PARALLAX_SIGNIFICANCE * sigma > MAX_TRACK_PARALLAX:
+            model = _plane_or_general(
+                motion.plane_selection, motion.plane, motion.plane_epipolar_ratio,
+                motion.plane_off_share,
+            )  # fmt: skip
+            return replace(motion, model=model, pure_rotation=False)
+    elif motion.rotation_candidate and value + PARALLAX_SIGNIFICANCE * sigma <= NEGLIGIBLE_PARALLAX:
         motion = replace(motion, model="rotation", pure_rotation=True)
+    else:
+        return motion
     return with_rotation(motion, lens, x1, x2, focal, threshold_px=threshold_px)
 
 
