@@ -206,6 +206,7 @@ def _lens_lines(result) -> list[str]:
     and, when the matches saw a translation, the negligible parallax that overruled them; or why
     a rotation was refused."""
     from ppo_cv.motion_model import LENS_SIGNIFICANCE, MAX_COHERENT_SHARE
+    from ppo_cv.rotation import PRINCIPAL_BOUND
 
     excess = float(getattr(result, "lens_excess", float("nan")))
     share = float(getattr(result, "coherent_share", 0.0))
@@ -221,6 +222,13 @@ def _lens_lines(result) -> list[str]:
             "(a nearer surface, or an object that moved): not called a pure rotation"
         ]
     parallax = float(getattr(result, "track_parallax", float("nan")))
+    if won and parallax != parallax and getattr(result, "principal_bound", 0) > PRINCIPAL_BOUND:
+        x, y = getattr(result, "principal_offset_px", (0.0, 0.0))
+        return [
+            f"  lens fit     a rotation would need the principal point moved ({x:+.1f}, {y:+.1f}) "
+            "px, more than a lens plausibly has, and no intensity-aligned windows confirmed "
+            "it: not called a pure rotation"
+        ]
     if not result.pure_rotation and parallax == parallax:
         sigma = float(getattr(result, "track_parallax_sigma", float("nan")))
         return [

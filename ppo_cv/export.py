@@ -146,6 +146,7 @@ def _model_selection(result: PairResult) -> dict:
             "focal_scale": float(result.focal_scale),
             "focal_ratio": float(getattr(result, "focal_ratio", 1.0)),
             "principal_offset_px": _listed(getattr(result, "principal_offset_px", np.zeros(2))),
+            "principal_bound": _finite_or_none(getattr(result, "principal_bound", np.nan)),
             **_plane_selection(result),
         },
         "radial_k1": _finite_or_none(getattr(result, "radial_k1", float("nan"))),

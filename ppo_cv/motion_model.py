@@ -79,8 +79,16 @@ test and explains the matches to :data:`MAX_CANDIDATE_RESIDUAL` radians, while t
 matrix bent its rotation more than a negligible translation would
 (:data:`MIN_CANDIDATE_ROTATION_GAP`; :attr:`MotionDecision.rotation_candidate`), has its windows
 aligned too. Its parallax must stay below :data:`NEGLIGIBLE_PARALLAX` with
-:data:`PARALLAX_SIGNIFICANCE` deviations to spare for the pair to be called a pure rotation,
-with the tracks' rotation. Tracks that fit no rotation leave the decision as it was.
+:data:`NEGLIGIBLE_SIGNIFICANCE` deviations to spare for the pair to be called a pure
+rotation, with the tracks' rotation. Tracks that fit no rotation leave the decision as it was.
+
+A principal point guessed at the image centre gets the same treatment. The rotation-only fit
+moves it within :data:`ppo_cv.rotation.PRINCIPAL_BOUND` prior deviations, and drops an offset
+the matches place beyond (a translation's parallax, or a lens near the bound that the noise
+carried over it). When it was dropped and the pair is no pure rotation, the rotation is fitted
+again within :data:`ppo_cv.rotation.PRINCIPAL_WIDE_BOUND`; if that fit passes the tests of a
+candidate, GRIC aside, the pair is a candidate under the wider bound, and its tracks, refitted
+under it too, decide as above.
 
 So a small PRI alone cannot flag a pair whose parallax GRIC sees and the tracks measure (the
 PRI of an essential matrix fitted to a narrow-field rotation is not reliable either way: its
@@ -113,6 +121,8 @@ from .parallax import PlaneParallax
 from .plane import PlanarPose, planar_pose
 from .robust import essential_from_pose, sampson_errors
 from .rotation import (
+    PRINCIPAL_BOUND,
+    PRINCIPAL_WIDE_BOUND,
     LensRotationFit,
     correct_points,
     fit_rotation_lens,
@@ -134,6 +144,7 @@ __all__ = [
     "PLANE_MISMATCH_FLOOR",
     "MAX_TRACK_PARALLAX",
     "NEGLIGIBLE_PARALLAX",
+    "NEGLIGIBLE_SIGNIFICANCE",
     "PARALLAX_SIGNIFICANCE",
     "MotionDecision",
     "decide_motion",
@@ -198,7 +209,7 @@ overlaps with sensor noise leave 36-360 tracks in a strip, whose homography's pa
 0.002-0.022 with deviations of 0.003-0.013 on exact rotations."""
 
 NEGLIGIBLE_PARALLAX = 0.003
-"""Parallax of the intensity-aligned tracks below which, with :data:`PARALLAX_SIGNIFICANCE`
+"""Parallax of the intensity-aligned tracks below which, with :data:`NEGLIGIBLE_SIGNIFICANCE`
 deviations to spare, a :attr:`MotionDecision.rotation_candidate` is called a pure rotation
 (:func:`with_tracks`): a sixth of the baseline / depth of 0.02 from which a translation must
 not be called a rotation, the translation's effect on the scene's plane too small to matter.
@@ -212,6 +223,15 @@ is 0.43 degrees off. Translations at baseline / depth 0.02-0.05 that are candida
 forced through the windows at 0.01 they read 0.0067-0.0070. Freiburg's pairs are no
 candidates, and forced through the windows 82 of 83 have their rotation refit refused (the
 tracks fit no rotation)."""
+
+NEGLIGIBLE_SIGNIFICANCE = 2.0
+"""Deviations by which the tracks' parallax of a rotation candidate must stay below
+:data:`NEGLIGIBLE_PARALLAX` (a one-sided bound at 97.7 %). Fewer than the
+:data:`PARALLAX_SIGNIFICANCE` of the opposite test: the bound already lies at half the smallest
+parallax a translation at baseline / depth 0.02 has shown, and a strip of tracks in a narrow
+overlap is uncertain. A tripod pan 15 cm before the axis in a 28 degree field, turned 20
+degrees, as stitched (``ppo_cv.data_gen`` panorama seed 3 index 38), has its tracks read
+0.0010 +- 0.0009: with three deviations it stayed a general motion 3.7 degrees off."""
 
 MAX_CANDIDATE_RESIDUAL = 2e-3
 """Largest median residual of the rotation-only fit (radians: pixels of the joint image space
@@ -359,13 +379,19 @@ class MotionDecision:
         rotation, and its deviation (:attr:`ppo_cv.photometric.PhotometricRotation.parallax`,
         :func:`with_tracks`); NaN when no tracks were aligned.
     rotation_candidate : bool
-        Not a pure rotation, but only because GRIC preferred the essential matrix: the
-        rotation-only fit passed the PRI, lens and coherent-share tests, explains the matches
-        to :data:`MAX_CANDIDATE_RESIDUAL` radians and lies more than
-        :data:`MIN_CANDIDATE_ROTATION_GAP` from the essential matrix's rotation. The
+        Not a pure rotation, but only because GRIC preferred the essential matrix, or because
+        the rotation needs a principal point beyond :data:`ppo_cv.rotation.PRINCIPAL_BOUND`
+        (``principal_bound``): the rotation-only fit passed the PRI, lens and coherent-share
+        tests, explains the matches to :data:`MAX_CANDIDATE_RESIDUAL` radians and lies more
+        than :data:`MIN_CANDIDATE_ROTATION_GAP` from the essential matrix's rotation. The
         intensity-aligned tracks then measure the translation's size (:func:`with_tracks`).
     rotation_gap : float
         Angle (radians) between the essential matrix's rotation ``R`` and the rotation-only fit.
+    principal_bound : float
+        Bound of the principal-point offset of the rotation-only fit, in prior deviations
+        (:func:`ppo_cv.rotation.fit_rotation_lens`): :data:`ppo_cv.rotation.PRINCIPAL_BOUND`,
+        or :data:`ppo_cv.rotation.PRINCIPAL_WIDE_BOUND` for a rotation candidate only the
+        wider bound admits. The tracks' refit uses the same.
     plane : PlanarPose or None
         PPO choice among the decomposition candidates of the homography, when one was given.
     homography_inliers : ndarray of bool, shape (N,) or None
@@ -405,6 +431,7 @@ class MotionDecision:
     track_parallax_sigma: float = float("nan")
     rotation_candidate: bool = False
     rotation_gap: float = float("nan")
+    principal_bound: float = PRINCIPAL_BOUND
 
     @property
     def gric_difference(self) -> float:
@@ -525,42 +552,17 @@ def decide_motion(
         "focal_ratio_prior": focal_ratio_prior,
         "focal_ratio_mean": focal_ratio_mean,
     }
-    lens = fit_rotation_lens(x1, x2, fit.inliers, fit.R, noise=noise, **priors)
-    rotation_inliers = lens.residuals < threshold
-    for _ in range(4):
-        if np.count_nonzero(rotation_inliers) < 4:
-            break
-        lens = fit_rotation_lens(x1, x2, rotation_inliers, lens.R, noise=noise, **priors)
-        within = lens.residuals < threshold
-        if np.array_equal(within, rotation_inliers):
-            break
-        rotation_inliers = within
-    scored = inliers | rotation_inliers
-    candidates = [
-        _candidate(
-            "rotation",
-            lens.residuals[scored] * focal / np.sqrt(2.0),
-            extra=int(focal_ratio_prior is not None),
-        ),
-        _candidate("general", general_all[scored] * focal),
-    ]
-    noise_px = model_noise(candidates)
-    rotation_noise_px, share = _rotation_residual_field(
-        lens, x1[scored], x2[scored], (inliers & ~rotation_inliers)[scored], focal
-    )
-    sigma = rotation_noise_px if rotation_noise_px > noise_px else noise_px
-    selection = select_model(candidates, sigma=sigma)
-    R_rot = lens.R
-    t_rot, pri = _rotation_translation(lens, x1, x2, rotation_inliers, t)
-    pri_general = ppo.pure_rotation_indicator(
-        ppo.intersection_scores(x1[inliers], x2[inliers], R, t)
-    )
-    plausible_lens = lens.lens_excess <= LENS_SIGNIFICANCE
-    scattered = share <= MAX_COHERENT_SHARE
-    admissible = bool(pri < pri_threshold and plausible_lens and scattered)
-    pure = admissible and selection.model == "rotation"
-    close = selection.median_residual_px["rotation"] / focal <= MAX_CANDIDATE_RESIDUAL
-    rotation_gap = float(np.radians(rotation_error_deg(R, lens.R)))
+    context = (x1, x2, R, t, inliers, general_all, noise, focal, threshold, pri_threshold)
+    rotation = _rotation_evidence(fit.inliers, fit.R, priors, context)
+    pure = rotation.admissible and rotation.selection.model == "rotation"
+    candidate = rotation.admissible and not pure and rotation.close
+    principal_bound, scored = PRINCIPAL_BOUND, inliers | rotation.inliers
+    if not pure and rotation.lens.offset_dropped:
+        wide = _rotation_evidence(
+            fit.inliers, fit.R, {**priors, "principal_bound": PRINCIPAL_WIDE_BOUND}, context
+        )
+        if wide.admissible and wide.close:
+            rotation, candidate, principal_bound = wide, True, PRINCIPAL_WIDE_BOUND
     plane, plane_selection, plane_epipolar_ratio = None, None, float("nan")
     plane_off_share = float("nan")
     if homography is not None:
@@ -586,17 +588,21 @@ def decide_motion(
         if pure
         else _plane_or_general(plane_selection, plane, plane_epipolar_ratio, plane_off_share)
     )
+    lens = rotation.lens
+    pri_general = ppo.pure_rotation_indicator(
+        ppo.intersection_scores(x1[inliers], x2[inliers], R, t)
+    )
     return MotionDecision(
         model=model,
         pure_rotation=pure,
-        R=R_rot,
-        t=t_rot,
-        rotation_inliers=rotation_inliers,
-        pri=float(pri),
+        R=lens.R,
+        t=rotation.t,
+        rotation_inliers=rotation.inliers,
+        pri=rotation.pri,
         pri_general=float(pri_general),
         focal_scale=lens.focal_scale,
         k1=lens.k1,
-        selection=selection,
+        selection=rotation.selection,
         plane=plane,
         homography_inliers=None if homography is None else homography.inliers,
         plane_selection=plane_selection,
@@ -606,13 +612,88 @@ def decide_motion(
         principal_offset=lens.principal_offset,
         focal_ratio=lens.focal_ratio,
         lens_excess=lens.lens_excess,
+        noise_px=rotation.noise_px,
+        rotation_noise_px=rotation.rotation_noise_px,
+        coherent_share=rotation.share,
+        rotation_candidate=bool(candidate),
+        rotation_gap=rotation.gap,
+        principal_bound=principal_bound,
+    )
+
+
+@dataclass(frozen=True)
+class _RotationEvidence:
+    """A rotation-only fit of :func:`decide_motion` and the tests on it: ``admissible`` (PRI,
+    plausible lens, scattered outlying matches), ``close`` (residual within
+    :data:`MAX_CANDIDATE_RESIDUAL`, rotation beyond :data:`MIN_CANDIDATE_ROTATION_GAP` from the
+    essential matrix's)."""
+
+    lens: LensRotationFit
+    inliers: np.ndarray
+    selection: ModelSelection
+    noise_px: float
+    rotation_noise_px: float
+    share: float
+    t: np.ndarray
+    pri: float
+    gap: float
+    admissible: bool
+    close: bool
+
+
+def _rotation_evidence(start_inliers, start_R, priors, context) -> _RotationEvidence:
+    """Lens rotation from a RANSAC consensus, re-selected at the transfer bound until its inliers
+    settle, compared by GRIC with the essential matrix on the union of their inliers.
+
+    ``context``: ``(x1, x2, R, t, inliers, general_all, noise, focal, threshold,
+    pri_threshold)`` of :func:`decide_motion`, ``general_all`` the essential matrix's Sampson
+    errors and ``threshold`` the transfer bound (normalised units)."""
+    x1, x2, R, t, inliers, general_all, noise, focal, threshold, pri_threshold = context
+    lens = fit_rotation_lens(x1, x2, start_inliers, start_R, noise=noise, **priors)
+    rotation_inliers = lens.residuals < threshold
+    for _ in range(4):
+        if np.count_nonzero(rotation_inliers) < 4:
+            break
+        lens = fit_rotation_lens(x1, x2, rotation_inliers, lens.R, noise=noise, **priors)
+        within = lens.residuals < threshold
+        if np.array_equal(within, rotation_inliers):
+            break
+        rotation_inliers = within
+    scored = inliers | rotation_inliers
+    candidates = [
+        _candidate(
+            "rotation",
+            lens.residuals[scored] * focal / np.sqrt(2.0),
+            extra=int(priors["focal_ratio_prior"] is not None),
+        ),
+        _candidate("general", general_all[scored] * focal),
+    ]
+    noise_px = model_noise(candidates)
+    rotation_noise_px, share = _rotation_residual_field(
+        lens, x1[scored], x2[scored], (inliers & ~rotation_inliers)[scored], focal
+    )
+    selection = select_model(
+        candidates, sigma=rotation_noise_px if rotation_noise_px > noise_px else noise_px
+    )
+    t_rot, pri = _rotation_translation(lens, x1, x2, rotation_inliers, t)
+    gap = float(np.radians(rotation_error_deg(R, lens.R)))
+    residual = selection.median_residual_px["rotation"] / focal
+    return _RotationEvidence(
+        lens=lens,
+        inliers=rotation_inliers,
+        selection=selection,
         noise_px=float(noise_px),
         rotation_noise_px=float(rotation_noise_px),
-        coherent_share=share,
-        rotation_candidate=bool(
-            admissible and not pure and close and rotation_gap > MIN_CANDIDATE_ROTATION_GAP
+        share=share,
+        t=t_rot,
+        pri=float(pri),
+        gap=gap,
+        admissible=bool(
+            pri < pri_threshold
+            and lens.lens_excess <= LENS_SIGNIFICANCE
+            and share <= MAX_COHERENT_SHARE
         ),
-        rotation_gap=rotation_gap,
+        close=bool(residual <= MAX_CANDIDATE_RESIDUAL and gap > MIN_CANDIDATE_ROTATION_GAP),
     )
 
 
@@ -719,8 +800,8 @@ def with_tracks(
       :data:`PARALLAX_SIGNIFICANCE` of its deviations is not one: its model becomes the plane
       or general motion that :func:`decide_motion` would have chosen without the rotation.
     - A :attr:`MotionDecision.rotation_candidate` whose parallax stays below
-      :data:`NEGLIGIBLE_PARALLAX` with that many deviations to spare is a pure rotation: the
-      translation GRIC saw is real but negligible.
+      :data:`NEGLIGIBLE_PARALLAX` with :data:`NEGLIGIBLE_SIGNIFICANCE` deviations to spare
+      is a pure rotation: the translation GRIC saw is real but negligible.
 
     A pair that is or becomes a pure rotation takes the tracks' rotation
     (:func:`with_rotation`); any other keeps its decision.
@@ -751,7 +832,9 @@ def with_tracks(
                 motion.plane_off_share,
             )  # fmt: skip
             return replace(motion, model=model, pure_rotation=False)
-    elif motion.rotation_candidate and value + PARALLAX_SIGNIFICANCE * sigma <= NEGLIGIBLE_PARALLAX:
+    elif (
+        motion.rotation_candidate and value + NEGLIGIBLE_SIGNIFICANCE * sigma <= NEGLIGIBLE_PARALLAX
+    ):
         motion = replace(motion, model="rotation", pure_rotation=True)
     else:
         return motion

@@ -50,7 +50,13 @@ from .features import to_gray
 from .metrics import rotation_error_deg
 from .model_selection import robust_sigma
 from .parallax import PlaneParallax, fit_plane_parallax
-from .rotation import LensRotationFit, correct_points, fit_rotation_lens, transfer_points
+from .rotation import (
+    PRINCIPAL_BOUND,
+    LensRotationFit,
+    correct_points,
+    fit_rotation_lens,
+    transfer_points,
+)
 
 __all__ = [
     "WINDOW",
@@ -520,6 +526,7 @@ def refine_rotation_photometric(
     focal_ratio: float = 1.0,
     focal_ratio_prior: float | None = None,
     focal_ratio_mean: float = 1.0,
+    principal_bound: float = PRINCIPAL_BOUND,
     rotation_sigma_deg: float = 1.0,
     dist1: np.ndarray | None = None,
     dist2: np.ndarray | None = None,
@@ -546,6 +553,9 @@ def refine_rotation_photometric(
         ``focal_ratio``.
     focal_ratio_mean : float
         Mean of that prior.
+    principal_bound : float
+        Largest principal-point offset of the refit, in ``principal_prior`` deviations
+        (:func:`ppo_cv.rotation.fit_rotation_lens`; the bound the rotation of the matches used).
     rotation_sigma_deg : float
         Its uncertainty: how far (three times this) the first alignment must search, and the
         bound on the change: a refit further than ``4 rotation_sigma_deg + 0.1`` degrees from
@@ -597,10 +607,12 @@ def refine_rotation_photometric(
     if focal_ratio_prior is not None:
         focal_ratio_prior = as_positive(focal_ratio_prior, "focal_ratio_prior")
     focal_ratio_mean = as_positive(focal_ratio_mean, "focal_ratio_mean")
+    principal_bound = as_positive(principal_bound, "principal_bound")
     priors = {
         "principal_prior": principal_prior,
         "focal_ratio_prior": focal_ratio_prior,
         "focal_ratio_mean": focal_ratio_mean,
+        "principal_bound": principal_bound,
     }
     windows = _as_windows(window)
     focal = float(np.mean([K2[0, 0], K2[1, 1]]))

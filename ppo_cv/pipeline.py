@@ -72,7 +72,13 @@ from .robust import (
     estimate_essential_ordered,
     sampson_errors,
 )
-from .rotation import K1_PRIOR, PRINCIPAL_PRIOR, focal_ratio_keywords, focal_ratio_prior
+from .rotation import (
+    K1_PRIOR,
+    PRINCIPAL_BOUND,
+    PRINCIPAL_PRIOR,
+    focal_ratio_keywords,
+    focal_ratio_prior,
+)
 from .significance import (
     CONFIDENT_LOG10_NFA,
     DEFAULT_MAX_LOG10_NFA,
@@ -382,8 +388,9 @@ class PairResult:
         best, and its deviation (:mod:`ppo_cv.parallax`). Beyond
         :data:`ppo_cv.motion_model.MAX_TRACK_PARALLAX` by
         :data:`ppo_cv.motion_model.PARALLAX_SIGNIFICANCE` deviations a pure rotation is not
-        one; below :data:`ppo_cv.motion_model.NEGLIGIBLE_PARALLAX` with that many deviations to
-        spare a candidate is one (:func:`ppo_cv.motion_model.with_tracks`). NaN otherwise.
+        one; below :data:`ppo_cv.motion_model.NEGLIGIBLE_PARALLAX` with
+        :data:`ppo_cv.motion_model.NEGLIGIBLE_SIGNIFICANCE` deviations to spare a candidate
+        is one (:func:`ppo_cv.motion_model.with_tracks`). NaN otherwise.
     rotation_gap_deg : float
         Angle (degrees) between the refined essential matrix's rotation and the rotation-only
         fit. Beyond :data:`ppo_cv.motion_model.MIN_CANDIDATE_ROTATION_GAP` the essential matrix
@@ -399,6 +406,11 @@ class PairResult:
     principal_offset_px : ndarray, shape (2,)
         Offset of the true principal point from the given one found by the rotation-only fit
         (pixels; zero when it was not fitted, ``PairOptions.principal_point``).
+    principal_bound : float
+        Largest offset that fit accepted, in deviations of its prior per coordinate:
+        :data:`ppo_cv.rotation.PRINCIPAL_BOUND`, or :data:`ppo_cv.rotation.PRINCIPAL_WIDE_BOUND`
+        for a pair that only the wider bound makes a rotation candidate (a pure rotation only
+        if its tracks confirm it, ``track_parallax``).
     timings : dict
         Seconds per stage; ``features`` is detection alone and ``pycolmap_import`` the wait for
         the first import of pycolmap that overlaps it.
@@ -445,6 +457,7 @@ class PairResult:
     focal_scale: float = 1.0
     focal_ratio: float = 1.0
     principal_offset_px: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    principal_bound: float = PRINCIPAL_BOUND
     timings: dict[str, float] = field(default_factory=dict)
     threshold_scale: float = 1.0
     dist1: np.ndarray | None = None
@@ -807,6 +820,7 @@ def estimate_pair(
             focal_scale=motion.focal_scale, k1=motion.k1,
             principal_offset=motion.principal_offset, principal_prior=principal_prior,
             focal_ratio=motion.focal_ratio, **ratio_keywords,
+            principal_bound=motion.principal_bound,
             rotation_sigma_deg=min(motion.rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG),
             dist1=dist1, dist2=dist2,
         )  # fmt: skip
@@ -890,6 +904,7 @@ def estimate_pair(
         focal_scale=motion.focal_scale,
         focal_ratio=motion.focal_ratio,
         principal_offset_px=motion.principal_offset * focal / motion.focal_scale,
+        principal_bound=motion.principal_bound,
         timings=timings,
         threshold_scale=found.threshold_scale,
         dist1=dist1,

@@ -46,6 +46,7 @@ __all__ = [
     "PRINCIPAL_BOUND",
     "PRINCIPAL_PRIOR",
     "PRINCIPAL_SIGNIFICANCE",
+    "PRINCIPAL_WIDE_BOUND",
     "RotationFit",
     "LensRotationFit",
     "rotations_from_two_rays",
@@ -93,6 +94,17 @@ down: one prior for both axes (1 % of the larger side) let a translation at base
 0.02 move the point 11.8 px down a 480 px high image, beyond 2 % of it, and be called a pure
 rotation (``ppo_cv.data_gen`` ``tiny-baseline`` index 5 with the centre given). An offset is
 beyond the bound only when the matches place it there (:data:`PRINCIPAL_SIGNIFICANCE`)."""
+
+PRINCIPAL_WIDE_BOUND = 3.0
+"""Wider bound (prior deviations per coordinate) of a second rotation-only fit, for a pair whose
+offset the first fit dropped: 3 % of each side. The fitted offset of a lens whose principal
+point lies 1.9 % of a side off the centre overshoots 2 % in a narrow overlap (20 degree pans in
+a 30 degree field, as stitched: ``ppo_cv.data_gen`` panorama seed 1, 640 x 480 index 51, 30 px
+across at 1600 x 1200 index 11), and without it the rotation leaves a translation's parallax
+(1.3-1.9 degrees off as general motions). Translations use the same freedom: at baseline / depth
+0.02 with the centre given (``tiny-baseline`` index 5) a bound of 3 lets the rotation win GRIC.
+So a pair that passes only under this bound is no more than a rotation candidate, settled by the
+parallax of its intensity-aligned tracks (:func:`ppo_cv.motion_model.decide_motion`)."""
 
 PRINCIPAL_SIGNIFICANCE = 3.0
 """How far, in its own posterior deviations, a fitted offset must lie beyond
@@ -180,6 +192,9 @@ class LensRotationFit:
         clipped to it, in their own posterior deviations (``noise^2 (J^T J)^-1``): the largest
         of ``(|s - 1| - max_focal_change) / sd(s)`` and its likes, negative inside the box,
         ``-inf`` when the lens terms were not estimated.
+    offset_dropped : bool
+        A principal-point offset was to be fitted and lay beyond its bound: the given
+        principal point was kept.
     """
 
     R: np.ndarray
@@ -191,6 +206,7 @@ class LensRotationFit:
     principal_offset: np.ndarray = field(default_factory=lambda: np.zeros(2))
     focal_ratio: float = 1.0
     lens_excess: float = float("-inf")
+    offset_dropped: bool = False
 
     @property
     def focal_scale2(self) -> float:
@@ -488,6 +504,7 @@ def fit_rotation_lens(
     principal_prior: float | np.ndarray | None = None,
     focal_ratio_prior: float | None = None,
     focal_ratio_mean: float = 1.0,
+    principal_bound: float = PRINCIPAL_BOUND,
 ) -> LensRotationFit:
     """Rotation, focal scale, radial coefficient (principal point, focal ratio) by Gauss-Newton.
 
@@ -500,7 +517,7 @@ def fit_rotation_lens(
     least-squares cost is the squared transfer error in view 2. The lens terms must land in a
     box of plausible lenses (``|s - 1|, |rho - 1| <= max_focal_change``,
     ``|k1| <= max_k1``), else they are clipped to it and the rotation alone is re-fitted, and
-    an offset beyond :data:`PRINCIPAL_BOUND` priors on either coordinate, by more than
+    an offset beyond ``principal_bound`` priors on either coordinate, by more than
     :data:`PRINCIPAL_SIGNIFICANCE` of its posterior deviations, is dropped (the given
     principal point is kept): a translation's parallax must not be explained away by an
     implausible lens. Given the ``noise`` of a transfer-error coordinate, the lens terms also
@@ -535,6 +552,9 @@ def fit_rotation_lens(
         Needs ``noise``.
     focal_ratio_mean : float
         Mean of the prior on ``rho``.
+    principal_bound : float
+        Largest offset kept, in ``principal_prior`` deviations per coordinate (default
+        :data:`PRINCIPAL_BOUND`).
 
     Returns
     -------
@@ -564,6 +584,9 @@ def fit_rotation_lens(
     if principal_prior is not None:
         principal_prior = np.broadcast_to(np.asarray(principal_prior, dtype=float), (2,))
     fit_offset = principal_prior is not None and bool(np.all(principal_prior > 0)) and with_noise
+    if not principal_bound > 0:
+        raise ValueError(f"principal_bound must be > 0, got {principal_bound!r}")
+    offset_bound = principal_bound * principal_prior if fit_offset else None
     fit_ratio = focal_ratio_prior is not None and focal_ratio_prior > 0 and with_noise
     free = _LENS | (_OFFSET if fit_offset else False) | (_RATIO if fit_ratio else False)
     bounds = np.full(_NPARAMS, np.inf)
@@ -583,7 +606,7 @@ def fit_rotation_lens(
         params = _gauss_newton(params, problem, iterations)
         for _ in range(2):  # parallax, not a lens: keep the given principal point, ratio
             implausible = np.zeros(_NPARAMS, dtype=bool)
-            if free[5] and _offset_beyond_bound(params, problem, principal_prior, noise):
+            if free[5] and _offset_beyond_bound(params, problem, offset_bound, noise):
                 implausible |= _OFFSET
             if free[7] and abs(params[7] - centre[7]) > FOCAL_RATIO_BOUND * focal_ratio_prior:
                 implausible |= _RATIO
@@ -613,6 +636,7 @@ def fit_rotation_lens(
         principal_offset=params[5:7].copy(),
         focal_ratio=1.0 + float(params[7]),
         lens_excess=excess,
+        offset_dropped=bool(fit_offset and not free[5]),
     )
 
 
@@ -652,11 +676,11 @@ def _sigmas(params, problem) -> tuple[float, float]:
     return float(np.sqrt(max(cov[3, 3], 0.0))), float(rotation)
 
 
-def _offset_beyond_bound(params, problem, principal_prior, noise) -> bool:
-    """A coordinate of the fitted offset lies beyond :data:`PRINCIPAL_BOUND` priors by more than
+def _offset_beyond_bound(params, problem, bound, noise) -> bool:
+    """A coordinate of the fitted offset lies beyond ``bound`` (2,) by more than
     :data:`PRINCIPAL_SIGNIFICANCE` posterior deviations, ``noise^2 (J^T J)^-1`` with ``J`` the
     Jacobian of the residuals and the prior rows (the plain bound when it is singular)."""
-    excess = np.abs(params[5:7]) - PRINCIPAL_BOUND * principal_prior
+    excess = np.abs(params[5:7]) - bound
     if not np.any(excess > 0):
         return False
     deviation = _posterior_deviations(params, problem, noise)

@@ -13,6 +13,7 @@ from ppo_cv.metrics import rotation_error_deg
 from ppo_cv.motion_model import (
     MIN_CANDIDATE_ROTATION_GAP,
     NEGLIGIBLE_PARALLAX,
+    NEGLIGIBLE_SIGNIFICANCE,
     PARALLAX_SIGNIFICANCE,
     decide_motion,
     with_tracks,
@@ -93,7 +94,7 @@ def test_an_essential_matrix_that_agrees_with_the_rotation_keeps_its_translation
 def test_negligible_tracks_parallax_turns_a_candidate_into_a_rotation():
     R, _, x1, x2, motion = _candidate()
     lens = fit_rotation_lens(x1, x2, motion.rotation_inliers, motion.R, noise=0.05 / FOCAL)
-    bound = NEGLIGIBLE_PARALLAX - PARALLAX_SIGNIFICANCE * 1e-4
+    bound = NEGLIGIBLE_PARALLAX - NEGLIGIBLE_SIGNIFICANCE * 1e-4
     decided = with_tracks(motion, lens, _tracks(0.99 * bound, 1e-4), x1, x2, FOCAL)
     assert decided.pure_rotation and decided.model == "rotation"
     assert np.allclose(decided.R, lens.R)
@@ -103,8 +104,8 @@ def test_negligible_tracks_parallax_turns_a_candidate_into_a_rotation():
 @pytest.mark.parametrize(
     ("parallax", "sigma"),
     [
-        (NEGLIGIBLE_PARALLAX - PARALLAX_SIGNIFICANCE * 1e-4 + 1e-5, 1e-4),
-        (0.001, 0.001),
+        (NEGLIGIBLE_PARALLAX - NEGLIGIBLE_SIGNIFICANCE * 1e-4 + 1e-5, 1e-4),
+        (0.0012, 0.001),
         (float("nan"), float("nan")),
     ],
 )
@@ -159,7 +160,7 @@ def test_a_tripod_pan_whose_pivot_the_matches_see_is_flagged_by_its_tracks():
     assert rotation_error_deg(matches.R, pair.R) > 2.0
     result = estimate_pair(image1, image2, K1, K2)
     assert result.pure_rotation and result.model == "rotation" and result.gric_difference > 0
-    assert result.track_parallax + PARALLAX_SIGNIFICANCE * result.track_parallax_sigma < (
+    assert result.track_parallax + NEGLIGIBLE_SIGNIFICANCE * result.track_parallax_sigma < (
         NEGLIGIBLE_PARALLAX
     )
     assert rotation_error_deg(result.R, pair.R) < 0.6
