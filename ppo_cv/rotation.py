@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .checks import as_positive
 from .lsq import gauss_newton_covariance, rotation_increment, rotation_increments
 from .ppo import rotation_from_rays
 
@@ -584,8 +585,7 @@ def fit_rotation_lens(
     if principal_prior is not None:
         principal_prior = np.broadcast_to(np.asarray(principal_prior, dtype=float), (2,))
     fit_offset = principal_prior is not None and bool(np.all(principal_prior > 0)) and with_noise
-    if not principal_bound > 0:
-        raise ValueError(f"principal_bound must be > 0, got {principal_bound!r}")
+    principal_bound = as_positive(principal_bound, "principal_bound")
     offset_bound = principal_bound * principal_prior if fit_offset else None
     fit_ratio = focal_ratio_prior is not None and focal_ratio_prior > 0 and with_noise
     free = _LENS | (_OFFSET if fit_offset else False) | (_RATIO if fit_ratio else False)

@@ -19,7 +19,11 @@ from ppo_cv.camera import principal_point_is_centre
 from ppo_cv.cli.pair import _lens_lines
 from ppo_cv.export import result_to_dict
 from ppo_cv.metrics import rotation_error_deg
-from ppo_cv.motion_model import NEGLIGIBLE_PARALLAX
+from ppo_cv.motion_model import (
+    NEGLIGIBLE_PARALLAX,
+    NEGLIGIBLE_SIGNIFICANCE,
+    PARALLAX_SIGNIFICANCE,
+)
 from ppo_cv.rotation import PRINCIPAL_BOUND, PRINCIPAL_WIDE_BOUND, fit_rotation_lens
 
 WIDTH, HEIGHT = 640, 480
@@ -80,8 +84,9 @@ def test_the_wide_bound_keeps_an_offset_the_bound_drops():
     assert not wide.offset_dropped
     assert np.allclose(wide.principal_offset * focal, (2.5 * prior_px, 0.0), atol=0.3)
     assert rotation_error_deg(wide.R, R) < 0.005 < rotation_error_deg(narrow.R, R)
-    with pytest.raises(ValueError, match="principal_bound"):
-        fit_rotation_lens(x1, x2, used, R, principal_bound=0.0, **options)
+    for bad in (0.0, np.inf):
+        with pytest.raises(ValueError, match="principal_bound"):
+            fit_rotation_lens(x1, x2, used, R, principal_bound=bad, **options)
 
 
 def test_the_prior_and_its_bound_follow_each_image_side():
@@ -131,7 +136,8 @@ def test_a_translation_whose_offset_passes_only_the_wide_bound_stays_general(imp
         assert rotation_error_deg(result.R, pair.R) < 0.2
     assert result.rotation_tracks == 0
     if imperfections == "stitched":
-        assert result.track_parallax - 3 * result.track_parallax_sigma > NEGLIGIBLE_PARALLAX
+        deviations = PARALLAX_SIGNIFICANCE * result.track_parallax_sigma
+        assert result.track_parallax - deviations > NEGLIGIBLE_PARALLAX
     else:
         assert np.isnan(result.track_parallax)
         line = "".join(_lens_lines(result))
@@ -184,7 +190,8 @@ def test_a_narrow_pan_flagged_only_through_the_wide_bound(size, seed, index, piv
     assert rotation_error_deg(matches_only.R, pair.R) > 1.0
     result = _run(pair)
     assert result.pure_rotation and result.principal_bound == PRINCIPAL_WIDE_BOUND
-    assert result.track_parallax + 2 * result.track_parallax_sigma <= NEGLIGIBLE_PARALLAX
+    deviations = NEGLIGIBLE_SIGNIFICANCE * result.track_parallax_sigma
+    assert result.track_parallax + deviations <= NEGLIGIBLE_PARALLAX
     assert rotation_error_deg(result.R, pair.R) < 0.2
     fitted = np.abs(result.principal_offset_px) / (0.01 * np.array([w, h]))
     assert np.max(fitted) <= PRINCIPAL_WIDE_BOUND
