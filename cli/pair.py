@@ -205,7 +205,7 @@ def _lens_lines(result) -> list[str]:
     """The lens terms a pure rotation's fit absorbed (focal scale, focal ratio, principal point)
     and, when the matches saw a translation, the negligible parallax that overruled them; or why
     a rotation was refused."""
-    from ppo_cv.motion_model import LENS_SIGNIFICANCE, MAX_COHERENT_SHARE
+    from ppo_cv.motion_model import LENS_SIGNIFICANCE, MAX_COHERENT_SHARE, NEGLIGIBLE_PARALLAX
     from ppo_cv.rotation import PRINCIPAL_BOUND
 
     excess = float(getattr(result, "lens_excess", float("nan")))
@@ -231,9 +231,15 @@ def _lens_lines(result) -> list[str]:
         ]
     if not result.pure_rotation and parallax == parallax:
         sigma = float(getattr(result, "track_parallax_sigma", float("nan")))
+        clipped = ""
+        if won and excess > 0:
+            clipped = (
+                f", more than the {NEGLIGIBLE_PARALLAX:g} a rotation whose lens needed the "
+                "edge of the plausible box may show"
+            )
         return [
             f"  parallax     the intensity-aligned windows fit a plane that moved "
-            f"{parallax:.4f} +- {sigma:.4f} of its distance: not called a pure rotation"
+            f"{parallax:.4f} +- {sigma:.4f} of its distance{clipped}: not called a pure rotation"
         ]
     if not result.pure_rotation:
         return []

@@ -71,6 +71,13 @@ general motion after all. This catches the sideways translation before a wall th
 field shows as an almost uniform shift, which the rotation with its lens terms absorbs to the
 matches' accuracy.
 
+A rotation whose lens the matches asked beyond the box (:attr:`MotionDecision.lens_clipped`)
+may be such a translation absorbed at the edge of the box, or a focal length given further off
+than the box allows. Its tracks settle which: they are refitted in the wider focal box
+:data:`ppo_cv.rotation.TRACK_FOCAL_CHANGE`, which tracks pin down, and the pair stays a rotation
+only while their parallax does not exceed :data:`NEGLIGIBLE_PARALLAX` by
+:data:`PARALLAX_SIGNIFICANCE` deviations.
+
 The same tracks settle the opposite case. GRIC asks whether a translation is significant, and
 with many well-located matches it is even when it is tiny: a tripod turning the camera about
 its screw, a few centimetres behind the lens, in 1600 px wide images. The label is about size
@@ -121,8 +128,10 @@ from .parallax import PlaneParallax
 from .plane import PlanarPose, planar_pose
 from .robust import essential_from_pose, sampson_errors
 from .rotation import (
+    MAX_FOCAL_CHANGE,
     PRINCIPAL_BOUND,
     PRINCIPAL_WIDE_BOUND,
+    TRACK_FOCAL_CHANGE,
     LensRotationFit,
     correct_points,
     fit_rotation_lens,
@@ -434,6 +443,28 @@ class MotionDecision:
     principal_bound: float = PRINCIPAL_BOUND
 
     @property
+    def lens_clipped(self) -> bool:
+        """The lens of the rotation-only fit lay beyond the box of plausible lenses and was
+        clipped to it (``lens_excess > 0``, within :data:`LENS_SIGNIFICANCE` for a rotation):
+        the rotation may be a translation's, absorbed at the edge of the box."""
+        return self.lens_excess > 0
+
+    @property
+    def track_focal_change(self) -> float:
+        """Box of the focal scale for the refit on intensity-aligned tracks
+        (:func:`ppo_cv.photometric.refine_rotation_photometric`):
+        :data:`ppo_cv.rotation.TRACK_FOCAL_CHANGE` when :attr:`lens_clipped`, else
+        :data:`ppo_cv.rotation.MAX_FOCAL_CHANGE`."""
+        return TRACK_FOCAL_CHANGE if self.lens_clipped else MAX_FOCAL_CHANGE
+
+    @property
+    def track_parallax_bound(self) -> float:
+        """Parallax of the tracks beyond which, by :data:`PARALLAX_SIGNIFICANCE` deviations, a
+        pure rotation is refused (:func:`with_tracks`): :data:`MAX_TRACK_PARALLAX`, or
+        :data:`NEGLIGIBLE_PARALLAX` when :attr:`lens_clipped`."""
+        return NEGLIGIBLE_PARALLAX if self.lens_clipped else MAX_TRACK_PARALLAX
+
+    @property
     def gric_difference(self) -> float:
         """``(GRIC(rotation) - GRIC(general)) / n``: negative when the rotation explains more."""
         return self.selection.relative_gric("rotation", "general")
@@ -552,7 +583,7 @@ def decide_motion(
         "focal_ratio_prior": focal_ratio_prior,
         "focal_ratio_mean": focal_ratio_mean,
     }
-    context = (x1, x2, R, t, inliers, general_all, noise, focal, threshold, pri_threshold)
+    context = _Context(x1, x2, R, t, inliers, general_all, noise, focal, threshold, pri_threshold)
     rotation = _rotation_evidence(fit.inliers, fit.R, priors, context)
     pure = rotation.admissible and rotation.selection.model == "rotation"
     candidate = rotation.admissible and not pure and rotation.close
@@ -561,7 +592,7 @@ def decide_motion(
         wide = _rotation_evidence(
             fit.inliers, fit.R, {**priors, "principal_bound": PRINCIPAL_WIDE_BOUND}, context
         )
-        if wide.admissible and wide.close:
+        if wide.admissible and wide.close and not wide.lens.offset_dropped:
             rotation, candidate, principal_bound = wide, True, PRINCIPAL_WIDE_BOUND
     plane, plane_selection, plane_epipolar_ratio = None, None, float("nan")
     plane_off_share = float("nan")
@@ -622,6 +653,24 @@ def decide_motion(
 
 
 @dataclass(frozen=True)
+class _Context:
+    """What :func:`_rotation_evidence` compares a rotation with: the matches (normalised, all),
+    the essential matrix's pose, inliers and Sampson errors (all matches), the transfer-error
+    noise, the focal length (pixels), the transfer bound (normalised) and the PRI threshold."""
+
+    x1: np.ndarray
+    x2: np.ndarray
+    R: np.ndarray
+    t: np.ndarray
+    inliers: np.ndarray
+    general_all: np.ndarray
+    noise: float
+    focal: float
+    threshold: float
+    pri_threshold: float
+
+
+@dataclass(frozen=True)
 class _RotationEvidence:
     """A rotation-only fit of :func:`decide_motion` and the tests on it: ``admissible`` (PRI,
     plausible lens, scattered outlying matches), ``close`` (residual within
@@ -641,14 +690,14 @@ class _RotationEvidence:
     close: bool
 
 
-def _rotation_evidence(start_inliers, start_R, priors, context) -> _RotationEvidence:
+def _rotation_evidence(
+    start_inliers, start_R, priors: dict, context: _Context
+) -> _RotationEvidence:
     """Lens rotation from a RANSAC consensus, re-selected at the transfer bound until its inliers
-    settle, compared by GRIC with the essential matrix on the union of their inliers.
-
-    ``context``: ``(x1, x2, R, t, inliers, general_all, noise, focal, threshold,
-    pri_threshold)`` of :func:`decide_motion`, ``general_all`` the essential matrix's Sampson
-    errors and ``threshold`` the transfer bound (normalised units)."""
-    x1, x2, R, t, inliers, general_all, noise, focal, threshold, pri_threshold = context
+    settle, compared by GRIC with the essential matrix on the union of their inliers."""
+    x1, x2, R, t, inliers = context.x1, context.x2, context.R, context.t, context.inliers
+    general_all, noise, focal = context.general_all, context.noise, context.focal
+    threshold, pri_threshold = context.threshold, context.pri_threshold
     lens = fit_rotation_lens(x1, x2, start_inliers, start_R, noise=noise, **priors)
     rotation_inliers = lens.residuals < threshold
     for _ in range(4):
@@ -799,6 +848,9 @@ def with_tracks(
     - A pure rotation whose parallax exceeds :data:`MAX_TRACK_PARALLAX` by more than
       :data:`PARALLAX_SIGNIFICANCE` of its deviations is not one: its model becomes the plane
       or general motion that :func:`decide_motion` would have chosen without the rotation.
+      Its lens clipped at the box (:attr:`MotionDecision.lens_clipped`), the bound is
+      :data:`NEGLIGIBLE_PARALLAX`: the matches' fit may have bent the lens to absorb a
+      translation, and the tracks, refitted in the wider box, measure it.
     - A :attr:`MotionDecision.rotation_candidate` whose parallax stays below
       :data:`NEGLIGIBLE_PARALLAX` with :data:`NEGLIGIBLE_SIGNIFICANCE` deviations to spare
       is a pure rotation: the translation GRIC saw is real but negligible.
@@ -826,7 +878,7 @@ def with_tracks(
     sigma = float("nan") if parallax is None else parallax.sigma
     motion = replace(motion, track_parallax=value, track_parallax_sigma=sigma)
     if motion.pure_rotation:
-        if value - PARALLAX_SIGNIFICANCE * sigma > MAX_TRACK_PARALLAX:
+        if value - PARALLAX_SIGNIFICANCE * sigma > motion.track_parallax_bound:
             model = _plane_or_general(
                 motion.plane_selection, motion.plane, motion.plane_epipolar_ratio,
                 motion.plane_off_share,

@@ -51,6 +51,7 @@ from .metrics import rotation_error_deg
 from .model_selection import robust_sigma
 from .parallax import PlaneParallax, fit_plane_parallax
 from .rotation import (
+    MAX_FOCAL_CHANGE,
     PRINCIPAL_BOUND,
     LensRotationFit,
     correct_points,
@@ -527,6 +528,7 @@ def refine_rotation_photometric(
     focal_ratio_prior: float | None = None,
     focal_ratio_mean: float = 1.0,
     principal_bound: float = PRINCIPAL_BOUND,
+    max_focal_change: float = MAX_FOCAL_CHANGE,
     rotation_sigma_deg: float = 1.0,
     dist1: np.ndarray | None = None,
     dist2: np.ndarray | None = None,
@@ -556,6 +558,10 @@ def refine_rotation_photometric(
     principal_bound : float
         Largest principal-point offset of the refit, in ``principal_prior`` deviations
         (:func:`ppo_cv.rotation.fit_rotation_lens`; the bound the rotation of the matches used).
+    max_focal_change : float
+        Box of the refit's focal scale (and focal ratio), ``|s - 1| <= max_focal_change``:
+        :data:`ppo_cv.rotation.TRACK_FOCAL_CHANGE` where the matches' fit was clipped at
+        :data:`ppo_cv.rotation.MAX_FOCAL_CHANGE`.
     rotation_sigma_deg : float
         Its uncertainty: how far (three times this) the first alignment must search, and the
         bound on the change: a refit further than ``4 rotation_sigma_deg + 0.1`` degrees from
@@ -608,11 +614,13 @@ def refine_rotation_photometric(
         focal_ratio_prior = as_positive(focal_ratio_prior, "focal_ratio_prior")
     focal_ratio_mean = as_positive(focal_ratio_mean, "focal_ratio_mean")
     principal_bound = as_positive(principal_bound, "principal_bound")
+    max_focal_change = as_positive(max_focal_change, "max_focal_change")
     priors = {
         "principal_prior": principal_prior,
         "focal_ratio_prior": focal_ratio_prior,
         "focal_ratio_mean": focal_ratio_mean,
         "principal_bound": principal_bound,
+        "max_focal_change": max_focal_change,
     }
     windows = _as_windows(window)
     focal = float(np.mean([K2[0, 0], K2[1, 1]]))

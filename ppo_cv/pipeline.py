@@ -821,6 +821,7 @@ def estimate_pair(
             principal_offset=motion.principal_offset, principal_prior=principal_prior,
             focal_ratio=motion.focal_ratio, **ratio_keywords,
             principal_bound=motion.principal_bound,
+            max_focal_change=motion.track_focal_change,
             rotation_sigma_deg=min(motion.rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG),
             dist1=dist1, dist2=dist2,
         )  # fmt: skip
