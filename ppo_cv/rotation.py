@@ -88,17 +88,17 @@ than a focal length given that far off (2.5 :data:`FOCAL_PRIOR`), and the fit's
 ``lens_excess`` says by how much the matches asked for more."""
 
 TRACK_FOCAL_CHANGE = 0.15
-"""Box of the focal scale when intensity-aligned tracks refit a rotation whose fit on the
-matches was clipped at :data:`MAX_FOCAL_CHANGE`
-(:attr:`ppo_cv.motion_model.MotionDecision.lens_clipped`,
+"""Box of the focal scale when intensity-aligned tracks refit a pure rotation whose fit on the
+matches was clipped at :data:`MAX_FOCAL_CHANGE`, to test it
+(:attr:`ppo_cv.motion_model.MotionDecision.track_focal_change`,
 :func:`ppo_cv.photometric.refine_rotation_photometric`). Tracks located to a few hundredths of
 a pixel pin the focal length where matches do not, and a rotation under a focal held at the box
 is no rotation of the tracks: a 20 degree turn with the focal 2 % off reads a parallax of
-0.0136 (``S R S^-1``, ``S = diag(s, s, 1)``), and its tracks were refused. Warped photos and
-renders turned with the focal given 5.8-7.7 % long (``ppo_cv.data_gen`` ``REAL_PHOTO`` with
-``focal_error`` 0.08, seed 0, indices 0, 8, 10 and 11) were flagged 0.34-0.54 degrees off on
-their matches; with this box their tracks fit focal scales 0.92-0.94, read a parallax of
-0.0001-0.0008, and the rotation is 0.005-0.034 degrees off."""
+0.0136 (``S R S^-1``, ``S = diag(s, s, 1)``), and such tracks were refused. Warped photos
+and renders turned with the focal given 5.8-7.7 % short (``ppo_cv.data_gen`` ``REAL_PHOTO``
+with ``focal_error`` 0.08, seed 0, indices 0, 8, 10 and 11), flagged on their matches
+0.05-0.54 degrees off, have tracks that fit focal scales 0.92-0.94 in this box and read a
+parallax of 0.0001-0.0008; their rotations are then 0.005-0.034 degrees off."""
 
 PRINCIPAL_PRIOR = 0.01
 """Standard deviation of each coordinate of the offset of the true principal point from the

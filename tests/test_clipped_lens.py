@@ -90,6 +90,11 @@ def test_a_clipped_lens_widens_the_tracks_box_and_lowers_the_parallax_bound():
     assert clipped.lens_clipped
     assert clipped.track_focal_change == TRACK_FOCAL_CHANGE
     assert clipped.track_parallax_bound == NEGLIGIBLE_PARALLAX
+    # a candidate's tracks keep the box: in the wider one a focal scale absorbs a translation
+    candidate = dataclasses.replace(
+        clipped, pure_rotation=False, model="general", rotation_candidate=True
+    )
+    assert candidate.track_focal_change == MAX_FOCAL_CHANGE
 
 
 @pytest.mark.parametrize(
@@ -98,7 +103,7 @@ def test_a_clipped_lens_widens_the_tracks_box_and_lowers_the_parallax_bound():
         (-1.0, 0.0058, 0.0002, True),  # below the 0.01 of a lens inside the box
         (0.14, 0.0058, 0.0002, False),  # harness render seed 103 at baseline / depth 0.02
         (2.29, 0.0088, 0.0004, False),  # tiny-baseline seed 2 index 6 at 0.02, as stitched
-        (2.66, 0.0003, 0.0005, True),  # a warped photo with the focal given 8 % long
+        (2.66, 0.0003, 0.0005, True),  # a warped photo, the focal given 8 % short
         (0.5, 0.0020, 0.0010, True),  # not beyond 0.003 by three deviations
     ],
 )
@@ -140,7 +145,7 @@ def test_a_stitched_translation_whose_lens_the_matches_clipped_is_not_flagged():
 
 
 def test_a_rotation_with_the_focal_given_eight_percent_off_is_flagged_by_its_tracks():
-    """``data_gen`` warped photo seed 0 index 0 with the focal given 7.7 % long: the matches
+    """``data_gen`` warped photo seed 0 index 0 with the focal given 7.7 % short: the matches
     clip the focal scale at 0.95 and their rotation is 0.5 degrees off; the tracks fit 0.92."""
     imperfections = dataclasses.replace(data_gen.REAL_PHOTO, focal_error=0.08)
     pair = data_gen.make_warped_pair(seed=0, index=0, imperfections=imperfections)
