@@ -560,8 +560,9 @@ def refine_rotation_photometric(
         (:func:`ppo_cv.rotation.fit_rotation_lens`; the bound the rotation of the matches used).
     max_focal_change : float
         Box of the refit's focal scale (and focal ratio), ``|s - 1| <= max_focal_change``:
-        :data:`ppo_cv.rotation.TRACK_FOCAL_CHANGE` where the matches' fit was clipped at
-        :data:`ppo_cv.rotation.MAX_FOCAL_CHANGE`.
+        the pipeline passes :data:`ppo_cv.rotation.TRACK_FOCAL_CHANGE` for a pure rotation
+        whose matches' fit was clipped at :data:`ppo_cv.rotation.MAX_FOCAL_CHANGE`
+        (:attr:`ppo_cv.motion_model.MotionDecision.track_focal_change`).
     rotation_sigma_deg : float
         Its uncertainty: how far (three times this) the first alignment must search, and the
         bound on the change: a refit further than ``4 rotation_sigma_deg + 0.1`` degrees from
