@@ -601,62 +601,24 @@ def decide_motion(
         )
         if wide.admissible and wide.close and not wide.lens.offset_dropped:
             rotation, candidate, principal_bound = wide, True, PRINCIPAL_WIDE_BOUND
-    plane, plane_selection, plane_epipolar_ratio = None, None, float("nan")
-    plane_off_share = float("nan")
+    plane = _PlaneEvidence()
     if homography is not None:
-        plane = planar_pose(
-            homography.H, x1, x2, homography.inliers, threshold=threshold_px / focal
-        )
-        union = scored | homography.inliers
-        plane_selection = select_model(
-            [
-                _candidate("plane", homography.residuals[union]),
-                _candidate("general", general_all[union] * focal),
-            ],
-            mismatch_floor=PLANE_MISMATCH_FLOOR,
-        )
-        plane_epipolar_ratio = _epipolar_ratio(
-            plane, x1[union], x2[union], general_all[union] * focal, threshold_px, focal
-        )
-        bound = max(threshold_px, OFF_PLANE_SIGMAS * noise * focal)
-        off = np.count_nonzero(inliers & (homography.residuals > bound))
-        plane_off_share = off / max(int(np.count_nonzero(inliers)), 1)
+        plane = _plane_evidence(homography, scored, threshold_px, context)
     model = (
         "rotation"
         if pure
-        else _plane_or_general(plane_selection, plane, plane_epipolar_ratio, plane_off_share)
+        else _plane_or_general(plane.selection, plane.pose, plane.epipolar_ratio, plane.off_share)
     )
-    lens = rotation.lens
     pri_general = ppo.pure_rotation_indicator(
         ppo.intersection_scores(x1[inliers], x2[inliers], R, t)
     )
-    return MotionDecision(
-        model=model,
+    return _decision(
+        model, rotation, plane,
         pure_rotation=pure,
-        R=lens.R,
-        t=rotation.t,
-        rotation_inliers=rotation.inliers,
-        pri=rotation.pri,
         pri_general=float(pri_general),
-        focal_scale=lens.focal_scale,
-        k1=lens.k1,
-        selection=rotation.selection,
-        plane=plane,
-        homography_inliers=None if homography is None else homography.inliers,
-        plane_selection=plane_selection,
-        plane_epipolar_ratio=plane_epipolar_ratio,
-        plane_off_share=plane_off_share,
-        rotation_sigma_deg=lens.rotation_sigma_deg,
-        principal_offset=lens.principal_offset,
-        focal_ratio=lens.focal_ratio,
-        lens_excess=lens.lens_excess,
-        noise_px=rotation.noise_px,
-        rotation_noise_px=rotation.rotation_noise_px,
-        coherent_share=rotation.share,
         rotation_candidate=bool(candidate),
-        rotation_gap=rotation.gap,
         principal_bound=principal_bound,
-    )
+    )  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -697,14 +659,25 @@ class _RotationEvidence:
     close: bool
 
 
-def _rotation_evidence(
+@dataclass(frozen=True)
+class _PlaneEvidence:
+    """The homography's side of :func:`decide_motion`: the PPO pose of its decomposition, GRIC
+    against the essential matrix, the epipolar ratio and the off-plane share (None and NaN
+    without a homography)."""
+
+    pose: PlanarPose | None = None
+    inliers: np.ndarray | None = None
+    selection: ModelSelection | None = None
+    epipolar_ratio: float = float("nan")
+    off_share: float = float("nan")
+
+
+def _settled_lens_fit(
     start_inliers, start_R, priors: dict, context: _Context
-) -> _RotationEvidence:
-    """Lens rotation from a RANSAC consensus, re-selected at the transfer bound until its inliers
-    settle, compared by GRIC with the essential matrix on the union of their inliers."""
-    x1, x2, R, t, inliers = context.x1, context.x2, context.R, context.t, context.inliers
-    general_all, noise, focal = context.general_all, context.noise, context.focal
-    threshold, pri_threshold = context.threshold, context.pri_threshold
+) -> tuple[LensRotationFit, np.ndarray]:
+    """Lens rotation from a RANSAC consensus, its inliers re-selected at the transfer bound
+    until they settle (at most five fits, while at least four remain)."""
+    x1, x2, noise, threshold = context.x1, context.x2, context.noise, context.threshold
     lens = fit_rotation_lens(x1, x2, start_inliers, start_R, noise=noise, **priors)
     rotation_inliers = lens.residuals < threshold
     for _ in range(4):
@@ -715,24 +688,35 @@ def _rotation_evidence(
         if np.array_equal(within, rotation_inliers):
             break
         rotation_inliers = within
-    scored = inliers | rotation_inliers
+    return lens, rotation_inliers
+
+
+def _rotation_evidence(
+    start_inliers, start_R, priors: dict, context: _Context
+) -> _RotationEvidence:
+    """The settled lens rotation (:func:`_settled_lens_fit`) compared by GRIC with the essential
+    matrix on the union of their inliers, and the tests of a rotation and of a candidate."""
+    lens, rotation_inliers = _settled_lens_fit(start_inliers, start_R, priors, context)
+    x1, x2, focal = context.x1, context.x2, context.focal
+    scored = context.inliers | rotation_inliers
     candidates = [
         _candidate(
             "rotation",
             lens.residuals[scored] * focal / np.sqrt(2.0),
             extra=int(priors["focal_ratio_prior"] is not None),
         ),
-        _candidate("general", general_all[scored] * focal),
+        _candidate("general", context.general_all[scored] * focal),
     ]
     noise_px = model_noise(candidates)
+    outlying = (context.inliers & ~rotation_inliers)[scored]
     rotation_noise_px, share = _rotation_residual_field(
-        lens, x1[scored], x2[scored], (inliers & ~rotation_inliers)[scored], focal
+        lens, x1[scored], x2[scored], outlying, focal
     )
     selection = select_model(
         candidates, sigma=rotation_noise_px if rotation_noise_px > noise_px else noise_px
     )
-    t_rot, pri = _rotation_translation(lens, x1, x2, rotation_inliers, t)
-    gap = float(np.radians(rotation_error_deg(R, lens.R)))
+    t_rot, pri = _rotation_translation(lens, x1, x2, rotation_inliers, context.t)
+    gap = float(np.radians(rotation_error_deg(context.R, lens.R)))
     residual = selection.median_residual_px["rotation"] / focal
     return _RotationEvidence(
         lens=lens,
@@ -745,11 +729,73 @@ def _rotation_evidence(
         pri=float(pri),
         gap=gap,
         admissible=bool(
-            pri < pri_threshold
+            pri < context.pri_threshold
             and lens.lens_excess <= LENS_SIGNIFICANCE
             and share <= MAX_COHERENT_SHARE
         ),
         close=bool(residual <= MAX_CANDIDATE_RESIDUAL and gap > MIN_CANDIDATE_ROTATION_GAP),
+    )
+
+
+def _plane_evidence(
+    homography: HomographyEstimate, scored: np.ndarray, threshold_px: float, context: _Context
+) -> _PlaneEvidence:
+    """The homography's PPO pose and the tests of a plane, on the union of ``scored`` (the
+    essential matrix's and the rotation's inliers) and the homography's inliers."""
+    x1, x2, focal = context.x1, context.x2, context.focal
+    pose = planar_pose(homography.H, x1, x2, homography.inliers, threshold=threshold_px / focal)
+    union = scored | homography.inliers
+    general_px = context.general_all[union] * focal
+    selection = select_model(
+        [_candidate("plane", homography.residuals[union]), _candidate("general", general_px)],
+        mismatch_floor=PLANE_MISMATCH_FLOOR,
+    )
+    ratio = _epipolar_ratio(pose, x1[union], x2[union], general_px, threshold_px, focal)
+    bound = max(threshold_px, OFF_PLANE_SIGMAS * context.noise * focal)
+    off = np.count_nonzero(context.inliers & (homography.residuals > bound))
+    off_share = off / max(int(np.count_nonzero(context.inliers)), 1)
+    return _PlaneEvidence(pose, homography.inliers, selection, ratio, off_share)
+
+
+def _decision(
+    model: str,
+    rotation: _RotationEvidence,
+    plane: _PlaneEvidence,
+    *,
+    pure_rotation: bool,
+    pri_general: float,
+    rotation_candidate: bool,
+    principal_bound: float,
+) -> MotionDecision:
+    """The :class:`MotionDecision` of ``model`` from the evidence of the rotation and the
+    plane."""
+    lens = rotation.lens
+    return MotionDecision(
+        model=model,
+        pure_rotation=pure_rotation,
+        pri_general=pri_general,
+        rotation_candidate=rotation_candidate,
+        principal_bound=principal_bound,
+        R=lens.R,
+        t=rotation.t,
+        rotation_inliers=rotation.inliers,
+        pri=rotation.pri,
+        focal_scale=lens.focal_scale,
+        k1=lens.k1,
+        selection=rotation.selection,
+        plane=plane.pose,
+        homography_inliers=plane.inliers,
+        plane_selection=plane.selection,
+        plane_epipolar_ratio=plane.epipolar_ratio,
+        plane_off_share=plane.off_share,
+        rotation_sigma_deg=lens.rotation_sigma_deg,
+        principal_offset=lens.principal_offset,
+        focal_ratio=lens.focal_ratio,
+        lens_excess=lens.lens_excess,
+        noise_px=rotation.noise_px,
+        rotation_noise_px=rotation.rotation_noise_px,
+        coherent_share=rotation.share,
+        rotation_gap=rotation.gap,
     )
 
 
