@@ -304,14 +304,17 @@ def run_pairs(
     The output file is written completely or not at all (an interrupt leaves nothing). Returns
     the exit code; ValueError for bad arguments, raised before any image is read.
     """
-    from ppo_cv.atomic import atomic_file, check_target, sigterm_as_interrupt
+    from ppo_cv.atomic import atomic_file, check_apart, check_target, sigterm_as_interrupt
 
     check_range("--workers", workers, 0, WORKERS_MAX)
     if output is not None:
-        check_target(output, "file", overwrite)
+        check_target(output, "file", overwrite, [pairs_file, image_dir], "-o ")
     rows = read_pairs(Path(pairs_file), K)
     if not Path(image_dir).is_dir():
         raise ValueError(f"image folder not found: {image_dir}")
+    if output is not None:
+        images = {Path(image_dir) / r[k] for r in rows for k in ("image1", "image2")}
+        check_apart(output, sorted(images), "-o ")
     workers = workers or (os.cpu_count() or 1)
     importlib.import_module("pycolmap")  # before the handler: importing it replaces SIGTERM's
     sigterm_as_interrupt()

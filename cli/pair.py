@@ -332,7 +332,8 @@ def _run_pair(
 
     try:
         if out is not None:
-            check_target(out, "folder", overwrite)
+            inputs = [image1, image2, *([calib] if calib is not None else [])]
+            check_target(out, "folder", overwrite, inputs, "--out ")
         for image in (image1, image2):
             check_image_file(image)
         img1, img2 = load_image(image1), load_image(image2)

@@ -42,7 +42,7 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
            pri_threshold, overwrite):  # fmt: skip
     """Every argument checked before the run; returns the camera matrix or None."""
     from ppo_cv import sfm
-    from ppo_cv.atomic import check_target
+    from ppo_cv.atomic import check_apart, check_target
 
     if init not in sfm.INITIALIZATIONS:
         raise ValueError(f"--init must be one of {', '.join(sfm.INITIALIZATIONS)}, got {init!r}")
@@ -52,8 +52,9 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
     check_range("--threads", threads, 1, sfm.MAX_THREADS)
     check_range("--seed", seed, 0, SEED_MAX)
     check_range("--pri-threshold", pri_threshold, 0.0, 1.0)
-    check_target(out_dir, "folder", overwrite)
+    check_target(out_dir, "folder", overwrite, [image_dir], "OUT_DIR ")
     if database is not None:
+        check_apart(database, [image_dir], "--database ")
         if database.exists():
             raise ValueError(f"database {database} already exists; give a new file name")
         check_target(database, "file")

@@ -222,9 +222,14 @@ def register(app: typer.Typer) -> None:
         quiet: Quiet = False,
     ) -> None:
         """Render synthetic pairs with exact ground truth and a freiburg-style pairs file."""
-        from ppo_cv.atomic import atomic_directory
+        from ppo_cv.atomic import atomic_directory, check_apart
         from ppo_cv.data_gen import make_dataset
 
+        if warp_source is not None:
+            try:
+                check_apart(out_dir, [warp_source], "OUT_DIR ")
+            except ValueError as exc:
+                _fail(str(exc))
         _check(out_dir, pairs, seed, motion, scene, width, height, alpha, supersample, noise, blur,
                workers, baseline_ratio, warp, overwrite, pivot_offset)  # fmt: skip
         if warp_source is not None and not warp:

@@ -14,12 +14,13 @@ import shutil
 import signal
 import tempfile
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
 __all__ = [
     "check_target",
+    "check_apart",
     "atomic_file",
     "atomic_directory",
     "signals_deferred",
@@ -29,7 +30,13 @@ __all__ = [
 ]
 
 
-def check_target(path: str | os.PathLike, kind: str, overwrite: bool = False) -> Path:
+def check_target(
+    path: str | os.PathLike,
+    kind: str,
+    overwrite: bool = False,
+    inputs: Iterable[str | os.PathLike] = (),
+    name: str = "",
+) -> Path:
     """Check that ``path`` can receive a new file or folder; raise ValueError naming the problem.
 
     Parameters
@@ -40,6 +47,11 @@ def check_target(path: str | os.PathLike, kind: str, overwrite: bool = False) ->
         What will be written there.
     overwrite : bool
         Allow replacing an existing output of the same kind.
+    inputs : iterable of paths
+        Files and folders the command reads, which the output must keep apart from
+        (:func:`check_apart`), even with ``overwrite``.
+    name : str
+        How messages about ``inputs`` call the output, e.g. ``"--out "``.
 
     Returns
     -------
@@ -56,6 +68,7 @@ def check_target(path: str | os.PathLike, kind: str, overwrite: bool = False) ->
     if kind == "file":
         if target.is_dir() or str(path).endswith(os.sep):
             raise ValueError(f"{target} is a folder; give a file name")
+        check_apart(target, inputs, name)
         if not parent.is_dir():
             raise ValueError(f"cannot write {target}: folder {parent} does not exist")
         if target.exists() and not overwrite:
@@ -63,6 +76,7 @@ def check_target(path: str | os.PathLike, kind: str, overwrite: bool = False) ->
         if target.exists() and not target.is_file():
             raise ValueError(f"{target} is not a regular file")
     else:
+        check_apart(target, inputs, name)
         if target.exists() and not target.is_dir():
             raise ValueError(f"{target} is a file, not a folder")
         if target.is_dir() and any(target.iterdir()) and not overwrite:
@@ -73,6 +87,40 @@ def check_target(path: str | os.PathLike, kind: str, overwrite: bool = False) ->
     if not os.access(existing, os.W_OK | os.X_OK):
         raise ValueError(f"cannot write {target}: {existing} is not writable")
     return target
+
+
+def check_apart(
+    target: str | os.PathLike, inputs: Iterable[str | os.PathLike], name: str = ""
+) -> None:
+    """ValueError unless the output ``target`` is apart from every one of ``inputs``.
+
+    An output that is an input, or a folder that holds one, would replace or delete it (with
+    ``overwrite``). Symbolic links and ``..`` are resolved first, and a second name of the same
+    file (a hard link) counts as the same. An output inside an input folder is allowed: the
+    commands read the images they are given, or an image folder's image files, never an
+    output's folder or file.
+
+    Parameters
+    ----------
+    target : path
+        An output file or folder, existing or not.
+    inputs : iterable of paths
+        The files and folders the command reads.
+    name : str
+        How the message calls the output, e.g. ``"--out "``.
+    """
+    output = Path(os.path.realpath(target))
+    for source in inputs:
+        read = Path(os.path.realpath(source))
+        same = read == output
+        with contextlib.suppress(OSError):
+            same = same or os.path.samefile(read, output)
+        if same or read.is_relative_to(output):
+            relation = "is the input" if same else "holds the input"
+            raise ValueError(
+                f"the output {name}{target} {relation} {source}; give an output apart from the "
+                "inputs"
+            )
 
 
 _DEFERRED = {signal.SIGINT, signal.SIGTERM}

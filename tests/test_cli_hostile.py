@@ -29,6 +29,7 @@ PAIR = ["pair", DEMO1, DEMO2, "--K", K_TEXT]
 INTRINSICS = " ".join(["0 0"] + ["535.4 0 320.1 0 539.2 247.6 0 0 1"] * 2)
 GT = INTRINSICS + " 1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1"
 PARALLEL = 6  # processes at a time
+IMAGES = [f"images/{DEMO['image1']}", f"images/{DEMO['image2']}"]
 
 
 def _workspace(root: Path) -> None:
@@ -56,6 +57,8 @@ def _workspace(root: Path) -> None:
     (root / "taken.jsonl").write_text("mine\n")
     (root / "synth_out").mkdir()
     (root / "synth_out" / "notes.txt").write_text("mine\n")
+    (root / "pairs_demo.txt").write_text("demo1.png demo2.png\n")
+    os.link(root / "images" / "demo1.png", root / "twin.png")  # a second name of an input
 
 
 def _snapshot(root: Path) -> dict:
@@ -187,6 +190,38 @@ CASES = [
         r"view_focal_error must be in \[0\.0, 0\.5\]",
     ),
     (["pair", "fifo.png", DEMO2, "--K", K_TEXT], "pair", r"not a regular file: fifo\.png"),
+    # issue 44, defect 1: an output that is or holds an input, refused even with --overwrite
+    *[
+        (
+            [*args, "--overwrite"],
+            args[0],
+            rf"the output {re.escape(output)} {relation} the input {re.escape(source)}; give "
+            "an output apart from the inputs",
+        )
+        for args, output, relation, source in [
+            (["pair", *IMAGES, "--K", K_TEXT, "--out", "images"], "--out images", "holds",
+             IMAGES[0]),
+            (["pair", *IMAGES, "--K", K_TEXT, "--out", "."], "--out .", "holds", IMAGES[0]),
+            (["pair", *IMAGES, "--K", K_TEXT, "--out", IMAGES[1]], f"--out {IMAGES[1]}", "is",
+             IMAGES[1]),
+            (["pair", *IMAGES, "--calib", "bad.yml", "--out", "bad.yml"], "--out bad.yml", "is",
+             "bad.yml"),
+            (["pairs", "pairs_demo.txt", "images", "--K", K_TEXT, "-o", "pairs_demo.txt"],
+             "-o pairs_demo.txt", "is", "pairs_demo.txt"),
+            (["pairs", "pairs_demo.txt", "images", "--K", K_TEXT, "-o", IMAGES[0]],
+             f"-o {IMAGES[0]}", "is", IMAGES[0]),
+            (["pairs", "pairs_demo.txt", "images", "--K", K_TEXT, "-o", "twin.png"],
+             "-o twin.png", "is", IMAGES[0]),
+            (["sfm", "images", "images", "--K", K_TEXT], "OUT_DIR images", "is", "images"),
+            (["sfm", "images", ".", "--K", K_TEXT], "OUT_DIR .", "holds", "images"),
+            (["sfm", "images", "model", "--K", K_TEXT, "--database", "images"],
+             "--database images", "is", "images"),
+            (["synth", "images", "--warp", "--warp-source", "images", "--pairs", "1"],
+             "OUT_DIR images", "is", "images"),
+            (["synth", ".", "--warp", "--warp-source", "twin.png", "--pairs", "1"],
+             "OUT_DIR .", "holds", "twin.png"),
+        ]
+    ],
 ]
 
 
