@@ -19,6 +19,7 @@ from .common import (
     fail,
     image_size,
     implausible_intrinsics,
+    print_result,
     warn,
 )
 
@@ -147,7 +148,7 @@ def register(app: typer.Typer) -> None:
             _fail(str(exc), code)
         except RuntimeError as exc:
             _fail(f"pycolmap failed: {exc}", code=1)
-        typer.echo(_summary(result, out_dir, as_json))
+        print_result("sfm", _summary(result, out_dir, as_json))
 
 
 def _summary(result, out_dir: Path, as_json: bool) -> str:

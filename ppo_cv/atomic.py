@@ -16,7 +16,7 @@ import tempfile
 import threading
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 __all__ = [
     "check_target",
@@ -27,6 +27,11 @@ __all__ = [
     "sigterm_as_interrupt",
     "stop_listening",
     "worker_pool",
+    "WorkerPool",
+    "worker_count",
+    "available_cpus",
+    "import_pycolmap",
+    "interrupt_exit_code",
 ]
 
 
@@ -125,6 +130,7 @@ def check_apart(
 
 _DEFERRED = {signal.SIGINT, signal.SIGTERM}
 _held: int | None = None  # a signal that reached :func:`_raise_interrupt` in a deferred block
+_received: list[int] = []  # the signals :func:`_raise_interrupt` was called for
 _depth = 0
 
 
@@ -134,9 +140,9 @@ def signals_deferred() -> Iterator[None]:
 
     Creating a temporary entry and entering the ``try`` that removes it, or swapping an output
     into place, must not be split by an interrupt; a signal that arrives meanwhile is delivered,
-    and its KeyboardInterrupt raised, as soon as the block ends. The signals are blocked in this
-    thread, and one that the kernel hands to another thread (numpy's and OpenCV's workers do not
-    block it) is held by :func:`_raise_interrupt` until the block ends.
+    and its KeyboardInterrupt raised, as soon as the block ends. The signals are blocked in
+    this thread, and one that the kernel hands to another thread (numpy's and OpenCV's workers
+    do not block it) is held by :func:`_raise_interrupt` until the block ends.
     """
     global _depth, _held
     handled_here = threading.current_thread() is threading.main_thread()  # as Python's handlers
@@ -151,34 +157,174 @@ def signals_deferred() -> Iterator[None]:
             held, _held = _held, None
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
         if held is not None:
+            handler = signal.getsignal(held)
+            if handler is _raise_interrupt:
+                handler(held, None)
             raise KeyboardInterrupt(f"signal {held}")
 
 
+def available_cpus() -> int:
+    """The CPUs this process may run on (its affinity mask, as ``taskset`` or a container's
+    limit sets it), at least 1."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def worker_count(requested: int | None, jobs: int) -> int:
+    """Worker processes for ``jobs`` jobs: ``requested`` (0 or None: one per available CPU),
+    capped at the jobs and the available CPUs (more would only add start-up time and memory),
+    at least 1."""
+    return max(1, min(requested or available_cpus(), available_cpus(), jobs))
+
+
 @contextlib.contextmanager
-def worker_pool(workers: int, initializer: Callable[[], None]) -> Iterator[Any]:
-    """A ``multiprocessing`` pool of ``workers`` spawned processes, stopped on any error.
+def worker_pool(workers: int, initializer: Callable[[], None]) -> Iterator[WorkerPool]:
+    """A :class:`WorkerPool` of ``workers`` spawned processes, stopped on any error.
 
-    The pool starts with SIGINT and SIGTERM deferred (:func:`signals_deferred`): an interrupt
-    that lands while a worker is being launched would leave it reading its start-up data from
-    a closed pipe, and dying of that with a traceback. ``initializer`` runs in each worker (a
-    module-level function: it is pickled). On an exception or an interrupt in the block the
-    workers are stopped and joined before it propagates: none is left writing into an output
-    the caller then removes.
+    ``initializer`` (a module-level function: it is pickled) runs in each worker; it imports
+    pycolmap, if at all, through :func:`import_pycolmap`. On an exception or an interrupt in
+    the block the workers are killed and joined before it propagates: none is left writing
+    into an output the caller then removes.
     """
-    import multiprocessing
-
+    _block_signals_in_new_workers()
     pool = None
     try:
         with signals_deferred():
-            pool = multiprocessing.get_context("spawn").Pool(workers, initializer=initializer)
+            pool = WorkerPool(workers, initializer)
         yield pool
     except BaseException:
         if pool is not None:
-            pool.terminate()
-            pool.join()
+            pool.kill()
         raise
     pool.close()
-    pool.join()
+
+
+class WorkerPool:
+    """Spawned worker processes, each fed through a pipe of its own.
+
+    No lock or queue is shared between the workers, so that one killed anywhere (the SIGTERM
+    that ``timeout`` or a service manager sends reaches the whole process group) cannot leave
+    the others or this process waiting: its pipe ends, and the pool reports it.
+
+    A worker starts with SIGINT and SIGTERM blocked until it has set its handlers: it ignores
+    SIGINT (Ctrl-C is the parent's to handle) and dies at SIGTERM, quietly.
+    """
+
+    def __init__(self, workers: int, initializer: Callable[[], None]) -> None:
+        import multiprocessing
+
+        context = multiprocessing.get_context("spawn")
+        self.processes, self._pipes = [], []
+        self._signals_before = len(_received)
+        for _ in range(workers):
+            mine, theirs = context.Pipe()
+            process = context.Process(target=_serve, args=(theirs, initializer), daemon=True)
+            self.processes.append(process)
+            self._pipes.append(mine)
+            process.start()
+            theirs.close()
+
+    def imap(self, function: Callable[[Any], Any], jobs: Iterable[Any]) -> Iterator[Any]:
+        """``function(job)`` for each job, computed in the workers, yielded in order."""
+        from multiprocessing.connection import wait
+
+        queue = enumerate(jobs)
+        busy, done, following = {}, {}, 0
+
+        def give(pipe) -> None:
+            for index, job in queue:
+                pipe.send((function, job))
+                busy[pipe] = index
+                return
+
+        for pipe in self._pipes:
+            give(pipe)
+        while busy or done:
+            while following in done:
+                yield done.pop(following)
+                following += 1
+            for pipe in wait(list(busy)) if busy else ():
+                try:
+                    failed, value = pipe.recv()
+                except (EOFError, OSError):
+                    self._died(pipe)
+                if failed:
+                    raise value
+                done[busy.pop(pipe)] = value
+                give(pipe)
+
+    def _died(self, pipe) -> NoReturn:
+        """ChildProcessError naming how the worker of ``pipe`` ended; KeyboardInterrupt when
+        this process was interrupted too (a signal to the whole group)."""
+        process = self.processes[self._pipes.index(pipe)]
+        process.join(timeout=1.0)
+        if len(_received) > self._signals_before:
+            raise KeyboardInterrupt(f"signal {_received[-1]}")
+        code = process.exitcode
+        how = f"killed by signal {-code}" if code is not None and code < 0 else f"exit {code}"
+        raise ChildProcessError(f"a worker process died ({how})")
+
+    def map(self, function: Callable[[Any], Any], jobs: Iterable[Any]) -> list[Any]:
+        """``function(job)`` for each job, computed in the workers, in order."""
+        return list(self.imap(function, jobs))
+
+    def close(self) -> None:
+        """Let the workers finish and wait for them."""
+        for pipe in self._pipes:
+            with contextlib.suppress(OSError):
+                pipe.send(None)
+        for process in self.processes:
+            process.join()
+        for pipe in self._pipes:
+            pipe.close()
+
+    def kill(self) -> None:
+        """Kill the workers, whatever they are doing, and wait for them."""
+        for process in self.processes:
+            if process.pid is not None:
+                process.kill()
+                process.join()
+        for pipe in self._pipes:
+            pipe.close()
+
+
+def _serve(pipe, initializer: Callable[[], None]) -> None:
+    """A worker of :class:`WorkerPool`: its signal handlers, ``initializer``, then the jobs
+    it is sent until ``None``; an exception goes back to the pool."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _DEFERRED)
+    initializer()
+    with contextlib.suppress(EOFError, BrokenPipeError):  # the pool's process has ended
+        while (task := pipe.recv()) is not None:
+            function, job = task
+            try:
+                outcome = (False, function(job))
+            except Exception as error:
+                outcome = (True, error)
+            pipe.send(outcome)
+
+
+def _block_signals_in_new_workers() -> None:
+    """Launch spawned processes with SIGINT and SIGTERM blocked from their first instruction
+    (the mask is inherited through fork and exec)."""
+    from multiprocessing import popen_spawn_posix
+
+    launch = popen_spawn_posix.Popen._launch
+    if getattr(launch, "blocks_signals", False):
+        return
+
+    def launch_blocking_signals(self, process_obj):
+        previous = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFERRED)
+        try:
+            return launch(self, process_obj)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+    launch_blocking_signals.blocks_signals = True
+    popen_spawn_posix.Popen._launch = launch_blocking_signals
 
 
 def _visible_mode(path: Path, base: int) -> None:
@@ -208,27 +354,69 @@ def _replace(staging: Path, target: Path, overwrite: bool) -> None:
         shutil.rmtree(aside, ignore_errors=True)
 
 
+def _unnamed_file(folder: Path) -> int | None:
+    """A descriptor of a new file in ``folder`` that has no name yet (Linux ``O_TMPFILE``): a
+    process killed before it is linked leaves nothing. None where the file system has none."""
+    try:
+        return os.open(folder, os.O_TMPFILE | os.O_WRONLY, 0o666)
+    except (AttributeError, OSError):
+        return None
+
+
+def _link_into_place(descriptor: int, target: Path, overwrite: bool) -> None:
+    """Give the unnamed file of ``descriptor`` the name ``target`` (replaced with
+    ``overwrite``: through a sibling name that exists only for the rename)."""
+    folder = os.open(target.parent, os.O_RDONLY | os.O_DIRECTORY)
+    try:  # a folder descriptor makes os.link call linkat, which follows the /proc link
+        if not (target.exists() or target.is_symlink()):
+            os.link(f"/proc/self/fd/{descriptor}", target.name, dst_dir_fd=folder)
+            return
+        while True:
+            sibling = target.with_name(f".{target.name}.{os.urandom(4).hex()}")
+            try:
+                os.link(f"/proc/self/fd/{descriptor}", sibling.name, dst_dir_fd=folder)
+                break
+            except FileExistsError:
+                continue
+    finally:
+        os.close(folder)
+    try:
+        _replace(sibling, target, overwrite)
+    finally:
+        sibling.unlink(missing_ok=True)
+
+
 @contextlib.contextmanager
 def atomic_file(
     path: str | os.PathLike, overwrite: bool = False, mode: str = "w"
 ) -> Iterator[object]:
-    """Open a temporary sibling of ``path`` for writing; rename it to ``path`` on success.
+    """Open a new file for writing; it becomes ``path`` only when the block succeeds.
 
-    Yields the open file (text mode ``"w"`` in UTF-8, or ``"wb"``). On any exception, including
-    KeyboardInterrupt, the temporary file is removed and ``path`` is left untouched.
+    Yields the open file (text mode ``"w"`` in UTF-8, or ``"wb"``). The file has no name until
+    then where the file system allows it (Linux ``O_TMPFILE``), so that even a process killed
+    by SIGKILL leaves nothing behind; elsewhere it is a hidden temporary sibling of ``path``.
+    On any exception, including KeyboardInterrupt, it is removed and ``path`` is left
+    untouched.
     """
     target = check_target(path, "file", overwrite)
     staging = None
     try:
         with signals_deferred():
-            descriptor, name = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
-            staging = Path(name)
+            descriptor = _unnamed_file(target.parent)
+            if descriptor is None:
+                descriptor, name = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
+                staging = Path(name)
         encoding = None if "b" in mode else "utf-8"
         with os.fdopen(descriptor, mode, encoding=encoding) as handle:
             yield handle
-        _visible_mode(staging, 0o666)
-        with signals_deferred():
-            _replace(staging, target, overwrite)
+            handle.flush()
+            if staging is None:
+                with signals_deferred():
+                    _link_into_place(descriptor, target, overwrite)
+        if staging is not None:
+            _visible_mode(staging, 0o666)
+            with signals_deferred():
+                _replace(staging, target, overwrite)
     except BaseException:
         if staging is not None:
             staging.unlink(missing_ok=True)
@@ -285,6 +473,7 @@ def _raise_interrupt(signum, frame) -> None:
     with a traceback; SIGALRM brings the interrupt back once the launch is over.
     """
     global _held
+    _received.append(signum)
     if _depth:
         _held = signum
         return
@@ -298,9 +487,9 @@ def _raise_interrupt(signum, frame) -> None:
 def stop_listening() -> None:
     """Ignore SIGINT, SIGTERM and a pending retry from now on: the interrupt has been handled.
 
-    Called once the clean-up has run and the process is about to exit, so that a second signal
-    (or a retry armed during a worker launch) cannot turn the exit code 130 into a death by
-    SIGINT halfway through the final message.
+    Called once the clean-up has run, or the work is done, and the process is about to exit,
+    so that a second signal (or a retry armed during a worker launch) cannot turn the exit
+    code into a death by signal halfway through the final message or the interpreter's exit.
     """
     with contextlib.suppress(ValueError):  # not the main thread
         signal.setitimer(signal.ITIMER_REAL, 0)
@@ -312,9 +501,33 @@ def sigterm_as_interrupt() -> None:
     """Make SIGINT and SIGTERM raise KeyboardInterrupt in the main thread, so clean-up code runs.
 
     Importing pycolmap installs its own SIGTERM handler (a stack dump, then death, with no
-    clean-up): call this again once pycolmap is imported, before writing anything.
+    clean-up): import it through :func:`import_pycolmap`, which puts this one back.
     """
     with contextlib.suppress(ValueError):  # not the main thread: leave the defaults
         if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
             signal.signal(signal.SIGINT, _raise_interrupt)
         signal.signal(signal.SIGTERM, _raise_interrupt)
+
+
+def import_pycolmap():
+    """Import pycolmap with SIGINT and SIGTERM held back, then handle SIGTERM as before.
+
+    Importing pycolmap installs a native SIGTERM handler (a stack dump, then death, with no
+    clean-up); the Python handler is put back, and a signal that arrived meanwhile delivered
+    to it. Call it from the main thread, best before numpy is imported: the threads numpy
+    starts then block the signals too, and none of them can take one while pycolmap's handler
+    is in place.
+    """
+    import importlib
+
+    with signals_deferred():
+        handler = signal.getsignal(signal.SIGTERM)
+        module = importlib.import_module("pycolmap")
+        if handler is not None:
+            signal.signal(signal.SIGTERM, handler)
+    return module
+
+
+def interrupt_exit_code() -> int:
+    """The exit code of a run stopped by an interrupt: 143 after SIGTERM, else 130 (SIGINT)."""
+    return 128 + signal.SIGTERM if _received and _received[-1] == signal.SIGTERM else 130

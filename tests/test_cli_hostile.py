@@ -325,7 +325,7 @@ def test_interrupted_pairs_leave_no_jsonl(tmp_path, signum, workers):
     args = ["pairs", "pairs.txt", str(DATA), "--K", K_TEXT, "-o", "out.jsonl",
             "--workers", workers, "--max-features", "600"]  # fmt: skip
     code, err = _interrupt(args, tmp_path, " pairs, ", signum)
-    assert code == 130, err
+    assert code == 128 + signum, err
     assert err.strip().splitlines()[-1] == "ppo-cv pairs: interrupted; unfinished output removed"
     assert "Traceback" not in err and "SIGTERM" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["pairs.txt"]
@@ -337,7 +337,7 @@ def test_interrupted_synth_leaves_no_staging_folder(tmp_path, signum):
             "--supersample", "1"]  # fmt: skip
     # SIGTERM as soon as the staging folder exists; Ctrl-C once the workers have started
     code, err = _interrupt(args, tmp_path, None if signum == signal.SIGTERM else " pairs, ", signum)
-    assert code == 130, err
+    assert code == 128 + signum, err
     assert "Traceback" not in err
     assert list(tmp_path.iterdir()) == []
 
@@ -349,7 +349,7 @@ def test_interrupted_sfm_leaves_no_database_or_model(tmp_path):
         shutil.copy(image, images)
     args = ["sfm", "images", "model", "--K", K_TEXT, "--database", "db.db", "--threads", "1"]
     code, err = _interrupt(args, tmp_path, "extracting", signal.SIGTERM)
-    assert code == 130, err
+    assert code == 143, err
     assert "Traceback" not in err and "SIGTERM" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["images"]
 
@@ -460,14 +460,25 @@ def test_worker_pool_is_stopped_on_an_interrupt():
     previous = signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
         with pytest.raises(KeyboardInterrupt), worker_pool(2, os.getpid) as pool:
-            pids = set(pool.starmap(os.getpid, [()] * 4))
-            workers = list(pool._pool)
+            assert pool.map(abs, [-3, 2, -1, 0]) == [3, 2, 1, 0]
+            workers = list(pool.processes)
+            assert all(worker.is_alive() for worker in workers)
             os.kill(os.getpid(), signal.SIGTERM)
             time.sleep(1.0)
     finally:
         signal.signal(signal.SIGTERM, previous)
-    assert pids and pids <= {worker.pid for worker in workers}
-    assert not any(worker.is_alive() for worker in workers)
+    assert len(workers) == 2 and not any(worker.is_alive() for worker in workers)
+
+
+def test_worker_pool_names_a_worker_that_died():
+    from ppo_cv.atomic import worker_pool
+
+    with pytest.raises(ChildProcessError, match=r"a worker process died \(exit 3\)"):
+        with worker_pool(2, os.getpid) as pool:
+            pool.map(os._exit, [3, 3])
+    with worker_pool(2, os.getpid) as pool:  # an exception in a job comes back as itself
+        with pytest.raises(ValueError, match="invalid literal"):
+            pool.map(int, ["1", "x"])
 
 
 def test_no_signal_after_the_interrupt_was_handled():
