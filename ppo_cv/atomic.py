@@ -88,6 +88,10 @@ def check_target(
             raise ValueError(
                 f"{target} exists and is not an empty directory; pass --overwrite to replace it"
             )
+        if target.is_dir() and not os.access(target, os.W_OK | os.X_OK):
+            # it is moved aside at the end, which needs the folder writable (root too, when
+            # the folder is immutable or on a read-only file system)
+            raise ValueError(f"cannot replace {target}: the folder is not writable")
     existing = next((p for p in (parent, *parent.parents) if p.exists()), Path("."))
     if not os.access(existing, os.W_OK | os.X_OK):
         raise ValueError(f"cannot write {target}: {existing} is not writable")
@@ -344,12 +348,13 @@ def _replace(staging: Path, target: Path, overwrite: bool) -> None:
         os.replace(staging, target)
         return
     aside = Path(tempfile.mkdtemp(prefix=f".{target.name}.old.", dir=target.parent))
-    os.rename(target, aside / "old")
     try:
-        os.rename(staging, target)
-    except BaseException:
-        os.rename(aside / "old", target)
-        raise
+        os.rename(target, aside / "old")
+        try:
+            os.rename(staging, target)
+        except BaseException:
+            os.rename(aside / "old", target)
+            raise
     finally:
         shutil.rmtree(aside, ignore_errors=True)
 
