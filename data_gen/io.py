@@ -22,14 +22,13 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from ppo_cv.atomic import worker_count, worker_pool
+from ppo_cv.atomic import staging_folder, worker_count, worker_pool
 
 from .imperfect import Imperfections
 from .motion import DEFAULT_SCENE, MAX_BASELINE_RATIO, MOTIONS, check_pivot_offset, sample_motion
@@ -355,7 +354,7 @@ imperfections, pivot_offset
         raise ValueError(f"workers must be >= 1, got {workers}")
     workers = worker_count(workers, pairs)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    tmp = staging_folder(out)
     try:
         jobs = [(tmp, f"pair_{i:03d}", source, {**kwargs, "index": i}) for i in range(pairs)]
         if workers == 1:

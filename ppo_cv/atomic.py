@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import shutil
 import signal
 import tempfile
@@ -21,6 +22,8 @@ from typing import Any, NoReturn
 __all__ = [
     "check_target",
     "check_apart",
+    "staging_folder",
+    "remove_stale",
     "atomic_file",
     "atomic_directory",
     "signals_deferred",
@@ -331,6 +334,43 @@ def _block_signals_in_new_workers() -> None:
     popen_spawn_posix.Popen._launch = launch_blocking_signals
 
 
+def _process_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def remove_stale(target: Path) -> list[Path]:
+    """Remove the temporary siblings of ``target`` that a killed run left (SIGKILL, a power
+    cut): those named by :func:`staging_folder` or :func:`atomic_file` after a process that
+    no longer runs. Returns what was removed."""
+    pattern = re.compile(rf"\.{re.escape(target.name)}\.(\d+)\.[a-z0-9_]{{8}}")
+    removed = []
+    with contextlib.suppress(OSError):
+        for entry in target.parent.iterdir():
+            found = pattern.fullmatch(entry.name)
+            if found is None or _process_alive(int(found[1])):
+                continue
+            if entry.is_dir() and not entry.is_symlink():
+                shutil.rmtree(entry, ignore_errors=True)
+            else:
+                entry.unlink(missing_ok=True)
+            removed.append(entry)
+    return removed
+
+
+def staging_folder(target: str | os.PathLike) -> Path:
+    """A new hidden folder beside ``target``, named after it and this process, in which to
+    build it; the ones a killed run left there are removed first (:func:`remove_stale`)."""
+    target = Path(target)
+    remove_stale(target)
+    return Path(tempfile.mkdtemp(prefix=f".{target.name}.{os.getpid()}.", dir=target.parent))
+
+
 def _visible_mode(path: Path, base: int) -> None:
     umask = os.umask(0)
     os.umask(umask)
@@ -409,7 +449,10 @@ def atomic_file(
         with signals_deferred():
             descriptor = _unnamed_file(target.parent)
             if descriptor is None:
-                descriptor, name = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
+                remove_stale(target)
+                descriptor, name = tempfile.mkstemp(
+                    prefix=f".{target.name}.{os.getpid()}.", dir=target.parent
+                )
                 staging = Path(name)
         encoding = None if "b" in mode else "utf-8"
         with os.fdopen(descriptor, mode, encoding=encoding) as handle:
@@ -433,14 +476,15 @@ def atomic_directory(path: str | os.PathLike, overwrite: bool = False) -> Iterat
     """A temporary sibling folder of ``path``, renamed to ``path`` when the block succeeds.
 
     An empty existing folder is replaced; a non-empty one or a file only with ``overwrite``.
-    On any exception the temporary folder is removed and ``path`` is left untouched.
+    On any exception the temporary folder is removed and ``path`` is left untouched; one that
+    a killed run left is removed by the next run for the same ``path`` (:func:`staging_folder`).
     """
     target = check_target(path, "folder", overwrite)
     target.parent.mkdir(parents=True, exist_ok=True)
     staging = None
     try:
         with signals_deferred():
-            staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+            staging = staging_folder(target)
         yield staging
         _visible_mode(staging, 0o777)
         with signals_deferred():

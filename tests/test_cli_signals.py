@@ -145,3 +145,25 @@ def test_sigkill_leaves_no_temporary_file(tmp_path):
     code, _ = _signal_when(args, tmp_path, _printed(" pairs, "), signal.SIGKILL)
     assert code == -signal.SIGKILL
     assert _entries(tmp_path) == before
+
+
+def test_the_next_run_removes_what_a_killed_run_left(tmp_path):
+    # a folder output cannot be unnamed as a file can: its staging folder, named after the
+    # killed process, goes at the next run for the same output
+    synth = ["synth", "out", "--width", "96", "--height", "72", "--supersample", "1", "-q"]
+
+    def staging_exists(process) -> None:
+        deadline = time.monotonic() + WAIT_SECONDS
+        while not any(tmp_path.iterdir()):
+            assert process.poll() is None and time.monotonic() < deadline, "nothing was started"
+            time.sleep(0.01)
+
+    code, _ = _signal_when([*synth, "--pairs", "200", "--workers", "1"], tmp_path,
+                           staging_exists, signal.SIGKILL)  # fmt: skip
+    assert code == -signal.SIGKILL
+    left = [p.name for p in tmp_path.iterdir()]
+    assert len(left) == 1 and re.fullmatch(r"\.out\.\d+\.[a-z0-9_]{8}", left[0]), left
+    done = subprocess.run([*COMMAND, *synth, "--pairs", "1"], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=WAIT_SECONDS)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert [p.name for p in tmp_path.iterdir()] == ["out"]
