@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import importlib
 import json
 import os
 import sys
@@ -41,6 +40,8 @@ from .common import (
     check_image_file,
     check_range,
     fail,
+    print_result,
+    stdout_failure,
     warn,
 )
 
@@ -172,13 +173,11 @@ def auc_table(results: list[dict]) -> str:
 
 
 def _init_worker() -> None:
-    import signal
+    from ppo_cv.atomic import import_pycolmap
 
+    import_pycolmap()  # first: numpy's threads, started by it, then block SIGTERM too
     import cv2
-    import pycolmap  # noqa: F401  (imported before the handlers below: it installs its own)
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C and stops the pool
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # stopped by the parent: quietly
     cv2.setNumThreads(1)
 
 
@@ -304,17 +303,25 @@ def run_pairs(
     The output file is written completely or not at all (an interrupt leaves nothing). Returns
     the exit code; ValueError for bad arguments, raised before any image is read.
     """
-    from ppo_cv.atomic import atomic_file, check_target, sigterm_as_interrupt
+    from ppo_cv.atomic import (
+        atomic_file,
+        check_apart,
+        check_target,
+        import_pycolmap,
+        worker_count,
+    )
 
     check_range("--workers", workers, 0, WORKERS_MAX)
     if output is not None:
-        check_target(output, "file", overwrite)
+        check_target(output, "file", overwrite, [pairs_file, image_dir], "-o ")
     rows = read_pairs(Path(pairs_file), K)
     if not Path(image_dir).is_dir():
         raise ValueError(f"image folder not found: {image_dir}")
-    workers = workers or (os.cpu_count() or 1)
-    importlib.import_module("pycolmap")  # before the handler: importing it replaces SIGTERM's
-    sigterm_as_interrupt()
+    if output is not None:
+        images = {Path(image_dir) / r[k] for r in rows for k in ("image1", "image2")}
+        check_apart(output, sorted(images), "-o ")
+    workers = worker_count(workers, len(rows))
+    import_pycolmap()
     sink = atomic_file(output, overwrite) if output is not None else contextlib.nullcontext(None)
     with contextlib.ExitStack() as stack:
         scratch = stack.enter_context(tempfile.TemporaryDirectory(prefix="ppo-cv-features-"))
@@ -343,12 +350,19 @@ def run_pairs(
         results = []
         with ProgressReport("pairs", "pairs", len(jobs), quiet) as report:
             for data in _run_all(_pair_job, jobs, pool, report):
-                handle.write(json.dumps(data) + "\n")
-                handle.flush()
+                try:
+                    handle.write(json.dumps(data) + "\n")
+                    handle.flush()
+                except OSError as exc:
+                    if output is not None:
+                        raise
+                    fail("pairs", stdout_failure(exc))
                 results.append(data)
     failed = sum("error" in r for r in results)
-    if rows[0]["T"] is not None:
-        typer.echo(auc_table(results), err=output is None)
+    if rows[0]["T"] is not None and output is None:
+        typer.echo(auc_table(results), err=True)
+    elif rows[0]["T"] is not None:
+        print_result("pairs", auc_table(results))
     elif failed:
         warn("pairs", f"{failed} of {len(results)} pairs failed")
     return 0
@@ -385,7 +399,11 @@ def register(app: typer.Typer) -> None:
         ] = None,
         overwrite: Overwrite = False,
         workers: Annotated[
-            int, typer.Option(help=f"Worker processes (0: one per CPU; at most {WORKERS_MAX}).")
+            int,
+            typer.Option(
+                help=f"Worker processes (0..{WORKERS_MAX}; 0: one per CPU); never more than "
+                "the CPUs this process may use or the pairs.",
+            ),
         ] = 0,
         no_cache: Annotated[
             bool,

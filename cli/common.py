@@ -20,6 +20,8 @@ __all__ = [
     "RedetectBelow",
     "fail",
     "warn",
+    "stdout_failure",
+    "print_result",
     "check_range",
     "check_image_file",
     "implausible_intrinsics",
@@ -129,6 +131,21 @@ def fail(command: str, message: str, code: int = 2) -> NoReturn:
     first = message.strip().splitlines()[0] if message.strip() else "failed"
     typer.echo(f"ppo-cv {command}: {first}", err=True)
     raise typer.Exit(code)
+
+
+def stdout_failure(exc: OSError) -> str:
+    """The message for a write to standard output that failed (a full disk, ``/dev/full``)."""
+    return f"cannot write to standard output: {exc.strerror or exc}"
+
+
+def print_result(command: str, text: str) -> None:
+    """Print ``text`` and a newline on standard output; one line and exit code 2 when it cannot
+    be written."""
+    try:
+        sys.stdout.write(text + "\n")
+        sys.stdout.flush()
+    except OSError as exc:
+        fail(command, stdout_failure(exc))
 
 
 def warn(command: str, message: str) -> None:

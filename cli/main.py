@@ -1,29 +1,57 @@
-"""The ``ppo-cv`` command: one typer app, one module per command group."""
+"""The ``ppo-cv`` command: one typer app, one module per command group.
+
+Only the standard library and :mod:`ppo_cv.atomic` are imported with this module: :func:`main`
+sets the signal handlers before typer, numpy, OpenCV and pycolmap load, so that an interrupt
+in the start-up is one line too.
+"""
 
 from __future__ import annotations
 
-import signal
+import functools
+import os
 import sys
 
-import typer
-
-from ppo_cv.atomic import sigterm_as_interrupt, stop_listening
-from ppo_cv.cli import pair, sfm, synth
-
-app = typer.Typer(
-    name="ppo-cv",
-    help="Relative pose of two calibrated images by the pose-only (PPO) inequalities.",
-    no_args_is_help=True,
-    add_completion=False,
-    pretty_exceptions_enable=False,
+from ppo_cv.atomic import (
+    import_pycolmap,
+    interrupt_exit_code,
+    sigterm_as_interrupt,
+    stop_listening,
 )
 
-for _module in (synth, sfm, pair):
-    _module.register(app)
+__all__ = ["main"]
+
+_PYCOLMAP_COMMANDS = {"pair", "demo", "pairs", "sfm"}
+"""Commands that import pycolmap: it is imported first, with the signals held back."""
+
+
+@functools.cache
+def _app():
+    import typer
+
+    from ppo_cv.cli import pair, sfm, synth
+
+    application = typer.Typer(
+        name="ppo-cv",
+        help="Relative pose of two calibrated images by the pose-only (PPO) inequalities.",
+        no_args_is_help=True,
+        add_completion=False,
+        pretty_exceptions_enable=False,
+    )
+    for module in (synth, sfm, pair):
+        module.register(application)
+    return application
+
+
+def __getattr__(name: str):
+    if name == "app":  # the typer app, built on first use
+        return _app()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def _usage_error(exc: Exception) -> int:
     """Print a command-line parsing error as one line; returns the exit code."""
+    import typer
+
     ctx = getattr(exc, "ctx", None)
     if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:
         typer.echo(ctx.get_help(), err=True)
@@ -38,49 +66,69 @@ def _command(argv: list[str] | None) -> str:
     return f"ppo-cv {words[0]}" if words else "ppo-cv"
 
 
-def _workers_never_see_ctrl_c() -> None:
-    """Start spawned worker processes with SIGINT blocked.
+def _stdout_error() -> OSError | None:
+    """The error of writing what standard output still holds (a full disk, ``/dev/full``)."""
+    try:
+        sys.stdout.flush()
+    except OSError as exc:
+        return exc
+    return None
 
-    Ctrl-C at a terminal reaches the whole process group; a worker still starting its
-    interpreter would die of it with a traceback. Blocked from their first instruction (the
-    mask is inherited through fork and exec), the workers leave the interrupt to this process,
-    which stops them and removes unfinished output.
-    """
-    from multiprocessing import popen_spawn_posix
 
-    launch = popen_spawn_posix.Popen._launch
-    if getattr(launch, "blocks_sigint", False):
-        return
+def _drop_stdout() -> None:
+    """Point standard output at the null device, so that the interpreter's exit, flushing what
+    is left in it, does not fail with a traceback."""
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, sys.stdout.fileno())
+    finally:
+        os.close(null)
 
-    def launch_blocking_sigint(self, process_obj):
-        previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-        try:
-            return launch(self, process_obj)
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
-    launch_blocking_sigint.blocks_sigint = True
-    popen_spawn_posix.Popen._launch = launch_blocking_sigint
+def _run(argv: list[str] | None) -> int:
+    """The command's exit code; 130 when it was interrupted."""
+    if _command(argv).split()[-1] in _PYCOLMAP_COMMANDS:
+        import_pycolmap()  # first: numpy's threads, started by it, then block SIGTERM too
+    application = _app()
+    try:
+        return application(args=argv, prog_name="ppo-cv", standalone_mode=False)
+    except Exception as exc:  # click's exceptions (typer vendors click in recent releases)
+        if type(exc).__name__ == "Abort":  # click's form of a KeyboardInterrupt
+            return 130
+        if not hasattr(exc, "format_message"):
+            raise
+        return _usage_error(exc)
 
 
 def main(argv: list[str] | None = None) -> None:
     """Run the command line; a usage error is one line on stderr and exit code 2.
 
-    SIGTERM is handled as Ctrl-C: outputs in progress are removed, exit code 130.
+    SIGINT and SIGTERM stop the run: outputs in progress are removed, one line on stderr,
+    exit code 130 (SIGINT) or 143 (SIGTERM).
     """
     sigterm_as_interrupt()
-    _workers_never_see_ctrl_c()
+    if sys.stdout is None:  # started with ">&-": every command prints its result there
+        print(f"{_command(argv)}: standard output is closed; redirect it to a file or "
+              f"{os.devnull}", file=sys.stderr)  # fmt: skip
+        sys.exit(2)
     try:
-        code = app(args=argv, prog_name="ppo-cv", standalone_mode=False)
-    except (typer.Abort, KeyboardInterrupt):
+        code = _run(argv)
+    except KeyboardInterrupt:
         code = 130
-    except Exception as exc:  # click's exceptions (typer vendors click in recent releases)
-        if not hasattr(exc, "format_message"):
-            raise
-        code = _usage_error(exc)
+    failure = _stdout_error()
+    if failure is not None:
+        _drop_stdout()
+        if code == 0:
+            from ppo_cv.cli.common import stdout_failure
+
+            print(f"{_command(argv)}: {stdout_failure(failure)}", file=sys.stderr)
+            code = 2
     if code == 130:  # typer turns a KeyboardInterrupt into exit code 130, silently
         stop_listening()
-        typer.echo(f"{_command(argv)}: interrupted; unfinished output removed", err=True)
+        code = interrupt_exit_code()
+        print(f"{_command(argv)}: interrupted; unfinished output removed", file=sys.stderr)
+    elif argv is None:  # the work is done: a late signal must not kill the interpreter's exit
+        stop_listening()
     sys.exit(code if isinstance(code, int) else 0)
 
 

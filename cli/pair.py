@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 from typing import Annotated, NoReturn
 
@@ -32,6 +31,7 @@ from .common import (
     check_range,
     fail,
     implausible_intrinsics,
+    print_result,
     warn,
 )
 
@@ -332,7 +332,8 @@ def _run_pair(
 
     try:
         if out is not None:
-            check_target(out, "folder", overwrite)
+            inputs = [image1, image2, *([calib] if calib is not None else [])]
+            check_target(out, "folder", overwrite, inputs, "--out ")
         for image in (image1, image2):
             check_image_file(image)
         img1, img2 = load_image(image1), load_image(image2)
@@ -361,11 +362,12 @@ def _run_pair(
     if as_json:
         from ppo_cv.export import result_to_dict
 
-        sys.stdout.write(json.dumps(result_to_dict(result, **extra)) + "\n")
+        print_result(command, json.dumps(result_to_dict(result, **extra)))
     else:
-        typer.echo(_summary(result, str(image1), str(image2), note, reference))
+        summary = _summary(result, str(image1), str(image2), note, reference)
         if out is not None:
-            typer.echo(f"  written      {out}/result.json, points.ply, matches.png, colmap/")
+            summary += f"\n  written      {out}/result.json, points.ply, matches.png, colmap/"
+        print_result(command, summary)
 
 
 _Json = Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")]

@@ -19,6 +19,7 @@ from .common import (
     fail,
     image_size,
     implausible_intrinsics,
+    print_result,
     warn,
 )
 
@@ -42,7 +43,7 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
            pri_threshold, overwrite):  # fmt: skip
     """Every argument checked before the run; returns the camera matrix or None."""
     from ppo_cv import sfm
-    from ppo_cv.atomic import check_target
+    from ppo_cv.atomic import check_apart, check_target
 
     if init not in sfm.INITIALIZATIONS:
         raise ValueError(f"--init must be one of {', '.join(sfm.INITIALIZATIONS)}, got {init!r}")
@@ -52,8 +53,9 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
     check_range("--threads", threads, 1, sfm.MAX_THREADS)
     check_range("--seed", seed, 0, SEED_MAX)
     check_range("--pri-threshold", pri_threshold, 0.0, 1.0)
-    check_target(out_dir, "folder", overwrite)
+    check_target(out_dir, "folder", overwrite, [image_dir], "OUT_DIR ")
     if database is not None:
+        check_apart(database, [image_dir], "--database ")
         if database.exists():
             raise ValueError(f"database {database} already exists; give a new file name")
         check_target(database, "file")
@@ -146,7 +148,7 @@ def register(app: typer.Typer) -> None:
             _fail(str(exc), code)
         except RuntimeError as exc:
             _fail(f"pycolmap failed: {exc}", code=1)
-        typer.echo(_summary(result, out_dir, as_json))
+        print_result("sfm", _summary(result, out_dir, as_json))
 
 
 def _summary(result, out_dir: Path, as_json: bool) -> str:

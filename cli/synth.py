@@ -10,7 +10,7 @@ import typer
 
 from ppo_cv.data_gen.names import MAX_BASELINE_RATIO, MAX_PIVOT_OFFSET, MOTIONS, SCENES
 
-from .common import ProgressReport, Quiet, fail
+from .common import ProgressReport, Quiet, fail, print_result
 
 __all__ = ["register", "MAX_BLUR", "MAX_NOISE"]
 
@@ -214,7 +214,11 @@ def register(app: typer.Typer) -> None:
             bool, typer.Option("--different-k", help="Draw K2 independently of K1.")
         ] = False,
         workers: Annotated[
-            int | None, typer.Option(help="Worker processes (default: CPUs).")
+            int | None,
+            typer.Option(
+                help="Worker processes (default: CPUs); never more than the CPUs this process "
+                "may use or --pairs."
+            ),
         ] = None,
         overwrite: Annotated[
             bool, typer.Option("--overwrite", help="Replace an existing non-empty OUT_DIR.")
@@ -222,9 +226,14 @@ def register(app: typer.Typer) -> None:
         quiet: Quiet = False,
     ) -> None:
         """Render synthetic pairs with exact ground truth and a freiburg-style pairs file."""
-        from ppo_cv.atomic import atomic_directory
+        from ppo_cv.atomic import atomic_directory, check_apart
         from ppo_cv.data_gen import make_dataset
 
+        if warp_source is not None:
+            try:
+                check_apart(out_dir, [warp_source], "OUT_DIR ")
+            except ValueError as exc:
+                _fail(str(exc))
         _check(out_dir, pairs, seed, motion, scene, width, height, alpha, supersample, noise, blur,
                workers, baseline_ratio, warp, overwrite, pivot_offset)  # fmt: skip
         if warp_source is not None and not warp:
@@ -269,4 +278,4 @@ def register(app: typer.Typer) -> None:
             _fail(str(error))
         from ppo_cv.data_gen.io import PAIRS_FILE
 
-        typer.echo(f"wrote {pairs} pairs to {out_dir} ({out_dir / PAIRS_FILE})")
+        print_result("synth", f"wrote {pairs} pairs to {out_dir} ({out_dir / PAIRS_FILE})")

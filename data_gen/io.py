@@ -22,15 +22,13 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import signal
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from ppo_cv.atomic import worker_pool
+from ppo_cv.atomic import staging_folder, worker_count, worker_pool
 
 from .imperfect import Imperfections
 from .motion import DEFAULT_SCENE, MAX_BASELINE_RATIO, MOTIONS, check_pivot_offset, sample_motion
@@ -267,8 +265,6 @@ def _job(args: tuple) -> str:
 
 
 def _init_worker() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's to handle
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # stopped by the parent: quietly
     cv2.setNumThreads(1)
     texture_pool()
 
@@ -311,7 +307,8 @@ def make_dataset(
     size : (int, int), optional
         Image width and height; default 640x480 for renders, 0.65 of the photo for warps.
     workers : int, optional
-        Worker processes (default: number of CPUs, at most ``pairs``).
+        Worker processes (default: one per available CPU), capped at the available CPUs and
+        at ``pairs`` (:func:`ppo_cv.atomic.worker_count`).
     source : {"render", "warp"}, default "render"
         Rendered scenes (:func:`make_pair`) or real photos warped by a pure rotation
         (:func:`make_warped_pair`; ``scene``, ``alpha``, ``baseline_ratio``, ``supersample``,
@@ -353,11 +350,11 @@ imperfections, pivot_offset
         make_warped_pair(**kwargs, index=0)
     else:
         raise ValueError(f"source must be 'render' or 'warp', got {source!r}")
-    workers = min(os.cpu_count() or 1, pairs) if workers is None else int(workers)
-    if workers < 1:
+    if workers is not None and int(workers) < 1:
         raise ValueError(f"workers must be >= 1, got {workers}")
+    workers = worker_count(workers, pairs)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    tmp = staging_folder(out)
     try:
         jobs = [(tmp, f"pair_{i:03d}", source, {**kwargs, "index": i}) for i in range(pairs)]
         if workers == 1:

@@ -213,9 +213,10 @@ def source_photos(source: str | os.PathLike | Sequence | None = None) -> list[Pa
     ----------
     source : path, sequence of paths, or None
         A folder (its PNG/JPEG/TIFF/BMP files, sorted), one file, or a list of files. None: the
-        freiburg frames if ``$PPO_CV_SHARED/data/freiburg/images`` or
-        ``../shared/data/freiburg/images`` (relative to the working directory or to the source
-        tree) exists, else the two TUM frames shipped in ``ppo_cv/data``.
+        freiburg frames if ``$PPO_CV_SHARED/data/freiburg/images`` exists (when
+        ``PPO_CV_SHARED`` is set, only there) or ``../shared/data/freiburg/images`` (relative to
+        the working directory or to the source tree), else the two TUM frames shipped in
+        ``ppo_cv/data``.
 
     Returns
     -------
@@ -225,9 +226,7 @@ def source_photos(source: str | os.PathLike | Sequence | None = None) -> list[Pa
         here = Path(__file__).resolve().parents[2]
         folders = [Path.cwd().parent / FREIBURG_IMAGES, here / FREIBURG_IMAGES]
         if os.environ.get("PPO_CV_SHARED"):
-            folders.insert(
-                0, Path(os.environ["PPO_CV_SHARED"]) / FREIBURG_IMAGES.relative_to("shared")
-            )
+            folders = [Path(os.environ["PPO_CV_SHARED"]) / FREIBURG_IMAGES.relative_to("shared")]
         for folder in folders:
             if folder.is_dir():
                 return source_photos(folder)

@@ -20,13 +20,15 @@ import importlib
 import importlib.util
 import os
 import sys
+from typing import TYPE_CHECKING
 
-from .calib import Camera, camera_from_exif, load_calibration, parse_intrinsics
-from .export import write_outputs
-from .opencv_compat import install, installed, is_installed, recoverPose, uninstall
-from .pipeline import PairOptions, PairResult, estimate_pair
-from .pose import PoseResult, recover_pose
-from .ppo import DEFAULT_PRI_THRESHOLD
+if TYPE_CHECKING:
+    from .calib import Camera, camera_from_exif, load_calibration, parse_intrinsics
+    from .export import write_outputs
+    from .opencv_compat import install, installed, is_installed, recoverPose, uninstall
+    from .pipeline import PairOptions, PairResult, estimate_pair
+    from .pose import PoseResult, recover_pose
+    from .ppo import DEFAULT_PRI_THRESHOLD
 
 __all__ = [
     "DEFAULT_PRI_THRESHOLD",
@@ -50,12 +52,40 @@ __all__ = [
 __version__ = "0.1.0"
 
 _LAZY_SUBMODULES = ("colmap", "sfm", "data_gen")
+_EXPORTED_FROM = {
+    "DEFAULT_PRI_THRESHOLD": "ppo",
+    "Camera": "calib",
+    "PairOptions": "pipeline",
+    "PairResult": "pipeline",
+    "PoseResult": "pose",
+    "camera_from_exif": "calib",
+    "estimate_pair": "pipeline",
+    "install": "opencv_compat",
+    "installed": "opencv_compat",
+    "is_installed": "opencv_compat",
+    "load_calibration": "calib",
+    "parse_intrinsics": "calib",
+    "recoverPose": "opencv_compat",
+    "recover_pose": "pose",
+    "uninstall": "opencv_compat",
+    "write_outputs": "export",
+}
+"""The module of each name of ``__all__``, imported on first use: the command line sets its
+signal handlers before numpy, OpenCV and pycolmap load."""
 
 
 def __getattr__(name: str):
     if name in _LAZY_SUBMODULES:
         return importlib.import_module(f".{name}", __name__)
+    if name in _EXPORTED_FROM:
+        value = getattr(importlib.import_module(f".{_EXPORTED_FROM[name]}", __name__), name)
+        globals()[name] = value
+        return value
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *__all__, *_LAZY_SUBMODULES})
 
 
 class _SourceTreeFinder:

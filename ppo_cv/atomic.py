@@ -10,26 +10,41 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import shutil
 import signal
 import tempfile
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 __all__ = [
     "check_target",
+    "check_apart",
+    "staging_folder",
+    "remove_stale",
     "atomic_file",
     "atomic_directory",
     "signals_deferred",
     "sigterm_as_interrupt",
     "stop_listening",
     "worker_pool",
+    "WorkerPool",
+    "worker_count",
+    "available_cpus",
+    "import_pycolmap",
+    "interrupt_exit_code",
 ]
 
 
-def check_target(path: str | os.PathLike, kind: str, overwrite: bool = False) -> Path:
+def check_target(
+    path: str | os.PathLike,
+    kind: str,
+    overwrite: bool = False,
+    inputs: Iterable[str | os.PathLike] = (),
+    name: str = "",
+) -> Path:
     """Check that ``path`` can receive a new file or folder; raise ValueError naming the problem.
 
     Parameters
@@ -40,6 +55,11 @@ def check_target(path: str | os.PathLike, kind: str, overwrite: bool = False) ->
         What will be written there.
     overwrite : bool
         Allow replacing an existing output of the same kind.
+    inputs : iterable of paths
+        Files and folders the command reads, which the output must keep apart from
+        (:func:`check_apart`), even with ``overwrite``.
+    name : str
+        How messages about ``inputs`` call the output, e.g. ``"--out "``.
 
     Returns
     -------
@@ -56,6 +76,7 @@ def check_target(path: str | os.PathLike, kind: str, overwrite: bool = False) ->
     if kind == "file":
         if target.is_dir() or str(path).endswith(os.sep):
             raise ValueError(f"{target} is a folder; give a file name")
+        check_apart(target, inputs, name)
         if not parent.is_dir():
             raise ValueError(f"cannot write {target}: folder {parent} does not exist")
         if target.exists() and not overwrite:
@@ -63,20 +84,60 @@ def check_target(path: str | os.PathLike, kind: str, overwrite: bool = False) ->
         if target.exists() and not target.is_file():
             raise ValueError(f"{target} is not a regular file")
     else:
+        check_apart(target, inputs, name)
         if target.exists() and not target.is_dir():
             raise ValueError(f"{target} is a file, not a folder")
         if target.is_dir() and any(target.iterdir()) and not overwrite:
             raise ValueError(
                 f"{target} exists and is not an empty directory; pass --overwrite to replace it"
             )
+        if target.is_dir() and not os.access(target, os.W_OK | os.X_OK):
+            # it is moved aside at the end, which needs the folder writable (root too, when
+            # the folder is immutable or on a read-only file system)
+            raise ValueError(f"cannot replace {target}: the folder is not writable")
     existing = next((p for p in (parent, *parent.parents) if p.exists()), Path("."))
     if not os.access(existing, os.W_OK | os.X_OK):
         raise ValueError(f"cannot write {target}: {existing} is not writable")
     return target
 
 
+def check_apart(
+    target: str | os.PathLike, inputs: Iterable[str | os.PathLike], name: str = ""
+) -> None:
+    """ValueError unless the output ``target`` is apart from every one of ``inputs``.
+
+    An output that is an input, or a folder that holds one, would replace or delete it (with
+    ``overwrite``). Symbolic links and ``..`` are resolved first, and a second name of the same
+    file (a hard link) counts as the same. An output inside an input folder is allowed: the
+    commands read the images they are given, or an image folder's image files, never an
+    output's folder or file.
+
+    Parameters
+    ----------
+    target : path
+        An output file or folder, existing or not.
+    inputs : iterable of paths
+        The files and folders the command reads.
+    name : str
+        How the message calls the output, e.g. ``"--out "``.
+    """
+    output = Path(os.path.realpath(target))
+    for source in inputs:
+        read = Path(os.path.realpath(source))
+        same = read == output
+        with contextlib.suppress(OSError):
+            same = same or os.path.samefile(read, output)
+        if same or read.is_relative_to(output):
+            relation = "is the input" if same else "holds the input"
+            raise ValueError(
+                f"the output {name}{target} {relation} {source}; give an output apart from the "
+                "inputs"
+            )
+
+
 _DEFERRED = {signal.SIGINT, signal.SIGTERM}
 _held: int | None = None  # a signal that reached :func:`_raise_interrupt` in a deferred block
+_received: list[int] = []  # the signals :func:`_raise_interrupt` was called for
 _depth = 0
 
 
@@ -86,9 +147,9 @@ def signals_deferred() -> Iterator[None]:
 
     Creating a temporary entry and entering the ``try`` that removes it, or swapping an output
     into place, must not be split by an interrupt; a signal that arrives meanwhile is delivered,
-    and its KeyboardInterrupt raised, as soon as the block ends. The signals are blocked in this
-    thread, and one that the kernel hands to another thread (numpy's and OpenCV's workers do not
-    block it) is held by :func:`_raise_interrupt` until the block ends.
+    and its KeyboardInterrupt raised, as soon as the block ends. The signals are blocked in
+    this thread, and one that the kernel hands to another thread (numpy's and OpenCV's workers
+    do not block it) is held by :func:`_raise_interrupt` until the block ends.
     """
     global _depth, _held
     handled_here = threading.current_thread() is threading.main_thread()  # as Python's handlers
@@ -103,34 +164,211 @@ def signals_deferred() -> Iterator[None]:
             held, _held = _held, None
         signal.pthread_sigmask(signal.SIG_SETMASK, previous)
         if held is not None:
+            handler = signal.getsignal(held)
+            if handler is _raise_interrupt:
+                handler(held, None)
             raise KeyboardInterrupt(f"signal {held}")
 
 
+def available_cpus() -> int:
+    """The CPUs this process may run on (its affinity mask, as ``taskset`` or a container's
+    limit sets it), at least 1."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+def worker_count(requested: int | None, jobs: int) -> int:
+    """Worker processes for ``jobs`` jobs: ``requested`` (0 or None: one per available CPU),
+    capped at the jobs and the available CPUs (more would only add start-up time and memory),
+    at least 1."""
+    return max(1, min(requested or available_cpus(), available_cpus(), jobs))
+
+
 @contextlib.contextmanager
-def worker_pool(workers: int, initializer: Callable[[], None]) -> Iterator[Any]:
-    """A ``multiprocessing`` pool of ``workers`` spawned processes, stopped on any error.
+def worker_pool(workers: int, initializer: Callable[[], None]) -> Iterator[WorkerPool]:
+    """A :class:`WorkerPool` of ``workers`` spawned processes, stopped on any error.
 
-    The pool starts with SIGINT and SIGTERM deferred (:func:`signals_deferred`): an interrupt
-    that lands while a worker is being launched would leave it reading its start-up data from
-    a closed pipe, and dying of that with a traceback. ``initializer`` runs in each worker (a
-    module-level function: it is pickled). On an exception or an interrupt in the block the
-    workers are stopped and joined before it propagates: none is left writing into an output
-    the caller then removes.
+    ``initializer`` (a module-level function: it is pickled) runs in each worker; it imports
+    pycolmap, if at all, through :func:`import_pycolmap`. On an exception or an interrupt in
+    the block the workers are killed and joined before it propagates: none is left writing
+    into an output the caller then removes.
     """
-    import multiprocessing
-
+    _block_signals_in_new_workers()
     pool = None
     try:
         with signals_deferred():
-            pool = multiprocessing.get_context("spawn").Pool(workers, initializer=initializer)
+            pool = WorkerPool(workers, initializer)
         yield pool
     except BaseException:
         if pool is not None:
-            pool.terminate()
-            pool.join()
+            pool.kill()
         raise
     pool.close()
-    pool.join()
+
+
+class WorkerPool:
+    """Spawned worker processes, each fed through a pipe of its own.
+
+    No lock or queue is shared between the workers, so that one killed anywhere (the SIGTERM
+    that ``timeout`` or a service manager sends reaches the whole process group) cannot leave
+    the others or this process waiting: its pipe ends, and the pool reports it.
+
+    A worker starts with SIGINT and SIGTERM blocked until it has set its handlers: it ignores
+    SIGINT (Ctrl-C is the parent's to handle) and dies at SIGTERM, quietly.
+    """
+
+    def __init__(self, workers: int, initializer: Callable[[], None]) -> None:
+        import multiprocessing
+
+        context = multiprocessing.get_context("spawn")
+        self.processes, self._pipes = [], []
+        self._signals_before = len(_received)
+        for _ in range(workers):
+            mine, theirs = context.Pipe()
+            process = context.Process(target=_serve, args=(theirs, initializer), daemon=True)
+            self.processes.append(process)
+            self._pipes.append(mine)
+            process.start()
+            theirs.close()
+
+    def imap(self, function: Callable[[Any], Any], jobs: Iterable[Any]) -> Iterator[Any]:
+        """``function(job)`` for each job, computed in the workers, yielded in order."""
+        from multiprocessing.connection import wait
+
+        queue = enumerate(jobs)
+        busy, done, following = {}, {}, 0
+
+        def give(pipe) -> None:
+            for index, job in queue:
+                pipe.send((function, job))
+                busy[pipe] = index
+                return
+
+        for pipe in self._pipes:
+            give(pipe)
+        while busy or done:
+            while following in done:
+                yield done.pop(following)
+                following += 1
+            for pipe in wait(list(busy)) if busy else ():
+                try:
+                    failed, value = pipe.recv()
+                except (EOFError, OSError):
+                    self._died(pipe)
+                if failed:
+                    raise value
+                done[busy.pop(pipe)] = value
+                give(pipe)
+
+    def _died(self, pipe) -> NoReturn:
+        """ChildProcessError naming how the worker of ``pipe`` ended; KeyboardInterrupt when
+        this process was interrupted too (a signal to the whole group)."""
+        process = self.processes[self._pipes.index(pipe)]
+        process.join(timeout=1.0)
+        if len(_received) > self._signals_before:
+            raise KeyboardInterrupt(f"signal {_received[-1]}")
+        code = process.exitcode
+        how = f"killed by signal {-code}" if code is not None and code < 0 else f"exit {code}"
+        raise ChildProcessError(f"a worker process died ({how})")
+
+    def map(self, function: Callable[[Any], Any], jobs: Iterable[Any]) -> list[Any]:
+        """``function(job)`` for each job, computed in the workers, in order."""
+        return list(self.imap(function, jobs))
+
+    def close(self) -> None:
+        """Let the workers finish and wait for them."""
+        for pipe in self._pipes:
+            with contextlib.suppress(OSError):
+                pipe.send(None)
+        for process in self.processes:
+            process.join()
+        for pipe in self._pipes:
+            pipe.close()
+
+    def kill(self) -> None:
+        """Kill the workers, whatever they are doing, and wait for them."""
+        for process in self.processes:
+            if process.pid is not None:
+                process.kill()
+                process.join()
+        for pipe in self._pipes:
+            pipe.close()
+
+
+def _serve(pipe, initializer: Callable[[], None]) -> None:
+    """A worker of :class:`WorkerPool`: its signal handlers, ``initializer``, then the jobs
+    it is sent until ``None``; an exception goes back to the pool."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _DEFERRED)
+    initializer()
+    with contextlib.suppress(EOFError, BrokenPipeError):  # the pool's process has ended
+        while (task := pipe.recv()) is not None:
+            function, job = task
+            try:
+                outcome = (False, function(job))
+            except Exception as error:
+                outcome = (True, error)
+            pipe.send(outcome)
+
+
+def _block_signals_in_new_workers() -> None:
+    """Launch spawned processes with SIGINT and SIGTERM blocked from their first instruction
+    (the mask is inherited through fork and exec)."""
+    from multiprocessing import popen_spawn_posix
+
+    launch = popen_spawn_posix.Popen._launch
+    if getattr(launch, "blocks_signals", False):
+        return
+
+    def launch_blocking_signals(self, process_obj):
+        previous = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFERRED)
+        try:
+            return launch(self, process_obj)
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+    launch_blocking_signals.blocks_signals = True
+    popen_spawn_posix.Popen._launch = launch_blocking_signals
+
+
+def _process_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's process
+        return True
+    return True
+
+
+def remove_stale(target: Path) -> list[Path]:
+    """Remove the temporary siblings of ``target`` that a killed run left (SIGKILL, a power
+    cut): those named by :func:`staging_folder` or :func:`atomic_file` after a process that
+    no longer runs. Returns what was removed."""
+    pattern = re.compile(rf"\.{re.escape(target.name)}\.(\d+)\.[a-z0-9_]{{8}}")
+    removed = []
+    with contextlib.suppress(OSError):
+        for entry in target.parent.iterdir():
+            found = pattern.fullmatch(entry.name)
+            if found is None or _process_alive(int(found[1])):
+                continue
+            if entry.is_dir() and not entry.is_symlink():
+                shutil.rmtree(entry, ignore_errors=True)
+            else:
+                entry.unlink(missing_ok=True)
+            removed.append(entry)
+    return removed
+
+
+def staging_folder(target: str | os.PathLike) -> Path:
+    """A new hidden folder beside ``target``, named after it and this process, in which to
+    build it; the ones a killed run left there are removed first (:func:`remove_stale`)."""
+    target = Path(target)
+    remove_stale(target)
+    return Path(tempfile.mkdtemp(prefix=f".{target.name}.{os.getpid()}.", dir=target.parent))
 
 
 def _visible_mode(path: Path, base: int) -> None:
@@ -150,37 +388,83 @@ def _replace(staging: Path, target: Path, overwrite: bool) -> None:
         os.replace(staging, target)
         return
     aside = Path(tempfile.mkdtemp(prefix=f".{target.name}.old.", dir=target.parent))
-    os.rename(target, aside / "old")
     try:
-        os.rename(staging, target)
-    except BaseException:
-        os.rename(aside / "old", target)
-        raise
+        os.rename(target, aside / "old")
+        try:
+            os.rename(staging, target)
+        except BaseException:
+            os.rename(aside / "old", target)
+            raise
     finally:
         shutil.rmtree(aside, ignore_errors=True)
+
+
+def _unnamed_file(folder: Path) -> int | None:
+    """A descriptor of a new file in ``folder`` that has no name yet (Linux ``O_TMPFILE``): a
+    process killed before it is linked leaves nothing. None where the file system has none."""
+    try:
+        return os.open(folder, os.O_TMPFILE | os.O_WRONLY, 0o666)
+    except (AttributeError, OSError):
+        return None
+
+
+def _link_into_place(descriptor: int, target: Path, overwrite: bool) -> None:
+    """Give the unnamed file of ``descriptor`` the name ``target`` (replaced with
+    ``overwrite``: through a sibling name that exists only for the rename)."""
+    folder = os.open(target.parent, os.O_RDONLY | os.O_DIRECTORY)
+    try:  # a folder descriptor makes os.link call linkat, which follows the /proc link
+        if not (target.exists() or target.is_symlink()):
+            os.link(f"/proc/self/fd/{descriptor}", target.name, dst_dir_fd=folder)
+            return
+        while True:
+            sibling = target.with_name(f".{target.name}.{os.urandom(4).hex()}")
+            try:
+                os.link(f"/proc/self/fd/{descriptor}", sibling.name, dst_dir_fd=folder)
+                break
+            except FileExistsError:
+                continue
+    finally:
+        os.close(folder)
+    try:
+        _replace(sibling, target, overwrite)
+    finally:
+        sibling.unlink(missing_ok=True)
 
 
 @contextlib.contextmanager
 def atomic_file(
     path: str | os.PathLike, overwrite: bool = False, mode: str = "w"
 ) -> Iterator[object]:
-    """Open a temporary sibling of ``path`` for writing; rename it to ``path`` on success.
+    """Open a new file for writing; it becomes ``path`` only when the block succeeds.
 
-    Yields the open file (text mode ``"w"`` in UTF-8, or ``"wb"``). On any exception, including
-    KeyboardInterrupt, the temporary file is removed and ``path`` is left untouched.
+    Yields the open file (text mode ``"w"`` in UTF-8, or ``"wb"``). The file has no name until
+    then where the file system allows it (Linux ``O_TMPFILE``), so that even a process killed
+    by SIGKILL leaves nothing behind; elsewhere it is a hidden temporary sibling of ``path``.
+    On any exception, including KeyboardInterrupt, it is removed and ``path`` is left
+    untouched.
     """
     target = check_target(path, "file", overwrite)
     staging = None
     try:
         with signals_deferred():
-            descriptor, name = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
-            staging = Path(name)
+            descriptor = _unnamed_file(target.parent)
+            if descriptor is None:
+                remove_stale(target)
+                descriptor, name = tempfile.mkstemp(
+                    prefix=f".{target.name}.{os.getpid()}.", dir=target.parent
+                )
+                staging = Path(name)
         encoding = None if "b" in mode else "utf-8"
         with os.fdopen(descriptor, mode, encoding=encoding) as handle:
             yield handle
-        _visible_mode(staging, 0o666)
-        with signals_deferred():
-            _replace(staging, target, overwrite)
+            handle.flush()
+            if staging is None:
+                with signals_deferred():
+                    _link_into_place(descriptor, target, overwrite)
+        if staging is not None:
+            _visible_mode(staging, 0o666)
+            with signals_deferred():
+                _replace(staging, target, overwrite)
     except BaseException:
         if staging is not None:
             staging.unlink(missing_ok=True)
@@ -192,14 +476,15 @@ def atomic_directory(path: str | os.PathLike, overwrite: bool = False) -> Iterat
     """A temporary sibling folder of ``path``, renamed to ``path`` when the block succeeds.
 
     An empty existing folder is replaced; a non-empty one or a file only with ``overwrite``.
-    On any exception the temporary folder is removed and ``path`` is left untouched.
+    On any exception the temporary folder is removed and ``path`` is left untouched; one that
+    a killed run left is removed by the next run for the same ``path`` (:func:`staging_folder`).
     """
     target = check_target(path, "folder", overwrite)
     target.parent.mkdir(parents=True, exist_ok=True)
     staging = None
     try:
         with signals_deferred():
-            staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+            staging = staging_folder(target)
         yield staging
         _visible_mode(staging, 0o777)
         with signals_deferred():
@@ -237,6 +522,7 @@ def _raise_interrupt(signum, frame) -> None:
     with a traceback; SIGALRM brings the interrupt back once the launch is over.
     """
     global _held
+    _received.append(signum)
     if _depth:
         _held = signum
         return
@@ -250,9 +536,9 @@ def _raise_interrupt(signum, frame) -> None:
 def stop_listening() -> None:
     """Ignore SIGINT, SIGTERM and a pending retry from now on: the interrupt has been handled.
 
-    Called once the clean-up has run and the process is about to exit, so that a second signal
-    (or a retry armed during a worker launch) cannot turn the exit code 130 into a death by
-    SIGINT halfway through the final message.
+    Called once the clean-up has run, or the work is done, and the process is about to exit,
+    so that a second signal (or a retry armed during a worker launch) cannot turn the exit
+    code into a death by signal halfway through the final message or the interpreter's exit.
     """
     with contextlib.suppress(ValueError):  # not the main thread
         signal.setitimer(signal.ITIMER_REAL, 0)
@@ -264,9 +550,33 @@ def sigterm_as_interrupt() -> None:
     """Make SIGINT and SIGTERM raise KeyboardInterrupt in the main thread, so clean-up code runs.
 
     Importing pycolmap installs its own SIGTERM handler (a stack dump, then death, with no
-    clean-up): call this again once pycolmap is imported, before writing anything.
+    clean-up): import it through :func:`import_pycolmap`, which puts this one back.
     """
     with contextlib.suppress(ValueError):  # not the main thread: leave the defaults
         if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
             signal.signal(signal.SIGINT, _raise_interrupt)
         signal.signal(signal.SIGTERM, _raise_interrupt)
+
+
+def import_pycolmap():
+    """Import pycolmap with SIGINT and SIGTERM held back, then handle SIGTERM as before.
+
+    Importing pycolmap installs a native SIGTERM handler (a stack dump, then death, with no
+    clean-up); the Python handler is put back, and a signal that arrived meanwhile delivered
+    to it. Call it from the main thread, best before numpy is imported: the threads numpy
+    starts then block the signals too, and none of them can take one while pycolmap's handler
+    is in place.
+    """
+    import importlib
+
+    with signals_deferred():
+        handler = signal.getsignal(signal.SIGTERM)
+        module = importlib.import_module("pycolmap")
+        if handler is not None:
+            signal.signal(signal.SIGTERM, handler)
+    return module
+
+
+def interrupt_exit_code() -> int:
+    """The exit code of a run stopped by an interrupt: 143 after SIGTERM, else 130 (SIGINT)."""
+    return 128 + signal.SIGTERM if _received and _received[-1] == signal.SIGTERM else 130

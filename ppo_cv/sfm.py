@@ -42,7 +42,7 @@ import numpy as np
 import pycolmap
 
 from . import colmap, ppo
-from .atomic import atomic_directory, check_target, signals_deferred
+from .atomic import atomic_directory, check_target, signals_deferred, staging_folder
 from .checks import as_camera_matrix, as_positive
 from .homography import estimate_homography
 from .metrics import direction_error_deg, rotation_error_deg
@@ -787,7 +787,7 @@ def _staged_file(path: str | os.PathLike) -> Iterator[Path]:
     staging = None
     try:
         with signals_deferred():
-            staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", dir=target.parent))
+            staging = staging_folder(target)
         yield staging / target.name
         with signals_deferred():
             os.rename(staging / target.name, target)

@@ -34,6 +34,19 @@ def freiburg() -> Path:
     return folder
 
 
+@pytest.fixture(scope="session")
+def freiburg_photos() -> Path:
+    """The freiburg frames, as ``data_gen`` warps them by default; skips when absent.
+
+    Tests whose figures hold for pairs warped from these frames pass them as ``source``: without
+    them ``data_gen`` falls back to the two frames in ``ppo_cv/data``, other pairs entirely.
+    """
+    folder = shared_path("data", "freiburg", "images")
+    if not folder.is_dir():
+        pytest.skip(f"freiburg frames to warp not found at {folder} (set PPO_CV_SHARED)")
+    return folder
+
+
 @pytest.fixture
 def K():
     """A pinhole camera with unequal focal lengths."""

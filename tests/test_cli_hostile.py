@@ -29,6 +29,7 @@ PAIR = ["pair", DEMO1, DEMO2, "--K", K_TEXT]
 INTRINSICS = " ".join(["0 0"] + ["535.4 0 320.1 0 539.2 247.6 0 0 1"] * 2)
 GT = INTRINSICS + " 1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1"
 PARALLEL = 6  # processes at a time
+IMAGES = [f"images/{DEMO['image1']}", f"images/{DEMO['image2']}"]
 
 
 def _workspace(root: Path) -> None:
@@ -56,6 +57,8 @@ def _workspace(root: Path) -> None:
     (root / "taken.jsonl").write_text("mine\n")
     (root / "synth_out").mkdir()
     (root / "synth_out" / "notes.txt").write_text("mine\n")
+    (root / "pairs_demo.txt").write_text("demo1.png demo2.png\n")
+    os.link(root / "images" / "demo1.png", root / "twin.png")  # a second name of an input
 
 
 def _snapshot(root: Path) -> dict:
@@ -187,6 +190,38 @@ CASES = [
         r"view_focal_error must be in \[0\.0, 0\.5\]",
     ),
     (["pair", "fifo.png", DEMO2, "--K", K_TEXT], "pair", r"not a regular file: fifo\.png"),
+    # issue 44, defect 1: an output that is or holds an input, refused even with --overwrite
+    *[
+        (
+            [*args, "--overwrite"],
+            args[0],
+            rf"the output {re.escape(output)} {relation} the input {re.escape(source)}; give "
+            "an output apart from the inputs",
+        )
+        for args, output, relation, source in [
+            (["pair", *IMAGES, "--K", K_TEXT, "--out", "images"], "--out images", "holds",
+             IMAGES[0]),
+            (["pair", *IMAGES, "--K", K_TEXT, "--out", "."], "--out .", "holds", IMAGES[0]),
+            (["pair", *IMAGES, "--K", K_TEXT, "--out", IMAGES[1]], f"--out {IMAGES[1]}", "is",
+             IMAGES[1]),
+            (["pair", *IMAGES, "--calib", "bad.yml", "--out", "bad.yml"], "--out bad.yml", "is",
+             "bad.yml"),
+            (["pairs", "pairs_demo.txt", "images", "--K", K_TEXT, "-o", "pairs_demo.txt"],
+             "-o pairs_demo.txt", "is", "pairs_demo.txt"),
+            (["pairs", "pairs_demo.txt", "images", "--K", K_TEXT, "-o", IMAGES[0]],
+             f"-o {IMAGES[0]}", "is", IMAGES[0]),
+            (["pairs", "pairs_demo.txt", "images", "--K", K_TEXT, "-o", "twin.png"],
+             "-o twin.png", "is", IMAGES[0]),
+            (["sfm", "images", "images", "--K", K_TEXT], "OUT_DIR images", "is", "images"),
+            (["sfm", "images", ".", "--K", K_TEXT], "OUT_DIR .", "holds", "images"),
+            (["sfm", "images", "model", "--K", K_TEXT, "--database", "images"],
+             "--database images", "is", "images"),
+            (["synth", "images", "--warp", "--warp-source", "images", "--pairs", "1"],
+             "OUT_DIR images", "is", "images"),
+            (["synth", ".", "--warp", "--warp-source", "twin.png", "--pairs", "1"],
+             "OUT_DIR .", "holds", "twin.png"),
+        ]
+    ],
 ]
 
 
@@ -290,7 +325,7 @@ def test_interrupted_pairs_leave_no_jsonl(tmp_path, signum, workers):
     args = ["pairs", "pairs.txt", str(DATA), "--K", K_TEXT, "-o", "out.jsonl",
             "--workers", workers, "--max-features", "600"]  # fmt: skip
     code, err = _interrupt(args, tmp_path, " pairs, ", signum)
-    assert code == 130, err
+    assert code == 128 + signum, err
     assert err.strip().splitlines()[-1] == "ppo-cv pairs: interrupted; unfinished output removed"
     assert "Traceback" not in err and "SIGTERM" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["pairs.txt"]
@@ -302,7 +337,7 @@ def test_interrupted_synth_leaves_no_staging_folder(tmp_path, signum):
             "--supersample", "1"]  # fmt: skip
     # SIGTERM as soon as the staging folder exists; Ctrl-C once the workers have started
     code, err = _interrupt(args, tmp_path, None if signum == signal.SIGTERM else " pairs, ", signum)
-    assert code == 130, err
+    assert code == 128 + signum, err
     assert "Traceback" not in err
     assert list(tmp_path.iterdir()) == []
 
@@ -314,7 +349,7 @@ def test_interrupted_sfm_leaves_no_database_or_model(tmp_path):
         shutil.copy(image, images)
     args = ["sfm", "images", "model", "--K", K_TEXT, "--database", "db.db", "--threads", "1"]
     code, err = _interrupt(args, tmp_path, "extracting", signal.SIGTERM)
-    assert code == 130, err
+    assert code == 143, err
     assert "Traceback" not in err and "SIGTERM" not in err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["images"]
 
@@ -425,14 +460,25 @@ def test_worker_pool_is_stopped_on_an_interrupt():
     previous = signal.signal(signal.SIGTERM, _raise_interrupt)
     try:
         with pytest.raises(KeyboardInterrupt), worker_pool(2, os.getpid) as pool:
-            pids = set(pool.starmap(os.getpid, [()] * 4))
-            workers = list(pool._pool)
+            assert pool.map(abs, [-3, 2, -1, 0]) == [3, 2, 1, 0]
+            workers = list(pool.processes)
+            assert all(worker.is_alive() for worker in workers)
             os.kill(os.getpid(), signal.SIGTERM)
             time.sleep(1.0)
     finally:
         signal.signal(signal.SIGTERM, previous)
-    assert pids and pids <= {worker.pid for worker in workers}
-    assert not any(worker.is_alive() for worker in workers)
+    assert len(workers) == 2 and not any(worker.is_alive() for worker in workers)
+
+
+def test_worker_pool_names_a_worker_that_died():
+    from ppo_cv.atomic import worker_pool
+
+    with pytest.raises(ChildProcessError, match=r"a worker process died \(exit 3\)"):
+        with worker_pool(2, os.getpid) as pool:
+            pool.map(os._exit, [3, 3])
+    with worker_pool(2, os.getpid) as pool:  # an exception in a job comes back as itself
+        with pytest.raises(ValueError, match="invalid literal"):
+            pool.map(int, ["1", "x"])
 
 
 def test_no_signal_after_the_interrupt_was_handled():

@@ -116,13 +116,13 @@ def test_the_ratio_held_leaves_the_zoom_and_calls_the_pan_general(per_photo_pan)
     assert not held.pure_rotation and held.model == "general"
 
 
-def test_command_line_chooses_the_focal_ratio(tmp_path):
+def test_command_line_chooses_the_focal_ratio(tmp_path, freiburg_photos):
     from typer.testing import CliRunner
 
     from ppo_cv.cli.main import app
 
     told = data_gen.Imperfections(centred_principal_point=True, view_focal_error=0.01)
-    pair = data_gen.make_warped_pair(seed=0, index=4, imperfections=told)
+    pair = data_gen.make_warped_pair(seed=0, index=4, imperfections=told, source=freiburg_photos)
     paths = [str(tmp_path / "a.png"), str(tmp_path / "b.png")]
     for path, image in zip(paths, _bgr(pair), strict=True):
         cv2.imwrite(path, image)

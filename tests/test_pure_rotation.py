@@ -360,7 +360,7 @@ def test_tripod_pan_about_a_point_behind_the_lens_is_flagged(index):
     ("kind", "index", "k2_fraction"), [("warp", 1, 2.0), ("panorama", 3, -2.0)]
 )
 def test_unmodelled_higher_order_distortion_in_a_narrow_overlap_keeps_the_flag(
-    kind, index, k2_fraction
+    kind, index, k2_fraction, request
 ):
     """A lens with ``k2 = -+2 k1``, which neither the rotation's lens terms nor a homography
     model, told all a stitcher tells, turning 0.6 of its 25-35 degree field: the tracks' plane
@@ -372,7 +372,10 @@ def test_unmodelled_higher_order_distortion_in_a_narrow_overlap_keeps_the_flag(
         k2_fraction=k2_fraction,
     )  # fmt: skip
     if kind == "warp":
-        pair = data_gen.make_warped_pair(seed=1, index=index, imperfections=stitched)
+        photos = request.getfixturevalue("freiburg_photos")
+        pair = data_gen.make_warped_pair(
+            seed=1, index=index, imperfections=stitched, source=photos
+        )
     else:
         pair = data_gen.make_pair(
             "panorama", seed=1, index=index, imperfections=stitched, pivot_offset=0.08
@@ -450,7 +453,7 @@ def test_a_sideways_step_before_a_wall_that_the_matches_take_for_a_rotation_is_n
 
 
 @pytest.mark.parametrize("index", [8, 11])
-def test_a_rotation_whose_features_are_worse_along_the_pan_is_flagged(index):
+def test_a_rotation_whose_features_are_worse_along_the_pan_is_flagged(index, freiburg_photos):
     """Sensor noise and blur on a warped photo locate the features worse along the pan than
     across it; the essential matrix, seeing only the component across its epipolar lines,
     understated the noise and won GRIC (+0.02 and +0.10 per match). The rotation's residuals,
@@ -460,7 +463,9 @@ def test_a_rotation_whose_features_are_worse_along_the_pan_is_flagged(index):
     from ppo_cv import data_gen
 
     noisy = dataclasses.replace(data_gen.REAL_PHOTO, noise_std=6.0, blur_sigma=1.2)
-    pair = data_gen.make_warped_pair(seed=0, index=index, imperfections=noisy)
+    pair = data_gen.make_warped_pair(
+        seed=0, index=index, imperfections=noisy, source=freiburg_photos
+    )
     result = _data_gen_result(pair)
     assert result.pure_rotation and result.model == "rotation"
     assert result.gric_difference < -0.2

@@ -29,10 +29,12 @@ def _bgr(image: np.ndarray) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def narrow_pair():
+def narrow_pair(freiburg_photos):
     """Pair 21 of the warped-photo set 1: a 17 degree pan in a 27 degree field, so the views
     share a third of the image; 29 matches at OpenCV's SIFT threshold, 12 of them inliers."""
-    pair = data_gen.make_warped_pair(seed=1, index=21, imperfections=STITCHED_NOISY)
+    pair = data_gen.make_warped_pair(
+        seed=1, index=21, imperfections=STITCHED_NOISY, source=freiburg_photos
+    )
     assert abs(pair.params["yaw_deg"]) > 0.6 * pair.params["hfov_deg"]
     return pair
 
