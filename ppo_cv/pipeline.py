@@ -49,7 +49,13 @@ import numpy as np
 from . import ppo
 from .camera import pixels_to_normalized, principal_point_is_centre
 from .checks import as_camera_matrix, as_distortion
-from .features import FEATURE_TYPES, Features, detect_features, match_features_scored
+from .features import (
+    FEATURE_TYPES,
+    Features,
+    detect_features,
+    match_features_scored,
+    require_detectable,
+)
 from .homography import estimate_homography
 from .images import as_image as _as_image
 from .images import load_image
@@ -725,9 +731,11 @@ def estimate_pair(
     Raises
     ------
     ValueError
-        Unreadable or oversized image (:func:`ppo_cv.images.load_image`), NaN pixels, images of
-        different sizes without ``K2``, identical images, too few features, matches or inliers,
-        or a consensus that chance could explain (``PairOptions.max_log10_nfa``): "no reliable
+        Unreadable or oversized image (:func:`ppo_cv.images.load_image`), NaN pixels, an image
+        too small or thin to detect features on (a side below
+        :data:`~ppo_cv.features.MIN_IMAGE_SIDE` pixels), images of different sizes without
+        ``K2``, identical images, too few features, matches or inliers, or a consensus that
+        chance could explain (``PairOptions.max_log10_nfa``): "no reliable
         two-view geometry" with the figures.
     TypeError
         ``options`` that is not a :class:`PairOptions`, non-numeric images.
@@ -745,6 +753,9 @@ def estimate_pair(
         clock = now
 
     img1, img2 = _as_image(image1, "image1"), _as_image(image2, "image2")
+    if features1 is None or features2 is None:
+        for image, name in ((img1, "image1"), (img2, "image2")):
+            require_detectable(image.shape, name, options.max_image_size)
     K1 = as_camera_matrix(K1, "K1")
     dist1 = as_distortion(dist1, "dist1")
     if K2 is None:
