@@ -33,6 +33,7 @@ __all__ = [
     "DEFAULT_MAX_PIXELS",
     "MAX_PIXELS_ENV",
     "as_image",
+    "check_decodes",
     "check_header",
     "check_regular_file",
     "decoded_transposed",
@@ -122,6 +123,20 @@ def check_header(path: str | os.PathLike, max_pixels: int | None = None) -> None
             f"image too large: {path} declares {size[0]}x{size[1]} pixels, above the limit of "
             f"{limit} (max_pixels or {MAX_PIXELS_ENV})"
         )
+
+
+def check_decodes(path: str | os.PathLike, max_pixels: int | None = None) -> None:
+    """:func:`check_header`, then a decode at 1/8 scale (cheaper than a full one, and still a
+    read of all the data): ValueError naming ``path`` when the file is not a readable image,
+    e.g. truncated."""
+    import cv2
+
+    check_header(path, max_pixels)
+    data = np.fromfile(os.fspath(path), dtype=np.uint8)
+    with native_messages_silenced():
+        image = cv2.imdecode(data, cv2.IMREAD_REDUCED_GRAYSCALE_8) if data.size else None
+    if image is None:
+        raise ValueError(f"not a readable image: {path}")
 
 
 def decoded_transposed(path: str | os.PathLike, width: int, height: int) -> bool:

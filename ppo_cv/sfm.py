@@ -45,7 +45,7 @@ from . import colmap, ppo
 from .atomic import atomic_directory, check_target, signals_deferred
 from .checks import as_camera_matrix, as_positive
 from .homography import estimate_homography
-from .images import check_header
+from .images import check_decodes
 from .metrics import direction_error_deg, rotation_error_deg
 from .motion_model import decide_motion, plane_ransac_trials
 from .pose import _recover_normalized
@@ -225,13 +225,14 @@ def list_images(image_dir: str | os.PathLike) -> list[str]:
 
 
 def screen_images(image_dir: str | os.PathLike) -> tuple[list[str], dict[str, str]]:
-    """The image files of ``image_dir`` (:func:`list_images`) whose headers pass
-    :func:`ppo_cv.images.check_header`, and the others with the reason, by name: an image
-    declaring more pixels than accepted would be decoded whole before pycolmap refused it."""
+    """The image files of ``image_dir`` (:func:`list_images`) that pass
+    :func:`ppo_cv.images.check_decodes`, and the others with the reason, by name: an image
+    declaring more pixels than accepted would be decoded whole before pycolmap refused it, a
+    damaged one would have libpng print its own errors."""
     kept, skipped = [], {}
     for name in list_images(image_dir):
         try:
-            check_header(Path(image_dir) / name)
+            check_decodes(Path(image_dir) / name)
         except ValueError as exc:
             skipped[name] = str(exc)
         else:
