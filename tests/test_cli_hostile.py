@@ -46,6 +46,7 @@ def _images(root: Path) -> None:
     """Images a reader must refuse with one line (issue 44, defects 7, 11, 12, 17 and 19)."""
     demo2 = cv2.imread(DEMO2)
     cv2.imwrite(str(root / "small.png"), cv2.resize(demo2, (320, 240)))
+    cv2.imwrite(str(root / "mirror.png"), cv2.imread(DEMO1)[:, ::-1])
     cv2.imwrite(str(root / "const16.png"), np.full((480, 640), 1000, np.uint16))
     cv2.imwrite(str(root / "thin.png"), np.arange(60000, dtype=np.uint8).reshape(1, -1))
     (root / "trunc.png").write_bytes(Path(DEMO1).read_bytes()[:20000])
@@ -338,6 +339,12 @@ CASES = [
         r"image folder afile is not a folder",
     ),
     (["sfm", "afile", "out", "--K", K_TEXT], "sfm", r"image folder 'afile' is not a folder"),
+    # issue 44, defect 10: an image against its mirror image
+    (
+        [*PAIR[:2], "mirror.png", "--K", K_TEXT],
+        "pair",
+        r"the images are mirror images of each other",
+    ),
 ]
 
 
