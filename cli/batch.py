@@ -54,16 +54,15 @@ MAX_TRIALS_MAX = 10_000_000
 def read_pairs(pairs_file: Path, K: str | None) -> list[dict]:
     """Rows of a pairs file: names, intrinsics and, when present, the ground-truth motion.
 
-    Lines are ``name1 name2 [0 0 K1(9) K2(9) [T_1to2(16)]]``. Either every line carries a
-    ground-truth ``T`` or none does; a ValueError names the first line that breaks the rule.
+    Lines are ``name1 name2 [0 0 K1(9) K2(9) [T_1to2(16)]]``; the two fields after the names
+    (EXIF rotations, in the format's origin) must be 0. Either every line carries a ground-truth
+    ``T`` (a rigid motion: a proper rotation, bottom row 0 0 0 1) or none does; a ValueError
+    names the first line that breaks a rule. ``shared_K`` marks the lines that take ``K``.
     """
-    import numpy as np
-
     from ppo_cv.calib import parse_intrinsics
     from ppo_cv.checks import as_camera_matrix
 
-    if not pairs_file.is_file():
-        raise ValueError(f"pairs file not found: {pairs_file}")
+    _require_regular_file(pairs_file, "pairs file")
     default = parse_intrinsics(K, "--K") if K else None
     try:
         text = pairs_file.read_text(encoding="utf-8")
@@ -81,13 +80,15 @@ def read_pairs(pairs_file: Path, K: str | None) -> list[dict]:
                 f"got {len(parts)} fields"
             )
         row = {"image1": parts[0], "image2": parts[1], "K1": default, "K2": default, "T": None}
+        row["shared_K"] = len(parts) < 22
         try:
+            if len(parts) >= 4:
+                _require_unturned(parts[2:4])
             if len(parts) >= 22:
-                values = np.array(parts[4:], dtype=np.float64)
                 row["K1"] = parse_intrinsics(",".join(parts[4:13]), "K1")
                 row["K2"] = parse_intrinsics(",".join(parts[13:22]), "K2")
-                if len(parts) == 38:
-                    row["T"] = _motion(values[18:34].reshape(4, 4))
+            if len(parts) == 38:
+                row["T"] = _motion(parts[22:38])
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
         if row["K1"] is None:
@@ -109,12 +110,64 @@ def read_pairs(pairs_file: Path, K: str | None) -> list[dict]:
     return rows
 
 
-def _motion(T):
+RIGID_TOLERANCE = 1e-4
+"""Largest deviation of a ground-truth rotation from orthonormal (``|R^T R - I|``) accepted:
+files print their numbers to about six digits."""
+
+
+def _require_regular_file(path: Path, what: str) -> None:
+    """ValueError naming what ``path`` is when it is not an existing regular file."""
+    if not path.exists():
+        raise ValueError(f"{what} not found: {path}")
+    if path.is_dir():
+        raise ValueError(f"{what} {path} is a directory")
+    if not path.is_file():
+        raise ValueError(f"{what} {path} is not a regular file (a pipe, socket or device?)")
+
+
+def _require_unturned(fields: list[str]) -> None:
+    """The two EXIF rotation fields of a line, which must read 0: turned images are not read
+    turned."""
+    if fields != ["0", "0"]:
+        try:
+            turns = [float(field) for field in fields]
+        except ValueError:
+            raise ValueError(f"fields 3 and 4 must be 0 0, got {' '.join(fields)}") from None
+        if any(turns):
+            raise ValueError(
+                f"fields 3 and 4 (EXIF rotations) must be 0 0, got {' '.join(fields)}: turn "
+                "the images upright instead"
+            )
+
+
+def _motion(fields: list[str]):
+    """The ground truth ``T_1to2`` of 16 text fields, checked as a rigid motion."""
     import numpy as np
 
+    try:
+        T = np.array([float(field) for field in fields]).reshape(4, 4)
+    except ValueError:
+        raise ValueError(
+            f"the ground-truth T_1to2 must be numbers, got {' '.join(fields)}"
+        ) from None
+    if not np.all(np.isfinite(T)):
+        raise ValueError("the ground-truth T_1to2 has NaN or infinite entries")
+    if not np.allclose(T[3], [0.0, 0.0, 0.0, 1.0], rtol=0.0, atol=1e-9):
+        raise ValueError(
+            f"the ground-truth T_1to2 must end with the row 0 0 0 1, got "
+            f"{' '.join(f'{v:g}' for v in T[3])}"
+        )
     R = T[:3, :3]
-    if not np.all(np.isfinite(T)) or not np.allclose(R.T @ R, np.eye(3), atol=1e-4):
-        raise ValueError("the ground-truth T_1to2 must be a finite rigid motion [R t; 0 0 0 1]")
+    deviation = float(np.abs(R.T @ R - np.eye(3)).max())
+    if deviation > RIGID_TOLERANCE:
+        raise ValueError(
+            f"the ground-truth rotation is not orthonormal (|R^T R - I| up to {deviation:.2g}, "
+            f"above {RIGID_TOLERANCE:g})"
+        )
+    if np.linalg.det(R) < 0:
+        raise ValueError(
+            "the ground-truth rotation has determinant -1: a reflection, not a rigid motion"
+        )
     return T
 
 
@@ -170,6 +223,28 @@ def auc_table(results: list[dict]) -> str:
         f"| {len(results)} | {failed} | {100 * auc[0]:.1f} | {100 * auc[1]:.1f} "
         f"| {100 * auc[2]:.1f} |"
     )
+
+
+def _require_one_size(rows: list[dict], image_dir: Path, pairs_file: Path) -> None:
+    """ValueError naming the first line whose images, of two sizes by their headers, would
+    share the one camera matrix of ``--K`` (as :func:`ppo_cv.pipeline.estimate_pair` refuses
+    it); images whose size cannot be read are left to their pair's error."""
+    from .common import image_size
+
+    for row in rows:
+        if not row["shared_K"]:
+            continue
+        names = (row["image1"], row["image2"])
+        paths = [image_dir / name for name in names]
+        if not all(path.is_file() for path in paths):
+            continue
+        sizes = [image_size(path) for path in paths]
+        if None not in sizes and sizes[0] != sizes[1]:
+            (w1, h1), (w2, h2) = sizes
+            raise ValueError(
+                f"{pairs_file}:{row['line']}: {names[0]} is {w1}x{h1} and {names[1]} {w2}x{h2} "
+                "pixels: one camera matrix (--K) cannot fit both sizes; give K1 and K2 on the line"
+            )
 
 
 def _init_worker() -> None:
@@ -243,12 +318,23 @@ def _features_job(job: tuple) -> tuple[str, str]:
     try:
         check_image_file(path)
         found = features_module.detect_features(
-            load_image(path), options.features, options.max_features, options.max_image_size
-        )
-    except (ValueError, OSError) as exc:
-        return "error", str(exc).splitlines()[0]
+            load_image(path), options.features, options.max_features, options.max_image_size,
+            name=path,
+        )  # fmt: skip
+    except Exception as exc:  # one image's failure is its pairs' error line, not the batch's
+        return "error", _error_line(exc, path)
     np.savez(target, keypoints=found.keypoints, descriptors=found.descriptors, kind=found.kind)
     return "file", target
+
+
+def _error_line(exc: Exception, path: str | None = None) -> str:
+    """The first line of an error's message; an unexpected error also named by its type (and
+    ``path``), as it may not say what it concerns."""
+    message = (str(exc).strip().splitlines() or [""])[0]
+    if isinstance(exc, (ValueError, OSError)):
+        return message or type(exc).__name__
+    where = f" on {path}" if path else ""
+    return f"{type(exc).__name__}{where}: {message}" if message else f"{type(exc).__name__}{where}"
 
 
 def _load_features(target: str):
@@ -279,8 +365,8 @@ def _pair_job(job: tuple) -> dict:
             for path in paths:
                 check_image_file(path)
         result = estimate_pair(*paths, row["K1"], row["K2"], options=options, **given)
-    except (ValueError, OSError) as exc:
-        return {**names, "error": str(exc).splitlines()[0]}
+    except Exception as exc:  # one pair's failure is its error line, not the batch's
+        return {**names, "error": _error_line(exc)}
     data = result_to_dict(result, **names)
     if row["T"] is not None:
         data.update(pose_errors(result.R, result.t, row["T"]))
@@ -315,8 +401,11 @@ def run_pairs(
     if output is not None:
         check_target(output, "file", overwrite, [pairs_file, image_dir], "-o ")
     rows = read_pairs(Path(pairs_file), K)
-    if not Path(image_dir).is_dir():
+    if not Path(image_dir).exists():
         raise ValueError(f"image folder not found: {image_dir}")
+    if not Path(image_dir).is_dir():
+        raise ValueError(f"image folder {image_dir} is not a folder")
+    _require_one_size(rows, Path(image_dir), Path(pairs_file))
     if output is not None:
         images = {Path(image_dir) / r[k] for r in rows for k in ("image1", "image2")}
         check_apart(output, sorted(images), "-o ")

@@ -117,30 +117,58 @@ def _exif_cameras(image1, image2):
     return camera1.K, camera2.K, note
 
 
-def _cameras(image1, image2, K, K2, dist, dist2, calib):
-    """(K1, dist1, K2, dist2, note) from the options, a calibration file or EXIF."""
-    from ppo_cv.calib import load_calibration, parse_distortion, parse_intrinsics
+def _require_one_size(images, sizes, source: str) -> None:
+    """ValueError when one camera matrix (``source``) would serve images of two sizes, as
+    :func:`ppo_cv.pipeline.estimate_pair` refuses it."""
+    if sizes[0] != sizes[1]:
+        (w1, h1), (w2, h2) = sizes
+        raise ValueError(
+            f"{images[0]} is {w1}x{h1} and {images[1]} {w2}x{h2} pixels: one camera matrix "
+            f"({source}) cannot fit both sizes; pass --K2 for the second image"
+        )
+
+
+def _calibrated_cameras(calib, images, sizes, K2):
+    """(camera 1, camera 2 or None when --K2 replaces it, notes) of a calibration file, each
+    fitted to its image's size (:func:`ppo_cv.calib.fit_to_image`)."""
+    from ppo_cv.calib import fit_to_image, load_calibration
+
+    cameras = load_calibration(calib)
+    if len(cameras) == 1 and not K2 and cameras[0].image_size is None:
+        _require_one_size(images, sizes, f"--calib {calib}")
+    name = f"--calib {calib}"
+    fitted = [fit_to_image(cameras[0], sizes[0], name, str(images[0]))]
+    if not K2:
+        fitted.append(fit_to_image(cameras[-1], sizes[1], name, str(images[1])))
+    notes = [note for _, note in fitted if note]
+    return fitted[0][0], fitted[1][0] if len(fitted) > 1 else None, notes
+
+
+def _cameras(images, sizes, K, K2, dist, dist2, calib):
+    """(K1, dist1, K2, dist2, EXIF note, notes) from the options, a calibration file or EXIF;
+    ``sizes`` are the images' (width, height)."""
+    from ppo_cv.calib import parse_distortion, parse_intrinsics
 
     d1 = parse_distortion(dist, "--dist") if dist else None
     d2 = parse_distortion(dist2, "--dist2") if dist2 else None
     if calib is not None:
         if K is not None:
             raise ValueError("give either --K or --calib, not both")
-        cameras = load_calibration(calib)
-        first, second = cameras[0], cameras[1] if len(cameras) > 1 else cameras[0]
+        first, second, notes = _calibrated_cameras(calib, images, sizes, K2)
         K1, d1 = first.K, d1 if d1 is not None else first.dist
         K2v = parse_intrinsics(K2, "--K2") if K2 else second.K
         d2 = d2 if d2 is not None else (second.dist if not K2 else None)
-        return K1, d1, K2v, d2, None
+        return K1, d1, K2v, d2, None, notes
     if K is None:
         if K2:
             raise ValueError("--K2 needs --K (or --calib) for the first camera")
-        K1, K2v, note = _exif_cameras(image1, image2)
-        return K1, d1, K2v, d2 if d2 is not None else d1, note
+        K1, K2v, note = _exif_cameras(*images)
+        return K1, d1, K2v, d2 if d2 is not None else d1, note, []
     K1 = parse_intrinsics(K, "--K")
     if K2:
-        return K1, d1, parse_intrinsics(K2, "--K2"), d2, None
-    return K1, d1, K1, d2 if d2 is not None else d1, None
+        return K1, d1, parse_intrinsics(K2, "--K2"), d2, None, []
+    _require_one_size(images, sizes, "--K")
+    return K1, d1, K1, d2 if d2 is not None else d1, None, []
 
 
 def _demo_inputs():
@@ -328,6 +356,7 @@ def _run_pair(
     overwrite=False, command="pair",
 ):  # fmt: skip
     from ppo_cv.atomic import check_target
+    from ppo_cv.features import require_detectable
     from ppo_cv.pipeline import estimate_pair, load_image
 
     try:
@@ -337,9 +366,14 @@ def _run_pair(
         for image in (image1, image2):
             check_image_file(image)
         img1, img2 = load_image(image1), load_image(image2)
-        K1, d1, K2v, d2, exif_note = _cameras(image1, image2, K, K2, dist, dist2, calib)
-        if exif_note:
-            _warn(exif_note, command)
+        for img, image in ((img1, image1), (img2, image2)):
+            require_detectable(img.shape, str(image), options.max_image_size)
+        sizes = [(img.shape[1], img.shape[0]) for img in (img1, img2)]
+        K1, d1, K2v, d2, exif_note, notes = _cameras(
+            (image1, image2), sizes, K, K2, dist, dist2, calib
+        )
+        for message in [exif_note] if exif_note else notes:
+            _warn(message, command)
         sources = ("--calib", "--calib") if calib is not None else ("--K", "--K2" if K2 else "--K")
         for matrix, img, name in ((K1, img1, sources[0]), (K2v, img2, sources[1])):
             doubt = implausible_intrinsics(matrix, (img.shape[1], img.shape[0]), name)

@@ -59,7 +59,9 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
         if database.exists():
             raise ValueError(f"database {database} already exists; give a new file name")
         check_target(database, "file")
-    names = sfm.list_images(image_dir)
+    names, skipped = sfm.screen_images(image_dir)
+    for reason in skipped.values():
+        warn("sfm", f"skipping an image: {reason}")
     if K is None:
         warn(
             "sfm",

@@ -25,6 +25,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ppo_cv.images import check_header, load_image
+
 from .imperfect import REAL_PHOTO, Imperfections, given_intrinsics, jpeg_roundtrip
 from .motion import _panorama, intrinsics
 from .render import (
@@ -243,17 +245,15 @@ def source_photos(source: str | os.PathLike | Sequence | None = None) -> list[Pa
     if not paths:
         raise ValueError("source must name at least one photo")
     for path in paths:
-        if not path.is_file():
+        if not path.exists():
             raise ValueError(f"photo {path} does not exist")
+        check_header(path)  # a FIFO, or a header declaring more pixels than accepted
     return paths
 
 
 @functools.lru_cache(maxsize=32)
 def _load_photo(path: str) -> np.ndarray:
-    image = cv2.imread(path, cv2.IMREAD_COLOR)
-    if image is None:
-        raise ValueError(f"cannot read the photo {path}")
-    image = cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+    image = cv2.cvtColor(load_image(path), cv2.COLOR_BGR2RGB)
     image.setflags(write=False)
     return image
 

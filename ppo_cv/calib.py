@@ -8,15 +8,19 @@
   "dist2"}`` or ``{"cameras": [camera, camera]}``.
 - EXIF: a guess from the image's focal length tags (``pycolmap.infer_camera_from_image``).
 
-A file may describe one camera (used for both images) or two (image 1, image 2).
+A file may describe one camera (used for both images) or two (image 1, image 2). A camera
+that states the size of its images (COLMAP's WIDTH HEIGHT, OpenCV's ``image_width`` and
+``image_height``, JSON ``width`` and ``height``) is fitted to an image of another size by
+:func:`fit_to_image`: scaled when the aspect ratio is the same, refused otherwise.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -28,7 +32,13 @@ __all__ = [
     "parse_distortion",
     "load_calibration",
     "camera_from_exif",
+    "fit_to_image",
+    "ASPECT_TOLERANCE",
 ]
+
+ASPECT_TOLERANCE = 0.01
+"""Relative difference of the horizontal and vertical scale factors within which an image is
+taken for a resized copy of the calibrated one (:func:`fit_to_image`)."""
 
 
 @dataclass(frozen=True)
@@ -40,10 +50,13 @@ class Camera:
     K : ndarray, shape (3, 3)
     dist : ndarray, shape (D,) or None
         ``(k1, k2, p1, p2[, k3[, k4, k5, k6]])``; None for an undistorted camera.
+    image_size : tuple of int or None
+        ``(width, height)`` of the images the camera was calibrated on, when the file says.
     """
 
     K: np.ndarray
     dist: np.ndarray | None = None
+    image_size: tuple[int, int] | None = None
 
 
 def _numbers(text: str, name: str) -> np.ndarray:
@@ -58,7 +71,10 @@ def _numbers(text: str, name: str) -> np.ndarray:
 
 
 def _matrix_from_values(values: np.ndarray, name: str) -> np.ndarray:
-    values = np.asarray(values, dtype=np.float64).reshape(-1)
+    values = np.asarray(values, dtype=np.float64)
+    if values.ndim > 1 and values.shape != (3, 3):
+        raise ValueError(f"{name} must be a 3x3 matrix, got shape {values.shape}")
+    values = values.reshape(-1)
     if values.size == 4:
         fx, fy, cx, cy = values
         K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
@@ -95,7 +111,7 @@ def _read_opencv(path: str) -> list[Camera]:
     if os.path.getsize(path) == 0:
         raise ValueError(f"calibration file {path} is empty")
     try:
-        K1, D1, K2, D2 = _opencv_matrices(path)
+        K1, D1, K2, D2, size = _opencv_matrices(path)
     except (cv2.error, SystemError) as exc:
         cause = exc.__cause__ or exc.__context__ or exc
         reason = (str(cause).strip().splitlines() or [type(cause).__name__])[-1]
@@ -103,11 +119,12 @@ def _read_opencv(path: str) -> list[Camera]:
         raise ValueError(f"malformed OpenCV calibration file {path}: {reason}") from None
     if K1 is None:
         raise ValueError(f"no camera matrix (camera_matrix, cameraMatrix, K or M1) in {path}")
-    cameras = [Camera(_matrix_from_values(K1, "camera matrix"), as_distortion(D1, "dist"))]
+    cameras = [
+        Camera(_matrix_from_values(K1, f"camera matrix in {path}"), as_distortion(D1, "dist"), size)
+    ]
     if K2 is not None:
-        cameras.append(
-            Camera(_matrix_from_values(K2, "camera matrix 2"), as_distortion(D2, "dist2"))
-        )
+        K2 = _matrix_from_values(K2, f"camera matrix 2 in {path}")
+        cameras.append(Camera(K2, as_distortion(D2, "dist2"), size))
     return cameras
 
 
@@ -142,12 +159,32 @@ def _opencv_matrices(path: str) -> tuple:
         D1 = matrix("distortion_coefficients", "dist_coeffs", "distCoeffs", "D", "D1", "dist1")
         K2 = matrix("M2", "K2", "camera_matrix_2")
         D2 = matrix("D2", "dist2", "distortion_coefficients_2")
+        width, height = (storage.getNode(key) for key in ("image_width", "image_height"))
+        size = None
+        if not (width.empty() or height.empty()):
+            if not all(node.isInt() or node.isReal() for node in (width, height)):
+                raise ValueError(f"image_width and image_height in {path} must be numbers")
+            size = _image_size(width.real(), height.real(), path)
     finally:
         storage.release()
-    return K1, D1, K2, D2
+    return K1, D1, K2, D2, size
 
 
-def _colmap_camera(model: str, params: np.ndarray, where: str) -> Camera:
+def _image_size(width, height, where: str) -> tuple[int, int]:
+    """A calibration's stated ``(width, height)``: whole numbers from 1 to 1e6."""
+    try:
+        size = float(width), float(height)
+    except (TypeError, ValueError):
+        raise ValueError(f"{where}: image width and height must be numbers") from None
+    if not all(math.isfinite(v) and v == round(v) and 1 <= v <= 1e6 for v in size):
+        raise ValueError(
+            f"{where}: image width and height must be whole numbers from 1 to 1e6, got "
+            f"{width} and {height}"
+        )
+    return int(size[0]), int(size[1])
+
+
+def _colmap_camera(model: str, params: np.ndarray, where: str, size=None) -> Camera:
     counts = {
         "SIMPLE_PINHOLE": 3,
         "PINHOLE": 4,
@@ -170,7 +207,7 @@ def _colmap_camera(model: str, params: np.ndarray, where: str) -> Camera:
     else:  # OPENCV: k1 k2 p1 p2; FULL_OPENCV: k1 k2 p1 p2 k3 k4 k5 k6, OpenCV's order
         K = _matrix_from_values(params[:4], where)
         dist = params[4:] if params.size > 4 else None
-    return Camera(K, as_distortion(dist, where))
+    return Camera(K, as_distortion(dist, where), size)
 
 
 def _read_colmap(path: str, text: str) -> list[Camera]:
@@ -182,8 +219,10 @@ def _read_colmap(path: str, text: str) -> list[Camera]:
         parts = line.split()
         if len(parts) < 5:
             raise ValueError(f"{path}:{number}: expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS...")
-        params = _numbers(" ".join(parts[4:]), f"{path}:{number}")
-        cameras.append(_colmap_camera(parts[1].upper(), params, f"{path}:{number}"))
+        where = f"{path}:{number}"
+        params = _numbers(" ".join(parts[4:]), where)
+        size = _image_size(parts[2], parts[3], where)
+        cameras.append(_colmap_camera(parts[1].upper(), params, where, size))
     if not cameras:
         raise ValueError(f"no camera in {path}")
     return cameras
@@ -204,7 +243,11 @@ def _json_camera(entry, where: str) -> Camera:
     else:
         raise ValueError(f"{where}: expected K or fx, fy, cx, cy")
     dist = entry.get("dist", entry.get("distortion", entry.get("dist_coeffs")))
-    return Camera(K, as_distortion(None if dist is None else np.asarray(dist, float), where))
+    dist = as_distortion(None if dist is None else np.asarray(dist, float), where)
+    width, height = entry.get("width"), entry.get("height")
+    if width is None and height is None:
+        return Camera(K, dist)
+    return Camera(K, dist, _image_size(width, height, where))
 
 
 def _read_json(path: str, text: str) -> list[Camera]:
@@ -280,3 +323,56 @@ def camera_from_exif(path: str | os.PathLike) -> tuple[Camera, bool]:
     if decoded_transposed(path, int(camera.width), int(camera.height)):
         K = K[[1, 0, 2]][:, [1, 0, 2]]
     return Camera(_matrix_from_values(K, "EXIF camera")), bool(camera.has_prior_focal_length)
+
+
+def fit_to_image(
+    camera: Camera, size: tuple[int, int], name: str, image: str = "the image"
+) -> tuple[Camera, str | None]:
+    """``camera`` for an image of ``size`` (width, height), and a note when it was scaled.
+
+    A camera without a stated image size, or calibrated on images of this size, is returned
+    as it is. An image of another size but the same aspect ratio (within
+    :data:`ASPECT_TOLERANCE`) is a resized copy: ``K`` is scaled per axis about the pixel
+    centres (``c' = (c + 0.5) s - 0.5``); distortion, on normalized coordinates, is unchanged.
+
+    Parameters
+    ----------
+    camera : Camera
+    size : tuple of int
+        ``(width, height)`` of the image, pixels.
+    name, image : str
+        The calibration and the image, as messages name them.
+
+    Returns
+    -------
+    camera : Camera
+        With ``image_size`` set to ``size``.
+    note : str or None
+        What was scaled, for a warning; None when nothing was.
+
+    Raises
+    ------
+    ValueError
+        Naming ``name`` and both sizes, when the aspect ratios differ: a cropped or rotated
+        image, for which no scaling of ``K`` is right.
+    """
+    if camera.image_size is None or tuple(camera.image_size) == tuple(size):
+        return camera, None
+    (width, height), (calibrated_width, calibrated_height) = size, camera.image_size
+    sx, sy = width / calibrated_width, height / calibrated_height
+    if abs(sx - sy) > ASPECT_TOLERANCE * max(sx, sy):
+        raise ValueError(
+            f"{name} describes a camera of {calibrated_width}x{calibrated_height} images but "
+            f"{image} is {width}x{height} pixels, another aspect ratio (cropped or turned?): "
+            "no scaling of the camera matrix fits it"
+        )
+    K = camera.K.copy()
+    K[0, [0, 1]] *= sx
+    K[1, 1] *= sy
+    K[0, 2] = (camera.K[0, 2] + 0.5) * sx - 0.5
+    K[1, 2] = (camera.K[1, 2] + 0.5) * sy - 0.5
+    note = (
+        f"{name} describes a camera of {calibrated_width}x{calibrated_height} images: its "
+        f"camera matrix scaled by {sx:.4g} to {image}, {width}x{height} pixels"
+    )
+    return replace(camera, K=K, image_size=(width, height)), note

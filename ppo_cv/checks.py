@@ -47,8 +47,9 @@ def _as_real_array(value: Any, name: str) -> np.ndarray:
 
 
 def _require_finite(array: np.ndarray, name: str) -> None:
-    if math.isfinite(array.sum()):
-        return
+    with np.errstate(over="ignore", invalid="ignore"):  # finite entries may overflow the sum
+        if math.isfinite(array.sum()):
+            return
     bad = ~np.isfinite(array)  # the sum can also overflow with finite entries
     if bad.any():
         raise ValueError(f"{name} has {int(bad.sum())} NaN or infinite value(s)")
@@ -218,7 +219,9 @@ def as_essential(value: Any) -> np.ndarray:
     """A single finite, nonzero 3x3 essential matrix, rescaled to a largest entry of 1.
 
     The pose does not depend on the scale of ``E``; the rescaling keeps any finite scale
-    (1e-200 or 1e300) clear of underflow and overflow in the decomposition.
+    (1e-200, 1e300 or a subnormal 1e-310) clear of underflow and overflow in the
+    decomposition. It divides by a power of two, exactly, so that a subnormal ``E``, whose
+    reciprocal overflows, is rescaled too.
     """
     E = _as_real_array(value, "E")
     if E.ndim == 2 and E.shape[1] == 3 and E.shape[0] % 3 == 0 and E.shape[0] > 3:
@@ -234,7 +237,9 @@ def as_essential(value: Any) -> np.ndarray:
     largest = max(map(abs, entries))
     if largest == 0:
         raise ValueError("E is all zeros: it defines no pose")
-    return E if largest == 1.0 else E * (1.0 / largest)
+    if largest == 1.0:
+        return E
+    return np.ldexp(E, -math.frexp(largest)[1]) * (1.0 / math.frexp(largest)[0])
 
 
 def as_mask(value: Any, n: int, min_selected: int = MIN_POINTS) -> np.ndarray | None:

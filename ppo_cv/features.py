@@ -13,10 +13,12 @@ import numpy as np
 
 __all__ = [
     "FEATURE_TYPES",
+    "MIN_IMAGE_SIDE",
     "PIXEL_PAIR_RESOLUTION",
     "Features",
     "to_uint8",
     "to_gray",
+    "require_detectable",
     "detect_features",
     "match_features",
     "match_features_scored",
@@ -26,6 +28,8 @@ __all__ = [
 FEATURE_TYPES = ("sift", "orb", "akaze")
 _FLANN_MIN_FEATURES = 12000
 PIXEL_PAIR_RESOLUTION = 0.01
+MIN_IMAGE_SIDE = 16
+"""Shortest image side, pixels, that detection accepts (also on the reduced copy)."""
 
 
 @dataclass(frozen=True)
@@ -61,8 +65,8 @@ def to_uint8(image: np.ndarray, name: str = "image") -> np.ndarray:
     uint8 passes through and bool maps to {0, 255}. Values already within 0..255 (integers, or
     floats beyond 1) are kept; floats within [0, 1] are multiplied by 255; anything else
     (16-bit, 12-bit in 16, signed, floats of any range) maps ``[min, max]`` linearly onto
-    ``[0, 255]``, so a 12-bit image keeps its contrast. NaN or infinite pixels are a
-    ValueError naming ``name``.
+    ``[0, 255]``, so a 12-bit image keeps its contrast; a constant image beyond that range
+    maps to 0. NaN or infinite pixels are a ValueError naming ``name``.
     """
     image = np.asarray(image)
     if image.dtype == np.uint8:
@@ -79,6 +83,8 @@ def to_uint8(image: np.ndarray, name: str = "image") -> np.ndarray:
         return np.rint(image * 255.0).astype(np.uint8)
     if low >= 0.0 and high <= 255.0:
         return np.rint(image).astype(np.uint8)
+    if high == low:
+        return np.zeros(image.shape, dtype=np.uint8)
     scale = 255.0 / (high - low)
     return np.rint((image.astype(np.float32) - np.float32(low)) * np.float32(scale)).astype(
         np.uint8
@@ -99,6 +105,26 @@ def to_gray(image: np.ndarray) -> np.ndarray:
         code = cv2.COLOR_BGR2GRAY if image.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
         return cv2.cvtColor(image, code)
     raise ValueError(f"image must have shape (H, W), (H, W, 3) or (H, W, 4), got {image.shape}")
+
+
+def require_detectable(shape: tuple, name: str, max_image_size: int | None = None) -> None:
+    """ValueError naming ``name`` and its size when an image of ``shape`` (H, W[, C]) is too
+    small or too thin to detect features on: a side below :data:`MIN_IMAGE_SIDE`, also on the
+    copy whose longer side is reduced to ``max_image_size``."""
+    height, width = int(shape[0]), int(shape[1])
+    shorter = min(height, width)
+    if max_image_size is not None and max(height, width) > max_image_size:
+        shorter = shorter * max_image_size / max(height, width)
+    if shorter < MIN_IMAGE_SIDE:
+        reduced = (
+            f", also once its longer side is reduced to {max_image_size}"
+            if max_image_size is not None and max(height, width) > max_image_size
+            else ""
+        )
+        raise ValueError(
+            f"{name} is {width}x{height} pixels: too small or too thin to detect features on "
+            f"(each side needs at least {MIN_IMAGE_SIDE} pixels{reduced})"
+        )
 
 
 def _detector(kind: str, max_features: int, threshold_scale: float = 1.0):
@@ -128,6 +154,7 @@ def detect_features(
     max_features: int = 8000,
     max_image_size: int | None = None,
     threshold_scale: float = 1.0,
+    name: str = "image",
 ) -> Features:
     """Detect keypoints and compute descriptors.
 
@@ -159,6 +186,7 @@ def detect_features(
     if not 0 < float(threshold_scale) < np.inf:
         raise ValueError(f"threshold_scale must be a positive number, got {threshold_scale}")
     gray = to_gray(image)
+    require_detectable(gray.shape, name, max_image_size)
     scale = 1.0
     if max_image_size is not None and max(gray.shape) > max_image_size:
         scale = max(gray.shape) / float(max_image_size)

@@ -8,16 +8,21 @@ the header) and refuses images above ``max_pixels``: by default :data:`DEFAULT_M
 Named pipes, devices and other non-regular files are refused without being opened, so a FIFO
 given as an image cannot block.
 
-Images of 16 bits (or any integer depth) and float images are scaled to 8 bits by their actual
-range (:func:`ppo_cv.features.to_uint8`): a 12-bit PNG keeps its contrast instead of reading
-as blank.
+Images of 16 bits (or any integer depth) and float images (also single-channel float TIFF,
+which OpenCV decodes only unchanged) are scaled to 8 bits by their actual range
+(:func:`ppo_cv.features.to_uint8`): a 12-bit PNG keeps its contrast instead of reading as
+blank. What the codecs print while failing (libpng's and OpenCV's own lines on stderr) is held
+back: the ValueError says what went wrong.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import stat
 import struct
+import sys
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -28,10 +33,13 @@ __all__ = [
     "DEFAULT_MAX_PIXELS",
     "MAX_PIXELS_ENV",
     "as_image",
+    "check_decodes",
+    "check_header",
     "check_regular_file",
     "decoded_transposed",
     "image_size",
     "load_image",
+    "native_messages_silenced",
 ]
 
 DEFAULT_MAX_PIXELS = 100_000_000
@@ -89,13 +97,46 @@ def image_size(path: str | os.PathLike) -> tuple[int, int] | None:
         from PIL import Image
     except ImportError:  # pragma: no cover - Pillow comes with scikit-image
         return None
+    bomb_limit = Image.MAX_IMAGE_PIXELS
+    Image.MAX_IMAGE_PIXELS = None  # only the header is read: the real size, however large
     try:
         with Image.open(path) as image:
             return tuple(int(v) for v in image.size)
-    except Image.DecompressionBombError:
-        return (2**31 - 1, 1)  # beyond Pillow's own hard limit: larger than any we accept
     except Exception:  # not a format Pillow knows: OpenCV may still read it
         return None
+    finally:
+        Image.MAX_IMAGE_PIXELS = bomb_limit
+
+
+def check_header(path: str | os.PathLike, max_pixels: int | None = None) -> None:
+    """ValueError naming ``path`` unless it is a regular file whose header, when it can be read,
+    declares at most ``max_pixels`` pixels (default as :func:`load_image`); nothing is decoded.
+    """
+    limit = _max_pixels(max_pixels)
+    check_regular_file(path)
+    try:
+        size = image_size(path)
+    except OSError as exc:
+        raise ValueError(f"cannot read image {path}: {exc.strerror or exc}") from None
+    if size is not None and size[0] * size[1] > limit:
+        raise ValueError(
+            f"image too large: {path} declares {size[0]}x{size[1]} pixels, above the limit of "
+            f"{limit} (max_pixels or {MAX_PIXELS_ENV})"
+        )
+
+
+def check_decodes(path: str | os.PathLike, max_pixels: int | None = None) -> None:
+    """:func:`check_header`, then a decode at 1/8 scale (cheaper than a full one, and still a
+    read of all the data): ValueError naming ``path`` when the file is not a readable image,
+    e.g. truncated."""
+    import cv2
+
+    check_header(path, max_pixels)
+    data = np.fromfile(os.fspath(path), dtype=np.uint8)
+    with native_messages_silenced():
+        image = cv2.imdecode(data, cv2.IMREAD_REDUCED_GRAYSCALE_8) if data.size else None
+    if image is None:
+        raise ValueError(f"not a readable image: {path}")
 
 
 def decoded_transposed(path: str | os.PathLike, width: int, height: int) -> bool:
@@ -142,16 +183,9 @@ def load_image(path: str | os.PathLike, max_pixels: int | None = None) -> np.nda
 
     path = os.fspath(path)
     limit = _max_pixels(max_pixels)
-    check_regular_file(path)
-    size = image_size(path)
-    if size is not None and size[0] * size[1] > limit:
-        raise ValueError(
-            f"image too large: {path} declares {size[0]}x{size[1]} pixels, above the limit of "
-            f"{limit} (max_pixels or {MAX_PIXELS_ENV})"
-        )
+    check_header(path, limit)
     data = np.fromfile(path, dtype=np.uint8)
-    flags = cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH
-    image = cv2.imdecode(data, flags) if data.size else None
+    image = _decode(data) if data.size else None
     if image is None:
         raise ValueError(f"not a readable image: {path}")
     if image.shape[0] * image.shape[1] > limit:
@@ -159,7 +193,52 @@ def load_image(path: str | os.PathLike, max_pixels: int | None = None) -> np.nda
             f"image too large: {path} is {image.shape[1]}x{image.shape[0]} pixels, above the "
             f"limit of {limit} (max_pixels or {MAX_PIXELS_ENV})"
         )
-    return to_uint8(image, path)
+    image = to_uint8(image, path)
+    if image.ndim == 3 and image.shape[2] == 3:
+        return image
+    grey = image if image.ndim == 2 else image[:, :, 0]
+    return cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR)
+
+
+def _decode(data: np.ndarray) -> np.ndarray | None:
+    """The encoded image ``data`` decoded as BGR of its own depth, else unchanged (a
+    single-channel float TIFF, which OpenCV's colour decoding refuses), else None."""
+    import cv2
+
+    with native_messages_silenced():
+        image = cv2.imdecode(data, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
+        if image is None:
+            image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+    if image is not None and image.ndim == 3 and image.shape[2] == 4:
+        image = image[:, :, :3]
+    return image
+
+
+@contextlib.contextmanager
+def native_messages_silenced() -> Iterator[None]:
+    """Hold back what native libraries print on the process's stderr (file descriptor 2) in the
+    block: libpng's warnings and errors, OpenCV's log; the caller reports the outcome itself."""
+    import cv2
+
+    level = cv2.utils.logging.getLogLevel()
+    cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+    with contextlib.suppress(ValueError, OSError):
+        sys.stderr.flush()
+    try:
+        saved = os.dup(2)
+    except OSError:  # no stderr to protect
+        saved = None
+    try:
+        if saved is not None:
+            null = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(null, 2)
+            os.close(null)
+        yield
+    finally:
+        if saved is not None:
+            os.dup2(saved, 2)
+            os.close(saved)
+        cv2.utils.logging.setLogLevel(level)
 
 
 def as_image(image: Any, name: str) -> np.ndarray:

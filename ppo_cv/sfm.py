@@ -45,6 +45,7 @@ from . import colmap, ppo
 from .atomic import atomic_directory, check_target, signals_deferred, staging_folder
 from .checks import as_camera_matrix, as_positive
 from .homography import estimate_homography
+from .images import check_decodes
 from .metrics import direction_error_deg, rotation_error_deg
 from .motion_model import decide_motion, plane_ransac_trials
 from .pose import _recover_normalized
@@ -63,6 +64,7 @@ __all__ = [
     "reconstruct",
     "run_sfm",
     "list_images",
+    "screen_images",
     "format_pairs",
     "write_model",
     "pose_errors",
@@ -213,11 +215,29 @@ def _say(progress: Progress | None, message: str) -> None:
 def list_images(image_dir: str | os.PathLike) -> list[str]:
     """Names of the image files directly in ``image_dir``, sorted."""
     image_dir = Path(image_dir)
-    if not image_dir.is_dir():
+    if not image_dir.exists():
         raise ValueError(f"image folder {str(image_dir)!r} does not exist")
+    if not image_dir.is_dir():
+        raise ValueError(f"image folder {str(image_dir)!r} is not a folder")
     return sorted(
         p.name for p in image_dir.iterdir() if p.is_file() and p.suffix.lower() in IMAGE_EXTENSIONS
     )
+
+
+def screen_images(image_dir: str | os.PathLike) -> tuple[list[str], dict[str, str]]:
+    """The image files of ``image_dir`` (:func:`list_images`) that pass
+    :func:`ppo_cv.images.check_decodes`, and the others with the reason, by name: an image
+    declaring more pixels than accepted would be decoded whole before pycolmap refused it, a
+    damaged one would have libpng print its own errors."""
+    kept, skipped = [], {}
+    for name in list_images(image_dir):
+        try:
+            check_decodes(Path(image_dir) / name)
+        except ValueError as exc:
+            skipped[name] = str(exc)
+        else:
+            kept.append(name)
+    return kept, skipped
 
 
 def prepare_database(
@@ -256,11 +276,14 @@ def prepare_database(
     Returns
     -------
     int
-        Number of images in the database.
+        Number of images in the database: those :func:`screen_images` keeps.
     """
-    names = list_images(image_dir)
+    names, skipped = screen_images(image_dir)
     if len(names) < 2:
-        raise ValueError(f"need at least 2 images in {str(image_dir)!r}, found {len(names)}")
+        refused = f" ({len(skipped)} skipped: {', '.join(skipped)})" if skipped else ""
+        raise ValueError(
+            f"need at least 2 images in {str(image_dir)!r}, found {len(names)}{refused}"
+        )
     database_path = Path(database_path)
     if database_path.exists():
         raise ValueError(f"database {str(database_path)!r} already exists")

@@ -11,7 +11,9 @@ import pytest
 
 from ppo_cv import calib
 from ppo_cv.calib import (
+    Camera,
     camera_from_exif,
+    fit_to_image,
     load_calibration,
     parse_distortion,
     parse_intrinsics,
@@ -260,6 +262,28 @@ def test_exif_focal_length_is_used(tmp_path):
         ("bad.xml", '<?xml version="1.0"?>\n<opencv_storage><camera_matrix>1 2', "malformed"),
         ("deep.json", "[" * 100_000 + "]" * 100_000, "nested too deeply"),
         ("deep_object.json", '{"K":' * 50_000 + "1" + "}" * 50_000, "nested too deeply"),
+        (
+            "square.yml",
+            "%YAML:1.0\n---\ncamera_matrix: !!opencv-matrix\n  rows: 2\n  cols: 2\n  dt: d\n"
+            "  data: [535.4, 539.2, 320.1, 247.6]\n",
+            r"camera matrix in .*square\.yml must be a 3x3 matrix, got shape \(2, 2\)",
+        ),
+        (
+            "square.json",
+            '{"K": [[535.4, 539.2], [320.1, 247.6]]}',
+            r"3x3 matrix, got shape \(2, 2\)",
+        ),
+        (
+            "size.yml",
+            "%YAML:1.0\n---\nimage_width: 640.5\nimage_height: 480\ncamera_matrix: [1, 1, 0, 0]\n",
+            "image width and height must be whole numbers",
+        ),
+        ("cameras.txt", "1 PINHOLE 0 480 500 500 320 240\n", "whole numbers from 1 to 1e6"),
+        (
+            "cameras.txt",
+            "1 PINHOLE w h 500 500 320 240\n",
+            "image width and height must be numbers",
+        ),
     ],
 )
 def test_unparseable_calibration_files_are_value_errors(tmp_path, name, text, message):
@@ -274,3 +298,44 @@ def test_a_plain_list_of_nine_numbers_reads_as_K(tmp_path):
     np.testing.assert_array_equal(
         load_calibration(path)[0].K, [[500, 0, 320], [0, 510, 240], [0, 0, 1]]
     )
+
+
+@pytest.mark.parametrize(
+    "name, text",
+    [
+        ("cameras.txt", "1 PINHOLE 320 240 267.7 269.6 159.8 123.55\n"),
+        ("camera.json", '{"fx": 267.7, "fy": 269.6, "cx": 159.8, "cy": 123.55, "width": 320, '
+                        '"height": 240}'),
+        ("camera.yml", "%YAML:1.0\n---\nimage_width: 320\nimage_height: 240\n"
+                       "camera_matrix: [267.7, 0, 159.8, 0, 269.6, 123.55, 0, 0, 1]\n"),
+    ],
+)  # fmt: skip
+def test_a_calibration_states_the_size_of_its_images(tmp_path, name, text):
+    (tmp_path / name).write_text(text)
+    (camera,) = load_calibration(tmp_path / name)
+    assert camera.image_size == (320, 240)
+
+
+def test_a_camera_is_scaled_to_a_resized_image_about_the_pixel_centres():
+    camera = Camera(
+        np.array([[267.7, 0.5, 159.8], [0, 269.6, 123.55], [0, 0, 1]]), None, (320, 240)
+    )
+    scaled, note = fit_to_image(camera, (640, 480), "--calib c.txt", "a.png")
+    np.testing.assert_allclose(
+        scaled.K, [[535.4, 1.0, 320.1], [0, 539.2, 247.6], [0, 0, 1]], rtol=0, atol=1e-12
+    )
+    assert scaled.image_size == (640, 480)
+    assert note == (
+        "--calib c.txt describes a camera of 320x240 images: its camera matrix scaled by 2 to "
+        "a.png, 640x480 pixels"
+    )
+    # a pixel centre of the small image lands on the same point of the large one
+    u_small = camera.K[0, 0] * 0.1 + camera.K[0, 2]
+    assert scaled.K[0, 0] * 0.1 + scaled.K[0, 2] == pytest.approx((u_small + 0.5) * 2 - 0.5)
+    same, note = fit_to_image(camera, (320, 240), "c")
+    assert same is camera and note is None
+    unsized = Camera(camera.K)
+    same, note = fit_to_image(unsized, (640, 480), "c")
+    assert same is unsized and note is None
+    with pytest.raises(ValueError, match="320x240 images but a.png is 640x400 pixels, another"):
+        fit_to_image(camera, (640, 400), "c", "a.png")

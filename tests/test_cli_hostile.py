@@ -18,7 +18,10 @@ import sys
 import time
 from pathlib import Path
 
+import cv2
+import numpy as np
 import pytest
+from hostile_images import HEADERS
 
 DATA = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
 DEMO = json.loads((DATA / "demo.json").read_text())
@@ -30,6 +33,35 @@ INTRINSICS = " ".join(["0 0"] + ["535.4 0 320.1 0 539.2 247.6 0 0 1"] * 2)
 GT = INTRINSICS + " 1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1"
 PARALLEL = 6  # processes at a time
 IMAGES = [f"images/{DEMO['image1']}", f"images/{DEMO['image2']}"]
+BAD_GROUND_TRUTH = {  # issue 44, defect 16: what a T_1to2 of a pairs file must not be
+    "bottom_row.txt": INTRINSICS + " 1 0 0 0 0 1 0 0 0 0 1 0 1 2 3 4",
+    "reflection.txt": INTRINSICS + " 1 0 0 0 0 1 0 0 0 0 -1 0 0 0 0 1",
+    "sheared.txt": INTRINSICS + " 1 0.1 0 0 0 1 0 0 0 0 1 0 0 0 0 1",
+    "words_in_T.txt": INTRINSICS + " 1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 one",
+    "words.txt": "foo bar",
+    "turned.txt": "1 0",
+}
+
+
+def _images(root: Path) -> None:
+    """Images a reader must refuse with one line (issue 44, defects 7, 11, 12, 17 and 19)."""
+    demo2 = cv2.imread(DEMO2)
+    cv2.imwrite(str(root / "small.png"), cv2.resize(demo2, (320, 240)))
+    cv2.imwrite(str(root / "mirror.png"), cv2.imread(DEMO1)[:, ::-1])
+    cv2.imwrite(str(root / "const16.png"), np.full((480, 640), 1000, np.uint16))
+    cv2.imwrite(str(root / "thin.png"), np.arange(60000, dtype=np.uint8).reshape(1, -1))
+    (root / "trunc.png").write_bytes(Path(DEMO1).read_bytes()[:20000])
+    for extension, header in HEADERS.items():
+        (root / f"huge.{extension}").write_bytes(header(30000, 30000))
+    (root / "crop.txt").write_text("1 PINHOLE 640 400 535.4 539.2 320.1 247.6\n")
+    (root / "one.yml").write_text(
+        "%YAML:1.0\n---\ncamera_matrix: !!opencv-matrix\n  rows: 3\n  cols: 3\n  dt: d\n"
+        "  data: [535.4, 0, 320.1, 0, 539.2, 247.6, 0, 0, 1]\n"
+    )
+    (root / "two.yml").write_text(
+        "%YAML:1.0\n---\ncamera_matrix: !!opencv-matrix\n  rows: 2\n  cols: 2\n  dt: d\n"
+        "  data: [535.4, 539.2, 320.1, 247.6]\n"
+    )
 
 
 def _workspace(root: Path) -> None:
@@ -59,6 +91,13 @@ def _workspace(root: Path) -> None:
     (root / "synth_out" / "notes.txt").write_text("mine\n")
     (root / "pairs_demo.txt").write_text("demo1.png demo2.png\n")
     os.link(root / "images" / "demo1.png", root / "twin.png")  # a second name of an input
+    _images(root)
+    shutil.copy(root / "small.png", root / "images")
+    (root / "sizes.txt").write_text(
+        f"{Path(DEMO1).name} {Path(DEMO2).name}\nsmall.png {Path(DEMO2).name}\n"
+    )
+    for name, fields in BAD_GROUND_TRUTH.items():
+        (root / name).write_text(f"a.png b.png {GT}\nc.png d.png {fields}\n")
 
 
 def _snapshot(root: Path) -> dict:
@@ -222,6 +261,125 @@ CASES = [
              "OUT_DIR .", "holds", "twin.png"),
         ]
     ],
+    # issue 44: images the readers refuse, each with one line (libpng and OpenCV kept quiet)
+    (
+        ["pair", "const16.png", DEMO2, "--K", K_TEXT],
+        "pair",
+        r"image1 has too few features \(0\): blank",
+    ),
+    (
+        ["pair", "thin.png", DEMO2, "--K", K_TEXT],
+        "pair",
+        r"thin\.png is 60000x1 pixels: too small or too thin",
+    ),
+    (["pair", "trunc.png", DEMO2, "--K", K_TEXT], "pair", r"not a readable image: trunc\.png"),
+    *[
+        (
+            ["pair", f"huge.{extension}", DEMO2, "--K", K_TEXT],
+            "pair",
+            rf"huge\.{extension} declares 30000x30000 pixels, above the limit",
+        )
+        for extension in HEADERS
+    ],
+    (
+        ["synth", "new", "--warp", "--warp-source", "huge.png"],
+        "synth",
+        r"huge\.png declares 30000x30000 pixels",
+    ),
+    (
+        ["synth", "new", "--warp", "--warp-source", "fifo.png"],
+        "synth",
+        r"not a regular file: fifo\.png",
+    ),
+    (
+        ["synth", "new", "--warp", "--warp-source", "nothing.png"],
+        "synth",
+        r"photo nothing\.png does not exist",
+    ),
+    # issue 44, defects 8, 9 and 19: one camera for two sizes, a calibration of another shape
+    (
+        ["pair", DEMO1, "small.png", "--K", K_TEXT],
+        "pair",
+        r"demo1\.png is 640x480 and small\.png 320x240 pixels: one camera matrix \(--K\) cannot "
+        r"fit both sizes; pass --K2",
+    ),
+    (
+        ["pair", DEMO1, "small.png", "--calib", "one.yml"],
+        "pair",
+        r"one camera matrix \(--calib one\.yml\) cannot fit both sizes",
+    ),
+    (
+        ["pair", DEMO1, DEMO2, "--calib", "crop.txt"],
+        "pair",
+        r"crop\.txt describes a camera of 640x400 images but .*demo1\.png is 640x480 pixels, "
+        r"another aspect ratio",
+    ),
+    (
+        ["pair", DEMO1, DEMO2, "--calib", "two.yml"],
+        "pair",
+        r"camera matrix in two\.yml must be a 3x3 matrix, got shape \(2, 2\)",
+    ),
+    (
+        ["pair", DEMO1, DEMO2, "--K", "1e308,1e308,320,240"],
+        "pair",
+        r"--K has an implausible focal length \(fx=1e\+308",
+    ),
+    (
+        ["pairs", "sizes.txt", "images", "--K", K_TEXT],
+        "pairs",
+        r"sizes\.txt:2: small\.png is 320x240 and demo2\.png 640x480 pixels: one camera matrix "
+        r"\(--K\) cannot fit both sizes; give K1 and K2 on the line",
+    ),
+    # issue 44, defect 16: ground truth that is no rigid motion, fields that are no numbers
+    (
+        ["pairs", "bottom_row.txt", "images"],
+        "pairs",
+        r"bottom_row\.txt:2: the ground-truth T_1to2 must end with the row 0 0 0 1, got 1 2 3 4",
+    ),
+    (
+        ["pairs", "reflection.txt", "images"],
+        "pairs",
+        r"reflection\.txt:2: the ground-truth rotation has determinant -1: a reflection",
+    ),
+    (
+        ["pairs", "sheared.txt", "images"],
+        "pairs",
+        r"sheared\.txt:2: the ground-truth rotation is not orthonormal",
+    ),
+    (
+        ["pairs", "words_in_T.txt", "images"],
+        "pairs",
+        r"words_in_T\.txt:2: the ground-truth T_1to2 must be numbers",
+    ),
+    (
+        ["pairs", "words.txt", "images"],
+        "pairs",
+        r"words\.txt:2: fields 3 and 4 must be 0 0, got foo bar",
+    ),
+    (
+        ["pairs", "turned.txt", "images"],
+        "pairs",
+        r"turned\.txt:2: fields 3 and 4 \(EXIF rotations\) must be 0 0, got 1 0",
+    ),
+    # issue 44, defect 17: the right noun for what a path is
+    (["pairs", "images", "images", "--K", K_TEXT], "pairs", r"pairs file images is a directory"),
+    (
+        ["pairs", "fifo.png", "images", "--K", K_TEXT],
+        "pairs",
+        r"pairs file fifo\.png is not a regular file",
+    ),
+    (
+        ["pairs", "no_gt.txt", "afile", "--K", K_TEXT],
+        "pairs",
+        r"image folder afile is not a folder",
+    ),
+    (["sfm", "afile", "out", "--K", K_TEXT], "sfm", r"image folder 'afile' is not a folder"),
+    # issue 44, defect 10: an image against its mirror image
+    (
+        [*PAIR[:2], "mirror.png", "--K", K_TEXT],
+        "pair",
+        r"the images are mirror images of each other",
+    ),
 ]
 
 
@@ -496,3 +654,124 @@ def test_no_signal_after_the_interrupt_was_handled():
     finally:
         for signum, handler in handlers.items():
             signal.signal(signum, handler)
+
+
+# --- issue 44: a batch goes on past bad images; folders with bad images; resized calibrations
+
+
+def _demo_rotation_error(row: dict) -> float:
+    from ppo_cv.metrics import rotation_error_deg
+
+    return rotation_error_deg(np.array(row["R"]), np.array(DEMO["reference_R"]))
+
+
+@pytest.mark.parametrize("cache", [["--workers", "1"], ["--workers", "2"], ["--no-cache"]])
+def test_bad_images_in_a_batch_are_failed_lines(tmp_path, cache):
+    _images(tmp_path)
+    for image in (DEMO1, DEMO2):
+        shutil.copy(image, tmp_path)
+    demo1, demo2 = Path(DEMO1).name, Path(DEMO2).name
+    firsts = [demo1, "const16.png", "thin.png", "trunc.png", "huge.tif", demo1]
+    (tmp_path / "pairs.txt").write_text("".join(f"{a} {demo2} {INTRINSICS}\n" for a in firsts))
+    out = subprocess.run([*COMMAND, "pairs", "-q", "pairs.txt", ".", *cache], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert out.stderr.strip().splitlines() == ["ppo-cv pairs: warning: 4 of 6 pairs failed"]
+    rows = [json.loads(line) for line in out.stdout.splitlines()]
+    assert [row["image1"] for row in rows] == firsts
+    assert _demo_rotation_error(rows[0]) < 1.0 and rows[5]["R"] == rows[0]["R"]
+    errors = [row["error"] for row in rows[1:5]]
+    assert "too few features (0)" in errors[0]
+    assert "is 60000x1 pixels: too small or too thin" in errors[1]
+    assert "not a readable image" in errors[2] and "trunc.png" in errors[2]
+    assert "huge.tif declares 30000x30000 pixels" in errors[3]
+
+
+def test_an_unexpected_error_is_the_pair_s_line_named_by_its_type(monkeypatch):
+    from ppo_cv.cli import batch
+
+    def broken(*args, **kwargs):
+        raise ZeroDivisionError("float division by zero")
+
+    monkeypatch.setattr("ppo_cv.pipeline.estimate_pair", broken)
+    row = {"image1": "a.png", "image2": "b.png", "K1": None, "K2": None, "T": None}
+    given = (("error", "not a readable image: a.png"), ("file", ""))
+    assert batch._pair_job((row, str(DATA), None, given))["error"] == given[0][1]
+    row = {**row, "image1": Path(DEMO1).name, "image2": Path(DEMO2).name}
+    outcome = batch._pair_job((row, str(DATA), None, None))
+    assert outcome["error"] == "ZeroDivisionError: float division by zero"
+
+
+def test_sfm_names_the_images_it_skips(tmp_path):
+    from ppo_cv.sfm import screen_images
+
+    (tmp_path / "images").mkdir()
+    shutil.copy(DEMO1, tmp_path / "images")
+    (tmp_path / "images" / "huge.png").write_bytes(HEADERS["png"](30000, 30000))
+    (tmp_path / "images" / "trunc.png").write_bytes(Path(DEMO1).read_bytes()[:20000])
+    kept, skipped = screen_images(tmp_path / "images")
+    assert kept == [Path(DEMO1).name] and list(skipped) == ["huge.png", "trunc.png"]
+    out = subprocess.run([*COMMAND, "sfm", "images", "model", "--K", K_TEXT], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert out.returncode == 2
+    assert re.fullmatch(
+        r"ppo-cv sfm: warning: skipping an image: image too large: images/huge\.png declares "
+        r"30000x30000 pixels, above the limit .*\n"
+        r"ppo-cv sfm: warning: skipping an image: not a readable image: images/trunc\.png\n"
+        r"ppo-cv sfm: need at least 2 images in 'images', found 1 \(2 skipped: huge\.png, "
+        r"trunc\.png\)\n",
+        out.stderr,
+    ), out.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["images"]
+
+
+def _half_camera() -> tuple[float, float, float, float]:
+    """The demo camera for the images halved (pixel centres kept: c' = (c + 0.5) / 2 - 0.5)."""
+    fx, fy, cx, cy = DEMO["intrinsics"]
+    return fx / 2, fy / 2, (cx + 0.5) / 2 - 0.5, (cy + 0.5) / 2 - 0.5
+
+
+def _half_calibration(root: Path, kind: str) -> Path:
+    fx, fy, cx, cy = _half_camera()
+    if kind == "colmap":
+        path = root / "cameras.txt"
+        path.write_text(f"1 PINHOLE 320 240 {fx} {fy} {cx} {cy}\n")
+    elif kind == "json":
+        path = root / "camera.json"
+        path.write_text(json.dumps({"fx": fx, "fy": fy, "cx": cx, "cy": cy, "width": 320,
+                                    "height": 240}))  # fmt: skip
+    else:
+        path = root / "camera.yml"
+        storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+        storage.write("image_width", 320)
+        storage.write("image_height", 240)
+        storage.write("camera_matrix", np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]]))
+        storage.release()
+    return path
+
+
+@pytest.mark.parametrize("kind", ["colmap", "yaml", "json"])
+def test_a_calibration_of_resized_images_is_scaled_to_the_truth(tmp_path, kind):
+    calib = _half_calibration(tmp_path, kind)
+    out = subprocess.run([*COMMAND, *PAIR[:3], "--calib", calib.name, "--json"], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert out.stderr.strip().splitlines() == [
+        f"ppo-cv pair: warning: --calib {calib.name} describes a camera of 320x240 images: its "
+        f"camera matrix scaled by 2 to {DEMO1}, 640x480 pixels",
+        f"ppo-cv pair: warning: --calib {calib.name} describes a camera of 320x240 images: its "
+        f"camera matrix scaled by 2 to {DEMO2}, 640x480 pixels",
+    ]
+    row = json.loads(out.stdout)
+    fx, fy, cx, cy = DEMO["intrinsics"]
+    np.testing.assert_allclose(row["K1"], [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], atol=1e-9)
+    assert _demo_rotation_error(row) < 1.0
+
+
+def test_the_unscaled_calibration_of_resized_images_is_wrong():
+    """What the scaling above corrects: the camera of 320x240 images applied as it is."""
+    half = ",".join(str(v) for v in _half_camera())
+    out = subprocess.run([*COMMAND, *PAIR[:3], "--K", half, "--json"], capture_output=True,
+                         text=True, timeout=120)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert _demo_rotation_error(json.loads(out.stdout)) > 2.0

@@ -7,12 +7,11 @@ UMats, the positional call OpenCV reads as the first form, and images of any dep
 from __future__ import annotations
 
 import os
-import struct
-import zlib
 
 import cv2
 import numpy as np
 import pytest
+from hostile_images import HEADERS, png_header
 from twoview import make_scene, random_rotation, skew
 
 import ppo_cv
@@ -169,6 +168,12 @@ CASES = {
                                               "pass K2 for image2"),
     "estimate_pair image text dtype": (_pair(image1=np.full((8, 8), "a")), TypeError,
                                        "image1 must hold numbers"),
+    "estimate_pair constant 16-bit image": (_pair(image1=np.full((48, 64), 1000, np.uint16)),
+                                            ValueError, "image1 has too few features (0)"),
+    "estimate_pair 60000x1 image": (_pair(image1=np.zeros((1, 60000), np.uint8), K2=K),
+                                    ValueError, "image1 is 60000x1 pixels: too small or too thin"),
+    "estimate_pair 40x12 image": (_pair(image2=GREY[:12, :40], K2=K), ValueError,
+                                  "image2 is 40x12 pixels"),
 }  # fmt: skip
 
 
@@ -201,7 +206,7 @@ def test_existing_code_catching_cv2_error_keeps_working_under_install():
             pytest.fail("no error")
 
 
-@pytest.mark.parametrize("scale", [1e80, 1e-200, 1e300, -3.0, 1e-300])
+@pytest.mark.parametrize("scale", [1e80, 1e-200, 1e300, -3.0, 1e-300, 1e-310, -2.5e-315])
 def test_any_finite_scale_of_E_gives_the_same_pose(scale):
     retval, R, t, mask = ppo_cv.recoverPose(E * scale, P1, P2, K)
     assert retval == 40 and abs(np.linalg.det(R) - 1) < 1e-9
@@ -265,21 +270,9 @@ def test_uninstall_restores_what_install_replaced():
         cv2.recoverPose = saved
 
 
-def _png_header(width: int, height: int) -> bytes:
-    """A PNG whose IHDR declares width x height 16-bit grey, with a token data chunk."""
-    ihdr = struct.pack(">IIBBBBB", width, height, 16, 0, 0, 0, 0)
-
-    def chunk(kind, data):
-        crc = zlib.crc32(kind + data) & 0xFFFFFFFF
-        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", crc)
-
-    idat = zlib.compress(b"\x00" * 64)
-    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", idat) + chunk(b"IEND", b"")
-
-
 def test_decompression_bomb_is_refused_from_the_header(tmp_path, monkeypatch):
     bomb = tmp_path / "bomb.png"
-    bomb.write_bytes(_png_header(30000, 30000))
+    bomb.write_bytes(png_header(30000, 30000))
     with pytest.raises(ValueError, match="bomb.png declares 30000x30000 pixels, above the limit"):
         load_image(bomb)
     with pytest.raises(ValueError, match="declares 30000x30000"):
@@ -296,6 +289,14 @@ def test_decompression_bomb_is_refused_from_the_header(tmp_path, monkeypatch):
     monkeypatch.setenv("PPO_CV_MAX_IMAGE_PIXELS", "lots")
     with pytest.raises(ValueError, match="PPO_CV_MAX_IMAGE_PIXELS must be a whole number"):
         load_image(small)
+
+
+@pytest.mark.parametrize("extension", list(HEADERS))
+def test_the_real_header_size_is_named_in_every_format(tmp_path, extension):
+    path = tmp_path / f"huge.{extension}"
+    path.write_bytes(HEADERS[extension](30000, 30000))
+    with pytest.raises(ValueError, match=f"huge.{extension} declares 30000x30000 pixels, above"):
+        load_image(path)
 
 
 def test_jpeg_size_is_read_from_the_header_too(tmp_path):
@@ -333,3 +334,20 @@ def test_deep_images_are_scaled_by_their_range(tmp_path):
     assert gray.min() == 0 and gray.max() == 255 and np.all(np.diff(gray[0].astype(int)) >= 0)
     unit = ppo_cv.features.to_gray(ramp / 63.0)
     assert unit.max() == 255 and unit.min() == 0
+
+
+def test_a_single_channel_float_tiff_is_read(tmp_path):
+    path = tmp_path / "float.tiff"
+    assert cv2.imwrite(str(path), GREY.astype(np.float32) / 255.0)
+    loaded = load_image(path)
+    assert loaded.shape == (48, 64, 3)
+    for channel in range(3):
+        np.testing.assert_array_equal(loaded[:, :, channel], GREY)
+
+
+def test_a_constant_deep_image_reads_as_blank(tmp_path):
+    path = tmp_path / "constant.png"
+    cv2.imwrite(str(path), np.full((48, 64), 1000, np.uint16))
+    assert not load_image(path).any()
+    with pytest.raises(ValueError, match="too few features"):
+        ppo_cv.estimate_pair(path, GREY, K)
