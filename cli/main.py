@@ -8,7 +8,7 @@ import sys
 import typer
 
 from ppo_cv.atomic import sigterm_as_interrupt, stop_listening
-from ppo_cv.cli import pair, sfm, synth
+from ppo_cv.cli import batch, pair, sfm, synth
 
 app = typer.Typer(
     name="ppo-cv",
@@ -18,7 +18,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 
-for _module in (synth, sfm, pair):
+for _module in (synth, sfm, pair, batch):
     _module.register(app)
 
 
