@@ -287,7 +287,7 @@ def test_warped_photo_rotation_is_flagged_with_accurate_rotation(seed):
     assert 0.0 < result.rotation_sigma_deg < 1.0
 
 
-@pytest.mark.parametrize("seed", [0, 3])
+@pytest.mark.parametrize("seed", [0, pytest.param(3, marks=pytest.mark.slow)])
 def test_imperfect_render_rotation_is_flagged(seed):
     pair = imperfect_render(seed)
     result = estimate_pair(pair.image1, pair.image2, pair.K_given)
@@ -328,6 +328,7 @@ def _data_gen_result(pair):
     return estimate_pair(image1, image2, pair.K1_given, pair.K2_given)
 
 
+@pytest.mark.slow
 def test_data_gen_panorama_and_warped_photo_are_flagged():
     from ppo_cv import data_gen
 
@@ -340,7 +341,9 @@ def test_data_gen_panorama_and_warped_photo_are_flagged():
         assert rotation_error_deg(result.R, pair.R) < 0.5
 
 
-@pytest.mark.parametrize("index", [0, 1, 2])
+@pytest.mark.parametrize(
+    "index", [pytest.param(0, marks=pytest.mark.slow), pytest.param(1, marks=pytest.mark.slow), 2]
+)
 def test_tripod_pan_about_a_point_behind_the_lens_is_flagged(index):
     """A real tripod turns the camera about its screw, not the lens's centre: t of a few cm."""
     from ppo_cv import data_gen
@@ -502,7 +505,7 @@ def _foliage_pair(seed: int, ratio: float):
     return image1, image2, K_given, R
 
 
-@pytest.mark.parametrize("ratio", [0.0, 0.02])
+@pytest.mark.parametrize("ratio", [0.0, pytest.param(0.02, marks=pytest.mark.slow)])
 def test_leaves_at_many_depths_do_not_pass_for_noise(ratio):
     """The rotation's incoherent noise is measured between nearest neighbours; before foliage,
     where the depth jumps from one feature to the next, it must still see a translation's
@@ -517,6 +520,7 @@ def test_leaves_at_many_depths_do_not_pass_for_noise(ratio):
         assert result.gric_difference > 0.5
 
 
+@pytest.mark.slow
 def test_automatic_exposure_and_vignetting_keep_the_decision():
     """Shots one stop apart at most, clipped at white, corners 35 % darker: a warped photo and
     a tripod pan stay flagged with an accurate rotation, a 2 % baseline stays general."""
@@ -580,6 +584,7 @@ def test_the_flag_does_not_rest_on_a_loosely_refined_essential_matrix(monkeypatc
     assert after.pure_rotation and rotation_error_deg(after.R, pair.R) < 0.3
 
 
+@pytest.mark.slow
 def test_t_sigma_over_the_tiny_baseline_sweep():
     from ppo_cv import data_gen
 
