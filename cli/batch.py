@@ -81,8 +81,9 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
     Lines are ``name1 name2 [0 0 K1(9) K2(9) [T_1to2(16)]]`` (:data:`PAIRS_FILE_FORMAT`). Either
     every line carries a ground-truth ``T`` or none does; a ValueError names the first line that
     breaks the rule. A line without intrinsics takes ``cameras``
-    (:class:`~ppo_cv.cli.common.Cameras`) or ``K`` for both images, else ``K1`` and ``K2`` are
-    None (the caller guesses them from EXIF). ``dist1`` and ``dist2`` are those of ``cameras``.
+    (:class:`~ppo_cv.cli.common.Cameras`, with their distortion) or ``K`` for both images, else
+    ``K1`` and ``K2`` are None (the caller guesses them from EXIF); a line with intrinsics has no
+    distortion.
     """
     import numpy as np
 
@@ -117,6 +118,7 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
                 values = np.array(parts[4:], dtype=np.float64)
                 row["K1"] = parse_intrinsics(",".join(parts[4:13]), "K1")
                 row["K2"] = parse_intrinsics(",".join(parts[13:22]), "K2")
+                row["dist1"] = row["dist2"] = None  # the line's own cameras, not --calib's
                 if len(parts) == 38:
                     row["T"] = _motion(values[18:34].reshape(4, 4))
         except ValueError as exc:
