@@ -222,6 +222,7 @@ MARGINAL_FREIBURG = (
 10 degrees of the pseudo ground truth: the default decision must keep them."""
 
 
+@pytest.mark.slow
 def test_marginal_freiburg_pairs_keep_their_pose_under_the_default_bar(freiburg):
     rows = {
         tuple(r.split()[:2]): r.split()

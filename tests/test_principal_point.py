@@ -120,7 +120,9 @@ def test_an_offset_is_dropped_only_where_the_matches_place_it_beyond_the_bound(n
         assert np.median(fit.residuals) * focal > 0.1
 
 
-@pytest.mark.parametrize("imperfections", ["centred", "stitched"])
+@pytest.mark.parametrize(
+    "imperfections", ["centred", pytest.param("stitched", marks=pytest.mark.slow)]
+)
 def test_a_translation_whose_offset_passes_only_the_wide_bound_stays_general(imperfections):
     # baseline / depth 0.02: the fit moves the principal point beyond 2 % of the height, and
     # within 3 % the rotation wins GRIC; a candidate only, whose windows refuse it (centred:
@@ -144,7 +146,10 @@ def test_a_translation_whose_offset_passes_only_the_wide_bound_stays_general(imp
         assert "principal point moved" in line and "not called a pure rotation" in line
 
 
-@pytest.mark.parametrize("make, index, bound", [("warp", 23, 0.15), ("panorama", 11, 0.4)])
+@pytest.mark.parametrize(
+    "make, index, bound",
+    [("warp", 23, 0.15), pytest.param("panorama", 11, 0.4, marks=pytest.mark.slow)],
+)
 def test_a_narrow_pan_whose_principal_point_lies_near_the_bound_is_flagged(make, index, bound):
     # 18-21 deg pans in a 29-33 deg field, the true principal point 1.8-1.96 % of a side off the
     # centre: the fit put it 2.2-2.5 % off, within noise of the bound; dropped, focal and k1 ran

@@ -360,7 +360,8 @@ def test_tripod_pan_about_a_point_behind_the_lens_is_flagged(index):
 
 
 @pytest.mark.parametrize(
-    ("kind", "index", "k2_fraction"), [("warp", 1, 2.0), ("panorama", 3, -2.0)]
+    ("kind", "index", "k2_fraction"),
+    [("warp", 1, 2.0), pytest.param("panorama", 3, -2.0, marks=pytest.mark.slow)],
 )
 def test_unmodelled_higher_order_distortion_in_a_narrow_overlap_keeps_the_flag(
     kind, index, k2_fraction
@@ -423,6 +424,7 @@ def test_a_small_baseline_whose_rotation_needs_an_implausible_focal_is_not_flagg
     assert f"lens {result.lens_excess:.1f} deviations beyond the plausible" in text
 
 
+@pytest.mark.slow
 def test_a_sideways_step_before_a_wall_that_the_matches_take_for_a_rotation_is_not_flagged():
     """Baseline / depth 0.02 across a back wall, principal point guessed at the centre: the
     rotation absorbs the nearly uniform shift on the feature matches and wins, but the plane of
@@ -452,7 +454,7 @@ def test_a_sideways_step_before_a_wall_that_the_matches_take_for_a_rotation_is_n
     assert f"moved {result.track_parallax:.4f} +-" in _summary(result, "a.png", "b.png", None)
 
 
-@pytest.mark.parametrize("index", [8, 11])
+@pytest.mark.parametrize("index", [8, pytest.param(11, marks=pytest.mark.slow)])
 def test_a_rotation_whose_features_are_worse_along_the_pan_is_flagged(index):
     """Sensor noise and blur on a warped photo locate the features worse along the pan than
     across it; the essential matrix, seeing only the component across its epipolar lines,
@@ -505,7 +507,8 @@ def _foliage_pair(seed: int, ratio: float):
     return image1, image2, K_given, R
 
 
-@pytest.mark.parametrize("ratio", [0.0, pytest.param(0.02, marks=pytest.mark.slow)])
+@pytest.mark.slow
+@pytest.mark.parametrize("ratio", [0.0, 0.02])
 def test_leaves_at_many_depths_do_not_pass_for_noise(ratio):
     """The rotation's incoherent noise is measured between nearest neighbours; before foliage,
     where the depth jumps from one feature to the next, it must still see a translation's
