@@ -21,8 +21,13 @@ import typer
 from .common import (
     WORKERS_MAX,
     Backend,
+    CalibOption,
+    Cameras,
+    ExifOrientation,
     Features,
     FocalRatio,
+    K2Option,
+    KOption,
     MaxFeatures,
     MaxLog10Nfa,
     MaxSize,
@@ -39,31 +44,60 @@ from .common import (
     Threshold,
     check_image_file,
     check_range,
+    exif_camera,
     fail,
+    given_cameras,
+    pipeline_options,
     print_result,
     stdout_failure,
     warn,
 )
 
-__all__ = ["register", "run_pairs", "read_pairs", "pose_errors", "pose_auc", "FeatureCache"]
+__all__ = [
+    "PAIRS_FILE_FORMAT",
+    "register",
+    "run_pairs",
+    "read_pairs",
+    "pose_errors",
+    "pose_auc",
+    "FeatureCache",
+]
 
 _ZERO_TRANSLATION = 1e-9
 MAX_TRIALS_MAX = 10_000_000
 
 
-def read_pairs(pairs_file: Path, K: str | None) -> list[dict]:
+PAIRS_FILE_FORMAT = (
+    "One pair a line: 'name1 name2', optionally followed by '0 0', the 9 numbers of K1 and "
+    "the 9 of K2 (row-major), optionally followed by the 16 numbers of the ground-truth "
+    "motion T_1to2 (row-major 4x4, X2 = R X1 + t). The '0 0' are the EXIF orientations of "
+    "the two images in the format of the SuperGlue / LoFTR pair lists, read and ignored. "
+    "Names are relative to IMAGE_DIR; '#' starts a comment line."
+)
+
+
+def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dict]:
     """Rows of a pairs file: names, intrinsics and, when present, the ground-truth motion.
 
-    Lines are ``name1 name2 [0 0 K1(9) K2(9) [T_1to2(16)]]``; the two fields after the names
-    (EXIF rotations, in the format's origin) must be 0. Either every line carries a ground-truth
-    ``T`` (a rigid motion: a proper rotation, bottom row 0 0 0 1) or none does; a ValueError
-    names the first line that breaks a rule. ``shared_K`` marks the lines that take ``K``.
+    Lines are ``name1 name2 [0 0 K1(9) K2(9) [T_1to2(16)]]`` (:data:`PAIRS_FILE_FORMAT`); the two
+    fields after the names (EXIF rotations, in the format's origin) must be 0. Either every line
+    carries a ground-truth ``T`` (a rigid motion: a proper rotation, bottom row 0 0 0 1) or none
+    does; a ValueError names the first line that breaks a rule. A line without intrinsics takes
+    ``cameras`` (:class:`~ppo_cv.cli.common.Cameras`, with their distortion) or ``K`` for both
+    images, else ``K1`` and ``K2`` are None (the caller guesses them from EXIF); a line with
+    intrinsics has no distortion. ``shared_K`` marks the lines whose two images take one given
+    camera matrix.
     """
+    import numpy as np
+
     from ppo_cv.calib import parse_intrinsics
     from ppo_cv.checks import as_camera_matrix
 
     _require_regular_file(pairs_file, "pairs file")
-    default = parse_intrinsics(K, "--K") if K else None
+    if cameras is None and K:
+        matrix = parse_intrinsics(K, "--K")
+        cameras = Cameras(matrix, None, matrix, None)
+    one_matrix = cameras is not None and np.array_equal(cameras.K1, cameras.K2)
     try:
         text = pairs_file.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -79,21 +113,24 @@ def read_pairs(pairs_file: Path, K: str | None) -> list[dict]:
                 f"{where}: expected 'name1 name2 [0 0 K1(9) K2(9) [T(16)]]', "
                 f"got {len(parts)} fields"
             )
-        row = {"image1": parts[0], "image2": parts[1], "K1": default, "K2": default, "T": None}
-        row["shared_K"] = len(parts) < 22
+        row = {"image1": parts[0], "image2": parts[1], "K1": None, "K2": None, "T": None}
+        if cameras is not None:
+            row.update(K1=cameras.K1, K2=cameras.K2, dist1=cameras.dist1, dist2=cameras.dist2)
+        row["shared_K"] = one_matrix and len(parts) < 22
         try:
             if len(parts) >= 4:
                 _require_unturned(parts[2:4])
             if len(parts) >= 22:
                 row["K1"] = parse_intrinsics(",".join(parts[4:13]), "K1")
                 row["K2"] = parse_intrinsics(",".join(parts[13:22]), "K2")
+                row["dist1"] = row["dist2"] = None  # the line's own cameras, not --calib's
             if len(parts) == 38:
                 row["T"] = _motion(parts[22:38])
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
-        if row["K1"] is None:
-            raise ValueError(f"{where}: no intrinsics in the file; pass --K")
-        row["K1"], row["K2"] = as_camera_matrix(row["K1"], "K1"), as_camera_matrix(row["K2"], "K2")
+        if row["K1"] is not None:
+            row["K1"] = as_camera_matrix(row["K1"], "K1")
+            row["K2"] = as_camera_matrix(row["K2"], "K2")
         has_gt = row["T"] is not None
         if first_gt is None:
             first_gt = (has_gt, number)
@@ -276,9 +313,12 @@ class FeatureCache:
     ``max_image_size``); an image that cannot be read keeps its error message instead.
     """
 
-    def __init__(self, folder: str | os.PathLike, options) -> None:
+    def __init__(
+        self, folder: str | os.PathLike, options, exif_orientation: bool = True
+    ) -> None:
         self.folder = Path(folder)
         self.options = options
+        self.exif_orientation = exif_orientation
         self.files: dict[tuple, str] = {}
         self.errors: dict[tuple, str] = {}
 
@@ -288,12 +328,14 @@ class FeatureCache:
         return (os.path.realpath(path), o.features, o.max_features, o.max_image_size)
 
     def jobs(self, paths) -> list[tuple]:
-        """One detection job per image not yet cached: ``(path, options, npz file)``."""
+        """One detection job per image not yet cached: ``(path, options, npz file,
+        exif_orientation)``."""
         keys = dict.fromkeys(self.key(p) for p in paths)
         fresh = [k for k in keys if k not in self.files and k not in self.errors]
         start = len(self.files) + len(self.errors)
         return [
-            (k[0], self.options, str(self.folder / f"{start + i}.npz")) for i, k in enumerate(fresh)
+            (k[0], self.options, str(self.folder / f"{start + i}.npz"), self.exif_orientation)
+            for i, k in enumerate(fresh)
         ]
 
     def store(self, path: str, outcome: tuple[str, str]) -> None:
@@ -314,13 +356,13 @@ def _features_job(job: tuple) -> tuple[str, str]:
     from ppo_cv import features as features_module
     from ppo_cv.pipeline import load_image
 
-    path, options, target = job
+    path, options, target, exif_orientation = job
     try:
         check_image_file(path)
+        image = load_image(path, exif_orientation=exif_orientation)
         found = features_module.detect_features(
-            load_image(path), options.features, options.max_features, options.max_image_size,
-            name=path,
-        )  # fmt: skip
+            image, options.features, options.max_features, options.max_image_size, name=path
+        )
     except Exception as exc:  # one image's failure is its pairs' error line, not the batch's
         return "error", _error_line(exc, path)
     np.savez(target, keypoints=found.keypoints, descriptors=found.descriptors, kind=found.kind)
@@ -349,9 +391,9 @@ def _load_features(target: str):
 def _pair_job(job: tuple) -> dict:
     """One pair: a JSON-ready dict, with ``error`` instead of a pose on failure."""
     from ppo_cv.export import result_to_dict
-    from ppo_cv.pipeline import estimate_pair
+    from ppo_cv.pipeline import estimate_pair, load_image
 
-    row, image_dir, options, cached = job
+    row, image_dir, options, cached, exif_orientation = job
     names = {"image1": row["image1"], "image2": row["image2"]}
     paths = (Path(image_dir) / row["image1"], Path(image_dir) / row["image2"])
     try:
@@ -361,10 +403,11 @@ def _pair_job(job: tuple) -> dict:
                 if kind == "error":
                     raise ValueError(value)
                 given[name] = _load_features(value)
-        else:
-            for path in paths:
-                check_image_file(path)
-        result = estimate_pair(*paths, row["K1"], row["K2"], options=options, **given)
+        images = [load_image(path, exif_orientation=exif_orientation) for path in paths]
+        if row["K1"] is None or row["K2"] is None:
+            raise ValueError("no camera: the EXIF of an image could not be read; pass --K")
+        dist = (row.get("dist1"), row.get("dist2"))
+        result = estimate_pair(*images, row["K1"], row["K2"], *dist, options=options, **given)
     except Exception as exc:  # one pair's failure is its error line, not the batch's
         return {**names, "error": _error_line(exc)}
     data = result_to_dict(result, **names)
@@ -381,13 +424,45 @@ def _run_all(function, jobs, pool, report: ProgressReport):
         yield outcome
 
 
+def _exif_intrinsics(rows: list[dict], image_dir: Path, exif_orientation: bool) -> None:
+    """Give the rows without intrinsics the cameras of their images' EXIF, warning once for
+    the run and once for each image whose EXIF focal length is doubtful."""
+    missing = [r for r in rows if r["K1"] is None]
+    names = dict.fromkeys(r[k] for r in missing for k in ("image1", "image2"))
+    cameras, doubts = {}, []
+    for name in names:
+        try:
+            K, found, warnings = exif_camera(image_dir / name, exif_orientation)
+        except (ValueError, RuntimeError, OSError):  # unreadable: the pair reports it
+            continue
+        cameras[name] = (K, found)
+        doubts += warnings
+    for row in missing:
+        row["K1"], row["K2"] = (cameras.get(row[k], (None,))[0] for k in ("image1", "image2"))
+    if not missing:
+        return
+    found = sum(f for _, f in cameras.values())
+    guessed = "" if found == len(cameras) else f", 1.2 x image size for the {len(cameras) - found}"
+    warn(
+        "pairs",
+        f"no intrinsics given for {len(missing)} of {len(rows)} pairs: using the EXIF focal "
+        f"lengths of {found} of {len(cameras)} images (centred principal point{guessed}); pass "
+        "--K or --calib for accurate results",
+    )
+    for message in doubts:
+        warn("pairs", message)
+
+
 def run_pairs(
-    pairs_file, image_dir, K, output, workers, options, *, cache=True, quiet=False, overwrite=False
-) -> int:
+    pairs_file, image_dir, K, output, workers, options, *, cache=True, quiet=False,
+    overwrite=False, K2=None, calib=None, exif_orientation=True,
+) -> int:  # fmt: skip
     """Run every pair of a pairs file, writing JSON lines to ``output`` (or stdout).
 
-    The output file is written completely or not at all (an interrupt leaves nothing). Returns
-    the exit code; ValueError for bad arguments, raised before any image is read.
+    Lines without intrinsics take ``K`` (and ``K2``) or the cameras of ``calib``, else those of
+    the images' EXIF (with a warning). The output file is written completely or not at all (an
+    interrupt leaves nothing). Returns the exit code; ValueError for bad arguments, raised
+    before any image is decoded.
     """
     from ppo_cv.atomic import (
         atomic_file,
@@ -400,7 +475,8 @@ def run_pairs(
     check_range("--workers", workers, 0, WORKERS_MAX)
     if output is not None:
         check_target(output, "file", overwrite, [pairs_file, image_dir], "-o ")
-    rows = read_pairs(Path(pairs_file), K)
+    cameras = given_cameras(K, K2, None, None, calib)
+    rows = read_pairs(Path(pairs_file), cameras=cameras)
     if not Path(image_dir).exists():
         raise ValueError(f"image folder not found: {image_dir}")
     if not Path(image_dir).is_dir():
@@ -409,6 +485,7 @@ def run_pairs(
     if output is not None:
         images = {Path(image_dir) / r[k] for r in rows for k in ("image1", "image2")}
         check_apart(output, sorted(images), "-o ")
+    _exif_intrinsics(rows, Path(image_dir), exif_orientation)
     workers = worker_count(workers, len(rows))
     import_pycolmap()
     sink = atomic_file(output, overwrite) if output is not None else contextlib.nullcontext(None)
@@ -416,7 +493,7 @@ def run_pairs(
         scratch = stack.enter_context(tempfile.TemporaryDirectory(prefix="ppo-cv-features-"))
         handle = stack.enter_context(sink) or sys.stdout
         pool = stack.enter_context(_worker_pool(workers))
-        features = FeatureCache(scratch, options) if cache else None
+        features = FeatureCache(scratch, options, exif_orientation) if cache else None
         paths = [Path(image_dir) / r[k] for r in rows for k in ("image1", "image2")]
         if features is not None:
             detect = features.jobs(paths)
@@ -433,6 +510,7 @@ def run_pairs(
                 None
                 if features is None
                 else tuple(features.lookup(Path(image_dir) / row[k]) for k in ("image1", "image2")),
+                exif_orientation,
             )
             for row in rows
         ]
@@ -463,23 +541,25 @@ def register(app: typer.Typer) -> None:
     from ppo_cv.ppo import DEFAULT_PRI_THRESHOLD
     from ppo_cv.significance import DEFAULT_MAX_LOG10_NFA
 
-    from .pair import pipeline_options
-
     @app.command(
         help="Run many pairs in parallel, one JSON line each; AUC@5/10/20 given ground truth."
         "\n\nFeatures are computed once per image for the whole run (--no-cache: once per "
         "pair). Progress goes to stderr. With ground truth the AUC is that of the pose error "
         "max(rotation error, translation-direction error), the rotation error alone where the "
-        "true translation is zero. -o is written completely or not at all.",
+        "true translation is zero. -o is written completely or not at all."
+        "\n\nPAIRS_FILE: " + PAIRS_FILE_FORMAT + " Lines without intrinsics take --K (and "
+        "--K2) or --calib, else the EXIF focal length of each image, with a warning.",
     )
     def pairs(
         pairs_file: Annotated[
-            Path, typer.Argument(help="Lines 'name1 name2 [0 0 K1(9) K2(9) [T_1to2(16)]]'.")
+            Path,
+            typer.Argument(help="Lines 'name1 name2 [0 0 K1(9) K2(9) [T_1to2(16)]]' (see above)."),
         ],
         image_dir: Annotated[Path, typer.Argument(help="Folder holding the images.")],
-        K: Annotated[
-            str | None, typer.Option("--K", help="Intrinsics for lines that carry none.")
-        ] = None,
+        K: KOption = None,
+        K2: K2Option = None,
+        calib: CalibOption = None,
+        exif_orientation: ExifOrientation = True,
         output: Annotated[
             Path | None,
             typer.Option(
@@ -546,7 +626,8 @@ def register(app: typer.Typer) -> None:
             )
             code = run_pairs(
                 pairs_file, image_dir, K, output, workers, options,
-                cache=not no_cache, quiet=quiet, overwrite=overwrite,
+                cache=not no_cache, quiet=quiet, overwrite=overwrite, K2=K2, calib=calib,
+                exif_orientation=exif_orientation,
             )  # fmt: skip
         except (ValueError, OSError) as exc:
             fail("pairs", str(exc) or type(exc).__name__)

@@ -1,4 +1,5 @@
-"""What every ``ppo-cv`` command shares: the error format, bounds on numbers, progress on stderr.
+"""What every ``ppo-cv`` command shares: the error format, bounds on numbers, the pipeline and
+camera options with their checks, the cameras from EXIF, progress on stderr.
 
 Errors are one line ``ppo-cv <command>: <message>`` on stderr with exit code 2; warnings are
 ``ppo-cv <command>: warning: <message>``.
@@ -10,14 +11,20 @@ import math
 import os
 import sys
 import time
-from typing import Annotated, NoReturn
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Annotated, Any, NoReturn
 
 import typer
 
 __all__ = [
     "SEED_MAX",
     "MAX_FEATURES_MAX",
+    "MIN_EXIF_FIELD_DEG",
+    "MAX_EXIF_FIELD_DEG",
     "RedetectBelow",
+    "ExifOrientation",
+    "Cameras",
     "fail",
     "warn",
     "stdout_failure",
@@ -26,6 +33,10 @@ __all__ = [
     "check_image_file",
     "implausible_intrinsics",
     "image_size",
+    "pipeline_options",
+    "given_cameras",
+    "exif_camera",
+    "exif_note",
     "ProgressReport",
 ]
 
@@ -119,6 +130,29 @@ RedetectBelow = Annotated[
         rich_help_panel=_PANEL,
     ),
 ]
+KOption = Annotated[
+    str | None,
+    typer.Option(
+        "--K",
+        help="Intrinsics fx,fy,cx,cy or the 9 numbers of K (none: --calib, else the EXIF focal "
+        "length, with a warning).",
+    ),
+]
+K2Option = Annotated[
+    str | None, typer.Option("--K2", help="Intrinsics of camera 2 (default: --K).")
+]
+CalibOption = Annotated[
+    Path | None,
+    typer.Option("--calib", help="OpenCV YAML/XML, COLMAP cameras.txt or JSON calibration file."),
+]
+ExifOrientation = Annotated[
+    bool,
+    typer.Option(
+        "--exif-orientation/--no-exif-orientation",
+        help="Turn each photo upright as its EXIF orientation says (--no-exif-orientation: "
+        "the pixels as stored, for a stale tag).",
+    ),
+]
 Overwrite = Annotated[
     bool,
     typer.Option("--overwrite", help="Replace an existing output (never done without it)."),
@@ -163,6 +197,151 @@ def _fmt(value: float) -> str:
     return "d" if isinstance(value, int) else "g"
 
 
+def pipeline_options(
+    features: str = "sift",
+    max_features: int = 8000,
+    max_size: int = 2000,
+    ratio: float = 0.9,
+    backend: str = "pycolmap",
+    threshold: float = 1.0,
+    seed: int = 0,
+    pri_threshold: float | None = None,
+    max_log10_nfa: float | None = None,
+    plane: bool = True,
+    photometric: bool = True,
+    principal_point: str = "auto",
+    focal_ratio: str = "auto",
+    redetect_below: int = 100,
+):
+    """PairOptions from command-line values, each bounded up front (ValueError naming it)."""
+    from ppo_cv.pipeline import PairOptions
+    from ppo_cv.ppo import DEFAULT_PRI_THRESHOLD
+    from ppo_cv.significance import DEFAULT_MAX_LOG10_NFA
+
+    check_range("--seed", seed, 0, SEED_MAX)
+    check_range("--max-features", max_features, 8, MAX_FEATURES_MAX)
+    if max_size != 0:
+        check_range("--max-size (0: full size)", max_size, 32, MAX_SIZE_MAX)
+    check_range("--ratio", ratio, 1e-6, 1.0)
+    check_range("--redetect-below", redetect_below, 0, MAX_FEATURES_MAX)
+    check_range("--threshold (pixels)", threshold, 1e-6, 100.0)
+    pri_threshold = DEFAULT_PRI_THRESHOLD if pri_threshold is None else pri_threshold
+    check_range("--pri-threshold", pri_threshold, 0.0, 1.0)
+    max_log10_nfa = DEFAULT_MAX_LOG10_NFA if max_log10_nfa is None else max_log10_nfa
+    if max_log10_nfa != float("inf"):
+        check_range("--max-log10-nfa", max_log10_nfa, -1e6, 1e6)
+    return PairOptions(
+        features=features.lower(),
+        max_features=max_features,
+        max_image_size=max_size or None,
+        ratio=ratio,
+        backend=backend.lower(),
+        ransac_threshold=threshold,
+        seed=seed,
+        pri_threshold=pri_threshold,
+        max_log10_nfa=max_log10_nfa,
+        plane=plane,
+        photometric=photometric,
+        principal_point=principal_point.lower(),
+        focal_ratio=focal_ratio.lower(),
+        redetect_below=redetect_below,
+    )
+
+
+@dataclass(frozen=True)
+class Cameras:
+    """The intrinsics and distortion of the two images of a pair (``dist``: None for none)."""
+
+    K1: Any
+    dist1: Any
+    K2: Any
+    dist2: Any
+
+
+def given_cameras(K, K2, dist, dist2, calib) -> Cameras | None:
+    """The cameras the options give (``--K``, ``--K2``, ``--dist``, ``--dist2``, ``--calib``);
+    None when they give no intrinsics. ValueError naming a malformed or conflicting option."""
+    from ppo_cv.calib import load_calibration, parse_distortion, parse_intrinsics
+
+    d1 = parse_distortion(dist, "--dist") if dist else None
+    d2 = parse_distortion(dist2, "--dist2") if dist2 else None
+    if calib is not None:
+        if K is not None:
+            raise ValueError("give either --K or --calib, not both")
+        cameras = load_calibration(calib)
+        first, second = cameras[0], cameras[1] if len(cameras) > 1 else cameras[0]
+        K2v = parse_intrinsics(K2, "--K2") if K2 else second.K
+        d2 = d2 if d2 is not None else (second.dist if not K2 else None)
+        return Cameras(first.K, d1 if d1 is not None else first.dist, K2v, d2)
+    if K is None:
+        if K2:
+            raise ValueError("--K2 needs --K (or --calib) for the first camera")
+        return None
+    K1 = parse_intrinsics(K, "--K")
+    if K2:
+        return Cameras(K1, d1, parse_intrinsics(K2, "--K2"), d2)
+    return Cameras(K1, d1, K1, d2 if d2 is not None else d1)
+
+
+MIN_EXIF_FIELD_DEG, MAX_EXIF_FIELD_DEG = 15.0, 120.0
+"""Horizontal fields of view an EXIF focal length may imply without a warning: 15 degrees is a
+135 mm lens on a full-frame camera, about a phone's longest telephoto; 120 degrees is a 10 mm
+lens, beyond which lenses are fisheyes that a pinhole camera with a centred principal point does
+not describe. Outside, the focal length is more likely that of another image size (a resized
+or cropped copy)."""
+
+
+def exif_camera(path, exif_orientation: bool = True) -> tuple[Any, bool, list[str]]:
+    """``(K, from_exif, warnings)`` of the camera guessed from an image's EXIF.
+
+    ``from_exif`` is False when the image has no usable EXIF focal length (the focal length is
+    then 1.2 times the larger image side). The warnings say when the EXIF pixel dimensions are
+    not those of the image (a resized or cropped copy keeps the focal length of the original)
+    and when the horizontal field of view the focal length implies lies outside
+    :data:`MIN_EXIF_FIELD_DEG`..:data:`MAX_EXIF_FIELD_DEG`.
+    """
+    from ppo_cv.calib import camera_from_exif
+    from ppo_cv.images import exif_layout
+
+    camera, from_exif = camera_from_exif(path, exif_orientation)
+    K = camera.K
+    if not from_exif:
+        return K, False, []
+    warnings = []
+    width, height = round(2 * K[0, 2]), round(2 * K[1, 2])
+    recorded = exif_layout(path).pixel_size
+    if recorded is not None and sorted(recorded) != sorted((width, height)):
+        warnings.append(
+            f"{path}: the EXIF says the photo was {recorded[0]}x{recorded[1]} pixels, the image "
+            f"is {width}x{height} (resized or cropped?), so its EXIF focal length may not fit; "
+            "pass --K or --calib"
+        )
+    field = math.degrees(2.0 * math.atan(width / (2.0 * K[0, 0])))
+    if not MIN_EXIF_FIELD_DEG <= field <= MAX_EXIF_FIELD_DEG:
+        warnings.append(
+            f"{path}: the EXIF focal length f={K[0, 0]:.1f} px gives a {field:.1f} deg "
+            f"horizontal field of view at {width} px wide, outside "
+            f"{MIN_EXIF_FIELD_DEG:g}..{MAX_EXIF_FIELD_DEG:g} deg; pass --K or --calib"
+        )
+    return K, True, warnings
+
+
+def exif_note(focals: tuple[float, float], found: tuple[bool, bool], names=("", "")) -> str:
+    """The warning of intrinsics taken from EXIF: which images had a focal length, what was
+    guessed for the others (``names``: of the two images, for the one without)."""
+    focal = f"f={focals[0]:.1f} and {focals[1]:.1f} px"
+    if all(found):
+        return (
+            f"no intrinsics given: using the EXIF focal lengths ({focal}, centred principal "
+            "point); pass --K or --calib for accurate results"
+        )
+    where = "either image" if not any(found) else (names[1] if found[0] else names[0])
+    return (
+        f"no intrinsics given and no EXIF focal length in {where}: guessing {focal} "
+        "(1.2 x image size); the pose will be rough, pass --K or --calib"
+    )
+
+
 def check_image_file(path: str | os.PathLike) -> None:
     """ValueError unless ``path`` is an existing regular file (a FIFO would block a reader)."""
     from ppo_cv.images import check_regular_file
@@ -192,13 +371,16 @@ def _at_turned_centre(cx: float, cy: float, width: int, height: int) -> bool:
     return turned <= tolerance < centre - turned
 
 
-def implausible_intrinsics(K, size: tuple[int, int] | None, name: str = "--K") -> str | None:
+def implausible_intrinsics(
+    K, size: tuple[int, int] | None, name: str = "--K", exif_turned: bool = False
+) -> str | None:
     """A warning when ``K`` does not fit an image of ``size`` (width, height), else None.
 
     Plausible: focal lengths within 0.1 to 10 times the larger image side and the principal
-    point inside the image, and not at the centre of the image turned a quarter (a camera
-    matrix of the stored pixels of a photo that its EXIF orientation shows upright), within
+    point inside the image, and not at the centre of the image turned a quarter, within
     :data:`TURNED_CENTRE_TOLERANCE` of the larger side and closer to it than to the centre.
+    ``exif_turned``: the image was turned upright by its EXIF orientation, and the warning
+    then names that likely cause (a camera matrix of the stored pixels).
     """
     if size is None:
         return None
@@ -211,9 +393,14 @@ def implausible_intrinsics(K, size: tuple[int, int] | None, name: str = "--K") -
     if not (0.0 <= cx <= width and 0.0 <= cy <= height):
         problems.append(f"principal point ({cx:g}, {cy:g}) is outside the {width}x{height} image")
     elif _at_turned_centre(cx, cy, width, height):
+        cause = (
+            "a camera for the pixels as stored, where the EXIF orientation turns the image "
+            "upright (--no-exif-orientation reads them as stored)?"
+            if exif_turned
+            else "a camera of the image turned a quarter?"
+        )
         problems.append(
-            f"principal point ({cx:g}, {cy:g}) is the centre of a {height}x{width} image: a "
-            "camera for the pixels as stored, where the EXIF orientation turns the image upright?"
+            f"principal point ({cx:g}, {cy:g}) is the centre of a {height}x{width} image: {cause}"
         )
     if not problems:
         return None

@@ -28,7 +28,7 @@ _PYCOLMAP_COMMANDS = {"pair", "demo", "pairs", "sfm"}
 def _app():
     import typer
 
-    from ppo_cv.cli import pair, sfm, synth
+    from ppo_cv.cli import batch, pair, sfm, synth
 
     application = typer.Typer(
         name="ppo-cv",
@@ -37,7 +37,7 @@ def _app():
         add_completion=False,
         pretty_exceptions_enable=False,
     )
-    for module in (synth, sfm, pair):
+    for module in (synth, sfm, pair, batch):
         module.register(application)
     return application
 

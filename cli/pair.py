@@ -1,4 +1,4 @@
-"""``ppo-cv pair``, ``ppo-cv demo`` and ``ppo-cv pairs``: relative pose of real image pairs."""
+"""``ppo-cv pair`` and ``ppo-cv demo``: relative pose of a real image pair."""
 
 from __future__ import annotations
 
@@ -9,12 +9,14 @@ from typing import Annotated, NoReturn
 import typer
 
 from .common import (
-    MAX_FEATURES_MAX,
-    MAX_SIZE_MAX,
-    SEED_MAX,
     Backend,
+    CalibOption,
+    Cameras,
+    ExifOrientation,
     Features,
     FocalRatio,
+    K2Option,
+    KOption,
     MaxFeatures,
     MaxLog10Nfa,
     MaxSize,
@@ -28,9 +30,12 @@ from .common import (
     Seed,
     Threshold,
     check_image_file,
-    check_range,
+    exif_camera,
+    exif_note,
     fail,
+    given_cameras,
     implausible_intrinsics,
+    pipeline_options,
     print_result,
     warn,
 )
@@ -46,77 +51,6 @@ def _warn(message: str, command: str = "pair") -> None:
     warn(command, message)
 
 
-def pipeline_options(
-    features: str = "sift",
-    max_features: int = 8000,
-    max_size: int = 2000,
-    ratio: float = 0.9,
-    backend: str = "pycolmap",
-    threshold: float = 1.0,
-    seed: int = 0,
-    pri_threshold: float | None = None,
-    max_log10_nfa: float | None = None,
-    plane: bool = True,
-    photometric: bool = True,
-    principal_point: str = "auto",
-    focal_ratio: str = "auto",
-    redetect_below: int = 100,
-):
-    """PairOptions from command-line values, each bounded up front (ValueError naming it)."""
-    from ppo_cv.pipeline import PairOptions
-    from ppo_cv.ppo import DEFAULT_PRI_THRESHOLD
-    from ppo_cv.significance import DEFAULT_MAX_LOG10_NFA
-
-    check_range("--seed", seed, 0, SEED_MAX)
-    check_range("--max-features", max_features, 8, MAX_FEATURES_MAX)
-    if max_size != 0:
-        check_range("--max-size (0: full size)", max_size, 32, MAX_SIZE_MAX)
-    check_range("--ratio", ratio, 1e-6, 1.0)
-    check_range("--redetect-below", redetect_below, 0, MAX_FEATURES_MAX)
-    check_range("--threshold (pixels)", threshold, 1e-6, 100.0)
-    pri_threshold = DEFAULT_PRI_THRESHOLD if pri_threshold is None else pri_threshold
-    check_range("--pri-threshold", pri_threshold, 0.0, 1.0)
-    max_log10_nfa = DEFAULT_MAX_LOG10_NFA if max_log10_nfa is None else max_log10_nfa
-    if max_log10_nfa != float("inf"):
-        check_range("--max-log10-nfa", max_log10_nfa, -1e6, 1e6)
-    return PairOptions(
-        features=features.lower(),
-        max_features=max_features,
-        max_image_size=max_size or None,
-        ratio=ratio,
-        backend=backend.lower(),
-        ransac_threshold=threshold,
-        seed=seed,
-        pri_threshold=pri_threshold,
-        max_log10_nfa=max_log10_nfa,
-        plane=plane,
-        photometric=photometric,
-        principal_point=principal_point.lower(),
-        focal_ratio=focal_ratio.lower(),
-        redetect_below=redetect_below,
-    )
-
-
-def _exif_cameras(image1, image2):
-    """K1, K2 and a warning, from the EXIF focal lengths of the two images."""
-    from ppo_cv.calib import camera_from_exif
-
-    (camera1, exif1), (camera2, exif2) = camera_from_exif(image1), camera_from_exif(image2)
-    focal = f"f={camera1.K[0, 0]:.1f} and {camera2.K[0, 0]:.1f} px"
-    if exif1 and exif2:
-        note = (
-            f"no intrinsics given: using the EXIF focal lengths ({focal}, centred principal "
-            "point); pass --K or --calib for accurate results"
-        )
-    else:
-        note = (
-            f"no intrinsics given and no EXIF focal length in "
-            f"{'both images' if not (exif1 or exif2) else (image2 if exif1 else image1)}: "
-            f"guessing {focal} (1.2 x image size); the pose will be rough, pass --K or --calib"
-        )
-    return camera1.K, camera2.K, note
-
-
 def _require_one_size(images, sizes, source: str) -> None:
     """ValueError when one camera matrix (``source``) would serve images of two sizes, as
     :func:`ppo_cv.pipeline.estimate_pair` refuses it."""
@@ -128,47 +62,50 @@ def _require_one_size(images, sizes, source: str) -> None:
         )
 
 
-def _calibrated_cameras(calib, images, sizes, K2):
-    """(camera 1, camera 2 or None when --K2 replaces it, notes) of a calibration file, each
-    fitted to its image's size (:func:`ppo_cv.calib.fit_to_image`)."""
-    from ppo_cv.calib import fit_to_image, load_calibration
+def _calibrated_cameras(calib, images, sizes, K2, dist, dist2):
+    """(Cameras, notes) of a calibration file, each camera fitted to its image's size
+    (:func:`ppo_cv.calib.fit_to_image`); ``--K2``, ``--dist``, ``--dist2`` override it."""
+    from ppo_cv.calib import fit_to_image, load_calibration, parse_distortion, parse_intrinsics
 
     cameras = load_calibration(calib)
     if len(cameras) == 1 and not K2 and cameras[0].image_size is None:
         _require_one_size(images, sizes, f"--calib {calib}")
     name = f"--calib {calib}"
-    fitted = [fit_to_image(cameras[0], sizes[0], name, str(images[0]))]
-    if not K2:
-        fitted.append(fit_to_image(cameras[-1], sizes[1], name, str(images[1])))
-    notes = [note for _, note in fitted if note]
-    return fitted[0][0], fitted[1][0] if len(fitted) > 1 else None, notes
+    first, note1 = fit_to_image(cameras[0], sizes[0], name, str(images[0]))
+    notes = [note1] if note1 else []
+    if K2:
+        K2v, d2 = parse_intrinsics(K2, "--K2"), None
+    else:
+        second, note2 = fit_to_image(cameras[-1], sizes[1], name, str(images[1]))
+        K2v, d2 = second.K, second.dist
+        notes += [note2] if note2 else []
+    d1 = parse_distortion(dist, "--dist") if dist else first.dist
+    d2 = parse_distortion(dist2, "--dist2") if dist2 else d2
+    return Cameras(first.K, d1, K2v, d2), notes
 
 
-def _cameras(images, sizes, K, K2, dist, dist2, calib):
-    """(K1, dist1, K2, dist2, EXIF note, notes) from the options, a calibration file or EXIF;
+def _cameras(images, sizes, K, K2, dist, dist2, calib, exif_orientation=True):
+    """(Cameras, EXIF note, warnings) from the options, a calibration file or EXIF;
     ``sizes`` are the images' (width, height)."""
-    from ppo_cv.calib import parse_distortion, parse_intrinsics
+    from ppo_cv.calib import parse_distortion
 
-    d1 = parse_distortion(dist, "--dist") if dist else None
-    d2 = parse_distortion(dist2, "--dist2") if dist2 else None
     if calib is not None:
         if K is not None:
             raise ValueError("give either --K or --calib, not both")
-        first, second, notes = _calibrated_cameras(calib, images, sizes, K2)
-        K1, d1 = first.K, d1 if d1 is not None else first.dist
-        K2v = parse_intrinsics(K2, "--K2") if K2 else second.K
-        d2 = d2 if d2 is not None else (second.dist if not K2 else None)
-        return K1, d1, K2v, d2, None, notes
-    if K is None:
-        if K2:
-            raise ValueError("--K2 needs --K (or --calib) for the first camera")
-        K1, K2v, note = _exif_cameras(*images)
-        return K1, d1, K2v, d2 if d2 is not None else d1, note, []
-    K1 = parse_intrinsics(K, "--K")
-    if K2:
-        return K1, d1, parse_intrinsics(K2, "--K2"), d2, None, []
-    _require_one_size(images, sizes, "--K")
-    return K1, d1, K1, d2 if d2 is not None else d1, None, []
+        cameras, notes = _calibrated_cameras(calib, images, sizes, K2, dist, dist2)
+        return cameras, None, notes
+    cameras = given_cameras(K, K2, dist, dist2, None)
+    if cameras is not None:
+        if not K2:
+            _require_one_size(images, sizes, "--K")
+        return cameras, None, []
+    (K1, found1, warnings1), (K2v, found2, warnings2) = (
+        exif_camera(image, exif_orientation) for image in images
+    )
+    note = exif_note((K1[0, 0], K2v[0, 0]), (found1, found2), tuple(str(i) for i in images))
+    d1 = parse_distortion(dist, "--dist") if dist else None
+    d2 = parse_distortion(dist2, "--dist2") if dist2 else d1
+    return Cameras(K1, d1, K2v, d2), note, [*warnings1, *warnings2]
 
 
 def _demo_inputs():
@@ -288,6 +225,68 @@ def _lens_lines(result) -> list[str]:
     return [*lines, f"  lens fit     {text}"]
 
 
+def _deciding_test(result) -> str:
+    """Which test settled the model: the test, then what it found."""
+    from ppo_cv.motion_model import LENS_SIGNIFICANCE, MAX_COHERENT_SHARE
+    from ppo_cv.rotation import PRINCIPAL_BOUND
+
+    gric = f"{result.gric_difference:+.3f} per match"
+    parallax = float(getattr(result, "track_parallax", float("nan")))
+    tracks = (
+        f"the tracks' parallax: the intensity-aligned windows fit a plane that moved {parallax:.4f}"
+        " of its distance"
+    )
+    if result.pure_rotation:
+        if parallax == parallax and result.gric_difference > 0:
+            return f"{tracks}, negligible (GRIC alone preferred a translation, {gric})"
+        return f"GRIC and PRI: a rotation explains the matches ({gric}), PRI below its threshold"
+    if result.model == "plane":
+        return (
+            "GRIC: the homography explains the matches better than the essential matrix "
+            f"({result.gric_plane_difference:+.3f} per match)"
+        )
+    if result.gric_difference > 0:
+        agrees = "; PRI agrees" if result.pri >= result.pri_threshold else ""
+        if parallax == parallax:
+            agrees += f"; so do the tracks' parallax ({parallax:.4f} of the distance)"
+        return (
+            f"GRIC: the essential matrix explains the matches better than a rotation ({gric})"
+            + agrees
+        )
+    excess = float(getattr(result, "lens_excess", float("nan")))
+    if excess > LENS_SIGNIFICANCE:
+        return f"the lens fit: a rotation would need an implausible lens ({excess:.1f} deviations)"
+    if float(getattr(result, "coherent_share", 0.0)) > MAX_COHERENT_SHARE:
+        return "coherent parallax: many matches move together off the rotation"
+    if parallax == parallax:
+        return f"{tracks}, more than a rotation shows"
+    if getattr(result, "principal_bound", PRINCIPAL_BOUND) > PRINCIPAL_BOUND:
+        return "the lens fit: a rotation would need the principal point moved implausibly far"
+    return "PRI: a rotation explains the matches, but their PRI is at or above its threshold"
+
+
+def _verdict(result) -> str:
+    """The model and the test that decided it (GRIC, PRI, the lens fit, the tracks' parallax)."""
+    model = (
+        "pure rotation (translation undetermined, no 3D points)"
+        if result.pure_rotation
+        else "plane (translation determined, pose from its homography)"
+        if result.model == "plane"
+        else "general motion (translation determined)"
+    )
+    return f"{model}; decided by {_deciding_test(result)}"
+
+
+def _pri_text(result) -> str:
+    """PRI against its threshold, saying when another test overruled what PRI alone says."""
+    below = result.pri < result.pri_threshold
+    side = "below" if below else "at or above"
+    text = f"{result.pri:.4f} ({side} the threshold {result.pri_threshold:g}"
+    if below != bool(result.pure_rotation):
+        return text + "; not the deciding test, see verdict)"
+    return text + ")"
+
+
 def _summary(result, name1: str, name2: str, note: str | None, reference=None) -> str:
     import numpy as np
 
@@ -296,13 +295,6 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
 
     angle, axis = rotation_angle_axis(result.R)
     yaw, pitch, roll = camera_euler_degrees(result.R)
-    verdict = (
-        "pure rotation: translation undetermined, no 3D points"
-        if result.pure_rotation
-        else "plane (translation determined, pose from its homography)"
-        if result.model == "plane"
-        else "general motion (translation determined)"
-    )
     t = np.asarray(result.t)
     vector = f"({t[0]:+.4f}, {t[1]:+.4f}, {t[2]:+.4f})"
 
@@ -313,6 +305,7 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
 
     lines = [
         f"{name1} -> {name2}",
+        f"  verdict      {_verdict(result)}",
         f"  convention   {POSE_CONVENTION}; camera axes x right, y down, z forward",
         f"  rotation     {angle:.3f} deg about ({axis[0]:+.4f}, {axis[1]:+.4f}, {axis[2]:+.4f})",
         f"  euler        yaw {yaw:+.3f} (about y)  pitch {pitch:+.3f} (about x)  "
@@ -322,7 +315,7 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
         else f"  translation  {vector}  [unit direction]",
         f"  camera 1     {camera(result.K1, result.dist1)}",
         f"  camera 2     {camera(result.K2, result.dist2)}",
-        f"  PRI          {result.pri:.4f} (threshold {result.pri_threshold:g}): {verdict}",
+        f"  PRI          {_pri_text(result)}",
         f"  model        {result.model}: median residual rotation "
         f"{result.rotation_residual_px:.2f} px, general {result.general_residual_px:.2f} px, "
         f"GRIC difference {result.gric_difference:+.3f} per match",
@@ -351,12 +344,24 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
     return "\n".join(lines)
 
 
+def _check_cameras(cameras, images, names, turned, command) -> None:
+    """Warn (once) when a given camera matrix does not fit its image."""
+    for matrix, img, name, exif_turned in zip(
+        (cameras.K1, cameras.K2), images, names, turned, strict=True
+    ):
+        doubt = implausible_intrinsics(matrix, (img.shape[1], img.shape[0]), name, exif_turned)
+        if doubt:
+            _warn(doubt, command)
+            return
+
+
 def _run_pair(
     image1, image2, K, K2, dist, dist2, calib, as_json, out, options, note=None, reference=None,
-    overwrite=False, command="pair",
+    overwrite=False, command="pair", exif_orientation=True,
 ):  # fmt: skip
     from ppo_cv.atomic import check_target
     from ppo_cv.features import require_detectable
+    from ppo_cv.images import exif_layout
     from ppo_cv.pipeline import estimate_pair, load_image
 
     try:
@@ -365,22 +370,22 @@ def _run_pair(
             check_target(out, "folder", overwrite, inputs, "--out ")
         for image in (image1, image2):
             check_image_file(image)
-        img1, img2 = load_image(image1), load_image(image2)
+        img1, img2 = (load_image(i, exif_orientation=exif_orientation) for i in (image1, image2))
         for img, image in ((img1, image1), (img2, image2)):
             require_detectable(img.shape, str(image), options.max_image_size)
         sizes = [(img.shape[1], img.shape[0]) for img in (img1, img2)]
-        K1, d1, K2v, d2, exif_note, notes = _cameras(
-            (image1, image2), sizes, K, K2, dist, dist2, calib
+        cameras, exif_text, notes = _cameras(
+            (image1, image2), sizes, K, K2, dist, dist2, calib, exif_orientation
         )
-        for message in [exif_note] if exif_note else notes:
+        for message in [exif_text, *notes] if exif_text else notes:
             _warn(message, command)
-        sources = ("--calib", "--calib") if calib is not None else ("--K", "--K2" if K2 else "--K")
-        for matrix, img, name in ((K1, img1, sources[0]), (K2v, img2, sources[1])):
-            doubt = implausible_intrinsics(matrix, (img.shape[1], img.shape[0]), name)
-            if doubt and not exif_note:
-                _warn(doubt, command)
-                break
-        result = estimate_pair(img1, img2, K1, K2v, d1, d2, options=options)
+        if not exif_text:
+            second = "--K2" if K2 else "--K"
+            sources = ("--calib", "--calib") if calib is not None else ("--K", second)
+            turned = [exif_orientation and exif_layout(i).turned for i in (image1, image2)]
+            _check_cameras(cameras, (img1, img2), sources, turned, command)
+        d1, d2 = cameras.dist1, cameras.dist2
+        result = estimate_pair(img1, img2, cameras.K1, cameras.K2, d1, d2, options=options)
         names = (Path(image1).name, Path(image2).name)
         if names[0] == names[1]:
             names = (f"1_{names[0]}", f"2_{names[1]}")
@@ -416,11 +421,9 @@ _Out = Annotated[
 
 
 def register(app: typer.Typer) -> None:
-    """Add ``pair``, ``demo`` and ``pairs`` to ``app``."""
+    """Add ``pair`` and ``demo`` to ``app``."""
     from ppo_cv.ppo import DEFAULT_PRI_THRESHOLD
     from ppo_cv.significance import DEFAULT_MAX_LOG10_NFA
-
-    from . import batch
 
     @app.command()
     def pair(
@@ -428,24 +431,16 @@ def register(app: typer.Typer) -> None:
             Path | None, typer.Argument(help="First image (none: the built-in demo pair).")
         ] = None,
         image2: Annotated[Path | None, typer.Argument(help="Second image.")] = None,
-        K: Annotated[
-            str | None, typer.Option("--K", help="Intrinsics fx,fy,cx,cy or the 9 numbers of K.")
-        ] = None,
-        K2: Annotated[
-            str | None, typer.Option("--K2", help="Intrinsics of camera 2 (default: --K).")
-        ] = None,
+        K: KOption = None,
+        K2: K2Option = None,
         dist: Annotated[
             str | None, typer.Option("--dist", help="Distortion k1,k2,p1,p2[,k3].")
         ] = None,
         dist2: Annotated[
             str | None, typer.Option("--dist2", help="Distortion of camera 2 (default: --dist).")
         ] = None,
-        calib: Annotated[
-            Path | None,
-            typer.Option(
-                "--calib", help="OpenCV YAML/XML, COLMAP cameras.txt or JSON calibration file."
-            ),
-        ] = None,
+        calib: CalibOption = None,
+        exif_orientation: ExifOrientation = True,
         as_json: _Json = False,
         out: _Out = None,
         overwrite: Overwrite = False,
@@ -473,7 +468,11 @@ def register(app: typer.Typer) -> None:
         and the best unit guess under "t_guess".
 
         Without intrinsics the focal length is read from EXIF (with a
-        warning). Without images it runs on the built-in demo pair.
+        warning, and another when the EXIF pixel size is not the image's or
+        the field of view it implies is outside 15..120 deg). Photos are
+        turned upright as their EXIF orientation says unless
+        --no-exif-orientation. Without images it runs on the built-in demo
+        pair.
         """
         try:
             options = pipeline_options(
@@ -494,7 +493,7 @@ def register(app: typer.Typer) -> None:
             _fail("give two images (or none for the demo pair)")
         _run_pair(
             image1, image2, K, K2, dist, dist2, calib, as_json, out, options, note, reference,
-            overwrite,
+            overwrite, exif_orientation=exif_orientation,
         )  # fmt: skip
 
     @app.command()
@@ -509,5 +508,3 @@ def register(app: typer.Typer) -> None:
             image1, image2, K, None, None, None, None, as_json, out, options, note, reference,
             overwrite, "demo",
         )  # fmt: skip
-
-    batch.register(app)

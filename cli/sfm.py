@@ -12,10 +12,12 @@ import typer
 
 from .common import (
     SEED_MAX,
+    ExifOrientation,
     Overwrite,
     PriThreshold,
     Quiet,
     check_range,
+    exif_camera,
     fail,
     image_size,
     implausible_intrinsics,
@@ -39,8 +41,36 @@ def _fail(message: str, code: int = 2) -> None:
     fail("sfm", message, code)
 
 
+MAX_EXIF_WARNINGS = 3
+
+
+def _exif_warnings(image_dir: Path, names: list[str], exif_orientation: bool) -> None:
+    """The doubts about the images' EXIF focal lengths (:func:`exif_camera`), the first few."""
+    doubts = []
+    for name in names:
+        try:
+            doubts += exif_camera(image_dir / name, exif_orientation)[2]
+        except (ValueError, RuntimeError, OSError):  # unreadable: pycolmap's reading says so
+            continue
+    for message in doubts[:MAX_EXIF_WARNINGS]:
+        warn("sfm", message)
+    if len(doubts) > MAX_EXIF_WARNINGS:
+        warn("sfm", f"{len(doubts) - MAX_EXIF_WARNINGS} more doubtful EXIF focal lengths")
+
+
+def _stored_size(path: Path, exif_orientation: bool) -> tuple[tuple[int, int] | None, bool]:
+    """The image's size as the reconstruction sees it, and whether EXIF turned it upright."""
+    from ppo_cv.images import exif_layout
+
+    size = image_size(path)
+    turned = exif_orientation and exif_layout(path).turned
+    if size is not None and turned:
+        size = (size[1], size[0])
+    return size, turned
+
+
 def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads, seed,
-           pri_threshold, overwrite):  # fmt: skip
+           pri_threshold, overwrite, exif_orientation=True):  # fmt: skip
     """Every argument checked before the run; returns the camera matrix or None."""
     from ppo_cv import sfm
     from ppo_cv.atomic import check_apart, check_target
@@ -68,10 +98,12 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
             "no intrinsics given: pycolmap guesses the focal length from EXIF or the image "
             "size, and pure rotations are not reliably detected; pass --K fx,fy,cx,cy",
         )
+        _exif_warnings(Path(image_dir), names, exif_orientation)
         return None
     matrix = parse_K(K)
     if names:
-        doubt = implausible_intrinsics(matrix, image_size(Path(image_dir) / names[0]))
+        size, turned = _stored_size(Path(image_dir) / names[0], exif_orientation)
+        doubt = implausible_intrinsics(matrix, size, exif_turned=turned)
         if doubt:
             warn("sfm", doubt)
     return matrix
@@ -86,18 +118,21 @@ def register(app: typer.Typer) -> None:
         help="Reconstruct IMAGE_DIR into a COLMAP model in OUT_DIR, never from a pure rotation."
         "\n\npycolmap extracts SIFT features and matches all pairs; PPO ranks the candidate "
         "initial pairs, rejecting pure rotations and pairs without parallax (initial_pairs.txt "
-        "in OUT_DIR); pycolmap's incremental mapper starts from the best pair. OUT_DIR (and "
-        "--database) are written completely or not at all.",
+        "in OUT_DIR); pycolmap's incremental mapper starts from the best pair. Without --K "
+        "pycolmap estimates a camera per image size and EXIF focal length. OUT_DIR is written "
+        "completely or not at all; --database once the images are matched, and it is kept "
+        "when no model can be built from them (exit code 1).",
     )
     def sfm_command(
-        image_dir: Annotated[Path, typer.Argument(help="Folder of images of one camera.")],
+        image_dir: Annotated[Path, typer.Argument(help="Folder of images.")],
         out_dir: Annotated[Path, typer.Argument(help="New folder for the COLMAP model.")],
         K: Annotated[
             str | None,
             typer.Option(
                 "--K",
-                help="Intrinsics fx,fy,cx,cy, held fixed. Give them when known: without them "
-                "pycolmap guesses a focal length and pure rotations are not reliably detected.",
+                help="Intrinsics fx,fy,cx,cy, held fixed (all images of one size). Give them "
+                "when known: without them pycolmap guesses a focal length and pure rotations "
+                "are not reliably detected.",
             ),
         ] = None,
         init: Annotated[
@@ -111,6 +146,7 @@ def register(app: typer.Typer) -> None:
             Path | None, typer.Option("--database", help="Keep the feature database here (new).")
         ] = None,
         overwrite: Overwrite = False,
+        exif_orientation: ExifOrientation = True,
         max_features: Annotated[
             int,
             typer.Option("--max-features", help=f"SIFT features per image (1..{MAX_FEATURES})."),
@@ -130,7 +166,7 @@ def register(app: typer.Typer) -> None:
 
         try:
             matrix = _check(image_dir, out_dir, K, init, seeding, database, max_features,
-                            threads, seed, pri_threshold, overwrite)  # fmt: skip
+                            threads, seed, pri_threshold, overwrite, exif_orientation)  # fmt: skip
         except ValueError as exc:
             _fail(str(exc))
 
@@ -143,11 +179,13 @@ def register(app: typer.Typer) -> None:
                 image_dir, out_dir, K=matrix, initialization=init, seeding=seeding,
                 database_path=database, max_num_features=max_features, num_threads=threads,
                 seed=seed, verbose=verbose, progress=progress, overwrite=overwrite,
-                pri_threshold=pri_threshold,
+                pri_threshold=pri_threshold, exif_orientation=exif_orientation,
             )  # fmt: skip
+        except sfm.ReconstructionFailed as exc:
+            kept = f"; the matched features are in {database}" if database is not None else ""
+            _fail(f"{exc}{kept}", code=1)
         except (ValueError, OSError) as exc:
-            code = 1 if "nothing was reconstructed" in str(exc) else 2
-            _fail(str(exc), code)
+            _fail(str(exc))
         except RuntimeError as exc:
             _fail(f"pycolmap failed: {exc}", code=1)
         print_result("sfm", _summary(result, out_dir, as_json))

@@ -299,13 +299,15 @@ def load_calibration(path: str | os.PathLike) -> list[Camera]:
     return _read_colmap(path, text)
 
 
-def camera_from_exif(path: str | os.PathLike) -> tuple[Camera, bool]:
+def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> tuple[Camera, bool]:
     """A camera guessed from an image's EXIF focal length, centred principal point.
 
     The camera is that of the image as :func:`ppo_cv.images.load_image` (OpenCV) decodes it:
     upright when the EXIF orientation turns the stored pixels by a quarter (a photo taken with
     the camera held upright), where COLMAP's guess describes the stored pixels (its principal
-    point then lies at ``(h / 2, w / 2)`` of the upright image).
+    point then lies at ``(h / 2, w / 2)`` of the upright image). ``exif_orientation=False``
+    gives the camera of the stored pixels, as ``load_image(..., exif_orientation=False)``
+    shows them.
 
     Returns
     -------
@@ -320,7 +322,7 @@ def camera_from_exif(path: str | os.PathLike) -> tuple[Camera, bool]:
 
     camera = pycolmap.infer_camera_from_image(os.fspath(path))
     K = np.asarray(camera.calibration_matrix(), dtype=np.float64)
-    if decoded_transposed(path, int(camera.width), int(camera.height)):
+    if exif_orientation and decoded_transposed(path, int(camera.width), int(camera.height)):
         K = K[[1, 0, 2]][:, [1, 0, 2]]
     return Camera(_matrix_from_values(K, "EXIF camera")), bool(camera.has_prior_focal_length)
 

@@ -23,6 +23,7 @@ import stat
 import struct
 import sys
 from collections.abc import Iterator
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -32,11 +33,13 @@ from .features import to_uint8
 __all__ = [
     "DEFAULT_MAX_PIXELS",
     "MAX_PIXELS_ENV",
+    "ExifLayout",
     "as_image",
     "check_decodes",
     "check_header",
     "check_regular_file",
     "decoded_transposed",
+    "exif_layout",
     "image_size",
     "load_image",
     "native_messages_silenced",
@@ -139,6 +142,49 @@ def check_decodes(path: str | os.PathLike, max_pixels: int | None = None) -> Non
         raise ValueError(f"not a readable image: {path}")
 
 
+@dataclass(frozen=True)
+class ExifLayout:
+    """What an image's EXIF tags say about its pixels.
+
+    Attributes
+    ----------
+    orientation : int or None
+        The Orientation tag (1: stored upright, 5-8: stored turned a quarter); None without one.
+    pixel_size : tuple of (int, int) or None
+        ``(PixelXDimension, PixelYDimension)``: the size the camera wrote, which a resized or
+        cropped copy no longer has; None without them.
+    """
+
+    orientation: int | None = None
+    pixel_size: tuple[int, int] | None = None
+
+    @property
+    def turned(self) -> bool:
+        """Whether the orientation shows the stored pixels turned a quarter."""
+        return self.orientation in (5, 6, 7, 8)
+
+
+_ORIENTATION_TAG, _EXIF_IFD, _PIXEL_X_TAG, _PIXEL_Y_TAG = 0x0112, 0x8769, 0xA002, 0xA003
+
+
+def exif_layout(path: str | os.PathLike) -> ExifLayout:
+    """The EXIF orientation and pixel dimensions of an image file (empty when it has none or
+    Pillow cannot read it)."""
+    try:
+        from PIL import Image
+
+        with Image.open(os.fspath(path)) as image:
+            exif = image.getexif()
+            orientation = exif.get(_ORIENTATION_TAG)
+            sub = exif.get_ifd(_EXIF_IFD)
+            width, height = sub.get(_PIXEL_X_TAG), sub.get(_PIXEL_Y_TAG)
+    except Exception:  # no Pillow, not an image Pillow knows, a damaged EXIF block
+        return ExifLayout()
+    size = (int(width), int(height)) if width and height else None
+    known = isinstance(orientation, int) and 1 <= orientation <= 8
+    return ExifLayout(orientation if known else None, size)
+
+
 def decoded_transposed(path: str | os.PathLike, width: int, height: int) -> bool:
     """Whether :func:`load_image` shows a file stored as ``width x height`` pixels turned by a
     quarter (EXIF orientation 5-8: a camera held upright stores its pixels sideways, and
@@ -157,7 +203,9 @@ def decoded_transposed(path: str | os.PathLike, width: int, height: int) -> bool
     return abs(aspect - height / width) < abs(aspect - width / height)
 
 
-def load_image(path: str | os.PathLike, max_pixels: int | None = None) -> np.ndarray:
+def load_image(
+    path: str | os.PathLike, max_pixels: int | None = None, exif_orientation: bool = True
+) -> np.ndarray:
     """Read an image file as 8-bit BGR (H, W, 3), checking its size before decoding.
 
     Parameters
@@ -167,6 +215,9 @@ def load_image(path: str | os.PathLike, max_pixels: int | None = None) -> np.nda
     max_pixels : int, optional
         Largest accepted ``width * height``; default ``PPO_CV_MAX_IMAGE_PIXELS`` from the
         environment, else :data:`DEFAULT_MAX_PIXELS` (100 megapixels).
+    exif_orientation : bool
+        Turn the pixels as the EXIF orientation says (upright); False: as stored, for a photo
+        whose tag is stale.
 
     Returns
     -------
@@ -185,7 +236,7 @@ def load_image(path: str | os.PathLike, max_pixels: int | None = None) -> np.nda
     limit = _max_pixels(max_pixels)
     check_header(path, limit)
     data = np.fromfile(path, dtype=np.uint8)
-    image = _decode(data) if data.size else None
+    image = _decode(data, exif_orientation) if data.size else None
     if image is None:
         raise ValueError(f"not a readable image: {path}")
     if image.shape[0] * image.shape[1] > limit:
@@ -200,13 +251,15 @@ def load_image(path: str | os.PathLike, max_pixels: int | None = None) -> np.nda
     return cv2.cvtColor(grey, cv2.COLOR_GRAY2BGR)
 
 
-def _decode(data: np.ndarray) -> np.ndarray | None:
+def _decode(data: np.ndarray, exif_orientation: bool = True) -> np.ndarray | None:
     """The encoded image ``data`` decoded as BGR of its own depth, else unchanged (a
-    single-channel float TIFF, which OpenCV's colour decoding refuses), else None."""
+    single-channel float TIFF, which OpenCV's colour decoding refuses, and never turns), else
+    None; turned by its EXIF orientation unless ``exif_orientation`` is False."""
     import cv2
 
+    ignore = 0 if exif_orientation else cv2.IMREAD_IGNORE_ORIENTATION
     with native_messages_silenced():
-        image = cv2.imdecode(data, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH)
+        image = cv2.imdecode(data, cv2.IMREAD_COLOR | cv2.IMREAD_ANYDEPTH | ignore)
         if image is None:
             image = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
     if image is not None and image.ndim == 3 and image.shape[2] == 4:

@@ -55,6 +55,7 @@ from .rotation import focal_ratio_keywords, focal_ratio_prior
 __all__ = [
     "INITIALIZATIONS",
     "SEEDINGS",
+    "ReconstructionFailed",
     "MAX_THREADS",
     "PairScore",
     "SfmResult",
@@ -93,6 +94,11 @@ _HOMOGRAPHY_CONFIDENCE = 0.9999  # of the homography search on a pair's verified
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".ppm", ".pgm")
 
 Progress = Callable[[str], None]
+
+
+class ReconstructionFailed(ValueError):
+    """The images were read and matched, but no model could be built from them (no pair can
+    start one, or the mapper registered nothing); the message says why."""
 
 
 @dataclass(frozen=True)
@@ -256,13 +262,15 @@ def prepare_database(
     Parameters
     ----------
     image_dir : path
-        Folder of images (one camera).
+        Folder of images.
     database_path : path
         The database to create; it must not exist yet.
     K : array_like, shape (3, 3), optional
         Known intrinsics: one ``PINHOLE`` camera with a prior focal length, so that pycolmap
-        verifies pairs with an essential matrix. Without it pycolmap guesses a
-        ``SIMPLE_RADIAL`` camera from the image size.
+        verifies pairs with an essential matrix; the images must then all have one size.
+        Without it pycolmap guesses a ``SIMPLE_RADIAL`` camera from the EXIF focal length or
+        the image size, one for each image size and EXIF focal length
+        (``pycolmap.CameraMode.AUTO``).
     max_num_features : int
         SIFT features per image.
     num_threads : int
@@ -277,6 +285,12 @@ def prepare_database(
     -------
     int
         Number of images in the database: those :func:`screen_images` keeps.
+
+    Raises
+    ------
+    ValueError
+        Fewer than two images, images of several sizes with ``K``, or images pycolmap could not
+        read (named).
     """
     names, skipped = screen_images(image_dir)
     if len(names) < 2:
@@ -289,6 +303,7 @@ def prepare_database(
         raise ValueError(f"database {str(database_path)!r} already exists")
     reader = pycolmap.ImageReaderOptions()
     if K is not None:
+        _check_one_size(image_dir, names)
         K = as_camera_matrix(K, "K")
         reader.camera_model = "PINHOLE"
         reader.camera_params = ",".join(
@@ -309,7 +324,7 @@ def prepare_database(
             database_path,
             image_dir,
             image_names=names,
-            camera_mode=pycolmap.CameraMode.SINGLE,
+            camera_mode=pycolmap.CameraMode.AUTO if K is None else pycolmap.CameraMode.SINGLE,
             reader_options=reader,
             extraction_options=extraction,
             device=pycolmap.Device.cpu,
@@ -322,7 +337,52 @@ def prepare_database(
             device=pycolmap.Device.cpu,
         )
     with pycolmap.Database.open(database_path) as database:
-        return int(database.num_images())
+        read = {image.name for image in database.read_all_images()}
+    skipped = [name for name in names if name not in read]
+    if skipped:
+        more = f" and {len(skipped) - 5} more" if len(skipped) > 5 else ""
+        raise ValueError(
+            f"pycolmap could not read {len(skipped)} of {len(names)} images "
+            f"({', '.join(skipped[:5])}{more}): not an "
+            "image, or damaged"
+        )
+    return len(read)
+
+
+def _check_one_size(image_dir: str | os.PathLike, names: Sequence[str]) -> None:
+    """ValueError naming two sizes when the images (as stored) do not all have one."""
+    from .images import image_size
+
+    sizes = {}
+    for name in names:
+        size = image_size(Path(image_dir) / name)
+        if size is not None:
+            sizes.setdefault(size, name)
+    if len(sizes) > 1:
+        (size1, name1), (size2, name2) = list(sizes.items())[:2]
+        raise ValueError(
+            f"the images have {len(sizes)} sizes ({name1} {size1[0]}x{size1[1]}, {name2} "
+            f"{size2[0]}x{size2[1]}) and one camera matrix fits one size; omit --K to "
+            "estimate a camera per image size"
+        )
+
+
+def _no_initial_pair(pairs: Sequence[PairScore], num_images: int) -> str:
+    """Why no pair can start a reconstruction: the rejections counted by reason."""
+    if not pairs:
+        return (
+            f"no image pair qualifies as an initial pair: no two of the {num_images} images "
+            "share enough matches verified by pycolmap (different scenes, or too little overlap)"
+        )
+    reasons: dict[str, int] = {}
+    for pair in pairs:
+        reason = pair.rejection.split(" (")[0]
+        reasons[reason] = reasons.get(reason, 0) + 1
+    counted = ", ".join(f"{count} {reason}" for reason, count in reasons.items())
+    return (
+        f"no image pair qualifies as an initial pair: of {len(pairs)} matched "
+        f"pair{'s' if len(pairs) > 1 else ''}, {counted}"
+    )
 
 
 def score_pose(
@@ -623,7 +683,9 @@ def reconstruct(
         pairs = tuple(score_pairs(database_path, **scoring))
         candidates = [p for p in pairs if p.accepted][: max(1, int(max_init_trials))]
         if not candidates:
-            raise ValueError("no image pair qualifies as an initial pair (see score_pairs)")
+            with pycolmap.Database.open(database_path) as database:
+                num_images = int(database.num_images())
+            raise ReconstructionFailed(_no_initial_pair(pairs, num_images))
     models: list[pycolmap.Reconstruction] = []
     initial_pair = None
     with _quiet(verbose), pycolmap.Database.open(database_path) as database:
@@ -740,6 +802,7 @@ def run_sfm(
     verbose: bool = False,
     progress: Progress | None = None,
     overwrite: bool = False,
+    exif_orientation: bool = False,
     **scoring: Any,
 ) -> SfmResult:
     """Structure from motion of an image folder: features, matches, PPO-seeded mapping.
@@ -758,16 +821,28 @@ def run_sfm(
     seeding : {"two-view", "pair-options"}
         See :func:`reconstruct`.
     database_path : path, optional
-        Where to keep the feature database (a new file, renamed into place only when the run
-        succeeds); a temporary one by default.
+        Where to keep the feature database (a new file, renamed into place once the features
+        are matched, kept when no model can be built from them, never left half-written); a
+        temporary one by default.
     overwrite : bool
         Replace an existing ``output_dir`` (never ``database_path``).
+    exif_orientation : bool
+        Reconstruct the photos upright as their EXIF orientation says: those stored turned are
+        given to pycolmap as upright copies (same names, JPEG quality 95). False: the pixels as
+        stored, as pycolmap reads them.
     max_num_features, num_threads, seed, verbose, progress, **scoring
         See :func:`prepare_database` and :func:`reconstruct`.
 
     Returns
     -------
     SfmResult
+
+    Raises
+    ------
+    ReconstructionFailed
+        When the images were matched but no model could be built (the database is kept).
+    ValueError
+        For bad arguments or unreadable images, before anything is written.
     """
     _check_choices(initialization, seeding)
     image_dir = Path(image_dir)
@@ -779,9 +854,11 @@ def run_sfm(
         check_target(database_path, "file")
     with contextlib.ExitStack() as stack:
         scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="ppo-cv-sfm-")))
+        if exif_orientation:
+            image_dir = _upright_images(image_dir, scratch / "upright")
         database = scratch / "db.db"
         if database_path is not None:  # built beside its target, renamed when complete
-            database = stack.enter_context(_staged_file(database_path))
+            database = stack.enter_context(_staged_file(database_path, ReconstructionFailed))
         prepare_database(
             image_dir, database, K=K, max_num_features=max_num_features,
             num_threads=num_threads, seed=seed, verbose=verbose, progress=progress,
@@ -793,25 +870,55 @@ def run_sfm(
         )  # fmt: skip
         if output_dir is not None:
             if result.reconstruction is None:
-                raise ValueError("nothing was reconstructed; no model written")
+                raise ReconstructionFailed("nothing was reconstructed; no model written")
             write_model(result, output_dir, overwrite=overwrite)
             _say(progress, f"wrote {output_dir}")
     return result
 
 
+def _upright_images(image_dir: Path, folder: Path) -> Path:
+    """``image_dir`` itself when no image is stored turned or flipped, else a folder of links
+    to its images where those are replaced by upright copies of the same name."""
+    from PIL import Image, ImageOps
+
+    from .images import exif_layout
+
+    names = list_images(image_dir)
+    turned = [n for n in names if exif_layout(image_dir / n).orientation not in (None, 1)]
+    if not turned:
+        return image_dir
+    folder.mkdir()
+    for name in names:
+        if name not in turned:
+            (folder / name).symlink_to((image_dir / name).resolve())
+            continue
+        with Image.open(image_dir / name) as image:
+            upright = ImageOps.exif_transpose(image)
+            upright.save(folder / name, format=image.format, quality=95, exif=upright.getexif())
+    return folder
+
+
 @contextlib.contextmanager
-def _staged_file(path: str | os.PathLike) -> Iterator[Path]:
+def _staged_file(
+    path: str | os.PathLike, keep_on: type[BaseException] | tuple = ()
+) -> Iterator[Path]:
     """A path for a new file (with its side files) in a temporary sibling folder.
 
-    When the block succeeds the file is renamed to ``path``; otherwise the folder and all it
-    holds (a partial SQLite database and its journal) are removed.
+    When the block succeeds, or raises one of ``keep_on`` (the file being complete), the file
+    is renamed to ``path``; otherwise the folder and all it holds (a partial SQLite database
+    and its journal) are removed.
     """
     target = check_target(path, "file")
     staging = None
     try:
         with signals_deferred():
             staging = staging_folder(target)
-        yield staging / target.name
+        try:
+            yield staging / target.name
+        except keep_on:
+            with signals_deferred():
+                os.rename(staging / target.name, target)
+            raise
         with signals_deferred():
             os.rename(staging / target.name, target)
     finally:

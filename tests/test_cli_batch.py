@@ -16,9 +16,8 @@ from typer.testing import CliRunner
 import ppo_cv.features
 import ppo_cv.pipeline
 from ppo_cv.cli import batch
-from ppo_cv.cli.common import ProgressReport
+from ppo_cv.cli.common import ProgressReport, pipeline_options
 from ppo_cv.cli.main import app
-from ppo_cv.cli.pair import pipeline_options
 
 DATA = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
 DEMO = json.loads((DATA / "demo.json").read_text())

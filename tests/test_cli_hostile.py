@@ -696,9 +696,11 @@ def test_an_unexpected_error_is_the_pair_s_line_named_by_its_type(monkeypatch):
     monkeypatch.setattr("ppo_cv.pipeline.estimate_pair", broken)
     row = {"image1": "a.png", "image2": "b.png", "K1": None, "K2": None, "T": None}
     given = (("error", "not a readable image: a.png"), ("file", ""))
-    assert batch._pair_job((row, str(DATA), None, given))["error"] == given[0][1]
-    row = {**row, "image1": Path(DEMO1).name, "image2": Path(DEMO2).name}
-    outcome = batch._pair_job((row, str(DATA), None, None))
+    assert batch._pair_job((row, str(DATA), None, given, True))["error"] == given[0][1]
+    fx, fy, cx, cy = DEMO["intrinsics"]
+    K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+    row = {**row, "image1": Path(DEMO1).name, "image2": Path(DEMO2).name, "K1": K, "K2": K}
+    outcome = batch._pair_job((row, str(DATA), None, None, True))
     assert outcome["error"] == "ZeroDivisionError: float division by zero"
 
 

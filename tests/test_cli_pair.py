@@ -266,11 +266,14 @@ def test_pairs_with_ground_truth_prints_auc(tmp_path, freiburg):
     assert "AUC@5" in result.stdout and "| 3 | 0 |" in result.stdout
 
 
-def test_pairs_without_ground_truth_needs_intrinsics(tmp_path):
+def test_pairs_without_intrinsics_guesses_them_as_pair_does(tmp_path):
     pairs_file = tmp_path / "pairs.txt"
     pairs_file.write_text(f"{Path(DEMO1).name} {Path(DEMO2).name}\n")
-    result = runner.invoke(app, ["pairs", str(pairs_file), str(DATA)])
-    assert result.exit_code == 2 and "pass --K" in result.stderr
+    result = runner.invoke(app, ["pairs", str(pairs_file), str(DATA), "--workers", "1"])
+    assert result.exit_code == 0, result.output
+    (row,) = [json.loads(line) for line in result.stdout.splitlines()]
+    assert np.allclose(row["K1"][0][0], 768.0)  # no EXIF in the PNGs: 1.2 x the larger side
+    assert "warning: no intrinsics given" in result.stderr and "pass --K" in result.stderr
     result = runner.invoke(
         app, ["pairs", str(pairs_file), str(DATA), "--K", K_TEXT, "--workers", "1"]
     )

@@ -132,6 +132,7 @@ def test_a_translation_whose_lens_the_matches_clipped_is_not_flagged():
     assert f"{result.track_parallax:.4f}" in line and "edge of the plausible box" in line
 
 
+@pytest.mark.slow
 def test_a_stitched_translation_whose_lens_the_matches_clipped_is_not_flagged():
     stitched = data_gen.Imperfections(
         centred_principal_point=True, view_focal_error=0.01, exposure_ev=1.0, vignetting=0.35

@@ -10,6 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+pytestmark = pytest.mark.slow  # a report: each script's printed figures against its claims
+
 GALLERY = Path(__file__).resolve().parents[1] / "docs" / "gallery"
 SCRIPTS = sorted(p.stem for p in GALLERY.glob("*.py"))
 

@@ -136,6 +136,7 @@ def test_the_sfm_hook_never_starts_from_a_candidate():
     assert score == 0.0 and rejection.startswith("rotation not ruled out")
 
 
+@pytest.mark.slow
 def test_a_tripod_pan_whose_pivot_the_matches_see_is_flagged_by_its_tracks():
     """A 21 degree pan in a 34 degree field of 1600 x 1200 px, the camera 15 cm before the
     tripod's axis, focal lengths per photo and the centre as principal point: the feature matches

@@ -53,6 +53,7 @@ def _refused(image1, image2, K1, K2=None) -> str:
     return message
 
 
+@pytest.mark.slow
 def test_twenty_random_noise_pairs_give_no_pose():
     rng = np.random.default_rng(1)
     reasons = [
@@ -75,12 +76,14 @@ def _photo(name: str) -> np.ndarray:
     return cv2.resize(image[:, :, 2::-1], (320, 240), interpolation=cv2.INTER_AREA)
 
 
+@pytest.mark.slow
 def test_twenty_pairs_of_unrelated_photographs_give_no_pose():
     photos = {name: _photo(name) for name in PHOTOS}
     for a, b in list(itertools.combinations(PHOTOS, 2))[::-1][:20]:
         _refused(photos[a], photos[b], K_SMALL)
 
 
+@pytest.mark.slow
 def test_twenty_pairs_of_renders_of_different_scenes_give_no_pose():
     reasons = []
     for i in range(20):
@@ -219,6 +222,7 @@ MARGINAL_FREIBURG = (
 10 degrees of the pseudo ground truth: the default decision must keep them."""
 
 
+@pytest.mark.slow
 def test_marginal_freiburg_pairs_keep_their_pose_under_the_default_bar(freiburg):
     rows = {
         tuple(r.split()[:2]): r.split()

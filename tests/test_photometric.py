@@ -156,6 +156,7 @@ def test_refit_is_refused_on_unrelated_images_and_on_a_rotation_far_from_its_bou
     assert refined is None
 
 
+@pytest.mark.slow
 def test_pipeline_rotation_of_imperfect_renders_beats_the_feature_matches():
     errors, matches_errors = [], []
     for seed in range(4):
@@ -191,6 +192,7 @@ def test_json_and_summary_name_the_tracks():
     assert result_to_dict(general)["rotation_tracks"] == 0
 
 
+@pytest.mark.slow
 def test_rotation_sigma_of_the_tracks_covers_the_actual_errors():
     """Overlapping windows share pixels: the bound is inflated by their overlap, not below it."""
     ratios = []
@@ -277,7 +279,7 @@ def test_bad_arguments_are_named():
         refine_rotation_photometric(image, image, K, np.eye(2), np.eye(3))
 
 
-@pytest.mark.parametrize("index", [0, 1])
+@pytest.mark.parametrize("index", [0, pytest.param(1, marks=pytest.mark.slow)])
 def test_a_second_radial_term_nobody_models_does_not_break_the_refit(index):
     """Real lenses have k2 too; the lens model has k1 only (k2 = 2 k1 here, |k1| 0.05-0.1)."""
     from ppo_cv import data_gen

@@ -57,7 +57,7 @@ def test_lens_fit_finds_the_principal_point_a_centred_guess_missed():
 
 
 def test_one_percent_off_leaves_the_residual_the_readme_quotes():
-    # README: 1 % of a 640 px image off the centre, 30 deg field, 20 deg pan: 0.3 px median
+    # docs/python.md: 1 % of a 640 px image off the centre, 30 deg field, 20 deg pan: 0.3 px median
     x1, x2, R, focal = _exact_matches((0.01 * WIDTH, 0.0))
     fit = fit_rotation_lens(x1, x2, np.ones(len(x1), bool), R, noise=0.3 / focal)
     assert 0.25 < np.median(fit.residuals) * focal < 0.35
@@ -120,7 +120,9 @@ def test_an_offset_is_dropped_only_where_the_matches_place_it_beyond_the_bound(n
         assert np.median(fit.residuals) * focal > 0.1
 
 
-@pytest.mark.parametrize("imperfections", ["centred", "stitched"])
+@pytest.mark.parametrize(
+    "imperfections", ["centred", pytest.param("stitched", marks=pytest.mark.slow)]
+)
 def test_a_translation_whose_offset_passes_only_the_wide_bound_stays_general(imperfections):
     # baseline / depth 0.02: the fit moves the principal point beyond 2 % of the height, and
     # within 3 % the rotation wins GRIC; a candidate only, whose windows refuse it (centred:
@@ -144,7 +146,10 @@ def test_a_translation_whose_offset_passes_only_the_wide_bound_stays_general(imp
         assert "principal point moved" in line and "not called a pure rotation" in line
 
 
-@pytest.mark.parametrize("make, index, bound", [("warp", 23, 0.15), ("panorama", 11, 0.4)])
+@pytest.mark.parametrize(
+    "make, index, bound",
+    [("warp", 23, 0.15), pytest.param("panorama", 11, 0.4, marks=pytest.mark.slow)],
+)
 def test_a_narrow_pan_whose_principal_point_lies_near_the_bound_is_flagged(
     make, index, bound, request
 ):
@@ -174,7 +179,11 @@ def test_a_narrow_pan_whose_principal_point_lies_near_the_bound_is_flagged(
 
 @pytest.mark.parametrize(
     "size, seed, index, pivot",
-    [((640, 480), 1, 51, 0.08), ((1600, 1200), 1, 11, 0.08), ((640, 480), 3, 38, 0.15)],
+    [
+        ((640, 480), 1, 51, 0.08),
+        pytest.param((1600, 1200), 1, 11, 0.08, marks=pytest.mark.slow),
+        ((640, 480), 3, 38, 0.15),
+    ],
 )
 def test_a_narrow_pan_flagged_only_through_the_wide_bound(size, seed, index, pivot):
     # 20 deg pans in a 28-30 deg field, 8 or 15 cm before the axis, as stitched, the true

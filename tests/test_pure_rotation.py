@@ -287,7 +287,7 @@ def test_warped_photo_rotation_is_flagged_with_accurate_rotation(seed):
     assert 0.0 < result.rotation_sigma_deg < 1.0
 
 
-@pytest.mark.parametrize("seed", [0, 3])
+@pytest.mark.parametrize("seed", [0, pytest.param(3, marks=pytest.mark.slow)])
 def test_imperfect_render_rotation_is_flagged(seed):
     pair = imperfect_render(seed)
     result = estimate_pair(pair.image1, pair.image2, pair.K_given)
@@ -328,6 +328,7 @@ def _data_gen_result(pair):
     return estimate_pair(image1, image2, pair.K1_given, pair.K2_given)
 
 
+@pytest.mark.slow
 def test_data_gen_panorama_and_warped_photo_are_flagged():
     from ppo_cv import data_gen
 
@@ -340,7 +341,9 @@ def test_data_gen_panorama_and_warped_photo_are_flagged():
         assert rotation_error_deg(result.R, pair.R) < 0.5
 
 
-@pytest.mark.parametrize("index", [0, 1, 2])
+@pytest.mark.parametrize(
+    "index", [pytest.param(0, marks=pytest.mark.slow), pytest.param(1, marks=pytest.mark.slow), 2]
+)
 def test_tripod_pan_about_a_point_behind_the_lens_is_flagged(index):
     """A real tripod turns the camera about its screw, not the lens's centre: t of a few cm."""
     from ppo_cv import data_gen
@@ -357,7 +360,8 @@ def test_tripod_pan_about_a_point_behind_the_lens_is_flagged(index):
 
 
 @pytest.mark.parametrize(
-    ("kind", "index", "k2_fraction"), [("warp", 1, 2.0), ("panorama", 3, -2.0)]
+    ("kind", "index", "k2_fraction"),
+    [("warp", 1, 2.0), pytest.param("panorama", 3, -2.0, marks=pytest.mark.slow)],
 )
 def test_unmodelled_higher_order_distortion_in_a_narrow_overlap_keeps_the_flag(
     kind, index, k2_fraction, request
@@ -423,6 +427,7 @@ def test_a_small_baseline_whose_rotation_needs_an_implausible_focal_is_not_flagg
     assert f"lens {result.lens_excess:.1f} deviations beyond the plausible" in text
 
 
+@pytest.mark.slow
 def test_a_sideways_step_before_a_wall_that_the_matches_take_for_a_rotation_is_not_flagged():
     """Baseline / depth 0.02 across a back wall, principal point guessed at the centre: the
     rotation absorbs the nearly uniform shift on the feature matches and wins, but the plane of
@@ -452,7 +457,7 @@ def test_a_sideways_step_before_a_wall_that_the_matches_take_for_a_rotation_is_n
     assert f"moved {result.track_parallax:.4f} +-" in _summary(result, "a.png", "b.png", None)
 
 
-@pytest.mark.parametrize("index", [8, 11])
+@pytest.mark.parametrize("index", [8, pytest.param(11, marks=pytest.mark.slow)])
 def test_a_rotation_whose_features_are_worse_along_the_pan_is_flagged(index, freiburg_photos):
     """Sensor noise and blur on a warped photo locate the features worse along the pan than
     across it; the essential matrix, seeing only the component across its epipolar lines,
@@ -507,6 +512,7 @@ def _foliage_pair(seed: int, ratio: float):
     return image1, image2, K_given, R
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ratio", [0.0, 0.02])
 def test_leaves_at_many_depths_do_not_pass_for_noise(ratio):
     """The rotation's incoherent noise is measured between nearest neighbours; before foliage,
@@ -522,6 +528,7 @@ def test_leaves_at_many_depths_do_not_pass_for_noise(ratio):
         assert result.gric_difference > 0.5
 
 
+@pytest.mark.slow
 def test_automatic_exposure_and_vignetting_keep_the_decision():
     """Shots one stop apart at most, clipped at white, corners 35 % darker: a warped photo and
     a tripod pan stay flagged with an accurate rotation, a 2 % baseline stays general."""
@@ -585,6 +592,7 @@ def test_the_flag_does_not_rest_on_a_loosely_refined_essential_matrix(monkeypatc
     assert after.pure_rotation and rotation_error_deg(after.R, pair.R) < 0.3
 
 
+@pytest.mark.slow
 def test_t_sigma_over_the_tiny_baseline_sweep():
     from ppo_cv import data_gen
 

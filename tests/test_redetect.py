@@ -70,6 +70,7 @@ def test_a_weak_narrow_pan_is_flagged_on_denser_features(narrow_pair):
     assert f"detected again at {REDETECT_THRESHOLD_SCALE:g} x the threshold" in text
 
 
+@pytest.mark.slow
 def test_given_features_of_a_weak_pair_are_detected_again(narrow_pair):
     image1, image2 = _bgr(narrow_pair.image1), _bgr(narrow_pair.image2)
     given = {"features1": detect_features(image1), "features2": detect_features(image2)}

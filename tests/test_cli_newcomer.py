@@ -1,0 +1,255 @@
+"""What a new user meets first, through the installed command: ``pairs`` without intrinsics,
+``sfm`` on photos of several sizes and when nothing can be built, the verdict line of the
+summary, and photos whose EXIF is stale or belongs to a larger original."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from ppo_cv.metrics import direction_error_deg, rotation_error_deg
+
+DATA = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
+DEMO = json.loads((DATA / "demo.json").read_text())
+DEMO1, DEMO2 = DATA / DEMO["image1"], DATA / DEMO["image2"]
+K_TEXT = ",".join(str(v) for v in DEMO["intrinsics"])
+FX, FY, CX, CY = DEMO["intrinsics"]
+K_MATRIX = np.array([[FX, 0.0, CX], [0.0, FY, CY], [0.0, 0.0, 1.0]])
+EXE = shutil.which("ppo-cv")
+COMMAND = [EXE] if EXE else [sys.executable, "-m", "ppo_cv.cli.main"]
+
+
+def ppo_cv(*args, cwd=None) -> subprocess.CompletedProcess:
+    return subprocess.run([*COMMAND, *map(str, args)], capture_output=True, text=True,
+                          timeout=300, cwd=cwd)  # fmt: skip
+
+
+def warnings_of(done: subprocess.CompletedProcess) -> list[str]:
+    return [line for line in done.stderr.splitlines() if ": warning: " in line]
+
+
+def check_demo_pose(data: dict, rotation_deg: float = 1.0, direction_deg: float = 3.0) -> None:
+    assert rotation_error_deg(np.array(data["R"]), np.array(DEMO["reference_R"])) < rotation_deg
+    t, t_ref = np.array(data["t"]), np.array(DEMO["reference_t"])
+    assert direction_error_deg(t, t_ref, signed=False) < direction_deg
+
+
+def photo(source: Path, path: Path, *, orientation: int = 1, focal_35mm: int | None = 28,
+          recorded_size: tuple[int, int] | None = None, exif: bool = True) -> None:  # fmt: skip
+    """``source`` saved as a JPEG with the EXIF a camera writes: the orientation (6: pixels
+    stored turned a quarter), a 35 mm equivalent focal length and the recorded pixel size."""
+    from PIL import Image
+
+    image = Image.open(source).convert("RGB")
+    if orientation == 6:
+        image = image.transpose(Image.Transpose.ROTATE_90)
+    if not exif:
+        image.save(path, quality=95)
+        return
+    tags = Image.Exif()
+    tags[0x010F], tags[0x0110], tags[0x0112] = "Maker", "Model", orientation
+    sub = tags.get_ifd(0x8769)
+    if focal_35mm is not None:
+        sub[0xA405] = focal_35mm
+    if recorded_size is not None:
+        sub[0xA002], sub[0xA003] = recorded_size
+    image.save(path, quality=95, exif=tags.tobytes())
+
+
+# --- 1. pairs: intrinsics from EXIF, --K2, --calib, the file format in --help ----------------
+
+
+def test_pairs_without_intrinsics_takes_the_cameras_pair_takes(tmp_path):
+    for source, name in ((DEMO1, "a.jpg"), (DEMO2, "b.jpg")):
+        photo(source, tmp_path / name)
+    (tmp_path / "pairs.txt").write_text("a.jpg b.jpg\n")
+    pairs = ppo_cv("pairs", tmp_path / "pairs.txt", tmp_path, "--workers", "1", "--quiet")
+    assert pairs.returncode == 0, pairs.stderr
+    (row,) = [json.loads(line) for line in pairs.stdout.splitlines()]
+    pair = ppo_cv("pair", tmp_path / "a.jpg", tmp_path / "b.jpg", "--json")
+    assert pair.returncode == 0, pair.stderr
+    single = json.loads(pair.stdout)
+    np.testing.assert_allclose(row["K1"], single["K1"])
+    assert row["K1"][0][0] != pytest.approx(1.2 * 640)  # the EXIF focal, not the size guess
+    check_demo_pose(row, 2.0, 6.0)
+    (warning,) = warnings_of(pairs)
+    assert "no intrinsics given for 1 of 1 pairs" in warning
+    assert "EXIF focal lengths of 2 of 2 images" in warning
+
+
+def test_pairs_takes_a_calibration_file_and_a_second_camera(tmp_path):
+    (tmp_path / "pairs.txt").write_text(f"{DEMO1.name} {DEMO2.name}\n")
+    calib = tmp_path / "cameras.txt"
+    calib.write_text("1 PINHOLE 640 480 " + K_TEXT.replace(",", " ") + "\n")
+    runs = {
+        "calib": ("--calib", calib),
+        "K2": ("--K", K_TEXT, "--K2", K_TEXT),
+    }
+    for name, options in runs.items():
+        done = ppo_cv("pairs", tmp_path / "pairs.txt", DATA, *options, "--workers", "1", "-q")
+        assert done.returncode == 0, done.stderr
+        (row,) = [json.loads(line) for line in done.stdout.splitlines()]
+        np.testing.assert_allclose(row["K2"], K_MATRIX, err_msg=name)
+        check_demo_pose(row)
+        assert warnings_of(done) == []
+    done = ppo_cv("pairs", tmp_path / "pairs.txt", DATA, "--K2", K_TEXT)
+    assert done.returncode == 2 and "--K2 needs --K" in done.stderr
+
+
+def test_pairs_help_documents_the_file_format():
+    done = ppo_cv("pairs", "--help")
+    assert done.returncode == 0
+    text = " ".join(done.stdout.split())
+    assert "'0 0'" in text and "ground-truth motion T_1to2" in text
+    assert "EXIF focal length" in text
+
+
+# --- 2. sfm: images of several sizes, the cause of a failure, the database kept ---------------
+
+
+def test_sfm_reconstructs_images_of_two_sizes_with_a_camera_each(tmp_path):
+    import pycolmap
+
+    images = tmp_path / "images"
+    images.mkdir()
+    shutil.copy(DEMO1, images / "a.png")
+    shutil.copy(DEMO2, images / "b.png")
+    smaller = cv2.resize(cv2.imread(str(DEMO2)), (512, 384), interpolation=cv2.INTER_AREA)
+    cv2.imwrite(str(images / "c.png"), smaller)
+    done = ppo_cv("sfm", images, tmp_path / "model", "--threads", "1", "--quiet")
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("registered 3/3 images")
+    model = pycolmap.Reconstruction(tmp_path / "model")
+    sizes = {(c.width, c.height) for c in model.cameras.values()}
+    assert sizes == {(640, 480), (512, 384)}
+    with_K = ppo_cv("sfm", images, tmp_path / "other", "--K", K_TEXT)
+    assert with_K.returncode == 2 and not (tmp_path / "other").exists()
+    assert "the images have 2 sizes" in with_K.stderr and "omit --K" in with_K.stderr
+
+
+def test_sfm_says_why_nothing_was_built_and_keeps_the_database(tmp_path):
+    import pycolmap
+
+    images = tmp_path / "images"
+    images.mkdir()
+    K = K_MATRIX
+    angle = np.radians(6.0)
+    R = np.array([[np.cos(angle), 0, np.sin(angle)], [0, 1, 0], [-np.sin(angle), 0, np.cos(angle)]])
+    first = cv2.imread(str(DEMO1))
+    cv2.imwrite(str(images / "a.png"), first)
+    turned = cv2.warpPerspective(first, K @ R @ np.linalg.inv(K), (640, 480))
+    cv2.imwrite(str(images / "b.png"), turned)  # a pure rotation: no pair can start a model
+    done = ppo_cv("sfm", "images", "model", "--K", K_TEXT, "--database", "db.db", "--threads",
+                  "1", "--quiet", cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 1
+    (line,) = done.stderr.splitlines()
+    assert line.startswith("ppo-cv sfm: no image pair qualifies as an initial pair: ")
+    assert "of 1 matched pair, 1 pure rotation" in line and "db.db" in line
+    assert "score_pairs" not in done.stderr and "Traceback" not in done.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["db.db", "images"]
+    with pycolmap.Database.open(tmp_path / "db.db") as database:
+        assert database.num_images() == 2
+
+
+# --- 3. the verdict line names the deciding test ---------------------------------------------
+
+
+def _lines(summary: str) -> dict[str, str]:
+    return {line[:15].strip(): line[15:] for line in summary.splitlines()[1:]}
+
+
+@pytest.mark.parametrize(
+    "options, pri_side, decided_by",
+    [
+        ((), "(at or above the threshold 0.015)", "decided by GRIC"),
+        # PRI alone would call the demo pair a rotation; GRIC overrules it
+        (("--pri-threshold", "0.5"), "(below the threshold 0.5; not the deciding test, see "
+         "verdict)", "decided by GRIC"),
+    ],
+)  # fmt: skip
+def test_verdict_names_the_test_that_decided(options, pri_side, decided_by):
+    done = ppo_cv("pair", DEMO1, DEMO2, "--K", K_TEXT, *options)
+    assert done.returncode == 0, done.stderr
+    lines = _lines(done.stdout)
+    assert lines["verdict"].startswith("general motion (translation determined); " + decided_by)
+    assert lines["PRI"].endswith(pri_side)
+    assert "general motion" not in lines["PRI"]
+
+
+# --- 4. EXIF: orientation on or off, doubtful focal lengths, the wording -----------------------
+
+
+def test_no_exif_orientation_reads_the_pixels_as_stored(tmp_path):
+    """A stale tag: pixels stored upright, the EXIF saying they are turned a quarter."""
+    for source, name in ((DEMO1, "a.jpg"), (DEMO2, "b.jpg")):
+        photo(source, tmp_path / name, orientation=8)
+    shown = ppo_cv("pair", tmp_path / "a.jpg", tmp_path / "b.jpg", "--json")
+    stored = ppo_cv("pair", tmp_path / "a.jpg", tmp_path / "b.jpg", "--json",
+                    "--no-exif-orientation")  # fmt: skip
+    assert stored.returncode == 0, stored.stderr
+    data = json.loads(stored.stdout)
+    np.testing.assert_allclose(np.array(data["K1"])[:2, 2], [320.0, 240.0])
+    check_demo_pose(data, 2.0, 6.0)
+    assert shown.returncode != 0 or json.loads(shown.stdout)["K1"][0][2] == pytest.approx(240.0)
+    (tmp_path / "pairs.txt").write_text("a.jpg b.jpg\n")
+    pairs = ppo_cv("pairs", tmp_path / "pairs.txt", tmp_path, "--no-exif-orientation",
+                   "--workers", "1", "-q")  # fmt: skip
+    (row,) = [json.loads(line) for line in pairs.stdout.splitlines()]
+    assert rotation_error_deg(np.array(row["R"]), np.array(data["R"])) < 0.5
+
+
+def test_exif_of_a_resized_photo_and_an_implausible_field_warn(tmp_path):
+    photo(DEMO1, tmp_path / "a.jpg", recorded_size=(4032, 3024))
+    photo(DEMO2, tmp_path / "b.jpg", focal_35mm=400)
+    done = ppo_cv("pair", tmp_path / "a.jpg", tmp_path / "b.jpg", "--json")
+    warnings = warnings_of(done)
+    assert any("a.jpg: the EXIF says the photo was 4032x3024 pixels, the image is 640x480"
+               in w for w in warnings)  # fmt: skip
+    (field,) = [w for w in warnings if "field of view" in w]
+    assert "b.jpg: the EXIF focal length" in field and "outside 15..120 deg" in field
+    assert not any("a.jpg" in w and "field of view" in w for w in warnings)
+
+
+def test_without_exif_the_wording_is_either_and_no_orientation_is_suggested(tmp_path):
+    for source, name in ((DEMO1, "a.jpg"), (DEMO2, "b.jpg")):
+        photo(source, tmp_path / name, exif=False)
+    done = ppo_cv("pair", tmp_path / "a.jpg", tmp_path / "b.jpg", "--json")
+    (warning,) = warnings_of(done)
+    assert "no EXIF focal length in either image" in warning
+    turned = "525,525,239.5,319.5"  # the camera of the image turned a quarter
+    done = ppo_cv("pair", tmp_path / "a.jpg", tmp_path / "b.jpg", "--K", turned, "--json")
+    (warning,) = warnings_of(done)
+    assert "is the centre of a 480x640 image: a camera of the image turned a quarter?" in warning
+    assert "EXIF" not in warning
+    photo(DEMO1, tmp_path / "c.jpg", orientation=6)
+    photo(DEMO2, tmp_path / "d.jpg", orientation=6)
+    stored_camera = "525,525,240,320"  # that of the stored, sideways pixels
+    done = ppo_cv("pair", tmp_path / "c.jpg", tmp_path / "d.jpg", "--K", stored_camera, "--json")
+    (warning,) = warnings_of(done)
+    assert "EXIF orientation turns the image upright" in warning
+
+
+def test_sfm_reconstructs_photos_upright_unless_told_not_to(tmp_path):
+    import pycolmap
+
+    images = tmp_path / "images"
+    images.mkdir()
+    for source, name in ((DEMO1, "a.jpg"), (DEMO2, "b.jpg")):
+        photo(source, images / name, orientation=6)
+    sizes = {}
+    for flag in ("--exif-orientation", "--no-exif-orientation"):
+        out = tmp_path / flag.strip("-")
+        done = ppo_cv("sfm", images, out, flag, "--threads", "1", "--quiet")
+        assert done.returncode == 0, done.stderr
+        model = pycolmap.Reconstruction(out)
+        assert model.num_reg_images() == 2
+        sizes[flag] = {(c.width, c.height) for c in model.cameras.values()}
+    assert sizes == {"--exif-orientation": {(640, 480)}, "--no-exif-orientation": {(480, 640)}}
+    assert sorted(p.name for p in images.iterdir()) == ["a.jpg", "b.jpg"]
