@@ -24,9 +24,11 @@ from .common import (
     Plane,
     PrincipalPoint,
     PriThreshold,
+    Quiet,
     Ratio,
     RedetectBelow,
     Seed,
+    StageReport,
     Threshold,
     check_image_file,
     check_range,
@@ -325,7 +327,7 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
 
 def _run_pair(
     image1, image2, K, K2, dist, dist2, calib, as_json, out, options, note=None, reference=None,
-    overwrite=False, command="pair",
+    overwrite=False, command="pair", quiet=False,
 ):  # fmt: skip
     from ppo_cv.atomic import check_target
     from ppo_cv.pipeline import estimate_pair, load_image
@@ -345,7 +347,10 @@ def _run_pair(
             if doubt and not exif_note:
                 _warn(doubt, command)
                 break
-        result = estimate_pair(img1, img2, K1, K2v, d1, d2, options=options)
+        with StageReport(command, quiet) as report:
+            result = estimate_pair(
+                img1, img2, K1, K2v, d1, d2, options=options, progress=report.stage
+            )
         names = (Path(image1).name, Path(image2).name)
         if names[0] == names[1]:
             names = (f"1_{names[0]}", f"2_{names[1]}")
@@ -427,6 +432,7 @@ def register(app: typer.Typer) -> None:
         principal_point: PrincipalPoint = "auto",
         focal_ratio: FocalRatio = "auto",
         redetect_below: RedetectBelow = 100,
+        quiet: Quiet = False,
     ) -> None:
         """Relative pose (R, t), pure-rotation verdict and 3D points of two photos.
 
@@ -437,7 +443,8 @@ def register(app: typer.Typer) -> None:
         and the best unit guess under "t_guess".
 
         Without intrinsics the focal length is read from EXIF (with a
-        warning). Without images it runs on the built-in demo pair.
+        warning). Without images it runs on the built-in demo pair. On a
+        terminal, stderr shows the stage reached while it runs.
         """
         try:
             options = pipeline_options(
@@ -458,7 +465,7 @@ def register(app: typer.Typer) -> None:
             _fail("give two images (or none for the demo pair)")
         _run_pair(
             image1, image2, K, K2, dist, dist2, calib, as_json, out, options, note, reference,
-            overwrite,
+            overwrite, quiet=quiet,
         )  # fmt: skip
 
     @app.command()
