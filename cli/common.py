@@ -38,6 +38,7 @@ __all__ = [
     "exif_camera",
     "exif_note",
     "ProgressReport",
+    "StageReport",
 ]
 
 SEED_MAX = 2**31 - 1  # pycolmap and OpenCV take the seed as a 32-bit signed integer
@@ -468,3 +469,42 @@ class ProgressReport:
                 file=sys.stderr,
                 flush=True,
             )
+
+
+class StageReport:
+    """The stage one long computation has reached, on stderr: on a terminal, a transient
+    rich line (a spinner, the last stage done, the time elapsed); elsewhere nothing, since
+    scripts read stderr for warnings and errors. ``quiet`` prints nothing.
+
+    Pass :meth:`stage` as the ``progress`` of :func:`ppo_cv.pipeline.estimate_pair`.
+    """
+
+    def __init__(self, command: str, quiet: bool = False) -> None:
+        self.command, self.quiet = command, quiet
+        self._rich = None
+        self._task = None
+
+    def __enter__(self) -> StageReport:
+        if not self.quiet and sys.stderr.isatty():
+            from rich.console import Console
+            from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+            self._rich = Progress(
+                SpinnerColumn(),
+                TextColumn("{task.description}"),
+                TimeElapsedColumn(),
+                console=Console(stderr=True),
+                transient=True,
+            )
+            self._rich.__enter__()
+            self._task = self._rich.add_task(f"ppo-cv {self.command}: starting", total=None)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._rich is not None:
+            self._rich.__exit__(*exc)
+
+    def stage(self, name: str) -> None:
+        """Show that stage ``name`` has ended."""
+        if self._rich is not None:
+            self._rich.update(self._task, description=f"ppo-cv {self.command}: {name} done")

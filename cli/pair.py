@@ -25,9 +25,11 @@ from .common import (
     Plane,
     PrincipalPoint,
     PriThreshold,
+    Quiet,
     Ratio,
     RedetectBelow,
     Seed,
+    StageReport,
     Threshold,
     check_image_file,
     exif_camera,
@@ -357,7 +359,7 @@ def _check_cameras(cameras, images, names, turned, command) -> None:
 
 def _run_pair(
     image1, image2, K, K2, dist, dist2, calib, as_json, out, options, note=None, reference=None,
-    overwrite=False, command="pair", exif_orientation=True,
+    overwrite=False, command="pair", exif_orientation=True, quiet=False,
 ):  # fmt: skip
     from ppo_cv.atomic import check_target
     from ppo_cv.features import require_detectable
@@ -385,7 +387,11 @@ def _run_pair(
             turned = [exif_orientation and exif_layout(i).turned for i in (image1, image2)]
             _check_cameras(cameras, (img1, img2), sources, turned, command)
         d1, d2 = cameras.dist1, cameras.dist2
-        result = estimate_pair(img1, img2, cameras.K1, cameras.K2, d1, d2, options=options)
+        with StageReport(command, quiet) as report:
+            result = estimate_pair(
+                img1, img2, cameras.K1, cameras.K2, d1, d2, options=options,
+                progress=report.stage,
+            )  # fmt: skip
         names = (Path(image1).name, Path(image2).name)
         if names[0] == names[1]:
             names = (f"1_{names[0]}", f"2_{names[1]}")
@@ -458,6 +464,7 @@ def register(app: typer.Typer) -> None:
         principal_point: PrincipalPoint = "auto",
         focal_ratio: FocalRatio = "auto",
         redetect_below: RedetectBelow = 100,
+        quiet: Quiet = False,
     ) -> None:
         """Relative pose (R, t), pure-rotation verdict and 3D points of two photos.
 
@@ -472,7 +479,7 @@ def register(app: typer.Typer) -> None:
         the field of view it implies is outside 15..120 deg). Photos are
         turned upright as their EXIF orientation says unless
         --no-exif-orientation. Without images it runs on the built-in demo
-        pair.
+        pair. On a terminal, stderr shows the stage reached while it runs.
         """
         try:
             options = pipeline_options(
@@ -493,7 +500,7 @@ def register(app: typer.Typer) -> None:
             _fail("give two images (or none for the demo pair)")
         _run_pair(
             image1, image2, K, K2, dist, dist2, calib, as_json, out, options, note, reference,
-            overwrite, exif_orientation=exif_orientation,
+            overwrite, exif_orientation=exif_orientation, quiet=quiet,
         )  # fmt: skip
 
     @app.command()

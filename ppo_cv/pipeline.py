@@ -41,6 +41,7 @@ from __future__ import annotations
 import importlib
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -731,6 +732,7 @@ def estimate_pair(
     *,
     features1: Features | None = None,
     features2: Features | None = None,
+    progress: Callable[[str], None] | None = None,
 ) -> PairResult:
     """Relative pose of two calibrated images.
 
@@ -751,6 +753,9 @@ def estimate_pair(
         with the ``options``); given both, the first detection is skipped (a second one, on
         the images, follows a weak consensus: ``PairOptions.redetect_below``). Batch runs use
         it to detect each image once.
+    progress : callable, optional
+        Called with the name of each stage as it ends (the keys of ``PairResult.timings``,
+        some more than once), to show progress during long work.
 
     Returns
     -------
@@ -794,6 +799,8 @@ def estimate_pair(
         now = time.perf_counter()
         timings[stage] = timings.get(stage, 0.0) + now - clock
         clock = now
+        if progress is not None:
+            progress(stage)
 
     img1, img2 = _as_image(image1, "image1"), _as_image(image2, "image2")
     if features1 is None or features2 is None:
@@ -813,6 +820,8 @@ def estimate_pair(
     if features1 is None or features2 is None:
         f1, f2, detected = _detect_both(img1, img2, options)
         timings["features"], clock = detected - clock, detected
+        if progress is not None:
+            progress("features")
         lap("pycolmap_import")
     else:
         f1, f2 = features1, features2

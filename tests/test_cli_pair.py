@@ -101,6 +101,53 @@ def test_subprocess_json_is_the_only_stdout():
     check_demo_pose(data)
 
 
+def _pair_with_stderr_on_a_terminal(*options: str) -> tuple[int, str]:
+    """``ppo-cv pair`` on the demo images, stderr a pseudo-terminal: exit code and its text."""
+    import pty
+
+    exe = shutil.which("ppo-cv")
+    command = [exe] if exe else [sys.executable, "-m", "ppo_cv.cli.main"]
+    reader, writer = pty.openpty()
+    process = subprocess.Popen(
+        [*command, "pair", DEMO1, DEMO2, "--K", K_TEXT, "--json", *options],
+        stdout=subprocess.DEVNULL,
+        stderr=writer,
+        env={**os.environ, "TERM": "xterm", "COLUMNS": "100"},
+    )
+    os.close(writer)
+    chunks = []
+    while True:
+        try:
+            chunk = os.read(reader, 4096)
+        except OSError:  # the child closed the terminal
+            break
+        if not chunk:
+            break
+        chunks.append(chunk)
+    os.close(reader)
+    return process.wait(timeout=120), b"".join(chunks).decode("utf-8", "replace")
+
+
+def test_a_single_pair_shows_its_stage_on_a_terminal_only():
+    code, shown = _pair_with_stderr_on_a_terminal()
+    assert code == 0
+    assert "ppo-cv pair:" in shown and " done" in shown
+    code, shown = _pair_with_stderr_on_a_terminal("--quiet")
+    assert code == 0 and shown == ""
+
+
+def test_a_single_pair_prints_nothing_on_stderr_read_by_a_script():
+    exe = shutil.which("ppo-cv")
+    command = [exe] if exe else [sys.executable, "-m", "ppo_cv.cli.main"]
+    out = subprocess.run(
+        [*command, "pair", DEMO1, DEMO2, "--K", K_TEXT, "--json"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert out.returncode == 0 and out.stderr == ""
+
+
 def test_out_directory_files_open(tmp_path):
     import pycolmap
 

@@ -66,6 +66,15 @@ def test_general_motion_matches_ground_truth(general, general_result):
     assert set(result.timings) >= {"features", "matching", "ransac", "ppo", "refine"}
 
 
+def test_progress_names_every_stage_as_it_ends(general, general_result):
+    ended = []
+    result = estimate_pair(
+        bgr(general.image1), bgr(general.image2), general.K1, general.K2, progress=ended.append
+    )
+    assert set(ended) == set(result.timings) == set(general_result.timings)
+    assert ended[0] == "load" and ended[-1] == list(result.timings)[-1]
+
+
 def test_general_motion_points_match_the_depth_map(general, general_result):
     result = general_result
     assert 0.5 * result.num_inliers < result.num_points <= result.num_inliers
