@@ -368,7 +368,7 @@ def _auc_cell(entry: dict) -> str:
 
 
 def headline(s: dict) -> str:
-    """The README's table: real-pair and rendered AUC, identification speed, detection."""
+    """The headline table: real-pair and rendered AUC, identification speed, detection."""
     acc = s["accuracy"]
     cols = ["ppo_cv", "opencv", "pycolmap", "pycolmap relpose", "poselib"]
     lines = [

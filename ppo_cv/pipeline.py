@@ -219,7 +219,7 @@ class PairOptions:
     min_trials: int = 100
     # Kept at 100_000 for the uniform fit: on the freiburg pairs a cap of 50_000, 30_000 or
     # 10_000 lowered the mean AUC@5 over seeds 0-2, as did ratio 0.8 or 0.85; ordered sampling
-    # (README, batch runs) is what makes the hard pairs (10-20 % inliers) cheap.
+    # (docs/cli.md, batch runs) is what makes the hard pairs (10-20 % inliers) cheap.
     max_trials: int = 100_000
     ordered_sampling: bool = True
     redetect_below: int = 100

@@ -118,6 +118,7 @@ def test_a_rotation_with_a_clipped_lens_must_show_a_negligible_parallax(
     assert decided.track_parallax == parallax
 
 
+@pytest.mark.slow
 def test_a_translation_whose_lens_the_matches_clipped_is_not_flagged():
     """Harness render seed 103, baseline / depth 0.02: the rotation of its matches wins GRIC
     with the focal scale at the edge of the box, and its tracks, refused in that box, read

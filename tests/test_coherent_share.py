@@ -70,7 +70,7 @@ def test_the_share_is_reported(box_before_wall):
     assert line in _summary(box_before_wall[1], "a.png", "b.png", None)
 
 
-@pytest.mark.parametrize("index", [1, 2])
+@pytest.mark.parametrize("index", [1, pytest.param(2, marks=pytest.mark.slow)])
 def test_a_noisy_rotation_with_scattered_outliers_is_flagged(index):
     """Sensor noise and blur put many matches of a warped photo beyond the rotation's bound,
     scattered over the image."""

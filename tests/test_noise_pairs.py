@@ -120,6 +120,7 @@ def test_a_threshold_of_infinity_cannot_buy_a_pose():
         ppo_cv.estimate_pair(*noise, K_SMALL, options=PairOptions(ransac_threshold=np.inf))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("motion", data_gen.MOTIONS)
 def test_rendered_pairs_of_every_preset_keep_their_pose(motion):
     pair = data_gen.make_pair(motion, 7, 0, (320, 240))

@@ -181,10 +181,11 @@ def test_a_narrow_pan_whose_principal_point_lies_near_the_bound_is_flagged(
     "size, seed, index, pivot",
     [
         ((640, 480), 1, 51, 0.08),
-        pytest.param((1600, 1200), 1, 11, 0.08, marks=pytest.mark.slow),
+        ((1600, 1200), 1, 11, 0.08),
         ((640, 480), 3, 38, 0.15),
     ],
 )
+@pytest.mark.slow
 def test_a_narrow_pan_flagged_only_through_the_wide_bound(size, seed, index, pivot):
     # 20 deg pans in a 28-30 deg field, 8 or 15 cm before the axis, as stitched, the true
     # principal point 1.9 % of a side off the centre: the fit overshoots 2 % and drops it,
@@ -238,7 +239,10 @@ def _run(pair, **options):
     )  # fmt: skip
 
 
-@pytest.mark.parametrize("index", [1, 5, 6, 12])
+@pytest.mark.parametrize(
+    "index",
+    [1, 5, pytest.param(6, marks=pytest.mark.slow), pytest.param(12, marks=pytest.mark.slow)],
+)
 def test_warped_pans_with_a_centred_principal_point_are_flagged(index):
     pair = data_gen.make_warped_pair(seed=0, index=index, imperfections=CENTRED)
     h, w = pair.image1.shape[:2]
