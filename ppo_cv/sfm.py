@@ -202,11 +202,13 @@ class SfmResult:
 
 @contextlib.contextmanager
 def _quiet(verbose: bool) -> Iterator[None]:
+    """pycolmap's log held back to fatal messages unless ``verbose``: its errors reach the
+    caller as exceptions, and an interrupt would otherwise add its "Stopping thread..." line."""
     if verbose:
         yield
         return
     previous = pycolmap.logging.minloglevel
-    pycolmap.logging.minloglevel = 2
+    pycolmap.logging.minloglevel = 3
     try:
         yield
     finally:

@@ -27,7 +27,9 @@ NAMES = [DEMO["image1"], DEMO["image2"]]
 K_TEXT = ",".join(str(v) for v in DEMO["intrinsics"])
 COMMAND = [sys.executable, "-m", "ppo_cv.cli.main"]
 WAIT_SECONDS = 120  # a bound on a stuck run, not a measurement
-PROGRESS = re.compile(r"ppo-cv \w+: \d+/\d+ ")  # progress lines, printed before the signal
+PROGRESS = re.compile(  # progress lines, printed before the signal
+    r"ppo-cv \w+: \d+/\d+ |ppo-cv sfm: (extracting|matching|scoring|seeding) "
+)
 
 PAIRS = ["pairs", "six.txt", "images", "--K", K_TEXT, "-o", "out.jsonl", "--workers", "2",
          "--max-features", "600"]  # fmt: skip
@@ -136,6 +138,25 @@ def test_a_signal_to_the_process_group_is_one_line_and_leaves_nothing(tmp_path, 
     assert code == 128 + signum, err
     assert lines == [f"ppo-cv {args[0]}: interrupted; unfinished output removed"], err
     assert _entries(tmp_path) == before
+
+
+def test_a_signal_inside_pycolmap_s_feature_extraction_is_one_line(tmp_path):
+    # pycolmap logs "Stopping thread..." when an interrupt stops its threaded extraction
+    before = _inputs(tmp_path)
+    for copy in range(12):
+        for name in NAMES:
+            shutil.copy(DATA / name, tmp_path / "images" / f"{copy}_{name}")
+    printed = _printed("extracting SIFT features")
+
+    def ready(process) -> None:
+        printed(process)
+        time.sleep(1.0)  # into the extraction of 26 images, which takes several seconds
+
+    code, err = _signal_when(SFM, tmp_path, ready, signal.SIGTERM)
+    lines = [line for line in err.strip().splitlines() if not PROGRESS.match(line)]
+    assert code == 128 + signal.SIGTERM, err
+    assert lines == ["ppo-cv sfm: interrupted; unfinished output removed"], err
+    assert _entries(tmp_path) - before == {f"images/{c}_{n}" for c in range(12) for n in NAMES}
 
 
 def test_sigkill_leaves_no_temporary_file(tmp_path):
