@@ -33,7 +33,7 @@ PANO_DEV = (
 )
 
 
-def _command() -> list[str]:
+def installed_command() -> list[str]:
     """The console script of this interpreter's environment (what a user of it runs)."""
     beside = Path(sys.executable).with_name("ppo-cv")
     exe = str(beside) if beside.is_file() else shutil.which("ppo-cv")
@@ -84,7 +84,7 @@ def run(pairs: dict[str, list[str]], runs: int) -> dict[str, tuple[list, dict, l
             walls, stages, verdicts = measured[label]
             start = time.perf_counter()
             out = subprocess.run(
-                [*_command(), "pair", *arguments, "--json"], capture_output=True, text=True
+                [*installed_command(), "pair", *arguments, "--json"], capture_output=True, text=True
             )
             walls.append(time.perf_counter() - start)
             if out.returncode != 0:

@@ -27,20 +27,13 @@ import tempfile
 import time
 from pathlib import Path
 
+from cli_time import installed_command
+
 DATA = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
 DEMO = json.loads((DATA / "demo.json").read_text())
 K_TEXT = ",".join(str(v) for v in DEMO["intrinsics"])
 GRACE_SECONDS = 10.0
 DELAY_SECONDS = 3.0
-
-
-def _command() -> list[str]:
-    """The console script of this interpreter's environment (what a user of it runs)."""
-    beside = Path(sys.executable).with_name("ppo-cv")
-    exe = str(beside) if beside.is_file() else shutil.which("ppo-cv")
-    if exe is None:
-        raise SystemExit("ppo-cv is not installed: pip install .")
-    return [exe]
 
 
 def _inputs(folder: Path) -> None:
@@ -81,7 +74,7 @@ def _one_run(name: str, signum: int, delay: float) -> dict:
         _inputs(folder)
         before = {p.relative_to(folder) for p in folder.rglob("*")}
         process = subprocess.Popen(
-            [*_command(), *COMMANDS[name]], cwd=folder, start_new_session=True,
+            [*installed_command(), *COMMANDS[name]], cwd=folder, start_new_session=True,
             stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
             text=True, preexec_fn=_default_sigint,
         )  # fmt: skip
