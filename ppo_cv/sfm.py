@@ -29,12 +29,13 @@ Examples
 from __future__ import annotations
 
 import contextlib
+import itertools
 import os
 import shutil
 import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -57,6 +58,7 @@ __all__ = [
     "SEEDINGS",
     "ReconstructionFailed",
     "MAX_THREADS",
+    "MAX_IMAGE_CHECKS",
     "PairScore",
     "SfmResult",
     "prepare_database",
@@ -91,6 +93,16 @@ _UNUSABLE_CONFIGS = frozenset(
 )
 _HOMOGRAPHY_CONFIDENCE = 0.9999  # of the homography search on a pair's verified matches
 
+MAX_IMAGE_CHECKS = 5
+"""Candidate initial pairs re-checked on their images, best first, before one seeds the mapper.
+
+The database holds only the matches, so the ranking cannot run what
+:func:`ppo_cv.pipeline.estimate_pair` decides from the images (its photometric parallax of the
+tracks, its lens fit); a pair the ranking accepts but ``estimate_pair`` (``ppo-cv pair``) calls
+a pure rotation is refused, as one that yields no reliable geometry. Each check detects and
+matches the two images again (about a second at 640x480), so only the best few are checked: a
+folder whose best five candidates are all rotations is taken for a panorama."""
+
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".ppm", ".pgm")
 
 Progress = Callable[[str], None]
@@ -119,7 +131,8 @@ class PairScore:
         Pure-rotation indicator of the pair.
     pure_rotation : bool
         ``pri < pri_threshold``, or a rotation-only model explains the matches
-        (:func:`ppo_cv.motion_model.decide_motion`).
+        (:func:`ppo_cv.motion_model.decide_motion`), or :func:`ppo_cv.pipeline.estimate_pair`
+        called the two images a pure rotation (:func:`reconstruct`).
     tri_angle : float
         Median triangulation angle of the analytic points of the inliers, degrees.
     score : float
@@ -168,7 +181,8 @@ class SfmResult:
     initial_pair : tuple of (str, str) or None
         Names of the two images the mapper started from.
     pairs : tuple of PairScore
-        The ranked candidates (``ppo`` initialisation only), best first.
+        The ranked candidates (``ppo`` initialisation only), best first, with those refused on
+        their images ranked as rejected.
     num_images : int
         Images in the database.
     num_registered : int
@@ -378,13 +392,26 @@ def _no_initial_pair(pairs: Sequence[PairScore], num_images: int) -> str:
         )
     reasons: dict[str, int] = {}
     for pair in pairs:
-        reason = pair.rejection.split(" (")[0]
+        reason = pair.rejection.split(" (")[0] or "not checked on the images"
         reasons[reason] = reasons.get(reason, 0) + 1
     counted = ", ".join(f"{count} {reason}" for reason, count in reasons.items())
-    return (
-        f"no image pair qualifies as an initial pair: of {len(pairs)} matched "
-        f"pair{'s' if len(pairs) > 1 else ''}, {counted}"
-    )
+    counts = f"of {len(pairs)} matched pair{'s' if len(pairs) > 1 else ''}, {counted}"
+    if _looks_like_panorama(pairs):
+        return (
+            f"the {num_images} images look like a panorama (pure rotations about one point) "
+            f"and hold no structure to reconstruct: {counts}"
+        )
+    return f"no image pair qualifies as an initial pair: {counts}"
+
+
+def _looks_like_panorama(pairs: Sequence[PairScore]) -> bool:
+    """No pair can seed a model, and rotations explain them: a pair that the ranking accepted
+    was refused as a pure rotation on its images, or at least half of the pairs with a pose
+    are pure rotations."""
+    rotations = [p for p in pairs if p.rejection.startswith("pure rotation")]
+    posed = [p for p in pairs if not p.rejection.startswith("no pose")]
+    on_images = any("on the images" in p.rejection for p in rotations)
+    return bool(rotations) and (on_images or 2 * len(rotations) >= len(posed))
 
 
 def score_pose(
@@ -647,8 +674,12 @@ def reconstruct(
         The images (colours of the points).
     initialization : {"ppo", "colmap"}
         ``ppo``: rank the pairs with :func:`score_pairs` and start from the best, trying the
-        next one (up to ``max_init_trials``) if the mapper cannot grow from it.
-        ``colmap``: pycolmap's default initial-pair search.
+        next one (up to ``max_init_trials``) if the mapper cannot grow from it. Before a pair
+        seeds the mapper, :func:`ppo_cv.pipeline.estimate_pair` (default options, the database
+        cameras) decides it on its two images, as ``ppo-cv pair`` does: a pure rotation, or no
+        reliable geometry, refuses it and the next pair is checked, up to
+        :data:`MAX_IMAGE_CHECKS` pairs; the refusals are in the returned ranking.
+        ``colmap``: pycolmap's default initial-pair search (no pair is checked).
     seeding : {"two-view", "pair-options"}
         How a ``ppo`` pair starts the mapper. ``two-view``: a reconstruction of the two images
         with the PPO pose and the analytic points of its inliers
@@ -671,7 +702,14 @@ def reconstruct(
     Returns
     -------
     SfmResult
-        ``elapsed`` covers the pair scoring and the mapping.
+        ``elapsed`` covers the pair scoring, the checks on the images and the mapping.
+
+    Raises
+    ------
+    ReconstructionFailed
+        No pair can seed the mapper: the ranking rejects them all, or every pair checked on
+        its images is refused; the message counts the reasons and, when rotations explain
+        them, says the images look like a panorama.
     """
     _check_choices(initialization, seeding)
     database_path, image_dir = Path(database_path), Path(image_dir)
@@ -679,20 +717,26 @@ def reconstruct(
         raise ValueError(f"database {str(database_path)!r} does not exist")
     start = time.perf_counter()
     pairs: tuple[PairScore, ...] = ()
-    candidates: list[PairScore | None] = [None]
+    candidates: Iterator[PairScore | None] = iter([None])
     if initialization == "ppo":
         _say(progress, "scoring candidate initial pairs with PPO")
         pairs = tuple(score_pairs(database_path, **scoring))
-        candidates = [p for p in pairs if p.accepted][: max(1, int(max_init_trials))]
-        if not candidates:
+        if not any(p.accepted for p in pairs):
             with pycolmap.Database.open(database_path) as database:
                 num_images = int(database.num_images())
             raise ReconstructionFailed(_no_initial_pair(pairs, num_images))
+        threshold = scoring.get("pri_threshold", ppo.DEFAULT_PRI_THRESHOLD)
+        refused: list[PairScore] = []
+        candidates = _checked_candidates(
+            database_path, image_dir, pairs, refused, threshold, progress
+        )
     models: list[pycolmap.Reconstruction] = []
     initial_pair = None
     with _quiet(verbose), pycolmap.Database.open(database_path) as database:
         num_images = int(database.num_images())
-        for candidate in candidates:
+        tried = 0
+        for candidate in itertools.islice(candidates, max(1, int(max_init_trials))):
+            tried += 1
             options = _pipeline_options(image_dir, fix_intrinsics, num_threads, seed)
             manager = pycolmap.ReconstructionManager()
             if candidate is not None:
@@ -707,7 +751,90 @@ def reconstruct(
                 initial_pair = (candidate.name1, candidate.name2)
             if _grew_from(models, candidate):
                 break
+    if initialization == "ppo":
+        pairs = _with_refusals(pairs, refused)
+        if not tried:
+            raise ReconstructionFailed(_no_initial_pair(pairs, num_images))
     return _result(models, initialization, initial_pair, pairs, num_images, start)
+
+
+def _checked_candidates(
+    database_path: Path,
+    image_dir: Path,
+    pairs: Sequence[PairScore],
+    refused: list[PairScore],
+    pri_threshold: float,
+    progress: Progress | None,
+) -> Iterator[PairScore]:
+    """The accepted pairs, best first, that :func:`ppo_cv.pipeline.estimate_pair` does not
+    refuse on their images (the first :data:`MAX_IMAGE_CHECKS` accepted pairs are checked,
+    as they are needed); the refused ones, rejection rewritten, are appended to ``refused``."""
+    for pair in [p for p in pairs if p.accepted][:MAX_IMAGE_CHECKS]:
+        _say(progress, f"checking {pair.name1} {pair.name2} on the images")
+        rejection = _image_rejection(database_path, image_dir, pair, pri_threshold)
+        if not rejection:
+            yield pair
+            continue
+        _say(progress, f"refused {pair.name1} {pair.name2}: {rejection}")
+        pure = rejection.startswith("pure rotation")
+        refused.append(
+            replace(
+                pair,
+                rejection=rejection,
+                score=0.0,
+                pure_rotation=pure or pair.pure_rotation,
+                model="rotation" if pure else pair.model,
+            )
+        )
+
+
+def _image_rejection(
+    database_path: Path, image_dir: Path, pair: PairScore, pri_threshold: float
+) -> str:
+    """Why ``ppo-cv pair``'s decision refuses ``pair`` as an initial pair; empty when it does
+    not. The images are read as pycolmap read them, with the database cameras."""
+    from .images import load_image
+    from .pipeline import PairOptions, estimate_pair
+
+    with pycolmap.Database.open(database_path) as database:
+        cameras = [
+            _pipeline_camera(database.read_camera(database.read_image(image_id).camera_id))
+            for image_id in (pair.image_id1, pair.image_id2)
+        ]
+    images = [
+        load_image(image_dir / name, exif_orientation=False) for name in (pair.name1, pair.name2)
+    ]
+    (K1, dist1), (K2, dist2) = cameras
+    try:
+        result = estimate_pair(
+            *images, K1, K2, dist1, dist2, options=PairOptions(pri_threshold=pri_threshold)
+        )
+    except ValueError as exc:
+        return f"no reliable geometry on the images ({exc})"
+    if result.pure_rotation:
+        return f"pure rotation on the images (ppo-cv pair: PRI {result.pri:.4f}, {result.model})"
+    return ""
+
+
+def _pipeline_camera(camera: pycolmap.Camera) -> tuple[np.ndarray, np.ndarray | None]:
+    """``K`` and OpenCV distortion coefficients (None for none) of a database camera."""
+    K = np.asarray(camera.calibration_matrix(), dtype=np.float64)
+    params = np.asarray(camera.params, dtype=np.float64)
+    radial = {"SIMPLE_RADIAL": params[3:4], "RADIAL": params[3:5]}.get(camera.model_name)
+    if camera.model_name == "OPENCV":
+        dist = params[4:8]
+    elif radial is not None:
+        dist = np.concatenate([radial, np.zeros(4 - len(radial))])
+    else:
+        dist = np.zeros(4)
+    return K, (dist if np.any(dist) else None)
+
+
+def _with_refusals(pairs: Sequence[PairScore], refused: Sequence[PairScore]) -> tuple:
+    """The ranking with the pairs refused on their images replaced, ranked as rejected."""
+    by_ids = {(p.image_id1, p.image_id2): p for p in refused}
+    updated = [by_ids.get((p.image_id1, p.image_id2), p) for p in pairs]
+    return tuple(sorted(updated, key=lambda s: (not s.accepted, -s.score, -s.num_inliers)))
 
 
 def _check_choices(initialization: str, seeding: str) -> None:

@@ -51,3 +51,12 @@ def freiburg_photos() -> Path:
 def K():
     """A pinhole camera with unequal focal lengths."""
     return np.array([[800.0, 0.0, 320.0], [0.0, 780.0, 240.0], [0.0, 0.0, 1.0]])
+
+
+@pytest.fixture(scope="session")
+def pano_dev() -> Path:
+    """The real tripod panoramas (images/ and pairs_with_gt.txt); skips when absent."""
+    folder = shared_path("data", "pano_dev")
+    if not (folder / "pairs_with_gt.txt").is_file():
+        pytest.skip(f"real panoramas not found at {folder} (set PPO_CV_SHARED)")
+    return folder

@@ -150,8 +150,9 @@ def test_sfm_says_why_nothing_was_built_and_keeps_the_database(tmp_path):
                   "1", "--quiet", cwd=tmp_path)  # fmt: skip
     assert done.returncode == 1
     (line,) = done.stderr.splitlines()
-    assert line.startswith("ppo-cv sfm: no image pair qualifies as an initial pair: ")
-    assert "of 1 matched pair, 1 pure rotation" in line and "db.db" in line
+    assert line.startswith("ppo-cv sfm: the 2 images look like a panorama (pure rotations ")
+    assert "hold no structure to reconstruct: of 1 matched pair, 1 pure rotation" in line
+    assert "db.db" in line
     assert "score_pairs" not in done.stderr and "Traceback" not in done.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["db.db", "images"]
     with pycolmap.Database.open(tmp_path / "db.db") as database:

@@ -1,0 +1,132 @@
+"""``ppo-cv sfm`` and ``ppo-cv pair`` decide a pair alike: a panorama seeds no reconstruction."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pycolmap
+import pytest
+
+from ppo_cv import sfm
+from ppo_cv.data_gen import render_tripod_then_move
+from ppo_cv.pipeline import estimate_pair
+
+COMMAND = [sys.executable, "-m", "ppo_cv.cli.main"]
+
+
+@pytest.fixture(scope="module")
+def tripod(tmp_path_factory):
+    """6 rendered views (3 pan about one centre, 3 walking) and their database with known K."""
+    folder = tmp_path_factory.mktemp("tripod")
+    images = folder / "images"
+    names, K, _ = render_tripod_then_move(images, n_pan=3, n_move=3)
+    database = folder / "db.db"
+    sfm.prepare_database(images, database, K=K)
+    return images, database, K, {n for n in names if "pan" in n}
+
+
+def test_pan_folder_exits_1_as_a_panorama_and_keeps_the_database(tmp_path):
+    images = tmp_path / "pan"
+    _, K, _ = render_tripod_then_move(images, n_pan=5, n_move=0)
+    k = f"{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]}"
+    run = subprocess.run(
+        [*COMMAND, "sfm", str(images), "model", "--K", k, "--database", "db.db", "--quiet"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert run.returncode == 1, run.stderr
+    (line,) = run.stderr.strip().splitlines()
+    assert line.startswith("ppo-cv sfm: the 5 images look like a panorama (pure rotations")
+    assert "hold no structure to reconstruct: of 10 matched pairs, 10 pure rotation" in line
+    assert line.endswith("the matched features are in db.db")
+    assert run.stdout == "" and not (tmp_path / "model").exists()
+    with pycolmap.Database.open(tmp_path / "db.db") as database:
+        assert database.num_images() == 5
+
+
+def test_image_check_agrees_with_estimate_pair(tripod):
+    images, database, K, pan = tripod
+    pairs = sfm.score_pairs(database)
+    by_names = {(p.name1, p.name2): p for p in pairs}
+    rotation = by_names[("00_pan.png", "02_pan.png")]
+    walk = by_names[("03_move.png", "05_move.png")]
+    assert estimate_pair(images / "00_pan.png", images / "02_pan.png", K).pure_rotation
+    assert not estimate_pair(images / "03_move.png", images / "05_move.png", K).pure_rotation
+    refusal = sfm._image_rejection(database, images, rotation, 0.01)
+    assert refusal.startswith("pure rotation on the images (ppo-cv pair: PRI")
+    assert sfm._image_rejection(database, images, walk, 0.01) == ""
+
+
+def _refusing(pairs_to_refuse, calls):
+    """``_image_rejection`` that refuses the given pairs as rotations and checks the others."""
+    real = sfm._image_rejection
+
+    def check(database_path, image_dir, pair, pri_threshold):
+        calls.append((pair.name1, pair.name2))
+        if (pair.name1, pair.name2) in pairs_to_refuse:
+            return "pure rotation on the images (ppo-cv pair: PRI 0.0001, rotation)"
+        return real(database_path, image_dir, pair, pri_threshold)
+
+    return check
+
+
+def test_a_pair_the_images_call_a_rotation_is_skipped_for_the_next(tripod, monkeypatch):
+    images, database, _, pan = tripod
+    ranked = [p for p in sfm.score_pairs(database) if p.accepted]
+    best, second = ranked[0], ranked[1]
+    calls: list = []
+    monkeypatch.setattr(sfm, "_image_rejection", _refusing({(best.name1, best.name2)}, calls))
+    messages: list = []
+    result = sfm.reconstruct(database, images, fix_intrinsics=True, progress=messages.append)
+    assert calls == [(best.name1, best.name2), (second.name1, second.name2)]
+    assert result.initial_pair == (second.name1, second.name2)
+    assert result.all_registered and result.num_registered == 6
+    assert (result.pairs[0].name1, result.pairs[0].name2) == (second.name1, second.name2)
+    refused = next(p for p in result.pairs if (p.name1, p.name2) == (best.name1, best.name2))
+    assert refused.rejection.startswith("pure rotation on the images") and refused.score == 0
+    assert refused.pure_rotation and not refused.accepted
+    assert f"refused {best.name1} {best.name2}: pure rotation on the images" in "\n".join(messages)
+    assert "pure_rotation_on_the_images" in sfm.format_pairs(result.pairs)
+
+
+def test_every_checked_pair_a_rotation_fails_as_a_panorama(tripod, monkeypatch):
+    images, database, _, _ = tripod
+    ranked = [(p.name1, p.name2) for p in sfm.score_pairs(database) if p.accepted]
+    assert len(ranked) > sfm.MAX_IMAGE_CHECKS
+    calls: list = []
+    monkeypatch.setattr(sfm, "_image_rejection", _refusing(set(ranked), calls))
+    with pytest.raises(sfm.ReconstructionFailed) as failure:
+        sfm.reconstruct(database, images, fix_intrinsics=True)
+    assert calls == ranked[: sfm.MAX_IMAGE_CHECKS]
+    message = str(failure.value)
+    assert message.startswith("the 6 images look like a panorama (pure rotations about one")
+    assert f"{sfm.MAX_IMAGE_CHECKS} pure rotation on the images" in message
+    assert f"{len(ranked) - sfm.MAX_IMAGE_CHECKS} not checked on the images" in message
+
+
+def test_colmap_initialization_checks_no_pair(tripod, monkeypatch):
+    images, database, _, _ = tripod
+    calls: list = []
+    monkeypatch.setattr(sfm, "_image_rejection", _refusing(set(), calls))
+    result = sfm.reconstruct(database, images, initialization="colmap", fix_intrinsics=True)
+    assert calls == [] and result.num_registered >= 2
+
+
+@pytest.mark.slow
+def test_real_tripod_panorama_exits_1_where_it_seeded_a_two_image_model(pano_dev, tmp_path):
+    """The first 10 frames of pano_dev's ``book`` sequence, with its focal length: the ranking
+    accepts a pair that ``ppo-cv pair`` calls a pure rotation (it registered 2 of 10 images)."""
+    source = pano_dev / "images"
+    images = tmp_path / "book"
+    images.mkdir()
+    for path in sorted(source.glob("book_*.JPG"))[:10]:
+        (images / path.name).symlink_to(path)
+    run = subprocess.run(
+        [*COMMAND, "sfm", str(images), "model", "--K", "996.9,996.9,305,458.5", "--quiet"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert run.returncode == 1, run.stderr
+    (line,) = run.stderr.strip().splitlines()
+    assert "the 10 images look like a panorama (pure rotations about one point)" in line
+    assert "pure rotation on the images" in line
+    assert not (tmp_path / "model").exists()
