@@ -116,7 +116,8 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
         row = {"image1": parts[0], "image2": parts[1], "K1": None, "K2": None, "T": None}
         if cameras is not None:
             row.update(K1=cameras.K1, K2=cameras.K2, dist1=cameras.dist1, dist2=cameras.dist2)
-        row["shared_K"] = one_matrix and len(parts) < 22
+        row["given_cameras"] = cameras is not None and len(parts) < 22
+        row["shared_K"] = one_matrix and row["given_cameras"]
         try:
             if len(parts) >= 4:
                 _require_unturned(parts[2:4])
@@ -424,6 +425,34 @@ def _run_all(function, jobs, pool, report: ProgressReport):
         yield outcome
 
 
+def _fit_calibration(rows: list[dict], image_dir: Path, calib, K2) -> None:
+    """Fit the cameras of ``calib`` to the images of the rows that take them, by the sizes in
+    the image headers (:func:`ppo_cv.calib.fit_to_image`; ``--K2`` replaces the second one),
+    warning once for all the images scaled; a ValueError for another aspect ratio."""
+    from ppo_cv.calib import fit_to_image, load_calibration
+
+    from .common import image_size
+
+    cameras = load_calibration(calib)
+    if all(camera.image_size is None for camera in cameras):
+        return
+    fitted, notes = {}, []
+    for row in (r for r in rows if r["given_cameras"]):
+        sides = [("K1", cameras[0], row["image1"])]
+        sides += [] if K2 else [("K2", cameras[-1], row["image2"])]
+        for key, camera, name in sides:
+            size = image_size(image_dir / name)
+            if size is None:  # unreadable: the pair reports it
+                continue
+            if (key, name) not in fitted:
+                fitted[key, name], note = fit_to_image(camera, size, f"--calib {calib}", name)
+                notes += [note] if note else []
+            row[key] = fitted[key, name].K
+    if notes:
+        more = f" (and {len(notes) - 1} more images)" if len(notes) > 1 else ""
+        warn("pairs", notes[0] + more)
+
+
 def _exif_intrinsics(rows: list[dict], image_dir: Path, exif_orientation: bool) -> None:
     """Give the rows without intrinsics the cameras of their images' EXIF, warning once for
     the run and once for each image whose EXIF focal length is doubtful."""
@@ -485,6 +514,8 @@ def run_pairs(
     if output is not None:
         images = {Path(image_dir) / r[k] for r in rows for k in ("image1", "image2")}
         check_apart(output, sorted(images), "-o ")
+    if calib is not None:
+        _fit_calibration(rows, Path(image_dir), calib, K2)
     _exif_intrinsics(rows, Path(image_dir), exif_orientation)
     workers = worker_count(workers, len(rows))
     import_pycolmap()

@@ -770,6 +770,25 @@ def test_a_calibration_of_resized_images_is_scaled_to_the_truth(tmp_path, kind):
     assert _demo_rotation_error(row) < 1.0
 
 
+def test_pairs_scales_a_calibration_of_resized_images_to_the_truth(tmp_path):
+    calib = _half_calibration(tmp_path, "yaml")
+    (tmp_path / "images").mkdir()
+    for image in (DEMO1, DEMO2):
+        shutil.copy(image, tmp_path / "images")
+    (tmp_path / "pairs.txt").write_text(f"{DEMO['image1']} {DEMO['image2']}\n")
+    out = subprocess.run([*COMMAND, "pairs", "pairs.txt", "images", "--calib", calib.name, "-q"],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert out.stderr.strip().splitlines() == [
+        f"ppo-cv pairs: warning: --calib {calib.name} describes a camera of 320x240 images: its "
+        f"camera matrix scaled by 2 to {DEMO['image1']}, 640x480 pixels (and 1 more images)"
+    ]
+    row = json.loads(out.stdout)
+    fx, fy, cx, cy = DEMO["intrinsics"]
+    np.testing.assert_allclose(row["K1"], [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], atol=1e-9)
+    assert _demo_rotation_error(row) < 1.0
+
+
 def test_the_unscaled_calibration_of_resized_images_is_wrong():
     """What the scaling above corrects: the camera of 320x240 images applied as it is."""
     half = ",".join(str(v) for v in _half_camera())
