@@ -13,6 +13,7 @@ import json
 import sys
 import warnings
 from importlib import resources
+from operator import attrgetter
 from pathlib import Path
 
 import numpy as np
@@ -59,6 +60,22 @@ def run_case(name: str):
     motion, seed, index = RENDERS[name]
     pair = make_pair(motion, seed=seed, index=index, size=RENDER_SIZE)
     return estimate_pair(pair.image1, pair.image2, pair.K1, pair.K2)
+
+
+NO_PLANE = {"normal": None, "distance": float("nan"), "ambiguous": False, "k1": float("nan")}
+"""The flat ``plane_*`` fields of a pair whose model is not a plane."""
+
+
+def read_renamed(result, name: str):
+    """Flat field ``name`` of ``result`` read through its path in
+    :data:`ppo_cv.result.RENAMED_FIELDS`, without the deprecated name."""
+    from ppo_cv.result import RENAMED_FIELDS
+
+    path = RENAMED_FIELDS.get(name, name)
+    head, _, rest = path.partition(".")
+    if head == "plane" and result.plane is None:
+        return NO_PLANE[rest]
+    return attrgetter(path)(result)
 
 
 def flat_fields(result, read=getattr) -> dict[str, object]:
