@@ -132,7 +132,7 @@ def run_ppo_cv(image1, image2, K1, K2) -> anchors.AnchorResult:
     extra = {
         "pure_rotation": bool(result.pure_rotation),
         "pri": float(result.pri),
-        "m3": anchors.m3_of(inlier1, inlier2, result.K1, result.K2, result.R),
+        "m3": anchors.m3_of(inlier1, inlier2, result.cameras.K1, result.cameras.K2, result.R),
         "inliers": result.num_inliers,
         "timings": dict(result.timings),
     }

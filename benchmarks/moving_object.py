@@ -14,8 +14,8 @@ where the rotation takes it plus ``shift`` pixels to the right: an object that m
 
 Run ``python benchmarks/moving_object.py`` (about 30 s on 2 cores); it prints a markdown
 table: for each patch size and shift, how many pairs ppo_cv flags, the median rotation error of
-the flagged pairs, and the median GRIC difference (``PairResult.gric_difference``, below 0 the
-rotation wins).
+the flagged pairs, and the median GRIC difference
+(``PairResult.evidence.selection.gric_difference``, below 0 the rotation wins).
 """
 
 from __future__ import annotations
@@ -90,7 +90,7 @@ def run(count: int) -> list[dict]:
             result = estimate_pair(bgr1, bgr2, K1, K2, options=PairOptions())
             flags.append(bool(result.pure_rotation))
             errors.append(_rotation_error(result.R, pair.R))
-            grics.append(float(result.gric_difference))
+            grics.append(float(result.evidence.selection.gric_difference))
         flagged = np.array(flags)
         rows.append(
             {

@@ -264,7 +264,8 @@ SIFT contrast threshold (0.04) in views of 416x312 px. When the essential matrix
 than 100 inliers (`PairOptions.redetect_below`), `estimate_pair` detects again at a quarter of
 the threshold (`ppo_cv.pipeline.REDETECT_THRESHOLD_SCALE`), matches and fits again, and keeps
 the consensus that chance explains less (the lower `log10` NFA, which counts the matches each
-was drawn from; `PairResult.threshold_scale` says which). The narrow warped photos with sensor
+was drawn from; `PairResult.evidence.significance.threshold_scale` says which). The narrow
+warped photos with sensor
 noise then have 28-111 inliers and 14 of 14 are flagged (9 of 14 before), the harness's warped
 frames with the focal exact 11 of 11 (10 of 11), and no translating pair of this report changed
 its flag. The rotations from the matches alone are a little worse where the weaker keypoints
@@ -287,7 +288,8 @@ noise and blur). It is noise, independent from one match to the next, where para
 over a surface: `ppo_cv.model_selection.incoherent_sigma` measures the noise of the rotation's
 residual vectors from the differences between nearest neighbours (the variogram's nugget), and
 GRIC divides by the larger of that and the essential matrix's estimate
-(`PairResult.rotation_noise_px`, `noise_sigma_px`). On the pairs the rotation lost it is 1.5-2.2
+(`PairResult.evidence.selection.rotation_noise_px`, `noise_sigma_px`). On the pairs the
+rotation lost it is 1.5-2.2
 times the essential matrix's estimate; on translating pairs at 0.02 (`tiny-baseline`, with and
 without sensor noise, and the harness renders) 0.7-1.4 and on tripod pans 0.9-1.3, so the flags
 of the translating sets, freiburg included, are the same as before, and no set lost a flag.
@@ -341,7 +343,8 @@ moves off it are not scattered like noise: they are a surface, a patch whose res
 A pair is a rotation only when at most a fifth of the compared matches lie on the essential
 matrix, off the rotation, and move with their nearest neighbour in the image (within half the
 residual's length; `ppo_cv.model_selection.coherent_share`,
-`ppo_cv.motion_model.MAX_COHERENT_SHARE`, `PairResult.coherent_share`). In this report the
+`ppo_cv.motion_model.MAX_COHERENT_SHARE`, `PairResult.evidence.selection.coherent_share`). In
+this report the
 rule turns five translating pairs from rotation to general and no other flag: `tiny-baseline`
 index 6 at 0.02 with focal lengths per photo (with the ratio fitted and held) and as stitched,
 and at 0.05 with focal lengths per photo, a box face before the back wall whose matches, a
@@ -366,8 +369,8 @@ baseline / distance for a motion along the plane, zero for a rotation with or wi
 of focal length). A flagged pair whose tracks' parallax less three of its deviations exceeds
 0.01, half the baseline / depth from which a translation must not be called a rotation, is a
 plane or a general motion after all (`ppo_cv.motion_model.with_tracks`,
-`MAX_TRACK_PARALLAX`, `PARALLAX_SIGNIFICANCE`; `PairResult.track_parallax` and
-`track_parallax_sigma`). The table above gives it for every set: the six are refused
+`MAX_TRACK_PARALLAX`, `PARALLAX_SIGNIFICANCE`; `PairResult.evidence.tracks.parallax` and
+`parallax_sigma`). The table above gives it for every set: the six are refused
 (statistic +0.0105 to +0.0174), and no rotation is. Their rotation errors go from 0.83-1.09
 deg as rotations to 0.08-0.33 deg as planes or general motions, but for index 8 told the centre
 (0.92 to 0.95 deg). Exact rotations in full overlap read
@@ -380,7 +383,8 @@ parallax pushed past its bound: an error of the principal point times a 20 degre
 has no tracks and keeps the decision of its matches.
 
 A lens at the edge of its box. The rotation of the matches may ask for a focal scale beyond
-+-5 % (`result.lens_excess` above 0, up to 3 deviations: `ppo_cv.motion_model.LENS_SIGNIFICANCE`),
++-5 % (`result.lens.lens_excess` above 0, up to 3 deviations:
+`ppo_cv.motion_model.LENS_SIGNIFICANCE`),
 and is then fitted with the focal held at the edge. A translation can be absorbed that way
 (harness render seed 103 at 0.02: focal scale 1.05, GRIC difference -0.12), and so can a focal
 length given more than 5 % off, which the tracks' refit in the same box refused: a rotation
@@ -416,7 +420,7 @@ than 0.003 of its distance with two deviations to spare (`NEGLIGIBLE_PARALLAX`, 
 0.02 from which a translation must not be called a rotation; `NEGLIGIBLE_SIGNIFICANCE`) it is a
 rotation with the tracks' rotation. So is a pair told the centre as principal point whose
 rotation passes only once the point may move 3 % of a side instead of 2 %
-(`ppo_cv.rotation.PRINCIPAL_WIDE_BOUND`, `result.principal_bound`): a narrow tripod pan as
+(`ppo_cv.rotation.PRINCIPAL_WIDE_BOUND`, `result.lens.principal_bound`): a narrow tripod pan as
 stitched (index 51, its true point 1.9 % off, fitted past 2 % and dropped) was general 1.3 deg
 off, and now reads 0.0001 and is flagged 0.08 deg off; a warped photo told focal lengths per
 photo with the ratio held (index 7) is flagged 0.02 deg off. The table above gives the
@@ -538,24 +542,24 @@ def evaluate_pair(image1, image2, K1, K2, R_true, peers: bool = True, options=No
     row = {
         "ppo_cv_flag": bool(result.pure_rotation),
         "ppo_cv_R_err": _rotation_error(result.R, R_true),
-        "gric_difference": float(result.gric_difference),
-        "lens_excess": float(result.lens_excess),
-        "rotation_residual_px": float(result.rotation_residual_px),
-        "general_residual_px": float(result.general_residual_px),
+        "gric_difference": float(result.evidence.selection.gric_difference),
+        "lens_excess": float(result.lens.lens_excess),
+        "rotation_residual_px": float(result.evidence.selection.rotation_residual_px),
+        "general_residual_px": float(result.evidence.selection.general_residual_px),
         "pri": float(result.pri),
-        "t_sigma_deg": float(result.t_sigma_deg),
+        "t_sigma_deg": float(result.uncertainty.t_sigma_deg),
         "num_inliers": result.num_inliers,
-        "focal_ratio": float(result.focal_ratio),
+        "focal_ratio": float(result.lens.focal_ratio),
         "given_focal_ratio": float(np.mean(np.diag(K2)[:2]) / np.mean(np.diag(K1)[:2])),
-        "principal_bound": float(result.principal_bound),
+        "principal_bound": float(result.lens.principal_bound),
     }
-    if np.isfinite(result.rotation_sigma_deg):
-        row["ppo_cv_R_sigma"] = float(result.rotation_sigma_deg)
-    if np.isfinite(result.track_parallax):
-        row["track_parallax"] = float(result.track_parallax)
-        row["track_parallax_sigma"] = float(result.track_parallax_sigma)
+    if np.isfinite(result.uncertainty.rotation_sigma_deg):
+        row["ppo_cv_R_sigma"] = float(result.uncertainty.rotation_sigma_deg)
+    if np.isfinite(result.evidence.tracks.parallax):
+        row["track_parallax"] = float(result.evidence.tracks.parallax)
+        row["track_parallax_sigma"] = float(result.evidence.tracks.parallax_sigma)
     if result.pure_rotation:
-        row["rotation_tracks"] = int(result.rotation_tracks)
+        row["rotation_tracks"] = int(result.uncertainty.rotation_tracks)
         matches_only = estimate_pair(
             image1, image2, K1, K2, options=dataclasses.replace(options, photometric=False)
         )
@@ -566,11 +570,11 @@ def evaluate_pair(image1, image2, K1, K2, R_true, peers: bool = True, options=No
     p2 = np.ascontiguousarray(result.keypoints2[result.matches[:, 1]], dtype=np.float64)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        R, flag = _pycolmap(p1, p2, K1, K2, result.image_size1, result.image_size2)
+        R, flag = _pycolmap(p1, p2, K1, K2, result.cameras.image_size1, result.cameras.image_size2)
         row.update(pycolmap_flag=bool(flag), pycolmap_R_err=_rotation_error(R, R_true))
         row["opencv_R_err"] = _rotation_error(_opencv(p1, p2, K1, K2), R_true)
         try:
-            R = _poselib(p1, p2, K1, K2, result.image_size1, result.image_size2)
+            R = _poselib(p1, p2, K1, K2, result.cameras.image_size1, result.cameras.image_size2)
         except ImportError:
             R = None
         row["poselib_R_err"] = _rotation_error(R, R_true) if R is not None else float("nan")

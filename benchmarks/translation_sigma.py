@@ -1,6 +1,6 @@
 """Is ``t_sigma_deg`` a number a user can threshold? Its calibration on translating pairs.
 
-``PairResult.t_sigma_deg`` is one standard deviation of the direction of ``t``
+``PairResult.uncertainty.t_sigma_deg`` is one standard deviation of the direction of ``t``
 (:func:`ppo_cv.refine.translation_sigma_deg`). For each translating set this script compares
 it with the actual angle between the returned ``t`` and the true one, over the pairs called a
 general motion or a plane. For a calibrated deviation of a direction on the sphere (two
@@ -46,7 +46,8 @@ from pure_rotation import FREIBURG, imperfect_render  # noqa: E402
 
 def _focal_exact_sigma(result, K1: np.ndarray, K2: np.ndarray) -> float:
     """``t_sigma_deg`` of ``result`` recomputed with the focal length held exact."""
-    k1 = next((k for k in (result.radial_k1, result.plane_k1) if np.isfinite(k)), None)
+    k1 = result.plane.k1 if result.plane is not None else result.lens.radial_k1
+    k1 = k1 if np.isfinite(k1) else None
     x1 = pixels_to_normalized(result.keypoints1[result.matches[:, 0]], K1, None)
     x2 = pixels_to_normalized(result.keypoints2[result.matches[:, 1]], K2, None)
     c1, c2 = (np.column_stack([x, np.ones(len(x))]) for x in (x1, x2))
@@ -105,7 +106,7 @@ def run(count: int) -> list[dict]:
                 flagged += 1
                 continue
             errors.append(float(direction_error_deg(result.t, t_true, signed=False)))
-            sigmas.append(result.t_sigma_deg)
+            sigmas.append(result.uncertainty.t_sigma_deg)
             exact.append(_focal_exact_sigma(result, K1, K2))
         arrays = (np.array(errors), np.array(sigmas), np.array(exact))
         rows.append(_row(name, *arrays, flagged, failed))

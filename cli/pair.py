@@ -122,21 +122,23 @@ def _demo_inputs():
 
 def _plane_lines(result) -> list[str]:
     """Summary lines of the homography: its fit always, the plane when the model is one."""
-    residual = getattr(result, "plane_residual_px", float("nan"))
+    selection = result.evidence.selection
+    residual = selection.plane_residual_px
     if residual != residual:
         return []
     lines = [
         f"  homography   median residual {residual:.2f} px, GRIC difference plane - general "
-        f"{result.gric_plane_difference:+.3f} per match"
+        f"{selection.gric_plane_difference:+.3f} per match"
     ]
-    if result.plane_normal is not None:
-        n = result.plane_normal
+    plane = result.plane
+    if plane is not None:
+        n = plane.normal
         lines.append(
             f"  plane        normal ({n[0]:+.4f}, {n[1]:+.4f}, {n[2]:+.4f}) in camera 1, "
-            f"distance {result.plane_distance:.3f} baselines"
+            f"distance {plane.distance:.3f} baselines"
             + (
                 ", two-fold ambiguity broken by the off-plane matches or frontality"
-                if result.plane_ambiguous
+                if plane.ambiguous
                 else ""
             )
         )
@@ -145,7 +147,7 @@ def _plane_lines(result) -> list[str]:
 
 def _radial_lines(result) -> list[str]:
     """The radial term fitted with the pose, when one was kept."""
-    k1 = result.radial_k1 if result.model == "general" else result.plane_k1
+    k1 = result.plane.k1 if result.plane is not None else result.lens.radial_k1
     if not k1 or k1 != k1:
         return []
     return [f"  radial k1    {k1:+.4f} (division model on normalized points, fitted with the pose)"]
@@ -153,17 +155,18 @@ def _radial_lines(result) -> list[str]:
 
 def _denser_note(result) -> str:
     """Says when the features are those of the second, lower-threshold detection."""
-    if result.threshold_scale == 1.0:
+    scale = result.evidence.significance.threshold_scale
+    if scale == 1.0:
         return ""
-    return f" (features detected again at {result.threshold_scale:g} x the threshold)"
+    return f" (features detected again at {scale:g} x the threshold)"
 
 
 def _rotation_sigma_lines(result) -> list[str]:
     """How well the matches determine the rotation of a pure rotation."""
-    sigma = getattr(result, "rotation_sigma_deg", float("nan"))
+    sigma = result.uncertainty.rotation_sigma_deg
     if not result.pure_rotation or not sigma == sigma:
         return []
-    tracks = int(getattr(result, "rotation_tracks", 0))
+    tracks = result.uncertainty.rotation_tracks
     source = f"{tracks} intensity-aligned windows" if tracks else "the feature matches"
     return [f"  R sigma      {sigma:.3f} deg (rotation angle error, root mean square, {source})"]
 
@@ -175,9 +178,9 @@ def _lens_lines(result) -> list[str]:
     from ppo_cv.motion_model import LENS_SIGNIFICANCE, MAX_COHERENT_SHARE, NEGLIGIBLE_PARALLAX
     from ppo_cv.rotation import PRINCIPAL_BOUND
 
-    excess = float(getattr(result, "lens_excess", float("nan")))
-    share = float(getattr(result, "coherent_share", 0.0))
-    won = not result.pure_rotation and result.gric_difference < 0
+    lens, selection, tracks = result.lens, result.evidence.selection, result.evidence.tracks
+    excess, share = lens.lens_excess, selection.coherent_share
+    won = not result.pure_rotation and selection.gric_difference < 0
     if won and excess > LENS_SIGNIFICANCE:
         return [
             f"  lens fit     a rotation would need a lens {excess:.1f} deviations beyond "
@@ -188,16 +191,15 @@ def _lens_lines(result) -> list[str]:
             f"  parallax     {100 * share:.0f} % of the matches move together off the rotation "
             "(a nearer surface, or an object that moved): not called a pure rotation"
         ]
-    parallax = float(getattr(result, "track_parallax", float("nan")))
-    if won and parallax != parallax and getattr(result, "principal_bound", 0) > PRINCIPAL_BOUND:
-        x, y = getattr(result, "principal_offset_px", (0.0, 0.0))
+    parallax, sigma = tracks.parallax, tracks.parallax_sigma
+    if won and parallax != parallax and lens.principal_bound > PRINCIPAL_BOUND:
+        x, y = lens.principal_offset_px
         return [
             f"  lens fit     a rotation would need the principal point moved ({x:+.1f}, {y:+.1f}) "
             "px, more than a lens plausibly has, and no intensity-aligned windows confirmed "
             "it: not called a pure rotation"
         ]
     if not result.pure_rotation and parallax == parallax:
-        sigma = float(getattr(result, "track_parallax_sigma", float("nan")))
         clipped = ""
         if won and excess > 0:
             clipped = (
@@ -211,18 +213,17 @@ def _lens_lines(result) -> list[str]:
     if not result.pure_rotation:
         return []
     lines = []
-    if parallax == parallax and result.gric_difference > 0:
-        sigma = float(getattr(result, "track_parallax_sigma", float("nan")))
+    if parallax == parallax and selection.gric_difference > 0:
         lines.append(
             f"  parallax     the matches see a translation, but the intensity-aligned windows "
             f"fit a plane that moved {parallax:.4f} +- {sigma:.4f} of its distance: negligible"
         )
-    text = f"focal scale {result.focal_scale:.4f} (given / true)"
-    ratio = float(getattr(result, "focal_ratio", 1.0))
+    text = f"focal scale {lens.focal_scale:.4f} (given / true)"
+    ratio = lens.focal_ratio
     if ratio != 1.0:
         text += f", image 2 / image 1 {ratio:.4f}"
-    offset = getattr(result, "principal_offset_px", None)
-    if offset is not None and any(offset):
+    offset = lens.principal_offset_px
+    if any(offset):
         text += f", principal point moved ({offset[0]:+.1f}, {offset[1]:+.1f}) px"
     return [*lines, f"  lens fit     {text}"]
 
@@ -232,37 +233,40 @@ def _deciding_test(result) -> str:
     from ppo_cv.motion_model import LENS_SIGNIFICANCE, MAX_COHERENT_SHARE
     from ppo_cv.rotation import PRINCIPAL_BOUND
 
-    gric = f"{result.gric_difference:+.3f} per match"
-    parallax = float(getattr(result, "track_parallax", float("nan")))
+    selection, lens = result.evidence.selection, result.lens
+    gric = f"{selection.gric_difference:+.3f} per match"
+    parallax = result.evidence.tracks.parallax
     tracks = (
         f"the tracks' parallax: the intensity-aligned windows fit a plane that moved {parallax:.4f}"
         " of its distance"
     )
     if result.pure_rotation:
-        if parallax == parallax and result.gric_difference > 0:
+        if parallax == parallax and selection.gric_difference > 0:
             return f"{tracks}, negligible (GRIC alone preferred a translation, {gric})"
         return f"GRIC and PRI: a rotation explains the matches ({gric}), PRI below its threshold"
     if result.model == "plane":
         return (
             "GRIC: the homography explains the matches better than the essential matrix "
-            f"({result.gric_plane_difference:+.3f} per match)"
+            f"({selection.gric_plane_difference:+.3f} per match)"
         )
-    if result.gric_difference > 0:
-        agrees = "; PRI agrees" if result.pri >= result.pri_threshold else ""
+    if selection.gric_difference > 0:
+        agrees = "; PRI agrees" if result.pri >= selection.pri_threshold else ""
         if parallax == parallax:
             agrees += f"; so do the tracks' parallax ({parallax:.4f} of the distance)"
         return (
             f"GRIC: the essential matrix explains the matches better than a rotation ({gric})"
             + agrees
         )
-    excess = float(getattr(result, "lens_excess", float("nan")))
-    if excess > LENS_SIGNIFICANCE:
-        return f"the lens fit: a rotation would need an implausible lens ({excess:.1f} deviations)"
-    if float(getattr(result, "coherent_share", 0.0)) > MAX_COHERENT_SHARE:
+    if lens.lens_excess > LENS_SIGNIFICANCE:
+        return (
+            "the lens fit: a rotation would need an implausible lens "
+            f"({lens.lens_excess:.1f} deviations)"
+        )
+    if selection.coherent_share > MAX_COHERENT_SHARE:
         return "coherent parallax: many matches move together off the rotation"
     if parallax == parallax:
         return f"{tracks}, more than a rotation shows"
-    if getattr(result, "principal_bound", PRINCIPAL_BOUND) > PRINCIPAL_BOUND:
+    if lens.principal_bound > PRINCIPAL_BOUND:
         return "the lens fit: a rotation would need the principal point moved implausibly far"
     return "PRI: a rotation explains the matches, but their PRI is at or above its threshold"
 
@@ -281,9 +285,10 @@ def _verdict(result) -> str:
 
 def _pri_text(result) -> str:
     """PRI against its threshold, saying when another test overruled what PRI alone says."""
-    below = result.pri < result.pri_threshold
+    threshold = result.evidence.selection.pri_threshold
+    below = result.pri < threshold
     side = "below" if below else "at or above"
-    text = f"{result.pri:.4f} ({side} the threshold {result.pri_threshold:g}"
+    text = f"{result.pri:.4f} ({side} the threshold {threshold:g}"
     if below != bool(result.pure_rotation):
         return text + "; not the deciding test, see verdict)"
     return text + ")"
@@ -298,6 +303,8 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
     angle, axis = rotation_angle_axis(result.R)
     yaw, pitch, roll = camera_euler_degrees(result.R)
     t = np.asarray(result.t)
+    cameras, selection = result.cameras, result.evidence.selection
+    t_sigma, log10_nfa = result.uncertainty.t_sigma_deg, result.evidence.significance.log10_nfa
     vector = f"({t[0]:+.4f}, {t[1]:+.4f}, {t[2]:+.4f})"
 
     def camera(K, dist):
@@ -315,18 +322,18 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
         "  translation  undetermined (pure rotation); best unit guess " + vector
         if result.pure_rotation
         else f"  translation  {vector}  [unit direction]",
-        f"  camera 1     {camera(result.K1, result.dist1)}",
-        f"  camera 2     {camera(result.K2, result.dist2)}",
+        f"  camera 1     {camera(cameras.K1, cameras.dist1)}",
+        f"  camera 2     {camera(cameras.K2, cameras.dist2)}",
         f"  PRI          {_pri_text(result)}",
         f"  model        {result.model}: median residual rotation "
-        f"{result.rotation_residual_px:.2f} px, general {result.general_residual_px:.2f} px, "
-        f"GRIC difference {result.gric_difference:+.3f} per match",
+        f"{selection.rotation_residual_px:.2f} px, general {selection.general_residual_px:.2f} "
+        f"px, GRIC difference {selection.gric_difference:+.3f} per match",
         *_plane_lines(result),
         *_radial_lines(result),
-        f"  t sigma      {result.t_sigma_deg:.2f} deg (direction of t, one standard deviation)",
+        f"  t sigma      {t_sigma:.2f} deg (direction of t, one standard deviation)",
         *_rotation_sigma_lines(result),
         *_lens_lines(result),
-        f"  log10 NFA    {result.log10_nfa:.1f} (consensus against chance; lower is stronger)",
+        f"  log10 NFA    {log10_nfa:.1f} (consensus against chance; lower is stronger)",
         f"  matches      {result.num_matches} putative, {result.num_inliers} inliers, "
         f"{result.num_points} 3D points" + _denser_note(result),
         "  time         "

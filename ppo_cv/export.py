@@ -17,7 +17,14 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .pipeline import PairResult
+from .result import (
+    DecisionEvidence,
+    LensTerms,
+    PairCameras,
+    PairResult,
+    PlaneGeometry,
+    PoseUncertainty,
+)
 
 __all__ = [
     "POSE_CONVENTION",
@@ -121,65 +128,71 @@ def _listed(array: Any) -> list | None:
     return None if array is None else np.asarray(array, dtype=np.float64).tolist()
 
 
-def _model_selection(result: PairResult) -> dict:
-    """``model``, ``t_sigma_deg`` and the decision statistics, for results that carry them."""
-    if not hasattr(result, "model"):
-        return {}
+def _cameras(cameras: PairCameras) -> dict:
     return {
-        "model": str(result.model),
-        "t_sigma_deg": float(result.t_sigma_deg),
-        "rotation_sigma_deg": _finite_or_none(getattr(result, "rotation_sigma_deg", float("nan"))),
-        "rotation_tracks": int(getattr(result, "rotation_tracks", 0)),
-        "model_selection": {
-            "rotation_residual_px": float(result.rotation_residual_px),
-            "general_residual_px": float(result.general_residual_px),
-            "gric_difference": float(result.gric_difference),
-            "lens_excess": _finite_or_none(getattr(result, "lens_excess", float("nan"))),
-            "noise_sigma_px": float(result.noise_sigma_px),
-            "rotation_noise_px": _finite_or_none(getattr(result, "rotation_noise_px", np.nan)),
-            "coherent_share": float(getattr(result, "coherent_share", 0.0)),
-            "track_parallax": _finite_or_none(getattr(result, "track_parallax", np.nan)),
-            "track_parallax_sigma": _finite_or_none(
-                getattr(result, "track_parallax_sigma", np.nan)
-            ),
-            "rotation_gap_deg": _finite_or_none(getattr(result, "rotation_gap_deg", np.nan)),
-            "focal_scale": float(result.focal_scale),
-            "focal_ratio": float(getattr(result, "focal_ratio", 1.0)),
-            "principal_offset_px": _listed(getattr(result, "principal_offset_px", np.zeros(2))),
-            "principal_bound": _finite_or_none(getattr(result, "principal_bound", np.nan)),
-            **_plane_selection(result),
+        "K1": np.asarray(cameras.K1).tolist(),
+        "K2": np.asarray(cameras.K2).tolist(),
+        "dist1": _listed(cameras.dist1),
+        "dist2": _listed(cameras.dist2),
+        "image_size1": list(cameras.image_size1),
+        "image_size2": list(cameras.image_size2),
+    }
+
+
+def _uncertainty(uncertainty: PoseUncertainty) -> dict:
+    return {
+        "t_sigma_deg": float(uncertainty.t_sigma_deg),
+        "rotation_sigma_deg": _finite_or_none(uncertainty.rotation_sigma_deg),
+        "rotation_tracks": int(uncertainty.rotation_tracks),
+    }
+
+
+def _lens(lens: LensTerms) -> dict:
+    return {
+        "focal_scale": float(lens.focal_scale),
+        "focal_ratio": float(lens.focal_ratio),
+        "principal_offset_px": _listed(lens.principal_offset_px),
+        "principal_bound": _finite_or_none(lens.principal_bound),
+        "lens_excess": _finite_or_none(lens.lens_excess),
+        "radial_k1": _finite_or_none(lens.radial_k1),
+    }
+
+
+def _evidence(evidence: DecisionEvidence) -> dict:
+    selection = evidence.selection
+    return {
+        "selection": {
+            "pri_threshold": float(selection.pri_threshold),
+            "rotation_residual_px": float(selection.rotation_residual_px),
+            "general_residual_px": float(selection.general_residual_px),
+            "plane_residual_px": _finite_or_none(selection.plane_residual_px),
+            "gric_difference": float(selection.gric_difference),
+            "gric_plane_difference": _finite_or_none(selection.gric_plane_difference),
+            "plane_epipolar_ratio": _finite_or_none(selection.plane_epipolar_ratio),
+            "noise_sigma_px": float(selection.noise_sigma_px),
+            "rotation_noise_px": _finite_or_none(selection.rotation_noise_px),
+            "coherent_share": float(selection.coherent_share),
+            "rotation_gap_deg": _finite_or_none(selection.rotation_gap_deg),
         },
-        "radial_k1": _finite_or_none(getattr(result, "radial_k1", float("nan"))),
-        **_plane(result),
+        "tracks": {
+            "parallax": _finite_or_none(evidence.tracks.parallax),
+            "parallax_sigma": _finite_or_none(evidence.tracks.parallax_sigma),
+        },
+        "significance": {
+            "log10_nfa": float(evidence.significance.log10_nfa),
+            "threshold_scale": float(evidence.significance.threshold_scale),
+        },
     }
 
 
-def _plane_selection(result: PairResult) -> dict:
-    """The plane-versus-general statistics, for results that carry them."""
-    if not hasattr(result, "gric_plane_difference"):
-        return {}
+def _plane(plane: PlaneGeometry | None) -> dict | None:
+    if plane is None:
+        return None
     return {
-        "plane_residual_px": _finite_or_none(result.plane_residual_px),
-        "gric_plane_difference": _finite_or_none(result.gric_plane_difference),
-        "plane_epipolar_ratio": _finite_or_none(result.plane_epipolar_ratio),
-    }
-
-
-def _plane(result: PairResult) -> dict:
-    """``plane``: normal (camera 1), distance (baselines), two-fold ambiguity and the radial
-    term ``k1`` of the division model fitted with it (None when not modelled); None unless the
-    model is a plane."""
-    if not hasattr(result, "plane_normal"):
-        return {}
-    if result.plane_normal is None:
-        return {"plane": None}
-    return {
-        "plane": {
-            "normal": np.asarray(result.plane_normal, dtype=np.float64).tolist(),
-            "distance": float(result.plane_distance),
-            "ambiguous": bool(result.plane_ambiguous),
-            "k1": _finite_or_none(getattr(result, "plane_k1", float("nan"))),
-        }
+        "normal": np.asarray(plane.normal, dtype=np.float64).tolist(),
+        "distance": float(plane.distance),
+        "ambiguous": bool(plane.ambiguous),
+        "k1": _finite_or_none(plane.k1),
     }
 
 
@@ -189,19 +202,21 @@ def _finite_or_none(value: float) -> float | None:
 
 
 def result_to_dict(result: PairResult, **extra: Any) -> dict:
-    """A JSON-ready summary: pose, verdict, counts, intrinsics, distortion, timings (+ ``extra``).
+    """A JSON-ready summary whose keys follow the paths of :class:`PairResult` (+ ``extra``).
 
-    ``R`` and ``t`` follow ``X2 = R X1 + t`` with ``|t| = 1`` (``convention``). When the
-    translation is not determined (a pure rotation) ``t`` is None and the best unit guess, which
-    the images do not support, is under ``t_guess``. ``rotation_euler_deg`` holds the yaw, pitch
-    and roll of ``R`` in camera axes (:func:`camera_euler_degrees`). ``dist1`` and ``dist2`` are
-    the OpenCV distortion coefficients removed from the points, None for none. ``model`` is
-    ``"rotation"``, ``"plane"`` or ``"general"``; ``plane`` holds the plane's unit ``normal`` in
-    camera 1, its ``distance`` in baselines and whether the homography's two-fold ambiguity had
-    to be broken (``ambiguous``) for a plane, and is None otherwise; ``radial_k1`` is the
-    division-model coefficient fitted with a general pose (0 when not kept, None for the other
-    models). ``threshold_scale`` is the detector threshold scale of the features behind the
-    result (below 1 after a second, denser detection: ``PairOptions.redetect_below``).
+    At the top: ``R`` and ``t`` following ``X2 = R X1 + t`` with ``|t| = 1`` (``convention``),
+    ``pure_rotation``, ``model`` (``"rotation"``, ``"plane"`` or ``"general"``), ``pri``, the
+    angle, axis and camera Euler angles of ``R`` (``rotation_euler_deg``, yaw, pitch and roll
+    in camera axes: :func:`camera_euler_degrees`) and the counts. When the translation is not
+    determined (a pure rotation) ``t`` is None and the best unit guess, which the images do not
+    support, is under ``t_guess``. Then the records: ``cameras`` (``K1``, ``K2``, ``dist1`` and
+    ``dist2``, the OpenCV coefficients removed from the points, None for none, image sizes),
+    ``uncertainty``, ``lens``, ``evidence`` (``selection``, ``tracks``, ``significance``; its
+    ``threshold_scale`` is below 1 after a second, denser detection:
+    ``PairOptions.redetect_below``), ``plane`` (the plane's unit ``normal`` in camera 1, its
+    ``distance`` in baselines, whether the homography's two-fold ambiguity had to be broken
+    and its radial ``k1``; None unless the model is a plane) and ``timings``. A value that is
+    not finite where the model does not define it is None.
     """
     angle, axis = rotation_angle_axis(result.R)
     t = np.asarray(result.t, dtype=np.float64).tolist()
@@ -213,25 +228,21 @@ def result_to_dict(result: PairResult, **extra: Any) -> dict:
         **({} if result.translation_determined else {"t_guess": t}),
         "pure_rotation": bool(result.pure_rotation),
         "translation_determined": bool(result.translation_determined),
+        "model": str(result.model),
         "pri": float(result.pri),
-        "pri_threshold": float(result.pri_threshold),
-        **_model_selection(result),
-        "log10_nfa": float(getattr(result, "log10_nfa", float("nan"))),
         "rotation_angle_deg": angle,
         "rotation_axis": axis.tolist(),
         "rotation_euler_deg": camera_euler_degrees(result.R)._asdict(),
         "euler_convention": EULER_CONVENTION,
         "num_keypoints": [int(len(result.keypoints1)), int(len(result.keypoints2))],
-        "threshold_scale": float(getattr(result, "threshold_scale", 1.0)),
         "num_matches": result.num_matches,
         "num_inliers": result.num_inliers,
         "num_points": result.num_points,
-        "K1": np.asarray(result.K1).tolist(),
-        "K2": np.asarray(result.K2).tolist(),
-        "dist1": _listed(result.dist1),
-        "dist2": _listed(result.dist2),
-        "image_size1": list(result.image_size1),
-        "image_size2": list(result.image_size2),
+        "cameras": _cameras(result.cameras),
+        "uncertainty": _uncertainty(result.uncertainty),
+        "lens": _lens(result.lens),
+        "evidence": _evidence(result.evidence),
+        "plane": _plane(result.plane),
         "timings": {k: round(float(v), 6) for k, v in result.timings.items()},
     }
     data.update(extra)
@@ -318,10 +329,11 @@ def _as_bgr(image: np.ndarray) -> np.ndarray:
 def _legend_lines(result: PairResult, drawn: np.ndarray) -> list[tuple[str, tuple | None]]:
     inliers = np.asarray(result.inliers, dtype=bool)
     drawn_in = int(np.count_nonzero(inliers[drawn]))
+    threshold = result.evidence.selection.pri_threshold
     verdict = (
-        f"pure rotation (PRI {result.pri:.4f} < {result.pri_threshold:g}): translation undetermined"
+        f"pure rotation (PRI {result.pri:.4f} < {threshold:g}): translation undetermined"
         if result.pure_rotation
-        else f"general motion (PRI {result.pri:.4f} >= {result.pri_threshold:g})"
+        else f"general motion (PRI {result.pri:.4f} >= {threshold:g})"
     )
     return [
         (f"inliers  {result.num_inliers}  ({drawn_in} drawn)", _INLIER_BGR),
@@ -435,11 +447,12 @@ def write_colmap_model(
     """
     import pycolmap
 
-    dists = (result.dist1, result.dist2) if dists is None else dists
+    cameras = result.cameras
+    dists = (cameras.dist1, cameras.dist2) if dists is None else dists
     reconstruction = pycolmap.Reconstruction()
     same = (
-        np.allclose(result.K1, result.K2)
-        and result.image_size1 == result.image_size2
+        np.allclose(cameras.K1, cameras.K2)
+        and cameras.image_size1 == cameras.image_size2
         and (
             (dists[0] is None and dists[1] is None)
             or (
@@ -448,11 +461,11 @@ def write_colmap_model(
         )
     )
     reconstruction.add_camera_with_trivial_rig(
-        _colmap_camera(result.K1, dists[0], result.image_size1, 1)
+        _colmap_camera(cameras.K1, dists[0], cameras.image_size1, 1)
     )
     if not same:
         reconstruction.add_camera_with_trivial_rig(
-            _colmap_camera(result.K2, dists[1], result.image_size2, 2)
+            _colmap_camera(cameras.K2, dists[1], cameras.image_size2, 2)
         )
     p1, p2 = result.inlier_points
     t = np.zeros(3) if result.pure_rotation else np.asarray(result.t, float)

@@ -704,11 +704,9 @@ def refine_rotation_photometric(
         coordinates or ``(x, y)``); None keeps ``principal_offset``.
     focal_ratio : float
         View 2's focal scale over view 1's in that fit.
-    focal_ratio_prior : float, optional
-        Refit the focal ratio too, under this prior about ``focal_ratio_mean``; None keeps
-        ``focal_ratio``.
-    focal_ratio_mean : float
-        Mean of that prior.
+    focal_ratio_prior, focal_ratio_mean : float, optional
+        Refit the focal ratio too, under a prior of this deviation about this mean; None (the
+        deviation) keeps ``focal_ratio``.
     principal_bound : float
         Largest principal-point offset of the refit, in ``principal_prior`` deviations
         (:func:`ppo_cv.rotation.fit_rotation_lens`; the bound the rotation of the matches used).
@@ -758,6 +756,23 @@ def refine_rotation_photometric(
     >>> bool(rotation_error_deg(refined.fit.R, R) < 0.02), refined.num_tracks > 100
     (True, True)
     """
+    cameras, R, rotation_sigma_deg, focal_ratio, priors = _checked_inputs(
+        K1, K2, dist1, dist2, R, rotation_sigma_deg, principal_prior, focal_ratio,
+        focal_ratio_prior, focal_ratio_mean, principal_bound, max_focal_change,
+    )  # fmt: skip
+    start = (R, float(focal_scale), float(k1), _as_offset(principal_offset), focal_ratio)
+    windows = _as_windows(window)
+    return _best_window_refit(
+        image1, image2, cameras, start, priors, rotation_sigma_deg, windows, max_corners
+    )
+
+
+def _checked_inputs(
+    K1, K2, dist1, dist2, R, rotation_sigma_deg, principal_prior, focal_ratio, focal_ratio_prior,
+    focal_ratio_mean, principal_bound, max_focal_change,
+) -> tuple[tuple, np.ndarray, float, float, dict]:  # fmt: skip
+    """The cameras ``(K1, K2, dist1, dist2)``, ``R``, ``rotation_sigma_deg``, ``focal_ratio``
+    and the priors of :func:`refine_rotation_photometric`, checked."""
     K1, K2 = as_camera_matrix(K1, "K1"), as_camera_matrix(K2, "K2")
     dist1, dist2 = as_distortion(dist1, "dist1"), as_distortion(dist2, "dist2")
     R = as_rotation(R, "R")
@@ -777,10 +792,19 @@ def refine_rotation_photometric(
         "principal_bound": principal_bound,
         "max_focal_change": max_focal_change,
     }
-    windows = _as_windows(window)
+    return (K1, K2, dist1, dist2), R, rotation_sigma_deg, focal_ratio, priors
+
+
+def _best_window_refit(
+    image1, image2, cameras, start, priors: dict, rotation_sigma_deg: float, windows, max_corners
+) -> PhotometricRotation | None:
+    """The refit of least ``rotation_sigma_deg`` among the window sides that give one within
+    ``4 rotation_sigma_deg + 0.1`` degrees of the start, with the parallax of its tracks; None
+    when none does."""
+    K1, K2, dist1, dist2 = cameras
+    R = start[0]
     focal = float(np.mean([K2[0, 0], K2[1, 1]]))
     gray1, gray2 = to_gray(image1), to_gray(image2)
-    start = (R, float(focal_scale), float(k1), _as_offset(principal_offset), focal_ratio)
 
     def transfer_with(model) -> Callable[[np.ndarray], np.ndarray]:
         return lambda pixels: normalized_to_pixels(

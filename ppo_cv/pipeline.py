@@ -34,6 +34,11 @@ Stages (each timed in ``PairResult.timings``, seconds):
     significant (:func:`ppo_cv.refine.refine_pose_radial`) and its analytic points. The
     uncertainty of the direction of ``t`` comes from the Sampson cost of ``E = [t]x R`` at the
     reported pose in both moving cases.
+
+:func:`estimate_pair` calls one function per stage (``_load_inputs``, ``_features``,
+``_best_consensus``, ``_essential_pose``, ``_homography``, ``_decide``,
+``_revisit_with_tracks``), then the finisher of the chosen model (:data:`FINISHERS`), and
+``_assemble`` builds the :class:`~ppo_cv.result.PairResult`.
 """
 
 from __future__ import annotations
@@ -42,7 +47,7 @@ import importlib
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -57,10 +62,10 @@ from .features import (
     match_features_scored,
     require_detectable,
 )
-from .homography import estimate_homography
+from .homography import HomographyEstimate, estimate_homography
 from .images import as_image as _as_image
 from .images import load_image
-from .motion_model import decide_motion, plane_ransac_trials, with_tracks
+from .motion_model import MotionDecision, decide_motion, plane_ransac_trials, with_tracks
 from .photometric import refine_rotation_photometric
 from .plane import refine_planar_pose, undistort_division
 from .pose import _recover_normalized
@@ -70,6 +75,17 @@ from .refine import (
     refine_pose,
     refine_pose_radial,
     translation_sigma_deg,
+)
+from .result import (
+    ConsensusSignificance,
+    DecisionEvidence,
+    LensTerms,
+    ModelComparison,
+    PairCameras,
+    PairResult,
+    PlaneGeometry,
+    PoseUncertainty,
+    TrackParallax,
 )
 from .robust import (
     ROBUST_BACKENDS,
@@ -81,7 +97,6 @@ from .robust import (
 )
 from .rotation import (
     K1_PRIOR,
-    PRINCIPAL_BOUND,
     PRINCIPAL_PRIOR,
     focal_ratio_keywords,
     focal_ratio_prior,
@@ -97,6 +112,7 @@ from .significance import (
 __all__ = [
     "PairOptions",
     "PairResult",
+    "FINISHERS",
     "estimate_pair",
     "load_image",
     "MIN_MATCHES",
@@ -277,238 +293,6 @@ class PairOptions:
             raise ValueError(f"redetect_below must be >= 0, got {self.redetect_below}")
         if self.max_image_size is not None and self.max_image_size < 32:
             raise ValueError(f"max_image_size must be >= 32, got {self.max_image_size}")
-
-
-@dataclass(frozen=True)
-class PairResult:
-    """Relative pose of two images and its evidence.
-
-    Attributes
-    ----------
-    R : ndarray, shape (3, 3)
-        Rotation from camera 1 to camera 2, ``X2 = R X1 + t``.
-    t : ndarray, shape (3,)
-        Unit translation direction. When ``pure_rotation`` is True it is the best unit estimate
-        but undetermined (``translation_determined`` is False).
-    pure_rotation : bool
-        The views share a centre, or the baseline is negligible (:mod:`ppo_cv.motion_model`:
-        the rotation model wins GRIC and its PRI is below ``pri_threshold``, or GRIC sees a
-        translation whose parallax the intensity-aligned windows measure as negligible, with
-        ``gric_difference`` then positive).
-    pri : float
-        Pure-rotation indicator (mean ``|M2|``, eq. 84) of the returned pose over the inliers:
-        the essential matrix's refined pose, for a plane the homography's PPO pose, or for a
-        pure rotation the rotation-only fit with the ``t`` most consistent with it.
-    keypoints1, keypoints2 : ndarray, shape (N1, 2), (N2, 2)
-        All detected keypoints, full-resolution pixels.
-    matches : ndarray of int, shape (M, 2)
-        Putative matches, indices into ``keypoints1`` and ``keypoints2``.
-    inliers : ndarray of bool, shape (M,)
-        Matches consistent with the estimated two-view geometry (for a plane, the homography).
-    points3d : ndarray, shape (M, 3)
-        Analytic point (Proposition 3) of each match in camera-1 coordinates with unit
-        baseline; NaN outside the inliers, where the PPO inequalities fail or the rays are
-        parallel, and everywhere for a pure rotation (as ``PoseResult.points3d``).
-    point_matches : ndarray of int, shape (P,)
-        Rows of ``matches`` with a finite point: ``points3d[point_matches]``.
-    colours : ndarray of uint8, shape (M, 3)
-        RGB colour of each match, sampled from image 1.
-    K1, K2 : ndarray, shape (3, 3)
-        Intrinsics used.
-    dist1, dist2 : ndarray or None
-        OpenCV distortion coefficients removed from the points; None for none.
-    image_size1, image_size2 : tuple of int
-        ``(width, height)`` of each image.
-    pri_threshold : float
-        PRI threshold used.
-    model : str
-        ``"rotation"``, ``"plane"`` (the matches lie on one plane: pose from its homography)
-        or ``"general"`` (:mod:`ppo_cv.motion_model`).
-    t_sigma_deg : float
-        One standard deviation of the direction of ``t`` (degrees, at most 90) from the
-        Jacobian of the Sampson cost of ``E = [t]x R`` at the reported pose over its inliers,
-        less what the image noise alone puts there, the given focal length off by
-        :data:`ppo_cv.rotation.FOCAL_PRIOR` and the radial term under
-        :data:`ppo_cv.rotation.K1_PRIOR` (:func:`ppo_cv.refine.translation_sigma_deg`); grows
-        as the baseline shrinks. For a pure rotation it is the cap: the decision is that the
-        matches do not determine ``t``, and the essential matrix's apparent confidence there
-        comes from lens errors its translation absorbs.
-    rotation_sigma_deg : float
-        For a pure rotation: root-mean-square angle error (degrees) of ``R``, from the
-        covariance of the rotation-only fit with its focal scale and radial term under their
-        priors (:attr:`ppo_cv.rotation.LensRotationFit.rotation_sigma_deg`): how well these
-        matches determine the rotation when the focal length is known only to a few percent.
-        When ``R`` was refitted on intensity-aligned windows (``rotation_tracks > 0``), the
-        same bound over those tracks, its variance multiplied by how many windows share a pixel
-        (:func:`ppo_cv.photometric.window_overlap`). NaN otherwise.
-    rotation_tracks : int
-        For a pure rotation whose rotation was refitted on windows aligned by intensity
-        (:mod:`ppo_cv.photometric`, ``PairOptions.photometric``): the number of tracks behind
-        ``R``, ``focal_scale`` and ``rotation_sigma_deg``. 0 when ``R`` is that of the feature
-        matches.
-    rotation_residual_px, general_residual_px : float
-        Median residual (pixels, distance in the joint image space) of the rotation-only fit
-        and of the essential matrix over the union of their inliers.
-    gric_difference : float
-        ``(GRIC(rotation) - GRIC(general)) / n``: the decision statistic, negative for a rotation.
-    lens_excess : float
-        How far the lens the rotation-only fit needed (focal scale, ``k1``, focal ratio) lay
-        beyond the box of plausible lenses, in its own posterior deviations
-        (:attr:`ppo_cv.motion_model.MotionDecision.lens_excess`): above
-        :data:`ppo_cv.motion_model.LENS_SIGNIFICANCE` no pair is a pure rotation, whatever
-        ``gric_difference`` says. Negative inside the box; NaN when not estimated.
-    plane_residual_px : float
-        Median residual (pixels, homography Sampson error) of the homography over the same
-        matches; NaN when no homography was fitted.
-    gric_plane_difference : float
-        ``(GRIC(plane) - GRIC(general)) / n``: negative when the plane explains more.
-    plane_epipolar_ratio : float
-        How much worse the essential matrix of the homography's pose explains the matches than
-        the refined one (about 1 on a plane; a plane needs at most
-        :data:`ppo_cv.motion_model.PLANE_EPIPOLAR_TOLERANCE`); NaN without a homography.
-    plane_normal : ndarray, shape (3,) or None
-        For a plane: its unit normal ``n`` in camera 1, the plane being ``n^T X1 = d``.
-    plane_distance : float
-        For a plane: ``d`` in baselines (the unit of ``points3d``); NaN otherwise.
-    plane_ambiguous : bool
-        For a plane: a second decomposition candidate also keeps every point in front of both
-        cameras (the two-fold ambiguity of a homography), and the tie was broken by the matches
-        off the plane or by the prior that the plane faces the cameras
-        (:func:`ppo_cv.plane.select_plane_pose`). False otherwise.
-    plane_k1 : float
-        For a plane: the radial (division-model) coefficient fitted with its homography
-        (:func:`ppo_cv.plane.refine_planar_pose`; 0 when not significant), NaN otherwise.
-    radial_k1 : float
-        For a general motion: the radial (division-model) coefficient fitted with the pose
-        (:func:`ppo_cv.refine.refine_pose_radial`; 0 when not kept); ``R``, ``t`` and the
-        points are those of the points it undistorts. NaN otherwise.
-    noise_sigma_px : float
-        Noise estimated from the essential matrix's residuals (pixels).
-    rotation_noise_px : float
-        Noise of the rotation-only fit's residuals that changes from a match to its nearest
-        neighbour (pixels, :func:`ppo_cv.model_selection.incoherent_sigma`); the model
-        comparison divides by the larger of the two.
-    coherent_share : float
-        Share of the compared matches that the essential matrix explains, the rotation-only
-        fit does not, and that move with their nearest neighbour (a surface with parallax or a
-        moving object, :func:`ppo_cv.model_selection.coherent_share`); above
-        :data:`ppo_cv.motion_model.MAX_COHERENT_SHARE` the pair is not a pure rotation.
-    track_parallax, track_parallax_sigma : float
-        For a pair the matches called a pure rotation, or a rotation candidate
-        (:attr:`ppo_cv.motion_model.MotionDecision.rotation_candidate`), whose windows were
-        aligned by intensity: the baseline over the distance of the plane those tracks fit
-        best, and its deviation (:mod:`ppo_cv.parallax`). Beyond
-        :data:`ppo_cv.motion_model.MAX_TRACK_PARALLAX` by
-        :data:`ppo_cv.motion_model.PARALLAX_SIGNIFICANCE` deviations a pure rotation is not
-        one; below :data:`ppo_cv.motion_model.NEGLIGIBLE_PARALLAX` with
-        :data:`ppo_cv.motion_model.NEGLIGIBLE_SIGNIFICANCE` deviations to spare a candidate
-        is one (:func:`ppo_cv.motion_model.with_tracks`). NaN otherwise.
-    rotation_gap_deg : float
-        Angle (degrees) between the refined essential matrix's rotation and the rotation-only
-        fit. Beyond :data:`ppo_cv.motion_model.MIN_CANDIDATE_ROTATION_GAP` the essential matrix
-        bent its rotation more than a negligible translation would, and a pair GRIC calls
-        general may be a rotation candidate (``track_parallax``).
-    focal_scale : float
-        Focal scale absorbed by the rotation-only fit (given focal length over the true one).
-    focal_ratio : float
-        Scale of image 2's focal length against image 1's absorbed by the rotation-only fit
-        when the two were given slightly different (focal lengths estimated per photo, as by a
-        panorama stitcher; :func:`ppo_cv.rotation.focal_ratio_prior`,
-        ``PairOptions.focal_ratio``); 1 otherwise.
-    principal_offset_px : ndarray, shape (2,)
-        Offset of the true principal point from the given one found by the rotation-only fit
-        (pixels; zero when it was not fitted, ``PairOptions.principal_point``).
-    principal_bound : float
-        Largest offset that fit accepted, in deviations of its prior per coordinate:
-        :data:`ppo_cv.rotation.PRINCIPAL_BOUND`, or :data:`ppo_cv.rotation.PRINCIPAL_WIDE_BOUND`
-        for a pair that only the wider bound makes a rotation candidate (a pure rotation only
-        if its tracks confirm it, ``track_parallax``).
-    timings : dict
-        Seconds per stage; ``features`` is detection alone and ``pycolmap_import`` the wait for
-        the first import of pycolmap that overlaps it.
-    threshold_scale : float
-        Detector threshold scale of the features behind the result: 1, or
-        :data:`REDETECT_THRESHOLD_SCALE` when the second detection (``PairOptions.redetect_below``)
-        gave a fit that chance explains less.
-    log10_nfa : float
-        ``log10`` of the number of false alarms of the robust fit's consensus
-        (:mod:`ppo_cv.significance`): how many consensus sets this good chance alone would
-        produce; the pose is reported only when it is at most ``PairOptions.max_log10_nfa``.
-    """
-
-    R: np.ndarray
-    t: np.ndarray
-    pure_rotation: bool
-    pri: float
-    keypoints1: np.ndarray
-    keypoints2: np.ndarray
-    matches: np.ndarray
-    inliers: np.ndarray
-    points3d: np.ndarray
-    point_matches: np.ndarray
-    colours: np.ndarray
-    K1: np.ndarray
-    K2: np.ndarray
-    image_size1: tuple[int, int]
-    image_size2: tuple[int, int]
-    pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD
-    model: str = "general"
-    t_sigma_deg: float = float("nan")
-    rotation_sigma_deg: float = float("nan")
-    rotation_tracks: int = 0
-    rotation_residual_px: float = float("nan")
-    general_residual_px: float = float("nan")
-    gric_difference: float = float("nan")
-    lens_excess: float = float("nan")
-    noise_sigma_px: float = float("nan")
-    rotation_noise_px: float = float("nan")
-    coherent_share: float = 0.0
-    track_parallax: float = float("nan")
-    track_parallax_sigma: float = float("nan")
-    rotation_gap_deg: float = float("nan")
-    focal_scale: float = 1.0
-    focal_ratio: float = 1.0
-    principal_offset_px: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    principal_bound: float = PRINCIPAL_BOUND
-    timings: dict[str, float] = field(default_factory=dict)
-    threshold_scale: float = 1.0
-    dist1: np.ndarray | None = None
-    dist2: np.ndarray | None = None
-    log10_nfa: float = float("nan")
-    plane_residual_px: float = float("nan")
-    gric_plane_difference: float = float("nan")
-    plane_epipolar_ratio: float = float("nan")
-    plane_normal: np.ndarray | None = None
-    plane_distance: float = float("nan")
-    plane_ambiguous: bool = False
-    plane_k1: float = float("nan")
-    radial_k1: float = float("nan")
-
-    @property
-    def translation_determined(self) -> bool:
-        """False for a pure rotation, whose translation direction the images do not fix."""
-        return not self.pure_rotation
-
-    @property
-    def num_matches(self) -> int:
-        """Number of putative matches."""
-        return int(self.matches.shape[0])
-
-    @property
-    def num_inliers(self) -> int:
-        """Number of inlier matches."""
-        return int(np.count_nonzero(self.inliers))
-
-    @property
-    def num_points(self) -> int:
-        """Number of finite 3D points."""
-        return int(self.point_matches.shape[0])
-
-    @property
-    def inlier_points(self) -> tuple[np.ndarray, np.ndarray]:
-        """Pixel coordinates (I, 2) of the inlier matches in image 1 and image 2."""
-        m = self.matches[self.inliers]
-        return self.keypoints1[m[:, 0]], self.keypoints2[m[:, 1]]
 
 
 def _principal_prior(mode: str, K1, K2, shape1, shape2, focal: float) -> np.ndarray | None:
@@ -694,12 +478,17 @@ def _consensus(
     return _Consensus(f1, f2, threshold_scale, matches, x1, x2, fit, significance)
 
 
-def _best_consensus(f1, f2, img1, img2, K1, K2, dist1, dist2, focal, options, lap) -> _Consensus:
+def _best_consensus(
+    f1: Features, f2: Features, inputs: _Inputs, options: PairOptions, lap: Callable
+) -> _Consensus:
     """The consensus of the given features, or of features detected at
     :data:`REDETECT_THRESHOLD_SCALE` when that one is weak (``PairOptions.redetect_below``)
     and chance explains the denser one less (lower ``log10`` NFA, which counts the matches
     each was drawn from); the first failure's ValueError when neither holds."""
-    camera = (K1, K2, dist1, dist2, focal, img2.shape, options, lap)
+    img1, img2 = inputs.img1, inputs.img2
+    camera = (
+        inputs.K1, inputs.K2, inputs.dist1, inputs.dist2, inputs.focal, img2.shape, options, lap
+    )  # fmt: skip
     try:
         found, failure = _consensus(f1, f2, 1.0, *camera), None
     except ValueError as exc:
@@ -719,6 +508,356 @@ def _best_consensus(f1, f2, img1, img2, K1, K2, dist1, dist2, focal, options, la
     if found is None:
         raise failure
     return found
+
+
+class _Stopwatch:
+    """Seconds per stage, summed when a stage runs again, each reported to ``progress`` as it
+    ends."""
+
+    def __init__(self, progress: Callable[[str], None] | None) -> None:
+        self.timings: dict[str, float] = {}
+        self.progress = progress
+        self.clock = time.perf_counter()
+
+    def lap(self, stage: str, now: float | None = None) -> None:
+        """End ``stage`` now (or at ``now``, a ``time.perf_counter()``)."""
+        now = time.perf_counter() if now is None else now
+        self.timings[stage] = self.timings.get(stage, 0.0) + now - self.clock
+        self.clock = now
+        if self.progress is not None:
+            self.progress(stage)
+
+
+@dataclass(frozen=True)
+class _Inputs:
+    """The two images and their cameras, checked; ``focal`` is the mean focal length."""
+
+    img1: np.ndarray
+    img2: np.ndarray
+    K1: np.ndarray
+    K2: np.ndarray
+    dist1: np.ndarray | None
+    dist2: np.ndarray | None
+    focal: float
+
+
+@dataclass(frozen=True)
+class _EssentialPose:
+    """The PPO pose of the robust essential matrix, refined, and its inliers."""
+
+    R: np.ndarray
+    t: np.ndarray
+    inliers: np.ndarray
+
+
+@dataclass(frozen=True)
+class _LensPriors:
+    """Priors of the rotation-only fit's principal point (None: kept) and focal ratio."""
+
+    principal: np.ndarray | None
+    ratio_keywords: dict
+
+
+@dataclass(frozen=True)
+class _Finishing:
+    """What a model's finisher starts from: the consensus, the essential matrix's pose and the
+    decision."""
+
+    found: _Consensus
+    pose: _EssentialPose
+    motion: MotionDecision
+    focal: float
+    options: PairOptions
+
+
+@dataclass(frozen=True)
+class _ModelPart:
+    """The part of the result a model's finisher gives: the pose, its inliers and points, its
+    uncertainty and the model's own lens or plane terms."""
+
+    R: np.ndarray
+    t: np.ndarray
+    pri: float
+    inliers: np.ndarray
+    points3d: np.ndarray
+    point_matches: np.ndarray
+    t_sigma_deg: float
+    rotation_sigma_deg: float = float("nan")
+    radial_k1: float = float("nan")
+    plane: PlaneGeometry | None = None
+
+
+def _load_inputs(image1, image2, K1, K2, dist1, dist2, detect: bool, options) -> _Inputs:
+    """Images and cameras checked (stage ``load``); ``detect`` when features are to be found."""
+    img1, img2 = _as_image(image1, "image1"), _as_image(image2, "image2")
+    if detect:
+        for image, name in ((img1, "image1"), (img2, "image2")):
+            require_detectable(image.shape, name, options.max_image_size)
+    K1 = as_camera_matrix(K1, "K1")
+    dist1 = as_distortion(dist1, "dist1")
+    if K2 is None:
+        _require_same_size(img1, img2)
+        K2, dist2 = K1, dist1 if dist2 is None else as_distortion(dist2, "dist2")
+    else:
+        K2, dist2 = as_camera_matrix(K2, "K2"), as_distortion(dist2, "dist2")
+    if img1.shape == img2.shape and np.array_equal(img1, img2):
+        raise ValueError("the two images are identical: they carry no relative pose")
+    focal = float(np.mean([K1[0, 0], K1[1, 1], K2[0, 0], K2[1, 1]]))
+    return _Inputs(img1, img2, K1, K2, dist1, dist2, focal)
+
+
+def _features(
+    inputs: _Inputs, features1, features2, options: PairOptions, watch: _Stopwatch
+) -> tuple[Features, Features]:
+    """Features of both images (stage ``features``, and ``pycolmap_import``), or the given ones
+    checked against ``options``."""
+    if features1 is None or features2 is None:
+        f1, f2, detected = _detect_both(inputs.img1, inputs.img2, options)
+        watch.lap("features", detected)
+        watch.lap("pycolmap_import")
+        return f1, f2
+    for name, f in (("features1", features1), ("features2", features2)):
+        if not isinstance(f, Features):
+            raise TypeError(f"{name} must be ppo_cv.features.Features, got {type(f).__name__}")
+        if f.kind != options.features:
+            raise ValueError(
+                f"{name} are {f.kind} features but options.features is {options.features}"
+            )
+    watch.lap("features")
+    return features1, features2
+
+
+def _essential_pose(
+    found: _Consensus, focal: float, options: PairOptions, watch: _Stopwatch
+) -> _EssentialPose:
+    """The PPO choice among the four poses of ``E`` (stage ``ppo``), refined over its inliers
+    (stage ``refine``)."""
+    inliers = found.fit.inliers
+    chosen = ppo.select_pose(found.fit.E, found.x1[inliers], found.x2[inliers])
+    watch.lap("ppo")
+    R, t = chosen.R, chosen.t
+    if options.refine:
+        R, t, inliers = _refine(R, t, found.x1, found.x2, inliers, focal, options)
+    watch.lap("refine")
+    return _EssentialPose(R, t, inliers)
+
+
+def _homography(
+    found: _Consensus, pose: _EssentialPose, focal: float, options: PairOptions
+) -> HomographyEstimate | None:
+    """The robust homography of the matches, ValueError when it mirrors the image; None when
+    ``options.plane`` is off."""
+    ranked = options.ordered_sampling and np.count_nonzero(pose.inliers) >= MIN_MATCHES
+    plane_ransac = _ransac_keywords(options)
+    if ranked:  # on the essential matrix's inliers a plane is the bulk of them
+        bound = plane_ransac_trials(options.confidence)
+        plane_ransac["max_trials"] = min(options.max_trials, bound)
+    fit_on = pose.inliers if ranked else None
+    homography = estimate_homography(found.x1, found.x2, focal, **plane_ransac, fit_on=fit_on)
+    _require_unmirrored(homography)
+    return homography if options.plane else None
+
+
+def _lens_priors(inputs: _Inputs, options: PairOptions) -> _LensPriors:
+    """Priors of the principal point and focal ratio the rotation-only fit may move."""
+    principal = _principal_prior(
+        options.principal_point, inputs.K1, inputs.K2, inputs.img1.shape, inputs.img2.shape,
+        inputs.focal,
+    )  # fmt: skip
+    given_ratio = float(np.mean(np.diag(inputs.K2)[:2]) / np.mean(np.diag(inputs.K1)[:2]))
+    ratio_keywords = focal_ratio_keywords(
+        focal_ratio_prior(given_ratio) if options.focal_ratio == "auto" else None
+    )
+    return _LensPriors(principal, ratio_keywords)
+
+
+def _decide(
+    found: _Consensus, pose: _EssentialPose, homography, priors: _LensPriors, focal: float,
+    options: PairOptions,
+) -> MotionDecision:  # fmt: skip
+    """Rotation, plane or general motion on the feature matches (:func:`decide_motion`)."""
+    return decide_motion(
+        found.x1, found.x2, pose.R, pose.t, pose.inliers, focal,
+        threshold_px=options.ransac_threshold,
+        pri_threshold=float(options.pri_threshold),
+        seed=options.seed,
+        homography=homography,
+        principal_prior=priors.principal,
+        **priors.ratio_keywords,
+    )  # fmt: skip
+
+
+def _revisit_with_tracks(
+    inputs: _Inputs, found: _Consensus, motion: MotionDecision, priors: _LensPriors,
+    options: PairOptions,
+) -> tuple[MotionDecision, int]:  # fmt: skip
+    """For a pure rotation or a rotation candidate: the rotation refitted on intensity-aligned
+    windows and the decision revisited on their parallax (:func:`with_tracks`); with the
+    number of tracks behind a pure rotation's ``R`` (0 when none)."""
+    if not options.photometric or not (motion.pure_rotation or motion.rotation_candidate):
+        return motion, 0
+    refined = refine_rotation_photometric(
+        inputs.img1, inputs.img2, inputs.K1, inputs.K2, motion.R,
+        focal_scale=motion.focal_scale, k1=motion.k1,
+        principal_offset=motion.principal_offset, principal_prior=priors.principal,
+        focal_ratio=motion.focal_ratio, **priors.ratio_keywords,
+        principal_bound=motion.principal_bound,
+        max_focal_change=motion.track_focal_change,
+        rotation_sigma_deg=min(motion.rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG),
+        dist1=inputs.dist1, dist2=inputs.dist2,
+    )  # fmt: skip
+    if refined is None:
+        return motion, 0
+    motion = with_tracks(
+        motion, refined.fit, refined.parallax, found.x1, found.x2, inputs.focal,
+        threshold_px=options.ransac_threshold,
+    )  # fmt: skip
+    return motion, refined.num_tracks if motion.pure_rotation else 0
+
+
+def _finish_rotation(state: _Finishing) -> _ModelPart:
+    """A pure rotation: the rotation-only fit, no point, ``t`` undetermined (its sigma the cap)."""
+    motion, num_matches = state.motion, len(state.found.matches)
+    return _ModelPart(
+        R=motion.R,
+        t=motion.t,
+        pri=motion.pri,
+        inliers=motion.rotation_inliers,
+        points3d=np.full((num_matches, 3), np.nan),
+        point_matches=np.flatnonzero(np.zeros(num_matches, dtype=bool)),
+        t_sigma_deg=T_SIGMA_CAP_DEG,
+        rotation_sigma_deg=motion.rotation_sigma_deg,
+    )
+
+
+def _finish_plane(state: _Finishing) -> _ModelPart:
+    """A plane: the PPO pose of the homography refined on it with a radial term, and the
+    analytic points of its inliers."""
+    plane, x1, x2 = state.motion.plane, state.found.x1, state.found.x2
+    inliers = state.motion.homography_inliers
+    refined = refine_planar_pose(
+        plane.R, plane.candidates.T[plane.candidate], plane.n, x1, x2, inliers,
+        scale=state.options.ransac_threshold / state.focal, fit_k1=True,
+    )  # fmt: skip
+    R, t, k1 = refined.R, refined.t, refined.k1
+    c1, c2 = undistort_division(x1, k1), undistort_division(x2, k1)
+    pri = ppo.pure_rotation_indicator(ppo.intersection_scores(c1[inliers], c2[inliers], R, t))
+    points3d = ppo.analytic_points(c1, c2, R, t)
+    keep = plane.inliers & np.all(np.isfinite(points3d), axis=1)
+    return _ModelPart(
+        R=R,
+        t=t,
+        pri=pri,
+        inliers=inliers,
+        points3d=np.where(keep[:, None], points3d, np.nan),
+        point_matches=np.flatnonzero(keep),
+        t_sigma_deg=translation_sigma_deg(R, t, c1, c2, inliers, k1_prior=K1_PRIOR),
+        plane=PlaneGeometry(refined.n, refined.distance, bool(plane.ambiguous), k1),
+    )
+
+
+def _finish_general(state: _Finishing) -> _ModelPart:
+    """A general motion: the essential matrix's pose refined with a radial term when one is
+    significant, and the analytic points of its inliers."""
+    options, x1, x2 = state.options, state.found.x1, state.found.x2
+    R, t, inliers, radial_k1 = state.pose.R, state.pose.t, state.pose.inliers, 0.0
+    if options.refine:
+        bound = huber_bound_px(options.ransac_threshold, state.motion.noise_px)
+        radial = refine_pose_radial(R, t, x1, x2, inliers, scale=bound / state.focal)
+        R, t, radial_k1 = radial.R, radial.t, radial.k1
+    c1, c2 = undistort_division(x1, radial_k1), undistort_division(x2, radial_k1)
+    final = _recover_normalized(essential_from_pose(R, t), c1[:, :2], c2[:, :2], inliers, 0.0)
+    keep = final.inliers & np.all(np.isfinite(final.points3d), axis=1)
+    k1_prior = K1_PRIOR if options.refine else None
+    return _ModelPart(
+        R=final.R,
+        t=final.t,
+        pri=final.pri,
+        inliers=inliers,
+        points3d=np.where(keep[:, None], final.points3d, np.nan),
+        point_matches=np.flatnonzero(keep),
+        t_sigma_deg=translation_sigma_deg(final.R, final.t, c1, c2, inliers, k1_prior=k1_prior),
+        radial_k1=radial_k1,
+    )
+
+
+FINISHERS: dict[str, Callable[[_Finishing], _ModelPart]] = {
+    "rotation": _finish_rotation,
+    "plane": _finish_plane,
+    "general": _finish_general,
+}
+"""Model name (:attr:`ppo_cv.motion_model.MotionDecision.model`) -> the function that finishes
+its pose, points and uncertainty (stage ``decision``)."""
+
+
+def _lens_terms(motion: MotionDecision, focal: float, radial_k1: float) -> LensTerms:
+    return LensTerms(
+        focal_scale=motion.focal_scale,
+        focal_ratio=motion.focal_ratio,
+        principal_offset_px=motion.principal_offset * focal / motion.focal_scale,
+        principal_bound=motion.principal_bound,
+        lens_excess=motion.lens_excess if motion.lens_excess > -np.inf else float("nan"),
+        radial_k1=radial_k1,
+    )
+
+
+def _evidence(motion: MotionDecision, found: _Consensus, options: PairOptions) -> DecisionEvidence:
+    residual_px = motion.selection.median_residual_px
+    plane_px = (
+        float("nan")
+        if motion.plane_selection is None
+        else motion.plane_selection.median_residual_px["plane"]
+    )
+    selection = ModelComparison(
+        pri_threshold=float(options.pri_threshold),
+        rotation_residual_px=residual_px["rotation"],
+        general_residual_px=residual_px["general"],
+        plane_residual_px=plane_px,
+        gric_difference=motion.gric_difference,
+        gric_plane_difference=motion.gric_plane_difference,
+        plane_epipolar_ratio=motion.plane_epipolar_ratio,
+        noise_sigma_px=motion.noise_px,
+        rotation_noise_px=motion.rotation_noise_px,
+        coherent_share=motion.coherent_share,
+        rotation_gap_deg=float(np.degrees(motion.rotation_gap)),
+    )
+    return DecisionEvidence(
+        selection=selection,
+        tracks=TrackParallax(motion.track_parallax, motion.track_parallax_sigma),
+        significance=ConsensusSignificance(found.significance.log10_nfa, found.threshold_scale),
+    )
+
+
+def _assemble(
+    inputs: _Inputs, found: _Consensus, state: _Finishing, part: _ModelPart, tracks: int,
+    timings: dict[str, float],
+) -> PairResult:  # fmt: skip
+    """The :class:`PairResult` of a finished model."""
+    img1, img2, motion = inputs.img1, inputs.img2, state.motion
+    cameras = PairCameras(
+        inputs.K1, inputs.K2, inputs.dist1, inputs.dist2,
+        (int(img1.shape[1]), int(img1.shape[0])), (int(img2.shape[1]), int(img2.shape[0])),
+    )  # fmt: skip
+    return PairResult(
+        R=part.R,
+        t=part.t,
+        pure_rotation=motion.pure_rotation,
+        model=motion.model,
+        pri=float(part.pri),
+        keypoints1=found.features1.keypoints,
+        keypoints2=found.features2.keypoints,
+        matches=found.matches,
+        inliers=part.inliers,
+        points3d=part.points3d,
+        point_matches=part.point_matches,
+        colours=_colours(img1, found.features1.keypoints[found.matches[:, 0]]),
+        cameras=cameras,
+        uncertainty=PoseUncertainty(part.t_sigma_deg, part.rotation_sigma_deg, tracks),
+        lens=_lens_terms(motion, inputs.focal, part.radial_k1),
+        evidence=_evidence(motion, found, state.options),
+        plane=part.plane,
+        timings=timings,
+    )
 
 
 def estimate_pair(
@@ -791,200 +930,21 @@ def estimate_pair(
     options = PairOptions() if options is None else options
     if not isinstance(options, PairOptions):
         raise TypeError(f"options must be a PairOptions, got {type(options).__name__}")
-    timings: dict[str, float] = {}
-    clock = time.perf_counter()
-
-    def lap(stage: str) -> None:
-        nonlocal clock
-        now = time.perf_counter()
-        timings[stage] = timings.get(stage, 0.0) + now - clock
-        clock = now
-        if progress is not None:
-            progress(stage)
-
-    img1, img2 = _as_image(image1, "image1"), _as_image(image2, "image2")
-    if features1 is None or features2 is None:
-        for image, name in ((img1, "image1"), (img2, "image2")):
-            require_detectable(image.shape, name, options.max_image_size)
-    K1 = as_camera_matrix(K1, "K1")
-    dist1 = as_distortion(dist1, "dist1")
-    if K2 is None:
-        _require_same_size(img1, img2)
-        K2, dist2 = K1, dist1 if dist2 is None else as_distortion(dist2, "dist2")
-    else:
-        K2, dist2 = as_camera_matrix(K2, "K2"), as_distortion(dist2, "dist2")
-    if img1.shape == img2.shape and np.array_equal(img1, img2):
-        raise ValueError("the two images are identical: they carry no relative pose")
-    lap("load")
-
-    if features1 is None or features2 is None:
-        f1, f2, detected = _detect_both(img1, img2, options)
-        timings["features"], clock = detected - clock, detected
-        if progress is not None:
-            progress("features")
-        lap("pycolmap_import")
-    else:
-        f1, f2 = features1, features2
-        for name, f in (("features1", f1), ("features2", f2)):
-            if not isinstance(f, Features):
-                raise TypeError(f"{name} must be ppo_cv.features.Features, got {type(f).__name__}")
-            if f.kind != options.features:
-                raise ValueError(
-                    f"{name} are {f.kind} features but options.features is {options.features}"
-                )
-        lap("features")
-    focal = float(np.mean([K1[0, 0], K1[1, 1], K2[0, 0], K2[1, 1]]))
-    found = _best_consensus(f1, f2, img1, img2, K1, K2, dist1, dist2, focal, options, lap)
-    f1, f2, matches, x1, x2 = found.features1, found.features2, found.matches, found.x1, found.x2
-    fit, significance, inliers = found.fit, found.significance, found.fit.inliers
-    p1 = f1.keypoints[matches[:, 0]]
-
-    chosen = ppo.select_pose(fit.E, x1[inliers], x2[inliers])
-    lap("ppo")
-
-    R, t = chosen.R, chosen.t
-    if options.refine:
-        R, t, inliers = _refine(R, t, x1, x2, inliers, focal, options)
-    lap("refine")
-
-    ranked = options.ordered_sampling and np.count_nonzero(inliers) >= MIN_MATCHES
-    plane_ransac = _ransac_keywords(options)
-    if ranked:  # on the essential matrix's inliers a plane is the bulk of them
-        bound = plane_ransac_trials(options.confidence)
-        plane_ransac["max_trials"] = min(options.max_trials, bound)
-    fit_on = inliers if ranked else None
-    homography = estimate_homography(x1, x2, focal, **plane_ransac, fit_on=fit_on)
-    _require_unmirrored(homography)
-    if not options.plane:
-        homography = None
-    lap("homography")
-
-    principal_prior = _principal_prior(
-        options.principal_point, K1, K2, img1.shape, img2.shape, focal
-    )
-    given_ratio = float(np.mean(np.diag(K2)[:2]) / np.mean(np.diag(K1)[:2]))
-    ratio_keywords = focal_ratio_keywords(
-        focal_ratio_prior(given_ratio) if options.focal_ratio == "auto" else None
-    )
-    motion = decide_motion(
-        x1, x2, R, t, inliers, focal,
-        threshold_px=options.ransac_threshold,
-        pri_threshold=float(options.pri_threshold),
-        seed=options.seed,
-        homography=homography,
-        principal_prior=principal_prior,
-        **ratio_keywords,
-    )  # fmt: skip
-    lap("model")
-
-    rotation_tracks = 0
-    if options.photometric and (motion.pure_rotation or motion.rotation_candidate):
-        refined = refine_rotation_photometric(
-            img1, img2, K1, K2, motion.R,
-            focal_scale=motion.focal_scale, k1=motion.k1,
-            principal_offset=motion.principal_offset, principal_prior=principal_prior,
-            focal_ratio=motion.focal_ratio, **ratio_keywords,
-            principal_bound=motion.principal_bound,
-            max_focal_change=motion.track_focal_change,
-            rotation_sigma_deg=min(motion.rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG),
-            dist1=dist1, dist2=dist2,
-        )  # fmt: skip
-        if refined is not None:
-            motion = with_tracks(
-                motion, refined.fit, refined.parallax, x1, x2, focal,
-                threshold_px=options.ransac_threshold,
-            )  # fmt: skip
-            rotation_tracks = refined.num_tracks if motion.pure_rotation else 0
-    lap("photometric")
-
-    plane = motion.plane if motion.model == "plane" else None
-    plane_k1, plane_normal, plane_distance = float("nan"), None, float("nan")
-    radial_k1 = float("nan")
-    if motion.pure_rotation:
-        R, t, pri = motion.R, motion.t, motion.pri
-        inliers = motion.rotation_inliers
-        t_sigma = T_SIGMA_CAP_DEG
-        points3d, keep = np.full((len(matches), 3), np.nan), np.zeros(len(matches), dtype=bool)
-    elif plane is not None:
-        inliers = motion.homography_inliers
-        refined = refine_planar_pose(
-            plane.R, plane.candidates.T[plane.candidate], plane.n, x1, x2, inliers,
-            scale=options.ransac_threshold / focal, fit_k1=True,
-        )  # fmt: skip
-        R, t, plane_k1 = refined.R, refined.t, refined.k1
-        plane_normal, plane_distance = refined.n, refined.distance
-        c1, c2 = undistort_division(x1, plane_k1), undistort_division(x2, plane_k1)
-        pri = ppo.pure_rotation_indicator(ppo.intersection_scores(c1[inliers], c2[inliers], R, t))
-        points3d = ppo.analytic_points(c1, c2, R, t)
-        keep = plane.inliers & np.all(np.isfinite(points3d), axis=1)
-        points3d = np.where(keep[:, None], points3d, np.nan)
-        t_sigma = translation_sigma_deg(R, t, c1, c2, inliers, k1_prior=K1_PRIOR)
-    else:
-        radial_k1 = 0.0
-        if options.refine:
-            bound = huber_bound_px(options.ransac_threshold, motion.noise_px)
-            radial = refine_pose_radial(R, t, x1, x2, inliers, scale=bound / focal)
-            R, t, radial_k1 = radial.R, radial.t, radial.k1
-        c1, c2 = undistort_division(x1, radial_k1), undistort_division(x2, radial_k1)
-        final = _recover_normalized(essential_from_pose(R, t), c1[:, :2], c2[:, :2], inliers, 0.0)
-        R, t, pri = final.R, final.t, final.pri
-        keep = final.inliers & np.all(np.isfinite(final.points3d), axis=1)
-        points3d = np.where(keep[:, None], final.points3d, np.nan)
-        k1_prior = K1_PRIOR if options.refine else None
-        t_sigma = translation_sigma_deg(R, t, c1, c2, inliers, k1_prior=k1_prior)
-    point_matches = np.flatnonzero(keep)
-    lap("decision")
-
-    return PairResult(
-        R=R,
-        t=t,
-        pure_rotation=motion.pure_rotation,
-        pri=float(pri),
-        keypoints1=f1.keypoints,
-        keypoints2=f2.keypoints,
-        matches=matches,
-        inliers=inliers,
-        points3d=points3d,
-        point_matches=point_matches,
-        colours=_colours(img1, p1),
-        K1=K1,
-        K2=K2,
-        image_size1=(int(img1.shape[1]), int(img1.shape[0])),
-        image_size2=(int(img2.shape[1]), int(img2.shape[0])),
-        pri_threshold=float(options.pri_threshold),
-        model=motion.model,
-        t_sigma_deg=t_sigma,
-        rotation_sigma_deg=motion.rotation_sigma_deg if motion.pure_rotation else float("nan"),
-        rotation_tracks=rotation_tracks,
-        rotation_residual_px=motion.selection.median_residual_px["rotation"],
-        general_residual_px=motion.selection.median_residual_px["general"],
-        gric_difference=motion.gric_difference,
-        lens_excess=motion.lens_excess if motion.lens_excess > -np.inf else float("nan"),
-        noise_sigma_px=motion.noise_px,
-        rotation_noise_px=motion.rotation_noise_px,
-        coherent_share=motion.coherent_share,
-        track_parallax=motion.track_parallax,
-        track_parallax_sigma=motion.track_parallax_sigma,
-        rotation_gap_deg=float(np.degrees(motion.rotation_gap)),
-        focal_scale=motion.focal_scale,
-        focal_ratio=motion.focal_ratio,
-        principal_offset_px=motion.principal_offset * focal / motion.focal_scale,
-        principal_bound=motion.principal_bound,
-        timings=timings,
-        threshold_scale=found.threshold_scale,
-        dist1=dist1,
-        dist2=dist2,
-        log10_nfa=significance.log10_nfa,
-        plane_residual_px=(
-            float("nan")
-            if motion.plane_selection is None
-            else motion.plane_selection.median_residual_px["plane"]
-        ),
-        gric_plane_difference=motion.gric_plane_difference,
-        plane_epipolar_ratio=motion.plane_epipolar_ratio,
-        plane_normal=plane_normal,
-        plane_distance=plane_distance,
-        plane_ambiguous=bool(plane is not None and plane.ambiguous),
-        plane_k1=plane_k1,
-        radial_k1=radial_k1,
-    )
+    watch = _Stopwatch(progress)
+    detect = features1 is None or features2 is None
+    inputs = _load_inputs(image1, image2, K1, K2, dist1, dist2, detect, options)
+    watch.lap("load")
+    f1, f2 = _features(inputs, features1, features2, options, watch)
+    found = _best_consensus(f1, f2, inputs, options, watch.lap)
+    pose = _essential_pose(found, inputs.focal, options, watch)
+    homography = _homography(found, pose, inputs.focal, options)
+    watch.lap("homography")
+    priors = _lens_priors(inputs, options)
+    motion = _decide(found, pose, homography, priors, inputs.focal, options)
+    watch.lap("model")
+    motion, tracks = _revisit_with_tracks(inputs, found, motion, priors, options)
+    watch.lap("photometric")
+    state = _Finishing(found, pose, motion, inputs.focal, options)
+    part = FINISHERS[motion.model](state)
+    watch.lap("decision")
+    return _assemble(inputs, found, state, part, tracks, watch.timings)

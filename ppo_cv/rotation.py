@@ -569,11 +569,9 @@ def fit_rotation_lens(
         Standard deviation of each coordinate of ``p`` (normalised units: pixels over the focal
         length), one for both or ``(x, y)``; None keeps the given principal point (``p = 0``).
         Needs ``noise``.
-    focal_ratio_prior : float, optional
-        Standard deviation of ``rho`` (:func:`focal_ratio_prior`); None keeps ``rho = 1``.
-        Needs ``noise``.
-    focal_ratio_mean : float
-        Mean of the prior on ``rho``.
+    focal_ratio_prior, focal_ratio_mean : float
+        Standard deviation (:func:`focal_ratio_prior`; None keeps ``rho = 1``, needs ``noise``)
+        and mean of the prior on ``rho``.
     principal_bound : float
         Largest offset kept, in ``principal_prior`` deviations per coordinate (default
         :data:`PRINCIPAL_BOUND`).
@@ -601,42 +599,30 @@ def fit_rotation_lens(
     """
     xy1, xy2 = np.asarray(x1, float)[:, :2], np.asarray(x2, float)[:, :2]
     R0 = np.asarray(R, float)
-    a, b = xy1[used], xy2[used]
+    free, prior, centre, bounds, offset_bound = _lens_terms_setup(
+        noise, focal_prior, k1_prior, principal_prior, focal_ratio_prior, focal_ratio_mean,
+        principal_bound, max_focal_change, max_k1,
+    )  # fmt: skip
+    problem = (R0, xy1[used], xy2[used], prior, free, centre)
+    return _solve_rotation_lens(
+        problem, xy1, xy2, bounds, offset_bound, noise, focal_ratio_prior, iterations
+    )
+
+
+def _solve_rotation_lens(
+    problem, xy1, xy2, bounds, offset_bound, noise, focal_ratio_prior, iterations
+) -> LensRotationFit:
+    """:func:`fit_rotation_lens` on its ``problem``: lens terms beyond their box clipped and
+    the rotation alone refitted; residuals over all matches ``xy1``, ``xy2``."""
+    R0, a, b, prior, free, centre = problem
     with_noise = noise is not None and noise > 0
-    if principal_prior is not None:
-        principal_prior = np.broadcast_to(np.asarray(principal_prior, dtype=float), (2,))
-    fit_offset = principal_prior is not None and bool(np.all(principal_prior > 0)) and with_noise
-    principal_bound = as_positive(principal_bound, "principal_bound")
-    max_focal_change = as_positive(max_focal_change, "max_focal_change")
-    offset_bound = principal_bound * principal_prior if fit_offset else None
-    fit_ratio = focal_ratio_prior is not None and focal_ratio_prior > 0 and with_noise
-    free = _LENS | (_OFFSET if fit_offset else False) | (_RATIO if fit_ratio else False)
-    bounds = np.full(_NPARAMS, np.inf)
-    bounds[[3, 4, 7]] = max_focal_change, max_k1, max_focal_change
-    prior = np.zeros(_NPARAMS)
-    if with_noise:
-        prior[3:5] = noise / np.array([focal_prior, k1_prior])
-    if fit_offset:
-        prior[5:7] = noise / principal_prior
-    centre = np.zeros(_NPARAMS)
-    if fit_ratio:
-        prior[7], centre[7] = noise / focal_ratio_prior, focal_ratio_mean - 1.0
-    problem = (R0, a, b, prior, free, centre)
     params, sigma, rotation_sigma, excess = centre.copy(), np.inf, np.inf, -np.inf
     enough = len(a) >= (_MIN_WITH_PRIOR if prior[3] > 0 else 2 * int(np.count_nonzero(_LENS)))
     if enough:
         params = _gauss_newton(params, problem, iterations)
-        for _ in range(2):  # parallax, not a lens: keep the given principal point, ratio
-            implausible = np.zeros(_NPARAMS, dtype=bool)
-            if free[5] and _offset_beyond_bound(params, problem, offset_bound, noise):
-                implausible |= _OFFSET
-            if free[7] and abs(params[7] - centre[7]) > FOCAL_RATIO_BOUND * focal_ratio_prior:
-                implausible |= _RATIO
-            if not np.any(implausible):
-                break
-            free = free & ~implausible
-            problem = (R0, a, b, prior, free, centre)
-            params = _gauss_newton(np.where(free, centre, 0.0), problem, iterations)
+        params, problem = _without_implausible_terms(
+            params, problem, offset_bound, noise, focal_ratio_prior, iterations
+        )
         sigma, rotation_sigma = _sigmas(params, problem)
         if with_noise:
             excess = _lens_excess(params, problem, bounds, noise)
@@ -658,8 +644,56 @@ def fit_rotation_lens(
         principal_offset=params[5:7].copy(),
         focal_ratio=1.0 + float(params[7]),
         lens_excess=excess,
-        offset_dropped=bool(fit_offset and not free[5]),
+        offset_dropped=bool(free[5] and not problem[4][5]),
     )
+
+
+def _lens_terms_setup(
+    noise, focal_prior, k1_prior, principal_prior, focal_ratio_prior, focal_ratio_mean,
+    principal_bound, max_focal_change, max_k1,
+):  # fmt: skip
+    """Free terms, prior weights, prior means and bounds of :func:`fit_rotation_lens`'s
+    parameters (the offset and the ratio free only with their priors and the noise), and the
+    largest offset per coordinate (None when it is not fitted)."""
+    with_noise = noise is not None and noise > 0
+    if principal_prior is not None:
+        principal_prior = np.broadcast_to(np.asarray(principal_prior, dtype=float), (2,))
+    fit_offset = principal_prior is not None and bool(np.all(principal_prior > 0)) and with_noise
+    principal_bound = as_positive(principal_bound, "principal_bound")
+    max_focal_change = as_positive(max_focal_change, "max_focal_change")
+    offset_bound = principal_bound * principal_prior if fit_offset else None
+    fit_ratio = focal_ratio_prior is not None and focal_ratio_prior > 0 and with_noise
+    free = _LENS | (_OFFSET if fit_offset else False) | (_RATIO if fit_ratio else False)
+    bounds = np.full(_NPARAMS, np.inf)
+    bounds[[3, 4, 7]] = max_focal_change, max_k1, max_focal_change
+    prior = np.zeros(_NPARAMS)
+    if with_noise:
+        prior[3:5] = noise / np.array([focal_prior, k1_prior])
+    if fit_offset:
+        prior[5:7] = noise / principal_prior
+    centre = np.zeros(_NPARAMS)
+    if fit_ratio:
+        prior[7], centre[7] = noise / focal_ratio_prior, focal_ratio_mean - 1.0
+    return free, prior, centre, bounds, offset_bound
+
+
+def _without_implausible_terms(params, problem, offset_bound, noise, focal_ratio_prior, iterations):
+    """Parallax, not a lens: an offset beyond its bound or a ratio beyond
+    :data:`FOCAL_RATIO_BOUND` priors from its mean is dropped (no offset, ratio 1) and the rest
+    fitted again; ``(params, problem)`` with the terms left free."""
+    R0, a, b, prior, free, centre = problem
+    for _ in range(2):
+        implausible = np.zeros(_NPARAMS, dtype=bool)
+        if free[5] and _offset_beyond_bound(params, problem, offset_bound, noise):
+            implausible |= _OFFSET
+        if free[7] and abs(params[7] - centre[7]) > FOCAL_RATIO_BOUND * focal_ratio_prior:
+            implausible |= _RATIO
+        if not np.any(implausible):
+            break
+        free = free & ~implausible
+        problem = (R0, a, b, prior, free, centre)
+        params = _gauss_newton(np.where(free, centre, 0.0), problem, iterations)
+    return params, problem
 
 
 def _objectives(params: np.ndarray, problem) -> np.ndarray:

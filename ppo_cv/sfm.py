@@ -262,6 +262,27 @@ def screen_images(image_dir: str | os.PathLike) -> tuple[list[str], dict[str, st
     return kept, skipped
 
 
+def _pycolmap_options(K: np.ndarray | None, max_num_features: int, num_threads: int, seed: int):
+    """pycolmap's reader (a ``PINHOLE`` camera of ``K`` when given), extraction, matching and
+    verification options of :func:`prepare_database`, on the CPU."""
+    reader = pycolmap.ImageReaderOptions()
+    if K is not None:
+        reader.camera_model = "PINHOLE"
+        reader.camera_params = ",".join(
+            repr(float(v)) for v in (K[0, 0], K[1, 1], K[0, 2], K[1, 2])
+        )
+    extraction = pycolmap.FeatureExtractionOptions()
+    extraction.num_threads = num_threads
+    extraction.use_gpu = False
+    extraction.sift.max_num_features = int(max_num_features)
+    matching = pycolmap.FeatureMatchingOptions()
+    matching.num_threads = num_threads
+    matching.use_gpu = False
+    verification = pycolmap.TwoViewGeometryOptions()
+    verification.ransac.random_seed = seed
+    return reader, extraction, matching, verification
+
+
 def prepare_database(
     image_dir: str | os.PathLike,
     database_path: str | os.PathLike,
@@ -317,23 +338,12 @@ def prepare_database(
     database_path = Path(database_path)
     if database_path.exists():
         raise ValueError(f"database {str(database_path)!r} already exists")
-    reader = pycolmap.ImageReaderOptions()
     if K is not None:
         _check_one_size(image_dir, names)
         K = as_camera_matrix(K, "K")
-        reader.camera_model = "PINHOLE"
-        reader.camera_params = ",".join(
-            repr(float(v)) for v in (K[0, 0], K[1, 1], K[0, 2], K[1, 2])
-        )
-    extraction = pycolmap.FeatureExtractionOptions()
-    extraction.num_threads = num_threads
-    extraction.use_gpu = False
-    extraction.sift.max_num_features = int(max_num_features)
-    matching = pycolmap.FeatureMatchingOptions()
-    matching.num_threads = num_threads
-    matching.use_gpu = False
-    verification = pycolmap.TwoViewGeometryOptions()
-    verification.ransac.random_seed = seed
+    reader, extraction, matching, verification = _pycolmap_options(
+        K, max_num_features, num_threads, seed
+    )
     with _quiet(verbose):
         _say(progress, f"extracting SIFT features from {len(names)} images")
         pycolmap.extract_features(
@@ -719,17 +729,7 @@ def reconstruct(
     pairs: tuple[PairScore, ...] = ()
     candidates: Iterator[PairScore | None] = iter([None])
     if initialization == "ppo":
-        _say(progress, "scoring candidate initial pairs with PPO")
-        pairs = tuple(score_pairs(database_path, **scoring))
-        if not any(p.accepted for p in pairs):
-            with pycolmap.Database.open(database_path) as database:
-                num_images = int(database.num_images())
-            raise ReconstructionFailed(_no_initial_pair(pairs, num_images))
-        threshold = scoring.get("pri_threshold", ppo.DEFAULT_PRI_THRESHOLD)
-        refused: list[PairScore] = []
-        candidates = _checked_candidates(
-            database_path, image_dir, pairs, refused, threshold, progress
-        )
+        pairs, candidates, refused = _ppo_candidates(database_path, image_dir, scoring, progress)
     models: list[pycolmap.Reconstruction] = []
     initial_pair = None
     with _quiet(verbose), pycolmap.Database.open(database_path) as database:
@@ -756,6 +756,22 @@ def reconstruct(
         if not tried:
             raise ReconstructionFailed(_no_initial_pair(pairs, num_images))
     return _result(models, initialization, initial_pair, pairs, num_images, start)
+
+
+def _ppo_candidates(database_path: Path, image_dir: Path, scoring: dict, progress):
+    """The pairs scored by PPO, the accepted ones that ``ppo-cv pair`` also accepts on their
+    images (lazily, best first), and the list that collects the refused ones as they are
+    checked; :class:`ReconstructionFailed` when PPO accepts none."""
+    _say(progress, "scoring candidate initial pairs with PPO")
+    pairs = tuple(score_pairs(database_path, **scoring))
+    if not any(p.accepted for p in pairs):
+        with pycolmap.Database.open(database_path) as database:
+            num_images = int(database.num_images())
+        raise ReconstructionFailed(_no_initial_pair(pairs, num_images))
+    threshold = scoring.get("pri_threshold", ppo.DEFAULT_PRI_THRESHOLD)
+    refused: list[PairScore] = []
+    candidates = _checked_candidates(database_path, image_dir, pairs, refused, threshold, progress)
+    return pairs, candidates, refused
 
 
 def _checked_candidates(

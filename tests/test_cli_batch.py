@@ -139,7 +139,7 @@ def test_pure_rotations_get_an_auc_and_progress_goes_to_stderr(rotation_pairs, t
     auc = [float(v) for v in row.strip("|").split("|")[2:]]
     assert min(auc) > 90.0, out.stdout  # the rotations are recovered to a fraction of a degree
     results = [json.loads(line) for line in (tmp_path / "out.jsonl").read_text().splitlines()]
-    assert [r["pri_threshold"] for r in results] == [0.02, 0.02]
+    assert [r["evidence"]["selection"]["pri_threshold"] for r in results] == [0.02, 0.02]
     assert all(r["t_err_deg"] is None and r["R_err_deg"] < 0.5 for r in results)
     quiet = subprocess.run([*args[:-2], "-o", str(tmp_path / "quiet.jsonl"), "--quiet"],
                            capture_output=True, text=True, timeout=120)  # fmt: skip
@@ -158,7 +158,7 @@ def test_pri_threshold_reaches_the_pipeline(rotation_pairs):
     assert plain.exit_code == 0 and strict.exit_code == 0, plain.output + strict.output
     plain, strict = json.loads(plain.stdout), json.loads(strict.stdout)
     assert (plain["pure_rotation"], strict["pure_rotation"]) == (True, False)
-    assert strict["pri_threshold"] == 1e-9 and strict["pri"] > 1e-9
+    assert strict["evidence"]["selection"]["pri_threshold"] == 1e-9 and strict["pri"] > 1e-9
 
 
 def test_sfm_passes_its_options_on(monkeypatch, tmp_path):

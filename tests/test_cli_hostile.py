@@ -766,7 +766,8 @@ def test_a_calibration_of_resized_images_is_scaled_to_the_truth(tmp_path, kind):
     ]
     row = json.loads(out.stdout)
     fx, fy, cx, cy = DEMO["intrinsics"]
-    np.testing.assert_allclose(row["K1"], [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], atol=1e-9)
+    K_row = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]
+    np.testing.assert_allclose(row["cameras"]["K1"], K_row, atol=1e-9)
     assert _demo_rotation_error(row) < 1.0
 
 
@@ -785,7 +786,8 @@ def test_pairs_scales_a_calibration_of_resized_images_to_the_truth(tmp_path):
     ]
     row = json.loads(out.stdout)
     fx, fy, cx, cy = DEMO["intrinsics"]
-    np.testing.assert_allclose(row["K1"], [[fx, 0, cx], [0, fy, cy], [0, 0, 1]], atol=1e-9)
+    K_row = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]
+    np.testing.assert_allclose(row["cameras"]["K1"], K_row, atol=1e-9)
     assert _demo_rotation_error(row) < 1.0
 
 

@@ -76,8 +76,9 @@ def test_pairs_without_intrinsics_takes_the_cameras_pair_takes(tmp_path):
     pair = ppo_cv("pair", tmp_path / "a.jpg", tmp_path / "b.jpg", "--json")
     assert pair.returncode == 0, pair.stderr
     single = json.loads(pair.stdout)
-    np.testing.assert_allclose(row["K1"], single["K1"])
-    assert row["K1"][0][0] != pytest.approx(1.2 * 640)  # the EXIF focal, not the size guess
+    np.testing.assert_allclose(row["cameras"]["K1"], single["cameras"]["K1"])
+    # the EXIF focal, not the size guess
+    assert row["cameras"]["K1"][0][0] != pytest.approx(1.2 * 640)
     check_demo_pose(row, 2.0, 6.0)
     (warning,) = warnings_of(pairs)
     assert "no intrinsics given for 1 of 1 pairs" in warning
@@ -96,7 +97,7 @@ def test_pairs_takes_a_calibration_file_and_a_second_camera(tmp_path):
         done = ppo_cv("pairs", tmp_path / "pairs.txt", DATA, *options, "--workers", "1", "-q")
         assert done.returncode == 0, done.stderr
         (row,) = [json.loads(line) for line in done.stdout.splitlines()]
-        np.testing.assert_allclose(row["K2"], K_MATRIX, err_msg=name)
+        np.testing.assert_allclose(row["cameras"]["K2"], K_MATRIX, err_msg=name)
         check_demo_pose(row)
         assert warnings_of(done) == []
     done = ppo_cv("pairs", tmp_path / "pairs.txt", DATA, "--K2", K_TEXT)
@@ -196,9 +197,11 @@ def test_no_exif_orientation_reads_the_pixels_as_stored(tmp_path):
                     "--no-exif-orientation")  # fmt: skip
     assert stored.returncode == 0, stored.stderr
     data = json.loads(stored.stdout)
-    np.testing.assert_allclose(np.array(data["K1"])[:2, 2], [320.0, 240.0])
+    np.testing.assert_allclose(np.array(data["cameras"]["K1"])[:2, 2], [320.0, 240.0])
     check_demo_pose(data, 2.0, 6.0)
-    assert shown.returncode != 0 or json.loads(shown.stdout)["K1"][0][2] == pytest.approx(240.0)
+    assert shown.returncode != 0 or json.loads(shown.stdout)["cameras"]["K1"][0][
+        2
+    ] == pytest.approx(240.0)
     (tmp_path / "pairs.txt").write_text("a.jpg b.jpg\n")
     pairs = ppo_cv("pairs", tmp_path / "pairs.txt", tmp_path, "--no-exif-orientation",
                    "--workers", "1", "-q")  # fmt: skip

@@ -29,8 +29,12 @@ REQUIRED_KEYS = {
     "num_matches",
     "num_inliers",
     "num_points",
-    "K1",
-    "K2",
+    "model",
+    "cameras",
+    "uncertainty",
+    "lens",
+    "evidence",
+    "plane",
     "timings",
     "translation_determined",
 }
@@ -68,9 +72,10 @@ def test_no_arguments_runs_the_demo_pair(demo_json):
     assert REQUIRED_KEYS <= set(data)
     check_demo_pose(data)
     assert not data["pure_rotation"] and data["translation_determined"]
-    assert data["rotation_sigma_deg"] is None  # a rotation uncertainty only for a pure rotation
+    # a rotation uncertainty only for a pure rotation
+    assert data["uncertainty"]["rotation_sigma_deg"] is None
     assert data["num_inliers"] >= 100 and data["num_points"] > 0
-    assert np.allclose(data["K1"], [[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, 1]])
+    assert np.allclose(data["cameras"]["K1"], [[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, 1]])
 
 
 def test_human_summary(tmp_path):
@@ -187,7 +192,7 @@ def test_missing_intrinsics_fall_back_to_exif_with_a_warning():
     result = runner.invoke(app, ["pair", DEMO1, DEMO2, "--json"])
     assert result.exit_code == 0, result.output
     assert "warning:" in result.stderr and "no intrinsics" in result.stderr
-    assert np.allclose(json.loads(result.stdout)["K1"][0][0], 768.0)
+    assert np.allclose(json.loads(result.stdout)["cameras"]["K1"][0][0], 768.0)
 
 
 def _phone_jpeg(source, path, orientation: int) -> None:
@@ -215,8 +220,8 @@ def test_exif_orientation_gives_the_camera_of_the_upright_image(tmp_path):
         runs[orientation] = json.loads(result.stdout)
     assert cv2.imread(str(tmp_path / "6_1.jpg")).shape == (480, 640, 3)
     upright, turned = runs[1], runs[6]
-    np.testing.assert_allclose(turned["K1"], upright["K1"])
-    np.testing.assert_allclose(np.array(turned["K1"])[:2, 2], [320.0, 240.0])
+    np.testing.assert_allclose(turned["cameras"]["K1"], upright["cameras"]["K1"])
+    np.testing.assert_allclose(np.array(turned["cameras"]["K1"])[:2, 2], [320.0, 240.0])
     check_demo_pose(turned)
     assert rotation_error_deg(turned["R"], upright["R"]) < 0.3
 
@@ -319,7 +324,8 @@ def test_pairs_without_intrinsics_guesses_them_as_pair_does(tmp_path):
     result = runner.invoke(app, ["pairs", str(pairs_file), str(DATA), "--workers", "1"])
     assert result.exit_code == 0, result.output
     (row,) = [json.loads(line) for line in result.stdout.splitlines()]
-    assert np.allclose(row["K1"][0][0], 768.0)  # no EXIF in the PNGs: 1.2 x the larger side
+    # no EXIF in the PNGs: 1.2 x the larger side
+    assert np.allclose(row["cameras"]["K1"][0][0], 768.0)
     assert "warning: no intrinsics given" in result.stderr and "pass --K" in result.stderr
     result = runner.invoke(
         app, ["pairs", str(pairs_file), str(DATA), "--K", K_TEXT, "--workers", "1"]

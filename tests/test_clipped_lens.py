@@ -125,12 +125,22 @@ def test_a_translation_whose_lens_the_matches_clipped_is_not_flagged():
     0.0058 +- 0.0002 in the wider one."""
     pair = imperfect_render(103, 0.02)
     result = estimate_pair(pair.image1, pair.image2, pair.K_given, pair.K_given)
-    assert not result.pure_rotation and result.gric_difference < 0 and result.lens_excess > 0
-    assert result.track_parallax - 3 * result.track_parallax_sigma > NEGLIGIBLE_PARALLAX
-    assert result.track_parallax + 3 * result.track_parallax_sigma < MAX_TRACK_PARALLAX
-    assert np.isfinite(result.t_sigma_deg) and result.t_sigma_deg < 90.0
+    assert (
+        not result.pure_rotation
+        and result.evidence.selection.gric_difference < 0
+        and result.lens.lens_excess > 0
+    )
+    assert (
+        result.evidence.tracks.parallax - 3 * result.evidence.tracks.parallax_sigma
+        > NEGLIGIBLE_PARALLAX
+    )
+    assert (
+        result.evidence.tracks.parallax + 3 * result.evidence.tracks.parallax_sigma
+        < MAX_TRACK_PARALLAX
+    )
+    assert np.isfinite(result.uncertainty.t_sigma_deg) and result.uncertainty.t_sigma_deg < 90.0
     line = "".join(_lens_lines(result))
-    assert f"{result.track_parallax:.4f}" in line and "edge of the plausible box" in line
+    assert f"{result.evidence.tracks.parallax:.4f}" in line and "edge of the plausible box" in line
 
 
 @pytest.mark.slow
@@ -142,8 +152,8 @@ def test_a_stitched_translation_whose_lens_the_matches_clipped_is_not_flagged():
         "tiny-baseline", seed=2, index=6, imperfections=stitched, baseline_ratio=0.02
     )
     result = estimate_pair(pair.image1, pair.image2, pair.K1_given, pair.K2_given)
-    assert not result.pure_rotation and result.lens_excess > 0
-    assert result.track_parallax > NEGLIGIBLE_PARALLAX
+    assert not result.pure_rotation and result.lens.lens_excess > 0
+    assert result.evidence.tracks.parallax > NEGLIGIBLE_PARALLAX
 
 
 def test_a_rotation_with_the_focal_given_eight_percent_off_is_flagged_by_its_tracks(
@@ -161,11 +171,14 @@ def test_a_rotation_with_the_focal_given_eight_percent_off_is_flagged_by_its_tra
     matches = estimate_pair(
         *images, pair.K1_given, pair.K2_given, options=PairOptions(photometric=False)
     )
-    assert matches.pure_rotation and matches.lens_excess > 0
-    assert matches.focal_scale == pytest.approx(1 - MAX_FOCAL_CHANGE)
+    assert matches.pure_rotation and matches.lens.lens_excess > 0
+    assert matches.lens.focal_scale == pytest.approx(1 - MAX_FOCAL_CHANGE)
     assert rotation_error_deg(matches.R, pair.R) > 0.3
     result = estimate_pair(*images, pair.K1_given, pair.K2_given)
-    assert result.pure_rotation and result.rotation_tracks > 20
-    assert result.focal_scale == pytest.approx(given, abs=0.01)
+    assert result.pure_rotation and result.uncertainty.rotation_tracks > 20
+    assert result.lens.focal_scale == pytest.approx(given, abs=0.01)
     assert rotation_error_deg(result.R, pair.R) < 0.05
-    assert result.track_parallax + 3 * result.track_parallax_sigma < NEGLIGIBLE_PARALLAX
+    assert (
+        result.evidence.tracks.parallax + 3 * result.evidence.tracks.parallax_sigma
+        < NEGLIGIBLE_PARALLAX
+    )

@@ -54,18 +54,21 @@ def box_before_wall():
 def test_a_translation_with_a_surface_off_the_rotation_is_not_flagged(box_before_wall, monkeypatch):
     pair, result = box_before_wall
     assert not result.pure_rotation and result.model != "rotation"
-    assert result.translation_determined and result.t_sigma_deg < 10.0
+    assert result.translation_determined and result.uncertainty.t_sigma_deg < 10.0
     # the rotation won the comparison and its lens is plausible: the share refused it
-    assert result.gric_difference < 0 and result.lens_excess < motion_model.LENS_SIGNIFICANCE
-    assert result.coherent_share > motion_model.MAX_COHERENT_SHARE
+    assert (
+        result.evidence.selection.gric_difference < 0
+        and result.lens.lens_excess < motion_model.LENS_SIGNIFICANCE
+    )
+    assert result.evidence.selection.coherent_share > motion_model.MAX_COHERENT_SHARE
     assert rotation_error_deg(result.R, pair.R) < 0.5
     monkeypatch.setattr(motion_model, "MAX_COHERENT_SHARE", 1.0)
     assert _estimate(pair).pure_rotation
 
 
 def test_the_share_is_reported(box_before_wall):
-    share = box_before_wall[1].coherent_share
-    assert result_to_dict(box_before_wall[1])["model_selection"]["coherent_share"] == share
+    share = box_before_wall[1].evidence.selection.coherent_share
+    assert result_to_dict(box_before_wall[1])["evidence"]["selection"]["coherent_share"] == share
     line = f"parallax     {100 * share:.0f} % of the matches move together off the rotation"
     assert line in _summary(box_before_wall[1], "a.png", "b.png", None)
 
@@ -78,4 +81,4 @@ def test_a_noisy_rotation_with_scattered_outliers_is_flagged(index):
     pair = data_gen.make_warped_pair(seed=0, index=index, imperfections=noisy)
     result = _estimate(pair)
     assert result.pure_rotation and rotation_error_deg(result.R, pair.R) < 0.5
-    assert result.coherent_share < 0.5 * motion_model.MAX_COHERENT_SHARE
+    assert result.evidence.selection.coherent_share < 0.5 * motion_model.MAX_COHERENT_SHARE

@@ -24,6 +24,16 @@ from ppo_cv.export import (
     result_to_dict,
 )
 from ppo_cv.metrics import rotation_error_deg
+from ppo_cv.result import (
+    ConsensusSignificance,
+    DecisionEvidence,
+    LensTerms,
+    ModelComparison,
+    PairCameras,
+    PairResult,
+    PoseUncertainty,
+    TrackParallax,
+)
 
 DEMO_K = "535.4,539.2,320.1,247.6"
 
@@ -84,8 +94,14 @@ def test_json_states_the_conventions_and_the_distortion(demo_json_with_distortio
     data = demo_json_with_distortion
     assert data["convention"] == POSE_CONVENTION and "X2 = R X1 + t" in data["convention"]
     assert data["camera_axes"] == CAMERA_AXES == "x right, y down, z forward"
-    assert data["dist1"] == data["dist2"] == pytest.approx([0.01, -0.002, 0.0, 0.0])
-    np.testing.assert_allclose(data["K1"], [[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, 1]])
+    assert (
+        data["cameras"]["dist1"]
+        == data["cameras"]["dist2"]
+        == pytest.approx([0.01, -0.002, 0.0, 0.0])
+    )
+    np.testing.assert_allclose(
+        data["cameras"]["K1"], [[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, 1]]
+    )
     assert np.linalg.norm(data["t"]) == pytest.approx(1.0) and "t_guess" not in data
     euler = camera_euler_degrees(np.array(data["R"]))
     assert data["rotation_euler_deg"] == pytest.approx(euler._asdict())
@@ -133,22 +149,32 @@ def test_pure_rotation_json_has_no_usable_t(pure_rotation_files):
     R_error = rotation_error_deg(data["R"], pair.R)
     assert R_error < 0.5
     # the stated rotation uncertainty covers the actual error within a few sigma
-    assert 0.0 < data["rotation_sigma_deg"] < 1.0 and R_error < 4.0 * data["rotation_sigma_deg"]
+    assert 0.0 < data["uncertainty"]["rotation_sigma_deg"] < 1.0
+    assert R_error < 4.0 * data["uncertainty"]["rotation_sigma_deg"]
     summary = subprocess.run([*args, "--K", K], capture_output=True, text=True).stdout
     assert "translation  undetermined (pure rotation); best unit guess" in summary
-    assert f"R sigma      {data['rotation_sigma_deg']:.3f} deg" in summary
+    assert f"R sigma      {data['uncertainty']['rotation_sigma_deg']:.3f} deg" in summary
 
 
 def test_result_to_dict_keeps_t_for_a_general_motion():
-    result = types.SimpleNamespace(
-        R=np.eye(3), t=np.array([1.0, 0, 0]), pure_rotation=False, translation_determined=True,
-        pri=0.1, pri_threshold=0.015, keypoints1=np.zeros((3, 2)), keypoints2=np.zeros((3, 2)),
-        num_matches=3, num_inliers=3, num_points=3, K1=np.eye(3), K2=np.eye(3), dist1=None,
-        dist2=np.array([0.1, 0, 0, 0]), image_size1=(4, 3), image_size2=(4, 3), timings={},
+    nan = float("nan")
+    result = PairResult(
+        R=np.eye(3), t=np.array([1.0, 0, 0]), pure_rotation=False, model="general", pri=0.1,
+        keypoints1=np.zeros((3, 2)), keypoints2=np.zeros((3, 2)),
+        matches=np.repeat(np.arange(3), 2).reshape(3, 2), inliers=np.ones(3, dtype=bool),
+        points3d=np.ones((3, 3)), point_matches=np.arange(3), colours=np.zeros((3, 3), np.uint8),
+        cameras=PairCameras(np.eye(3), np.eye(3), None, np.array([0.1, 0, 0, 0]), (4, 3), (4, 3)),
+        uncertainty=PoseUncertainty(1.0, nan, 0),
+        lens=LensTerms(1.0, 1.0, np.zeros(2), 3.0, nan, 0.0),
+        evidence=DecisionEvidence(
+            ModelComparison(0.015, *[nan] * 10), TrackParallax(nan, nan),
+            ConsensusSignificance(-50.0, 1.0),
+        ),
+        plane=None, timings={},
     )  # fmt: skip
     data = result_to_dict(result)
     assert data["t"] == [1.0, 0.0, 0.0] and "t_guess" not in data
-    assert data["dist1"] is None and data["dist2"] == [0.1, 0.0, 0.0, 0.0]
+    assert data["cameras"]["dist1"] is None and data["cameras"]["dist2"] == [0.1, 0.0, 0.0, 0.0]
     json.dumps(data)
 
 

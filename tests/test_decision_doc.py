@@ -24,6 +24,7 @@ MODULES = {
     "photometric": None,
     "significance": None,
     "plane": None,
+    "pipeline": None,
     "ppo": ("DEFAULT_PRI_THRESHOLD",),
 }
 CONSTANT = re.compile(r"_?[A-Z][A-Z0-9_]*")

@@ -105,8 +105,8 @@ def test_colmap_model_carries_real_reprojection_errors(demo, demo_result, tmp_pa
         result.keypoints2[m[:, 1]],
         result.R,
         result.t,
-        result.K1,
-        result.K2,
+        result.cameras.K1,
+        result.cameras.K2,
     )
     ours = np.array([errors[tuple(np.round(p, 6))] for p in result.points3d[rows]])
     np.testing.assert_allclose(ours, expected, rtol=1e-4, atol=1e-6)

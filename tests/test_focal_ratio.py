@@ -101,18 +101,20 @@ def test_pure_rotation_with_focal_lengths_given_per_photo_is_flagged(per_photo_p
     assert result.pure_rotation and not result.translation_determined
     assert rotation_error_deg(result.R, pair.R) < 0.1
     true_ratio = pair.params["view_factors"][1] / pair.params["view_factors"][0]
-    assert result.focal_ratio == pytest.approx(true_ratio, abs=0.002)
+    assert result.lens.focal_ratio == pytest.approx(true_ratio, abs=0.002)
     record = json.loads(json.dumps(result_to_dict(result)))
-    assert record["model_selection"]["focal_ratio"] == pytest.approx(result.focal_ratio)
-    assert f"image 2 / image 1 {result.focal_ratio:.4f}" in _lens_lines(result)[0]
+    assert record["lens"]["focal_ratio"] == pytest.approx(result.lens.focal_ratio)
+    assert f"image 2 / image 1 {result.lens.focal_ratio:.4f}" in _lens_lines(result)[0]
 
 
 def test_the_ratio_held_leaves_the_zoom_and_calls_the_pan_general(per_photo_pan):
     pair, freed = per_photo_pan
     options = PairOptions(focal_ratio="given", photometric=False)
     held = estimate_pair(*_bgr(pair), pair.K1_given, pair.K2_given, options=options)
-    assert held.focal_ratio == 1.0
-    assert held.rotation_residual_px > max(0.5, 2 * freed.rotation_residual_px)
+    assert held.lens.focal_ratio == 1.0
+    assert held.evidence.selection.rotation_residual_px > max(
+        0.5, 2 * freed.evidence.selection.rotation_residual_px
+    )
     assert not held.pure_rotation and held.model == "general"
 
 
@@ -135,9 +137,9 @@ def test_command_line_chooses_the_focal_ratio(tmp_path, freiburg_photos):
         records[mode] = json.loads(run.stdout)
     true_ratio = pair.params["view_factors"][1] / pair.params["view_factors"][0]
     assert records["auto"]["pure_rotation"]
-    assert records["auto"]["model_selection"]["focal_ratio"] == pytest.approx(true_ratio, abs=0.002)
+    assert records["auto"]["lens"]["focal_ratio"] == pytest.approx(true_ratio, abs=0.002)
     assert not records["given"]["pure_rotation"]
-    assert records["given"]["model_selection"]["focal_ratio"] == 1.0
+    assert records["given"]["lens"]["focal_ratio"] == 1.0
     run = CliRunner().invoke(app, [*base, "--focal-ratio", "fit"])
     assert run.exit_code == 2
     assert "unknown focal_ratio 'fit'" in run.output
@@ -148,7 +150,7 @@ def test_the_same_pan_told_one_focal_length_keeps_the_ratio():
     told = data_gen.Imperfections(centred_principal_point=True)
     pair = data_gen.make_warped_pair(seed=0, index=2, imperfections=told)
     result = estimate_pair(*_bgr(pair), pair.K1_given, pair.K2_given)
-    assert result.pure_rotation and result.focal_ratio == 1.0
+    assert result.pure_rotation and result.lens.focal_ratio == 1.0
     assert "image 2 / image 1" not in _lens_lines(result)[0]
 
 

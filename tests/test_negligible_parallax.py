@@ -157,19 +157,27 @@ def test_a_tripod_pan_whose_pivot_the_matches_see_is_flagged_by_its_tracks():
     image2 = np.ascontiguousarray(pair.image2[..., ::-1])
     K1, K2 = pair.K1_given, pair.K2_given
     matches = estimate_pair(image1, image2, K1, K2, options=PairOptions(photometric=False))
-    assert matches.model == "general" and matches.gric_difference > 0
+    assert matches.model == "general" and matches.evidence.selection.gric_difference > 0
     assert rotation_error_deg(matches.R, pair.R) > 2.0
     result = estimate_pair(image1, image2, K1, K2)
-    assert result.pure_rotation and result.model == "rotation" and result.gric_difference > 0
-    assert result.track_parallax + NEGLIGIBLE_SIGNIFICANCE * result.track_parallax_sigma < (
-        NEGLIGIBLE_PARALLAX
+    assert (
+        result.pure_rotation
+        and result.model == "rotation"
+        and result.evidence.selection.gric_difference > 0
+    )
+    assert (
+        result.evidence.tracks.parallax
+        + NEGLIGIBLE_SIGNIFICANCE * result.evidence.tracks.parallax_sigma
+        < (NEGLIGIBLE_PARALLAX)
     )
     assert rotation_error_deg(result.R, pair.R) < 0.6
-    assert result.rotation_tracks > 100 and not result.translation_determined
-    assert result.rotation_gap_deg > np.degrees(MIN_CANDIDATE_ROTATION_GAP)
-    record = result_to_dict(result)["model_selection"]
-    assert record["track_parallax"] == pytest.approx(result.track_parallax)
-    assert record["rotation_gap_deg"] == pytest.approx(result.rotation_gap_deg)
+    assert result.uncertainty.rotation_tracks > 100 and not result.translation_determined
+    assert result.evidence.selection.rotation_gap_deg > np.degrees(MIN_CANDIDATE_ROTATION_GAP)
+    record = result_to_dict(result)["evidence"]
+    assert record["tracks"]["parallax"] == pytest.approx(result.evidence.tracks.parallax)
+    assert record["selection"]["rotation_gap_deg"] == pytest.approx(
+        result.evidence.selection.rotation_gap_deg
+    )
     assert "negligible" in _summary(result, "a.png", "b.png", None)
 
 
@@ -186,8 +194,10 @@ def test_a_step_of_two_percent_that_makes_a_candidate_is_measured_and_not_flagge
     image2 = np.ascontiguousarray(pair.image2[..., ::-1])
     result = estimate_pair(image1, image2, pair.K1_given, pair.K2_given)
     assert not result.pure_rotation and result.translation_determined
-    assert result.gric_difference > 0 and result.rotation_tracks == 0
-    assert result.track_parallax - PARALLAX_SIGNIFICANCE * result.track_parallax_sigma > (
-        NEGLIGIBLE_PARALLAX
+    assert result.evidence.selection.gric_difference > 0 and result.uncertainty.rotation_tracks == 0
+    assert (
+        result.evidence.tracks.parallax
+        - PARALLAX_SIGNIFICANCE * result.evidence.tracks.parallax_sigma
+        > (NEGLIGIBLE_PARALLAX)
     )
     assert "not called a pure rotation" in _summary(result, "a.png", "b.png", None)

@@ -125,7 +125,7 @@ def test_a_threshold_of_infinity_cannot_buy_a_pose():
 def test_rendered_pairs_of_every_preset_keep_their_pose(motion):
     pair = data_gen.make_pair(motion, 7, 0, (320, 240))
     result = ppo_cv.estimate_pair(pair.image1, pair.image2, pair.K1, pair.K2)
-    assert result.log10_nfa < -100
+    assert result.evidence.significance.log10_nfa < -100
     assert rotation_error_deg(result.R, pair.R) < 1.0
 
 
@@ -139,14 +139,17 @@ def test_demo_pair_keeps_its_pose_and_reports_the_statistic():
         resources.as_file(folder / meta["image2"]) as p2,
     ):
         result = ppo_cv.estimate_pair(p1, p2, K)
-        bar = result.log10_nfa - 1.0
+        bar = result.evidence.significance.log10_nfa - 1.0
         strict = PairOptions(max_log10_nfa=bar, redetect_below=0)
         with pytest.raises(ValueError, match=r"no reliable two-view geometry.*log10 NFA"):
             ppo_cv.estimate_pair(p1, p2, K, options=strict)
         # Refused, the consensus is sought again on denser features, which pass only under the bar.
         denser = ppo_cv.estimate_pair(p1, p2, K, options=PairOptions(max_log10_nfa=bar))
-    assert denser.threshold_scale < 1.0 and denser.log10_nfa <= bar
-    assert result.log10_nfa < DEFAULT_MAX_LOG10_NFA - 20
+    assert (
+        denser.evidence.significance.threshold_scale < 1.0
+        and denser.evidence.significance.log10_nfa <= bar
+    )
+    assert result.evidence.significance.log10_nfa < DEFAULT_MAX_LOG10_NFA - 20
     assert rotation_error_deg(result.R, np.array(meta["reference_R"])) < 2.0
 
 
@@ -210,7 +213,7 @@ def test_freiburg_pairs_keep_their_pose(freiburg):
         T = np.array(fields[22:38], float).reshape(4, 4)
         images = freiburg / "images"
         result = ppo_cv.estimate_pair(images / fields[0], images / fields[1], K1, K2)
-        assert result.log10_nfa < -20
+        assert result.evidence.significance.log10_nfa < -20
         assert rotation_error_deg(result.R, T[:3, :3]) < 6.0  # pseudo ground truth
 
 
@@ -237,7 +240,7 @@ def test_marginal_freiburg_pairs_keep_their_pose_under_the_default_bar(freiburg)
         T = np.array(fields[22:38], float).reshape(4, 4)
         images = freiburg / "images"
         result = ppo_cv.estimate_pair(images / names[0], images / names[1], K1, K2)
-        assert result.log10_nfa <= DEFAULT_MAX_LOG10_NFA
+        assert result.evidence.significance.log10_nfa <= DEFAULT_MAX_LOG10_NFA
         assert rotation_error_deg(result.R, T[:3, :3]) < 10.0
 
 
@@ -249,7 +252,7 @@ def test_cli_reports_the_statistic_and_applies_a_stricter_bar():
     runner = CliRunner()
     shown = runner.invoke(app, ["pair", "--json"])
     assert shown.exit_code == 0, shown.output
-    log10_nfa = json.loads(shown.stdout)["log10_nfa"]
+    log10_nfa = json.loads(shown.stdout)["evidence"]["significance"]["log10_nfa"]
     assert log10_nfa < -100
     strict = runner.invoke(
         app, ["pair", "--max-log10-nfa", str(log10_nfa - 1.0), "--redetect-below", "0"]

@@ -124,7 +124,7 @@ def test_refit_survives_exposure_and_vignetting():
     image1 = _vignetted(pair.image1, 1.0, 0.3)
     image2 = _vignetted(pair.image2, 0.75, 0.3)
     result = estimate_pair(image1, image2, pair.K_given)
-    assert result.pure_rotation and result.rotation_tracks > 100
+    assert result.pure_rotation and result.uncertainty.rotation_tracks > 100
     assert rotation_error_deg(result.R, pair.R) < 0.06
 
 
@@ -135,9 +135,9 @@ def test_refit_with_the_distortion_given_leaves_no_radial_term():
     K_true = pair.K_given.copy()
     K_true[:2, :2] /= 1.0 + pair.focal_error
     result = estimate_pair(pair.image1, pair.image2, K_true, dist1=dist)
-    assert result.pure_rotation and result.rotation_tracks > 100
+    assert result.pure_rotation and result.uncertainty.rotation_tracks > 100
     assert rotation_error_deg(result.R, pair.R) < 0.03
-    assert abs(result.focal_scale - 1.0) < 0.003
+    assert abs(result.lens.focal_scale - 1.0) < 0.003
 
 
 def test_refit_is_refused_on_unrelated_images_and_on_a_rotation_far_from_its_bound():
@@ -168,13 +168,13 @@ def test_pipeline_rotation_of_imperfect_renders_beats_the_feature_matches():
             pair.image1, pair.image2, pair.K_given,
             options=PairOptions(photometric=False, principal_point="given"),
         )  # fmt: skip
-        assert result.pure_rotation and result.rotation_tracks > 100
-        assert matches.rotation_tracks == 0
+        assert result.pure_rotation and result.uncertainty.rotation_tracks > 100
+        assert matches.uncertainty.rotation_tracks == 0
         errors.append(rotation_error_deg(result.R, pair.R))
         matches_errors.append(rotation_error_deg(matches.R, pair.R))
-        assert result.rotation_sigma_deg < matches.rotation_sigma_deg
-        assert errors[-1] < 5.0 * result.rotation_sigma_deg
-        assert result.t_sigma_deg > 30.0 and result.num_points == 0
+        assert result.uncertainty.rotation_sigma_deg < matches.uncertainty.rotation_sigma_deg
+        assert errors[-1] < 5.0 * result.uncertainty.rotation_sigma_deg
+        assert result.uncertainty.t_sigma_deg > 30.0 and result.num_points == 0
     assert max(errors) < 0.04
     assert np.mean(errors) < 0.5 * np.mean(matches_errors)
 
@@ -185,11 +185,14 @@ def test_json_and_summary_name_the_tracks():
     pair = imperfect_render(0)
     result = estimate_pair(pair.image1, pair.image2, pair.K_given)
     record = json.loads(json.dumps(result_to_dict(result)))
-    assert record["rotation_tracks"] == result.rotation_tracks > 100
-    assert f"{result.rotation_tracks} intensity-aligned windows" in _rotation_sigma_lines(result)[0]
+    assert record["uncertainty"]["rotation_tracks"] == result.uncertainty.rotation_tracks > 100
+    assert (
+        f"{result.uncertainty.rotation_tracks} intensity-aligned windows"
+        in _rotation_sigma_lines(result)[0]
+    )
     moving = imperfect_render(1, 0.15)
     general = estimate_pair(moving.image1, moving.image2, moving.K_given)
-    assert result_to_dict(general)["rotation_tracks"] == 0
+    assert result_to_dict(general)["uncertainty"]["rotation_tracks"] == 0
 
 
 @pytest.mark.slow
@@ -202,8 +205,10 @@ def test_rotation_sigma_of_the_tracks_covers_the_actual_errors():
             warped_rotation_pair(_demo_photo(), K_DEMO, seed, angle_range=(10.0, 15.0)),
         ):
             result = estimate_pair(pair.image1, pair.image2, pair.K_given)
-            if result.rotation_tracks:
-                ratios.append(rotation_error_deg(result.R, pair.R) / result.rotation_sigma_deg)
+            if result.uncertainty.rotation_tracks:
+                ratios.append(
+                    rotation_error_deg(result.R, pair.R) / result.uncertainty.rotation_sigma_deg
+                )
     assert len(ratios) >= 6
     rms = float(np.sqrt(np.mean(np.square(ratios))))
     assert 0.3 < rms < 1.5
@@ -226,8 +231,8 @@ def test_command_line_switches_the_refit(tmp_path):
         run = CliRunner().invoke(app, ["pair", *paths, "--K", k_text, "--json", flag, *exact])
         assert run.exit_code == 0, run.output
         records[flag] = json.loads(run.stdout)
-    assert records["--photometric"]["rotation_tracks"] > 100
-    assert records["--no-photometric"]["rotation_tracks"] == 0
+    assert records["--photometric"]["uncertainty"]["rotation_tracks"] > 100
+    assert records["--no-photometric"]["uncertainty"]["rotation_tracks"] == 0
     errors = {flag: rotation_error_deg(np.array(r["R"]), pair.R) for flag, r in records.items()}
     assert errors["--photometric"] < errors["--no-photometric"]
 
@@ -289,5 +294,5 @@ def test_a_second_radial_term_nobody_models_does_not_break_the_refit(index):
     image1 = np.ascontiguousarray(pair.image1[..., ::-1])
     image2 = np.ascontiguousarray(pair.image2[..., ::-1])
     result = estimate_pair(image1, image2, pair.K1_given, pair.K2_given)
-    assert result.pure_rotation and result.rotation_tracks > 100
+    assert result.pure_rotation and result.uncertainty.rotation_tracks > 100
     assert rotation_error_deg(result.R, pair.R) < 0.06

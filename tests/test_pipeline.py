@@ -59,7 +59,7 @@ def general_result(general):
 def test_general_motion_matches_ground_truth(general, general_result):
     result = general_result
     assert not result.pure_rotation and result.translation_determined
-    assert result.pri > result.pri_threshold
+    assert result.pri > result.evidence.selection.pri_threshold
     assert rotation_error_deg(result.R, general.R) < 0.3
     assert direction_error_deg(result.t, general.t) < 2.0
     assert result.num_inliers >= 50 and result.num_inliers <= result.num_matches
@@ -98,7 +98,7 @@ def test_general_motion_points_match_the_depth_map(general, general_result):
 def test_pure_rotation_is_flagged_and_rotation_refined(rotation):
     result = estimate_pair(bgr(rotation.image1), bgr(rotation.image2), rotation.K1, rotation.K2)
     assert result.pure_rotation and not result.translation_determined
-    assert result.pri < result.pri_threshold
+    assert result.pri < result.evidence.selection.pri_threshold
     assert rotation_error_deg(result.R, rotation.R) < 0.1
     assert result.num_points == 0 and result.points3d.shape == (result.num_matches, 3)
     assert np.isnan(result.points3d).all()

@@ -37,25 +37,25 @@ def test_rendered_plane_is_a_plane_with_the_true_pose(seed):
     assert not result.pure_rotation and result.translation_determined
     assert rotation_error_deg(result.R, pair.R) < 0.2
     assert direction_error_deg(result.t, pair.t) < 0.5
-    assert result.gric_plane_difference < 0
-    assert result.plane_epipolar_ratio == pytest.approx(1.0, abs=0.2)
-    assert result.t_sigma_deg < 2.0
+    assert result.evidence.selection.gric_plane_difference < 0
+    assert result.evidence.selection.plane_epipolar_ratio == pytest.approx(1.0, abs=0.2)
+    assert result.uncertainty.t_sigma_deg < 2.0
     # the plane n^T X = d of the scene, read off the depth map, d in baselines
     K_inv = np.linalg.inv(pair.K1)
     for u, v in ((160, 120), (60, 40), (260, 200)):
         X = pair.depth1[v, u] * K_inv @ np.array([u, v, 1.0]) / np.linalg.norm(pair.t)
-        assert result.plane_normal @ X == pytest.approx(result.plane_distance, rel=0.02)
+        assert result.plane.normal @ X == pytest.approx(result.plane.distance, rel=0.02)
     # the analytic points of the inliers lie on that plane
     points = result.points3d[result.point_matches]
     assert result.num_points >= 0.9 * result.num_inliers
-    heights = points @ result.plane_normal - result.plane_distance
-    assert np.median(np.abs(heights)) < 0.01 * result.plane_distance
+    heights = points @ result.plane.normal - result.plane.distance
+    assert np.median(np.abs(heights)) < 0.01 * result.plane.distance
 
 
 def test_plane_beats_the_essential_matrix_on_a_rendered_plane():
     pair = _rendered("planar", 0)
     plane, general = _estimate("planar", 0), _estimate("planar", 0, plane=False)
-    assert general.model == "general" and general.plane_normal is None
+    assert general.model == "general" and general.plane is None
     error = max(rotation_error_deg(plane.R, pair.R), direction_error_deg(plane.t, pair.t))
     error_e = max(rotation_error_deg(general.R, pair.R), direction_error_deg(general.t, pair.t))
     assert error < error_e
@@ -65,7 +65,7 @@ def test_plane_beats_the_essential_matrix_on_a_rendered_plane():
 def test_pure_rotation_is_a_rotation_not_a_plane(seed):
     pair, result = _rendered("pure-rotation", seed), _estimate("pure-rotation", seed)
     assert result.model == "rotation" and result.pure_rotation
-    assert result.plane_normal is None and np.isnan(result.plane_distance)
+    assert result.plane is None
     assert rotation_error_deg(result.R, pair.R) < 0.2
     assert result.num_points == 0
 
@@ -76,8 +76,8 @@ def test_general_scene_stays_general(motion, seed):
     # pose error grew from 0.1 to 6 degrees
     pair, result = _rendered(motion, seed), _estimate(motion, seed)
     assert result.model == "general"
-    assert result.gric_plane_difference > 0
-    assert result.plane_normal is None
+    assert result.evidence.selection.gric_plane_difference > 0
+    assert result.plane is None
     assert max(rotation_error_deg(result.R, pair.R), direction_error_deg(result.t, pair.t)) < 1.0
 
 
@@ -85,14 +85,14 @@ def test_json_and_summary_carry_the_plane():
     result = _estimate("planar", 0)
     data = json.loads(json.dumps(result_to_dict(result)))
     assert data["model"] == "plane"
-    assert data["plane"]["normal"] == pytest.approx(result.plane_normal.tolist())
-    assert data["plane"]["distance"] == pytest.approx(result.plane_distance)
-    assert data["plane"]["ambiguous"] is bool(result.plane_ambiguous)
+    assert data["plane"]["normal"] == pytest.approx(result.plane.normal.tolist())
+    assert data["plane"]["distance"] == pytest.approx(result.plane.distance)
+    assert data["plane"]["ambiguous"] is bool(result.plane.ambiguous)
     k1 = data["plane"]["k1"]
-    assert (k1 is None) == (not np.isfinite(result.plane_k1))
-    assert k1 is None or k1 == pytest.approx(result.plane_k1)
-    assert data["model_selection"]["gric_plane_difference"] < 0
-    assert data["model_selection"]["plane_epipolar_ratio"] < 1.5
+    assert (k1 is None) == (not np.isfinite(result.plane.k1))
+    assert k1 is None or k1 == pytest.approx(result.plane.k1)
+    assert data["evidence"]["selection"]["gric_plane_difference"] < 0
+    assert data["evidence"]["selection"]["plane_epipolar_ratio"] < 1.5
     assert data["t"] == pytest.approx(result.t.tolist())
     general = json.loads(json.dumps(result_to_dict(_estimate("general", 0))))
     assert general["model"] == "general" and general["plane"] is None
@@ -101,7 +101,7 @@ def test_json_and_summary_carry_the_plane():
 
     text = _summary(result, "a.png", "b.png", None)
     assert "plane (translation determined" in text
-    assert f"distance {result.plane_distance:.3f} baselines" in text
+    assert f"distance {result.plane.distance:.3f} baselines" in text
 
 
 # --- decide_motion on synthetic matches: the rule alone ----------------------------------------
@@ -193,7 +193,7 @@ def _pose_of(x1, x2, focal):
 
 def test_rendered_plane_with_unmodelled_distortion_gets_its_radial_term():
     # k1 alone (true focal length, the preset's field of view): the refined pose recovers what
-    # the homography absorbed, and the reported plane_k1 is near the lens's
+    # the homography absorbed, and the reported plane.k1 is near the lens's
     from ppo_cv.data_gen import Imperfections
 
     lens_only = Imperfections(focal_error=0.0, hfov_range=None, jpeg_quality=None,
@@ -202,6 +202,6 @@ def test_rendered_plane_with_unmodelled_distortion_gets_its_radial_term():
     images = [cv2.cvtColor(image, cv2.COLOR_RGB2BGR) for image in (pair.image1, pair.image2)]
     result = estimate_pair(*images, pair.K1_given, pair.K2_given)
     assert result.model == "plane"
-    assert result.plane_k1 == pytest.approx(pair.params["k1"], abs=0.03)
+    assert result.plane.k1 == pytest.approx(pair.params["k1"], abs=0.03)
     assert rotation_error_deg(result.R, pair.R) < 0.3
     assert direction_error_deg(result.t, pair.t) < 1.5

@@ -134,14 +134,15 @@ def test_a_translation_whose_offset_passes_only_the_wide_bound_stays_general(imp
     for photometric in (False, True):
         result = _run(pair, photometric=photometric)
         assert not result.pure_rotation and result.model == "general"
-        assert result.principal_bound == PRINCIPAL_WIDE_BOUND and result.gric_difference < 0
+        assert result.lens.principal_bound == PRINCIPAL_WIDE_BOUND
+        assert result.evidence.selection.gric_difference < 0
         assert rotation_error_deg(result.R, pair.R) < 0.2
-    assert result.rotation_tracks == 0
+    assert result.uncertainty.rotation_tracks == 0
     if imperfections == "stitched":
-        deviations = PARALLAX_SIGNIFICANCE * result.track_parallax_sigma
-        assert result.track_parallax - deviations > NEGLIGIBLE_PARALLAX
+        deviations = PARALLAX_SIGNIFICANCE * result.evidence.tracks.parallax_sigma
+        assert result.evidence.tracks.parallax - deviations > NEGLIGIBLE_PARALLAX
     else:
-        assert np.isnan(result.track_parallax)
+        assert np.isnan(result.evidence.tracks.parallax)
         line = "".join(_lens_lines(result))
         assert "principal point moved" in line and "not called a pure rotation" in line
 
@@ -158,9 +159,7 @@ def test_a_narrow_pan_whose_principal_point_lies_near_the_bound_is_flagged(
     # to their box and the pairs were called general, 3.2 and 2.0 deg off
     if make == "warp":
         photos = request.getfixturevalue("freiburg_photos")
-        pair = data_gen.make_warped_pair(
-            seed=1, index=index, imperfections=STITCHED, source=photos
-        )
+        pair = data_gen.make_warped_pair(seed=1, index=index, imperfections=STITCHED, source=photos)
     else:
         pair = data_gen.make_pair(
             "panorama", seed=1, index=index, imperfections=STITCHED, pivot_offset=0.08
@@ -170,10 +169,10 @@ def test_a_narrow_pan_whose_principal_point_lies_near_the_bound_is_flagged(
     true_offset = (pair.K1[:2, 2] - pair.K1_given[:2, 2]) / (0.01 * np.array([w, h]))
     assert 1.7 < np.max(np.abs(true_offset)) < 2.0
     result = _run(pair)
-    assert result.pure_rotation and result.gric_difference < -0.3
+    assert result.pure_rotation and result.evidence.selection.gric_difference < -0.3
     assert rotation_error_deg(result.R, pair.R) < bound
     matches_only = _run(pair, photometric=False)
-    fitted = np.abs(matches_only.principal_offset_px) / (0.01 * np.array([w, h]))
+    fitted = np.abs(matches_only.lens.principal_offset_px) / (0.01 * np.array([w, h]))
     assert matches_only.pure_rotation and np.max(fitted) > PRINCIPAL_BOUND
 
 
@@ -201,14 +200,14 @@ def test_a_narrow_pan_flagged_only_through_the_wide_bound(size, seed, index, piv
     assert 1.8 < np.max(np.abs(true_offset)) < PRINCIPAL_BOUND
     matches_only = _run(pair, photometric=False)
     assert not matches_only.pure_rotation
-    assert matches_only.principal_bound == PRINCIPAL_WIDE_BOUND
+    assert matches_only.lens.principal_bound == PRINCIPAL_WIDE_BOUND
     assert rotation_error_deg(matches_only.R, pair.R) > 1.0
     result = _run(pair)
-    assert result.pure_rotation and result.principal_bound == PRINCIPAL_WIDE_BOUND
-    deviations = NEGLIGIBLE_SIGNIFICANCE * result.track_parallax_sigma
-    assert result.track_parallax + deviations <= NEGLIGIBLE_PARALLAX
+    assert result.pure_rotation and result.lens.principal_bound == PRINCIPAL_WIDE_BOUND
+    deviations = NEGLIGIBLE_SIGNIFICANCE * result.evidence.tracks.parallax_sigma
+    assert result.evidence.tracks.parallax + deviations <= NEGLIGIBLE_PARALLAX
     assert rotation_error_deg(result.R, pair.R) < 0.2
-    fitted = np.abs(result.principal_offset_px) / (0.01 * np.array([w, h]))
+    fitted = np.abs(result.lens.principal_offset_px) / (0.01 * np.array([w, h]))
     assert np.max(fitted) <= PRINCIPAL_WIDE_BOUND
 
 
@@ -254,10 +253,13 @@ def test_warped_pans_with_a_centred_principal_point_are_flagged(index, freiburg_
     assert result.pure_rotation
     assert rotation_error_deg(result.R, pair.R) < 0.15
     # in a narrow field the offset is nearly a rotation: the prior, not the matches, holds it
-    assert 1.0 < np.linalg.norm(result.principal_offset_px) < 0.03 * max(w, h)
+    assert 1.0 < np.linalg.norm(result.lens.principal_offset_px) < 0.03 * max(w, h)
     kept = _run(pair, principal_point="given", photometric=False)
-    assert kept.rotation_residual_px > result.rotation_residual_px
-    assert np.array_equal(kept.principal_offset_px, np.zeros(2))
+    assert (
+        kept.evidence.selection.rotation_residual_px
+        > result.evidence.selection.rotation_residual_px
+    )
+    assert np.array_equal(kept.lens.principal_offset_px, np.zeros(2))
 
 
 def test_a_calibrated_principal_point_is_kept_unless_asked():
@@ -265,11 +267,11 @@ def test_a_calibrated_principal_point_is_kept_unless_asked():
     assert not principal_point_is_centre(pair.K1_given, pair.image1.shape[1::-1])
     auto = _run(pair, photometric=False)
     assert auto.pure_rotation
-    assert np.array_equal(auto.principal_offset_px, np.zeros(2))
+    assert np.array_equal(auto.lens.principal_offset_px, np.zeros(2))
     fitted = _run(pair, photometric=False, principal_point="fit")
     assert fitted.pure_rotation
-    assert np.any(fitted.principal_offset_px != 0)
-    assert np.linalg.norm(fitted.principal_offset_px) < 0.02 * max(pair.image1.shape)
+    assert np.any(fitted.lens.principal_offset_px != 0)
+    assert np.linalg.norm(fitted.lens.principal_offset_px) < 0.02 * max(pair.image1.shape)
 
 
 def test_a_translation_with_a_centred_principal_point_stays_general():
@@ -281,17 +283,17 @@ def test_a_translation_with_a_centred_principal_point_stays_general():
     assert result.model == "general"
     assert not result.pure_rotation
     assert result.inliers.sum() > 0.8 * len(result.matches)
-    assert result.noise_sigma_px < 0.5
+    assert result.evidence.selection.noise_sigma_px < 0.5
 
 
 def test_json_reports_the_offset():
     pair = data_gen.make_warped_pair(seed=0, index=5, imperfections=CENTRED)
     result = _run(pair, photometric=False)
     record = json.loads(json.dumps(result_to_dict(result)))
-    offset = record["model_selection"]["principal_offset_px"]
-    assert np.allclose(offset, result.principal_offset_px)
+    offset = record["lens"]["principal_offset_px"]
+    assert np.allclose(offset, result.lens.principal_offset_px)
     assert np.linalg.norm(offset) > 1.0
-    assert record["model_selection"]["principal_bound"] == PRINCIPAL_BOUND
+    assert record["lens"]["principal_bound"] == PRINCIPAL_BOUND
 
 
 def test_bad_settings_are_named():
@@ -334,7 +336,7 @@ def test_command_line_chooses_the_principal_point(tmp_path):
     for mode in ("auto", "given"):
         run = CliRunner().invoke(app, [*base, "--principal-point", mode])
         assert run.exit_code == 0, run.output
-        offsets[mode] = json.loads(run.stdout)["model_selection"]["principal_offset_px"]
+        offsets[mode] = json.loads(run.stdout)["lens"]["principal_offset_px"]
     assert np.linalg.norm(offsets["auto"]) > 1.0
     assert offsets["given"] == [0.0, 0.0]
     run = CliRunner().invoke(app, [*base, "--principal-point", "centre"])

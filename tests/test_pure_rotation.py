@@ -283,8 +283,8 @@ def test_warped_photo_rotation_is_flagged_with_accurate_rotation(seed):
     # the given focal alone would leave |angle * focal_error| (up to 0.45 deg here); the fitted
     # focal of a few dozen matches recovers part of it
     assert rotation_error_deg(result.R, pair.R) < 0.5
-    assert result.t_sigma_deg > 30.0
-    assert 0.0 < result.rotation_sigma_deg < 1.0
+    assert result.uncertainty.t_sigma_deg > 30.0
+    assert 0.0 < result.uncertainty.rotation_sigma_deg < 1.0
 
 
 @pytest.mark.parametrize("seed", [0, pytest.param(3, marks=pytest.mark.slow)])
@@ -293,7 +293,7 @@ def test_imperfect_render_rotation_is_flagged(seed):
     result = estimate_pair(pair.image1, pair.image2, pair.K_given)
     assert result.pure_rotation and result.model == "rotation"
     assert rotation_error_deg(result.R, pair.R) < 0.5
-    assert result.rotation_residual_px < 1.0
+    assert result.evidence.selection.rotation_residual_px < 1.0
 
 
 def test_imperfect_render_with_baseline_is_not_flagged():
@@ -303,8 +303,8 @@ def test_imperfect_render_with_baseline_is_not_flagged():
     narrow_result = estimate_pair(narrow.image1, narrow.image2, narrow.K_given)
     for result in (wide_result, narrow_result):
         assert not result.pure_rotation and result.model == "general"
-        assert result.gric_difference > 0 and result.num_points > 0
-    assert wide_result.t_sigma_deg < narrow_result.t_sigma_deg < 180.0
+        assert result.evidence.selection.gric_difference > 0 and result.num_points > 0
+    assert wide_result.uncertainty.t_sigma_deg < narrow_result.uncertainty.t_sigma_deg < 180.0
 
 
 def test_score_pose_rejects_a_pair_the_model_comparison_calls_a_rotation():
@@ -355,8 +355,8 @@ def test_tripod_pan_about_a_point_behind_the_lens_is_flagged(index):
     result = _data_gen_result(pair)
     assert result.pure_rotation and result.model == "rotation"
     assert rotation_error_deg(result.R, pair.R) < 0.3
-    assert result.rotation_tracks > 100
-    assert result.track_parallax < 0.5 * MAX_TRACK_PARALLAX
+    assert result.uncertainty.rotation_tracks > 100
+    assert result.evidence.tracks.parallax < 0.5 * MAX_TRACK_PARALLAX
 
 
 @pytest.mark.parametrize(
@@ -389,8 +389,8 @@ def test_unmodelled_higher_order_distortion_in_a_narrow_overlap_keeps_the_flag(
     result = _data_gen_result(pair)
     assert result.pure_rotation and result.model == "rotation"
     assert rotation_error_deg(result.R, pair.R) < 0.3
-    assert result.rotation_tracks > 100
-    assert result.track_parallax < 0.5 * MAX_TRACK_PARALLAX
+    assert result.uncertainty.rotation_tracks > 100
+    assert result.evidence.tracks.parallax < 0.5 * MAX_TRACK_PARALLAX
 
 
 def test_data_gen_tiny_baseline_of_five_percent_is_not_flagged():
@@ -400,8 +400,8 @@ def test_data_gen_tiny_baseline_of_five_percent_is_not_flagged():
         "tiny-baseline", seed=0, index=1, imperfections=data_gen.REAL_PHOTO, baseline_ratio=0.05
     )
     result = _data_gen_result(pair)
-    assert not result.pure_rotation and result.gric_difference > 0
-    assert result.t_sigma_deg < 10.0
+    assert not result.pure_rotation and result.evidence.selection.gric_difference > 0
+    assert result.uncertainty.t_sigma_deg < 10.0
 
 
 def test_a_small_baseline_whose_rotation_needs_an_implausible_focal_is_not_flagged():
@@ -417,14 +417,15 @@ def test_a_small_baseline_whose_rotation_needs_an_implausible_focal_is_not_flagg
     assert not result.pure_rotation and result.model != "rotation"
     assert result.translation_determined
     # the rotation won the comparison; its lens, clipped to the box, is what refused it
-    assert result.gric_difference < 0 and result.lens_excess > LENS_SIGNIFICANCE
+    assert result.evidence.selection.gric_difference < 0
+    assert result.lens.lens_excess > LENS_SIGNIFICANCE
     from ppo_cv.cli.pair import _summary
     from ppo_cv.export import result_to_dict
 
-    record = result_to_dict(result)["model_selection"]
-    assert record["lens_excess"] == pytest.approx(result.lens_excess)
+    record = result_to_dict(result)["lens"]
+    assert record["lens_excess"] == pytest.approx(result.lens.lens_excess)
     text = _summary(result, "a.png", "b.png", None)
-    assert f"lens {result.lens_excess:.1f} deviations beyond the plausible" in text
+    assert f"lens {result.lens.lens_excess:.1f} deviations beyond the plausible" in text
 
 
 @pytest.mark.slow
@@ -445,16 +446,18 @@ def test_a_sideways_step_before_a_wall_that_the_matches_take_for_a_rotation_is_n
     matches = estimate_pair(
         image1, image2, pair.K1_given, pair.K2_given, options=PairOptions(photometric=False)
     )
-    assert matches.pure_rotation and np.isnan(matches.track_parallax)
+    assert matches.pure_rotation and np.isnan(matches.evidence.tracks.parallax)
     result = estimate_pair(image1, image2, pair.K1_given, pair.K2_given)
     assert not result.pure_rotation and result.model != "rotation"
-    assert result.rotation_tracks == 0 and result.translation_determined
-    bound = MAX_TRACK_PARALLAX + PARALLAX_SIGNIFICANCE * result.track_parallax_sigma
-    assert bound < result.track_parallax < 0.02
-    assert result.t_sigma_deg < matches.t_sigma_deg
-    record = result_to_dict(result)["model_selection"]
-    assert record["track_parallax"] == pytest.approx(result.track_parallax)
-    assert f"moved {result.track_parallax:.4f} +-" in _summary(result, "a.png", "b.png", None)
+    assert result.uncertainty.rotation_tracks == 0 and result.translation_determined
+    bound = MAX_TRACK_PARALLAX + PARALLAX_SIGNIFICANCE * result.evidence.tracks.parallax_sigma
+    assert bound < result.evidence.tracks.parallax < 0.02
+    assert result.uncertainty.t_sigma_deg < matches.uncertainty.t_sigma_deg
+    record = result_to_dict(result)["evidence"]["tracks"]
+    assert record["parallax"] == pytest.approx(result.evidence.tracks.parallax)
+    assert f"moved {result.evidence.tracks.parallax:.4f} +-" in _summary(
+        result, "a.png", "b.png", None
+    )
 
 
 @pytest.mark.parametrize("index", [8, pytest.param(11, marks=pytest.mark.slow)])
@@ -473,13 +476,15 @@ def test_a_rotation_whose_features_are_worse_along_the_pan_is_flagged(index, fre
     )
     result = _data_gen_result(pair)
     assert result.pure_rotation and result.model == "rotation"
-    assert result.gric_difference < -0.2
+    assert result.evidence.selection.gric_difference < -0.2
     assert rotation_error_deg(result.R, pair.R) < 0.3
-    assert result.rotation_noise_px > 1.4 * result.noise_sigma_px
+    assert (
+        result.evidence.selection.rotation_noise_px > 1.4 * result.evidence.selection.noise_sigma_px
+    )
     from ppo_cv.export import result_to_dict
 
-    record = result_to_dict(result)["model_selection"]
-    assert record["rotation_noise_px"] == pytest.approx(result.rotation_noise_px)
+    record = result_to_dict(result)["evidence"]["selection"]
+    assert record["rotation_noise_px"] == pytest.approx(result.evidence.selection.rotation_noise_px)
 
 
 def _foliage_pair(seed: int, ratio: float):
@@ -521,11 +526,13 @@ def test_leaves_at_many_depths_do_not_pass_for_noise(ratio):
     image1, image2, K, R = _foliage_pair(3, ratio)
     result = estimate_pair(image1, image2, K, K)
     assert result.pure_rotation == (ratio == 0.0)
-    assert result.rotation_noise_px < 1.5 * result.noise_sigma_px
+    assert (
+        result.evidence.selection.rotation_noise_px < 1.5 * result.evidence.selection.noise_sigma_px
+    )
     if ratio == 0.0:
         assert rotation_error_deg(result.R, R) < 0.1
     else:
-        assert result.gric_difference > 0.5
+        assert result.evidence.selection.gric_difference > 0.5
 
 
 @pytest.mark.slow
@@ -546,7 +553,7 @@ def test_automatic_exposure_and_vignetting_keep_the_decision():
     )
     assert abs(pair.params["exposure_ev"]) > 0.7
     result = _data_gen_result(pair)
-    assert not result.pure_rotation and result.gric_difference > 0.5
+    assert not result.pure_rotation and result.evidence.selection.gric_difference > 0.5
 
 
 def test_the_flag_does_not_rest_on_a_loosely_refined_essential_matrix(monkeypatch):
@@ -587,8 +594,11 @@ def test_the_flag_does_not_rest_on_a_loosely_refined_essential_matrix(monkeypatc
     before = estimate_pair(*views, pair.K1_given, pair.K2_given, options=single)
     monkeypatch.setattr(pipeline, "_refine", best_of_starts)
     after = estimate_pair(*views, pair.K1_given, pair.K2_given, options=single)
-    assert after.general_residual_px < 0.6 * before.general_residual_px
-    assert after.gric_difference > before.gric_difference
+    assert (
+        after.evidence.selection.general_residual_px
+        < 0.6 * before.evidence.selection.general_residual_px
+    )
+    assert after.evidence.selection.gric_difference > before.evidence.selection.gric_difference
     assert after.pure_rotation and rotation_error_deg(after.R, pair.R) < 0.3
 
 

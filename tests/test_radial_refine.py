@@ -79,13 +79,13 @@ def test_imperfect_render_reports_its_radial_term_and_a_better_pose():
     image2 = np.ascontiguousarray(pair.image2[..., ::-1])
     result = estimate_pair(image1, image2, pair.K1_given, pair.K2_given)
     assert result.model == "general"
-    assert result.radial_k1 == pytest.approx(pair.params["k1"], abs=0.03)
+    assert result.lens.radial_k1 == pytest.approx(pair.params["k1"], abs=0.03)
     assert rotation_error_deg(result.R, pair.R) < 0.1
     assert direction_error_deg(result.t, pair.t, signed=False) < 0.5
-    assert result_to_dict(result)["radial_k1"] == result.radial_k1
+    assert result_to_dict(result)["lens"]["radial_k1"] == result.lens.radial_k1
     from ppo_cv.cli.pair import _summary
 
-    assert f"radial k1    {result.radial_k1:+.4f}" in _summary(result, "a.png", "b.png", None)
+    assert f"radial k1    {result.lens.radial_k1:+.4f}" in _summary(result, "a.png", "b.png", None)
 
 
 def test_a_small_baseline_is_refined_against_the_noise_not_the_ransac_threshold():
@@ -103,7 +103,7 @@ def test_a_small_baseline_is_refined_against_the_noise_not_the_ransac_threshold(
     result = estimate_pair(image1, image2, pair.K1_given, pair.K2_given)
     assert result.model == "general" and not result.pure_rotation
     error = direction_error_deg(result.t, pair.t, signed=False)
-    assert error < 2.0 and error < result.t_sigma_deg
+    assert error < 2.0 and error < result.uncertainty.t_sigma_deg
     assert rotation_error_deg(result.R, pair.R) < 0.1
 
 

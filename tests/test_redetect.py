@@ -57,15 +57,18 @@ def test_a_lower_threshold_keeps_weaker_keypoints(narrow_pair):
 
 def test_a_weak_narrow_pan_is_flagged_on_denser_features(narrow_pair):
     single = _estimate(narrow_pair, redetect_below=0)
-    assert single.threshold_scale == 1.0 and single.num_inliers < 20
+    assert single.evidence.significance.threshold_scale == 1.0 and single.num_inliers < 20
     assert not single.pure_rotation
 
     result = _estimate(narrow_pair)
-    assert result.threshold_scale == REDETECT_THRESHOLD_SCALE
+    assert result.evidence.significance.threshold_scale == REDETECT_THRESHOLD_SCALE
     assert result.num_inliers > 2 * single.num_inliers
     assert result.pure_rotation and result.model == "rotation"
     assert rotation_error_deg(result.R, narrow_pair.R) < 0.3
-    assert result_to_dict(result)["threshold_scale"] == REDETECT_THRESHOLD_SCALE
+    assert (
+        result_to_dict(result)["evidence"]["significance"]["threshold_scale"]
+        == REDETECT_THRESHOLD_SCALE
+    )
     text = _summary(result, "a.png", "b.png", None)
     assert f"detected again at {REDETECT_THRESHOLD_SCALE:g} x the threshold" in text
 
@@ -76,7 +79,7 @@ def test_given_features_of_a_weak_pair_are_detected_again(narrow_pair):
     given = {"features1": detect_features(image1), "features2": detect_features(image2)}
     result = estimate_pair(image1, image2, narrow_pair.K1_given, narrow_pair.K2_given, **given)
     detected = _estimate(narrow_pair)
-    assert result.threshold_scale == REDETECT_THRESHOLD_SCALE
+    assert result.evidence.significance.threshold_scale == REDETECT_THRESHOLD_SCALE
     np.testing.assert_allclose(result.R, detected.R, atol=1e-9)
 
 
@@ -88,7 +91,7 @@ def test_a_strong_pair_keeps_its_first_features():
     K = np.array([[K[0], 0, K[2]], [0, K[1], K[3]], [0, 0, 1]])
     result = estimate_pair(image1, image2, K)
     assert result.num_inliers > 2 * PairOptions().redetect_below
-    assert result.threshold_scale == 1.0
+    assert result.evidence.significance.threshold_scale == 1.0
     assert "detected again" not in _summary(result, "a.png", "b.png", None)
 
 
@@ -117,7 +120,7 @@ def test_weak_freiburg_pairs_are_posed_from_denser_features(freiburg, index):
         pose = max(
             rotation_error_deg(result.R, record["R"]), direction_error_deg(result.t, record["t"])
         )
-        return pose, result.threshold_scale
+        return pose, result.evidence.significance.threshold_scale
 
     single, scale = error(PairOptions(redetect_below=0))
     assert single > 3.0 and scale == 1.0

@@ -53,12 +53,13 @@ for name, pair in pairs:
     if result.pure_rotation:
         errors["matches"].append(err_matches)
         errors["refit"].append(err_refit)
-        sigma, scale = f"{result.rotation_sigma_deg:7.3f}", f"{result.focal_scale:.4f}"
+        sigma = f"{result.uncertainty.rotation_sigma_deg:7.3f}"
+        scale = f"{result.lens.focal_scale:.4f}"
     else:
         sigma, scale = f"{'-':>7s}", f"{'-':>6s}"
     print(
         f"{name!s:12s}  {result.pure_rotation!s:5s}  {err_matches:13.3f}  {err_refit:11.3f}"
-        f"  {sigma}  {result.rotation_tracks:7d}  {scale} ({true_scale:.4f})"
+        f"  {sigma}  {result.uncertainty.rotation_tracks:7d}  {scale} ({true_scale:.4f})"
     )
 
 print(

@@ -1,0 +1,144 @@
+"""``PairResult``: the answer at the top, the rest in nested records, the flat names deprecated.
+
+The values are those of the flat layout of 0.1.0, recorded by ``tests/result_layout.py`` into
+``tests/data/result_layout.npz`` before the records existed: each flat field, read through its
+new path, holds the same value (bit for bit on the machine that recorded them; to 1e-9 here,
+where another BLAS may round differently).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from result_layout import FLAT_FIELDS, NO_PLANE, RENDERS, read_renamed, run_case
+
+from ppo_cv.export import result_to_dict
+from ppo_cv.result import RENAMED_FIELDS, PairResult
+
+RECORD = Path(__file__).parent / "data" / "result_layout.npz"
+CASES = ("demo", *RENDERS)
+ANSWER = ("R", "t", "pure_rotation", "model", "pri", "keypoints1", "keypoints2", "matches",
+          "inliers", "points3d", "point_matches", "colours")  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def results() -> dict[str, PairResult]:
+    return {case: run_case(case) for case in CASES}
+
+
+def _recorded(case: str) -> dict[str, object]:
+    with np.load(RECORD) as data:
+        none = set(data[f"{case}/:none"].tolist())
+        return {name: None if name in none else data[f"{case}/{name}"] for name in FLAT_FIELDS}
+
+
+def _leaf_paths(cls, prefix: str = "") -> list[str]:
+    """Dotted paths of the fields of ``cls`` that are not themselves records."""
+    paths = []
+    hints = {f.name: f.type for f in dataclasses.fields(cls)}
+    for name, hint in hints.items():
+        record = next((r for r in _RECORDS if hint.split(" |")[0] == r.__name__), None)
+        if record is None:
+            paths.append(prefix + name)
+        else:
+            paths.extend(_leaf_paths(record, f"{prefix}{name}."))
+    return paths
+
+
+def _record_classes():
+    from ppo_cv import result
+
+    return [getattr(result, name) for name in result.__all__ if dataclasses.is_dataclass(
+        getattr(result, name, None))]  # fmt: skip
+
+
+_RECORDS = _record_classes()
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_every_flat_field_keeps_its_value_under_its_new_path(case, results):
+    recorded = _recorded(case)
+    for name in FLAT_FIELDS:
+        value, old = read_renamed(results[case], name), recorded[name]
+        if old is None:
+            assert value is None, name
+            continue
+        value = np.asarray(value)
+        assert value.shape == old.shape and value.dtype.kind == old.dtype.kind, name
+        if old.dtype.kind == "f":
+            np.testing.assert_allclose(value, old, rtol=1e-9, atol=1e-12, err_msg=name)
+        else:
+            assert np.array_equal(value, old), name
+
+
+def test_the_renders_cover_the_three_models(results):
+    assert {results[case].model for case in RENDERS} == {"general", "plane", "rotation"}
+    assert results["rotation"].uncertainty.rotation_tracks > 0
+    assert results["planar"].plane is not None and results["general"].plane is None
+
+
+def test_each_field_lives_in_one_place():
+    leaves = _leaf_paths(PairResult)
+    assert len(leaves) == len(set(leaves))
+    moved = [p for p in leaves if p not in (*ANSWER, "timings")]
+    assert sorted(RENAMED_FIELDS.values()) == sorted(moved)
+    assert set(FLAT_FIELDS) == set(RENAMED_FIELDS) | set(ANSWER)
+
+
+@pytest.mark.parametrize("name", sorted(RENAMED_FIELDS))
+def test_a_flat_name_warns_with_its_new_path_and_reads_it(name, results):
+    for result in (results["planar"], results["general"]):
+        with pytest.warns(DeprecationWarning, match=rf"PairResult\.{RENAMED_FIELDS[name]}\b"):
+            value = getattr(result, name)
+        expected = read_renamed(result, name)
+        assert value is expected or (value != value and expected != expected)
+
+
+def test_flat_names_stay_out_of_dir_and_unknown_names_fail(results):
+    result = results["demo"]
+    assert not set(RENAMED_FIELDS) & set(dir(result))
+    assert {"cameras", "uncertainty", "lens", "evidence", "plane", "timings"} <= set(dir(result))
+    with pytest.raises(AttributeError, match="no attribute 'gric'"):
+        result.gric  # noqa: B018
+
+
+def test_no_plane_holds_what_the_flat_fields_said_without_one(results):
+    result = results["general"]
+    for key, value in NO_PLANE.items():
+        with pytest.warns(DeprecationWarning):
+            flat = getattr(result, f"plane_{key}")
+        assert flat is value or (math.isnan(flat) and math.isnan(value))
+
+
+def _json_value(data: dict, path: str):
+    for part in path.split("."):
+        data = data[part]
+    return data
+
+
+@pytest.mark.parametrize("case", ["planar", "rotation"])
+def test_the_json_keys_follow_the_python_paths(case, results):
+    result = results[case]
+    data = json.loads(json.dumps(result_to_dict(result)))
+    assert {"R", "t", "pure_rotation", "model", "pri", "timings"} <= set(data)
+    for name, path in RENAMED_FIELDS.items():
+        if path.startswith("plane.") and result.plane is None:
+            assert data["plane"] is None
+            continue
+        value, shown = read_renamed(result, name), _json_value(data, path)
+        if value is None or (isinstance(value, float) and math.isnan(value)):
+            assert shown is None or math.isnan(shown), path
+        else:
+            np.testing.assert_allclose(shown, np.asarray(value, dtype=float), err_msg=path)
+
+
+def test_the_changelog_lists_every_renamed_field():
+    text = (Path(__file__).resolve().parents[1] / "CHANGELOG.md").read_text(encoding="utf-8")
+    rows = dict(re.findall(r"^\| `result\.(\w+)` \| `result\.([\w.]+)` \|$", text, re.M))
+    assert rows == RENAMED_FIELDS
