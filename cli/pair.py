@@ -158,14 +158,37 @@ def _denser_note(result) -> str:
     return f" (features detected again at {result.threshold_scale:g} x the threshold)"
 
 
+_ROTATION_SOURCES = {
+    "rotation": "the rotation-only fit",
+    "essential": "the essential matrix's refined pose",
+    "plane": "the plane's pose",
+}
+
+
 def _rotation_sigma_lines(result) -> list[str]:
-    """How well the matches determine the rotation of a pure rotation."""
+    """How well the evidence determines the rotation, and which estimate it came from."""
     sigma = getattr(result, "rotation_sigma_deg", float("nan"))
-    if not result.pure_rotation or not sigma == sigma:
-        return []
-    tracks = int(getattr(result, "rotation_tracks", 0))
-    source = f"{tracks} intensity-aligned windows" if tracks else "the feature matches"
-    return [f"  R sigma      {sigma:.3f} deg (rotation angle error, root mean square, {source})"]
+    source = str(getattr(result, "rotation_source", "essential"))
+    lines = []
+    if result.pure_rotation and sigma == sigma:
+        tracks = int(getattr(result, "rotation_tracks", 0))
+        evidence = f"{tracks} intensity-aligned windows" if tracks else "the feature matches"
+        lines.append(
+            f"  R sigma      {sigma:.3f} deg (rotation angle error, root mean square, {evidence})"
+        )
+    elif sigma == sigma and sigma < float("inf"):
+        kind = "root mean square" if source == "rotation" else "worst direction"
+        lines.append(f"  R sigma      {sigma:.3f} deg (rotation error, {kind})")
+    if not result.pure_rotation:
+        bias = float(getattr(result, "rotation_bias_deg", 0.0))
+        why = ""
+        if source == "rotation":
+            why = f", bias from the translation's parallax {bias:.3f} deg"
+        lines.append(
+            f"  R source     {_ROTATION_SOURCES.get(source, source)}: the smallest expected "
+            f"error{why}"
+        )
+    return lines
 
 
 def _lens_lines(result) -> list[str]:

@@ -129,6 +129,8 @@ def _model_selection(result: PairResult) -> dict:
         "model": str(result.model),
         "t_sigma_deg": float(result.t_sigma_deg),
         "rotation_sigma_deg": _finite_or_none(getattr(result, "rotation_sigma_deg", float("nan"))),
+        "rotation_source": str(getattr(result, "rotation_source", "essential")),
+        "rotation_bias_deg": _finite_or_none(getattr(result, "rotation_bias_deg", 0.0)),
         "rotation_tracks": int(getattr(result, "rotation_tracks", 0)),
         "model_selection": {
             "rotation_residual_px": float(result.rotation_residual_px),

@@ -67,9 +67,9 @@ from .pose import _recover_normalized
 from .refine import (
     T_SIGMA_CAP_DEG,
     huber_bound_px,
+    pose_sigmas_deg,
     refine_pose,
     refine_pose_radial,
-    translation_sigma_deg,
 )
 from .robust import (
     ROBUST_BACKENDS,
@@ -85,6 +85,11 @@ from .rotation import (
     PRINCIPAL_PRIOR,
     focal_ratio_keywords,
     focal_ratio_prior,
+)
+from .rotation_choice import (
+    RotationEstimate,
+    choose_rotation,
+    rotation_only_estimate,
 )
 from .significance import (
     CONFIDENT_LOG10_NFA,
@@ -334,13 +339,28 @@ class PairResult:
         matches do not determine ``t``, and the essential matrix's apparent confidence there
         comes from lens errors its translation absorbs.
     rotation_sigma_deg : float
-        For a pure rotation: root-mean-square angle error (degrees) of ``R``, from the
-        covariance of the rotation-only fit with its focal scale and radial term under their
-        priors (:attr:`ppo_cv.rotation.LensRotationFit.rotation_sigma_deg`): how well these
-        matches determine the rotation when the focal length is known only to a few percent.
-        When ``R`` was refitted on intensity-aligned windows (``rotation_tracks > 0``), the
-        same bound over those tracks, its variance multiplied by how many windows share a pixel
-        (:func:`ppo_cv.photometric.window_overlap`). NaN otherwise.
+        Standard deviation (degrees) of ``R``. For a pure rotation, or a rotation taken from
+        the rotation-only fit (``rotation_source``): the root-mean-square angle error from the
+        covariance of that fit with its focal scale and radial term under their priors
+        (:attr:`ppo_cv.rotation.LensRotationFit.rotation_sigma_deg`): how well these matches
+        determine the rotation when the focal length is known only to a few percent. When
+        ``R`` was refitted on intensity-aligned windows, the same bound over those tracks, its
+        variance multiplied by how many windows share a pixel
+        (:func:`ppo_cv.photometric.window_overlap`). For the rotation of a general motion or a
+        plane: the worst direction of the covariance of the final refinement
+        (:func:`ppo_cv.refine.pose_sigmas_deg`, with ``t_sigma_deg``); inf when the matches
+        do not determine the pose.
+    rotation_source : str
+        Which estimate ``R`` is (:mod:`ppo_cv.rotation_choice`): ``"rotation"`` (the
+        rotation-only fit), ``"essential"`` (the essential matrix's refined pose) or
+        ``"plane"`` (the homography's pose). A pair that is not a pure rotation returns the
+        estimate with the smallest expected error, ``|bias| + deviation``: the rotation-only
+        fit is biased by about the parallax of the translation it ignores (measured on
+        intensity-aligned tracks), the moving model's rotation is unbiased with deviation
+        ``rotation_sigma_deg``. ``t``, the points and ``model`` stay the moving model's.
+    rotation_bias_deg : float
+        The bias of ``R`` in that rule (degrees): the tracks' parallax for the rotation-only
+        fit, 0 for the moving models and for a pure rotation.
     rotation_tracks : int
         For a pure rotation whose rotation was refitted on windows aligned by intensity
         (:mod:`ppo_cv.photometric`, ``PairOptions.photometric``): the number of tracks behind
@@ -483,6 +503,8 @@ class PairResult:
     plane_ambiguous: bool = False
     plane_k1: float = float("nan")
     radial_k1: float = float("nan")
+    rotation_source: str = "essential"
+    rotation_bias_deg: float = 0.0
 
     @property
     def translation_determined(self) -> bool:
@@ -877,19 +899,23 @@ def estimate_pair(
     )  # fmt: skip
     lap("model")
 
-    rotation_tracks = 0
-    if options.photometric and (motion.pure_rotation or motion.rotation_candidate):
-        refined = refine_rotation_photometric(
+    def aligned_tracks(max_focal_change: float):
+        return refine_rotation_photometric(
             img1, img2, K1, K2, motion.R,
             focal_scale=motion.focal_scale, k1=motion.k1,
             principal_offset=motion.principal_offset, principal_prior=principal_prior,
             focal_ratio=motion.focal_ratio, **ratio_keywords,
             principal_bound=motion.principal_bound,
-            max_focal_change=motion.track_focal_change,
+            max_focal_change=max_focal_change,
             rotation_sigma_deg=min(motion.rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG),
             dist1=dist1, dist2=dist2,
         )  # fmt: skip
+
+    rotation_tracks, tracks = 0, None
+    if options.photometric and (motion.pure_rotation or motion.rotation_candidate):
+        refined = aligned_tracks(motion.track_focal_change)
         if refined is not None:
+            tracks = refined
             motion = with_tracks(
                 motion, refined.fit, refined.parallax, x1, x2, focal,
                 threshold_px=options.ransac_threshold,
@@ -899,7 +925,7 @@ def estimate_pair(
 
     plane = motion.plane if motion.model == "plane" else None
     plane_k1, plane_normal, plane_distance = float("nan"), None, float("nan")
-    radial_k1 = float("nan")
+    radial_k1, essential_inliers = float("nan"), inliers
     if motion.pure_rotation:
         R, t, pri = motion.R, motion.t, motion.pri
         inliers = motion.rotation_inliers
@@ -918,7 +944,9 @@ def estimate_pair(
         points3d = ppo.analytic_points(c1, c2, R, t)
         keep = plane.inliers & np.all(np.isfinite(points3d), axis=1)
         points3d = np.where(keep[:, None], points3d, np.nan)
-        t_sigma = translation_sigma_deg(R, t, c1, c2, inliers, k1_prior=K1_PRIOR)
+        sigmas = pose_sigmas_deg(
+            R, t, c1, c2, inliers, k1_prior=K1_PRIOR, principal_prior=principal_prior
+        )
     else:
         radial_k1 = 0.0
         if options.refine:
@@ -931,7 +959,21 @@ def estimate_pair(
         keep = final.inliers & np.all(np.isfinite(final.points3d), axis=1)
         points3d = np.where(keep[:, None], final.points3d, np.nan)
         k1_prior = K1_PRIOR if options.refine else None
-        t_sigma = translation_sigma_deg(R, t, c1, c2, inliers, k1_prior=k1_prior)
+        sigmas = pose_sigmas_deg(
+            R, t, c1, c2, inliers, k1_prior=k1_prior, principal_prior=principal_prior
+        )
+    if motion.pure_rotation:
+        chosen = RotationEstimate("rotation", R, 0.0, motion.rotation_sigma_deg)
+    else:
+        t_sigma, source = sigmas.translation_deg, "plane" if plane is not None else "essential"
+        used = essential_inliers | motion.rotation_inliers
+        rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used)
+        moving = RotationEstimate(source, R, 0.0, sigmas.rotation_deg)
+        if tracks is None and options.photometric and rotation_only.sigma_deg < moving.sigma_deg:
+            tracks = aligned_tracks(motion.track_focal_change)  # the bias decides: measure it
+            rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used)
+        chosen = choose_rotation([moving, rotation_only])
+        R = chosen.R
     point_matches = np.flatnonzero(keep)
     lap("decision")
 
@@ -954,7 +996,7 @@ def estimate_pair(
         pri_threshold=float(options.pri_threshold),
         model=motion.model,
         t_sigma_deg=t_sigma,
-        rotation_sigma_deg=motion.rotation_sigma_deg if motion.pure_rotation else float("nan"),
+        rotation_sigma_deg=chosen.sigma_deg,
         rotation_tracks=rotation_tracks,
         rotation_residual_px=motion.selection.median_residual_px["rotation"],
         general_residual_px=motion.selection.median_residual_px["general"],
@@ -987,4 +1029,6 @@ def estimate_pair(
         plane_ambiguous=bool(plane is not None and plane.ambiguous),
         plane_k1=plane_k1,
         radial_k1=radial_k1,
+        rotation_source=chosen.source,
+        rotation_bias_deg=chosen.bias_deg,
     )

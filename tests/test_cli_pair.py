@@ -68,7 +68,9 @@ def test_no_arguments_runs_the_demo_pair(demo_json):
     assert REQUIRED_KEYS <= set(data)
     check_demo_pose(data)
     assert not data["pure_rotation"] and data["translation_determined"]
-    assert data["rotation_sigma_deg"] is None  # a rotation uncertainty only for a pure rotation
+    # the demo pair translates: its rotation is the essential matrix's, with its deviation
+    assert data["rotation_source"] == "essential" and data["rotation_bias_deg"] == 0.0
+    assert 0.0 < data["rotation_sigma_deg"] < 1.0
     assert data["num_inliers"] >= 100 and data["num_points"] > 0
     assert np.allclose(data["K1"], [[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, 1]])
 

@@ -1,0 +1,104 @@
+"""The rule that picks the returned rotation: expected error = |bias| + deviation."""
+
+import numpy as np
+import pytest
+
+from ppo_cv.metrics import rotation_error_deg
+from ppo_cv.parallax import PlaneParallax, homography_parallax
+from ppo_cv.rotation import fit_rotation_lens
+from ppo_cv.rotation_choice import (
+    RotationEstimate,
+    choose_rotation,
+    rotation_fit_sigma_deg,
+    translation_bias,
+)
+
+
+def _turn(degrees: float) -> np.ndarray:
+    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+@pytest.mark.parametrize(
+    ("essential", "rotation", "winner"),
+    [
+        ((0.0, 1.2), (0.3, 0.2), "rotation"),  # tiny parallax, essential poorly determined
+        ((0.0, 0.1), (5.0, 0.1), "essential"),  # a real translation: large bias
+        ((0.0, 0.3), (0.1, 0.2), "essential"),  # a tie goes to the first (moving) estimate
+        ((0.0, float("inf")), (0.5, 0.2), "rotation"),  # moving model undetermined
+        ((0.0, 0.4), (float("inf"), 0.05), "essential"),  # bias not measured
+        ((0.0, float("nan")), (0.2, 0.1), "rotation"),  # NaN counts as unknown
+    ],
+)
+def test_choose_rotation_takes_the_smallest_expected_error(essential, rotation, winner):
+    estimates = [
+        RotationEstimate("essential", np.eye(3), *essential),
+        RotationEstimate("rotation", _turn(1.0), *rotation),
+    ]
+    assert choose_rotation(estimates).source == winner
+
+
+def test_both_unknown_keep_the_moving_model():
+    estimates = [
+        RotationEstimate("plane", np.eye(3), 0.0, float("inf")),
+        RotationEstimate("rotation", np.eye(3), float("inf"), 0.1),
+    ]
+    assert choose_rotation(estimates).source == "plane"
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda: choose_rotation([]), "at least one"),
+        (lambda: RotationEstimate("homography", np.eye(3), 0.0, 1.0), "unknown rotation source"),
+    ],
+)
+def test_bad_input_is_refused(call, message):
+    with pytest.raises(ValueError, match=message):
+        call()
+
+
+@pytest.mark.parametrize(
+    ("parallax", "expected"),
+    [
+        (None, (float("inf"), 0.0)),
+        (PlaneParallax(np.eye(3), 0.01, 0.002, np.zeros(3)), (0.5730, 0.1146)),
+        (PlaneParallax(np.eye(3), float("nan"), 0.002, np.zeros(3)), (float("inf"), 0.0)),
+    ],
+)
+def test_translation_bias_is_the_parallax_in_degrees(parallax, expected):
+    assert translation_bias(parallax) == pytest.approx(expected, abs=1e-4)
+
+
+@pytest.mark.parametrize("baseline", [0.002, 0.005, 0.01])
+def test_a_sideways_translation_biases_the_rotation_fit_by_its_parallax(baseline):
+    """The module's derivation: a wall at distance 1 seen by a 20 degree field, the camera
+    moved sideways by ``baseline``; the rotation-only fit (lens terms under their priors) is
+    off by about ``baseline`` radians, which is the homography's parallax. (Turned, the views'
+    centres part and the focal scale takes a share of the shift: the parallax bounds the
+    bias.)"""
+    rng = np.random.default_rng(3)
+    q1 = rng.uniform(-0.17, 0.17, (400, 2))
+    X = np.column_stack([q1, np.ones(len(q1))])  # depth 1
+    R, t = np.eye(3), np.array([baseline, 0.0, 0.0])
+    Y = X @ R.T + t
+    x2 = Y[:, :2] / Y[:, 2:] + rng.normal(0.0, 2e-5, (len(q1), 2))
+    fit = fit_rotation_lens(q1, x2, np.ones(len(q1), bool), R, noise=3e-5)
+    H = R + np.outer(t, [0.0, 0.0, 1.0])
+    bias = np.degrees(homography_parallax(H))
+    assert bias == pytest.approx(np.degrees(baseline), rel=0.02)
+    assert rotation_error_deg(fit.R, R) == pytest.approx(bias, rel=0.1)
+
+
+def test_fit_sigma_agrees_with_the_lens_fit_covariance():
+    rng = np.random.default_rng(5)
+    q1 = rng.uniform(-0.3, 0.3, (300, 2))
+    R = _turn(12.0)
+    ray = np.column_stack([q1, np.ones(len(q1))]) @ R.T
+    x2 = ray[:, :2] / ray[:, 2:] + rng.normal(0.0, 3e-4, (len(q1), 2))
+    used = np.ones(len(q1), bool)
+    fit = fit_rotation_lens(q1, x2, used, R, noise=3e-4 * np.sqrt(2.0))
+    sigma = rotation_fit_sigma_deg(fit, q1, x2, used)
+    assert np.isfinite(fit.rotation_sigma_deg)
+    assert sigma == pytest.approx(fit.rotation_sigma_deg, rel=0.3)
+    assert rotation_fit_sigma_deg(fit, q1[:3], x2[:3], used[:3]) == float("inf")
