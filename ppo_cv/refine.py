@@ -161,6 +161,8 @@ def refine_pose_radial(
     k1_prior: float = 0.1,
     max_k1: float = 0.3,
     iterations: int = 20,
+    focal_prior: float | None = FOCAL_PRIOR,
+    principal_prior: np.ndarray | None = None,
 ) -> RadialPose:
     """Refine ``(R, t)`` with a radial distortion coefficient on the Sampson error.
 
@@ -172,6 +174,15 @@ def refine_pose_radial(
     (2 tangent coordinates), ``k1``. The coefficient is kept when the cost fell,
     ``K1_MIN <= |k1| <= max_k1`` and ``|k1|`` exceeds :data:`ppo_cv.plane.K1_SIGNIFICANCE`
     standard deviations; otherwise the start is returned with ``k1 = 0``.
+
+    That deviation holds the given intrinsics right to within their priors: besides the
+    Gauss-Newton covariance it counts the focal length's error (deviation ``focal_prior``,
+    ``x -> (1 + e) x`` in both views) as a considered parameter (Schmidt), which moves ``k1``
+    by ``S = (J^T J)^-1 J^T J_e`` per unit. In a narrow field a focal scale and ``k1`` trade
+    along one valley with the pose, and two views cannot tell them apart: the coefficient is
+    kept only where the matches demand it beyond what a focal length off by a few percent
+    explains, so that it does not buy a rotation. A principal point only guessed at the image
+    centre (``principal_prior``) is counted the same way (``x -> x - p``).
 
     Parameters
     ----------
@@ -189,6 +200,13 @@ def refine_pose_radial(
         Standard deviation of the prior on ``k1``; bound on ``|k1|``.
     iterations : int
         Largest number of Levenberg-Marquardt steps.
+    focal_prior : float or None
+        Deviation of the relative error of the given focal length
+        (:data:`ppo_cv.rotation.FOCAL_PRIOR`) in the deviation of ``k1``; None holds the
+        focal length exact.
+    principal_prior : array_like of 2 floats, optional
+        Deviations ``(x, y)`` (normalised units) of the error of a guessed principal point in
+        the deviation of ``k1``; None holds it exact.
 
     Returns
     -------
@@ -207,9 +225,10 @@ def refine_pose_radial(
         tp = t0 + p[3:5] @ U
         return rotation_increment(p[:3]) @ R0, tp / np.linalg.norm(tp)
 
-    def stacked(p):
+    def stacked(p, focal_error=0.0, offset=(0.0, 0.0)):
         Rp, tp = pose(p)
-        r = _sampson_signed(Rp, tp, undistort_division(a, p[5]), undistort_division(b, p[5]))
+        c1, c2 = (undistort_division(_adjusted(x, focal_error, offset), p[5]) for x in (a, b))
+        r = _sampson_signed(Rp, tp, c1, c2)
         return np.append(huber_weights(np.abs(r), scale) * r, scale * p[5] / k1_prior)
 
     r_start = stacked(np.zeros(6))
@@ -218,12 +237,33 @@ def refine_pose_radial(
     cov = gauss_newton_covariance(J, float(r @ r) / max(len(r) - 6, 1))
     if cov is None:
         return start
-    k1, k1_sigma = float(p[5]), float(np.sqrt(max(cov[5, 5], 0.0)))
+    k1_variance = max(cov[5, 5], 0.0)
+    considered = []  # (residuals with one given intrinsic moved by h, its deviation)
+    h = 1e-6
+    if focal_prior is not None:
+        considered.append((stacked(p, h), focal_prior))
+    if principal_prior is not None:
+        px, py = np.broadcast_to(np.asarray(principal_prior, float), (2,))
+        considered += [(stacked(p, 0.0, (h, 0.0)), px), (stacked(p, 0.0, (0.0, h)), py)]
+    for moved, deviation in considered:
+        S = np.linalg.lstsq(J, (moved - r) / h, rcond=None)[0]
+        k1_variance += (deviation * S[5]) ** 2
+    k1, k1_sigma = float(p[5]), float(np.sqrt(k1_variance))
     kept = K1_MIN <= abs(k1) <= max_k1 and abs(k1) > K1_SIGNIFICANCE * k1_sigma
     if not (kept and r @ r < r_start @ r_start):
         return RadialPose(R0, t0, 0.0, k1_sigma)
     Rp, tp = pose(p)
     return RadialPose(Rp, tp, k1, k1_sigma)
+
+
+def _adjusted(x: np.ndarray, focal_error: float, offset=(0.0, 0.0)) -> np.ndarray:
+    """Homogeneous normalised points (N, 3) of a camera whose focal length is ``1 +
+    focal_error`` times the given one and whose principal point is moved by ``offset``
+    (normalised units): ``x -> (1 + e) (x - p)``."""
+    if focal_error == 0.0 and offset == (0.0, 0.0):
+        return x
+    xy = (x[:, :2] - np.asarray(offset, float)) * (1.0 + focal_error)
+    return np.column_stack([xy, x[:, 2:]])
 
 
 def _bearings(x: np.ndarray) -> np.ndarray:
