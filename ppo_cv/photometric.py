@@ -650,7 +650,10 @@ def _as_prior(value) -> np.ndarray:
 
 def _fit_tracks(y1, y2, valid, R, focal, priors):
     """Lens rotation over the tracks, outliers beyond ``3 sqrt(2)`` noise deviations dropped;
-    ``(fit, used, noise_px)`` or None when too few tracks remain."""
+    ``(fit, used, noise_px)`` or None when too few tracks remain, or when the lens was clipped
+    to its box (no deviation) unless ``priors["keep_clipped"]``."""
+    priors = dict(priors)
+    keep_clipped = priors.pop("keep_clipped", False)
     used, noise, fit = valid.copy(), 0.1 / focal, None
     for _ in range(5):
         if np.count_nonzero(used) < MIN_TRACKS:
@@ -662,7 +665,7 @@ def _fit_tracks(y1, y2, valid, R, focal, priors):
         if np.array_equal(within, used):
             break
         used = within
-    if not np.isfinite(fit.rotation_sigma_deg) or not noise > 0:
+    if not noise > 0 or not (keep_clipped or np.isfinite(fit.rotation_sigma_deg)):
         return None
     return fit, used, noise * focal
 
@@ -688,6 +691,7 @@ def refine_rotation_photometric(
     dist2: np.ndarray | None = None,
     window: int | Sequence[int] = WINDOWS,
     max_corners: int | None = None,
+    keep_clipped: bool = False,
 ) -> PhotometricRotation | None:
     """Refit a pure rotation's lens rotation on windows aligned by intensity.
 
@@ -728,6 +732,10 @@ def refine_rotation_photometric(
         ``rotation_sigma_deg`` is returned.
     max_corners : int, optional
         Windows aligned at most (default :data:`MAX_CORNERS`).
+    keep_clipped : bool
+        Also return a refit whose lens the tracks placed beyond the box and which was clipped
+        to it (its ``rotation_sigma_deg`` inf): their parallax still measures the translation
+        (:mod:`ppo_cv.rotation_choice`). False refuses it, as a rotation nobody can bound.
 
     Returns
     -------
@@ -776,6 +784,7 @@ def refine_rotation_photometric(
         "focal_ratio_mean": focal_ratio_mean,
         "principal_bound": principal_bound,
         "max_focal_change": max_focal_change,
+        "keep_clipped": bool(keep_clipped),
     }
     windows = _as_windows(window)
     focal = float(np.mean([K2[0, 0], K2[1, 1]]))

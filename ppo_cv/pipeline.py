@@ -899,21 +899,21 @@ def estimate_pair(
     )  # fmt: skip
     lap("model")
 
-    def aligned_tracks(max_focal_change: float):
+    def aligned_tracks(keep_clipped: bool = False):
         return refine_rotation_photometric(
             img1, img2, K1, K2, motion.R,
             focal_scale=motion.focal_scale, k1=motion.k1,
             principal_offset=motion.principal_offset, principal_prior=principal_prior,
             focal_ratio=motion.focal_ratio, **ratio_keywords,
             principal_bound=motion.principal_bound,
-            max_focal_change=max_focal_change,
+            max_focal_change=motion.track_focal_change, keep_clipped=keep_clipped,
             rotation_sigma_deg=min(motion.rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG),
             dist1=dist1, dist2=dist2,
         )  # fmt: skip
 
     rotation_tracks, tracks = 0, None
     if options.photometric and (motion.pure_rotation or motion.rotation_candidate):
-        refined = aligned_tracks(motion.track_focal_change)
+        refined = aligned_tracks()
         if refined is not None:
             tracks = refined
             motion = with_tracks(
@@ -951,7 +951,9 @@ def estimate_pair(
         radial_k1 = 0.0
         if options.refine:
             bound = huber_bound_px(options.ransac_threshold, motion.noise_px)
-            radial = refine_pose_radial(R, t, x1, x2, inliers, scale=bound / focal)
+            radial = refine_pose_radial(
+                R, t, x1, x2, inliers, scale=bound / focal, principal_prior=principal_prior
+            )
             R, t, radial_k1 = radial.R, radial.t, radial.k1
         c1, c2 = undistort_division(x1, radial_k1), undistort_division(x2, radial_k1)
         final = _recover_normalized(essential_from_pose(R, t), c1[:, :2], c2[:, :2], inliers, 0.0)
@@ -970,7 +972,7 @@ def estimate_pair(
         rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used)
         moving = RotationEstimate(source, R, 0.0, sigmas.rotation_deg)
         if tracks is None and options.photometric and rotation_only.sigma_deg < moving.sigma_deg:
-            tracks = aligned_tracks(motion.track_focal_change)  # the bias decides: measure it
+            tracks = aligned_tracks(keep_clipped=True)  # the bias decides: measure it
             rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used)
         chosen = choose_rotation([moving, rotation_only])
         R = chosen.R

@@ -102,3 +102,38 @@ def test_fit_sigma_agrees_with_the_lens_fit_covariance():
     assert np.isfinite(fit.rotation_sigma_deg)
     assert sigma == pytest.approx(fit.rotation_sigma_deg, rel=0.3)
     assert rotation_fit_sigma_deg(fit, q1[:3], x2[:3], used[:3]) == float("inf")
+
+
+def _estimates_of(pair, monkeypatch):
+    """The pair's result and the estimates the rule compared."""
+    import ppo_cv.pipeline as pipeline
+    from ppo_cv import estimate_pair
+
+    seen = {}
+
+    def recording(estimates):
+        seen["estimates"] = list(estimates)
+        return choose_rotation(estimates)
+
+    monkeypatch.setattr(pipeline, "choose_rotation", recording)
+    result = estimate_pair(pair.image1, pair.image2, pair.K_given)
+    return result, {e.source: e for e in seen["estimates"]}
+
+
+@pytest.mark.parametrize(
+    ("seed", "chosen", "other"),
+    [
+        (8, "rotation", "plane"),  # 26 deg field, baseline 0.01 of the depth: plane undetermined
+        (13, "essential", "rotation"),  # 32 deg field, the translation measured well
+    ],
+)
+def test_renders_return_the_estimate_closer_to_the_truth(seed, chosen, other, monkeypatch):
+    from imperfect import imperfect_render
+
+    pair = imperfect_render(seed, 0.01)
+    result, estimates = _estimates_of(pair, monkeypatch)
+    assert not result.pure_rotation and result.rotation_source == chosen
+    assert np.allclose(result.R, estimates[chosen].R)
+    error = rotation_error_deg(result.R, pair.R)
+    assert error < 0.3 and error < rotation_error_deg(estimates[other].R, pair.R)
+    assert (result.rotation_bias_deg > 0) == (chosen == "rotation")
