@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -80,6 +81,9 @@ def test_human_summary(tmp_path):
     assert result.exit_code == 0, result.output
     for word in ("rotation", "euler", "translation", "PRI", "general motion", "inliers", "ransac"):
         assert word in result.stdout
+    assert "R source     the essential matrix's refined pose" in result.stdout
+    sigma_line = r"R sigma      \d+\.\d{3} deg \(rotation error, worst direction\)"
+    assert re.search(sigma_line, result.stdout)
 
 
 def test_demo_command_matches_pair_without_arguments(demo_json):
