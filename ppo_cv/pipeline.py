@@ -346,10 +346,12 @@ class PairResult:
         determine the rotation when the focal length is known only to a few percent. When
         ``R`` was refitted on intensity-aligned windows, the same bound over those tracks, its
         variance multiplied by how many windows share a pixel
-        (:func:`ppo_cv.photometric.window_overlap`). For the rotation of a general motion or a
-        plane: the worst direction of the covariance of the final refinement
-        (:func:`ppo_cv.refine.pose_sigmas_deg`, with ``t_sigma_deg``); inf when the matches
-        do not determine the pose.
+        (:func:`ppo_cv.photometric.window_overlap`). For the rotation of a general motion: the
+        worst direction of the covariance of the final refinement
+        (:func:`ppo_cv.refine.pose_sigmas_deg`, with ``t_sigma_deg``); of a plane: that of
+        its refinement on the homography
+        (:attr:`ppo_cv.plane.RefinedPlanarPose.rotation_sigma_deg`); inf when the matches do
+        not determine the pose.
     rotation_source : str
         Which estimate ``R`` is (:mod:`ppo_cv.rotation_choice`): ``"rotation"`` (the
         rotation-only fit), ``"essential"`` (the essential matrix's refined pose) or
@@ -970,7 +972,8 @@ def estimate_pair(
         t_sigma, source = sigmas.translation_deg, "plane" if plane is not None else "essential"
         used = essential_inliers | motion.rotation_inliers
         rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used)
-        moving = RotationEstimate(source, R, 0.0, sigmas.rotation_deg)
+        moving_sigma = refined.rotation_sigma_deg if plane is not None else sigmas.rotation_deg
+        moving = RotationEstimate(source, R, 0.0, moving_sigma)
         if tracks is None and options.photometric and rotation_only.sigma_deg < moving.sigma_deg:
             tracks = aligned_tracks(keep_clipped=True)  # the bias decides: measure it
             rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used)

@@ -23,9 +23,9 @@ translation's the uniform shift ``b_perp / Z`` plus a radial part ``-b_z (x, y) 
 fit's focal scale, not its rotation, absorbs. The least-squares rotation over the matches
 therefore takes ``|w| = mean(|b_perp| / Z)`` radians of the translation, turned toward the
 translation's perpendicular. For a plane of normal ``n`` at distance ``d``, ``b_perp / d`` is
-the parallax of its homography (:func:`ppo_cv.parallax.homography_parallax`, ``2 asinh(tau /
-2) = tau`` for a motion along the plane), so the bias is the parallax the tracks or the
-matches measure, in radians, and its deviation adds to that of the fit:
+the part of ``u = b / d`` across the normal of the plane of its homography
+(:func:`across_normal_parallax`), so the bias is that parallax as the intensity-aligned tracks
+measure it, in radians, and its deviation adds to that of the fit:
 ``expected = parallax + sqrt(sigma_fit^2 + sigma_parallax^2)``.
 """
 
@@ -51,6 +51,7 @@ from .rotation import (
 __all__ = [
     "ROTATION_SOURCES",
     "RotationEstimate",
+    "across_normal_parallax",
     "choose_rotation",
     "rotation_only_estimate",
     "rotation_fit_sigma_deg",
@@ -124,12 +125,38 @@ def choose_rotation(estimates: Sequence[RotationEstimate]) -> RotationEstimate:
     return estimates[int(np.argmin(errors))]
 
 
+def across_normal_parallax(H: np.ndarray) -> float:
+    """``|u x n|`` of a homography ``H ~ R (I + u n^T)`` (3, 3): the baseline across the
+    plane's normal over its distance, radians.
+
+    ``I + u n^T`` (``|n| = 1``) has its middle singular value 1, the product of the other two
+    ``1 + u . n`` and the sum of their squares ``2 + 2 u . n + |u|^2``, so with the singular
+    values of ``H`` scaled to ``s2 = 1``: ``|u| = s1 - s3`` and ``u . n = s1 s3 - 1``, hence
+    ``|u x n|^2 = (s1 - s3)^2 - (s1 s3 - 1)^2``. A change of focal length (``u`` along ``n``)
+    gives 0, as does a rotation. Unlike :func:`ppo_cv.parallax.homography_parallax`, which
+    takes the smaller of the two logarithmic gaps and so reads little of a sideways motion
+    that comes with a forward one, this is the whole sideways part.
+
+    >>> import numpy as np
+    >>> H = np.eye(3) + np.outer([0.05, 0.0, 0.025], [0.0, 0.0, 1.0])
+    >>> round(across_normal_parallax(H), 4)
+    0.05
+    """
+    s = np.linalg.svd(np.asarray(H, dtype=np.float64), compute_uv=False)
+    if not s[1] > 0:
+        return float("inf")
+    s = s / s[1]
+    return float(np.sqrt(max((s[0] - s[2]) ** 2 - (s[0] * s[2] - 1.0) ** 2, 0.0)))
+
+
 def translation_bias(parallax: PlaneParallax | None) -> tuple[float, float]:
-    """Bias of a rotation-only fit and its deviation (degrees) from the parallax of the
-    scene's plane (see the module docstring): ``(inf, 0)`` when it was not measured."""
+    """Bias of a rotation-only fit and its deviation (degrees) from the homography the tracks
+    fit (see the module docstring): :func:`across_normal_parallax` of its ``H``, with the
+    deviation of its parallax; ``(inf, 0)`` when it was not measured."""
     if parallax is None or not np.isfinite(parallax.parallax):
         return float("inf"), 0.0
-    return float(np.degrees(abs(parallax.parallax))), float(np.degrees(parallax.sigma))
+    bias = max(across_normal_parallax(parallax.H), abs(parallax.parallax))
+    return float(np.degrees(bias)), float(np.degrees(parallax.sigma))
 
 
 def rotation_fit_sigma_deg(
