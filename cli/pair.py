@@ -161,14 +161,36 @@ def _denser_note(result) -> str:
     return f" (features detected again at {scale:g} x the threshold)"
 
 
+_ROTATION_SOURCES = {
+    "rotation": "the rotation-only fit",
+    "essential": "the essential matrix's refined pose",
+    "plane": "the plane's pose",
+}
+
+
 def _rotation_sigma_lines(result) -> list[str]:
-    """How well the matches determine the rotation of a pure rotation."""
-    sigma = result.uncertainty.rotation_sigma_deg
-    if not result.pure_rotation or not sigma == sigma:
-        return []
-    tracks = result.uncertainty.rotation_tracks
-    source = f"{tracks} intensity-aligned windows" if tracks else "the feature matches"
-    return [f"  R sigma      {sigma:.3f} deg (rotation angle error, root mean square, {source})"]
+    """How well the evidence determines the rotation, and which estimate it came from."""
+    sigma, source = result.uncertainty.rotation_sigma_deg, result.rotation_source
+    lines = []
+    if result.pure_rotation and sigma == sigma:
+        tracks = result.uncertainty.rotation_tracks
+        evidence = f"{tracks} intensity-aligned windows" if tracks else "the feature matches"
+        lines.append(
+            f"  R sigma      {sigma:.3f} deg (rotation angle error, root mean square, {evidence})"
+        )
+    elif sigma == sigma and sigma < float("inf"):
+        kind = "root mean square" if source == "rotation" else "worst direction"
+        lines.append(f"  R sigma      {sigma:.3f} deg (rotation error, {kind})")
+    if not result.pure_rotation:
+        why = ""
+        if source == "rotation":
+            bias = result.uncertainty.rotation_bias_deg
+            why = f", bias from the translation's parallax {bias:.3f} deg"
+        lines.append(
+            f"  R source     {_ROTATION_SOURCES.get(source, source)}: the smallest expected "
+            f"error{why}"
+        )
+    return lines
 
 
 def _lens_lines(result) -> list[str]:

@@ -144,6 +144,7 @@ def _uncertainty(uncertainty: PoseUncertainty) -> dict:
         "t_sigma_deg": float(uncertainty.t_sigma_deg),
         "rotation_sigma_deg": _finite_or_none(uncertainty.rotation_sigma_deg),
         "rotation_tracks": int(uncertainty.rotation_tracks),
+        "rotation_bias_deg": _finite_or_none(uncertainty.rotation_bias_deg),
     }
 
 
@@ -229,6 +230,7 @@ def result_to_dict(result: PairResult, **extra: Any) -> dict:
         "pure_rotation": bool(result.pure_rotation),
         "translation_determined": bool(result.translation_determined),
         "model": str(result.model),
+        "rotation_source": str(result.rotation_source),
         "pri": float(result.pri),
         "rotation_angle_deg": angle,
         "rotation_axis": axis.tolist(),

@@ -650,7 +650,10 @@ def _as_prior(value) -> np.ndarray:
 
 def _fit_tracks(y1, y2, valid, R, focal, priors):
     """Lens rotation over the tracks, outliers beyond ``3 sqrt(2)`` noise deviations dropped;
-    ``(fit, used, noise_px)`` or None when too few tracks remain."""
+    ``(fit, used, noise_px)`` or None when too few tracks remain, or when the lens was clipped
+    to its box (no deviation) unless ``priors["keep_clipped"]``."""
+    priors = dict(priors)
+    keep_clipped = priors.pop("keep_clipped", False)
     used, noise, fit = valid.copy(), 0.1 / focal, None
     for _ in range(5):
         if np.count_nonzero(used) < MIN_TRACKS:
@@ -662,7 +665,7 @@ def _fit_tracks(y1, y2, valid, R, focal, priors):
         if np.array_equal(within, used):
             break
         used = within
-    if not np.isfinite(fit.rotation_sigma_deg) or not noise > 0:
+    if not noise > 0 or not (keep_clipped or np.isfinite(fit.rotation_sigma_deg)):
         return None
     return fit, used, noise * focal
 
@@ -688,6 +691,7 @@ def refine_rotation_photometric(
     dist2: np.ndarray | None = None,
     window: int | Sequence[int] = WINDOWS,
     max_corners: int | None = None,
+    keep_clipped: bool = False,
 ) -> PhotometricRotation | None:
     """Refit a pure rotation's lens rotation on windows aligned by intensity.
 
@@ -708,8 +712,7 @@ def refine_rotation_photometric(
         Refit the focal ratio too, under a prior of this deviation about this mean; None (the
         deviation) keeps ``focal_ratio``.
     principal_bound : float
-        Largest principal-point offset of the refit, in ``principal_prior`` deviations
-        (:func:`ppo_cv.rotation.fit_rotation_lens`; the bound the rotation of the matches used).
+        Largest principal-point offset, in ``principal_prior`` deviations (that of the matches).
     max_focal_change : float
         Box of the refit's focal scale (and focal ratio), ``|s - 1| <= max_focal_change``:
         the pipeline passes :data:`ppo_cv.rotation.TRACK_FOCAL_CHANGE` for a pure rotation
@@ -726,18 +729,19 @@ def refine_rotation_photometric(
         ``rotation_sigma_deg`` is returned.
     max_corners : int, optional
         Windows aligned at most (default :data:`MAX_CORNERS`).
+    keep_clipped : bool
+        Also return a refit clipped to the lens box (``rotation_sigma_deg`` inf), whose tracks'
+        parallax still measures a translation (:mod:`ppo_cv.rotation_choice`).
 
     Returns
     -------
     PhotometricRotation or None
-        None when, with every window side, fewer than :data:`MIN_TRACKS` tracks agree with a
-        rotation or the refit is refused.
+        None when with every window side under :data:`MIN_TRACKS` tracks agree or it is refused.
 
     Raises
     ------
     ValueError
-        Intrinsics, distortion, ``R`` (not a rotation) or ``rotation_sigma_deg`` (not > 0) that
-        are not what they claim to be.
+        Invalid intrinsics or distortion, ``R`` not a rotation, ``rotation_sigma_deg`` <= 0.
 
     Examples
     --------
@@ -760,11 +764,12 @@ def refine_rotation_photometric(
         K1, K2, dist1, dist2, R, rotation_sigma_deg, principal_prior, focal_ratio,
         focal_ratio_prior, focal_ratio_mean, principal_bound, max_focal_change,
     )  # fmt: skip
+    priors["keep_clipped"] = bool(keep_clipped)
     start = (R, float(focal_scale), float(k1), _as_offset(principal_offset), focal_ratio)
-    windows = _as_windows(window)
     return _best_window_refit(
-        image1, image2, cameras, start, priors, rotation_sigma_deg, windows, max_corners
-    )
+        image1, image2, cameras, start, priors, rotation_sigma_deg, _as_windows(window),
+        max_corners,
+    )  # fmt: skip
 
 
 def _checked_inputs(

@@ -66,15 +66,15 @@ from .homography import HomographyEstimate, estimate_homography
 from .images import as_image as _as_image
 from .images import load_image
 from .motion_model import MotionDecision, decide_motion, plane_ransac_trials, with_tracks
-from .photometric import refine_rotation_photometric
+from .photometric import PhotometricRotation, refine_rotation_photometric
 from .plane import refine_planar_pose, undistort_division
 from .pose import _recover_normalized
 from .refine import (
     T_SIGMA_CAP_DEG,
     huber_bound_px,
+    pose_sigmas_deg,
     refine_pose,
     refine_pose_radial,
-    translation_sigma_deg,
 )
 from .result import (
     ConsensusSignificance,
@@ -101,6 +101,7 @@ from .rotation import (
     focal_ratio_keywords,
     focal_ratio_prior,
 )
+from .rotation_choice import RotationEstimate, choose_rotation, rotation_only_estimate
 from .significance import (
     CONFIDENT_LOG10_NFA,
     DEFAULT_MAX_LOG10_NFA,
@@ -572,11 +573,17 @@ class _Finishing:
     """What a model's finisher starts from: the consensus, the essential matrix's pose and the
     decision."""
 
+    inputs: _Inputs
     found: _Consensus
     pose: _EssentialPose
     motion: MotionDecision
-    focal: float
+    priors: _LensPriors
+    tracks: PhotometricRotation | None
     options: PairOptions
+
+    @property
+    def focal(self) -> float:
+        return self.inputs.focal
 
 
 @dataclass(frozen=True)
@@ -696,32 +703,40 @@ def _decide(
     )  # fmt: skip
 
 
-def _revisit_with_tracks(
-    inputs: _Inputs, found: _Consensus, motion: MotionDecision, priors: _LensPriors,
-    options: PairOptions,
-) -> tuple[MotionDecision, int]:  # fmt: skip
-    """For a pure rotation or a rotation candidate: the rotation refitted on intensity-aligned
-    windows and the decision revisited on their parallax (:func:`with_tracks`); with the
-    number of tracks behind a pure rotation's ``R`` (0 when none)."""
-    if not options.photometric or not (motion.pure_rotation or motion.rotation_candidate):
-        return motion, 0
-    refined = refine_rotation_photometric(
+def _align_tracks(
+    inputs: _Inputs, motion: MotionDecision, priors: _LensPriors, keep_clipped: bool = False
+) -> PhotometricRotation | None:
+    """The rotation-only fit refitted on intensity-aligned windows around ``motion.R``
+    (:func:`refine_rotation_photometric`), None when too few windows align."""
+    return refine_rotation_photometric(
         inputs.img1, inputs.img2, inputs.K1, inputs.K2, motion.R,
         focal_scale=motion.focal_scale, k1=motion.k1,
         principal_offset=motion.principal_offset, principal_prior=priors.principal,
         focal_ratio=motion.focal_ratio, **priors.ratio_keywords,
         principal_bound=motion.principal_bound,
-        max_focal_change=motion.track_focal_change,
+        max_focal_change=motion.track_focal_change, keep_clipped=keep_clipped,
         rotation_sigma_deg=min(motion.rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG),
         dist1=inputs.dist1, dist2=inputs.dist2,
     )  # fmt: skip
-    if refined is None:
-        return motion, 0
+
+
+def _revisit_with_tracks(
+    inputs: _Inputs, found: _Consensus, motion: MotionDecision, priors: _LensPriors,
+    options: PairOptions,
+) -> tuple[MotionDecision, PhotometricRotation | None, int]:  # fmt: skip
+    """For a pure rotation or a rotation candidate: the rotation refitted on intensity-aligned
+    windows and the decision revisited on their parallax (:func:`with_tracks`); with the
+    tracks (None when none were aligned) and the number behind a pure rotation's ``R``."""
+    if not options.photometric or not (motion.pure_rotation or motion.rotation_candidate):
+        return motion, None, 0
+    tracks = _align_tracks(inputs, motion, priors)
+    if tracks is None:
+        return motion, None, 0
     motion = with_tracks(
-        motion, refined.fit, refined.parallax, found.x1, found.x2, inputs.focal,
+        motion, tracks.fit, tracks.parallax, found.x1, found.x2, inputs.focal,
         threshold_px=options.ransac_threshold,
     )  # fmt: skip
-    return motion, refined.num_tracks if motion.pure_rotation else 0
+    return motion, tracks, tracks.num_tracks if motion.pure_rotation else 0
 
 
 def _finish_rotation(state: _Finishing) -> _ModelPart:
@@ -760,7 +775,10 @@ def _finish_plane(state: _Finishing) -> _ModelPart:
         inliers=inliers,
         points3d=np.where(keep[:, None], points3d, np.nan),
         point_matches=np.flatnonzero(keep),
-        t_sigma_deg=translation_sigma_deg(R, t, c1, c2, inliers, k1_prior=K1_PRIOR),
+        t_sigma_deg=pose_sigmas_deg(
+            R, t, c1, c2, inliers, k1_prior=K1_PRIOR, principal_prior=state.priors.principal
+        ).translation_deg,
+        rotation_sigma_deg=refined.rotation_sigma_deg,
         plane=PlaneGeometry(refined.n, refined.distance, bool(plane.ambiguous), k1),
     )
 
@@ -772,12 +790,18 @@ def _finish_general(state: _Finishing) -> _ModelPart:
     R, t, inliers, radial_k1 = state.pose.R, state.pose.t, state.pose.inliers, 0.0
     if options.refine:
         bound = huber_bound_px(options.ransac_threshold, state.motion.noise_px)
-        radial = refine_pose_radial(R, t, x1, x2, inliers, scale=bound / state.focal)
+        radial = refine_pose_radial(
+            R, t, x1, x2, inliers, scale=bound / state.focal,
+            principal_prior=state.priors.principal,
+        )  # fmt: skip
         R, t, radial_k1 = radial.R, radial.t, radial.k1
     c1, c2 = undistort_division(x1, radial_k1), undistort_division(x2, radial_k1)
     final = _recover_normalized(essential_from_pose(R, t), c1[:, :2], c2[:, :2], inliers, 0.0)
     keep = final.inliers & np.all(np.isfinite(final.points3d), axis=1)
-    k1_prior = K1_PRIOR if options.refine else None
+    sigmas = pose_sigmas_deg(
+        final.R, final.t, c1, c2, inliers, k1_prior=K1_PRIOR if options.refine else None,
+        principal_prior=state.priors.principal,
+    )  # fmt: skip
     return _ModelPart(
         R=final.R,
         t=final.t,
@@ -785,7 +809,8 @@ def _finish_general(state: _Finishing) -> _ModelPart:
         inliers=inliers,
         points3d=np.where(keep[:, None], final.points3d, np.nan),
         point_matches=np.flatnonzero(keep),
-        t_sigma_deg=translation_sigma_deg(final.R, final.t, c1, c2, inliers, k1_prior=k1_prior),
+        t_sigma_deg=sigmas.translation_deg,
+        rotation_sigma_deg=sigmas.rotation_deg,
         radial_k1=radial_k1,
     )
 
@@ -797,6 +822,27 @@ FINISHERS: dict[str, Callable[[_Finishing], _ModelPart]] = {
 }
 """Model name (:attr:`ppo_cv.motion_model.MotionDecision.model`) -> the function that finishes
 its pose, points and uncertainty (stage ``decision``)."""
+
+
+def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
+    """The rotation with the smallest expected error (:func:`choose_rotation`): a pure
+    rotation's own; otherwise the moving model's or the rotation-only fit's, whose bias is then
+    measured on intensity-aligned tracks when the fit is the better determined of the two."""
+    motion = state.motion
+    if motion.pure_rotation:
+        return RotationEstimate("rotation", part.R, 0.0, part.rotation_sigma_deg)
+    source = "plane" if motion.model == "plane" else "essential"
+    moving = RotationEstimate(source, part.R, 0.0, part.rotation_sigma_deg)
+    x1, x2, used = state.found.x1, state.found.x2, state.pose.inliers | motion.rotation_inliers
+    rotation_only = rotation_only_estimate(motion, state.tracks, x1, x2, used)
+    if (
+        state.tracks is None
+        and state.options.photometric
+        and rotation_only.sigma_deg < moving.sigma_deg
+    ):
+        tracks = _align_tracks(state.inputs, motion, state.priors, keep_clipped=True)
+        rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used)
+    return choose_rotation([moving, rotation_only])
 
 
 def _lens_terms(motion: MotionDecision, focal: float, radial_k1: float) -> LensTerms:
@@ -838,20 +884,22 @@ def _evidence(motion: MotionDecision, found: _Consensus, options: PairOptions) -
 
 
 def _assemble(
-    inputs: _Inputs, found: _Consensus, state: _Finishing, part: _ModelPart, tracks: int,
+    state: _Finishing, part: _ModelPart, rotation: RotationEstimate, tracks: int,
     timings: dict[str, float],
 ) -> PairResult:  # fmt: skip
-    """The :class:`PairResult` of a finished model."""
-    img1, img2, motion = inputs.img1, inputs.img2, state.motion
+    """The :class:`PairResult` of a finished model with its chosen rotation."""
+    inputs, found, motion = state.inputs, state.found, state.motion
+    img1, img2 = inputs.img1, inputs.img2
     cameras = PairCameras(
         inputs.K1, inputs.K2, inputs.dist1, inputs.dist2,
         (int(img1.shape[1]), int(img1.shape[0])), (int(img2.shape[1]), int(img2.shape[0])),
     )  # fmt: skip
     return PairResult(
-        R=part.R,
+        R=rotation.R,
         t=part.t,
         pure_rotation=motion.pure_rotation,
         model=motion.model,
+        rotation_source=rotation.source,
         pri=float(part.pri),
         keypoints1=found.features1.keypoints,
         keypoints2=found.features2.keypoints,
@@ -861,7 +909,9 @@ def _assemble(
         point_matches=part.point_matches,
         colours=_colours(img1, found.features1.keypoints[found.matches[:, 0]]),
         cameras=cameras,
-        uncertainty=PoseUncertainty(part.t_sigma_deg, part.rotation_sigma_deg, tracks),
+        uncertainty=PoseUncertainty(
+            part.t_sigma_deg, rotation.sigma_deg, tracks, rotation.bias_deg
+        ),
         lens=_lens_terms(motion, inputs.focal, part.radial_k1),
         evidence=_evidence(motion, found, state.options),
         plane=part.plane,
@@ -937,9 +987,10 @@ def estimate_pair(
     priors = _lens_priors(inputs, options)
     motion = _decide(found, pose, homography, priors, inputs.focal, options)
     watch.lap("model")
-    motion, tracks = _revisit_with_tracks(inputs, found, motion, priors, options)
+    motion, tracks, num_tracks = _revisit_with_tracks(inputs, found, motion, priors, options)
     watch.lap("photometric")
-    state = _Finishing(found, pose, motion, inputs.focal, options)
+    state = _Finishing(inputs, found, pose, motion, priors, tracks, options)
     part = FINISHERS[motion.model](state)
+    rotation = _choose_rotation(state, part)
     watch.lap("decision")
-    return _assemble(inputs, found, state, part, tracks, watch.timings)
+    return _assemble(state, part, rotation, num_tracks, watch.timings)

@@ -478,6 +478,9 @@ class RefinedPlanarPose:
         Symmetric transfer error of every match (normalized units) under the refined model.
     cost_start, cost : float
         Robust cost over the used matches before and after.
+    rotation_sigma_deg : float
+        Worst-direction standard deviation (degrees) of ``R`` from the Gauss-Newton covariance
+        of this refinement, ``k1`` estimated under its prior (inf when not determined).
     """
 
     R: np.ndarray
@@ -489,6 +492,7 @@ class RefinedPlanarPose:
     residuals: np.ndarray
     cost_start: float
     cost: float
+    rotation_sigma_deg: float = float("inf")
 
 
 def undistort_division(x: np.ndarray, k1: float) -> np.ndarray:
@@ -615,6 +619,7 @@ def refine_planar_pose(
     k1 = float(p[8]) if len(p) > 8 else 0.0
     norm = float(np.linalg.norm(Tr))
     full = _transfer(Rr + np.outer(Tr, nr), undistort_division(X1, k1), undistort_division(X2, k1))
+    rotation_sigma = _rotation_sigma_deg(model, np.append(p[:8], k1), scale, k1_prior, count)
     return RefinedPlanarPose(
         R=Rr,
         t=Tr / norm if norm > 0 else np.zeros(3),
@@ -625,6 +630,7 @@ def refine_planar_pose(
         residuals=np.linalg.norm(full, axis=1),
         cost_start=cost_start,
         cost=cost,
+        rotation_sigma_deg=rotation_sigma,
     )
 
 
@@ -646,6 +652,20 @@ def _k1_sigma(model, p, scale, k1_prior) -> float:
     dof = max(len(r) - len(p), 1)
     cov = gauss_newton_covariance(J, 2.0 * float(r @ r) / dof)
     return float("inf") if cov is None else float(np.sqrt(max(cov[8, 8], 0.0)))
+
+
+def _rotation_sigma_deg(model, p, scale, k1_prior, count: int) -> float:
+    """Worst-direction deviation (degrees) of the rotation increment ``p[:3]`` from the
+    covariance of :func:`_k1_sigma` (``k1`` under its prior); inf with fewer than 10 matches."""
+    if count < 10:
+        return float("inf")
+    r = _stacked(model, p, scale, k1_prior)
+    J = forward_jacobian(lambda q: _stacked(model, q, scale, k1_prior), p, r)
+    cov = gauss_newton_covariance(J, 2.0 * float(r @ r) / max(len(r) - len(p), 1))
+    if cov is None:
+        return float("inf")
+    largest = float(np.linalg.eigvalsh(cov[:3, :3])[-1])
+    return float(np.degrees(np.sqrt(max(largest, 0.0))))
 
 
 def _levenberg_marquardt(model, p, scale, k1_prior, iterations):

@@ -36,12 +36,14 @@ __all__ = [
     "HUBER_NOISE_FACTOR",
     "K1_MIN",
     "huber_bound_px",
+    "PoseSigmas",
     "RadialPose",
     "T_SIGMA_CAP_DEG",
     "refine_pose",
     "refine_pose_radial",
     "fit_rotation",
     "rotation_residuals",
+    "pose_sigmas_deg",
     "translation_sigma_deg",
 ]
 
@@ -159,6 +161,8 @@ def refine_pose_radial(
     k1_prior: float = 0.1,
     max_k1: float = 0.3,
     iterations: int = 20,
+    focal_prior: float | None = FOCAL_PRIOR,
+    principal_prior: np.ndarray | None = None,
 ) -> RadialPose:
     """Refine ``(R, t)`` with a radial distortion coefficient on the Sampson error.
 
@@ -170,6 +174,15 @@ def refine_pose_radial(
     (2 tangent coordinates), ``k1``. The coefficient is kept when the cost fell,
     ``K1_MIN <= |k1| <= max_k1`` and ``|k1|`` exceeds :data:`ppo_cv.plane.K1_SIGNIFICANCE`
     standard deviations; otherwise the start is returned with ``k1 = 0``.
+
+    That deviation holds the given intrinsics right to within their priors: besides the
+    Gauss-Newton covariance it counts the focal length's error (deviation ``focal_prior``,
+    ``x -> (1 + e) x`` in both views) as a considered parameter (Schmidt), which moves ``k1``
+    by ``S = (J^T J)^-1 J^T J_e`` per unit. In a narrow field a focal scale and ``k1`` trade
+    along one valley with the pose, and two views cannot tell them apart: the coefficient is
+    kept only where the matches demand it beyond what a focal length off by a few percent
+    explains, so that it does not buy a rotation. A principal point only guessed at the image
+    centre (``principal_prior``) is counted the same way (``x -> x - p``).
 
     Parameters
     ----------
@@ -187,6 +200,13 @@ def refine_pose_radial(
         Standard deviation of the prior on ``k1``; bound on ``|k1|``.
     iterations : int
         Largest number of Levenberg-Marquardt steps.
+    focal_prior : float or None
+        Deviation of the relative error of the given focal length
+        (:data:`ppo_cv.rotation.FOCAL_PRIOR`) in the deviation of ``k1``; None holds the
+        focal length exact.
+    principal_prior : array_like of 2 floats, optional
+        Deviations ``(x, y)`` (normalised units) of the error of a guessed principal point in
+        the deviation of ``k1``; None holds it exact.
 
     Returns
     -------
@@ -205,9 +225,10 @@ def refine_pose_radial(
         tp = t0 + p[3:5] @ U
         return rotation_increment(p[:3]) @ R0, tp / np.linalg.norm(tp)
 
-    def stacked(p):
+    def stacked(p, focal_error=0.0, offset=(0.0, 0.0)):
         Rp, tp = pose(p)
-        r = _sampson_signed(Rp, tp, undistort_division(a, p[5]), undistort_division(b, p[5]))
+        c1, c2 = (undistort_division(_adjusted(x, focal_error, offset), p[5]) for x in (a, b))
+        r = _sampson_signed(Rp, tp, c1, c2)
         return np.append(huber_weights(np.abs(r), scale) * r, scale * p[5] / k1_prior)
 
     r_start = stacked(np.zeros(6))
@@ -216,12 +237,43 @@ def refine_pose_radial(
     cov = gauss_newton_covariance(J, float(r @ r) / max(len(r) - 6, 1))
     if cov is None:
         return start
-    k1, k1_sigma = float(p[5]), float(np.sqrt(max(cov[5, 5], 0.0)))
+    k1_variance = max(cov[5, 5], 0.0) + _considered_k1_variance(
+        lambda *moved: stacked(p, *moved), J, r, focal_prior, principal_prior
+    )
+    k1, k1_sigma = float(p[5]), float(np.sqrt(k1_variance))
     kept = K1_MIN <= abs(k1) <= max_k1 and abs(k1) > K1_SIGNIFICANCE * k1_sigma
     if not (kept and r @ r < r_start @ r_start):
         return RadialPose(R0, t0, 0.0, k1_sigma)
     Rp, tp = pose(p)
     return RadialPose(Rp, tp, k1, k1_sigma)
+
+
+def _considered_k1_variance(moved_residuals, J, r, focal_prior, principal_prior) -> float:
+    """Variance that the given focal length's and principal point's errors (Schmidt's
+    considered parameters, deviations ``focal_prior`` and ``principal_prior``) add to ``k1``,
+    the last parameter: ``S = (J^T J)^-1 J^T dr/de`` per unit of each error."""
+    considered = []  # (residuals with one given intrinsic moved by h, its deviation)
+    h = 1e-6
+    if focal_prior is not None:
+        considered.append((moved_residuals(h), focal_prior))
+    if principal_prior is not None:
+        px, py = np.broadcast_to(np.asarray(principal_prior, float), (2,))
+        considered += [(moved_residuals(0.0, (h, 0.0)), px), (moved_residuals(0.0, (0.0, h)), py)]
+    variance = 0.0
+    for moved, deviation in considered:
+        S = np.linalg.lstsq(J, (moved - r) / h, rcond=None)[0]
+        variance += (deviation * S[-1]) ** 2
+    return variance
+
+
+def _adjusted(x: np.ndarray, focal_error: float, offset=(0.0, 0.0)) -> np.ndarray:
+    """Homogeneous normalised points (N, 3) of a camera whose focal length is ``1 +
+    focal_error`` times the given one and whose principal point is moved by ``offset``
+    (normalised units): ``x -> (1 + e) (x - p)``."""
+    if focal_error == 0.0 and offset == (0.0, 0.0):
+        return x
+    xy = (x[:, :2] - np.asarray(offset, float)) * (1.0 + focal_error)
+    return np.column_stack([xy, x[:, 2:]])
 
 
 def _bearings(x: np.ndarray) -> np.ndarray:
@@ -308,6 +360,25 @@ fixes its sign, so it lies in the hemisphere around any estimate: a one-sigma co
 already covers all of it, and a larger linearised value says no more than "undetermined"."""
 
 
+@dataclass(frozen=True)
+class PoseSigmas:
+    """Worst-direction standard deviations of a refined pose (:func:`pose_sigmas_deg`).
+
+    Attributes
+    ----------
+    rotation_deg : float
+        Of the rotation, degrees (inf when undetermined).
+    translation_deg : float
+        Of the direction of ``t``, degrees, at most :data:`T_SIGMA_CAP_DEG`.
+    """
+
+    rotation_deg: float
+    translation_deg: float
+
+
+_UNDETERMINED = PoseSigmas(float("inf"), T_SIGMA_CAP_DEG)
+
+
 def translation_sigma_deg(
     R: np.ndarray,
     t: np.ndarray,
@@ -320,7 +391,28 @@ def translation_sigma_deg(
     focal_prior: float | None = FOCAL_PRIOR,
     k1_prior: float | None = None,
 ) -> float:
-    """One standard deviation of the direction of ``t`` (degrees) from the Sampson cost.
+    """One standard deviation of the direction of ``t`` (degrees): the translation of
+    :func:`pose_sigmas_deg`, whose parameters these are."""
+    return pose_sigmas_deg(
+        R, t, x1, x2, inliers, noise, step, focal_prior=focal_prior, k1_prior=k1_prior
+    ).translation_deg
+
+
+def pose_sigmas_deg(
+    R: np.ndarray,
+    t: np.ndarray,
+    x1: np.ndarray,
+    x2: np.ndarray,
+    inliers: np.ndarray,
+    noise: float | None = None,
+    step: float = 1e-6,
+    *,
+    focal_prior: float | None = FOCAL_PRIOR,
+    k1_prior: float | None = None,
+    principal_prior: np.ndarray | None = None,
+) -> PoseSigmas:
+    """Standard deviations of the rotation and of the direction of ``t`` (degrees) from the
+    Sampson cost.
 
     The estimated parameters are the pose, ``R(w) = exp([w]_x) R`` and
     ``t(v) = (t + v1 u1 + v2 u2) / |.|`` with ``(u1, u2)`` an orthonormal basis of the tangent
@@ -344,8 +436,9 @@ def translation_sigma_deg(
     in both views), enters as a considered parameter (Schmidt): with ``c`` its cross
     information with the estimated ones, ``focal_prior^2 (I^-1 c)(I^-1 c)^T`` is added to the
     covariance. ``s^2`` is the noise variance of one residual, ``|r|^2 / (n - 5)`` of the fit or
-    ``noise^2``. The value returned is the square root of the largest eigenvalue of the
-    translation's block (2, 2), in degrees, at most the cap.
+    ``noise^2``. Each deviation returned is the square root of the largest eigenvalue of its
+    block of the covariance (rotation (3, 3), translation (2, 2)): the worst direction, in
+    degrees, the translation's at most the cap.
 
     Parameters
     ----------
@@ -367,14 +460,22 @@ def translation_sigma_deg(
     k1_prior : float or None
         Deviation of the prior on the radial term the refinement fitted
         (:data:`ppo_cv.rotation.K1_PRIOR`); None: no radial term was fitted.
+    principal_prior : array_like of 2 floats, optional
+        Deviations ``(x, y)`` (normalised units) of the error of a principal point that was
+        only guessed (at the image centre; ``PairOptions.principal_point``), a considered
+        parameter like the focal length (``x -> x - p`` in both views): in a narrow field an
+        offset of 1 % of the image is nearly a rotation, and the essential matrix trades it
+        against ``t`` along the bas-relief valley. None holds it exact.
 
     Returns
     -------
-    float
+    PoseSigmas
+        ``inf`` for the rotation and the cap for the translation with fewer than 6 inliers or
+        an information that is not positive definite.
     """
     a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
     if len(a) < 6:
-        return T_SIGMA_CAP_DEG
+        return _UNDETERMINED
     a, b = a / a[:, 2:], b / b[:, 2:]
     t = np.asarray(t, float).reshape(3) / np.linalg.norm(t)
     residuals = _calibrated_residuals(R, t)
@@ -385,25 +486,35 @@ def translation_sigma_deg(
     estimated = [*range(_NPOSE), *([_K1] if k1_prior is not None else [])]
     if k1_prior is not None:
         info[_K1, _K1] += variance / k1_prior**2
-    fixed = info[estimated, _FOCAL] if focal_prior is not None else None
-    return _direction_sigma_deg(info[np.ix_(estimated, estimated)], variance, fixed, focal_prior)
+    considered = [_FOCAL] if focal_prior is not None else []
+    deviations = [focal_prior] if focal_prior is not None else []
+    if principal_prior is not None:
+        considered += list(_PRINCIPAL)
+        deviations += list(np.broadcast_to(np.asarray(principal_prior, float), (2,)))
+    fixed = info[np.ix_(estimated, considered)]
+    return _pose_sigmas_deg(
+        info[np.ix_(estimated, estimated)], variance, fixed, np.asarray(deviations, float)
+    )
 
 
 _NPOSE = 5
-_NPARAMS = 7  # pose increment (5), focal scale, k1
-_FOCAL, _K1 = 5, 6
+_NPARAMS = 9  # pose increment (5), focal scale, k1, principal-point offset (2)
+_FOCAL, _K1, _PRINCIPAL = 5, 6, (7, 8)
+_ROTATION = slice(0, 3)
 _TRANSLATION = slice(3, 5)
 
 
 def _calibrated_residuals(R: np.ndarray, t: np.ndarray):
-    """Signed Sampson residuals (P, N) for parameter rows (P, 7) and points (P or 1, N, 3).
+    """Signed Sampson residuals (P, N) for parameter rows (P, 9) and points (P or 1, N, 3).
 
     A row is (rotation increment ``w`` (3), tangent step ``v`` (2), focal scale ``s - 1``,
-    ``k1``); row ``p`` is evaluated on the points of row ``p`` (or on shared points).
+    ``k1``, principal-point offset ``p`` (2)); row ``p`` is evaluated on the points of row
+    ``p`` (or on shared points).
     """
     U = tangent_basis(t)
 
     def lens(x: np.ndarray, p: np.ndarray) -> np.ndarray:
+        x = x[..., :2] - p[:, None, 7:9]
         r2 = x[..., 0] ** 2 + x[..., 1] ** 2
         s = 1.0 + p[:, 5:6]
         factor = s * (1.0 - p[:, 6:7] * s * s * r2)
@@ -418,9 +529,9 @@ def _calibrated_residuals(R: np.ndarray, t: np.ndarray):
 
 
 def _jacobian_and_noise(residuals, a: np.ndarray, b: np.ndarray, step: float):
-    """Jacobian ``J`` (N, 7) at 0 and ``sum_i G_i G_i^T`` (7, 7), by central differences.
+    """Jacobian ``J`` (N, 9) at 0 and ``sum_i G_i G_i^T`` (9, 9), by central differences.
 
-    ``G_i`` (7, 4), the derivative of row ``i`` of ``J`` with respect to the image coordinates
+    ``G_i`` (9, 4), the derivative of row ``i`` of ``J`` with respect to the image coordinates
     ``(x1, y1, x2, y2)`` of match ``i`` (each moved by ``+-sqrt(step)``), is what unit image
     noise adds to ``J^T J``. Being an expectation, the sum is estimated on at most
     :data:`_NOISE_SAMPLE` evenly spaced matches and scaled to all of them.
@@ -435,31 +546,37 @@ def _jacobian_and_noise(residuals, a: np.ndarray, b: np.ndarray, step: float):
         shifts[k, view, 0, axis] = -h if sign else h
     points = np.repeat(np.stack([a[sample], b[sample]])[None] + shifts, len(dp), axis=0)
     r = residuals(np.tile(dp, (8, 1)), points[:, 0], points[:, 1]).reshape(8, 2, _NPARAMS, -1)
-    jac = (r[:, 0] - r[:, 1]) / (2.0 * step)  # (8, 7, n): coordinate k, moved + (even) or -
-    G = (jac[0::2] - jac[1::2]) / (2.0 * h)  # (4, 7, n)
+    jac = (r[:, 0] - r[:, 1]) / (2.0 * step)  # (8, 9, n): coordinate k, moved + (even) or -
+    G = (jac[0::2] - jac[1::2]) / (2.0 * h)  # (4, 9, n)
     return J, np.einsum("cpn,cqn->pq", G, G) * (len(a) / len(sample))
 
 
 _NOISE_SAMPLE = 256
 
 
-def _direction_sigma_deg(
-    info: np.ndarray, variance: float, fixed: np.ndarray | None, fixed_sigma: float | None
-) -> float:
-    """Deviation (degrees) of the translation of ``variance * info^-1``, with a held parameter.
+def _pose_sigmas_deg(
+    info: np.ndarray, variance: float, fixed: np.ndarray, fixed_sigma: np.ndarray
+) -> PoseSigmas:
+    """Deviations (degrees) of the rotation and translation of ``variance * info^-1``, with
+    held parameters.
 
-    ``fixed`` (P,) is the cross information of the estimated parameters with one held at its
-    given value, whose error has deviation ``fixed_sigma``: it moves the estimate by
-    ``S = -info^-1 fixed`` per unit, adding ``fixed_sigma^2 S S^T`` to the covariance (a
-    considered parameter, Schmidt). The cap when ``info`` is not positive definite.
+    ``fixed`` (P, F) is the cross information of the estimated parameters with F held at their
+    given values, whose errors have deviations ``fixed_sigma`` (F,): they move the estimate by
+    ``S = -info^-1 fixed`` per unit, adding ``S diag(fixed_sigma^2) S^T`` to the covariance
+    (considered parameters, Schmidt). Undetermined when ``info`` is not positive definite.
     """
     w, V = np.linalg.eigh(info)
     if w[0] <= 1e-12 * max(abs(w[-1]), 1e-300):
-        return T_SIGMA_CAP_DEG
+        return _UNDETERMINED
     inverse = (V / w) @ V.T
     cov = variance * inverse
-    if fixed is not None:
-        S = inverse @ fixed
-        cov = cov + fixed_sigma**2 * np.outer(S, S)
-    largest = float(np.linalg.eigvalsh(cov[_TRANSLATION, _TRANSLATION])[-1])
-    return float(min(np.degrees(np.sqrt(max(largest, 0.0))), T_SIGMA_CAP_DEG))
+    S = inverse @ fixed
+    cov = cov + (S * fixed_sigma**2) @ S.T
+
+    def worst_deg(block: np.ndarray) -> float:
+        return float(np.degrees(np.sqrt(max(float(np.linalg.eigvalsh(block)[-1]), 0.0))))
+
+    return PoseSigmas(
+        rotation_deg=worst_deg(cov[_ROTATION, _ROTATION]),
+        translation_deg=min(worst_deg(cov[_TRANSLATION, _TRANSLATION]), T_SIGMA_CAP_DEG),
+    )

@@ -75,17 +75,29 @@ class PoseUncertainty:
         matches determine the rotation when the focal length is known only to a few percent.
         When ``R`` was refitted on intensity-aligned windows (``rotation_tracks > 0``), the
         same bound over those tracks, its variance multiplied by how many windows share a pixel
-        (:func:`ppo_cv.photometric.window_overlap`). NaN otherwise.
+        (:func:`ppo_cv.photometric.window_overlap`). For the rotation of a general motion: the
+        worst direction of the covariance of the final refinement
+        (:func:`ppo_cv.refine.pose_sigmas_deg`, as ``t_sigma_deg``); of a plane: that of its
+        refinement on the homography
+        (:attr:`ppo_cv.plane.RefinedPlanarPose.rotation_sigma_deg`); inf when the matches do
+        not determine the pose. When ``R`` is the rotation-only fit of a moving pair
+        (``PairResult.rotation_source``), that fit's deviation combined with its bias's.
     rotation_tracks : int
         For a pure rotation whose rotation was refitted on windows aligned by intensity
         (:mod:`ppo_cv.photometric`, ``PairOptions.photometric``): the number of tracks behind
         ``R``, ``lens.focal_scale`` and ``rotation_sigma_deg``. 0 when ``R`` is that of the
         feature matches.
+    rotation_bias_deg : float
+        The bias of ``R`` (degrees) counted by the rule that chose it
+        (:mod:`ppo_cv.rotation_choice`): for the rotation-only fit of a pair that moved, the
+        parallax of the translation it ignores, measured on intensity-aligned tracks; 0 for
+        the moving models' rotations and for a pure rotation.
     """
 
     t_sigma_deg: float
     rotation_sigma_deg: float
     rotation_tracks: int
+    rotation_bias_deg: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -335,6 +347,15 @@ class PairResult:
     model : str
         ``"rotation"``, ``"plane"`` (the matches lie on one plane: pose from its homography)
         or ``"general"`` (:mod:`ppo_cv.motion_model`).
+    rotation_source : str
+        Which estimate ``R`` is (:mod:`ppo_cv.rotation_choice`): ``"rotation"`` (the
+        rotation-only fit), ``"essential"`` (the essential matrix's refined pose) or
+        ``"plane"`` (the homography's pose). A pair that is not a pure rotation returns the
+        estimate with the smallest expected error, ``|bias| + deviation``: the rotation-only
+        fit is biased by about the parallax of the translation it ignores, the moving model's
+        rotation is unbiased with deviation ``uncertainty.rotation_sigma_deg``. ``t``, the
+        points and ``model`` stay the moving model's, so with ``"rotation"`` the points are
+        those of the moving model's rotation, not of ``R``.
     pri : float
         Pure-rotation indicator (mean ``|M2|``, eq. 84) of the returned pose over the inliers:
         the essential matrix's refined pose, for a plane the homography's PPO pose, or for a
@@ -372,6 +393,7 @@ class PairResult:
     t: np.ndarray
     pure_rotation: bool
     model: str
+    rotation_source: str
     pri: float
     keypoints1: np.ndarray
     keypoints2: np.ndarray

@@ -28,8 +28,16 @@ FLAT_FIELDS = (
     "principal_offset_px", "principal_bound", "threshold_scale", "dist1", "dist2",
     "log10_nfa", "plane_residual_px", "gric_plane_difference", "plane_epipolar_ratio",
     "plane_normal", "plane_distance", "plane_ambiguous", "plane_k1", "radial_k1",
+    "rotation_source", "rotation_bias_deg",
 )  # fmt: skip
-"""Every field of the flat ``PairResult`` but ``timings`` (seconds differ run to run)."""
+"""Every field of the flat ``PairResult`` but ``timings`` (seconds differ run to run), and
+those added since (:data:`ADDED_FIELDS`)."""
+
+ADDED_FIELDS = {
+    "rotation_source": "rotation_source",
+    "rotation_bias_deg": "uncertainty.rotation_bias_deg",
+}
+"""Fields added after 0.1.0 -> their path: the record names them as the flat layout would."""
 
 RENDERS = {
     "general": ("general", 0, 0),
@@ -71,7 +79,7 @@ def read_renamed(result, name: str):
     :data:`ppo_cv.result.RENAMED_FIELDS`, without the deprecated name."""
     from ppo_cv.result import RENAMED_FIELDS
 
-    path = RENAMED_FIELDS.get(name, name)
+    path = RENAMED_FIELDS.get(name) or ADDED_FIELDS.get(name, name)
     head, _, rest = path.partition(".")
     if head == "plane" and result.plane is None:
         return NO_PLANE[rest]
@@ -96,7 +104,7 @@ def to_arrays(case: str, fields: dict[str, object]) -> dict[str, np.ndarray]:
 def main(out: str) -> None:
     arrays: dict[str, np.ndarray] = {}
     for case in ("demo", *RENDERS):
-        arrays.update(to_arrays(case, flat_fields(run_case(case))))
+        arrays.update(to_arrays(case, flat_fields(run_case(case), read_renamed)))
     np.savez_compressed(Path(out), **arrays)
 
 

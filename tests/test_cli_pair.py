@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -72,8 +73,10 @@ def test_no_arguments_runs_the_demo_pair(demo_json):
     assert REQUIRED_KEYS <= set(data)
     check_demo_pose(data)
     assert not data["pure_rotation"] and data["translation_determined"]
-    # a rotation uncertainty only for a pure rotation
-    assert data["uncertainty"]["rotation_sigma_deg"] is None
+    # the demo pair translates: its rotation is the essential matrix's, with its deviation
+    assert data["rotation_source"] == "essential"
+    assert data["uncertainty"]["rotation_bias_deg"] == 0.0
+    assert 0.0 < data["uncertainty"]["rotation_sigma_deg"] < 1.0
     assert data["num_inliers"] >= 100 and data["num_points"] > 0
     assert np.allclose(data["cameras"]["K1"], [[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, 1]])
 
@@ -83,6 +86,9 @@ def test_human_summary(tmp_path):
     assert result.exit_code == 0, result.output
     for word in ("rotation", "euler", "translation", "PRI", "general motion", "inliers", "ransac"):
         assert word in result.stdout
+    assert "R source     the essential matrix's refined pose" in result.stdout
+    sigma_line = r"R sigma      \d+\.\d{3} deg \(rotation error, worst direction\)"
+    assert re.search(sigma_line, result.stdout)
 
 
 def test_demo_command_matches_pair_without_arguments(demo_json):

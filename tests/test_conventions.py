@@ -159,7 +159,8 @@ def test_pure_rotation_json_has_no_usable_t(pure_rotation_files):
 def test_result_to_dict_keeps_t_for_a_general_motion():
     nan = float("nan")
     result = PairResult(
-        R=np.eye(3), t=np.array([1.0, 0, 0]), pure_rotation=False, model="general", pri=0.1,
+        R=np.eye(3), t=np.array([1.0, 0, 0]), pure_rotation=False, model="general",
+        rotation_source="essential", pri=0.1,
         keypoints1=np.zeros((3, 2)), keypoints2=np.zeros((3, 2)),
         matches=np.repeat(np.arange(3), 2).reshape(3, 2), inliers=np.ones(3, dtype=bool),
         points3d=np.ones((3, 3)), point_matches=np.arange(3), colours=np.zeros((3, 3), np.uint8),

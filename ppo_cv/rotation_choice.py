@@ -1,0 +1,253 @@
+"""Which rotation to return: the estimate with the smallest expected error.
+
+Every pair has two estimates of its rotation: the rotation-only fit
+(:func:`ppo_cv.rotation.fit_rotation_lens`, refitted on intensity-aligned tracks when those
+were aligned) and the rotation of the moving model, the essential matrix's refined pose or the
+plane's. Each is scored by its expected error, ``|bias| + deviation`` (degrees), and the
+smaller wins (:func:`choose_rotation`).
+
+- The moving model explains a translation, so a translation does not bias its rotation; its
+  deviation is the worst direction of the covariance of its final refinement
+  (:func:`ppo_cv.refine.pose_sigmas_deg`), which in a narrow field with a tiny baseline is
+  large: a sideways translation and a pan make nearly the same flow (the bas-relief
+  ambiguity), and a radial term lets the angle slide further.
+- The rotation-only fit has its own deviation (:attr:`ppo_cv.rotation.LensRotationFit.
+  rotation_sigma_deg`, or :func:`rotation_fit_sigma_deg` when its lens was clipped to the box)
+  and a bias: the translation it does not model (:func:`translation_bias`).
+
+The bias. A camera moved by ``b`` before a point at depth ``Z`` shifts the point's normalised
+image by ``((b_x - x b_z) / Z, (b_y - y b_z) / Z)``; a small rotation ``w`` shifts it by
+``(w_y (1 + x^2) - w_x x y - w_z y, -w_x (1 + y^2) + w_y x y + w_z x)``. To first order in the
+field (``x, y`` small) the rotation's flow is the uniform shift ``(w_y, -w_x)``, the
+translation's the uniform shift ``b_perp / Z`` plus a radial part ``-b_z (x, y) / Z`` that the
+fit's focal scale, not its rotation, absorbs. The least-squares rotation over the matches
+therefore takes ``|w| = mean(|b_perp| / Z)`` radians of the translation, turned toward the
+translation's perpendicular. For a plane of normal ``n`` at distance ``d``, ``b_perp / d`` is
+the part of ``u = b / d`` across the normal of the plane of its homography
+(:func:`across_normal_parallax`), so the bias is that parallax as the intensity-aligned tracks
+measure it, in radians, and its deviation adds to that of the fit:
+``expected = parallax + sqrt(sigma_fit^2 + sigma_parallax^2)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .lsq import gauss_newton_covariance, rotation_increment
+from .model_selection import robust_sigma
+from .motion_model import MotionDecision
+from .parallax import PlaneParallax
+from .photometric import PhotometricRotation
+from .rotation import (
+    FOCAL_PRIOR,
+    K1_PRIOR,
+    LensRotationFit,
+    lens_rotation_residuals,
+)
+
+__all__ = [
+    "ROTATION_SOURCES",
+    "RotationEstimate",
+    "across_normal_parallax",
+    "choose_rotation",
+    "rotation_only_estimate",
+    "rotation_fit_sigma_deg",
+    "translation_bias",
+]
+
+ROTATION_SOURCES = ("rotation", "essential", "plane")
+"""Where a returned rotation comes from: the rotation-only fit, the essential matrix's refined
+pose or the plane's (homography) pose."""
+
+
+@dataclass(frozen=True)
+class RotationEstimate:
+    """One estimate of a pair's rotation and its error budget.
+
+    Attributes
+    ----------
+    source : str
+        One of :data:`ROTATION_SOURCES`.
+    R : ndarray, shape (3, 3)
+    bias_deg : float
+        Systematic error (degrees) the model leaves: for the rotation-only fit, the
+        translation's parallax (:func:`translation_bias`); 0 for a moving model.
+    sigma_deg : float
+        Standard deviation (degrees) of its random error; inf when unknown.
+    """
+
+    source: str
+    R: np.ndarray
+    bias_deg: float
+    sigma_deg: float
+
+    def __post_init__(self) -> None:
+        if self.source not in ROTATION_SOURCES:
+            raise ValueError(
+                f"unknown rotation source {self.source!r}; choose one of "
+                + ", ".join(ROTATION_SOURCES)
+            )
+
+    @property
+    def expected_error_deg(self) -> float:
+        """``|bias_deg| + sigma_deg``; inf when either is not a number."""
+        value = abs(float(self.bias_deg)) + float(self.sigma_deg)
+        return value if value == value else float("inf")
+
+
+def choose_rotation(estimates: Sequence[RotationEstimate]) -> RotationEstimate:
+    """The estimate with the smallest expected error; the first one on a tie.
+
+    Parameters
+    ----------
+    estimates : sequence of RotationEstimate
+        At least one; list the moving model's first, so that it keeps the rotation when
+        neither is known (both expected errors infinite).
+
+    Returns
+    -------
+    RotationEstimate
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> essential = RotationEstimate("essential", np.eye(3), 0.0, 1.5)
+    >>> rotation = RotationEstimate("rotation", np.eye(3), 0.3, 0.1)
+    >>> choose_rotation([essential, rotation]).source
+    'rotation'
+    """
+    if len(estimates) == 0:
+        raise ValueError("choose_rotation needs at least one estimate")
+    errors = np.array([estimate.expected_error_deg for estimate in estimates])
+    return estimates[int(np.argmin(errors))]
+
+
+def across_normal_parallax(H: np.ndarray) -> float:
+    """``|u x n|`` of a homography ``H ~ R (I + u n^T)`` (3, 3): the baseline across the
+    plane's normal over its distance, radians.
+
+    ``I + u n^T`` (``|n| = 1``) has its middle singular value 1, the product of the other two
+    ``1 + u . n`` and the sum of their squares ``2 + 2 u . n + |u|^2``, so with the singular
+    values of ``H`` scaled to ``s2 = 1``: ``|u| = s1 - s3`` and ``u . n = s1 s3 - 1``, hence
+    ``|u x n|^2 = (s1 - s3)^2 - (s1 s3 - 1)^2``. A change of focal length (``u`` along ``n``)
+    gives 0, as does a rotation. Unlike :func:`ppo_cv.parallax.homography_parallax`, which
+    takes the smaller of the two logarithmic gaps and so reads little of a sideways motion
+    that comes with a forward one, this is the whole sideways part.
+
+    >>> import numpy as np
+    >>> H = np.eye(3) + np.outer([0.05, 0.0, 0.025], [0.0, 0.0, 1.0])
+    >>> round(across_normal_parallax(H), 4)
+    0.05
+    """
+    s = np.linalg.svd(np.asarray(H, dtype=np.float64), compute_uv=False)
+    if not s[1] > 0:
+        return float("inf")
+    s = s / s[1]
+    return float(np.sqrt(max((s[0] - s[2]) ** 2 - (s[0] * s[2] - 1.0) ** 2, 0.0)))
+
+
+def translation_bias(parallax: PlaneParallax | None) -> tuple[float, float]:
+    """Bias of a rotation-only fit and its deviation (degrees) from the homography the tracks
+    fit (see the module docstring): :func:`across_normal_parallax` of its ``H``, with the
+    deviation of its parallax; ``(inf, 0)`` when it was not measured."""
+    if parallax is None or not np.isfinite(parallax.parallax):
+        return float("inf"), 0.0
+    bias = max(across_normal_parallax(parallax.H), abs(parallax.parallax))
+    return float(np.degrees(bias)), float(np.degrees(parallax.sigma))
+
+
+def rotation_fit_sigma_deg(
+    lens: LensRotationFit, x1: np.ndarray, x2: np.ndarray, used: np.ndarray, step: float = 1e-6
+) -> float:
+    """Root-mean-square angle error (degrees) of a rotation-only fit's rotation, its focal
+    scale and ``k1`` estimated jointly under the priors :data:`ppo_cv.rotation.FOCAL_PRIOR`
+    and :data:`ppo_cv.rotation.K1_PRIOR`, at the fit's own values.
+
+    This is the covariance :func:`ppo_cv.rotation.fit_rotation_lens` reports, evaluated where a
+    lens clipped to its box left it undefined (``rotation_sigma_deg`` inf): ``v (J^T J)^-1``
+    with ``J`` the Jacobian of the transfer errors of the ``used`` matches (normalised
+    points, (N, 2) or (N, 3)) and the prior rows, ``v`` the robust variance of a coordinate of
+    those errors. inf with fewer than 4 matches or a singular ``J``.
+    """
+    a, b = np.asarray(x1, float)[used], np.asarray(x2, float)[used]
+    if len(a) < 4:
+        return float("inf")
+
+    def residuals(p: np.ndarray) -> np.ndarray:
+        errors = lens_rotation_residuals(
+            rotation_increment(p[:3]) @ lens.R, lens.focal_scale + p[3], lens.k1 + p[4],
+            a, b, lens.principal_offset, lens.focal_ratio, vectors=True,
+        )  # fmt: skip
+        return errors.ravel()
+
+    r0 = residuals(np.zeros(5))
+    noise = robust_sigma(np.linalg.norm(r0.reshape(-1, 2), axis=1), 2)
+    if not noise > 0:
+        return float("inf")
+    J = np.column_stack([(residuals(step * e) - r0) / step for e in np.eye(5)])
+    prior = np.diag([0.0, 0.0, 0.0, noise / FOCAL_PRIOR, noise / K1_PRIOR])[3:]
+    cov = gauss_newton_covariance(np.vstack([J, prior]), noise**2)
+    if cov is None:
+        return float("inf")
+    return float(np.degrees(np.sqrt(max(float(np.trace(cov[:3, :3])), 0.0))))
+
+
+def rotation_only_estimate(
+    motion: MotionDecision,
+    tracks: PhotometricRotation | None,
+    x1: np.ndarray,
+    x2: np.ndarray,
+    used: np.ndarray,
+) -> RotationEstimate:
+    """The rotation-only fit of a pair as a :class:`RotationEstimate`.
+
+    Parameters
+    ----------
+    motion : MotionDecision
+        The decision, whose rotation-only fit of the feature matches is taken when no tracks
+        were aligned.
+    tracks : PhotometricRotation or None
+        The rotation refitted on intensity-aligned tracks
+        (:func:`ppo_cv.photometric.refine_rotation_photometric`) and their parallax, which
+        measures the bias; without them the bias is unknown (inf). Feature matches do not
+        measure it well enough: in a narrow field the homography of a few hundred matches
+        located to a few tenths of a pixel reads a parallax of 0.01-0.08 on pure rotations
+        whose tracks read 0.001-0.005.
+    x1, x2 : ndarray, shape (N, 3)
+        Normalised points of all matches, lens not corrected.
+    used : ndarray of bool, shape (N,)
+        Matches behind the fit's deviation when it must be recomputed: the union of the
+        rotation's and the moving model's inliers.
+
+    Returns
+    -------
+    RotationEstimate
+        Source ``"rotation"``; bias and its deviation from :func:`translation_bias`, the
+        deviation of the fit (:func:`rotation_fit_sigma_deg` when the fit has none) combined
+        with that of the bias (the fit's alone when the bias is unknown).
+    """
+    lens = _decision_lens(motion) if tracks is None else tracks.fit
+    parallax = None if tracks is None else tracks.parallax
+    sigma = float(lens.rotation_sigma_deg)
+    if not np.isfinite(sigma):
+        sigma = rotation_fit_sigma_deg(lens, x1, x2, used)
+    bias, bias_sigma = translation_bias(parallax)
+    return RotationEstimate("rotation", lens.R, bias, float(np.hypot(sigma, bias_sigma)))
+
+
+def _decision_lens(motion: MotionDecision) -> LensRotationFit:
+    """The rotation-only fit of a decision (:func:`ppo_cv.motion_model.decide_motion`) as a
+    :class:`ppo_cv.rotation.LensRotationFit` (no residuals)."""
+    return LensRotationFit(
+        R=motion.R,
+        focal_scale=motion.focal_scale,
+        k1=motion.k1,
+        focal_scale_sigma=float("inf"),
+        residuals=np.empty(0),
+        rotation_sigma_deg=motion.rotation_sigma_deg,
+        principal_offset=motion.principal_offset,
+        focal_ratio=motion.focal_ratio,
+    )
