@@ -293,19 +293,20 @@ def _align_level(template, positions, d, stack2, ramp, iterations):
         columns *= weight[..., None]
         if brightness is None:
             brightness = _solve(columns, target)
-        gain = brightness[:, :3] @ ramp_columns.T
+        gain = brightness[:, :3].astype(np.float32) @ ramp_columns.T
         shifting = np.stack([gain * s[..., 1], gain * s[..., 2]], axis=-1) * weight[..., None]
         inverse, jacobian_t = _normal_inverse(np.concatenate([shifting, columns], axis=-1))
         intensity, active = s[..., 0], np.ones(len(template), dtype=bool)
         for iteration in range(iterations):
-            idx = np.flatnonzero(active)
-            if not len(idx):
+            if not active.any():
                 break
+            idx = slice(None) if active.all() else np.flatnonzero(active)  # views while all move
             if iteration:
                 intensity = _bilinear(values2, positions[idx] + d[idx, None, :])[..., 0]
-            gain = brightness[idx, :3] @ ramp_columns.T
-            residual = (gain * intensity + brightness[idx, 3:]) * weight[idx] - target[idx]
-            gradient = jacobian_t[idx] @ residual.astype(np.float32)[..., None]
+            level = brightness[idx].astype(np.float32)
+            modelled = (level[:, :3] @ ramp_columns.T) * intensity + level[:, 3:]
+            residual = modelled * weight[idx] - target[idx]
+            gradient = jacobian_t[idx] @ residual[..., None]
             step = -_DAMPING * (inverse[idx] @ gradient.astype(np.float64))[..., 0]
             shift = np.clip(step[:, :2], -2.0, 2.0)
             d[idx] += shift
