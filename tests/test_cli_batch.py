@@ -69,6 +69,23 @@ def test_features_are_computed_once_per_image_and_change_nothing(tmp_path, monke
     assert all("error" not in row for row in runs[True][1][:3])
 
 
+def test_a_weak_pair_reuses_the_cached_denser_features(tmp_path, monkeypatch):
+    (tmp_path / "pairs.txt").write_text(f"{NAME1} {NAME2}\n{NAME2} {NAME1}\n")
+    options = pipeline_options(redetect_below=5000)  # every pair weak: both consensuses fitted
+    calls = _counting(monkeypatch)
+    runs = {}
+    for cache in (True, False):
+        calls.clear()
+        output = tmp_path / f"cache_{cache}.jsonl"
+        code = batch.run_pairs(tmp_path / "pairs.txt", DATA, K_TEXT, output, 1, options,
+                               cache=cache, quiet=True)  # fmt: skip
+        assert code == 0
+        runs[cache] = (len(calls), _without_timings(output))
+    assert runs[True][0] == 2  # each image once, at the second detection's threshold
+    assert runs[False][0] == 4  # each image once per pair
+    assert runs[True][1] == runs[False][1]
+
+
 def test_feature_cache_is_keyed_by_path_and_options(tmp_path):
     options = pipeline_options()
     cache = batch.FeatureCache(tmp_path, options)
