@@ -543,24 +543,21 @@ def _colours(image: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 
 def _detect_both(
-    image1, image2, options: PairOptions, threshold_scale: float | None = None
+    image1, image2, options: PairOptions, threshold_scale: float = 1.0
 ) -> tuple[Features, Features, float]:
     """Features of both images on two threads (OpenCV releases the GIL), and when both were done.
 
-    By default SIFT detects at :data:`REDETECT_THRESHOLD_SCALE` when a weak consensus may need
-    the denser features (``PairOptions.redetect_below``): the features at threshold 1 are
-    those thinned by their response (:func:`ppo_cv.features.at_threshold`), and one detection
-    serves both (on 640x480 photos it costs about a third more than one at 1, against twice as
-    much for two).
+    One pair detects at threshold 1 and again lower only when its consensus is weak: SIFT
+    detected once at :data:`REDETECT_THRESHOLD_SCALE` and thinned to 1
+    (:func:`ppo_cv.features.at_threshold`, what the feature cache of ``ppo-cv pairs`` holds)
+    costs a weak pair less but a strong one more, up to twice as much on finely textured
+    images (a 640x480 render 141 -> 228 ms per image, the 611x918 pano_dev pair 147 -> 282),
+    and left the median whole-pair time of ten freiburg pairs unchanged (0.39-0.41 s CPU).
 
     The first use of pycolmap in a process pays its import; it is overlapped with detection.
     The returned ``time.perf_counter()`` of the end of detection separates the two.
     """
     from concurrent.futures import ThreadPoolExecutor
-
-    if threshold_scale is None:
-        denser = options.features == "sift" and options.redetect_below > 0
-        threshold_scale = REDETECT_THRESHOLD_SCALE if denser else 1.0
 
     def run(image):
         features = detect_features(

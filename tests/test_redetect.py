@@ -86,7 +86,13 @@ def test_only_sift_features_detected_lower_are_thinned():
         at_threshold(detect_features(image), REDETECT_THRESHOLD_SCALE)
 
 
-def test_a_weak_pair_is_detected_once(narrow_pair, monkeypatch):
+def test_given_denser_features_serve_both_consensuses(narrow_pair, monkeypatch):
+    image1, image2 = _bgr(narrow_pair.image1), _bgr(narrow_pair.image2)
+    denser = {
+        name: detect_features(image, threshold_scale=REDETECT_THRESHOLD_SCALE)
+        for name, image in (("features1", image1), ("features2", image2))
+    }
+    detected = _estimate(narrow_pair)
     calls = []
 
     def counted(image, *args, **kwargs):
@@ -95,9 +101,10 @@ def test_a_weak_pair_is_detected_once(narrow_pair, monkeypatch):
 
     monkeypatch.setattr(features_module, "detect_features", counted)
     monkeypatch.setattr("ppo_cv.pipeline.detect_features", counted)
-    result = _estimate(narrow_pair)
+    result = estimate_pair(image1, image2, narrow_pair.K1_given, narrow_pair.K2_given, **denser)
+    assert not calls  # thinned for the first consensus, as they are for the second
     assert result.threshold_scale == REDETECT_THRESHOLD_SCALE
-    assert [args[-1] for args in calls] == [REDETECT_THRESHOLD_SCALE] * 2
+    np.testing.assert_allclose(result.R, detected.R, atol=1e-9)
 
 
 def test_a_weak_narrow_pan_is_flagged_on_denser_features(narrow_pair):
