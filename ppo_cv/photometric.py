@@ -48,7 +48,7 @@ image 1 lands in image 2, and the intensities fix it far better:
 
 On renders and warped photos with the imperfections of real ones (distortion, focal 3 % off,
 JPEG) this brings the median rotation error of each set of exact pure rotations in full overlap
-from 0.02-0.18 to 0.00-0.04 degrees (0.08 with sensor noise and blur), in narrow overlaps as
+from 0.02-0.18 to 0.00-0.05 degrees (0.07 with sensor noise and blur), in narrow overlaps as
 stitched from 0.25 to 0.09, and from 0.12 to 0.07 against the rotation fitted with an exact given
 focal (``docs/pure_rotation.md``, made by ``benchmarks/pure_rotation.py``).
 """
