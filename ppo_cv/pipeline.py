@@ -781,8 +781,10 @@ def estimate_pair(
     features1, features2 : Features, optional
         Precomputed features of the images (as :func:`~ppo_cv.features.detect_features` gives
         with the ``options``); given both, the first detection is skipped (a second one, on
-        the images, follows a weak consensus: ``PairOptions.redetect_below``). Batch runs use
-        it to detect each image once.
+        the images, follows a weak consensus: ``PairOptions.redetect_below``). SIFT features
+        detected at :data:`REDETECT_THRESHOLD_SCALE` serve both: thinned to threshold 1 for
+        the first consensus (:func:`ppo_cv.features.at_threshold`), as they are for the
+        second. Batch runs use it to detect each image once.
     progress : callable, optional
         Called with the name of each stage as it ends (the keys of ``PairResult.timings``,
         some more than once), to show progress during long work.
