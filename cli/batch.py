@@ -355,7 +355,9 @@ def _features_job(job: tuple) -> tuple[str, str]:
 
     SIFT is detected at the threshold of a second detection when ``redetect_below`` may ask
     for one: ``estimate_pair`` thins the features to the first threshold itself, and a weak
-    pair then needs no detection of its own.
+    pair then needs no detection of its own. When that detection reaches ``max_features``,
+    OpenCV keeps the strongest in another order than a detection at the first threshold
+    gives, so the image is detected at the first threshold instead.
     """
     import numpy as np
 
@@ -367,10 +369,12 @@ def _features_job(job: tuple) -> tuple[str, str]:
     try:
         check_image_file(path)
         image = load_image(path, exif_orientation=exif_orientation)
+        detect = (image, options.features, options.max_features, options.max_image_size)
         found = features_module.detect_features(
-            image, options.features, options.max_features, options.max_image_size,
-            threshold_scale=REDETECT_THRESHOLD_SCALE if denser else 1.0, name=path,
-        )  # fmt: skip
+            *detect, threshold_scale=REDETECT_THRESHOLD_SCALE if denser else 1.0, name=path
+        )
+        if denser and len(found) >= options.max_features:  # cut by strength, in another order
+            found = features_module.detect_features(*detect, name=path)
     except Exception as exc:  # one image's failure is its pairs' error line, not the batch's
         return "error", _error_line(exc, path)
     np.savez(

@@ -233,7 +233,9 @@ def at_threshold(features: Features, threshold_scale: float) -> Features:
     reaches ``0.04 threshold_scale``, and reports that contrast as the keypoint's response;
     a detection at a lower threshold finds the same keypoints with the same descriptors and
     more. Those whose response passes the higher threshold are the keypoints of a detection
-    there, in the same order (on freiburg and pano_dev photos and the demo pair, every one
+    there, in the same order when the lower detection kept fewer than its ``max_features``
+    (beyond, OpenCV keeps the strongest in another order) (on freiburg and pano_dev photos
+    and the demo pair, every one
     of 20 detections the same keypoints and descriptors, one of them with a keypoint more: a
     second extremum that refined to the same place, which matching keeps once).
 
