@@ -737,8 +737,9 @@ def _noisy_sets(official, official_warped, narrow, stitched, n, n_large):
     )
 
 
-def run(quick: bool = False) -> dict:
-    """Evaluate every set; returns ``{set: {"label": 0/1, "rows": [...]}}``."""
+def run(quick: bool = False, only: str | None = None) -> dict:
+    """Evaluate every set (with ``only``, those whose name contains it, ignoring case);
+    returns ``{set: {"label": 0/1, "rows": [...]}}``."""
     counts = (
         {"official": 3, "rotation": 2, "warped": 2, "baseline": 2, "sweep": 1, "freiburg": 4}
         if quick
@@ -754,6 +755,8 @@ def run(quick: bool = False) -> dict:
     have_photos = (FREIBURG / "pairs_with_gt.txt").is_file()
     results = {}
     for name, label, pairs, peers, options in _sets(counts, have_photos):
+        if only is not None and only.lower() not in name.lower():
+            continue
         rows = []
         for tag, (image1, image2, K1, K2, R_true) in pairs:
             K2 = K1 if K2 is None else K2
@@ -1014,13 +1017,18 @@ def main(argv: list[str] | None = None) -> int:
         help="JSON file for the raw rows (default with --report and without --quick: "
         "benchmarks/pure_rotation.json)",
     )
+    parser.add_argument(
+        "--sets",
+        help="run only the sets whose name contains this text (ignoring case), e.g. "
+        "'sensor noise'; no rows are written unless --rows",
+    )
     args = parser.parse_args(argv)
     if args.from_json is not None:
         saved = json.loads(args.from_json.read_text())
         seconds, results = saved.pop("_seconds"), saved
     else:
         start = time.perf_counter()
-        results = run(args.quick)
+        results = run(args.quick, args.sets)
         seconds = time.perf_counter() - start
     plot = None
     if args.out is not None:
@@ -1032,7 +1040,8 @@ def main(argv: list[str] | None = None) -> int:
     print(text)
     if args.report is not None:
         args.report.write_text(text)
-    rows = args.rows or (None if args.quick or args.report is None else ROWS)
+    partial = args.quick or args.sets is not None
+    rows = args.rows or (None if partial or args.report is None else ROWS)
     if rows is not None and args.from_json is None:
         rows.write_text(json.dumps({"_seconds": seconds, **results}, indent=1))
     return 0

@@ -351,22 +351,36 @@ class FeatureCache:
 
 
 def _features_job(job: tuple) -> tuple[str, str]:
-    """Detect one image's features into an ``.npz`` file; an unreadable image gives its error."""
+    """Detect one image's features into an ``.npz`` file; an unreadable image gives its error.
+
+    SIFT is detected at the threshold of a second detection when ``redetect_below`` may ask
+    for one: ``estimate_pair`` thins the features to the first threshold itself, and a weak
+    pair then needs no detection of its own. When that detection reaches ``max_features``,
+    OpenCV keeps the strongest in another order than a detection at the first threshold
+    gives, so the image is detected at the first threshold instead.
+    """
     import numpy as np
 
     from ppo_cv import features as features_module
-    from ppo_cv.pipeline import load_image
+    from ppo_cv.pipeline import REDETECT_THRESHOLD_SCALE, load_image
 
     path, options, target, exif_orientation = job
+    denser = options.features == "sift" and options.redetect_below > 0
     try:
         check_image_file(path)
         image = load_image(path, exif_orientation=exif_orientation)
+        detect = (image, options.features, options.max_features, options.max_image_size)
         found = features_module.detect_features(
-            image, options.features, options.max_features, options.max_image_size, name=path
+            *detect, threshold_scale=REDETECT_THRESHOLD_SCALE if denser else 1.0, name=path
         )
+        if denser and len(found) >= options.max_features:  # cut by strength, in another order
+            found = features_module.detect_features(*detect, name=path)
     except Exception as exc:  # one image's failure is its pairs' error line, not the batch's
         return "error", _error_line(exc, path)
-    np.savez(target, keypoints=found.keypoints, descriptors=found.descriptors, kind=found.kind)
+    np.savez(
+        target, keypoints=found.keypoints, descriptors=found.descriptors, kind=found.kind,
+        responses=found.responses, threshold_scale=found.threshold_scale,
+    )  # fmt: skip
     return "file", target
 
 
@@ -386,7 +400,10 @@ def _load_features(target: str):
     from ppo_cv.features import Features
 
     with np.load(target) as data:
-        return Features(data["keypoints"], data["descriptors"], str(data["kind"]))
+        return Features(
+            data["keypoints"], data["descriptors"], str(data["kind"]),
+            data["responses"], float(data["threshold_scale"]),
+        )  # fmt: skip
 
 
 def _pair_job(job: tuple) -> dict:

@@ -58,6 +58,7 @@ from .checks import as_camera_matrix, as_distortion
 from .features import (
     FEATURE_TYPES,
     Features,
+    at_threshold,
     detect_features,
     match_features_scored,
     require_detectable,
@@ -331,6 +332,13 @@ def _detect_both(
 ) -> tuple[Features, Features, float]:
     """Features of both images on two threads (OpenCV releases the GIL), and when both were done.
 
+    One pair detects at threshold 1 and again lower only when its consensus is weak: SIFT
+    detected once at :data:`REDETECT_THRESHOLD_SCALE` and thinned to 1
+    (:func:`ppo_cv.features.at_threshold`, what the feature cache of ``ppo-cv pairs`` holds)
+    costs a weak pair less but a strong one more, up to twice as much on finely textured
+    images (a 640x480 render 141 -> 228 ms per image, the 611x918 pano_dev pair 147 -> 282),
+    and left the median whole-pair time of ten freiburg pairs unchanged (0.39-0.41 s CPU).
+
     The first use of pycolmap in a process pays its import; it is overlapped with detection.
     The returned ``time.perf_counter()`` of the end of detection separates the two.
     """
@@ -347,6 +355,23 @@ def _detect_both(
             pool.submit(importlib.import_module, "pycolmap")
         (f1, done1), (f2, done2) = pool.map(run, (image1, image2))
     return f1, f2, max(done1, done2)
+
+
+def _thins_to(features: Features, threshold_scale: float) -> bool:
+    """Whether ``features`` hold those of a detection at ``threshold_scale``
+    (:func:`ppo_cv.features.at_threshold`)."""
+    return (
+        features.kind == "sift"
+        and features.responses is not None
+        and features.threshold_scale <= threshold_scale
+    )
+
+
+def _thinned(features: Features, threshold_scale: float) -> Features:
+    """``features`` at ``threshold_scale`` when they were detected lower; else as they are."""
+    if _thins_to(features, threshold_scale) and features.threshold_scale < threshold_scale:
+        return at_threshold(features, threshold_scale)
+    return features
 
 
 def _refine(R, t, x1, x2, inliers, focal, options: PairOptions, rounds: int = 3):
@@ -456,7 +481,10 @@ class _Consensus:
 def _consensus(
     f1, f2, threshold_scale, K1, K2, dist1, dist2, focal, shape2, options, lap
 ) -> _Consensus:
-    """Match, normalise and fit ``E`` robustly (stages 2-4); ValueError names what is missing."""
+    """Match, normalise and fit ``E`` robustly (stages 2-4) on the features at
+    ``threshold_scale`` (SIFT features detected lower thinned to it); ValueError names what is
+    missing."""
+    f1, f2 = _thinned(f1, threshold_scale), _thinned(f2, threshold_scale)
     for name, f in (("image1", f1), ("image2", f2)):
         if len(f) < MIN_MATCHES:
             raise ValueError(f"{name} has too few features ({len(f)}): blank or textureless image")
@@ -505,7 +533,9 @@ def _best_consensus(
         found, failure = None, exc
     weak = found is None or found.fit.num_inliers < options.redetect_below
     if options.redetect_below > 0 and weak:
-        d1, d2, _ = _detect_both(img1, img2, options, REDETECT_THRESHOLD_SCALE)
+        d1, d2 = f1, f2
+        if not all(_thins_to(f, REDETECT_THRESHOLD_SCALE) for f in (f1, f2)):
+            d1, d2, _ = _detect_both(img1, img2, options, REDETECT_THRESHOLD_SCALE)
         lap("features")
         try:
             denser = _consensus(d1, d2, REDETECT_THRESHOLD_SCALE, *camera)
@@ -949,8 +979,10 @@ def estimate_pair(
     features1, features2 : Features, optional
         Precomputed features of the images (as :func:`~ppo_cv.features.detect_features` gives
         with the ``options``); given both, the first detection is skipped (a second one, on
-        the images, follows a weak consensus: ``PairOptions.redetect_below``). Batch runs use
-        it to detect each image once.
+        the images, follows a weak consensus: ``PairOptions.redetect_below``). SIFT features
+        detected at :data:`REDETECT_THRESHOLD_SCALE` serve both: thinned to threshold 1 for
+        the first consensus (:func:`ppo_cv.features.at_threshold`), as they are for the
+        second. Batch runs use it to detect each image once.
     progress : callable, optional
         Called with the name of each stage as it ends (the keys of ``PairResult.timings``,
         some more than once), to show progress during long work.

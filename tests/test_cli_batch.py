@@ -62,11 +62,31 @@ def test_features_are_computed_once_per_image_and_change_nothing(tmp_path, monke
                                cache=cache, quiet=True)  # fmt: skip
         assert code == 0
         runs[cache] = (len(calls), _without_timings(output))
-    assert runs[True][0] == 2  # two readable images, each detected once for four pairs
+    # two readable images detected once for four pairs, at the second detection's threshold;
+    # there the first reaches max_features (2000 of its 2228 keypoints), so it is detected
+    # again at the first threshold, the second (1989) is not
+    assert runs[True][0] == 3
     assert runs[False][0] == 6  # two per pair that reaches detection
     assert runs[True][1] == runs[False][1]  # same poses, inliers, counts: the cache is exact
     assert "image not found" in runs[True][1][3]["error"]
     assert all("error" not in row for row in runs[True][1][:3])
+
+
+def test_a_weak_pair_reuses_the_cached_denser_features(tmp_path, monkeypatch):
+    (tmp_path / "pairs.txt").write_text(f"{NAME1} {NAME2}\n{NAME2} {NAME1}\n")
+    options = pipeline_options(redetect_below=5000)  # every pair weak: both consensuses fitted
+    calls = _counting(monkeypatch)
+    runs = {}
+    for cache in (True, False):
+        calls.clear()
+        output = tmp_path / f"cache_{cache}.jsonl"
+        code = batch.run_pairs(tmp_path / "pairs.txt", DATA, K_TEXT, output, 1, options,
+                               cache=cache, quiet=True)  # fmt: skip
+        assert code == 0
+        runs[cache] = (len(calls), _without_timings(output))
+    assert runs[True][0] == 2  # each image once, at the second detection's threshold
+    assert runs[False][0] == 8  # each image twice per pair: at the first threshold and lower
+    assert runs[True][1] == runs[False][1]
 
 
 def test_feature_cache_is_keyed_by_path_and_options(tmp_path):

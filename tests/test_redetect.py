@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 from ppo_cv import PairOptions, data_gen, estimate_pair
+from ppo_cv import features as features_module
 from ppo_cv.cli.pair import _summary
 from ppo_cv.export import result_to_dict
-from ppo_cv.features import detect_features
+from ppo_cv.features import at_threshold, detect_features
 from ppo_cv.metrics import rotation_error_deg
 from ppo_cv.pipeline import REDETECT_THRESHOLD_SCALE
 
@@ -53,6 +54,57 @@ def test_a_lower_threshold_keeps_weaker_keypoints(narrow_pair):
     for bad in (0.0, -1.0, float("nan"), float("inf")):
         with pytest.raises(ValueError, match="threshold_scale"):
             detect_features(narrow_pair.image1, threshold_scale=bad)
+
+
+def _demo_images() -> list[np.ndarray]:
+    import cv2
+
+    from ppo_cv.cli.pair import _demo_inputs
+
+    image1, image2, _ = _demo_inputs()
+    return [cv2.imread(image1), cv2.imread(image2)]
+
+
+@pytest.mark.parametrize("max_image_size", [None, 320])
+def test_denser_sift_features_thinned_are_those_of_the_default_threshold(max_image_size):
+    for image in _demo_images():
+        detect = {"max_image_size": max_image_size}
+        default = detect_features(image, **detect)
+        denser = detect_features(image, threshold_scale=REDETECT_THRESHOLD_SCALE, **detect)
+        thinned = at_threshold(denser, 1.0)
+        assert len(denser) > len(default) > 300
+        np.testing.assert_array_equal(thinned.keypoints, default.keypoints)
+        np.testing.assert_array_equal(thinned.descriptors, default.descriptors)
+        assert thinned.threshold_scale == 1.0
+
+
+def test_only_sift_features_detected_lower_are_thinned():
+    image = _demo_images()[0]
+    with pytest.raises(ValueError, match="only SIFT"):
+        at_threshold(detect_features(image, "orb"), 1.0)
+    with pytest.raises(ValueError, match="at least the features' 1"):
+        at_threshold(detect_features(image), REDETECT_THRESHOLD_SCALE)
+
+
+def test_given_denser_features_serve_both_consensuses(narrow_pair, monkeypatch):
+    image1, image2 = _bgr(narrow_pair.image1), _bgr(narrow_pair.image2)
+    denser = {
+        name: detect_features(image, threshold_scale=REDETECT_THRESHOLD_SCALE)
+        for name, image in (("features1", image1), ("features2", image2))
+    }
+    detected = _estimate(narrow_pair)
+    calls = []
+
+    def counted(image, *args, **kwargs):
+        calls.append(args)
+        return detect_features(image, *args, **kwargs)
+
+    monkeypatch.setattr(features_module, "detect_features", counted)
+    monkeypatch.setattr("ppo_cv.pipeline.detect_features", counted)
+    result = estimate_pair(image1, image2, narrow_pair.K1_given, narrow_pair.K2_given, **denser)
+    assert not calls  # thinned for the first consensus, as they are for the second
+    assert result.threshold_scale == REDETECT_THRESHOLD_SCALE
+    np.testing.assert_allclose(result.R, detected.R, atol=1e-9)
 
 
 def test_a_weak_narrow_pan_is_flagged_on_denser_features(narrow_pair):
