@@ -4,9 +4,10 @@ Run ``python benchmarks/pairs_cache.py [--workers 2] [--seeds 0 1 2]``: runs the
 user does (a subprocess, JSON lines to a file, process start included), alternating the old
 behaviour (``--no-cache``, features detected for every pair, with the old defaults written out on
 the command line in ``OLD_DEFAULTS``) and today's defaults (each image's features detected once),
-once per RANSAC seed so that an AUC change is not one lucky draw. Prints each run's wall time
-and AUC, the median wall-time ratio, where the worker time goes (pipeline stages summed over the
-pairs) and the machine (CPU model, CPU count, load average before and after).
+once per RANSAC seed so that an AUC change is not one lucky draw. Prints each run's wall time,
+CPU time (user + system of the command and its workers: what the run cost on a shared host)
+and AUC, the median wall-time and CPU-time ratios, where the worker time goes (pipeline stages
+summed over the pairs) and the machine (CPU model, CPU count, load average before and after).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import json
 import os
 import platform
 import re
+import resource
 import shutil
 import statistics
 import subprocess
@@ -53,9 +55,12 @@ def run_once(old: bool, workers: int, seed: int, scratch: Path) -> dict:
     ]  # fmt: skip
     if old:
         command += OLD_DEFAULTS
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     out = subprocess.run(command, capture_output=True, text=True)
     wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     if out.returncode != 0:
         raise SystemExit(f"ppo-cv pairs failed: {out.stderr.strip()}")
     row = re.search(r"^\| (\d+) \| (\d+) \| ([\d.]+) \| ([\d.]+) \| ([\d.]+) \|$", out.stdout, re.M)
@@ -67,6 +72,7 @@ def run_once(old: bool, workers: int, seed: int, scratch: Path) -> dict:
             stages[stage] = stages.get(stage, 0.0) + seconds
     return {
         "wall": wall,
+        "cpu": cpu,
         "pairs": int(row.group(1)),
         "failed": int(row.group(2)),
         "auc": tuple(float(row.group(i)) for i in (3, 4, 5)),
@@ -101,7 +107,12 @@ def main(argv: list[str] | None = None) -> None:
         for seed in args.seeds:
             for old in (True, False):
                 results[old].append(run_once(old, args.workers, seed, Path(scratch)))
+                r = results[old][-1]
+                label = "old" if old else "new"
+                line = f"{label} seed {seed}: {r['wall']:.1f} s wall, {r['cpu']:.1f} s CPU"
+                print(f"{line}, AUC {r['auc']}", file=sys.stderr, flush=True)
     walls = {old: statistics.median(r["wall"] for r in rs) for old, rs in results.items()}
+    cpus = {old: statistics.median(r["cpu"] for r in rs) for old, rs in results.items()}
     print(
         f"ppo-cv pairs on the {results[False][0]['pairs']} freiburg pairs, --workers "
         f"{args.workers}, seeds {' '.join(map(str, args.seeds))}; {_cpu_model()}, "
@@ -111,21 +122,23 @@ def main(argv: list[str] | None = None) -> None:
     print(f"old: {' '.join(OLD_DEFAULTS)}; new: the defaults (features once per image)")
     print("pose error = max(rotation error, translation-direction error); failures count as 180")
     print()
-    print("| run | seed | wall time | AUC@5 / 10 / 20 | failed |")
-    print("|---|---:|---:|---|---:|")
+    print("| run | seed | wall time | CPU time | AUC@5 / 10 / 20 | failed |")
+    print("|---|---:|---:|---:|---|---:|")
     for old, label in ((True, "old"), (False, "new")):
         for seed, r in zip(args.seeds, results[old], strict=True):
             auc = " / ".join(f"{v:.1f}" for v in r["auc"])
-            print(f"| {label} | {seed} | {r['wall']:.1f} s | {auc} | {r['failed']} |")
+            times = f"{r['wall']:.1f} s | {r['cpu']:.1f} s"
+            print(f"| {label} | {seed} | {times} | {auc} | {r['failed']} |")
     for old, label in ((True, "old"), (False, "new")):
         mean = [statistics.mean(r["auc"][i] for r in results[old]) for i in range(3)]
         print(
-            f"| {label}, mean | | {walls[old]:.1f} s (median) | "
+            f"| {label}, mean | | {walls[old]:.1f} s (median) | {cpus[old]:.1f} s (median) | "
             + " / ".join(f"{v:.1f}" for v in mean)
             + " | |"
         )
     print()
     print(f"speed-up (median wall time old / new): {walls[True] / walls[False]:.2f}x")
+    print(f"CPU time (median old / new): {cpus[True] / cpus[False]:.2f}x")
     print()
     print(
         "Pipeline stages summed over the pairs (seconds of worker time, first seed; with the "
