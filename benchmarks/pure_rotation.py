@@ -32,7 +32,14 @@ focal length given off by up to 3 %, a 25-35 degree field of view, JPEG):
 - ``... sensor noise and blur``: warped photos, 8 cm tripod pans (also at 1600x1200),
   ``tiny-baseline`` at 0.02 and the narrow overlaps as stitched, their images noisier and
   blurrier (:data:`NOISY`), so that the features are located about as poorly as on photos;
+- ``... narrow lens``: ``data_gen`` pairs through :data:`ppo_cv.data_gen.NARROW_LENS` (a
+  15-25 degree field, a division-model lens of ``|k1|`` 0.05-0.15, mostly barrel): exact tripod
+  pans (``tripod`` at baseline / depth 0), tripod pans whose lens is not at the pivot
+  (``tripod``, baseline / depth 0.002-0.01, labelled like real tripod panoramas, to be
+  flagged), and ``tiny-baseline`` at 0.02 (translating);
 - ``sweep``: ``tiny-baseline`` from 0.001 to 0.05, to see where the flag switches;
+- ``pano_dev``: 56 pairs of three real tripod panorama sequences (``../shared/data/pano_dev``,
+  reference rotations fitted with the given focal length; skipped with a note without it);
 - ``freiburg``: the 85 real translating pairs with pseudo ground truth (must not be flagged).
 
 Every method gets the same matches: ppo_cv's SIFT matches of the pair (``PairResult.matches``).
@@ -41,13 +48,16 @@ ppo_cv is ``estimate_pair`` (which computes those matches); pycolmap is
 PLANAR_OR_PANORAMIC; rotation: ``estimate_two_view_geometry_pose``); OpenCV is
 ``findEssentialMat(USAC_MAGSAC)`` + ``recoverPose``; PoseLib is ``estimate_relative_pose``.
 
-Run ``python benchmarks/pure_rotation.py --out docs/benchmarks --report docs/pure_rotation.md``
-(``--quick`` for a few pairs per set). Needs ``../shared/data/freiburg`` for the photo sets.
+Run ``python benchmarks/pure_rotation.py --out docs/benchmarks --report docs/pure_rotation.md
+--workers 2`` (``--quick`` for a few pairs per set, ``--sets NAME`` for the sets whose name
+contains ``NAME``, ``--merge`` to put their rows into the rows file and report every set from
+it). Needs ``../shared/data/freiburg`` for the photo sets.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import json
 import os
@@ -79,8 +89,12 @@ from rotation_rows import evaluated, flag_counts, main_set  # noqa: E402
 
 __all__ = ["run", "main"]
 
+PANO_DEV_SET = "pano_dev"
+
 ROWS = ROOT / "benchmarks" / "pure_rotation.json"
-FREIBURG = Path(os.environ.get("PPO_CV_SHARED", ROOT.parent / "shared")) / "data" / "freiburg"
+SHARED_DATA = Path(os.environ.get("PPO_CV_SHARED", ROOT.parent / "shared")) / "data"
+FREIBURG = SHARED_DATA / "freiburg"
+PANO_DEV = SHARED_DATA / "pano_dev"
 K_FREIBURG = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
 SWEEP = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05)
 TRIPOD_PIVOTS = (0.08, 0.15)
@@ -581,13 +595,14 @@ def evaluate_pair(image1, image2, K1, K2, R_true, peers: bool = True, options=No
     return row
 
 
-def _freiburg_pairs(limit):
-    lines = [line.split() for line in (FREIBURG / "pairs_with_gt.txt").read_text().splitlines()]
+def _listed_pairs(folder: Path, limit):
+    """The first ``limit`` pairs of a pairs file with ground truth (freiburg's format)."""
+    lines = [line.split() for line in (folder / "pairs_with_gt.txt").read_text().splitlines()]
     for fields in [f for f in lines if f][:limit]:
         K1 = np.array(fields[4:13], float).reshape(3, 3)
         K2 = np.array(fields[13:22], float).reshape(3, 3)
         T = np.array(fields[22:38], float).reshape(4, 4)
-        images = FREIBURG / "images"
+        images = folder / "images"
         yield fields[0] + " " + fields[1], (
             cv2.imread(str(images / fields[0])), cv2.imread(str(images / fields[1])),
             K1, K2, T[:3, :3],
@@ -695,6 +710,7 @@ def _sets(counts: dict, have_photos: bool):
     yield "data_gen tripod pan, pivot 8 cm, narrow overlap, as stitched", 1, pairs, True, None
     pairs = official("tiny-baseline", n, 0.02, imperfections=stitched)
     yield "data_gen tiny-baseline 0.02, as stitched", 0, pairs, True, None
+    yield from _narrow_lens_sets(official, n)
     yield from _noisy_sets(official, official_warped, narrow, stitched, n, counts["baseline"])
     yield "harness render rotation", 1, renders(0.0, counts["rotation"]), True, None
     if have_photos:
@@ -705,8 +721,23 @@ def _sets(counts: dict, have_photos: bool):
     for ratio in SWEEP:
         pairs = official("tiny-baseline", counts["sweep"], ratio)
         yield f"sweep-{ratio}", int(ratio < 0.02), pairs, False, None
+    if (PANO_DEV / "pairs_with_gt.txt").is_file():
+        yield PANO_DEV_SET, 1, _listed_pairs(PANO_DEV, counts["pano_dev"]), True, None
     if have_photos:
-        yield "freiburg", 0, _freiburg_pairs(counts["freiburg"]), True, None
+        yield "freiburg", 0, _listed_pairs(FREIBURG, counts["freiburg"]), True, None
+
+
+def _narrow_lens_sets(official, n):
+    """Tripod pans and a translation through :data:`ppo_cv.data_gen.NARROW_LENS`."""
+    from ppo_cv import data_gen
+
+    lens, told = data_gen.NARROW_LENS, "narrow lens"
+    pairs = official("tripod", n, 0.0, imperfections=lens)
+    yield f"data_gen pan, {told}, baseline 0", 1, pairs, True, None
+    pairs = official("tripod", n, imperfections=lens)
+    yield f"data_gen tripod pan, {told}, baseline 0.002-0.01", 1, pairs, True, None
+    pairs = official("tiny-baseline", n, 0.02, imperfections=lens)
+    yield f"data_gen tiny-baseline 0.02, {told}", 0, pairs, True, None
 
 
 def _noisy_sets(official, official_warped, narrow, stitched, n, n_large):
@@ -737,11 +768,13 @@ def _noisy_sets(official, official_warped, narrow, stitched, n, n_large):
     )
 
 
-def run(quick: bool = False, only: str | None = None) -> dict:
-    """Evaluate every set (with ``only``, those whose name contains it, ignoring case);
-    returns ``{set: {"label": 0/1, "rows": [...]}}``."""
+def run(quick: bool = False, sets: list[str] | None = None, workers: int = 1) -> dict:
+    """Evaluate every set (or those whose name contains one of ``sets``), the pairs of a set
+    in ``workers`` processes; returns ``{set: {"label": 0/1, "rows": [...]}}``, a set that
+    could not run with ``"skipped"``: why."""
     counts = (
-        {"official": 3, "rotation": 2, "warped": 2, "baseline": 2, "sweep": 1, "freiburg": 4}
+        {"official": 3, "rotation": 2, "warped": 2, "baseline": 2, "sweep": 1, "freiburg": 4,
+         "pano_dev": 4}
         if quick
         else {
             "official": 14,
@@ -750,23 +783,49 @@ def run(quick: bool = False, only: str | None = None) -> dict:
             "baseline": 8,
             "sweep": 4,
             "freiburg": 85,
+            "pano_dev": 56,
         }
-    )
+    )  # fmt: skip
     have_photos = (FREIBURG / "pairs_with_gt.txt").is_file()
     results = {}
-    for name, label, pairs, peers, options in _sets(counts, have_photos):
-        if only is not None and only.lower() not in name.lower():
-            continue
-        rows = []
-        for tag, (image1, image2, K1, K2, R_true) in pairs:
-            K2 = K1 if K2 is None else K2
-            row = evaluate_pair(image1, image2, K1, K2, R_true, peers, options)
-            rows.append({"pair": tag, **row})
-            print(f"{name} {tag}: " + json.dumps(row), flush=True)
-        results[name] = {"label": label, "rows": rows}
-        if options is not None:
-            results[name]["focal_ratio"] = options.focal_ratio
+    with contextlib.ExitStack() as stack:
+        pool = None
+        if workers > 1:
+            from ppo_cv.atomic import worker_pool
+
+            pool = stack.enter_context(worker_pool(workers, _init_worker))
+        for name, label, pairs, peers, options in _sets(counts, have_photos):
+            if sets and not any(part.lower() in name.lower() for part in sets):
+                continue
+            jobs = ((name, tag, item, peers, options) for tag, item in pairs)
+            rows = list(pool.imap(_evaluated_row, jobs) if pool else map(_evaluated_row, jobs))
+            results[name] = {"label": label, "rows": rows}
+            if options is not None:
+                results[name]["focal_ratio"] = options.focal_ratio
+    if PANO_DEV_SET not in results and (
+        not sets or any(p.lower() in PANO_DEV_SET.lower() for p in sets)
+    ):
+        note = f"no {PANO_DEV / 'pairs_with_gt.txt'}"
+        print(f"{PANO_DEV_SET}: skipped, {note}", file=sys.stderr)
+        results[PANO_DEV_SET] = {"label": 1, "rows": [], "skipped": note}
     return results
+
+
+def _init_worker() -> None:
+    from ppo_cv.atomic import import_pycolmap
+
+    with contextlib.suppress(ImportError):
+        import_pycolmap()
+    cv2.setNumThreads(1)
+
+
+def _evaluated_row(job) -> dict:
+    """The row of one pair: ``(set name, tag, (image1, image2, K1, K2, R), peers, options)``."""
+    name, tag, (image1, image2, K1, K2, R_true), peers, options = job
+    K2 = K1 if K2 is None else K2
+    row = evaluate_pair(image1, image2, K1, K2, R_true, peers, options)
+    print(f"{name} {tag}: " + json.dumps(row), flush=True)
+    return {"pair": tag, **row}
 
 
 def _flag_rate(rows, key):
@@ -927,6 +986,10 @@ def report(results: dict, seconds: float, plot: str | None) -> str:
     for name, data in results.items():
         if not main_set(name, data):
             continue
+        if "skipped" in data:
+            lines.append(f"| {name} | {_label(name, data)} | 0 | skipped: {data['skipped']} "
+                         "| | | | | | | |")  # fmt: skip
+            continue
         rows = evaluated(data["rows"])
         ours, n = _flag_rate(rows, "ppo_cv_flag")
         theirs, _ = _flag_rate(rows, "pycolmap_flag")
@@ -1018,18 +1081,32 @@ def main(argv: list[str] | None = None) -> int:
         "benchmarks/pure_rotation.json)",
     )
     parser.add_argument(
-        "--sets",
-        help="run only the sets whose name contains this text (ignoring case), e.g. "
-        "'sensor noise'; no rows are written unless --rows",
-    )
+        "--sets", action="append", metavar="NAME",
+        help="only the sets whose name contains NAME, ignoring case (repeatable), e.g. "
+        "'sensor noise'; rows are written only with --merge or --rows",
+    )  # fmt: skip
+    parser.add_argument(
+        "--merge", action="store_true",
+        help="with --sets: replace those sets in the rows file (--rows, else the default) and "
+        "report every set in it",
+    )  # fmt: skip
+    parser.add_argument("--workers", type=int, default=1, help="processes evaluating pairs")
     args = parser.parse_args(argv)
+    if args.workers < 1:
+        parser.error(f"--workers must be at least 1, got {args.workers}")
+    if args.merge and not args.sets:
+        parser.error("--merge needs --sets")
     if args.from_json is not None:
         saved = json.loads(args.from_json.read_text())
         seconds, results = saved.pop("_seconds"), saved
     else:
         start = time.perf_counter()
-        results = run(args.quick, args.sets)
+        results = run(args.quick, args.sets, args.workers)
         seconds = time.perf_counter() - start
+        if args.merge:
+            saved = json.loads((args.rows or ROWS).read_text())
+            seconds = saved.pop("_seconds")
+            results = {**saved, **results}
     plot = None
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
@@ -1040,8 +1117,8 @@ def main(argv: list[str] | None = None) -> int:
     print(text)
     if args.report is not None:
         args.report.write_text(text)
-    partial = args.quick or args.sets is not None
-    rows = args.rows or (None if partial or args.report is None else ROWS)
+    default_rows = args.merge or not (args.quick or args.sets or args.report is None)
+    rows = args.rows or (ROWS if default_rows else None)
     if rows is not None and args.from_json is None:
         rows.write_text(json.dumps({"_seconds": seconds, **results}, indent=1))
     return 0

@@ -8,7 +8,13 @@ from typing import Annotated
 
 import typer
 
-from ppo_cv.data_gen.names import MAX_BASELINE_RATIO, MAX_PIVOT_OFFSET, MOTIONS, SCENES
+from ppo_cv.data_gen.names import (
+    BASELINE_MOTIONS,
+    MAX_BASELINE_RATIO,
+    MAX_PIVOT_OFFSET,
+    MOTIONS,
+    SCENES,
+)
 
 from .common import ProgressReport, Quiet, fail, print_result
 
@@ -53,8 +59,8 @@ def _check(out_dir: Path, pairs: int, seed: int, motion: str | None, scene: str 
         _fail(f"--alpha must be in (0, 1], got {alpha}")
     if baseline_ratio is not None and not 0.0 <= baseline_ratio <= MAX_BASELINE_RATIO:
         _fail(f"--baseline-ratio must be in [0, {MAX_BASELINE_RATIO}], got {baseline_ratio}")
-    if baseline_ratio is not None and (motion != "tiny-baseline" or warp):
-        _fail("--baseline-ratio applies to --motion tiny-baseline only")
+    if baseline_ratio is not None and (motion not in BASELINE_MOTIONS or warp):
+        _fail(f"--baseline-ratio applies to --motion {' and '.join(BASELINE_MOTIONS)} only")
     if not 0.0 <= pivot_offset <= MAX_PIVOT_OFFSET:
         _fail(f"--pivot-offset must be in [0, {MAX_PIVOT_OFFSET:g}] m, got {pivot_offset}")
     if pivot_offset and (motion != "panorama" or warp):
@@ -80,22 +86,24 @@ def _check(out_dir: Path, pairs: int, seed: int, motion: str | None, scene: str 
         _fail(str(exc))
 
 
-def _imperfections(imperfect: bool, noise: float | None, blur: float | None, **told):
-    """``REAL_PHOTO`` with the noise, blur and what the estimator is told (``told``: fields of
-    ``Imperfections``) asked for, or None without ``--imperfect``."""
+def _imperfections(imperfect: bool, noise: float | None, blur: float | None,
+                   narrow_lens: bool = False, **told):  # fmt: skip
+    """``REAL_PHOTO`` (``NARROW_LENS`` with ``narrow_lens``) with the noise, blur and what the
+    estimator is told (``told``: fields of ``Imperfections``) asked for, or None without
+    ``--imperfect``."""
     if not imperfect:
-        if any(told.values()):
-            _fail("--centred-principal-point, --view-focal-error, --exposure-ev and --vignetting "
-                  "need --imperfect")  # fmt: skip
+        if any(told.values()) or narrow_lens:
+            _fail("--centred-principal-point, --view-focal-error, --exposure-ev, --vignetting "
+                  "and --narrow-lens need --imperfect")  # fmt: skip
         return None
     import dataclasses
 
-    from ppo_cv.data_gen import REAL_PHOTO
+    from ppo_cv.data_gen import NARROW_LENS, REAL_PHOTO
 
     changes = {"noise_std": noise, "blur_sigma": blur, **told}
     changes = {key: value for key, value in changes.items() if value is not None}
     try:
-        return dataclasses.replace(REAL_PHOTO, **changes)
+        return dataclasses.replace(NARROW_LENS if narrow_lens else REAL_PHOTO, **changes)
     except ValueError as exc:
         _fail(str(exc))
 
@@ -140,8 +148,8 @@ def register(app: typer.Typer) -> None:
         baseline_ratio: Annotated[
             float | None,
             typer.Option(
-                help="Baseline / median depth of tiny-baseline in [0, 0.5]; log-uniform in "
-                "[0.001, 0.05] if omitted."
+                help="Baseline / median depth of tiny-baseline or tripod in [0, 0.5]; if "
+                "omitted log-uniform in [0.001, 0.05] (tiny-baseline) or [0.002, 0.01] (tripod)."
             ),
         ] = None,
         pivot_offset: Annotated[
@@ -157,6 +165,14 @@ def register(app: typer.Typer) -> None:
                 "--imperfect",
                 help="As real photos: unmodelled radial distortion, focal length given 3 % "
                 "off, 25-35 deg field of view, JPEG, noise 1, blur 0.5.",
+            ),
+        ] = False,
+        narrow_lens: Annotated[
+            bool,
+            typer.Option(
+                "--narrow-lens",
+                help="With --imperfect: a consumer zoom near its long end, 15-25 deg field, "
+                "division-model k1 of 0.05-0.15 (barrel on 7 lenses of 10).",
             ),
         ] = False,
         centred_principal_point: Annotated[
@@ -241,7 +257,7 @@ def register(app: typer.Typer) -> None:
         if warp and different_k:
             _fail("--different-k does not apply to --warp (one camera)")
         imperfections = _imperfections(
-            imperfect, noise, blur,
+            imperfect, noise, blur, narrow_lens,
             centred_principal_point=centred_principal_point or None,
             view_focal_error=view_focal_error, exposure_ev=exposure_ev, vignetting=vignetting,
         )  # fmt: skip

@@ -2,8 +2,8 @@
 
 A real photo differs from the exact pinhole renders in ways no estimator is told about:
 
-* unmodelled radial distortion ``(k1, k2)`` of the OpenCV model, applied in rendering but not
-  given to the estimator;
+* unmodelled radial distortion ``(k1, k2)`` of the OpenCV model, or the one coefficient of the
+  division model (``division``), applied in rendering but not given to the estimator;
 * a focal length known only to a few percent: the estimator is given ``K_given`` whose ``fx``
   and ``fy`` are the true ones times one factor ``f ~ U(1 - focal_error, 1 + focal_error)``;
 * optionally focal lengths estimated per photo, as a panorama stitcher gives them: each view's
@@ -30,6 +30,7 @@ import cv2
 import numpy as np
 
 __all__ = [
+    "NARROW_LENS",
     "REAL_PHOTO",
     "DrawnImperfections",
     "Imperfections",
@@ -46,6 +47,24 @@ MAX_EXPOSURE_EV = 3.0
 MAX_VIGNETTING = 0.9
 GAMMA = 2.2
 """Power law between the stored grey levels and linear light (close to sRGB's curve)."""
+DIVISION_SERIES = (1.0, 2.0, 5.0)
+"""OpenCV's ``(k1, k2, k3)`` of a division-model lens ``lambda`` are ``lambda`` times these
+powers of it: undistorting ``x = q m`` by ``q = x / (1 + lambda |x|^2)`` needs
+``m = 1 + lambda |q|^2 m^2``, whose series in ``lambda |q|^2`` has the Catalan numbers as
+coefficients (1, 1, 2, 5, 14, ...). The first left out, ``14 lambda^4 |q|^9``, is below 2e-7 of
+the focal length for ``|lambda| <= 0.15`` and ``|q| <= 0.3`` (a 30 degree diagonal)."""
+
+
+def division_dist(k1: float) -> np.ndarray:
+    """OpenCV distortion coefficients ``(k1, k2, p1, p2, k3)`` of the division-model lens
+    ``q = x / (1 + k1 |x|^2)`` (``x`` distorted, ``q`` pinhole; :data:`DIVISION_SERIES`).
+
+    >>> division_dist(-0.1).round(6).tolist()
+    [-0.1, 0.02, 0.0, 0.0, -0.005]
+    """
+    k = float(k1)
+    first, second, third = (c * k ** (i + 1) for i, c in enumerate(DIVISION_SERIES))
+    return np.array([first, second, 0.0, 0.0, third])
 
 
 def _pair(name: str, value, low: float, high: float) -> tuple[float, float]:
@@ -73,7 +92,8 @@ class DrawnImperfections:
     Attributes
     ----------
     k1, k2 : float
-        Radial distortion of both views (same lens), OpenCV ``dist = (k1, k2, 0, 0, 0)``.
+        Radial distortion of both views (same lens), OpenCV ``dist = (k1, k2, 0, 0, 0)``; with
+        ``division`` ``k1`` is the division model's coefficient and ``k2`` is 0.
     focal_factor : float
         ``fx_given / fx_true = fy_given / fy_true`` for both views.
     view_factors : (float, float)
@@ -88,6 +108,8 @@ class DrawnImperfections:
         view 1 is exposed ``-exposure_ev / 2`` stops, view 2 ``+exposure_ev / 2``.
     vignetting : float
         Light lost in the image corners by both views, as :attr:`Imperfections.vignetting`.
+    division : bool
+        ``k1`` is the coefficient of the division model (:attr:`Imperfections.division`).
     """
 
     k1: float
@@ -99,10 +121,14 @@ class DrawnImperfections:
     view_factors: tuple = (1.0, 1.0)
     exposure_ev: float = 0.0
     vignetting: float = 0.0
+    division: bool = False
 
     @property
     def dist(self) -> np.ndarray:
-        """OpenCV distortion coefficients ``(k1, k2, 0, 0, 0)``, shape (5,)."""
+        """OpenCV distortion coefficients ``(k1, k2, 0, 0, 0)``, or those of the division-model
+        lens ``k1`` (:func:`division_dist`), shape (5,)."""
+        if self.division:
+            return division_dist(self.k1)
         return np.array([self.k1, self.k2, 0.0, 0.0, 0.0])
 
     def record(self) -> dict:
@@ -145,7 +171,8 @@ class Imperfections:
     Attributes
     ----------
     k1_range : (float, float), default (0.02, 0.1)
-        ``|k1| ~ U(k1_range)`` with a random sign; ``0 <= low <= high <= 0.5``.
+        ``|k1| ~ U(k1_range)`` with a random sign (:attr:`barrel_share`);
+        ``0 <= low <= high <= 0.5``.
     k2_fraction : float, default 0
         ``k2 = k2_fraction * k1``; ``|k2_fraction| <= 5``.
     focal_error : float, default 0.03
@@ -176,6 +203,13 @@ class Imperfections:
     vignetting : float, default 0
         Fraction of the light lost in the image corners, ``1 - vignetting * (r / r_corner)^2``
         at distance ``r`` from the image centre, the same in both views; in ``[0, 0.9]``.
+    barrel_share : float, default 0.5
+        Probability that the lens has barrel distortion (``k1 < 0``, the common case of
+        consumer zooms), in ``[0, 1]``; the sign is drawn from the same number either way.
+    division : bool, default False
+        ``k1`` is the coefficient of the division model ``q = x / (1 + k1 |x|^2)`` on
+        normalised points (``x`` distorted, ``q`` pinhole), as radial refinements fit it,
+        rendered through :func:`division_dist`; needs ``k2_fraction = 0``.
     """
 
     k1_range: tuple = (0.02, 0.1)
@@ -189,6 +223,8 @@ class Imperfections:
     view_focal_error: float = 0.0
     exposure_ev: float = 0.0
     vignetting: float = 0.0
+    barrel_share: float = 0.5
+    division: bool = False
 
     def __post_init__(self) -> None:
         put = object.__setattr__
@@ -198,8 +234,14 @@ class Imperfections:
                 f"{self.centred_principal_point!r}"
             )
         put(self, "centred_principal_point", bool(self.centred_principal_point))
+        if not isinstance(self.division, (bool, np.bool_)):
+            raise ValueError(f"division must be True or False, got {self.division!r}")
+        put(self, "division", bool(self.division))
+        put(self, "barrel_share", _scalar("barrel_share", self.barrel_share, 0.0, 1.0))
         put(self, "k1_range", _pair("k1_range", self.k1_range, 0.0, MAX_K1))
         put(self, "k2_fraction", _scalar("k2_fraction", self.k2_fraction, -5.0, 5.0))
+        if self.division and self.k2_fraction != 0.0:
+            raise ValueError("k2_fraction must be 0 for a division-model lens (division=True)")
         put(self, "focal_error", _scalar("focal_error", self.focal_error, 0.0, MAX_FOCAL_ERROR))
         put(self, "view_focal_error",
             _scalar("view_focal_error", self.view_focal_error, 0.0, MAX_FOCAL_ERROR))  # fmt: skip
@@ -224,7 +266,7 @@ class Imperfections:
         Always makes the same four draws (sign and size of ``k1``, focal factor, quality), so
         the rest of a pair's random stream does not depend on the settings.
         """
-        sign = 1.0 if rng.random() < 0.5 else -1.0
+        sign = 1.0 if rng.random() < 1.0 - self.barrel_share else -1.0
         k1 = sign * float(rng.uniform(*self.k1_range))
         factor = float(rng.uniform(1.0 - self.focal_error, 1.0 + self.focal_error))
         quality_draw = rng.random()
@@ -245,7 +287,7 @@ class Imperfections:
         return DrawnImperfections(
             k1=k1, k2=self.k2_fraction * k1, focal_factor=factor, jpeg_quality=quality,
             noise_std=self.noise_std, blur_sigma=self.blur_sigma, view_factors=views,
-            exposure_ev=exposure, vignetting=self.vignetting,
+            exposure_ev=exposure, vignetting=self.vignetting, division=self.division,
         )  # fmt: skip
 
     def record(self) -> dict:
@@ -255,6 +297,14 @@ class Imperfections:
 
 REAL_PHOTO = Imperfections()
 """Imperfections of a consumer camera on a tripod: the defaults of :class:`Imperfections`."""
+
+NARROW_LENS = Imperfections(
+    k1_range=(0.05, 0.15), division=True, barrel_share=0.7, hfov_range=(15.0, 25.0)
+)
+"""A consumer zoom near its long end on a tripod: a 15-25 degree field, where a small
+translation and a pan are nearly the same flow, and a lens of strong distortion, the division
+model's ``|k1|`` 0.05-0.15 on normalised points, barrel on seven lenses of ten; the focal
+length, JPEG, noise and blur of :data:`REAL_PHOTO`."""
 
 
 def given_intrinsics(

@@ -32,6 +32,7 @@ from ppo_cv.atomic import staging_folder, worker_count, worker_pool
 
 from .imperfect import Imperfections
 from .motion import DEFAULT_SCENE, MAX_BASELINE_RATIO, MOTIONS, check_pivot_offset, sample_motion
+from .names import BASELINE_MOTIONS
 from .render import RenderedPair, render_pair
 from .scenes import SCENES, make_scene
 from .textures import texture_pool
@@ -69,8 +70,10 @@ def _check_args(motion, scene, seed, index, size, alpha, supersample, noise_std,
             raise ValueError(
                 f"baseline_ratio must be in [0, {MAX_BASELINE_RATIO}], got {baseline_ratio}"
             )
-        if motion != "tiny-baseline":
-            raise ValueError(f"baseline_ratio applies to tiny-baseline only, not {motion!r}")
+        if motion not in BASELINE_MOTIONS:
+            raise ValueError(
+                f"baseline_ratio applies to {' and '.join(BASELINE_MOTIONS)} only, not {motion!r}"
+            )
     for name, value in (("noise_std", noise_std), ("blur_sigma", blur_sigma)):
         if not np.isfinite(value) or value < 0:
             raise ValueError(f"{name} must be finite and >= 0, got {value}")
@@ -119,7 +122,8 @@ def make_pair(
     same_intrinsics : bool
         ``K2 = K1`` if True.
     baseline_ratio : float, optional
-        ``baseline / median depth`` of ``tiny-baseline`` in [0, 0.5]; drawn if None.
+        ``baseline / median depth`` of ``tiny-baseline`` and ``tripod`` in [0, 0.5]; drawn
+        if None.
     imperfections : Imperfections, optional
         Render as a real camera would (:class:`Imperfections`): the drawn radial distortion
         is applied to both views, the field of view drawn in ``hfov_range``, the views blurred,

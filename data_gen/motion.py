@@ -36,6 +36,14 @@ so ``t = -R C2``. Presets:
     and rotation are those of ``pure-rotation`` for the same random stream, and a given ratio
     changes nothing else: a sweep of ``baseline_ratio`` at one seed starts from the
     ``pure-rotation`` pair (ratio 0 renders it exactly).
+``tripod``
+    The ``panorama`` pan about a pivot on the optical axis behind the lens (a tripod whose
+    screw is not under the lens's entrance pupil), the pivot's distance set so that the
+    baseline is ``baseline_ratio`` times the median depth that camera 1 sees:
+    ``|t| = |(I - R) P| = baseline_ratio * median depth``. ``baseline_ratio`` is given (in
+    [0, 0.5]) or drawn log-uniformly in [0.002, 0.01], where a sideways translation and a pan
+    are nearly the same flow in a narrow field; ratio 0 renders the exact rotation, and a given
+    ratio changes nothing else.
 
 Here ``depth`` is the scene's typical depth (:attr:`Scene.depth`), ``hfov`` the horizontal
 field of view of camera 1.
@@ -71,6 +79,7 @@ DEFAULT_SCENE = {
     "planar": "plane",
     "panorama": "room",
     "tiny-baseline": "clutter",
+    "tripod": "room",
 }
 """Scene used with each motion preset unless another one is asked for."""
 
@@ -79,6 +88,7 @@ DEFAULT_HFOV_RANGE = (55.0, 70.0)
 PANORAMA_YAW_FRACTION = (0.35, 0.7)
 PANORAMA_TILT_SIGMA_DEG = 1.5
 TINY_BASELINE_RANGE = (1e-3, 0.05)
+TRIPOD_BASELINE_RANGE = (2e-3, 1e-2)
 
 
 @dataclass(frozen=True)
@@ -166,7 +176,7 @@ def sample_motion(
     Parameters
     ----------
     name : {"general", "pure-rotation", "small-parallax", "forward", "planar", "panorama", \
-"tiny-baseline"}
+"tiny-baseline", "tripod"}
     scene : Scene
         Supplies the look-at target and the typical depth.
     rng : numpy.random.Generator
@@ -179,9 +189,11 @@ def sample_motion(
     hfov_range : (float, float), optional
         Range of the horizontal field of view in degrees (default 55-70).
     baseline_ratio : float, optional
-        ``baseline / median depth`` of ``tiny-baseline`` in [0, 0.5]; drawn if None.
+        ``baseline / median depth`` of ``tiny-baseline`` and ``tripod`` in [0, 0.5]; drawn
+        if None.
     dist : array_like, optional
-        Lens distortion of camera 1, used to find the surfaces it sees (``tiny-baseline``).
+        Lens distortion of camera 1, used to find the surfaces it sees (``tiny-baseline``,
+        ``tripod``).
     pivot_offset : float, default 0
         Distance (metres, in [0, 1]) of the centre of a ``panorama`` turn behind the camera.
 
@@ -228,6 +240,8 @@ def sample_motion(
         R, t = _panorama(rng, params["hfov1_deg"], params, float(pivot_offset))
     elif name == "tiny-baseline":
         R, t = _tiny_baseline(rng, scene, K1, size, dist, baseline_ratio, params)
+    elif name == "tripod":
+        R, t = _tripod(rng, scene, K1, size, dist, baseline_ratio, params)
     else:
         baseline = rng.uniform(0.1, 0.2) * depth
         euler = _truncated_normal(rng, [1.5, 1.5, 3.0])
@@ -276,3 +290,21 @@ def _tiny_baseline(rng, scene, K1, size, dist, baseline_ratio, params) -> tuple:
     params.update(baseline_ratio=ratio, median_depth=depth, baseline=ratio * depth,
                   centre=centre.tolist(), euler_deg=euler.tolist())  # fmt: skip
     return R, -R @ centre
+
+
+def _tripod(rng, scene, K1, size, dist, baseline_ratio, params) -> tuple:
+    """``panorama`` pan about the pivot behind the lens that makes ``|t|`` the drawn or given
+    ``baseline_ratio`` of the median depth."""
+    from .render import median_depth
+
+    R, _ = _panorama(rng, params["hfov1_deg"], params)
+    low, high = np.log10(TRIPOD_BASELINE_RANGE)
+    drawn = float(10.0 ** rng.uniform(low, high))
+    ratio = drawn if baseline_ratio is None else float(baseline_ratio)
+    depth = median_depth(scene, K1, size, dist)
+    behind = np.array([0.0, 0.0, -1.0])
+    pivot = ratio * depth / float(np.linalg.norm(behind - R @ behind))
+    t = pivot * (behind - R @ behind)
+    params.update(baseline_ratio=ratio, median_depth=depth, baseline=ratio * depth,
+                  pivot_offset=pivot)  # fmt: skip
+    return R, t

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["MOTIONS", "SCENES", "MAX_BASELINE_RATIO", "MAX_PIVOT_OFFSET"]
+__all__ = ["BASELINE_MOTIONS", "MOTIONS", "SCENES", "MAX_BASELINE_RATIO", "MAX_PIVOT_OFFSET"]
 
 MOTIONS = (
     "general",
@@ -12,6 +12,7 @@ MOTIONS = (
     "planar",
     "panorama",
     "tiny-baseline",
+    "tripod",
 )
 """Names accepted by :func:`ppo_cv.data_gen.motion.sample_motion`."""
 
@@ -19,7 +20,10 @@ SCENES = ("room", "clutter", "plane", "backdrop")
 """Names accepted by :func:`ppo_cv.data_gen.scenes.make_scene`."""
 
 MAX_BASELINE_RATIO = 0.5
-"""Largest ``baseline_ratio`` (baseline over scene depth) of ``tiny-baseline``."""
+"""Largest ``baseline_ratio`` (baseline over scene depth) of ``tiny-baseline`` and ``tripod``."""
+
+BASELINE_MOTIONS = ("tiny-baseline", "tripod")
+"""Presets that take a ``baseline_ratio``."""
 
 MAX_PIVOT_OFFSET = 1.0
 """Largest ``pivot_offset`` of ``panorama``, metres."""

@@ -170,7 +170,7 @@ __all__ = [
 
 LENS_SIGNIFICANCE = 3.0
 """How far, in its own posterior deviations, the lens a rotation-only fit needs may lie beyond
-the box of plausible lenses (``|s - 1|, |rho - 1| <= 0.05``, ``|k1| <= 0.15``) for the pair to
+the box of plausible lenses (``|s - 1|, |rho - 1| <= 0.05``, ``|k1| <= 0.2``) for the pair to
 be called a pure rotation, as :data:`ppo_cv.rotation.PRINCIPAL_SIGNIFICANCE` is for the
 principal point. The fit clips such a lens and refits the rotation, whose residuals may then
 still win GRIC against an essential matrix: a translation at baseline / depth 0.02 toward a

@@ -45,6 +45,7 @@ __all__ = [
     "FOCAL_RATIO_GAP",
     "K1_PRIOR",
     "MAX_FOCAL_CHANGE",
+    "MAX_K1",
     "PRINCIPAL_BOUND",
     "PRINCIPAL_PRIOR",
     "PRINCIPAL_SIGNIFICANCE",
@@ -86,6 +87,21 @@ MAX_FOCAL_CHANGE = 0.05
 clips the focal scale to on feature matches. Beyond it a translation's parallax is more likely
 than a focal length given that far off (2.5 :data:`FOCAL_PRIOR`), and the fit's
 ``lens_excess`` says by how much the matches asked for more."""
+
+MAX_K1 = 0.2
+"""Largest ``|k1|`` of a plausible lens: the box :func:`fit_rotation_lens` clips ``k1`` to, on
+feature matches and on tracks. Consumer lenses reach ``|k1|`` of about 0.15 in the division
+model ``q = x / (1 + k1 |x|^2)`` (the model of the radial refinements,
+:func:`ppo_cv.plane.undistort_division`); this fit's one-term model ``x = q (1 + k1 |q|^2)``
+needs ``k1 + 2 k1^2 |q|^2 + ...`` for the same lens (the series of the division model's
+inverse, ``ppo_cv.data_gen.division_dist``), up to 0.2 for a division ``k1`` of +0.15 at
+``|q| = 1`` (a 90 degree diagonal). With the box at 0.15, pure rotations through such lenses
+(``ppo_cv.data_gen`` ``tripod`` at baseline 0, division ``k1`` +0.13 to +0.15, 45-60 degree
+fields, seed 0 indices 0-7) wanted 0.15-0.17: three lay 4.5-17 deviations beyond the box and
+were called general, 2.6-7.9 degrees off; in this box all eight are rotations, 0.005-0.10
+degrees off. In a 15-25 degree field (``NARROW_LENS``) lenses of 0.14-0.15 were fitted at the
+edge of the old box, where the tracks' refit was refused on three of ten (0.034-0.10 degrees
+off); here they are refitted (0.007-0.043)."""
 
 TRACK_FOCAL_CHANGE = 0.15
 """Box of the focal scale when intensity-aligned tracks refit a pure rotation whose fit on the
@@ -519,7 +535,7 @@ def fit_rotation_lens(
     *,
     iterations: int = 15,
     max_focal_change: float = MAX_FOCAL_CHANGE,
-    max_k1: float = 0.15,
+    max_k1: float = MAX_K1,
     noise: float | None = None,
     focal_prior: float = FOCAL_PRIOR,
     k1_prior: float = K1_PRIOR,

@@ -73,3 +73,28 @@ def test_benchmarks_page_summarises_the_stored_rows(script, monkeypatch):
     line = next(line for line in lines if line.startswith("| translating renders"))
     cells = [cell.strip() for cell in line.split("|")[1:-1]]
     assert cells[1:3] == [str(len(translating)), f"{100.0 * flagged / len(translating):.0f} %"]
+
+
+def test_a_missing_pano_dev_folder_gives_a_row_that_says_so(script, monkeypatch, tmp_path):
+    monkeypatch.setattr(script, "PANO_DEV", tmp_path / "pano_dev")
+    results = script.run(quick=True, sets=["pano_dev"])
+    assert list(results) == ["pano_dev"]
+    skipped = results["pano_dev"]
+    assert skipped["rows"] == [] and "pairs_with_gt.txt" in skipped["skipped"]
+    line = next(
+        line for line in script.report(results, 1.0, None).splitlines()
+        if line.startswith("| pano_dev |")
+    )  # fmt: skip
+    assert "| 0 | skipped: no " in line and str(tmp_path) in line
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [(["--merge"], "--merge needs --sets"), (["--workers", "0"], "--workers must be at least 1")],
+)
+def test_bad_benchmark_options_exit_2_with_a_message(args, message):
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, str(SCRIPT), *args], capture_output=True, text=True)
+    assert done.returncode == 2 and message in done.stderr

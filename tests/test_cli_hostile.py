@@ -215,8 +215,13 @@ CASES = [
     (
         ["synth", "new", "--view-focal-error", "0.01"],
         "synth",
-        r"--centred-principal-point, --view-focal-error, --exposure-ev and --vignetting need "
-        r"--imperfect",
+        r"--centred-principal-point, --view-focal-error, --exposure-ev, --vignetting and "
+        r"--narrow-lens need --imperfect",
+    ),
+    (
+        ["synth", "new", "--narrow-lens"],
+        "synth",
+        r"--vignetting and --narrow-lens need --imperfect",
     ),
     (
         ["synth", "new", "--imperfect", "--vignetting", "1.5"],

@@ -307,7 +307,7 @@ def test_bad_make_pair_arguments_are_rejected():
         make_pair("general", size=(32, 24), noise_std=1.0, imperfections=REAL_PHOTO)
     with pytest.raises(TypeError, match="imperfections"):
         make_pair("general", size=(32, 24), imperfections={"k1": 0.1})
-    with pytest.raises(ValueError, match="tiny-baseline only"):
+    with pytest.raises(ValueError, match="tiny-baseline and tripod only"):
         make_pair("general", size=(32, 24), baseline_ratio=0.01)
     with pytest.raises(ValueError, match="baseline_ratio"):
         make_pair("tiny-baseline", size=(32, 24), baseline_ratio=-0.01)

@@ -201,7 +201,7 @@ def test_cli_imperfect_and_warp(tmp_path):
         (["--width", "5000"], "--width"),
         (["--width", "4096", "--height", "4096", "--supersample", "2"], "samples"),
         (["--pairs", "100000"], "--pairs"),
-        (["--baseline-ratio", "0.01"], "tiny-baseline only"),
+        (["--baseline-ratio", "0.01"], "tiny-baseline and tripod only"),
         (["--motion", "tiny-baseline", "--baseline-ratio", "0.6"], "--baseline-ratio"),
         (["--pivot-offset", "0.08"], "panorama only"),
         (["--motion", "panorama", "--pivot-offset", "1.5"], "--pivot-offset"),
