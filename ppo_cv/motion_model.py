@@ -134,7 +134,9 @@ from .plane import PlanarPose, planar_pose
 from .robust import essential_from_pose, sampson_errors
 from .rotation import (
     MAX_FOCAL_CHANGE,
+    MIN_LENS_MATCHES,
     PRINCIPAL_BOUND,
+    PRINCIPAL_SIGNIFICANCE,
     PRINCIPAL_WIDE_BOUND,
     TRACK_FOCAL_CHANGE,
     LensRotationFit,
@@ -168,7 +170,7 @@ __all__ = [
     "with_tracks",
 ]
 
-LENS_SIGNIFICANCE = 3.0
+LENS_SIGNIFICANCE = PRINCIPAL_SIGNIFICANCE
 """How far, in its own posterior deviations, the lens a rotation-only fit needs may lie beyond
 the box of plausible lenses (``|s - 1|, |rho - 1| <= 0.05``, ``|k1| <= 0.2``) for the pair to
 be called a pure rotation, as :data:`ppo_cv.rotation.PRINCIPAL_SIGNIFICANCE` is for the
@@ -681,7 +683,7 @@ def _settled_lens_fit(
     lens = fit_rotation_lens(x1, x2, start_inliers, start_R, noise=noise, **priors)
     rotation_inliers = lens.residuals < threshold
     for _ in range(4):
-        if np.count_nonzero(rotation_inliers) < 4:
+        if np.count_nonzero(rotation_inliers) < MIN_LENS_MATCHES:
             break
         lens = fit_rotation_lens(x1, x2, rotation_inliers, lens.R, noise=noise, **priors)
         within = lens.residuals < threshold

@@ -82,6 +82,7 @@ __all__ = [
     "MAX_CORNERS",
     "WindowTracks",
     "PhotometricRotation",
+    "MAX_SEARCH_SIGMA_DEG",
     "align_windows",
     "refine_rotation_photometric",
     "window_overlap",
@@ -90,7 +91,7 @@ __all__ = [
 WINDOW = 21
 """Side (pixels) of the square window aligned around each corner by :func:`align_windows`."""
 
-WINDOWS = (21, 31)
+WINDOWS = (WINDOW, 31)
 """Window sides :func:`refine_rotation_photometric` searches; it polishes the side whose
 searched fit has the least uncertain rotation (``rotation_sigma_deg``, the Cramer-Rao bound of
 the tracks' fit with their overlap counted), another only when the polish left it more
@@ -106,6 +107,11 @@ overlapping, as stitched. On the demo frame warped by a rotation (``tests/test_p
 
 MIN_TRACKS = 20
 """Fewest tracks that agree with the refitted rotation for its result to be used."""
+
+MAX_SEARCH_SIGMA_DEG = 5.0
+"""Cap of the rotation uncertainty that sizes the search (3 times it), also what the pipeline
+hands over when the lens fit has none (a lens clipped to its box); a refit further than
+``4 rotation_sigma_deg + 0.1`` degrees from the start is refused."""
 
 MAX_CORNERS = 600
 """Windows aligned at most: beyond a few hundred the rotation's error is set by what the
@@ -826,7 +832,7 @@ def _best_window_refit(
         )
 
     count = MAX_CORNERS if max_corners is None else int(max_corners)
-    shift = max(3.0 * np.radians(min(rotation_sigma_deg, 5.0)) * focal, 1.0)
+    shift = max(3.0 * np.radians(min(rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG)) * focal, 1.0)
     levels = {
         side: int(np.clip(np.ceil(np.log2(shift / (side / 8.0))), 0, _MAX_LEVELS))
         for side in windows

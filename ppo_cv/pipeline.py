@@ -67,7 +67,7 @@ from .homography import HomographyEstimate, estimate_homography
 from .images import as_image as _as_image
 from .images import load_image
 from .motion_model import MotionDecision, decide_motion, plane_ransac_trials, with_tracks
-from .photometric import PhotometricRotation, refine_rotation_photometric
+from .photometric import MAX_SEARCH_SIGMA_DEG, PhotometricRotation, refine_rotation_photometric
 from .plane import refine_planar_pose, undistort_division
 from .pose import _recover_normalized
 from .refine import (
@@ -141,9 +141,6 @@ pairs detected again, 37 keeping the denser features; at 0.02 the gain at AUC@5 
 about half). Detecting at a lower
 threshold on every pair costs the pairs with many inliers accuracy, weak keypoints being
 located worse: at 0.02 throughout, freiburg's AUC@5 fell to 60.6."""
-MAX_SEARCH_SIGMA_DEG = 5.0
-"""Rotation uncertainty handed to the photometric refit when the lens fit has none (a lens
-clipped to its box): the refit searches 3 times this and accepts a change of 4 times it."""
 
 
 @dataclass(frozen=True)

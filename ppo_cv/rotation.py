@@ -48,6 +48,7 @@ __all__ = [
     "MAX_K1",
     "PRINCIPAL_BOUND",
     "PRINCIPAL_PRIOR",
+    "MIN_LENS_MATCHES",
     "PRINCIPAL_SIGNIFICANCE",
     "PRINCIPAL_WIDE_BOUND",
     "TRACK_FOCAL_CHANGE",
@@ -169,7 +170,8 @@ FOCAL_RATIO_BOUND = 2.0
 deviations: beyond it the ratio explains parallax (a forward translation seen at the scene's
 mean depth is a zoom), and the given ratio is kept (``rho = 1``)."""
 
-_MIN_WITH_PRIOR = 4  # matches for the lens terms once priors regularise them (8 rows, 5 unknowns)
+MIN_LENS_MATCHES = 4
+"""Fewest matches for the lens terms once priors regularise them (8 rows, 5 unknowns)."""
 
 
 @dataclass(frozen=True)
@@ -633,7 +635,7 @@ def _solve_rotation_lens(
     R0, a, b, prior, free, centre = problem
     with_noise = noise is not None and noise > 0
     params, sigma, rotation_sigma, excess = centre.copy(), np.inf, np.inf, -np.inf
-    enough = len(a) >= (_MIN_WITH_PRIOR if prior[3] > 0 else 2 * int(np.count_nonzero(_LENS)))
+    enough = len(a) >= (MIN_LENS_MATCHES if prior[3] > 0 else 2 * int(np.count_nonzero(_LENS)))
     if enough:
         params = _gauss_newton(params, problem, iterations)
         params, problem = _without_implausible_terms(
