@@ -410,6 +410,7 @@ def pose_sigmas_deg(
     focal_prior: float | None = FOCAL_PRIOR,
     k1_prior: float | None = None,
     principal_prior: np.ndarray | None = None,
+    held_k1_prior: float | None = None,
 ) -> PoseSigmas:
     """Standard deviations of the rotation and of the direction of ``t`` (degrees) from the
     Sampson cost.
@@ -466,6 +467,11 @@ def pose_sigmas_deg(
         parameter like the focal length (``x -> x - p`` in both views): in a narrow field an
         offset of 1 % of the image is nearly a rotation, and the essential matrix trades it
         against ``t`` along the bas-relief valley. None holds it exact.
+    held_k1_prior : float or None
+        Deviation of a radial term the refinement held at 0 (``k1_prior`` None;
+        :func:`ppo_cv.plane.held_k1_deviation`), counted as a considered parameter like the
+        focal length: in a narrow field ``k1`` trades against the focal scale and so against
+        the angle of the rotation. None holds it exact.
 
     Returns
     -------
@@ -491,6 +497,9 @@ def pose_sigmas_deg(
     if principal_prior is not None:
         considered += list(_PRINCIPAL)
         deviations += list(np.broadcast_to(np.asarray(principal_prior, float), (2,)))
+    if held_k1_prior is not None and k1_prior is None:
+        considered.append(_K1)
+        deviations.append(held_k1_prior)
     fixed = info[np.ix_(estimated, considered)]
     return _pose_sigmas_deg(
         info[np.ix_(estimated, estimated)], variance, fixed, np.asarray(deviations, float)
