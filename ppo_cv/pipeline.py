@@ -843,10 +843,7 @@ def _finish_general(state: _Finishing) -> _ModelPart:
     )  # fmt: skip
     rotation_sigma_deg = sigmas.rotation_deg
     if radial_k1 == 0.0 and k1_sigma is not None and np.isfinite(k1_sigma):
-        rotation_sigma_deg = pose_sigmas_deg(
-            final.R, final.t, c1, c2, inliers, principal_prior=state.priors.principal,
-            held_k1_prior=held_k1_deviation(k1_sigma, K1_MIN),
-        ).rotation_deg  # fmt: skip
+        rotation_sigma_deg = _held_k1_rotation_sigma_deg(final, c1, c2, inliers, k1_sigma, state)
     return _ModelPart(
         R=final.R,
         t=final.t,
@@ -859,6 +856,16 @@ def _finish_general(state: _Finishing) -> _ModelPart:
         rotation_fit_sigma_deg=sigmas.rotation_deg,
         radial_k1=radial_k1,
     )
+
+
+def _held_k1_rotation_sigma_deg(final, c1, c2, inliers, k1_sigma: float, state) -> float:
+    """Rotation deviation of a general pose whose refinement held ``k1`` at 0: the held
+    value's error a considered parameter (:func:`held_k1_deviation`) beside the focal length's
+    and the principal point's."""
+    return pose_sigmas_deg(
+        final.R, final.t, c1, c2, inliers, principal_prior=state.priors.principal,
+        held_k1_prior=held_k1_deviation(k1_sigma, K1_MIN),
+    ).rotation_deg  # fmt: skip
 
 
 FINISHERS: dict[str, Callable[[_Finishing], _ModelPart]] = {
