@@ -13,8 +13,9 @@ nobody models, the focal length given up to 3 % off, noise and JPEG): pure rotat
 baselines of 0.005, 0.02 and 0.05 of the median depth, seeds ``0 .. --seeds - 1``. No real
 data is needed.
 
-Run ``python benchmarks/rotation_sigma.py [--seeds 8]`` (about 3 minutes on 2 shared cores);
-it prints a markdown table and the machine.
+Run ``python benchmarks/rotation_sigma.py [--seeds 8]`` (about a minute on 2 shared cores);
+it prints a markdown table and the machine. The table, what the deviations count and what is
+left: ``docs/rotation_sigma.md``.
 """
 
 from __future__ import annotations

@@ -47,7 +47,7 @@ import importlib
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -68,9 +68,10 @@ from .images import as_image as _as_image
 from .images import load_image
 from .motion_model import MotionDecision, decide_motion, plane_ransac_trials, with_tracks
 from .photometric import MAX_SEARCH_SIGMA_DEG, PhotometricRotation, refine_rotation_photometric
-from .plane import refine_planar_pose, undistort_division
+from .plane import held_k1_deviation, refine_planar_pose, undistort_division
 from .pose import _recover_normalized
 from .refine import (
+    K1_MIN,
     T_SIGMA_CAP_DEG,
     huber_bound_px,
     pose_sigmas_deg,
@@ -102,7 +103,13 @@ from .rotation import (
     focal_ratio_keywords,
     focal_ratio_prior,
 )
-from .rotation_choice import RotationEstimate, choose_rotation, rotation_only_estimate
+from .rotation_choice import (
+    RotationEstimate,
+    choose_rotation,
+    rotation_only_estimate,
+    translation_bias,
+    unbiased_bias_deg,
+)
 from .significance import (
     CONFIDENT_LOG10_NFA,
     DEFAULT_MAX_LOG10_NFA,
@@ -626,6 +633,7 @@ class _ModelPart:
     point_matches: np.ndarray
     t_sigma_deg: float
     rotation_sigma_deg: float = float("nan")
+    rotation_fit_sigma_deg: float = float("nan")
     radial_k1: float = float("nan")
     plane: PlaneGeometry | None = None
 
@@ -806,6 +814,7 @@ def _finish_plane(state: _Finishing) -> _ModelPart:
             R, t, c1, c2, inliers, k1_prior=K1_PRIOR, principal_prior=state.priors.principal
         ).translation_deg,
         rotation_sigma_deg=refined.rotation_sigma_deg,
+        rotation_fit_sigma_deg=refined.rotation_fit_sigma_deg,
         plane=PlaneGeometry(refined.n, refined.distance, bool(plane.ambiguous), k1),
     )
 
@@ -814,14 +823,14 @@ def _finish_general(state: _Finishing) -> _ModelPart:
     """A general motion: the essential matrix's pose refined with a radial term when one is
     significant, and the analytic points of its inliers."""
     options, x1, x2 = state.options, state.found.x1, state.found.x2
-    R, t, inliers, radial_k1 = state.pose.R, state.pose.t, state.pose.inliers, 0.0
+    R, t, inliers, radial_k1, k1_sigma = state.pose.R, state.pose.t, state.pose.inliers, 0.0, None
     if options.refine:
         bound = huber_bound_px(options.ransac_threshold, state.motion.noise_px)
         radial = refine_pose_radial(
             R, t, x1, x2, inliers, scale=bound / state.focal,
             principal_prior=state.priors.principal,
         )  # fmt: skip
-        R, t, radial_k1 = radial.R, radial.t, radial.k1
+        R, t, radial_k1, k1_sigma = radial.R, radial.t, radial.k1, radial.k1_sigma
     c1, c2 = undistort_division(x1, radial_k1), undistort_division(x2, radial_k1)
     final = _recover_normalized(essential_from_pose(R, t), c1[:, :2], c2[:, :2], inliers, 0.0)
     keep = final.inliers & np.all(np.isfinite(final.points3d), axis=1)
@@ -829,6 +838,9 @@ def _finish_general(state: _Finishing) -> _ModelPart:
         final.R, final.t, c1, c2, inliers, k1_prior=K1_PRIOR if options.refine else None,
         principal_prior=state.priors.principal,
     )  # fmt: skip
+    rotation_sigma_deg = sigmas.rotation_deg
+    if radial_k1 == 0.0 and k1_sigma is not None and np.isfinite(k1_sigma):
+        rotation_sigma_deg = _held_k1_rotation_sigma_deg(final, c1, c2, inliers, k1_sigma, state)
     return _ModelPart(
         R=final.R,
         t=final.t,
@@ -837,9 +849,20 @@ def _finish_general(state: _Finishing) -> _ModelPart:
         points3d=np.where(keep[:, None], final.points3d, np.nan),
         point_matches=np.flatnonzero(keep),
         t_sigma_deg=sigmas.translation_deg,
-        rotation_sigma_deg=sigmas.rotation_deg,
+        rotation_sigma_deg=rotation_sigma_deg,
+        rotation_fit_sigma_deg=sigmas.rotation_deg,
         radial_k1=radial_k1,
     )
+
+
+def _held_k1_rotation_sigma_deg(final, c1, c2, inliers, k1_sigma: float, state) -> float:
+    """Rotation deviation of a general pose whose refinement held ``k1`` at 0: the held
+    value's error a considered parameter (:func:`held_k1_deviation`) beside the focal length's
+    and the principal point's."""
+    return pose_sigmas_deg(
+        final.R, final.t, c1, c2, inliers, principal_prior=state.priors.principal,
+        held_k1_prior=held_k1_deviation(k1_sigma, K1_MIN),
+    ).rotation_deg  # fmt: skip
 
 
 FINISHERS: dict[str, Callable[[_Finishing], _ModelPart]] = {
@@ -857,9 +880,11 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     measured on intensity-aligned tracks when the fit is the better determined of the two."""
     motion = state.motion
     if motion.pure_rotation:
-        return RotationEstimate("rotation", part.R, 0.0, part.rotation_sigma_deg)
+        bias = translation_bias(None if state.tracks is None else state.tracks.parallax)
+        sigma = float(np.hypot(part.rotation_sigma_deg, unbiased_bias_deg(*bias)))
+        return RotationEstimate("rotation", part.R, 0.0, sigma)
     source = "plane" if motion.model == "plane" else "essential"
-    moving = RotationEstimate(source, part.R, 0.0, part.rotation_sigma_deg)
+    moving = RotationEstimate(source, part.R, 0.0, part.rotation_fit_sigma_deg)
     x1, x2, used = state.found.x1, state.found.x2, state.pose.inliers | motion.rotation_inliers
     rotation_only = rotation_only_estimate(motion, state.tracks, x1, x2, used)
     if (
@@ -869,7 +894,8 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     ):
         tracks = _align_tracks(state.inputs, motion, state.priors, keep_clipped=True)
         rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used)
-    return choose_rotation([moving, rotation_only])
+    chosen = choose_rotation([moving, rotation_only])
+    return replace(chosen, sigma_deg=part.rotation_sigma_deg) if chosen is moving else chosen
 
 
 def _lens_terms(motion: MotionDecision, focal: float, radial_k1: float) -> LensTerms:
@@ -937,7 +963,7 @@ def _assemble(
         colours=_colours(img1, found.features1.keypoints[found.matches[:, 0]]),
         cameras=cameras,
         uncertainty=PoseUncertainty(
-            part.t_sigma_deg, rotation.sigma_deg, tracks, rotation.bias_deg
+            part.t_sigma_deg, rotation.rms_error_deg, tracks, rotation.bias_deg
         ),
         lens=_lens_terms(motion, inputs.focal, part.radial_k1),
         evidence=_evidence(motion, found, state.options),

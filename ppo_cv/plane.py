@@ -43,9 +43,11 @@ from .lsq import (
     rotation_increment,
     tangent_basis,
 )
+from .rotation import FOCAL_PRIOR
 
 __all__ = [
     "K1_SIGNIFICANCE",
+    "held_k1_deviation",
     "MIN_OFF_PLANE",
     "HomographyCandidates",
     "PlanarPose",
@@ -480,7 +482,13 @@ class RefinedPlanarPose:
         Robust cost over the used matches before and after.
     rotation_sigma_deg : float
         Worst-direction standard deviation (degrees) of ``R`` from the Gauss-Newton covariance
-        of this refinement, ``k1`` estimated under its prior (inf when not determined).
+        of this refinement, ``k1`` estimated under its prior (or, when held at 0, a considered
+        parameter of deviation :func:`held_k1_deviation` of ``k1_sigma``) and the given focal
+        length's error counted at :data:`ppo_cv.rotation.FOCAL_PRIOR` (inf when not
+        determined).
+    rotation_fit_sigma_deg : float
+        The same from the matches alone: ``k1`` estimated under its prior, the focal length
+        held exact (what :mod:`ppo_cv.rotation_choice` weighs against the rotation-only fit).
     """
 
     R: np.ndarray
@@ -493,6 +501,7 @@ class RefinedPlanarPose:
     cost_start: float
     cost: float
     rotation_sigma_deg: float = float("inf")
+    rotation_fit_sigma_deg: float = float("inf")
 
 
 def undistort_division(x: np.ndarray, k1: float) -> np.ndarray:
@@ -619,7 +628,10 @@ def refine_planar_pose(
     k1 = float(p[8]) if len(p) > 8 else 0.0
     norm = float(np.linalg.norm(Tr))
     full = _transfer(Rr + np.outer(Tr, nr), undistort_division(X1, k1), undistort_division(X2, k1))
-    rotation_sigma = _rotation_sigma_deg(model, np.append(p[:8], k1), scale, k1_prior, count)
+    rotation_sigma, fit_sigma = _rotation_sigmas_deg(
+        model, np.append(p[:8], k1), scale, k1_prior, count,
+        held_k1_sigma=None if len(p) > 8 else held_k1_deviation(k1_sigma),
+    )  # fmt: skip
     return RefinedPlanarPose(
         R=Rr,
         t=Tr / norm if norm > 0 else np.zeros(3),
@@ -631,6 +643,7 @@ def refine_planar_pose(
         cost_start=cost_start,
         cost=cost,
         rotation_sigma_deg=rotation_sigma,
+        rotation_fit_sigma_deg=fit_sigma,
     )
 
 
@@ -654,18 +667,72 @@ def _k1_sigma(model, p, scale, k1_prior) -> float:
     return float("inf") if cov is None else float(np.sqrt(max(cov[8, 8], 0.0)))
 
 
-def _rotation_sigma_deg(model, p, scale, k1_prior, count: int) -> float:
-    """Worst-direction deviation (degrees) of the rotation increment ``p[:3]`` from the
-    covariance of :func:`_k1_sigma` (``k1`` under its prior); inf with fewer than 10 matches."""
+def held_k1_deviation(k1_sigma: float, smallest_kept: float = 0.0) -> float:
+    """Deviation of the error of a division coefficient held at 0 because its fit, of
+    deviation ``k1_sigma``, lay within ``K1_SIGNIFICANCE`` deviations (or below
+    ``smallest_kept``): the true ``k1`` lies anywhere within that bound ``b``, the deviation
+    of a uniform spread over ``[-b, b]``, ``b / sqrt(3)``.
+
+    >>> round(held_k1_deviation(0.01), 4)
+    0.0173
+    """
+    return float(max(K1_SIGNIFICANCE * k1_sigma, smallest_kept) / np.sqrt(3.0))
+
+
+def _rotation_sigmas_deg(
+    model, p, scale, k1_prior, count: int, held_k1_sigma: float | None
+) -> tuple[float, float]:
+    """Worst-direction deviations (degrees) of the rotation increment ``p[:3]``: with the given
+    intrinsics' errors as considered parameters (Schmidt), and from the matches alone (the
+    covariance of :func:`_k1_sigma`, ``k1`` under its prior).
+
+    The given focal length's error (deviation :data:`ppo_cv.rotation.FOCAL_PRIOR`,
+    ``x -> (1 + e) x`` in both views) moves the parameters by ``S = (J^T J)^-1 J^T J_e`` per
+    unit, ``J_e`` the derivative of the residuals in ``e``, adding ``FOCAL_PRIOR^2 S S^T``: a
+    homography does not tell a focal scale from the rotation's angle (any ``Hn`` scaled to a
+    middle singular value 1 decomposes as ``R + T n^T``), so the angle inherits the focal
+    length's relative error. ``k1`` is estimated under its prior unless it was held at 0
+    (``held_k1_sigma`` given): then it is a considered parameter too, of deviation
+    ``held_k1_sigma`` (:func:`held_k1_deviation`). inf with fewer than 10 matches."""
     if count < 10:
-        return float("inf")
+        return float("inf"), float("inf")
+    fit = _worst_rotation_deg(_plane_covariance(model, p, scale, k1_prior)[0])
+    held = held_k1_sigma is not None and np.isfinite(held_k1_sigma)
+    estimated = p[:8] if held else p
+    cov, J, r = _plane_covariance(model, estimated, scale, k1_prior)
+    if cov is None:
+        return float("inf"), fit
+    step = 1e-7
+    moved = [(_stacked(_scaled_model(model, step), estimated, scale, k1_prior), FOCAL_PRIOR)]
+    if held:
+        with_k1 = _stacked(model, np.append(estimated, step), scale, k1_prior)[:-1]
+        moved.append((with_k1, held_k1_sigma))
+    for residuals, deviation in moved:
+        S = np.linalg.lstsq(J, (residuals - r) / step, rcond=None)[0]
+        cov = cov + deviation**2 * np.outer(S, S)
+    return _worst_rotation_deg(cov), fit
+
+
+def _plane_covariance(model, p, scale, k1_prior):
+    """Covariance ``2 s^2 (J^T J)^-1`` of :func:`_k1_sigma` at ``p`` (None when singular), its
+    Jacobian and residuals."""
     r = _stacked(model, p, scale, k1_prior)
     J = forward_jacobian(lambda q: _stacked(model, q, scale, k1_prior), p, r)
-    cov = gauss_newton_covariance(J, 2.0 * float(r @ r) / max(len(r) - len(p), 1))
+    return gauss_newton_covariance(J, 2.0 * float(r @ r) / max(len(r) - len(p), 1)), J, r
+
+
+def _worst_rotation_deg(cov: np.ndarray | None) -> float:
+    """Square root of the largest eigenvalue of the rotation block, degrees; inf for None."""
     if cov is None:
         return float("inf")
-    largest = float(np.linalg.eigvalsh(cov[:3, :3])[-1])
-    return float(np.degrees(np.sqrt(max(largest, 0.0))))
+    return float(np.degrees(np.sqrt(max(float(np.linalg.eigvalsh(cov[:3, :3])[-1]), 0.0))))
+
+
+def _scaled_model(model: _PlaneModel, focal_error: float) -> _PlaneModel:
+    """``model`` with both views' normalised points multiplied by ``1 + focal_error``: a
+    camera whose focal length is that many times the given one."""
+    factor = np.array([1.0 + focal_error, 1.0 + focal_error, 1.0])
+    return _PlaneModel(model.R0, model.T0, model.n0, model.x1 * factor, model.x2 * factor)
 
 
 def _levenberg_marquardt(model, p, scale, k1_prior, iterations):

@@ -410,6 +410,7 @@ def pose_sigmas_deg(
     focal_prior: float | None = FOCAL_PRIOR,
     k1_prior: float | None = None,
     principal_prior: np.ndarray | None = None,
+    held_k1_prior: float | None = None,
 ) -> PoseSigmas:
     """Standard deviations of the rotation and of the direction of ``t`` (degrees) from the
     Sampson cost.
@@ -466,6 +467,9 @@ def pose_sigmas_deg(
         parameter like the focal length (``x -> x - p`` in both views): in a narrow field an
         offset of 1 % of the image is nearly a rotation, and the essential matrix trades it
         against ``t`` along the bas-relief valley. None holds it exact.
+    held_k1_prior : float or None
+        Deviation of a ``k1`` held at 0 (:func:`ppo_cv.plane.held_k1_deviation`; ``k1_prior``
+        None), a considered parameter like the focal length. None holds it exact.
 
     Returns
     -------
@@ -486,15 +490,29 @@ def pose_sigmas_deg(
     estimated = [*range(_NPOSE), *([_K1] if k1_prior is not None else [])]
     if k1_prior is not None:
         info[_K1, _K1] += variance / k1_prior**2
-    considered = [_FOCAL] if focal_prior is not None else []
-    deviations = [focal_prior] if focal_prior is not None else []
-    if principal_prior is not None:
-        considered += list(_PRINCIPAL)
-        deviations += list(np.broadcast_to(np.asarray(principal_prior, float), (2,)))
+    considered, deviations = _considered_parameters(
+        focal_prior, principal_prior, None if k1_prior is not None else held_k1_prior
+    )
     fixed = info[np.ix_(estimated, considered)]
     return _pose_sigmas_deg(
         info[np.ix_(estimated, estimated)], variance, fixed, np.asarray(deviations, float)
     )
+
+
+def _considered_parameters(focal_prior, principal_prior, held_k1_prior) -> tuple[list, list]:
+    """Indices of the parameters of :func:`_calibrated_residuals` held at their given values
+    and the deviations of their errors (those not None)."""
+    considered, deviations = [], []
+    if focal_prior is not None:
+        considered.append(_FOCAL)
+        deviations.append(focal_prior)
+    if principal_prior is not None:
+        considered += list(_PRINCIPAL)
+        deviations += list(np.broadcast_to(np.asarray(principal_prior, float), (2,)))
+    if held_k1_prior is not None:
+        considered.append(_K1)
+        deviations.append(held_k1_prior)
+    return considered, deviations
 
 
 _NPOSE = 5

@@ -77,11 +77,15 @@ class PoseUncertainty:
         same bound over those tracks, its variance multiplied by how many windows share a pixel
         (:func:`ppo_cv.photometric.window_overlap`). For the rotation of a general motion: the
         worst direction of the covariance of the final refinement
-        (:func:`ppo_cv.refine.pose_sigmas_deg`, as ``t_sigma_deg``); of a plane: that of its
-        refinement on the homography
+        (:func:`ppo_cv.refine.pose_sigmas_deg`, as ``t_sigma_deg``, a ``k1`` the refinement
+        held at 0 counted as a considered parameter); of a plane: that of its refinement on
+        the homography, the focal length and a held ``k1`` counted the same way
         (:attr:`ppo_cv.plane.RefinedPlanarPose.rotation_sigma_deg`); inf when the matches do
-        not determine the pose. When ``R`` is the rotation-only fit of a moving pair
-        (``PairResult.rotation_source``), that fit's deviation combined with its bias's.
+        not determine the pose. A pure rotation's adds the parallax of its tracks beyond their
+        noise (:func:`ppo_cv.rotation_choice.unbiased_bias_deg`). When ``R`` is the
+        rotation-only fit of a moving pair (``PairResult.rotation_source``), that fit's
+        deviation combined with its bias's deviation and its bias beyond that deviation
+        (:attr:`ppo_cv.rotation_choice.RotationEstimate.rms_error_deg`).
     rotation_tracks : int
         For a pure rotation whose rotation was refitted on windows aligned by intensity
         (:mod:`ppo_cv.photometric`, ``PairOptions.photometric``): the number of tracks behind

@@ -56,6 +56,7 @@ __all__ = [
     "rotation_only_estimate",
     "rotation_fit_sigma_deg",
     "translation_bias",
+    "unbiased_bias_deg",
 ]
 
 ROTATION_SOURCES = ("rotation", "essential", "plane")
@@ -77,12 +78,15 @@ class RotationEstimate:
         translation's parallax (:func:`translation_bias`); 0 for a moving model.
     sigma_deg : float
         Standard deviation (degrees) of its random error; inf when unknown.
+    bias_sigma_deg : float
+        Deviation (degrees) of the measured ``bias_deg`` (part of ``sigma_deg``).
     """
 
     source: str
     R: np.ndarray
     bias_deg: float
     sigma_deg: float
+    bias_sigma_deg: float = 0.0
 
     def __post_init__(self) -> None:
         if self.source not in ROTATION_SOURCES:
@@ -90,6 +94,14 @@ class RotationEstimate:
                 f"unknown rotation source {self.source!r}; choose one of "
                 + ", ".join(ROTATION_SOURCES)
             )
+
+    @property
+    def rms_error_deg(self) -> float:
+        """Root-mean-square error (degrees): ``sigma_deg`` with the bias's square, the
+        measured ``bias_deg`` squared less its variance (an unbiased estimate of the true
+        bias's square, at least 0)."""
+        bias = unbiased_bias_deg(self.bias_deg, self.bias_sigma_deg)
+        return float(np.hypot(self.sigma_deg, bias))
 
     @property
     def expected_error_deg(self) -> float:
@@ -157,6 +169,19 @@ def translation_bias(parallax: PlaneParallax | None) -> tuple[float, float]:
         return float("inf"), 0.0
     bias = max(across_normal_parallax(parallax.H), abs(parallax.parallax))
     return float(np.degrees(bias)), float(np.degrees(parallax.sigma))
+
+
+def unbiased_bias_deg(bias_deg: float, bias_sigma_deg: float) -> float:
+    """``sqrt(max(bias^2 - bias_sigma^2, 0))``: the size of a bias measured as ``bias_deg``
+    with deviation ``bias_sigma_deg`` (degrees), its noise taken out; 0 when not measured
+    (inf).
+
+    >>> unbiased_bias_deg(0.5, 0.3), unbiased_bias_deg(0.1, 0.2)
+    (0.4, 0.0)
+    """
+    if not np.isfinite(bias_deg):
+        return 0.0
+    return float(np.sqrt(max(bias_deg**2 - bias_sigma_deg**2, 0.0)))
 
 
 def rotation_fit_sigma_deg(
@@ -235,7 +260,9 @@ def rotation_only_estimate(
     if not np.isfinite(sigma):
         sigma = rotation_fit_sigma_deg(lens, x1, x2, used)
     bias, bias_sigma = translation_bias(parallax)
-    return RotationEstimate("rotation", lens.R, bias, float(np.hypot(sigma, bias_sigma)))
+    return RotationEstimate(
+        "rotation", lens.R, bias, float(np.hypot(sigma, bias_sigma)), bias_sigma
+    )
 
 
 def _decision_lens(motion: MotionDecision) -> LensRotationFit:
