@@ -37,8 +37,24 @@ Stages (each timed in ``PairResult.timings``, seconds):
 
 :func:`estimate_pair` calls one function per stage (``_load_inputs``, ``_features``,
 ``_best_consensus``, ``_essential_pose``, ``_homography``, ``_decide``,
-``_revisit_with_tracks``), then the finisher of the chosen model (:data:`FINISHERS`), and
-``_assemble`` builds the :class:`~ppo_cv.result.PairResult`.
+``_revisit_with_tracks``), then the finisher of the chosen model (:data:`FINISHERS`), the
+choice of the rotation with the smallest expected error (``_choose_rotation``,
+:mod:`ppo_cv.rotation_choice`), and ``_assemble`` builds the :class:`~ppo_cv.result.PairResult`.
+
+Given features. ``features1`` and ``features2`` (as :func:`~ppo_cv.features.detect_features`
+gives with the ``options``) skip the first detection; a second one, on the images, follows a
+weak consensus (``PairOptions.redetect_below``). SIFT features detected at
+:data:`REDETECT_THRESHOLD_SCALE` serve both: thinned to threshold 1 for the first consensus
+(:func:`ppo_cv.features.at_threshold`), as they are for the second. Batch runs use them to
+detect each image once.
+
+Errors. ``estimate_pair`` raises ValueError for an unreadable or oversized image
+(:func:`ppo_cv.images.load_image`), NaN pixels, an image too small or thin to detect features
+on (a side below :data:`~ppo_cv.features.MIN_IMAGE_SIDE` pixels), images of different sizes
+without ``K2``, identical images, too few features, matches or inliers, a consensus that chance
+could explain (``PairOptions.max_log10_nfa``: "no reliable two-view geometry" with the
+figures), and one image a mirror image of the other (:func:`_require_unmirrored` says what is
+and is not caught).
 """
 
 from __future__ import annotations
@@ -973,42 +989,24 @@ def _assemble(
 
 
 def estimate_pair(
-    image1: Any,
-    image2: Any,
-    K1: Any,
-    K2: Any = None,
-    dist1: Any = None,
-    dist2: Any = None,
-    options: PairOptions | None = None,
-    *,
-    features1: Features | None = None,
-    features2: Features | None = None,
-    progress: Callable[[str], None] | None = None,
-) -> PairResult:
-    """Relative pose of two calibrated images.
+    image1: Any, image2: Any, K1: Any, K2: Any = None, dist1: Any = None, dist2: Any = None,
+    options: PairOptions | None = None, *, features1: Features | None = None,
+    features2: Features | None = None, progress: Callable[[str], None] | None = None,
+) -> PairResult:  # fmt: skip
+    """Relative pose of two calibrated images (the stages: module docstring).
 
     Parameters
     ----------
     image1, image2 : ndarray (H, W) / (H, W, 3) BGR, or path
-        The two photos.
-    K1 : array_like, shape (3, 3)
-        Intrinsics of camera 1.
-    K2 : array_like, shape (3, 3), optional
-        Intrinsics of camera 2; defaults to ``K1``.
+    K1, K2 : array_like, shape (3, 3)
+        Intrinsics of the cameras; ``K2`` defaults to ``K1``.
     dist1, dist2 : array_like, optional
-        OpenCV distortion coefficients ``(k1, k2, p1, p2[, k3, ...])``; ``dist2`` defaults to
-        ``dist1`` when ``K2`` is not given.
+        OpenCV distortion coefficients; ``dist2`` defaults to ``dist1`` when ``K2`` is not given.
     options : PairOptions, optional
     features1, features2 : Features, optional
-        Precomputed features of the images (as :func:`~ppo_cv.features.detect_features` gives
-        with the ``options``); given both, the first detection is skipped (a second one, on
-        the images, follows a weak consensus: ``PairOptions.redetect_below``). SIFT features
-        detected at :data:`REDETECT_THRESHOLD_SCALE` serve both: thinned to threshold 1 for
-        the first consensus (:func:`ppo_cv.features.at_threshold`), as they are for the
-        second. Batch runs use it to detect each image once.
+        Precomputed features (module docstring, "Given features"): the first detection is skipped.
     progress : callable, optional
-        Called with the name of each stage as it ends (the keys of ``PairResult.timings``,
-        some more than once), to show progress during long work.
+        Called with each stage's name as it ends (the keys of ``PairResult.timings``).
 
     Returns
     -------
@@ -1017,13 +1015,7 @@ def estimate_pair(
     Raises
     ------
     ValueError
-        Unreadable or oversized image (:func:`ppo_cv.images.load_image`), NaN pixels, an image
-        too small or thin to detect features on (a side below
-        :data:`~ppo_cv.features.MIN_IMAGE_SIDE` pixels), images of different sizes without
-        ``K2``, identical images, too few features, matches or inliers, or a consensus that
-        chance could explain (``PairOptions.max_log10_nfa``): "no reliable
-        two-view geometry" with the figures; one image a mirror image of the other
-        (:func:`_require_unmirrored` says what is and is not caught).
+        Input that is not what it claims, or no reliable geometry (module docstring, "Errors").
     TypeError
         ``options`` that is not a :class:`PairOptions`, non-numeric images.
     """
