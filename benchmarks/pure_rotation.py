@@ -143,8 +143,9 @@ the noise: a translation seen at one depth looks like a rotation, and the rotati
 absorb what they can of it. The tracks fit it as closely as the matches do (their residuals
 stay at 0.02-0.07 px), so they move the error rather than shrink it: medians 0.07 and 0.18 deg
 against 0.07 and 0.12 from the matches, better on some pairs and worse on others.
-`rotation_sigma_deg` accounts for noise only: the root mean square of error / sigma is 0.9-1.5
-on each set of exact rotations and 6-12 on the tripod sets, where it is no bound. At
+The "R sigma" column is `rotation_sigma_deg`, which counts the given intrinsics' errors and the
+tracks' parallax beyond its noise; how it compares with the actual error over the rendered
+presets is in `docs/rotation_sigma.md`. At
 1600x1200 the same 8 cm parallax is 2.5 times as many pixels against the same feature noise,
 and GRIC calls index 0 general (+0.28), its rotation from the essential matrix refined with a
 radial term 0.50 deg off; its tracks' plane moved 0.0007 +- 0.0005 of its distance, and it is
@@ -333,7 +334,8 @@ second shot is exposed 0.18 EV darker (`Imperfections(exposure_ev=1.0)`, index 1
 tables) lands in that closer minimum on its own and is called general at +0.02.
 
 A lens beyond its box. The rotation-only fit clips its focal scale, `k1` and focal ratio to
-the box of plausible lenses (5 %, 0.15) and refits the rotation alone, and that rotation can
+the box of plausible lenses (5 %, `k1` 0.2 of its lens model) and refits the rotation alone,
+and that rotation can
 still win GRIC. A pair is a rotation only when the free fit lay at most three of its own
 posterior deviations beyond the box (`ppo_cv.motion_model.LENS_SIGNIFICANCE`): a focal that
 the matches pin 9 % off is parallax, not a lens. In this report the rule turns two translating
@@ -967,9 +969,11 @@ def report(results: dict, seconds: float, plot: str | None) -> str:
         f"pycolmap {pycolmap.__version__}, ppo_cv {ppo_cv.__version__}). Raw rows: "
         "`benchmarks/pure_rotation.json`.",
         "",
-        "All pairs carry the imperfections of real photos: radial distortion k1 in "
+        "The rendered pairs carry the imperfections of real photos: radial distortion k1 in "
         "+-0.02..0.1 that nobody models, the focal length given to every method off by up to "
-        "+-3 %, a 25-35 degree horizontal field of view, JPEG. Every method sees the same "
+        "+-3 %, a 25-35 degree horizontal field of view, JPEG; the narrow-lens sets a 15-25 "
+        "degree field and a division-model k1 of 0.05-0.15 (`NARROW_LENS`); pano_dev is real "
+        "tripod panoramas (`../shared/data/pano_dev`, its K as given). Every method sees the same "
         "SIFT matches (ppo_cv's). Rotation error: median / max, degrees. ppo_cv R err: "
         "as returned (for a flagged pair, refitted on intensity-aligned windows, "
         "`ppo_cv.photometric`); matches only: the same flagged pairs with "
