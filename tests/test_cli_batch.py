@@ -49,10 +49,8 @@ def _without_timings(path: Path) -> list[dict]:
     return rows
 
 
-def test_features_are_computed_once_per_image_and_change_nothing(tmp_path, monkeypatch):
-    lines = [f"{NAME1} {NAME2}", f"{NAME2} {NAME1}", f"{NAME1} {NAME2}", f"{NAME1} missing.png"]
-    (tmp_path / "pairs.txt").write_text("\n".join(lines) + "\n")
-    options = pipeline_options(max_features=2000)
+def _with_and_without_cache(tmp_path, options, monkeypatch) -> dict:
+    """``{cache: (detections, JSON lines without timings)}`` of ``pairs.txt`` in ``tmp_path``."""
     calls = _counting(monkeypatch)
     runs = {}
     for cache in (True, False):
@@ -62,6 +60,13 @@ def test_features_are_computed_once_per_image_and_change_nothing(tmp_path, monke
                                cache=cache, quiet=True)  # fmt: skip
         assert code == 0
         runs[cache] = (len(calls), _without_timings(output))
+    return runs
+
+
+def test_features_are_computed_once_per_image_and_change_nothing(tmp_path, monkeypatch):
+    lines = [f"{NAME1} {NAME2}", f"{NAME2} {NAME1}", f"{NAME1} {NAME2}", f"{NAME1} missing.png"]
+    (tmp_path / "pairs.txt").write_text("\n".join(lines) + "\n")
+    runs = _with_and_without_cache(tmp_path, pipeline_options(max_features=2000), monkeypatch)
     # two readable images detected once for four pairs, at the second detection's threshold;
     # there the first reaches max_features (2000 of its 2228 keypoints), so it is detected
     # again at the first threshold, the second (1989) is not
@@ -75,15 +80,7 @@ def test_features_are_computed_once_per_image_and_change_nothing(tmp_path, monke
 def test_a_weak_pair_reuses_the_cached_denser_features(tmp_path, monkeypatch):
     (tmp_path / "pairs.txt").write_text(f"{NAME1} {NAME2}\n{NAME2} {NAME1}\n")
     options = pipeline_options(redetect_below=5000)  # every pair weak: both consensuses fitted
-    calls = _counting(monkeypatch)
-    runs = {}
-    for cache in (True, False):
-        calls.clear()
-        output = tmp_path / f"cache_{cache}.jsonl"
-        code = batch.run_pairs(tmp_path / "pairs.txt", DATA, K_TEXT, output, 1, options,
-                               cache=cache, quiet=True)  # fmt: skip
-        assert code == 0
-        runs[cache] = (len(calls), _without_timings(output))
+    runs = _with_and_without_cache(tmp_path, options, monkeypatch)
     assert runs[True][0] == 2  # each image once, at the second detection's threshold
     assert runs[False][0] == 8  # each image twice per pair: at the first threshold and lower
     assert runs[True][1] == runs[False][1]
