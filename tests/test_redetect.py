@@ -103,7 +103,7 @@ def test_given_denser_features_serve_both_consensuses(narrow_pair, monkeypatch):
     monkeypatch.setattr("ppo_cv.pipeline.detect_features", counted)
     result = estimate_pair(image1, image2, narrow_pair.K1_given, narrow_pair.K2_given, **denser)
     assert not calls  # thinned for the first consensus, as they are for the second
-    assert result.threshold_scale == REDETECT_THRESHOLD_SCALE
+    assert result.evidence.significance.threshold_scale == REDETECT_THRESHOLD_SCALE
     np.testing.assert_allclose(result.R, detected.R, atol=1e-9)
 
 
