@@ -57,14 +57,18 @@ def check_pure_rotation(out: str, cwd: Path) -> None:
 
 
 def check_tripod_panorama(out: str, cwd: Path) -> None:
-    rows = re.findall(r"^\S.*?\s+(True|False)\s+[\d.]+\s+[\d.]+\s+\S+\s+(\d+)\s", out, re.M)
+    rows = re.findall(
+        r"^\S.*?\s+(True|False)\s+([\d.]+)\s+([\d.]+)\s+\S+\s+(\d+)\s", out, re.M
+    )
     assert len(rows) == 6
-    flagged = [int(windows) for flag, windows in rows if flag == "True"]
-    assert len(flagged) >= 4 and min(flagged) > 50
+    flagged = [(float(m), float(r), int(w)) for flag, m, r, w in rows if flag == "True"]
+    assert len(flagged) >= 4 and min(w for _, _, w in flagged) > 50
     assert f"{len(flagged)} of 6 flagged" in out
-    matches = numbers(r"over them: matches ([\d.]+) deg", out)[0]
     refit = numbers(r"over them: matches [\d.]+ deg, refit ([\d.]+) deg", out)[0]
-    assert refit < 0.1 and refit < matches
+    assert refit < 0.1
+    # with a hundred windows or more the refit is several times closer than the matches
+    many = [(m, r) for m, r, w in flagged if w >= 100]
+    assert many and all(r < m / 5 for m, r in many)
 
 
 def check_analytic_points(out: str, cwd: Path) -> None:

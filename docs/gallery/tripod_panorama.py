@@ -10,7 +10,9 @@ focal length. The script prints, per pair, the rotation error of the feature mat
 (``PairOptions(photometric=False)``) and of the refit, the refit's ``rotation_sigma_deg``, and
 the focal scale it found against the true one; the last pair is shot again with the second
 exposure 30 % darker and vignetted. A pair the decision does not flag keeps the pose of its
-essential matrix and has no refit.
+essential matrix and has no refit. With a hundred windows or more the refit is ten times closer
+than the matches; with the 56-87 windows of pairs 2-4 its focal scale lands 0.4-0.9 % off and
+its rotation a few hundredths of a degree further than the matches'.
 """
 
 from importlib import resources
