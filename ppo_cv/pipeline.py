@@ -791,8 +791,11 @@ def _revisit_with_tracks(
 
 
 def _finish_rotation(state: _Finishing) -> _ModelPart:
-    """A pure rotation: the rotation-only fit, no point, ``t`` undetermined (its sigma the cap)."""
+    """A pure rotation: the rotation-only fit, no point, ``t`` undetermined (its sigma the cap);
+    the rotation's deviation with the tracks' parallax beyond its noise
+    (:func:`~ppo_cv.rotation_choice.unbiased_bias_deg`)."""
     motion, num_matches = state.motion, len(state.found.matches)
+    bias = translation_bias(None if state.tracks is None else state.tracks.parallax)
     return _ModelPart(
         R=motion.R,
         t=motion.t,
@@ -801,7 +804,7 @@ def _finish_rotation(state: _Finishing) -> _ModelPart:
         points3d=np.full((num_matches, 3), np.nan),
         point_matches=np.flatnonzero(np.zeros(num_matches, dtype=bool)),
         t_sigma_deg=T_SIGMA_CAP_DEG,
-        rotation_sigma_deg=motion.rotation_sigma_deg,
+        rotation_sigma_deg=float(np.hypot(motion.rotation_sigma_deg, unbiased_bias_deg(*bias))),
     )
 
 
@@ -896,9 +899,7 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     measured on intensity-aligned tracks when the fit is the better determined of the two."""
     motion = state.motion
     if motion.pure_rotation:
-        bias = translation_bias(None if state.tracks is None else state.tracks.parallax)
-        sigma = float(np.hypot(part.rotation_sigma_deg, unbiased_bias_deg(*bias)))
-        return RotationEstimate("rotation", part.R, 0.0, sigma)
+        return RotationEstimate("rotation", part.R, 0.0, part.rotation_sigma_deg)
     source = "plane" if motion.model == "plane" else "essential"
     moving = RotationEstimate(source, part.R, 0.0, part.rotation_fit_sigma_deg)
     x1, x2, used = state.found.x1, state.found.x2, state.pose.inliers | motion.rotation_inliers
