@@ -290,39 +290,46 @@ def _knn_opencv(query: np.ndarray, train: np.ndarray, k: int, binary: bool, flan
 
 
 def _two_nearest_dense(d1: np.ndarray, d2: np.ndarray, block: int = 2048):
-    """Exact 2-NN of each row of d1 among d2, and the 1-NN in d1 of each row of d2.
+    """Exact 2-NN of each row of d1 among d2, and whether each row is the nearest in d1 of its
+    nearest in d2 (the first such row when several are).
 
-    Squared Euclidean distances ``|a|^2 + |b|^2 - 2 a.b`` by blocks of matrix products.
+    Squared Euclidean distances ``|a|^2 + |b|^2 - 2 a.b`` by blocks of matrix products. The
+    mutual test compares each row's nearest distance with its column's minimum, a reduction
+    along rows; numpy's ``argmin`` down the columns of a row-major block is strided and cost
+    more than the matrix product itself.
 
     Returns
     -------
-    index12 : (N1, 2) int, dist12 : (N1, 2) float, index21 : (N2,) int
+    index12 : (N1, 2) int, dist12 : (N1, 2) float, mutual12 : (N1,) bool
     """
     n1 = len(d1)
     sq1 = np.einsum("ij,ij->i", d1, d1)
     sq2 = np.einsum("ij,ij->i", d2, d2)
     index12 = np.empty((n1, 2), dtype=np.int64)
-    dist12 = np.empty((n1, 2))
-    best21 = np.full(len(d2), np.inf, dtype=np.float32)
-    index21 = np.zeros(len(d2), dtype=np.int64)
+    squared12 = np.empty((n1, 2), dtype=np.result_type(d1, d2, np.float32))
+    best21 = np.full(len(d2), np.inf, dtype=squared12.dtype)
     for start in range(0, n1, block):
         stop = min(start + block, n1)
-        dist = sq1[start:stop, None] + sq2[None, :] - 2.0 * (d1[start:stop] @ d2.T)
+        product = d1[start:stop] @ d2.T
+        product *= 2.0
+        dist = sq1[start:stop, None] + sq2[None, :]
+        dist -= product
+        del product
         block_rows = np.arange(stop - start)
         first = np.argmin(dist, axis=1)  # two row minima: far faster than a partition
         nearest = dist[block_rows, first]
         dist[block_rows, first] = np.inf
         second = np.argmin(dist, axis=1)
-        pair = np.column_stack([nearest, dist[block_rows, second]])
+        squared12[start:stop] = np.column_stack([nearest, dist[block_rows, second]])
         dist[block_rows, first] = nearest
         index12[start:stop] = np.column_stack([first, second])
-        dist12[start:stop] = np.sqrt(np.maximum(pair, 0))
-        rows = np.argmin(dist, axis=0)
-        column_best = dist[rows, np.arange(dist.shape[1])]
-        better = column_best < best21
-        best21[better] = column_best[better]
-        index21[better] = rows[better] + start
-    return index12, dist12, index21
+        np.minimum(best21, dist.min(axis=0), out=best21)
+    achieves = squared12[:, 0] == best21[index12[:, 0]]
+    rows = np.flatnonzero(achieves)
+    _, first_row = np.unique(index12[rows, 0], return_index=True)
+    mutual12 = np.zeros(n1, dtype=bool)
+    mutual12[rows[first_row]] = True
+    return index12, np.sqrt(np.maximum(squared12, 0)).astype(np.float64), mutual12
 
 
 def match_features(
@@ -394,12 +401,14 @@ def match_features_scored(
         flann = min(len(d1), len(d2)) > _FLANN_MIN_FEATURES
     if binary or flann:
         index12, dist12 = _knn_opencv(d1, d2, 2, binary, flann)
-        index21 = _knn_opencv(d2, d1, 1, binary, flann)[0][:, 0] if mutual else None
+        if mutual:
+            index21 = _knn_opencv(d2, d1, 1, binary, flann)[0][:, 0]
+            mutual12 = index21[np.maximum(index12[:, 0], 0)] == np.arange(len(d1))
     else:
-        index12, dist12, index21 = _two_nearest_dense(d1, d2)
+        index12, dist12, mutual12 = _two_nearest_dense(d1, d2)
     keep = (index12[:, 0] >= 0) & (dist12[:, 0] < ratio * dist12[:, 1])
     if mutual:
-        keep &= index21[np.maximum(index12[:, 0], 0)] == np.arange(len(d1))
+        keep &= mutual12
     rows = np.flatnonzero(keep)
     matches = np.stack([rows, index12[rows, 0]], axis=1).astype(np.int64)
     ratios = dist12[rows, 0] / np.maximum(dist12[rows, 1], 1e-300)

@@ -13,9 +13,21 @@ def test_two_nearest_equal_a_full_sort(block):
     rng = np.random.default_rng(3)
     d1 = rng.random((50, 16)).astype(np.float32)
     d2 = rng.random((40, 16)).astype(np.float32)
-    index12, dist12, index21 = _two_nearest_dense(d1, d2, block=block)
+    index12, dist12, mutual12 = _two_nearest_dense(d1, d2, block=block)
     full = np.linalg.norm(d1[:, None, :].astype(float) - d2[None, :, :], axis=2)
     order = np.argsort(full, axis=1)[:, :2]
     np.testing.assert_array_equal(index12, order)
     np.testing.assert_allclose(dist12, np.take_along_axis(full, order, axis=1), atol=1e-5)
-    np.testing.assert_array_equal(index21, np.argmin(full, axis=0))
+    mutual = np.argmin(full, axis=0)[order[:, 0]] == np.arange(len(d1))
+    assert 0 < np.count_nonzero(mutual) < len(d1)
+    np.testing.assert_array_equal(mutual12, mutual)
+
+
+@pytest.mark.parametrize("block", [3, 2048])
+def test_a_repeated_descriptor_is_the_mutual_match_of_its_first_row_only(block):
+    rng = np.random.default_rng(4)  # small integers: every distance exact, the tie exact
+    d2 = rng.integers(0, 16, (12, 8)).astype(np.float32)
+    d1 = np.vstack([d2[[5, 2]], rng.integers(0, 16, (4, 8)).astype(np.float32), d2[[5]]])
+    index12, _, mutual12 = _two_nearest_dense(d1, d2, block=block)
+    assert index12[0, 0] == index12[6, 0] == 5
+    assert mutual12[0] and mutual12[1] and not mutual12[6]
