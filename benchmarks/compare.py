@@ -14,7 +14,12 @@ Sections (each prints its table as it finishes; the report collects them):
 3. Pure-rotation detection on rendered pure-rotation, small-parallax, planar and general
    pairs: ppo_cv's flag, pycolmap's configuration and the paper's M3 indicator.
 4. Whole-pipeline time per image pair: ``estimate_pair`` against the OpenCV and pycolmap
-   pipelines (features and matching included), one process, one pair at a time.
+   pipelines (features and matching included), one process, one pair at a time: median wall
+   and CPU time (``time.process_time``, summed over threads), the median of each stage of
+   ``estimate_pair``, the processor and its load. ``--only-pipeline`` runs this section alone
+   and rewrites the report with the other sections' stored results; ``--baseline DIR`` adds
+   the same timing of an earlier version's ``estimate_pair`` (``git worktree add DIR <commit>``
+   or ``git archive``).
 5. Peak memory of identification up to N = 1e6 (``memory.py``).
 
 The freiburg pairs are read from ``../shared/data/freiburg`` beside the repository (or
@@ -31,6 +36,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
+import shlex  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from concurrent.futures import ProcessPoolExecutor  # noqa: E402
@@ -218,43 +224,126 @@ def accuracy_runs(
 # ---------------------------------------------------------------- whole-pipeline time
 
 
-def pipeline_speed(freiburg: Path | None, n_pairs: int, seed: int) -> dict:
-    """Median wall time per pair of the three pipelines, features and matching included."""
-    images = []
-    if freiburg is not None:
-        for pair in anchors.read_pairs_file(freiburg / "pairs_with_gt.txt")[:n_pairs]:
-            load = lambda n: cv2.imread(str(freiburg / "images" / n))  # noqa: E731
-            images.append((load(pair["name1"]), load(pair["name2"]), pair["K1"], pair["K2"]))
-    else:
-        from ppo_cv.data_gen.io import make_pair
+def _machine() -> dict:
+    """Processor, logical cores and the 1-minute load average now."""
+    model = platform.processor() or platform.machine()
+    cpuinfo = Path("/proc/cpuinfo")
+    if cpuinfo.is_file():
+        names = [line.split(":", 1)[1].strip() for line in cpuinfo.read_text().splitlines()
+                 if line.startswith("model name")]  # fmt: skip
+        model = names[0] if names else model
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    return {"cpu": model, "cores": os.cpu_count(), "load": round(load, 2)}
 
-        for i in range(n_pairs):
-            p = make_pair("general", seed=seed, index=i)
-            images.append(
-                (
-                    cv2.cvtColor(p.image1, cv2.COLOR_RGB2BGR),
-                    cv2.cvtColor(p.image2, cv2.COLOR_RGB2BGR),
-                    p.K1,
-                    p.K2,
-                )
-            )
+
+def _pipeline_images(freiburg: Path | None, n_pairs: int, seed: int) -> list[tuple]:
+    """(BGR image 1, BGR image 2, K1, K2) of the first ``n_pairs`` freiburg pairs, or of as
+    many rendered general pairs without them."""
+    if freiburg is not None:
+        load = lambda name: cv2.imread(str(freiburg / "images" / name))  # noqa: E731
+        return [
+            (load(pair["name1"]), load(pair["name2"]), pair["K1"], pair["K2"])
+            for pair in anchors.read_pairs_file(freiburg / "pairs_with_gt.txt")[:n_pairs]
+        ]
+    from ppo_cv.data_gen.io import make_pair
+
+    pairs = [make_pair("general", seed=seed, index=i) for i in range(n_pairs)]
+    bgr = lambda image: cv2.cvtColor(image, cv2.COLOR_RGB2BGR)  # noqa: E731
+    return [(bgr(p.image1), bgr(p.image2), p.K1, p.K2) for p in pairs]
+
+
+def _timed(fn) -> tuple[float, float, object]:
+    """Wall and CPU seconds of ``fn()`` (CPU summed over the process's threads), its value."""
+    wall, cpu = time.perf_counter(), time.process_time()
+    value = fn()
+    return time.perf_counter() - wall, time.process_time() - cpu, value
+
+
+def _opencv_pipeline(anchor: str, image1, image2, K1, K2):
+    return anchors.run_anchor(anchor, anchors.sift_matches(image1, image2), K1, K2)
+
+
+def pipeline_speed(freiburg: Path | None, n_pairs: int, seed: int, ours_only: bool = False) -> dict:
+    """Median wall and CPU time per pair of the three pipelines, features and matching
+    included, one pair at a time in this process; the median time of each stage of
+    ``estimate_pair`` (``PairResult.timings``, wall) and the machine."""
+    images = _pipeline_images(freiburg, n_pairs, seed)
     cv2.setNumThreads(1)
-    times = {"ppo_cv estimate_pair": [], "OpenCV pipeline": [], "pycolmap pipeline": []}
+    machine = _machine()
+    calls = {"ppo_cv estimate_pair": run_ppo_cv}
+    if not ours_only:
+        calls["OpenCV pipeline"] = partial(_opencv_pipeline, "opencv")
+        calls["pycolmap pipeline"] = partial(_opencv_pipeline, "pycolmap")
+    if _estimate_pair() is None:
+        del calls["ppo_cv estimate_pair"]
+    wall = {label: [] for label in calls}
+    cpu = {label: [] for label in calls}
+    stages: dict[str, list[float]] = {}
     for image1, image2, K1, K2 in images:
-        if _estimate_pair() is not None:
-            start = time.perf_counter()
-            run_ppo_cv(image1, image2, K1, K2)
-            times["ppo_cv estimate_pair"].append(time.perf_counter() - start)
-        for label, anchor in (("OpenCV pipeline", "opencv"), ("pycolmap pipeline", "pycolmap")):
-            start = time.perf_counter()
-            matches = anchors.sift_matches(image1, image2)
-            anchors.run_anchor(anchor, matches, K1, K2)
-            times[label].append(time.perf_counter() - start)
-    out = {k: float(np.median(v)) for k, v in times.items() if v}
+        for label, call in calls.items():
+            seconds, cpu_seconds, result = _timed(partial(call, image1, image2, K1, K2))
+            wall[label].append(seconds)
+            cpu[label].append(cpu_seconds)
+            for stage, value in result.extra.get("timings", {}).items():
+                stages.setdefault(stage, []).append(value)
+    out = {label: float(np.median(v)) for label, v in wall.items()}
+    out["cpu"] = {label: float(np.median(v)) for label, v in cpu.items()}
+    out["stages"] = {stage: float(np.median(v)) for stage, v in stages.items()}
     out["pairs"] = len(images)
     out["source"] = "freiburg" if freiburg is not None else "rendered general"
-    print("pipeline time: " + ", ".join(f"{k} {v}" for k, v in out.items()), flush=True)
+    out["machine"] = {**machine, "load_after": _machine()["load"]}
+    print(
+        "pipeline time (wall, CPU): "
+        + ", ".join(f"{k} {out[k]:.3f} s, {out['cpu'][k]:.3f} s" for k in calls),
+        flush=True,
+    )
     return out
+
+
+def baseline_speed(tree: Path, label: str, args) -> dict:
+    """``pipeline_speed`` of ``estimate_pair`` from the ppo_cv package under ``tree`` (an
+    earlier version's source), in a child process with the same settings."""
+    import subprocess
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as scratch:
+        target = Path(scratch) / "baseline.json"
+        command = [
+            sys.executable, __file__, "--pipeline-json", str(target),
+            "--pipeline-pairs", str(args.pipeline_pairs), "--seed", str(args.seed),
+            "--freiburg", str(args.freiburg),
+        ]  # fmt: skip
+        env = {**os.environ, "PYTHONPATH": str(tree)}
+        subprocess.run(command, env=env, check=True)
+        timed = json.loads(target.read_text())
+    timed["label"] = label
+    return timed
+
+
+def only_pipeline(args, freiburg: Path | None) -> None:
+    """Time the whole pairs again and rewrite the report from the stored results with them."""
+    res = json.loads((args.out / "results.json").read_text())
+    if args.baseline is not None:
+        baseline = baseline_speed(args.baseline, args.baseline_label, args)
+    res["pipeline_speed"] = pipeline_speed(freiburg, args.pipeline_pairs, args.seed)
+    if args.baseline is not None:
+        res["pipeline_speed"]["baseline"] = baseline
+    res["pipeline_speed"]["command"] = "python benchmarks/compare.py " + shlex.join(sys.argv[1:])
+    _write(res, args, figures=("pipeline",))
+
+
+def _write(res: dict, args, figures: tuple[str, ...] | None = None) -> None:
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "results.json").write_text(json.dumps(res, indent=1, default=float))
+    summary = compare_report.summarise(res)
+    compare_report.draw(res, summary, args.out, figures)
+    args.report.parent.mkdir(parents=True, exist_ok=True)
+    kept = compare_report.kept_sections(args.report)
+    args.report.write_text(
+        compare_report.render(res, summary, os.path.relpath(args.out, args.report.parent)) + kept
+    )
+    print(compare_report.headline(summary))
+    print(f"wrote {args.report} and {args.out}/")
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -268,10 +357,39 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--pipeline-pairs", type=int, default=10, help="pairs timed end to end")
     parser.add_argument("--memory-sizes", type=int, nargs="+", default=[10_000, 100_000, 1_000_000])
     parser.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
+    parser.add_argument(
+        "--only-pipeline",
+        action="store_true",
+        help="time the whole pairs (section 4) only; the other sections come from the stored "
+        "OUT/results.json of a full run",
+    )
+    parser.add_argument(
+        "--baseline",
+        type=Path,
+        default=None,
+        help="with --only-pipeline: a folder holding an earlier ppo_cv package, whose "
+        "estimate_pair is timed on the same pairs in a child process (the 'before' row)",
+    )
+    parser.add_argument("--baseline-label", default="before", help="name of the --baseline row")
+    parser.add_argument("--pipeline-json", type=Path, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.baseline is not None and not (args.baseline / "ppo_cv" / "__init__.py").is_file():
+        parser.error(f"--baseline {args.baseline} holds no ppo_cv package")
+    if args.baseline is not None and not args.only_pipeline:
+        parser.error("--baseline needs --only-pipeline")
+    if args.only_pipeline and not (args.out / "results.json").is_file():
+        parser.error(f"--only-pipeline needs the results of a full run in {args.out}/results.json")
     cv2.setNumThreads(1)
     start = time.perf_counter()
     freiburg = args.freiburg if (args.freiburg / "pairs_with_gt.txt").is_file() else None
+    if args.pipeline_json is not None:
+        timed = pipeline_speed(freiburg, args.pipeline_pairs, args.seed, ours_only=True)
+        timed["ppo_cv"] = str(Path(ppo_cv.__file__).resolve().parent)
+        args.pipeline_json.write_text(json.dumps(timed, indent=1))
+        return
+    if args.only_pipeline:
+        only_pipeline(args, freiburg)
+        return
 
     res: dict = {"identification": identification_speed()}
     res["pipeline_speed"] = pipeline_speed(freiburg, args.pipeline_pairs, args.seed)
@@ -298,17 +416,8 @@ def main(argv: list[str] | None = None) -> None:
             "ppo_cv": ppo_cv.__version__,
         },
     }
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "results.json").write_text(json.dumps(res, indent=1, default=float))
-    summary = compare_report.summarise(res)
-    compare_report.draw(res, summary, args.out)
-    args.report.parent.mkdir(parents=True, exist_ok=True)
-    kept = compare_report.kept_sections(args.report)
-    args.report.write_text(
-        compare_report.render(res, summary, os.path.relpath(args.out, args.report.parent)) + kept
-    )
-    print(compare_report.headline(summary))
-    print(f"wrote {args.report} and {args.out}/ in {time.perf_counter() - start:.0f} s")
+    _write(res, args)
+    print(f"in {time.perf_counter() - start:.0f} s")
 
 
 if __name__ == "__main__":

@@ -261,12 +261,17 @@ def _f1(d: dict) -> float:
     return 2 * p * r / (p + r)
 
 
-def draw(res: dict, s: dict, out: Path) -> None:
+def draw(res: dict, s: dict, out: Path, figures: tuple[str, ...] | None = None) -> None:
+    """The figures of :data:`FILES` (only the keys in ``figures`` when given) into ``out``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    if figures is not None:
+        if "pipeline" in figures:
+            _draw_pipeline(plt, s, out)
+        return
     sizes = [r["n"] for r in s["identification"]]
     fig, ax = plt.subplots(figsize=(6.5, 4.2))
     for name in ("ppo_cv.recoverPose", "cv2.recoverPose", "pycolmap pose from E"):
@@ -326,16 +331,7 @@ def draw(res: dict, s: dict, out: Path) -> None:
     fig.savefig(out / FILES["detection"], dpi=110)
     plt.close(fig)
 
-    pipe = {k: v for k, v in s["pipeline"].items() if isinstance(v, float)}
-    fig, ax = plt.subplots(figsize=(6.5, 3.6))
-    ax.barh(list(pipe), list(pipe.values()))
-    ax.set_xlabel("median seconds per image pair (features + matching + pose)")
-    ax.set_title(
-        f"Whole-pair time, {s['pipeline']['pairs']} {s['pipeline']['source']} pairs", fontsize=10
-    )
-    fig.tight_layout()
-    fig.savefig(out / FILES["pipeline"], dpi=110)
-    plt.close(fig)
+    _draw_pipeline(plt, s, out)
 
     fig, ax = plt.subplots(figsize=(6.5, 4.2))
     for method in sorted({r["method"] for r in s["memory"]}):
@@ -356,6 +352,40 @@ def draw(res: dict, s: dict, out: Path) -> None:
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(out / FILES["memory"], dpi=110)
+    plt.close(fig)
+
+
+def _pipeline_rows(pipe: dict) -> list[tuple[str, float, float]]:
+    """(pipeline, median wall s, median CPU s or nan) per timed pipeline, the baseline first."""
+    cpu = pipe.get("cpu", {})
+    rows = []
+    base = pipe.get("baseline")
+    if base is not None:
+        ours = "ppo_cv estimate_pair"
+        rows.append((f"{ours}, {base['label']}", base[ours], base["cpu"][ours]))
+    for key, value in pipe.items():
+        if isinstance(value, float):
+            rows.append((key, value, cpu.get(key, float("nan"))))
+    return rows
+
+
+def _draw_pipeline(plt, s: dict, out: Path) -> None:
+    rows = _pipeline_rows(s["pipeline"])
+    fig, ax = plt.subplots(figsize=(6.5, 0.9 + 0.55 * len(rows)))
+    ypos = np.arange(len(rows))
+    ax.barh(ypos - 0.2, [r[1] for r in rows], 0.4, label="wall")
+    if any(np.isfinite(r[2]) for r in rows):
+        ax.barh(ypos + 0.2, [r[2] for r in rows], 0.4, label="CPU (all threads)")
+        ax.legend(fontsize=8)
+    ax.set_yticks(ypos)
+    ax.set_yticklabels([r[0] for r in rows], fontsize=8)
+    ax.invert_yaxis()
+    ax.set_xlabel("median seconds per image pair (features + matching + pose)")
+    ax.set_title(
+        f"Whole-pair time, {s['pipeline']['pairs']} {s['pipeline']['source']} pairs", fontsize=10
+    )
+    fig.tight_layout()
+    fig.savefig(out / FILES["pipeline"], dpi=110)
     plt.close(fig)
 
 
@@ -467,6 +497,63 @@ def pure_rotation_lines(figdir: str, path: Path = PURE_ROTATION_ROWS) -> list[st
         f"![decision statistic]({figdir}/pure_rotation_statistic.png)",
         "",
     ]
+    return lines
+
+
+def pipeline_lines(pipe: dict, figdir: str) -> list[str]:
+    """Section 4: median wall and CPU time per pair, the stages of ``estimate_pair``, the
+    machine."""
+    lines = [
+        "",
+        "## 4. Whole-pair time",
+        "",
+        f"![pipeline]({figdir}/{FILES['pipeline']})",
+        "",
+        f"Median wall time per pair over {pipe['pairs']} {pipe['source']} pairs, one pair at a "
+        "time in one process, features and matching included. The OpenCV pipeline is SIFT + "
+        "`findEssentialMat` (USAC_MAGSAC) + `recoverPose`; the pycolmap pipeline is the same "
+        "SIFT matches + `estimate_calibrated_two_view_geometry` + "
+        "`estimate_two_view_geometry_pose`.",
+    ]
+    if "cpu" in pipe:
+        lines[-1] += (
+            " CPU time is `time.process_time()`, summed over the threads of the process: "
+            "`estimate_pair` detects the two images on two threads (OpenCV itself on one, "
+            "`cv2.setNumThreads(1)`), the other pipelines one after the other."
+        )
+    if "command" in pipe:
+        lines += ["", "Made by", "", "```", pipe["command"].strip(), "```"]
+    machine = pipe.get("machine")
+    if machine:
+        lines += [
+            "",
+            f"on {machine['cpu']}, {machine['cores']} logical cores, 1-minute load average "
+            f"{machine['load']:.2f} at the start and {machine['load_after']:.2f} at the end "
+            "(a shared host: the load is other work).",
+        ]
+    has_cpu = "cpu" in pipe
+    lines += [
+        "",
+        "| pipeline | median wall s / pair |" + (" median CPU s / pair |" if has_cpu else ""),
+        "|---|---:|" + ("---:|" if has_cpu else ""),
+    ]
+    for label, wall, cpu in _pipeline_rows(pipe):
+        lines.append(f"| {label} | {wall:.3f} |" + (f" {cpu:.3f} |" if has_cpu else ""))
+    stages = pipe.get("stages")
+    if stages:
+        base = (pipe.get("baseline") or {}).get("stages", {})
+        head = f" {pipe['baseline']['label']} |" if base else ""
+        lines += [
+            "",
+            "Median wall time of each stage of `estimate_pair` over the same pairs "
+            "(`PairResult.timings`):",
+            "",
+            "| stage | median ms |" + head,
+            "|---|---:|" + ("---:|" if base else ""),
+        ]
+        for stage, seconds in stages.items():
+            before = f" {base[stage] * 1e3:.1f} |" if stage in base else (" |" if base else "")
+            lines.append(f"| {stage} | {seconds * 1e3:.1f} |" + before)
     return lines
 
 
@@ -600,25 +687,7 @@ def render(res: dict, s: dict, figdir: str) -> str:
             + ", ".join(f"{n} {m}" for m, n in failed.items())
             + " pairs.",
         ]
-    pipe = s["pipeline"]
-    lines += [
-        "",
-        "## 4. Whole-pair time",
-        "",
-        f"![pipeline]({figdir}/{FILES['pipeline']})",
-        "",
-        f"Median wall time per pair over {pipe['pairs']} {pipe['source']} pairs, one pair at a "
-        "time in one process, features and matching included. The OpenCV pipeline is SIFT + "
-        "`findEssentialMat` (USAC_MAGSAC) + `recoverPose`; the pycolmap pipeline is the same "
-        "SIFT matches + `estimate_calibrated_two_view_geometry` + "
-        "`estimate_two_view_geometry_pose`.",
-        "",
-        "| pipeline | median s / pair |",
-        "|---|---:|",
-    ]
-    for key, value in pipe.items():
-        if isinstance(value, float):
-            lines.append(f"| {key} | {value:.3f} |")
+    lines += pipeline_lines(s["pipeline"], figdir)
     lines += [
         "",
         "## 5. Peak memory of identification",

@@ -1,0 +1,69 @@
+"""The whole-pair section of the side-by-side benchmark: its options and its table."""
+
+from __future__ import annotations
+
+import importlib.util
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPT = ROOT / "benchmarks" / "compare.py"
+
+
+@pytest.fixture(scope="module")
+def compare_report():
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        spec = importlib.util.spec_from_file_location(
+            "compare_report_under_test", ROOT / "benchmarks" / "compare_report.py"
+        )
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    return module
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--baseline", "{tmp}"], "--baseline"),
+        (["--only-pipeline", "--baseline", "{tmp}"], "holds no ppo_cv package"),
+        (["--only-pipeline", "--out", "{tmp}"], "needs the results of a full run"),
+    ],
+)
+def test_bad_pipeline_options_exit_2_with_a_message(args, message, tmp_path):
+    args = [arg.replace("{tmp}", str(tmp_path)) for arg in args]
+    done = subprocess.run([sys.executable, str(SCRIPT), *args], capture_output=True, text=True)
+    assert done.returncode == 2 and message in done.stderr.splitlines()[-1]
+    assert not (tmp_path / "results.json").exists()
+
+
+def test_whole_pair_section_lists_wall_and_cpu_time_and_the_baseline(compare_report):
+    pipe = {
+        "ppo_cv estimate_pair": 0.15,
+        "OpenCV pipeline": 0.2,
+        "cpu": {"ppo_cv estimate_pair": 0.25, "OpenCV pipeline": 0.19},
+        "stages": {"features": 0.08, "matching": 0.004},
+        "pairs": 10,
+        "source": "freiburg",
+        "machine": {"cpu": "Some CPU", "cores": 2, "load": 1.5, "load_after": 2.25},
+        "baseline": {
+            "label": "before",
+            "ppo_cv estimate_pair": 0.3,
+            "cpu": {"ppo_cv estimate_pair": 0.4},
+            "stages": {"features": 0.09},
+        },
+    }
+    lines = compare_report.pipeline_lines(pipe, "figs")
+    head = lines.index("| pipeline | median wall s / pair | median CPU s / pair |")
+    assert lines[head + 2 : head + 5] == [
+        "| ppo_cv estimate_pair, before | 0.300 | 0.400 |",
+        "| ppo_cv estimate_pair | 0.150 | 0.250 |",
+        "| OpenCV pipeline | 0.200 | 0.190 |",
+    ]
+    assert "| features | 80.0 | 90.0 |" in lines and "| matching | 4.0 | |" in lines
+    assert any("Some CPU, 2 logical cores" in line and "1.50" in line for line in lines)
