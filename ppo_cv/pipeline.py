@@ -508,15 +508,30 @@ def _consensus(
     for name, f in (("image1", f1), ("image2", f2)):
         if len(f) < MIN_MATCHES:
             raise ValueError(f"{name} has too few features ({len(f)}): blank or textureless image")
-    matches, scores = match_features_scored(f1, f2, ratio=options.ratio, mutual=options.mutual)
-    if len(matches) < MIN_MATCHES:
-        raise ValueError(f"too few matches between the images ({len(matches)}, need {MIN_MATCHES})")
-    lap("matching")
+    try:  # a stage that fails still ends, so that its time is not the next stage's
+        matches, scores = match_features_scored(f1, f2, options.ratio, options.mutual)
+        if len(matches) < MIN_MATCHES:
+            raise ValueError(
+                f"too few matches between the images ({len(matches)}, need {MIN_MATCHES})"
+            )
+    finally:
+        lap("matching")
 
     x1 = _normalize(f1.keypoints[matches[:, 0]], K1, dist1)
     x2 = _normalize(f2.keypoints[matches[:, 1]], K2, dist2)
     lap("undistort")
 
+    try:
+        fit = _robust_essential(x1, x2, focal, scores, K2, shape2, options)
+        significance = _require_significance(fit.E, x1, x2, K2, shape2, options, scores)
+    finally:
+        lap("ransac")
+    return _Consensus(f1, f2, threshold_scale, matches, x1, x2, fit, significance)
+
+
+def _robust_essential(x1, x2, focal, scores, K2, shape2, options: PairOptions) -> RobustEstimate:
+    """The robust essential matrix of the matches (stage ``ransac``); ValueError when it has
+    fewer than ``options.min_inliers`` inliers."""
     ransac = _ransac_keywords(options)
     if options.ordered_sampling:
         size2 = (int(shape2[1]), int(shape2[0]))
@@ -528,12 +543,10 @@ def _consensus(
     if fit is None or fit.num_inliers < options.min_inliers:
         found = 0 if fit is None else fit.num_inliers
         raise ValueError(
-            f"no reliable two-view geometry: {found} inliers among {len(matches)} matches "
+            f"no reliable two-view geometry: {found} inliers among {len(x1)} matches "
             f"(need {options.min_inliers})"
         )
-    significance = _require_significance(fit.E, x1, x2, K2, shape2, options, scores)
-    lap("ransac")
-    return _Consensus(f1, f2, threshold_scale, matches, x1, x2, fit, significance)
+    return fit
 
 
 def _best_consensus(

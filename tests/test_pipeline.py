@@ -75,6 +75,23 @@ def test_progress_names_every_stage_as_it_ends(general, general_result):
     assert ended[0] == "load" and ended[-1] == list(result.timings)[-1]
 
 
+def test_a_consensus_that_fails_ends_its_stages_before_raising():
+    """Matches with no common geometry: the time of the failed fit is the ``ransac`` stage's,
+    not the next stage's."""
+    from ppo_cv.pipeline import _consensus
+
+    rng = np.random.default_rng(5)
+    descriptors = rng.random((300, 128)).astype(np.float32)
+    keypoints = rng.uniform(0, 480, (2, 300, 2))
+    f1 = Features(keypoints[0], descriptors, "sift")
+    f2 = Features(keypoints[1], descriptors[::-1].copy(), "sift")
+    K = np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]])
+    ended = []
+    with pytest.raises(ValueError, match="no reliable two-view geometry"):
+        _consensus(f1, f2, 1.0, K, K, None, None, 500.0, (480, 640), PairOptions(), ended.append)
+    assert ended == ["matching", "undistort", "ransac"]
+
+
 def test_general_motion_points_match_the_depth_map(general, general_result):
     result = general_result
     assert 0.5 * result.num_inliers < result.num_points <= result.num_inliers
