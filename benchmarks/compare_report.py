@@ -189,8 +189,13 @@ def _wins(s: dict) -> list[str]:
     others = [pipe[k] for k in ("OpenCV pipeline", "pycolmap pipeline") if k in pipe]
     if ours_t is not None and others and ours_t < min(others):
         out.append(
-            f"whole-pair time: `estimate_pair` {ours_t:.2f} s per pair, the OpenCV and "
-            f"pycolmap pipelines " + " and ".join(f"{o:.2f} s" for o in others)
+            f"whole-pair time: `estimate_pair` {ours_t:.2f} s per pair"
+            f"{_cpu_note(pipe, 'ppo_cv estimate_pair')}, the OpenCV and pycolmap pipelines "
+            + " and ".join(
+                f"{pipe[k]:.2f} s{_cpu_note(pipe, k)}"
+                for k in ("OpenCV pipeline", "pycolmap pipeline")
+                if k in pipe
+            )
         )
     mem = {(r["method"], r["n"]): r for r in s["memory"]}
     n = max(r["n"] for r in s["memory"])
@@ -248,10 +253,17 @@ def _losses(s: dict) -> list[str]:
     for label in ("OpenCV pipeline", "pycolmap pipeline"):
         if ours_t is not None and label in pipe and pipe[label] < ours_t:
             out.append(
-                f"whole-pair time: the {label} takes {pipe[label]:.2f} s per pair, "
-                f"`estimate_pair` {ours_t:.2f} s"
+                f"whole-pair time: the {label} takes {pipe[label]:.2f} s per pair"
+                f"{_cpu_note(pipe, label)}, `estimate_pair` {ours_t:.2f} s"
+                f"{_cpu_note(pipe, 'ppo_cv estimate_pair')}"
             )
     return out
+
+
+def _cpu_note(pipe: dict, label: str) -> str:
+    """`` (CPU x s)`` when the run measured CPU time too."""
+    cpu = pipe.get("cpu", {}).get(label)
+    return "" if cpu is None else f" (CPU {cpu:.2f} s)"
 
 
 def _f1(d: dict) -> float:
