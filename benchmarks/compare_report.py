@@ -392,7 +392,7 @@ def _draw_pipeline(plt, s: dict, out: Path) -> None:
     ax.set_yticks(ypos)
     ax.set_yticklabels([r[0] for r in rows], fontsize=8)
     ax.invert_yaxis()
-    ax.set_xlabel("median seconds per image pair (features + matching + pose)")
+    ax.set_xlabel("median s per pair (features + matching + pose)")
     ax.set_title(
         f"Whole-pair time, {s['pipeline']['pairs']} {s['pipeline']['source']} pairs", fontsize=10
     )
