@@ -388,15 +388,17 @@ def trials_for_consensus(
     a consensus of ``consensus`` with probability ``q = prod_{i < s} (k - i) / (n - i)``; after
     ``t`` samples none did with probability ``(1 - q)^t``. Returns the smallest ``t`` that
     brings that to ``miss_probability`` or below: ``ceil(log(eta) / log(1 - q))``, ``math.inf``
-    when no sample can be all inliers (``consensus < sample_size``).
+    when no sample can be all inliers (``consensus`` or ``num_matches`` below ``sample_size``).
 
     >>> trials_for_consensus(20, 100, 0.05)
     14546.0
     """
-    i = np.arange(sample_size)
-    all_inliers = float(np.prod(np.maximum(consensus - i, 0) / (num_matches - i)))
-    if all_inliers <= 0.0:
+    if not 0.0 < miss_probability < 1.0:
+        raise ValueError(f"miss_probability must lie in (0, 1), got {miss_probability}")
+    if min(consensus, num_matches) < sample_size:
         return math.inf
+    i = np.arange(sample_size)
+    all_inliers = float(np.prod((consensus - i) / (num_matches - i)))
     if all_inliers >= 1.0:
         return 1.0
     return float(math.ceil(math.log(miss_probability) / math.log1p(-all_inliers)))

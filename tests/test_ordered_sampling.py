@@ -187,6 +187,16 @@ def test_trials_for_consensus_miss_it_with_probability_eta(consensus, matches):
 def test_trials_for_consensus_at_the_edges():
     assert robust_module.trials_for_consensus(4, 100, 0.05) == np.inf
     assert robust_module.trials_for_consensus(100, 100, 0.05) == 1
+    assert robust_module.trials_for_consensus(5, 4, 0.05) == np.inf  # no sample of 5 exists
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [((10, 100, 0.0), "miss_probability"), ((10, 100, 1.0), "miss_probability")],
+)  # fmt: skip
+def test_trials_for_consensus_names_bad_arguments(arguments, message):
+    with pytest.raises(ValueError, match=message):
+        robust_module.trials_for_consensus(*arguments)
 
 
 @pytest.mark.parametrize("num_inliers", [10, 13, 16, 20, 30])
