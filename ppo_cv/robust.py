@@ -15,15 +15,32 @@ of PROSAC, Chum and Matas 2005: the best-ranked matches are far more often inlie
 fit on the best-ranked matches, where the inlier ratio is higher and the adaptive stop comes
 after far fewer trials, a second fit on the consensus of that model over all matches, and the
 full fit (capped) only when the result is not significant (:mod:`ppo_cv.significance`).
+
+The full fit of a weak result stops by the evidence it can still gain: after ``t`` hypotheses,
+an untested consensus of ``k`` of ``n`` matches has given no all-inlier sample with probability
+``(1 - q_k)^t``, ``q_k = prod_{i<5} (k - i) / (n - i)``. Only a consensus at least as large as
+the best so far (``k_best``) and as the smallest that could pass the significance bar
+(``k_sig``, :func:`ppo_cv.significance.smallest_significant_consensus`) can change the answer,
+so the fit stops once ``(1 - q_k)^t`` falls below ``eta``
+(:data:`ppo_cv.significance.MISSED_CONSENSUS_PROBABILITY`) for ``k = max(k_best, k_sig)``:
+the backend's adaptive stop at confidence ``1 - eta`` (``k_best``) and a cap of
+:func:`trials_for_consensus` of ``k_sig`` hypotheses.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from .lsq import cross_matrix
+from .significance import (
+    ESSENTIAL_SAMPLE_SIZE,
+    MISSED_CONSENSUS_PROBABILITY,
+    epipolar_significance,
+    smallest_significant_consensus,
+)
 
 __all__ = [
     "ROBUST_BACKENDS",
@@ -40,6 +57,7 @@ __all__ = [
     "essential_from_pose",
     "sampson_errors",
     "sampson_signed",
+    "trials_for_consensus",
 ]
 
 ROBUST_BACKENDS = ("pycolmap", "opencv")
@@ -138,23 +156,25 @@ def virtual_camera(focal: float, width: int = 0, height: int = 0):
     )
 
 
-def ransac_options(threshold, confidence, min_trials, max_trials, seed):
-    """``pycolmap.RANSACOptions`` for a pixel ``threshold``, trial bounds and a seed."""
+def ransac_options(threshold, confidence, min_trials, max_trials, seed, multiplier=3.0):
+    """``pycolmap.RANSACOptions`` for a pixel ``threshold``, trial bounds, a seed and the factor
+    on the hypotheses of the adaptive stop (COLMAP's ``dyn_num_trials_multiplier``)."""
     import pycolmap
 
     options = pycolmap.RANSACOptions()
     options.max_error = threshold
     options.confidence = confidence
+    options.dyn_num_trials_multiplier = float(multiplier)
     options.max_num_trials = int(max_trials)
     options.min_num_trials = min(int(min_trials), int(max_trials))
     options.random_seed = int(seed)
     return options
 
 
-def _pycolmap(x1, x2, focal, threshold, confidence, min_trials, max_trials, seed):
+def _pycolmap(x1, x2, focal, threshold, confidence, min_trials, max_trials, seed, multiplier):
     import pycolmap
 
-    options = ransac_options(threshold, confidence, min_trials, max_trials, seed)
+    options = ransac_options(threshold, confidence, min_trials, max_trials, seed, multiplier)
     camera = virtual_camera(focal)
     points1, points2 = focal * x1[:, :2], focal * x2[:, :2]
     found = pycolmap.estimate_relative_pose(camera, points1, camera, points2, options)
@@ -175,7 +195,7 @@ def _pycolmap(x1, x2, focal, threshold, confidence, min_trials, max_trials, seed
     return E, mask
 
 
-def _opencv(x1, x2, focal, threshold, confidence, min_trials, max_trials, seed):
+def _opencv(x1, x2, focal, threshold, confidence, min_trials, max_trials, seed, multiplier):
     import cv2
 
     cv2.setRNGSeed(int(seed))
@@ -205,6 +225,7 @@ def estimate_essential(
     min_trials: int = 100,
     max_trials: int = 100_000,
     seed: int = 0,
+    trials_multiplier: float = 3.0,
 ) -> RobustEstimate | None:
     """Robustly fit an essential matrix to normalized correspondences.
 
@@ -224,6 +245,9 @@ def estimate_essential(
         Bounds on the number of hypotheses (``min_trials`` is ignored by OpenCV).
     seed : int
         Seed of the sampler, for repeatable results.
+    trials_multiplier : float
+        pycolmap draws this many times the hypotheses its adaptive stop computes from
+        ``confidence`` and the best consensus (ignored by OpenCV).
 
     Returns
     -------
@@ -242,6 +266,7 @@ def estimate_essential(
         min_trials,
         max_trials,
         seed,
+        trials_multiplier,
     )
     if found is None or not found[1].any():
         return None
@@ -274,11 +299,12 @@ def estimate_essential_ordered(
        The inliers are the matches within ``threshold`` of the result.
     3. When the result's ``log10 NFA`` (:func:`ppo_cv.significance.epipolar_significance`) is
        above ``FALLBACK_MAX_LOG10_NFA``, fit all N matches (at most
-       ``min(max_trials, FALLBACK_MAX_TRIALS)`` hypotheses, or ``max_trials`` when the result
-       would be weak, ``log10 NFA`` above ``max_log10_nfa`` or ``ORDERED_TRUSTED_LOG10_NFA``),
-       refit that model on its consensus as in step 2, and keep whichever has more inliers.
-       A weak result is replaced by the full fit as it is (no refit), the consensus that the
-       significance test was calibrated on (chosen by uniform sampling alone).
+       ``min(max_trials, FALLBACK_MAX_TRIALS)`` hypotheses), refit that model on its
+       consensus as in step 2, and keep whichever has more inliers. A weak result
+       (``log10 NFA`` above ``max_log10_nfa`` or ``ORDERED_TRUSTED_LOG10_NFA``) is replaced
+       by the full fit as it is (no refit), the consensus that the significance test was
+       calibrated on (uniform sampling alone), of at most ``max_trials`` hypotheses and
+       stopped by the evidence it can still gain (module docstring).
 
     Parameters
     ----------
@@ -305,8 +331,6 @@ def estimate_essential_ordered(
     RobustEstimate or None
         ``sampling`` says which fit it is; None when no fit finds a model.
     """
-    from .significance import epipolar_significance
-
     x1 = np.ascontiguousarray(x1, dtype=np.float64)
     x2 = np.ascontiguousarray(x2, dtype=np.float64)
     scores = np.asarray(scores, dtype=np.float64).reshape(-1)
@@ -337,16 +361,61 @@ def estimate_essential_ordered(
         nfa = epipolar_significance(fit.E, x1, x2, K2, image_size).log10_nfa
         if nfa <= FALLBACK_MAX_LOG10_NFA:
             return fit
-    weak = not nfa <= min(max_log10_nfa, ORDERED_TRUSTED_LOG10_NFA)
-    cap = int(max_trials) if weak else min(int(max_trials), FALLBACK_MAX_TRIALS)
-    full = estimate_essential(x1, x2, focal, max_trials=cap, **settings)
-    if weak:
+    if not nfa <= min(max_log10_nfa, ORDERED_TRUSTED_LOG10_NFA):
+        full = _uniform_fit_to_evidence(
+            x1, x2, focal, image_size, max_trials, max_log10_nfa, settings
+        )
         return None if full is None else RobustEstimate(full.E, full.inliers, backend, "fallback")
+    cap = min(int(max_trials), FALLBACK_MAX_TRIALS)
+    full = estimate_essential(x1, x2, focal, max_trials=cap, **settings)
     if full is not None:
         full = _consensus_fit(full.E, x1, x2, focal, cap, settings) or full
     if full is not None and (fit is None or full.num_inliers > fit.num_inliers):
         return RobustEstimate(full.E, full.inliers, backend, "fallback")
     return fit
+
+
+def trials_for_consensus(
+    consensus: int,
+    num_matches: int,
+    miss_probability: float,
+    sample_size: int = ESSENTIAL_SAMPLE_SIZE,
+) -> float:
+    """Hypotheses after which a consensus has given an all-inlier sample with probability
+    ``1 - miss_probability``.
+
+    Uniform samples of ``sample_size`` distinct matches of ``num_matches`` hold only matches of
+    a consensus of ``consensus`` with probability ``q = prod_{i < s} (k - i) / (n - i)``; after
+    ``t`` samples none did with probability ``(1 - q)^t``. Returns the smallest ``t`` that
+    brings that to ``miss_probability`` or below: ``ceil(log(eta) / log(1 - q))``, ``math.inf``
+    when no sample can be all inliers (``consensus`` or ``num_matches`` below ``sample_size``).
+
+    >>> trials_for_consensus(20, 100, 0.05)
+    14546.0
+    """
+    if not 0.0 < miss_probability < 1.0:
+        raise ValueError(f"miss_probability must lie in (0, 1), got {miss_probability}")
+    if min(consensus, num_matches) < sample_size:
+        return math.inf
+    i = np.arange(sample_size)
+    all_inliers = float(np.prod((consensus - i) / (num_matches - i)))
+    if all_inliers >= 1.0:
+        return 1.0
+    return float(math.ceil(math.log(miss_probability) / math.log1p(-all_inliers)))
+
+
+def _uniform_fit_to_evidence(x1, x2, focal, image_size, max_trials, max_log10_nfa, settings):
+    """The full fit of a weak ordered result, at most ``max_trials`` hypotheses, stopped by the
+    evidence it can still gain (module docstring)."""
+    n = x1.shape[0]
+    smallest = smallest_significant_consensus(n, image_size, settings["threshold"], max_log10_nfa)
+    cap = int(min(int(max_trials), trials_for_consensus(smallest, n, MISSED_CONSENSUS_PROBABILITY)))
+    stop = {
+        **settings,
+        "confidence": min(settings["confidence"], 1.0 - MISSED_CONSENSUS_PROBABILITY),
+        "trials_multiplier": 1.0,
+    }
+    return estimate_essential(x1, x2, focal, max_trials=cap, **stop)
 
 
 def _consensus_fit(E, x1, x2, focal, cap, settings) -> RobustEstimate | None:

@@ -161,3 +161,116 @@ def test_pairs_command_passes_the_sampling_choice_on(monkeypatch, tmp_path, flag
     )
     assert out.exit_code == 0, out.output
     assert seen[0].ordered_sampling is (flag == "--ordered-sampling")
+
+
+@pytest.mark.parametrize(("consensus", "matches"), [(12, 20), (9, 15), (30, 60)])
+def test_trials_for_consensus_miss_it_with_probability_eta(consensus, matches):
+    """Drawn samples, not the formula again: after the returned count of uniform samples of 5
+    distinct matches, runs without an all-inlier sample are about ``eta`` (binomial margin);
+    after half of it, clearly more."""
+    eta = 0.05
+    trials = int(robust_module.trials_for_consensus(consensus, matches, eta))
+    rng = np.random.default_rng(7)
+    runs = 4000
+
+    def missed(count: int) -> float:
+        keys = rng.random((runs, count, matches))
+        samples = np.argsort(keys, axis=2)[:, :, :5]
+        hit = np.all(samples < consensus, axis=2).any(axis=1)
+        return 1.0 - hit.mean()
+
+    margin = 3 * np.sqrt(eta * (1 - eta) / runs)
+    assert missed(trials) <= eta + margin
+    assert missed(max(trials // 2, 1)) > eta + margin
+
+
+def test_trials_for_consensus_at_the_edges():
+    assert robust_module.trials_for_consensus(4, 100, 0.05) == np.inf
+    assert robust_module.trials_for_consensus(100, 100, 0.05) == 1
+    assert robust_module.trials_for_consensus(5, 4, 0.05) == np.inf  # no sample of 5 exists
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [((10, 100, 0.0), "miss_probability"), ((10, 100, 1.0), "miss_probability")],
+)  # fmt: skip
+def test_trials_for_consensus_names_bad_arguments(arguments, message):
+    with pytest.raises(ValueError, match=message):
+        robust_module.trials_for_consensus(*arguments)
+
+
+@pytest.mark.parametrize("num_inliers", [10, 13, 16, 20, 30])
+def test_a_consensus_smaller_than_the_significant_one_is_not_significant(num_inliers):
+    """Exact motions at the 0.3 px noise of real matches among uniform outliers: whenever the
+    significance test passes the consensus, it holds at least the smallest significant
+    consensus; the true consensus of 30 passes."""
+    from ppo_cv.robust import essential_from_pose
+    from ppo_cv.significance import epipolar_significance, smallest_significant_consensus
+
+    n, bar = 150, 5.0
+    smallest = smallest_significant_consensus(n, SIZE, 1.0, bar)
+    assert 8 <= smallest <= 20
+    K = np.array([[FOCAL, 0.0, SIZE[0] / 2], [0.0, FOCAL, SIZE[1] / 2], [0.0, 0.0, 1.0]])
+    for seed in range(5):
+        x1, x2, _, R, t = synthetic_matches(num_inliers, n - num_inliers, seed=seed)
+        found = epipolar_significance(essential_from_pose(R, t), x1, x2, K, SIZE)
+        if found.log10_nfa <= bar:
+            assert found.num_consistent >= smallest, (seed, found)
+        elif num_inliers == 30:
+            raise AssertionError(f"a consensus of 30 of 150 was not significant: {found}")
+
+
+def test_no_consensus_can_be_significant_among_too_few_matches():
+    from ppo_cv.significance import smallest_significant_consensus
+
+    assert smallest_significant_consensus(12, SIZE, 1.0, -50.0) == 13
+    assert smallest_significant_consensus(3, SIZE, 1.0, 5.0) == 4
+    assert smallest_significant_consensus(40, SIZE, 1.0, np.inf) == 6
+
+
+def test_a_weak_fit_over_few_chance_matches_stops_at_the_significant_consensus(trial_caps):
+    """Uniform matches only (no motion): the ordered result is weak, the full fit stops after
+    the hypotheses that would have sampled the smallest significant consensus, well short of
+    max_trials, and its consensus stays beyond the bar."""
+    from ppo_cv.significance import (
+        MISSED_CONSENSUS_PROBABILITY,
+        epipolar_significance,
+        smallest_significant_consensus,
+    )
+
+    x1, x2, _, _, _ = synthetic_matches(0, 40, seed=3)
+    scores = np.linspace(0.5, 0.9, 40)
+    fit = estimate_essential_ordered(x1, x2, FOCAL, scores, SIZE, seed=0)
+    smallest = smallest_significant_consensus(40, SIZE, 1.0, 5.0)
+    cap = robust_module.trials_for_consensus(smallest, 40, MISSED_CONSENSUS_PROBABILITY)
+    assert trial_caps[-1] == int(cap) < 100_000
+    K = np.array([[FOCAL, 0.0, SIZE[0] / 2], [0.0, FOCAL, SIZE[1] / 2], [0.0, 0.0, 1.0]])
+    assert fit is None or epipolar_significance(fit.E, x1, x2, K, SIZE).log10_nfa > 5.0
+
+
+@pytest.mark.slow
+def test_a_weak_freiburg_pair_keeps_the_consensus_of_the_full_budget(freiburg, monkeypatch):
+    """A wide-baseline freiburg pair (23 inliers among 155 matches) decided by the uniform fit:
+    stopped by evidence, that fit returns the consensus that all 100,000 hypotheses find, and
+    the pose stays within 5 degrees of the pseudo ground truth."""
+    from ppo_cv.data_gen.io import read_pairs
+
+    weak_fits = []
+    real = robust_module._uniform_fit_to_evidence
+
+    def spy(x1, x2, focal, image_size, max_trials, max_log10_nfa, settings):
+        found = real(x1, x2, focal, image_size, max_trials, max_log10_nfa, settings)
+        weak_fits.append((x1, x2, focal, settings, found))
+        return found
+
+    monkeypatch.setattr(robust_module, "_uniform_fit_to_evidence", spy)
+    record = read_pairs(freiburg / "pairs_with_gt.txt")[37]
+    images = [cv2.imread(str(freiburg / "images" / record[n])) for n in ("name1", "name2")]
+    result = estimate_pair(*images, record["K1"], record["K2"])
+    assert weak_fits
+    for x1, x2, focal, settings, found in weak_fits:
+        full = robust_module.estimate_essential(x1, x2, focal, max_trials=100_000, **settings)
+        np.testing.assert_array_equal(found.inliers, full.inliers)
+        np.testing.assert_allclose(found.E, full.E, atol=1e-12)
+    assert rotation_error_deg(result.R, record["R"]) < 5.0
+    assert direction_error_deg(result.t, record["t"]) < 5.0
