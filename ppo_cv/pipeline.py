@@ -122,7 +122,9 @@ from .rotation import (
 from .rotation_choice import (
     RotationEstimate,
     choose_rotation,
+    focal_bias_deg,
     rotation_only_estimate,
+    rotation_only_fit,
     translation_bias,
     unbiased_bias_deg,
 )
@@ -793,9 +795,13 @@ def _revisit_with_tracks(
 def _finish_rotation(state: _Finishing) -> _ModelPart:
     """A pure rotation: the rotation-only fit, no point, ``t`` undetermined (its sigma the cap);
     the rotation's deviation with the tracks' parallax beyond its noise
-    (:func:`~ppo_cv.rotation_choice.unbiased_bias_deg`)."""
+    (:func:`~ppo_cv.rotation_choice.unbiased_bias_deg`) and the rotation its focal scale may
+    have bought (:func:`~ppo_cv.rotation_choice.focal_bias_deg`)."""
     motion, num_matches = state.motion, len(state.found.matches)
     bias = translation_bias(None if state.tracks is None else state.tracks.parallax)
+    lens = rotation_only_fit(motion, state.tracks)
+    focal = focal_bias_deg(lens, state.found.x1, state.found.x2, motion.rotation_inliers)
+    deviations = [motion.rotation_sigma_deg, unbiased_bias_deg(*bias), focal]
     return _ModelPart(
         R=motion.R,
         t=motion.t,
@@ -804,7 +810,7 @@ def _finish_rotation(state: _Finishing) -> _ModelPart:
         points3d=np.full((num_matches, 3), np.nan),
         point_matches=np.flatnonzero(np.zeros(num_matches, dtype=bool)),
         t_sigma_deg=T_SIGMA_CAP_DEG,
-        rotation_sigma_deg=float(np.hypot(motion.rotation_sigma_deg, unbiased_bias_deg(*bias))),
+        rotation_sigma_deg=float(np.linalg.norm(deviations)),
     )
 
 
