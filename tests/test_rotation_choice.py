@@ -184,6 +184,8 @@ def test_translating_renders_keep_the_moving_model(seed, baseline, chosen, monke
     assert not result.pure_rotation and result.rotation_source == chosen
     assert np.allclose(result.R, estimates[chosen].R)
     assert result.uncertainty.rotation_bias_deg == 0.0
+    # weighed with the deviation it reports, the given intrinsics' errors counted
+    assert estimates[chosen].sigma_deg == result.uncertainty.rotation_sigma_deg
     error = rotation_error_deg(result.R, pair.R)
     assert error < 0.1 and error < rotation_error_deg(estimates["rotation"].R, pair.R)
 
