@@ -39,7 +39,7 @@ from imperfect import imperfect_render  # noqa: E402
 
 BASELINES = (0.0, 0.005, 0.02, 0.05)
 
-__all__ = ["BASELINES", "calibration_rows", "pair_lines", "run", "main"]
+__all__ = ["BASELINES", "calibration_rows", "pair_lines", "pairwise_rms", "run", "main"]
 
 
 def run(seeds: int) -> list[dict]:
@@ -81,6 +81,17 @@ def calibration_rows(rows: list[dict], key: str) -> list[tuple[str, int, float, 
     return table
 
 
+def pairwise_rms(rows: list[dict], key: str) -> dict[str, float]:
+    """Per value of ``key``: the root mean square of each pair's error over its own sigma
+    (finite sigmas only), near 1 when every pair's deviation fits its error, whatever their
+    spread; RMS error over mean sigma exceeds it when the sigmas differ from pair to pair."""
+    finite = [r for r in rows if np.isfinite(r["sigma"])]
+    ratios = {}
+    for r in finite:
+        ratios.setdefault(r[key], []).append(r["error"] / r["sigma"])
+    return {value: float(np.sqrt(np.mean(np.square(z)))) for value, z in ratios.items()}
+
+
 def pair_lines(rows: list[dict]) -> list[str]:
     """A markdown table of every pair: its render, model, source, error against sigma."""
     lines = [
@@ -106,12 +117,14 @@ def report(rows: list[dict], seconds: float, pairs: bool = False) -> str:
     if pairs:
         lines += pair_lines(rows)
     for key, title in (("model", "model"), ("source", "rotation source"), ("baseline", "baseline")):
+        pairwise = pairwise_rms(rows, key)
         lines += [
-            f"| {title} | pairs | RMS error (deg) | mean sigma (deg) | RMS / sigma |",
-            "|---|---|---|---|---|",
+            f"| {title} | pairs | RMS error (deg) | mean sigma (deg) | RMS / sigma "
+            "| RMS of error / sigma |",
+            "|---|---|---|---|---|---|",
         ]
         lines += [
-            f"| {value} | {n} | {rms:.3f} | {mean:.3f} | {ratio:.2f} |"
+            f"| {value} | {n} | {rms:.3f} | {mean:.3f} | {ratio:.2f} | {pairwise[value]:.2f} |"
             for value, n, rms, mean, ratio in calibration_rows(rows, key)
         ]
         lines.append("")
