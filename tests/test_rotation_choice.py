@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from ppo_cv.metrics import rotation_error_deg
+from ppo_cv.motion_model import MAX_TRACK_PARALLAX
 from ppo_cv.parallax import PlaneParallax, homography_parallax
 from ppo_cv.rotation import fit_rotation_lens
 from ppo_cv.rotation_choice import (
@@ -129,7 +130,8 @@ def test_fit_sigma_agrees_with_the_lens_fit_covariance():
     [
         (8.0, 0.01, 0.0),  # a sideways step the focal scale half absorbs
         (4.0, 0.005, 0.0),
-        (12.0, 0.02, 0.01),  # the given focal length 1 % off besides
+        (12.0, 0.008, -0.01),  # the given focal length 1 % off besides
+        (8.0, 0.03, 0.0),  # beyond MAX_TRACK_PARALLAX: counted up to it
         (8.0, 0.0, 0.015),  # a pure rotation, focal length off within its prior
     ],
 )
@@ -148,9 +150,10 @@ def test_focal_bias_is_the_rotation_a_sideways_step_put_into_the_focal_scale(
     bias = focal_bias_deg(fit, given1, given2, used)
     if step == 0.0:
         assert error < 0.01 and bias == 0.0
-    else:
-        assert error > 0.05
-        assert 0.6 * error <= bias <= 1.2 * error
+        return
+    share = min(1.0, MAX_TRACK_PARALLAX / step)
+    assert error > 0.05
+    assert 0.6 * share * error <= bias <= 1.2 * share * error
 
 
 def _estimates_of(pair, monkeypatch):
