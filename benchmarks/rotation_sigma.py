@@ -13,9 +13,10 @@ nobody models, the focal length given up to 3 % off, noise and JPEG): pure rotat
 baselines of 0.005, 0.02 and 0.05 of the median depth, seeds ``0 .. --seeds - 1``. No real
 data is needed.
 
-Run ``python benchmarks/rotation_sigma.py [--seeds 8]`` (about a minute on 2 shared cores);
-it prints a markdown table and the machine. The table, what the deviations count and what is
-left: ``docs/rotation_sigma.md``.
+Run ``python benchmarks/rotation_sigma.py [--seeds 8] [--pairs]`` (a few minutes on 2 shared
+cores); it prints the machine and markdown tables per model, rotation source and baseline,
+with ``--pairs`` every pair's error against its sigma, the lens and the focal length's
+error. The tables, what the deviations count and what is left: ``docs/rotation_sigma.md``.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from imperfect import imperfect_render  # noqa: E402
 
 BASELINES = (0.0, 0.005, 0.02, 0.05)
 
-__all__ = ["BASELINES", "calibration_rows", "run", "main"]
+__all__ = ["BASELINES", "calibration_rows", "pair_lines", "pairwise_rms", "run", "main"]
 
 
 def run(seeds: int) -> list[dict]:
@@ -59,6 +60,8 @@ def run(seeds: int) -> list[dict]:
                     "source": result.rotation_source,
                     "error": rotation_error_deg(result.R, pair.R),
                     "sigma": float(result.uncertainty.rotation_sigma_deg),
+                    "k1": pair.k1,
+                    "focal_error": pair.focal_error,
                 }
             )
     return rows
@@ -78,19 +81,50 @@ def calibration_rows(rows: list[dict], key: str) -> list[tuple[str, int, float, 
     return table
 
 
-def report(rows: list[dict], seconds: float) -> str:
+def pairwise_rms(rows: list[dict], key: str) -> dict[str, float]:
+    """Per value of ``key``: the root mean square of each pair's error over its own sigma
+    (finite sigmas only), near 1 when every pair's deviation fits its error, whatever their
+    spread; RMS error over mean sigma exceeds it when the sigmas differ from pair to pair."""
+    finite = [r for r in rows if np.isfinite(r["sigma"])]
+    ratios = {}
+    for r in finite:
+        ratios.setdefault(r[key], []).append(r["error"] / r["sigma"])
+    return {value: float(np.sqrt(np.mean(np.square(z)))) for value, z in ratios.items()}
+
+
+def pair_lines(rows: list[dict]) -> list[str]:
+    """A markdown table of every pair: its render, model, source, error against sigma."""
+    lines = [
+        "| baseline | seed | model | source | error (deg) | sigma (deg) | error / sigma | k1 "
+        "| focal error |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['baseline']} | {r['seed']} | {r['model']} | {r['source']} | {r['error']:.3f} "
+            f"| {r['sigma']:.3f} | {r['error'] / r['sigma']:.1f} | {r['k1']:+.3f} "
+            f"| {r['focal_error']:+.3f} |"
+        )
+    return lines + [""]
+
+
+def report(rows: list[dict], seconds: float, pairs: bool = False) -> str:
     lines = [
         f"Machine: {platform.platform()}, {os.cpu_count()} cores, Python "
         f"{platform.python_version()}; {len(rows)} pairs in {seconds:.0f} s.",
         "",
     ]
-    for key, title in (("model", "model"), ("source", "rotation source")):
+    if pairs:
+        lines += pair_lines(rows)
+    for key, title in (("model", "model"), ("source", "rotation source"), ("baseline", "baseline")):
+        pairwise = pairwise_rms(rows, key)
         lines += [
-            f"| {title} | pairs | RMS error (deg) | mean sigma (deg) | RMS / sigma |",
-            "|---|---|---|---|---|",
+            f"| {title} | pairs | RMS error (deg) | mean sigma (deg) | RMS / sigma "
+            "| RMS of error / sigma |",
+            "|---|---|---|---|---|---|",
         ]
         lines += [
-            f"| {value} | {n} | {rms:.3f} | {mean:.3f} | {ratio:.2f} |"
+            f"| {value} | {n} | {rms:.3f} | {mean:.3f} | {ratio:.2f} | {pairwise[value]:.2f} |"
             for value, n, rms, mean, ratio in calibration_rows(rows, key)
         ]
         lines.append("")
@@ -102,10 +136,11 @@ def report(rows: list[dict], seconds: float) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seeds", type=int, default=8, help="renders per baseline")
+    parser.add_argument("--pairs", action="store_true", help="also print every pair's row")
     args = parser.parse_args(argv)
     start = time.perf_counter()
     rows = run(args.seeds)
-    print(report(rows, time.perf_counter() - start))
+    print(report(rows, time.perf_counter() - start, args.pairs))
     return 0
 
 

@@ -63,7 +63,7 @@ import importlib
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -87,8 +87,8 @@ from .photometric import MAX_SEARCH_SIGMA_DEG, PhotometricRotation, refine_rotat
 from .plane import held_k1_deviation, refine_planar_pose, undistort_division
 from .pose import _recover_normalized
 from .refine import (
-    K1_MIN,
     T_SIGMA_CAP_DEG,
+    RadialPose,
     huber_bound_px,
     pose_sigmas_deg,
     refine_pose,
@@ -122,7 +122,9 @@ from .rotation import (
 from .rotation_choice import (
     RotationEstimate,
     choose_rotation,
+    focal_bias_deg,
     rotation_only_estimate,
+    rotation_only_fit,
     translation_bias,
     unbiased_bias_deg,
 )
@@ -806,9 +808,13 @@ def _revisit_with_tracks(
 def _finish_rotation(state: _Finishing) -> _ModelPart:
     """A pure rotation: the rotation-only fit, no point, ``t`` undetermined (its sigma the cap);
     the rotation's deviation with the tracks' parallax beyond its noise
-    (:func:`~ppo_cv.rotation_choice.unbiased_bias_deg`)."""
+    (:func:`~ppo_cv.rotation_choice.unbiased_bias_deg`) and the rotation its focal scale may
+    have bought (:func:`~ppo_cv.rotation_choice.focal_bias_deg`)."""
     motion, num_matches = state.motion, len(state.found.matches)
     bias = translation_bias(None if state.tracks is None else state.tracks.parallax)
+    lens = rotation_only_fit(motion, state.tracks)
+    focal = focal_bias_deg(lens, state.found.x1, state.found.x2, motion.rotation_inliers)
+    deviations = [motion.rotation_sigma_deg, unbiased_bias_deg(*bias), focal]
     return _ModelPart(
         R=motion.R,
         t=motion.t,
@@ -817,7 +823,7 @@ def _finish_rotation(state: _Finishing) -> _ModelPart:
         points3d=np.full((num_matches, 3), np.nan),
         point_matches=np.flatnonzero(np.zeros(num_matches, dtype=bool)),
         t_sigma_deg=T_SIGMA_CAP_DEG,
-        rotation_sigma_deg=float(np.hypot(motion.rotation_sigma_deg, unbiased_bias_deg(*bias))),
+        rotation_sigma_deg=float(np.linalg.norm(deviations)),
     )
 
 
@@ -855,14 +861,14 @@ def _finish_general(state: _Finishing) -> _ModelPart:
     """A general motion: the essential matrix's pose refined with a radial term when one is
     significant, and the analytic points of its inliers."""
     options, x1, x2 = state.options, state.found.x1, state.found.x2
-    R, t, inliers, radial_k1, k1_sigma = state.pose.R, state.pose.t, state.pose.inliers, 0.0, None
+    R, t, inliers, radial_k1, radial = state.pose.R, state.pose.t, state.pose.inliers, 0.0, None
     if options.refine:
         bound = huber_bound_px(options.ransac_threshold, state.motion.noise_px)
         radial = refine_pose_radial(
             R, t, x1, x2, inliers, scale=bound / state.focal,
             principal_prior=state.priors.principal,
         )  # fmt: skip
-        R, t, radial_k1, k1_sigma = radial.R, radial.t, radial.k1, radial.k1_sigma
+        R, t, radial_k1 = radial.R, radial.t, radial.k1
     c1, c2 = undistort_division(x1, radial_k1), undistort_division(x2, radial_k1)
     final = _recover_normalized(essential_from_pose(R, t), c1[:, :2], c2[:, :2], inliers, 0.0)
     keep = final.inliers & np.all(np.isfinite(final.points3d), axis=1)
@@ -871,8 +877,8 @@ def _finish_general(state: _Finishing) -> _ModelPart:
         principal_prior=state.priors.principal,
     )  # fmt: skip
     rotation_sigma_deg = sigmas.rotation_deg
-    if radial_k1 == 0.0 and k1_sigma is not None and np.isfinite(k1_sigma):
-        rotation_sigma_deg = _held_k1_rotation_sigma_deg(final, c1, c2, inliers, k1_sigma, state)
+    if radial_k1 == 0.0 and radial is not None and np.isfinite(radial.k1_sigma):
+        rotation_sigma_deg = _held_k1_rotation_sigma_deg(final, c1, c2, inliers, radial, state)
     return _ModelPart(
         R=final.R,
         t=final.t,
@@ -887,13 +893,13 @@ def _finish_general(state: _Finishing) -> _ModelPart:
     )
 
 
-def _held_k1_rotation_sigma_deg(final, c1, c2, inliers, k1_sigma: float, state) -> float:
+def _held_k1_rotation_sigma_deg(final, c1, c2, inliers, radial: RadialPose, state) -> float:
     """Rotation deviation of a general pose whose refinement held ``k1`` at 0: the held
-    value's error a considered parameter (:func:`held_k1_deviation`) beside the focal length's
-    and the principal point's."""
+    value's error a considered parameter (:func:`held_k1_deviation` of the coefficient the
+    refinement reached) beside the focal length's and the principal point's."""
     return pose_sigmas_deg(
         final.R, final.t, c1, c2, inliers, principal_prior=state.priors.principal,
-        held_k1_prior=held_k1_deviation(k1_sigma, K1_MIN),
+        held_k1_prior=held_k1_deviation(radial.k1_fitted, radial.k1_sigma),
     ).rotation_deg  # fmt: skip
 
 
@@ -908,13 +914,15 @@ its pose, points and uncertainty (stage ``decision``)."""
 
 def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     """The rotation with the smallest expected error (:func:`choose_rotation`): a pure
-    rotation's own; otherwise the moving model's or the rotation-only fit's, whose bias is then
-    measured on intensity-aligned tracks when the fit is the better determined of the two."""
+    rotation's own; otherwise the moving model's, with the deviation it reports (the given
+    intrinsics' errors counted, as the rotation-only fit's lens priors count them), or the
+    rotation-only fit's, whose bias is then measured on intensity-aligned tracks when the fit
+    is the better determined of the two."""
     motion = state.motion
     if motion.pure_rotation:
         return RotationEstimate("rotation", part.R, 0.0, part.rotation_sigma_deg)
     source = "plane" if motion.model == "plane" else "essential"
-    moving = RotationEstimate(source, part.R, 0.0, part.rotation_fit_sigma_deg)
+    moving = RotationEstimate(source, part.R, 0.0, part.rotation_sigma_deg)
     x1, x2, used = state.found.x1, state.found.x2, state.pose.inliers | motion.rotation_inliers
     rotation_only = rotation_only_estimate(motion, state.tracks, x1, x2, used)
     if (
@@ -924,8 +932,7 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     ):
         tracks = _align_tracks(state.inputs, motion, state.priors, keep_clipped=True)
         rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used)
-    chosen = choose_rotation([moving, rotation_only])
-    return replace(chosen, sigma_deg=part.rotation_sigma_deg) if chosen is moving else chosen
+    return choose_rotation([moving, rotation_only])
 
 
 def _lens_terms(motion: MotionDecision, focal: float, radial_k1: float) -> LensTerms:

@@ -615,10 +615,10 @@ def refine_planar_pose(
     cost_start = _huber(model.residuals(p), scale)
     if count >= 9:
         p = _levenberg_marquardt(model, p, scale, k1_prior, iterations)
-    k1_sigma = float("inf")
+    k1_sigma, k1_fitted = float("inf"), 0.0
     if fit_k1 and count >= 10:
         lens = _levenberg_marquardt(model, np.append(p, 0.0), scale, k1_prior, iterations)
-        k1_sigma = _k1_sigma(model, lens, scale, k1_prior)
+        k1_sigma, k1_fitted = _k1_sigma(model, lens, scale, k1_prior), float(lens[8])
         if abs(lens[8]) <= max_k1 and abs(lens[8]) > K1_SIGNIFICANCE * k1_sigma:
             p = lens
     cost = _huber(model.residuals(p), scale)
@@ -630,7 +630,7 @@ def refine_planar_pose(
     full = _transfer(Rr + np.outer(Tr, nr), undistort_division(X1, k1), undistort_division(X2, k1))
     rotation_sigma, fit_sigma = _rotation_sigmas_deg(
         model, np.append(p[:8], k1), scale, k1_prior, count,
-        held_k1_sigma=None if len(p) > 8 else held_k1_deviation(k1_sigma),
+        held_k1_sigma=None if len(p) > 8 else held_k1_deviation(k1_fitted, k1_sigma),
     )  # fmt: skip
     return RefinedPlanarPose(
         R=Rr,
@@ -667,16 +667,16 @@ def _k1_sigma(model, p, scale, k1_prior) -> float:
     return float("inf") if cov is None else float(np.sqrt(max(cov[8, 8], 0.0)))
 
 
-def held_k1_deviation(k1_sigma: float, smallest_kept: float = 0.0) -> float:
-    """Deviation of the error of a division coefficient held at 0 because its fit, of
-    deviation ``k1_sigma``, lay within ``K1_SIGNIFICANCE`` deviations (or below
-    ``smallest_kept``): the true ``k1`` lies anywhere within that bound ``b``, the deviation
-    of a uniform spread over ``[-b, b]``, ``b / sqrt(3)``.
+def held_k1_deviation(k1_fitted: float, k1_sigma: float) -> float:
+    """Root-mean-square error of a division coefficient held at 0 although its fit reached
+    ``k1_fitted`` with deviation ``k1_sigma`` (not significant, or too small to keep): given the
+    matches the true coefficient lies about ``N(k1_fitted, k1_sigma^2)``, so the held value is
+    off by ``sqrt(k1_fitted^2 + k1_sigma^2)`` on average.
 
-    >>> round(held_k1_deviation(0.01), 4)
-    0.0173
+    >>> round(held_k1_deviation(0.03, 0.04), 4)
+    0.05
     """
-    return float(max(K1_SIGNIFICANCE * k1_sigma, smallest_kept) / np.sqrt(3.0))
+    return float(np.hypot(k1_fitted, k1_sigma))
 
 
 def _rotation_sigmas_deg(

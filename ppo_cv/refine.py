@@ -142,12 +142,17 @@ class RadialPose:
         Division-model coefficient on normalized points (0 when not kept).
     k1_sigma : float
         Its standard deviation (Gauss-Newton); ``inf`` when it was not fitted.
+    k1_fitted : float
+        The coefficient the fit reached, kept or not (0 when it was not fitted): with
+        ``k1_sigma`` what the matches say of a coefficient held at 0
+        (:func:`ppo_cv.plane.held_k1_deviation`).
     """
 
     R: np.ndarray
     t: np.ndarray
     k1: float
     k1_sigma: float
+    k1_fitted: float = 0.0
 
 
 def refine_pose_radial(
@@ -243,9 +248,9 @@ def refine_pose_radial(
     k1, k1_sigma = float(p[5]), float(np.sqrt(k1_variance))
     kept = K1_MIN <= abs(k1) <= max_k1 and abs(k1) > K1_SIGNIFICANCE * k1_sigma
     if not (kept and r @ r < r_start @ r_start):
-        return RadialPose(R0, t0, 0.0, k1_sigma)
+        return RadialPose(R0, t0, 0.0, k1_sigma, k1)
     Rp, tp = pose(p)
-    return RadialPose(Rp, tp, k1, k1_sigma)
+    return RadialPose(Rp, tp, k1, k1_sigma, k1)
 
 
 def _considered_k1_variance(moved_residuals, J, r, focal_prior, principal_prior) -> float:

@@ -4,12 +4,14 @@ import numpy as np
 import pytest
 
 from ppo_cv.metrics import rotation_error_deg
+from ppo_cv.motion_model import MAX_TRACK_PARALLAX
 from ppo_cv.parallax import PlaneParallax, homography_parallax
 from ppo_cv.rotation import fit_rotation_lens
 from ppo_cv.rotation_choice import (
     RotationEstimate,
     across_normal_parallax,
     choose_rotation,
+    focal_bias_deg,
     rotation_fit_sigma_deg,
     translation_bias,
 )
@@ -123,6 +125,37 @@ def test_fit_sigma_agrees_with_the_lens_fit_covariance():
     assert rotation_fit_sigma_deg(fit, q1[:3], x2[:3], used[:3]) == float("inf")
 
 
+@pytest.mark.parametrize(
+    ("turn_deg", "step", "focal_error"),
+    [
+        (8.0, 0.01, 0.0),  # a sideways step the focal scale half absorbs
+        (4.0, 0.005, 0.0),
+        (12.0, 0.008, -0.01),  # the given focal length 1 % off besides
+        (8.0, 0.03, 0.0),  # beyond MAX_TRACK_PARALLAX: counted up to it
+        (8.0, 0.0, 0.015),  # a pure rotation, focal length off within its prior
+    ],
+)
+def test_focal_bias_is_the_rotation_a_sideways_step_put_into_the_focal_scale(
+    turn_deg, step, focal_error
+):
+    rng = np.random.default_rng(3)
+    q1 = rng.uniform(-0.25, 0.25, (300, 2))
+    R = _turn(turn_deg)
+    ray = np.column_stack([q1, np.ones(len(q1))]) @ R.T + [step, 0.0, 0.0]  # depth 1
+    x2 = ray[:, :2] / ray[:, 2:] + rng.normal(0.0, 2e-5, (len(q1), 2))
+    given1, given2 = q1 / (1.0 + focal_error), x2 / (1.0 + focal_error)
+    used = np.ones(len(q1), bool)
+    fit = fit_rotation_lens(given1, given2, used, np.eye(3), noise=3e-5, max_focal_change=0.2)
+    error = rotation_error_deg(fit.R, R)
+    bias = focal_bias_deg(fit, given1, given2, used)
+    if step == 0.0:
+        assert error < 0.01 and bias == 0.0
+        return
+    share = min(1.0, MAX_TRACK_PARALLAX / step)
+    assert error > 0.05
+    assert 0.6 * share * error <= bias <= 1.2 * share * error
+
+
 def _estimates_of(pair, monkeypatch):
     """The pair's result and the estimates the rule compared."""
     import ppo_cv.pipeline as pipeline
@@ -154,6 +187,8 @@ def test_translating_renders_keep_the_moving_model(seed, baseline, chosen, monke
     assert not result.pure_rotation and result.rotation_source == chosen
     assert np.allclose(result.R, estimates[chosen].R)
     assert result.uncertainty.rotation_bias_deg == 0.0
+    # weighed with the deviation it reports, the given intrinsics' errors counted
+    assert estimates[chosen].sigma_deg == result.uncertainty.rotation_sigma_deg
     error = rotation_error_deg(result.R, pair.R)
     assert error < 0.1 and error < rotation_error_deg(estimates["rotation"].R, pair.R)
 

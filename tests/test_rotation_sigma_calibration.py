@@ -1,8 +1,9 @@
 """``rotation_sigma_deg`` against the rotation error on renders (``benchmarks/rotation_sigma.py``,
 its renders of ``tests/imperfect.py``, six seeds): the root-mean-square error over the pairs of
-each model against the mean deviation. The target is a factor 1.5 either way; measured are 1.59
-(general), 1.70 (plane) and 2.08 (rotation), 2.25, 3.20 and 4.67 before the given intrinsics'
-errors were counted (``docs/rotation_sigma.md``)."""
+each model against the mean deviation. The target is a factor 1.5 either way; measured are 1.33
+(general), 1.72 (plane) and 1.04 (rotation); 1.59, 1.70 and 2.08 before a held ``k1`` counted
+what its fit reached and a pure rotation the rotation its focal scale may have absorbed
+(``docs/rotation_sigma.md``)."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 SEEDS = 6
 TARGET = 1.5
-MEASURED = 2.2  # the largest ratio measured on these renders, with a margin
+MEASURED = 2.0  # the largest ratio measured on these renders, with a margin
 
 pytestmark = pytest.mark.slow
 
@@ -40,12 +41,15 @@ def test_sigma_neither_overstates_nor_understates_beyond_the_measured_factor(tab
     assert 1.0 / TARGET <= ratio <= MEASURED, f"{model}: RMS {rms:.3f} / sigma {mean_sigma:.3f}"
 
 
-@pytest.mark.xfail(
+UNMET = pytest.mark.xfail(
     strict=True,
-    reason="moved pairs called pure rotations and a few general ones at tiny baselines carry "
-    "more error than their deviations count (docs/rotation_sigma.md)",
+    reason="a room called a plane at a baseline of 0.005 returns a rotation 0.37 degree off, "
+    "well determined under the plane model (deviation 0.085, its matches' clusters agree); "
+    "docs/rotation_sigma.md",
 )
-@pytest.mark.parametrize("model", MODELS)
+
+
+@pytest.mark.parametrize("model", ["general", pytest.param("plane", marks=UNMET), "rotation"])
 def test_rms_error_within_the_target_factor_of_the_mean_sigma(table, model):
     _, rms, mean_sigma, ratio = table[model]
     assert 1.0 / TARGET <= ratio <= TARGET, f"{model}: RMS {rms:.3f} / sigma {mean_sigma:.3f}"
