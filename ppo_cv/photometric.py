@@ -748,11 +748,8 @@ def refine_rotation_photometric(
     max_corners : int, optional
         Windows aligned at most (default :data:`MAX_CORNERS`).
     keep_clipped : bool
-        The refit of a rotation-only estimate (:mod:`ppo_cv.rotation_choice`), not of a
-        decision: ``k1`` is held by its prior :data:`ppo_cv.rotation.K1_PRIOR` alone, without
-        the box :data:`ppo_cv.rotation.MAX_K1`, and a refit whose focal scale was clipped to
-        its box is returned too (``rotation_sigma_deg`` inf), its tracks' parallax still
-        measuring a translation.
+        A rotation-only estimate's refit (:mod:`ppo_cv.rotation_choice`): ``k1`` held by its
+        prior alone, and a focal scale clipped to its box returned too (no deviation).
 
     Returns
     -------
