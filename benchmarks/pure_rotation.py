@@ -36,7 +36,9 @@ focal length given off by up to 3 %, a 25-35 degree field of view, JPEG):
   15-25 degree field, a division-model lens of ``|k1|`` 0.05-0.15, mostly barrel): exact tripod
   pans (``tripod`` at baseline / depth 0), tripod pans whose lens is not at the pivot
   (``tripod``, baseline / depth 0.002-0.01, labelled like real tripod panoramas, to be
-  flagged), and ``tiny-baseline`` at 0.02 (translating);
+  flagged), and ``tiny-baseline`` at 0.02 (translating); and tripod pans at 720 x 540 through
+  :data:`ppo_cv.data_gen.LONG_ZOOM` (a 19-20 degree field, a pincushion of ``k1`` 0.3-0.5,
+  beyond the rotation model's box), as real panoramas through a long zoom (``long zoom``);
 - ``sweep``: ``tiny-baseline`` from 0.001 to 0.05, to see where the flag switches;
 - ``pano_dev``: 56 pairs of three real tripod panorama sequences (``../shared/data/pano_dev``,
   reference rotations fitted with the given focal length; skipped with a note without it);
@@ -730,7 +732,8 @@ def _sets(counts: dict, have_photos: bool):
 
 
 def _narrow_lens_sets(official, n):
-    """Tripod pans and a translation through :data:`ppo_cv.data_gen.NARROW_LENS`."""
+    """Tripod pans and a translation through :data:`ppo_cv.data_gen.NARROW_LENS`, tripod pans
+    through :data:`ppo_cv.data_gen.LONG_ZOOM`."""
     from ppo_cv import data_gen
 
     lens, told = data_gen.NARROW_LENS, "narrow lens"
@@ -740,6 +743,8 @@ def _narrow_lens_sets(official, n):
     yield f"data_gen tripod pan, {told}, baseline 0.002-0.01", 1, pairs, True, None
     pairs = official("tiny-baseline", n, 0.02, imperfections=lens)
     yield f"data_gen tiny-baseline 0.02, {told}", 0, pairs, True, None
+    pairs = official("tripod", n, size=(720, 540), imperfections=data_gen.LONG_ZOOM)
+    yield "data_gen tripod pan, long zoom, 720x540, baseline 0.002-0.01", 1, pairs, True, None
 
 
 def _noisy_sets(official, official_warped, narrow, stitched, n, n_large):

@@ -3,9 +3,9 @@
 * :func:`paper_protocol`: the point-level Monte-Carlo generator of the paper (Section 5).
 * :func:`render_pair` / :func:`make_pair`: ray-cast image pairs of textured planar scenes with
   exact ``K1, K2, R, t`` (``x2 = R x1 + t``) and the depth map of view 1.
-* :class:`Imperfections` / :data:`REAL_PHOTO`, :data:`NARROW_LENS`: unmodelled distortion, a
-  focal length a few percent off, a narrow field of view, JPEG, noise and blur, for
-  :func:`make_pair`.
+* :class:`Imperfections` / :data:`REAL_PHOTO`, :data:`NARROW_LENS`, :data:`LONG_ZOOM`:
+  unmodelled distortion, a focal length a few percent off, a narrow field of view, JPEG, noise
+  and blur, for :func:`make_pair`.
 * :func:`warp_pair` / :func:`make_warped_pair`: exact pure rotations of real photos.
 * :func:`make_dataset`: a directory of pairs with a freiburg-style pairs file.
 """
@@ -17,6 +17,7 @@ import importlib
 _SUBMODULE = {
     "DEFAULT_SCENE": "motion",
     "DrawnImperfections": "imperfect",
+    "LONG_ZOOM": "imperfect",
     "NARROW_LENS": "imperfect",
     "division_dist": "imperfect",
     "Imperfections": "imperfect",
@@ -82,6 +83,7 @@ __all__ = [
     "DEFAULT_SCENE",
     "REAL_PHOTO",
     "NARROW_LENS",
+    "LONG_ZOOM",
     "DrawnImperfections",
     "division_dist",
     "Imperfections",

@@ -30,6 +30,7 @@ import cv2
 import numpy as np
 
 __all__ = [
+    "LONG_ZOOM",
     "NARROW_LENS",
     "REAL_PHOTO",
     "DrawnImperfections",
@@ -305,6 +306,13 @@ NARROW_LENS = Imperfections(
 translation and a pan are nearly the same flow, and a lens of strong distortion, the division
 model's ``|k1|`` 0.05-0.15 on normalised points, barrel on seven lenses of ten; the focal
 length, JPEG, noise and blur of :data:`REAL_PHOTO`."""
+
+LONG_ZOOM = Imperfections(k1_range=(0.3, 0.5), barrel_share=0.0, hfov_range=(19.0, 20.0))
+"""A consumer zoom at its long end, as the real tripod panoramas of a 19.5 degree field
+(720 x 540 at a focal length of about 2000 pixels) show it: a 19-20 degree field through a
+pincushion lens of OpenCV ``k1`` 0.3-0.5 on normalised points, 1.4-2.3 % of displacement at
+the image corner (``|q|`` about 0.21 there), beyond the rotation model's box
+(``ppo_cv.rotation.MAX_K1``); the focal length, JPEG, noise and blur of :data:`REAL_PHOTO`."""
 
 
 def given_intrinsics(

@@ -666,9 +666,12 @@ def _as_prior(value) -> np.ndarray:
 def _fit_tracks(y1, y2, valid, R, focal, priors):
     """Lens rotation over the tracks, outliers beyond ``3 sqrt(2)`` noise deviations dropped;
     ``(fit, used, noise_px)`` or None when too few tracks remain, or when the lens was clipped
-    to its box (no deviation) unless ``priors["keep_clipped"]``."""
+    to its box (no deviation) unless ``priors["keep_clipped"]``, which also frees ``k1`` of
+    its box (its prior alone holds it)."""
     priors = dict(priors)
     keep_clipped = priors.pop("keep_clipped", False)
+    if keep_clipped:
+        priors["max_k1"] = np.inf
     used, noise, fit = valid.copy(), 0.1 / focal, None
     for _ in range(5):
         if np.count_nonzero(used) < MIN_TRACKS:
@@ -745,8 +748,8 @@ def refine_rotation_photometric(
     max_corners : int, optional
         Windows aligned at most (default :data:`MAX_CORNERS`).
     keep_clipped : bool
-        Also return a refit clipped to the lens box (``rotation_sigma_deg`` inf), whose tracks'
-        parallax still measures a translation (:mod:`ppo_cv.rotation_choice`).
+        A rotation-only estimate's refit (:mod:`ppo_cv.rotation_choice`): ``k1`` held by its
+        prior alone, and a focal scale clipped to its box returned too (no deviation).
 
     Returns
     -------

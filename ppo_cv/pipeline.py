@@ -770,10 +770,13 @@ def _decide(
 
 
 def _align_tracks(
-    inputs: _Inputs, motion: MotionDecision, priors: _LensPriors, keep_clipped: bool = False
-) -> PhotometricRotation | None:
+    inputs: _Inputs, motion: MotionDecision, priors: _LensPriors, keep_clipped: bool = False,
+    sigma_deg: float | None = None,
+) -> PhotometricRotation | None:  # fmt: skip
     """The rotation-only fit refitted on intensity-aligned windows around ``motion.R``
-    (:func:`refine_rotation_photometric`), None when too few windows align."""
+    (:func:`refine_rotation_photometric`), None when too few windows align; searched over
+    ``sigma_deg``, by default the fit's own deviation (both capped)."""
+    sigma_deg = motion.rotation_sigma_deg if sigma_deg is None else sigma_deg
     return refine_rotation_photometric(
         inputs.img1, inputs.img2, inputs.K1, inputs.K2, motion.R,
         focal_scale=motion.focal_scale, k1=motion.k1,
@@ -781,7 +784,7 @@ def _align_tracks(
         focal_ratio=motion.focal_ratio, **priors.ratio_keywords,
         principal_bound=motion.principal_bound,
         max_focal_change=motion.track_focal_change, keep_clipped=keep_clipped,
-        rotation_sigma_deg=min(motion.rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG),
+        rotation_sigma_deg=min(sigma_deg, MAX_SEARCH_SIGMA_DEG),
         dist1=inputs.dist1, dist2=inputs.dist2,
     )  # fmt: skip
 
@@ -930,7 +933,10 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
         and state.options.photometric
         and rotation_only.sigma_deg < moving.sigma_deg
     ):
-        tracks = _align_tracks(state.inputs, motion, state.priors, keep_clipped=True)
+        tracks = _align_tracks(
+            state.inputs, motion, state.priors, keep_clipped=True,
+            sigma_deg=rotation_only.sigma_deg,
+        )  # fmt: skip
         rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used)
     return choose_rotation([moving, rotation_only])
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from ppo_cv import estimate_pair
-from ppo_cv.data_gen import NARROW_LENS, Imperfections, make_pair
+from ppo_cv.data_gen import LONG_ZOOM, NARROW_LENS, Imperfections, make_pair
 from ppo_cv.metrics import rotation_error_deg
 from ppo_cv.motion_model import NEGLIGIBLE_PARALLAX
 
@@ -27,9 +27,9 @@ NARROW_EDGE = Imperfections(k1_range=(0.14, 0.15), division=True, hfov_range=(15
 """The strongest lenses of ``NARROW_LENS``, either sign."""
 
 
-def _estimate(motion: str, index: int, imperfections, ratio: float | None):
+def _estimate(motion: str, index: int, imperfections, ratio: float | None, size=(640, 480)):
     pair = make_pair(motion, seed=0, index=index, imperfections=imperfections,
-                     baseline_ratio=ratio)  # fmt: skip
+                     baseline_ratio=ratio, size=size)  # fmt: skip
     image1 = np.ascontiguousarray(pair.image1[..., ::-1])
     image2 = np.ascontiguousarray(pair.image2[..., ::-1])
     return pair, estimate_pair(image1, image2, pair.K1_given, pair.K2_given)
@@ -60,3 +60,23 @@ def test_a_narrow_field_translation_whose_tracks_show_parallax_is_not_flagged(in
     assert pair.params["hfov_deg"] < 25.0 and abs(pair.params["k1"]) > 0.09
     assert not result.pure_rotation
     assert result.track_parallax - 2.0 * result.track_parallax_sigma > NEGLIGIBLE_PARALLAX
+
+
+@pytest.mark.parametrize(
+    "index, k1, bound_deg",
+    [
+        (0, 0.306, 0.3),  # 0.14 deg; 7.9 deg (the essential matrix) with k1 boxed
+        (4, 0.474, 0.3),  # 0.15 deg; 12.5 deg when the tracks were searched over 5 deg
+        (11, 0.423, 0.3),  # 0.09 deg; 9.5 deg likewise
+    ],
+)
+def test_a_tripod_pan_through_a_long_zoom_returns_the_rotation_only_estimate(index, k1, bound_deg):
+    """A tripod pan (baseline / depth 0.002-0.01) turning 0.6 of a 19-20 degree field at
+    720 x 540 through a pincushion beyond the rotation model's box: the matches' fit holds
+    ``k1`` at the box and the essential matrix's rotation is several degrees off, so the
+    rotation comes from the tracks' refit with ``k1`` held by its prior alone."""
+    pair, result = _estimate("tripod", index, LONG_ZOOM, None, size=(720, 540))
+    assert pair.params["k1"] == pytest.approx(k1, abs=5e-4)
+    assert abs(pair.params["yaw_deg"]) > 0.6 * pair.params["hfov_deg"]
+    assert result.rotation_source == "rotation"
+    assert rotation_error_deg(result.R, pair.R) < bound_deg

@@ -5,8 +5,8 @@ import pytest
 
 from ppo_cv.metrics import rotation_error_deg
 from ppo_cv.motion_model import MAX_TRACK_PARALLAX
-from ppo_cv.parallax import PlaneParallax, homography_parallax
-from ppo_cv.rotation import fit_rotation_lens
+from ppo_cv.parallax import PlaneParallax, fit_plane_parallax, homography_parallax
+from ppo_cv.rotation import MAX_K1, correct_points, fit_rotation_lens
 from ppo_cv.rotation_choice import (
     RotationEstimate,
     across_normal_parallax,
@@ -109,6 +109,38 @@ def test_a_sideways_translation_biases_the_rotation_fit_by_its_parallax(baseline
     bias = np.degrees(homography_parallax(H))
     assert bias == pytest.approx(np.degrees(baseline), rel=0.02)
     assert rotation_error_deg(fit.R, R) == pytest.approx(bias, rel=0.1)
+
+
+def _tilt(degrees: float) -> np.ndarray:
+    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def _distort(q: np.ndarray, k1: float) -> np.ndarray:
+    return q * (1.0 + k1 * np.sum(q * q, axis=1, keepdims=True))
+
+
+@pytest.mark.parametrize(("true_k1", "corrected_k1", "reads_parallax"), [
+    (0.4, 0.4, False),  # the lens fitted: the rotation's parallax is noise
+    (0.4, MAX_K1, True),  # the lens held at the box: degrees of parallax
+    (0.3, MAX_K1, True),
+])  # fmt: skip
+def test_in_a_thin_overlap_a_lens_error_reads_as_parallax(true_k1, corrected_k1, reads_parallax):
+    """The module's "lens behind the bias": a pure rotation (parallax 0) seen in the strip an
+    11 degree tilt leaves of a 20 x 15 degree field, its points corrected by a lens: the
+    homography's parallax lies within three of its deviations of 0 only with the true lens."""
+    rng = np.random.default_rng(7)
+    q1 = np.column_stack([rng.uniform(-0.17, 0.17, 400), rng.uniform(0.062, 0.129, 400)])
+    ray = np.column_stack([q1, np.ones(len(q1))]) @ _tilt(-11.0).T
+    q2 = ray[:, :2] / ray[:, 2:]
+    noise = 0.3 / 2095.0
+    x1 = _distort(q1, true_k1) + rng.normal(0.0, noise, q1.shape)
+    x2 = _distort(q2, true_k1) + rng.normal(0.0, noise, q2.shape)
+    found = fit_plane_parallax(
+        correct_points(x1, 1.0, corrected_k1), correct_points(x2, 1.0, corrected_k1)
+    )
+    assert (found.parallax > 3.0 * found.sigma) == reads_parallax
+    assert (np.degrees(found.parallax) > 1.0) == reads_parallax
 
 
 def test_fit_sigma_agrees_with_the_lens_fit_covariance():
