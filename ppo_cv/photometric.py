@@ -34,12 +34,12 @@ image 1 lands in image 2, and the intensities fix it far better:
    tracks are too rough for it (a narrow strip of overlap, shots a stop apart), they are
    polished through the start model first. The fit's variances are multiplied by the
    windows' overlap (:func:`window_overlap`): overlapping windows are made of the same
-   pixels, and their errors are not independent;
-4. steps 1-3 with each window side of :data:`WINDOWS`, taking on the side whose refit has the
-   least uncertain rotation: large windows locate tracks better in noisy images, small ones
-   are more numerous in weak texture;
-5. the windows of that side searched again at full size in image 2 seen through its refit,
-   the fit repeated, then polished through that fit from where the search found them, and
+   pixels, and their errors are not independent. Then the windows are searched again at full
+   size in image 2 seen through the refitted model, and the fit repeated;
+4. steps 1-3 with each window side of :data:`WINDOWS`, keeping the refit whose rotation is
+   the least uncertain: large windows locate tracks better in noisy images, small ones are
+   more numerous in weak texture;
+5. the windows of that side polished through its fit, from where the search found them, and
    the fit repeated; the next side too while its searched bound is below the polished one,
    the least uncertain polished refit kept. The search is the cheap part (a few tens of
    milliseconds for both sides), the polish the accurate one (on the demo frame warped by a
@@ -1004,10 +1004,13 @@ def _best_window_refit(
         corners = _corners(gray1, count, side, transfer_with(start), gray2.shape)
         if len(corners) < MIN_TRACKS:
             continue
+        y1 = pixels_to_normalized(corners, K1, dist1)
         refined = _search_side(
-            (images, seen), corners, pixels_to_normalized(corners, K1, dist1), side,
-            levels[side], start, transfer_with, normalize2, focal, priors,
+            (images, seen), corners, y1, side, levels[side], start, transfer_with, normalize2,
+            focal, priors,
         )  # fmt: skip
+        if refined is not None:
+            refined = _search_again(images, refined, y1, transfer_with, normalize2, focal, priors)
         if plausible(refined):
             results.append(refined)
     if not results:
@@ -1018,7 +1021,6 @@ def _best_window_refit(
         if polished and min(map(sigma, polished)) <= sigma(searched):
             break
         y1 = pixels_to_normalized(searched.tracks.points1, K1, dist1)
-        searched = _search_again(images, searched, y1, transfer_with, normalize2, focal, priors)
         refined = _polish(images, searched, y1, transfer_with, normalize2, focal, priors)
         if plausible(refined):
             polished.append(refined)
