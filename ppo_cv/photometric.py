@@ -214,7 +214,7 @@ class PhotometricRotation:
 @dataclass(frozen=True)
 class _Plane:
     """A grey image as the polish reads it, per pixel cell (the square between four pixels,
-    named by its top-left one): ``cells`` (5 or 13, H W) float32, the coefficients of the
+    named by its top-left one): ``cells`` (H W, 5 or 13) float32, the coefficients of the
     cell's exact bilinear interpolation ``base + fx slope_x + fy (slope_y + fx twist)`` of the
     intensity, then 1 where none of its corners lies within :data:`_CLIP_MARGIN` pixels of a
     pixel clipped at white (:data:`SATURATED`), else 0, and optionally those of the Scharr
@@ -225,6 +225,7 @@ class _Plane:
     width: int
     height: int
     clipped: np.ndarray
+    intensity: np.ndarray
 
 
 _CLEAR, _GRADIENT_X, _GRADIENT_Y = 4, 5, 9  # rows of _Plane.cells
@@ -245,7 +246,8 @@ def _plane(gray: np.ndarray, gradients: bool) -> _Plane:
         _bilinear_coefficients(channel, cells[row : row + 4])
     near = np.pad(clipped, ((0, 1), (0, 1)), mode="edge")
     cells[_CLEAR] = (near[:-1, :-1] | near[:-1, 1:] | near[1:, :-1] | near[1:, 1:]) == 0
-    return _Plane(cells.reshape(len(cells), h * w), w, h, clipped.ravel())
+    table = np.ascontiguousarray(cells.reshape(len(cells), h * w).T)
+    return _Plane(table, w, h, clipped.ravel(), image.ravel())
 
 
 def _bilinear_coefficients(image: np.ndarray, out: np.ndarray) -> None:
@@ -305,7 +307,8 @@ def _cells(plane: _Plane, x: np.ndarray, y: np.ndarray, rows: Sequence[int]) -> 
     hundredths of a pixel sought here)."""
     x0, y0 = np.floor(x), np.floor(y)
     first = y0.astype(np.intp) * plane.width + x0.astype(np.intp)
-    coefficients = {row: np.take(plane.cells[row], first, mode="clip") for row in rows}
+    block = np.take(plane.cells, first.ravel(), axis=0, mode="clip")
+    coefficients = {row: np.ascontiguousarray(block[:, row]).reshape(first.shape) for row in rows}
     return _Cells(coefficients, x - x0, y - y0)
 
 
@@ -320,7 +323,7 @@ def _template(plane: _Plane, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return cells.values(), cells.clear
     pixels = y.astype(np.intp) * w + x.astype(np.intp)
     clear = (np.take(plane.clipped, pixels) == 0).astype(np.float32)
-    return np.take(plane.cells[0], pixels), clear
+    return np.take(plane.intensity, pixels), clear
 
 
 def _offsets(window: int) -> np.ndarray:
@@ -375,7 +378,7 @@ def _align_level(template, template_clear, positions, d, plane2, ramp, iteration
 
     for _ in range(_JACOBIANS):
         d32 = d.astype(np.float32)
-        cells = _cells(plane2, x + d32[:, :1], y + d32[:, 1:], range(len(plane2.cells)))
+        cells = _cells(plane2, x + d32[:, :1], y + d32[:, 1:], range(plane2.cells.shape[1]))
         gradients = cells.gradients()
         weight = cells.clear * template_clear
         target = template * weight
