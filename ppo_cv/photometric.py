@@ -218,8 +218,9 @@ class _Plane:
     cell's exact bilinear interpolation ``base + fx slope_x + fy (slope_y + fx twist)`` of the
     intensity, then 1 where none of its corners lies within :data:`_CLIP_MARGIN` pixels of a
     pixel clipped at white (:data:`SATURATED`), else 0, and optionally those of the Scharr
-    derivatives along x and y (:data:`_GRADIENT_X`, :data:`_GRADIENT_Y`); ``clipped`` (H W)
-    non-zero at the pixels within the margin."""
+    derivatives along x and y (:data:`_GRADIENT_X`, :data:`_GRADIENT_Y`) (no rows when only
+    whole pixels are read, from ``intensity``); ``clipped`` (H W) non-zero at the pixels
+    within the margin."""
 
     cells: np.ndarray
     width: int
@@ -231,23 +232,25 @@ class _Plane:
 _CLEAR, _GRADIENT_X, _GRADIENT_Y = 4, 5, 9  # rows of _Plane.cells
 
 
-def _plane(gray: np.ndarray, gradients: bool) -> _Plane:
+def _plane(gray: np.ndarray, gradients: bool, cells: bool = True) -> _Plane:
     import cv2
 
     image = gray.astype(np.float32)
     h, w = image.shape
     side = 2 * _CLIP_MARGIN + 1
     clipped = cv2.dilate((image >= SATURATED).astype(np.uint8), np.ones((side, side), np.uint8))
+    if not cells:
+        return _Plane(np.zeros((0, 5), np.float32), w, h, clipped.ravel(), image.ravel())
     channels = [image]
     if gradients:
         channels += [cv2.Scharr(image, cv2.CV_32F, *d, scale=1.0 / 32.0) for d in ((1, 0), (0, 1))]
-    cells = np.empty((13 if gradients else 5, h, w), dtype=np.float32)
+    planes = np.empty((13 if gradients else 5, h, w), dtype=np.float32)
     for row, channel in zip((0, _GRADIENT_X, _GRADIENT_Y), channels, strict=False):
-        _bilinear_coefficients(channel, cells[row : row + 4])
+        _bilinear_coefficients(channel, planes[row : row + 4])
     near = np.pad(clipped, ((0, 1), (0, 1)), mode="edge")
-    cells[_CLEAR] = (near[:-1, :-1] | near[:-1, 1:] | near[1:, :-1] | near[1:, 1:]) == 0
-    table = np.ascontiguousarray(cells.reshape(len(cells), h * w).T)
-    return _Plane(table, w, h, clipped.ravel(), image.ravel())
+    planes[_CLEAR] = (near[:-1, :-1] | near[:-1, 1:] | near[1:, :-1] | near[1:, 1:]) == 0
+    table = cv2.merge(list(planes))  # (H, W, channels), a cell's coefficients side by side
+    return _Plane(table.reshape(h * w, -1), w, h, clipped.ravel(), image.ravel())
 
 
 def _bilinear_coefficients(image: np.ndarray, out: np.ndarray) -> None:
@@ -314,14 +317,14 @@ def _cells(plane: _Plane, x: np.ndarray, y: np.ndarray, rows: Sequence[int]) -> 
 
 def _template(plane: _Plane, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``plane``'s intensities (n, k) at the points ``grid`` (n, k, 2) float32 and 1 where they
-    are not near a clipped pixel, else 0; read directly at whole pixels (the corners)."""
+    are not near a clipped pixel, else 0; read directly at whole pixels (the corners), the
+    image's edge repeated beyond it."""
     w, h = plane.width, plane.height
     x, y = grid[..., 0], grid[..., 1]
-    whole = np.array_equal(x, np.floor(x)) and np.array_equal(y, np.floor(y))
-    if not whole or x.min() < 0 or y.min() < 0 or x.max() > w - 2 or y.max() > h - 2:
+    if not (np.array_equal(x, np.floor(x)) and np.array_equal(y, np.floor(y))):
         cells = _cells(plane, x, y, (0, 1, 2, 3, _CLEAR))
         return cells.values(), cells.clear
-    pixels = y.astype(np.intp) * w + x.astype(np.intp)
+    pixels = np.clip(y, 0, h - 1).astype(np.intp) * w + np.clip(x, 0, w - 1).astype(np.intp)
     clear = (np.take(plane.clipped, pixels) == 0).astype(np.float32)
     return np.take(plane.intensity, pixels), clear
 
@@ -569,7 +572,7 @@ def align_windows(
     if not len(points1):
         empty = np.zeros((0, 2))
         return WindowTracks(empty, empty, np.zeros(0, dtype=bool), np.zeros(0))
-    images = _prepare(to_gray(image1), to_gray(image2))
+    images = _prepare(to_gray(image1), to_gray(image2), np.array_equal(points1, np.round(points1)))
     return _align(images, points1, transfer, window, levels, iterations)
 
 
@@ -585,8 +588,10 @@ class _Images:
     contrast1: np.ndarray
 
 
-def _prepare(gray1: np.ndarray, gray2: np.ndarray) -> _Images:
-    planes = _plane(gray1, gradients=False), _plane(gray2, gradients=True)
+def _prepare(gray1: np.ndarray, gray2: np.ndarray, whole: bool = True) -> _Images:
+    """The images as the alignment reads them; ``whole`` when every window centre in image 1
+    is a whole pixel (then image 1's windows are read directly, without its cells)."""
+    planes = _plane(gray1, gradients=False, cells=not whole), _plane(gray2, gradients=True)
     return _Images(gray1, gray2, *planes, _local_contrast(gray1))
 
 
