@@ -244,12 +244,11 @@ def _plane(gray: np.ndarray, gradients: bool, cells: bool = True) -> _Plane:
     channels = [image]
     if gradients:
         channels += [cv2.Scharr(image, cv2.CV_32F, *d, scale=1.0 / 32.0) for d in ((1, 0), (0, 1))]
-    planes = np.empty((13 if gradients else 5, h, w), dtype=np.float32)
+    table = np.empty((h, w, 13 if gradients else 5), dtype=np.float32)  # a cell's in a row
     for row, channel in zip((0, _GRADIENT_X, _GRADIENT_Y), channels, strict=False):
-        _bilinear_coefficients(channel, planes[row : row + 4])
+        _bilinear_coefficients(channel, table.transpose(2, 0, 1)[row : row + 4])
     near = np.pad(clipped, ((0, 1), (0, 1)), mode="edge")
-    planes[_CLEAR] = (near[:-1, :-1] | near[:-1, 1:] | near[1:, :-1] | near[1:, 1:]) == 0
-    table = cv2.merge(list(planes))  # (H, W, channels), a cell's coefficients side by side
+    table[..., _CLEAR] = (near[:-1, :-1] | near[:-1, 1:] | near[1:, :-1] | near[1:, 1:]) == 0
     return _Plane(table.reshape(h * w, -1), w, h, clipped.ravel(), image.ravel())
 
 
