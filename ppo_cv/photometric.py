@@ -22,19 +22,20 @@ image 1 lands in image 2, and the intensities fix it far better:
    polish of the full objective from there: the gain and offset fitted in closed form, and
    damped Gauss-Newton steps of the shift and brightness together (Lucas-Kanade; the
    brightness terms as in Baker, Gross and Matthews, "Lucas-Kanade 20 years on", part 3,
-   CMU-RI-TR-03-35), the Jacobian of the start reused and taken again where it led. All
-   windows are solved at once
-   (arrays of windows x window pixels), with exact bilinear interpolation; each window's
-   pixels are transferred through the model by interpolating its exact transfer at 5 x 5
-   points;
+   CMU-RI-TR-03-35), the Jacobian of the start reused and taken again where it led. The
+   windows are solved together, a few tens at a time (arrays of windows x window pixels that
+   stay in the cache), with exact bilinear interpolation: image 2 is read once as the
+   polynomial of each pixel's cell, which the steps then move along (a window is read again
+   where it moved more than a hundredth of a pixel). Each window's pixels are transferred
+   through the model by interpolating its exact transfer at 5 x 5 points;
 3. the lens rotation refitted on the tracks, outliers (moving objects, occlusions, windows that
    did not converge) dropped beyond ``3 sqrt(2)`` times the tracks' own noise per coordinate
-   (the 2D residual of an inlier exceeds it with probability ``exp(-9)``); then the windows
-   are searched again at full size in image 2 seen through the refitted model, and the fit
-   repeated. When the search's tracks are too rough for the first fit (a narrow strip of
-   overlap, shots a stop apart), they are polished through the start model first. The fit's
-   variances are multiplied by the windows' overlap (:func:`window_overlap`): overlapping
-   windows are made of the same pixels, and their errors are not independent;
+   (the 2D residual of an inlier exceeds it with probability ``exp(-9)``). When the search's
+   tracks are too rough for it (a narrow strip of overlap, shots a stop apart), they are
+   polished through the start model first. The fit's variances are multiplied by the
+   windows' overlap (:func:`window_overlap`): overlapping windows are made of the same
+   pixels, and their errors are not independent. Then the windows are searched again at full
+   size in image 2 seen through the refitted model, and the fit repeated;
 4. steps 1-3 with each window side of :data:`WINDOWS`, keeping the refit whose rotation is
    the least uncertain: large windows locate tracks better in noisy images, small ones are
    more numerous in weak texture;
@@ -137,7 +138,9 @@ MIN_UNCLIPPED = 0.5
 _MAX_LEVELS = 4
 _ITERATIONS = 12
 _CONVERGED = 1e-3  # pixels of shift update
+_CHUNK = 65536  # window pixels aligned at a time
 _JACOBIANS = 2  # of the polish: at the start, and where its steps led
+_REGATHER = 0.01  # pixels a window moves from where image 2 was read for another read
 
 _DAMPING = 0.7  # of each Gauss-Newton step: the sampled gradients overshoot by about 1.4
 _OUTLIER_SIGMAS = 3.0
@@ -208,46 +211,121 @@ class PhotometricRotation:
         return int(np.count_nonzero(self.inliers))
 
 
-def _bilinear(stack: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    """Channels of ``stack`` (H, W, C) float32 at points ``xy`` (n, k, 2), clamped to the image.
+@dataclass(frozen=True)
+class _Plane:
+    """A grey image as the polish reads it, per pixel cell (the square between four pixels,
+    named by its top-left one): ``cells`` (H W, 5 or 13) float32, the coefficients of the
+    cell's exact bilinear interpolation ``base + fx slope_x + fy (slope_y + fx twist)`` of the
+    intensity, then 1 where none of its corners lies within :data:`_CLIP_MARGIN` pixels of a
+    pixel clipped at white (:data:`SATURATED`), else 0, and optionally those of the Scharr
+    derivatives along x and y (:data:`_GRADIENT_X`, :data:`_GRADIENT_Y`) (no rows when only
+    whole pixels are read, from ``intensity``); ``clipped`` (H W) non-zero at the pixels
+    within the margin."""
 
-    Exact bilinear weights (``cv2.remap`` rounds them to 1/32 pixel, a bias that matters at the
-    hundredths of a pixel sought here): the four neighbours are gathered by nearest-neighbour
-    remaps at integer positions and weighted here.
-    """
-    import cv2
-
-    h, w = stack.shape[:2]
-    x = np.clip(xy[..., 0], 0.0, w - 1.0).astype(np.float32)
-    y = np.clip(xy[..., 1], 0.0, h - 1.0).astype(np.float32)
-    x0, y0 = np.minimum(np.floor(x), w - 2), np.minimum(np.floor(y), h - 2)
-    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
-
-    def gather(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-        return cv2.remap(stack, u, v, cv2.INTER_NEAREST).reshape(*u.shape, stack.shape[2])
-
-    top_left, top_right = gather(x0, y0), gather(x0 + 1, y0)
-    bottom_left, bottom_right = gather(x0, y0 + 1), gather(x0 + 1, y0 + 1)
-    top = top_left + fx * (top_right - top_left)
-    return top + fy * (bottom_left + fx * (bottom_right - bottom_left) - top)
+    cells: np.ndarray
+    width: int
+    height: int
+    clipped: np.ndarray
+    intensity: np.ndarray
 
 
-def _channels(gray: np.ndarray, gradients: bool) -> np.ndarray:
-    """(H, W, C) float32: the intensity, with ``gradients`` its Scharr derivatives, and last a
-    mask, non-zero within :data:`_CLIP_MARGIN` pixels of a pixel clipped at white
-    (:data:`SATURATED`)."""
+_CLEAR, _GRADIENT_X, _GRADIENT_Y = 4, 5, 9  # rows of _Plane.cells
+
+
+def _plane(gray: np.ndarray, gradients: bool, cells: bool = True) -> _Plane:
     import cv2
 
     image = gray.astype(np.float32)
+    h, w = image.shape
     side = 2 * _CLIP_MARGIN + 1
-    clipped = cv2.dilate((image >= SATURATED).astype(np.float32), np.ones((side, side), np.uint8))
+    clipped = cv2.dilate((image >= SATURATED).astype(np.uint8), np.ones((side, side), np.uint8))
+    if not cells:
+        return _Plane(np.zeros((0, 5), np.float32), w, h, clipped.ravel(), image.ravel())
     channels = [image]
     if gradients:
-        channels += [
-            cv2.Scharr(image, cv2.CV_32F, 1, 0, scale=1.0 / 32.0),
-            cv2.Scharr(image, cv2.CV_32F, 0, 1, scale=1.0 / 32.0),
-        ]
-    return np.dstack([*channels, clipped])
+        channels += [cv2.Scharr(image, cv2.CV_32F, *d, scale=1.0 / 32.0) for d in ((1, 0), (0, 1))]
+    table = np.empty((h, w, 13 if gradients else 5), dtype=np.float32)  # a cell's in a row
+    for row, channel in zip((0, _GRADIENT_X, _GRADIENT_Y), channels, strict=False):
+        _bilinear_coefficients(channel, table.transpose(2, 0, 1)[row : row + 4])
+    near = np.pad(clipped, ((0, 1), (0, 1)), mode="edge")
+    table[..., _CLEAR] = (near[:-1, :-1] | near[:-1, 1:] | near[1:, :-1] | near[1:, 1:]) == 0
+    return _Plane(table.reshape(h * w, -1), w, h, clipped.ravel(), image.ravel())
+
+
+def _bilinear_coefficients(image: np.ndarray, out: np.ndarray) -> None:
+    """``base``, ``slope_x``, ``slope_y``, ``twist`` of every pixel cell of ``image`` (H, W)
+    into ``out`` (4, H, W), the last row and column repeated past the edge."""
+    base, slope_x, slope_y, twist = out
+    base[:] = image
+    slope_x[:, :-1] = image[:, 1:] - image[:, :-1]
+    slope_x[:, -1] = 0.0
+    slope_y[:-1] = image[1:] - image[:-1]
+    slope_y[-1] = 0.0
+    twist[:-1] = slope_x[1:] - slope_x[:-1]
+    twist[-1] = 0.0
+
+
+@dataclass(frozen=True)
+class _Cells:
+    """A :class:`_Plane` about points (n, k) of n windows: rows of each point's cell
+    (``coefficients``, the plane's row number to (n, k)) and its place in it, ``fx`` and ``fy``
+    in [0, 1].
+
+    Moving the points by a shift inside their cells is then a few products (``values``); past
+    a cell's edge the polynomial extrapolates, off by the shift past it times the change of
+    slope.
+    """
+
+    coefficients: dict
+    fx: np.ndarray
+    fy: np.ndarray
+
+    @property
+    def clear(self) -> np.ndarray:
+        """1 where the pixels a point reads are not near a clipped one, else 0."""
+        return self.coefficients[_CLEAR]
+
+    def values(self, shift: np.ndarray | None = None, rows=slice(None), first: int = 0):
+        """The interpolation of the channel whose coefficients start at row ``first`` (the
+        intensity by default) at the points of the windows ``rows`` moved by ``shift``
+        (pixels, a row (2,) per window)."""
+        fx, fy = self.fx[rows], self.fy[rows]
+        base, slope_x, slope_y, twist = (self.coefficients[first + i][rows] for i in range(4))
+        if shift is not None:
+            shift = shift.astype(np.float32)
+            fx, fy = fx + shift[:, :1], fy + shift[:, 1:]
+        return base + fx * slope_x + fy * (slope_y + fx * twist)
+
+    def gradients(self) -> tuple[np.ndarray, np.ndarray]:
+        """Scharr derivatives along x and y interpolated at the points."""
+        return self.values(first=_GRADIENT_X), self.values(first=_GRADIENT_Y)
+
+
+def _cells(plane: _Plane, x: np.ndarray, y: np.ndarray, rows: Sequence[int]) -> _Cells:
+    """:class:`_Cells` of ``plane`` with its ``rows`` at points ``(x, y)`` (n, k) float32;
+    outside the image, any of its cells (such windows are not valid).
+
+    Exact bilinear weights (``cv2.remap`` rounds them to 1/32 pixel, a bias that matters at the
+    hundredths of a pixel sought here)."""
+    x0, y0 = np.floor(x), np.floor(y)
+    first = y0.astype(np.intp) * plane.width + x0.astype(np.intp)
+    block = np.take(plane.cells, first.ravel(), axis=0, mode="clip")
+    coefficients = {row: np.ascontiguousarray(block[:, row]).reshape(first.shape) for row in rows}
+    return _Cells(coefficients, x - x0, y - y0)
+
+
+def _template(plane: _Plane, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``plane``'s intensities (n, k) at the points ``grid`` (n, k, 2) float32 and 1 where they
+    are not near a clipped pixel, else 0; read directly at whole pixels (the corners), the
+    image's edge repeated beyond it."""
+    w, h = plane.width, plane.height
+    x, y = grid[..., 0], grid[..., 1]
+    if not (np.array_equal(x, np.floor(x)) and np.array_equal(y, np.floor(y))):
+        cells = _cells(plane, x, y, (0, 1, 2, 3, _CLEAR))
+        return cells.values(), cells.clear
+    pixels = np.clip(y, 0, h - 1).astype(np.intp) * w + np.clip(x, 0, w - 1).astype(np.intp)
+    clear = (np.take(plane.clipped, pixels) == 0).astype(np.float32)
+    return np.take(plane.intensity, pixels), clear
 
 
 def _offsets(window: int) -> np.ndarray:
@@ -257,84 +335,154 @@ def _offsets(window: int) -> np.ndarray:
     return np.column_stack([u.ravel(), v.ravel()])
 
 
-def _solve(A: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Least squares ``min |A x - b|`` per window: ``A`` (n, k, m), ``b`` (n, k) -> (n, m)."""
-    A, b = A.astype(np.float64), b.astype(np.float64)
-    At = A.transpose(0, 2, 1)
-    H = At @ A
-    H += np.eye(A.shape[2]) * (1e-9 * np.trace(H, axis1=1, axis2=2) + 1e-12)[:, None, None]
-    return np.linalg.solve(H, At @ b[..., None])[..., 0]
+@dataclass(frozen=True)
+class _Aligned:
+    """Result of :func:`_align_level`: the shifts (n, 2); image 2's intensities (n, k) there,
+    its derivatives and the weights of the pixels not near a clipped one where it was first
+    read."""
+
+    shifts: np.ndarray
+    intensity: np.ndarray
+    gradients: tuple[np.ndarray, np.ndarray]
+    weight: np.ndarray
 
 
-def _unclipped(template: np.ndarray, samples: np.ndarray) -> np.ndarray:
-    """Weights (n, k), 1 where neither the template nor the sample (:func:`_channels` channels,
-    (n, k, C)) is near a pixel clipped at white."""
-    return ((template[..., -1] == 0) & (samples[..., -1] == 0)).astype(np.float32)
+def _align_level(template, template_clear, positions, d, plane2, ramp, iterations) -> _Aligned:
+    """Shift (n, 2) of each window in image 2 from the start ``d``, and image 2 there.
 
-
-def _align_level(template, positions, d, stack2, ramp, iterations):
-    """Shift (n, 2) of each window in image 2 from the start ``d``, and the samples there
-    (n, k, 4).
-
-    ``template`` (n, k, 2) and the samples hold the channels of :func:`_channels`; ``ramp``
+    ``template`` (n, k) holds image 1 at the windows' pixels, ``template_clear`` 1 where none
+    is near a clipped pixel, ``positions`` (n, k, 2) their transfer to image 2; ``ramp``
     (k, 2) is the window's offsets scaled to [-1, 1].
 
     The brightness model (a gain varying linearly across the window, as vignetting does, and
-    an offset) is fitted in closed form to the samples at the start; then Gauss-Newton steps
-    update the shift and the brightness together (the gain ramp and a shift trade against
-    each other across a window with an intensity slope: alternating between them crawls),
-    damped by :data:`_DAMPING`, the shift at most 2 pixels per step. Each step reuses the
-    Jacobian of the start (the search leaves the shift a few hundredths of a pixel off, over
-    which the gradients barely change) and samples the intensity only; the Jacobian is taken
-    again where the steps led (:data:`_JACOBIANS` in all). Pixels near one clipped at white in
-    either image where the Jacobian was taken are left out (:data:`SATURATED`).
+    an offset) is fitted in closed form to image 2 at the start; then damped Gauss-Newton steps
+    update the shift and the brightness together (:class:`_GaussNewton`; the gain ramp and a
+    shift trade against each other across a window with an intensity slope: alternating
+    between them crawls), with the Jacobian of the start, then again with the Jacobian where
+    they led and the gain reached (:data:`_JACOBIANS` in all). Image 2 is read as the
+    bilinear polynomial of each pixel's cell (:class:`_Cells`), which the steps move along; a
+    window that moved more than :data:`_REGATHER` pixels from where it was last read is read
+    again there. Pixels near one clipped at white in either image are left out
+    (:data:`SATURATED`).
     """
+    x = np.ascontiguousarray(positions[..., 0], dtype=np.float32)
+    y = np.ascontiguousarray(positions[..., 1], dtype=np.float32)
     ramp_columns = np.column_stack([np.ones(len(ramp)), ramp]).astype(np.float32)
-    brightness, values2 = None, np.ascontiguousarray(stack2[..., :1])
+    brightness = None
+
+    def reread(cells: _Cells, windows: np.ndarray, shifts: np.ndarray) -> None:
+        shifts = shifts.astype(np.float32)
+        again = _cells(plane2, x[windows] + shifts[:, :1], y[windows] + shifts[:, 1:],
+                       range(4))  # fmt: skip
+        for row in range(4):
+            cells.coefficients[row][windows] = again.coefficients[row]
+        cells.fx[windows], cells.fy[windows] = again.fx, again.fy
+
     for _ in range(_JACOBIANS):
-        s = _bilinear(stack2, positions + d[:, None, :])
-        weight = _unclipped(template, s)
-        target = template[..., 0] * weight
-        columns = np.concatenate([s[..., :1] * ramp_columns, weight[..., None]], axis=-1)
-        columns *= weight[..., None]
-        if brightness is None:
-            brightness = _solve(columns, target)
-        gain = brightness[:, :3].astype(np.float32) @ ramp_columns.T
-        shifting = np.stack([gain * s[..., 1], gain * s[..., 2]], axis=-1) * weight[..., None]
-        inverse, jacobian_t = _normal_inverse(np.concatenate([shifting, columns], axis=-1))
-        intensity, active = s[..., 0], np.ones(len(template), dtype=bool)
-        for iteration in range(iterations):
-            if not active.any():
-                break
-            idx = slice(None) if active.all() else np.flatnonzero(active)  # views while all move
-            if iteration:
-                intensity = _bilinear(values2, positions[idx] + d[idx, None, :])[..., 0]
-            level = brightness[idx].astype(np.float32)
-            modelled = (level[:, :3] @ ramp_columns.T) * intensity + level[:, 3:]
-            residual = modelled * weight[idx] - target[idx]
-            gradient = jacobian_t[idx] @ residual[..., None]
-            step = -_DAMPING * (inverse[idx] @ gradient.astype(np.float64))[..., 0]
-            shift = np.clip(step[:, :2], -2.0, 2.0)
-            d[idx] += shift
-            brightness[idx] += step[:, 2:]
-            active[idx] = np.abs(shift).max(axis=1) > _CONVERGED
-    return d, _bilinear(stack2, positions + d[:, None, :])
+        d32 = d.astype(np.float32)
+        cells = _cells(plane2, x + d32[:, :1], y + d32[:, 1:], range(plane2.cells.shape[1]))
+        gradients = cells.gradients()
+        weight = cells.clear * template_clear
+        target = template * weight
+        jacobian_t, brightness = _jacobian_t(
+            cells.values(), gradients, weight, target, ramp_columns, brightness
+        )
+        steps = _GaussNewton(target, weight, _normal_inverse(jacobian_t), jacobian_t,
+                             ramp_columns, iterations)  # fmt: skip
+        intensity = steps.run(cells, reread, d, brightness)
+    return _Aligned(d, intensity, gradients, weight)
 
 
-def _normal_inverse(jacobian: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Inverse normal matrices (n, m, m) of Jacobians (n, k, m), slightly regularised, and the
-    transposed Jacobians (n, m, k) float32 (for the gradients: the inverses need float64)."""
-    transposed = np.ascontiguousarray(jacobian.transpose(0, 2, 1), dtype=np.float64)
-    normal = transposed @ transposed.transpose(0, 2, 1)
+def _jacobian_t(
+    intensity, gradients, weight, target, ramp_columns, brightness=None
+) -> tuple[np.ndarray, np.ndarray]:
+    """(n, 6, k): the residuals' derivatives along the shift, the gain ramp and the offset,
+    the shift's at the gain of ``brightness`` (n, 4), by default fitted in closed form
+    (:func:`_brightness_of`); and that brightness."""
+    n, k = intensity.shape
+    jacobian_t = np.empty((n, 6, k), dtype=np.float32)
+    for i in range(3):
+        np.multiply(intensity, ramp_columns[:, i] * weight, out=jacobian_t[:, 2 + i])
+    jacobian_t[:, 5] = weight
+    if brightness is None:
+        brightness = _brightness_of(jacobian_t, target)
+    gain = ramp_columns @ brightness[:, :3].astype(np.float32).T
+    for i in range(2):
+        np.multiply(gain.T * gradients[i], weight, out=jacobian_t[:, i])
+    return jacobian_t, brightness
+
+
+def _brightness_of(jacobian_t, target) -> np.ndarray:
+    """Gain ramp and offset (n, 4) float64 fitted in closed form to image 2 as it was read
+    (rows 2-5 of ``jacobian_t``)."""
+    columns = jacobian_t[:, 2:]
+    normal = (columns @ columns.transpose(0, 2, 1)).astype(np.float64)
+    ridge = 1e-9 * np.trace(normal, axis1=1, axis2=2) + 1e-12
+    normal += np.eye(4) * ridge[:, None, None]
+    return np.linalg.solve(normal, (columns @ target[..., None]).astype(np.float64))[..., 0]
+
+
+def _normal_inverse(jacobian_t: np.ndarray) -> np.ndarray:
+    """Inverse normal matrices (n, m, m) float64 of transposed Jacobians (n, m, k), slightly
+    regularised."""
+    jacobian = np.ascontiguousarray(jacobian_t.transpose(0, 2, 1))
+    normal = (jacobian_t @ jacobian).astype(np.float64)
     ridge = 1e-9 * np.trace(normal, axis1=1, axis2=2) + 1e-12
     normal += np.eye(normal.shape[1]) * ridge[:, None, None]
-    return np.linalg.inv(normal), transposed.astype(np.float32)
+    return np.linalg.inv(normal)
 
 
-def _window_transfer(transfer, centres: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    """``transfer`` of every pixel ``centres + offsets`` (n, k, 2), interpolated per window
-    (Lagrange, tensor product) through its exact transfer at :data:`_NODES` x :data:`_NODES`
-    points spread evenly over the window.
+@dataclass(frozen=True)
+class _GaussNewton:
+    """Damped Gauss-Newton steps of windows' shifts and brightness with a fixed Jacobian:
+    ``target`` (n, k) image 1 weighted, ``weight`` (n, k), the inverse normal matrices and the
+    transposed Jacobians of :func:`_normal_inverse`."""
+
+    target: np.ndarray
+    weight: np.ndarray
+    inverse: np.ndarray
+    jacobian_t: np.ndarray
+    ramp_columns: np.ndarray
+    iterations: int
+
+    def run(self, cells: _Cells, reread, shifts, brightness) -> np.ndarray:
+        """Steps from ``shifts`` (updating them and ``brightness`` in place) along the
+        polynomials of ``cells``, read at ``shifts``: the shift at most 2 pixels and damped by
+        :data:`_DAMPING`, until it moves less than :data:`_CONVERGED`. A window that moved
+        more than :data:`_REGATHER` pixels from where it was read is read again where it is
+        (``reread(cells, windows, shifts)``). Image 2 at the last shifts (n, k)."""
+        d, level, read_at = shifts, brightness, shifts.copy()
+        intensity, active = cells.values(), np.ones(len(d), dtype=bool)
+        for iteration in range(self.iterations):
+            if not active.any():
+                break
+            part = slice(None) if active.all() else np.flatnonzero(active)
+            if iteration:
+                windows = np.arange(len(d))[part]
+                far = windows[np.abs(d[part] - read_at[part]).max(axis=1) > _REGATHER]
+                if len(far):
+                    reread(cells, far, d[far])
+                    read_at[far] = d[far]
+                intensity[part] = cells.values(d[part] - read_at[part], part)
+            gain = level[part, :3].astype(np.float32) @ self.ramp_columns.T
+            modelled = gain * intensity[part] + level[part, 3:].astype(np.float32)
+            residual = modelled * self.weight[part] - self.target[part]
+            gradient = (self.jacobian_t[part] @ residual[..., None]).astype(np.float64)
+            step = -_DAMPING * (self.inverse[part] @ gradient)[..., 0]
+            shift = np.clip(step[:, :2], -2.0, 2.0)
+            d[part] += shift
+            level[part] += step[:, 2:]
+            active[part] = np.abs(shift).max(axis=1) > _CONVERGED
+        return cells.values(d - read_at)
+
+
+def _window_transfer(
+    transfer, centres: np.ndarray, offsets: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """``transfer`` of every pixel ``centres + offsets``, interpolated per window (Lagrange,
+    tensor product) through its exact transfer at :data:`_NODES` x :data:`_NODES` points spread
+    evenly over the window: the weights (k, 25) and the exact transfers (n, 25, 2), whose
+    product is the transfer (n, k, 2).
 
     Across a window a lens rotation's transfer is a perspective map with a gentle radial term:
     the interpolation is off by its fifth derivatives (under 0.001 pixel over a 31-pixel window
@@ -354,7 +502,7 @@ def _window_transfer(transfer, centres: np.ndarray, offsets: np.ndarray) -> np.n
         return terms.prod(axis=2)
 
     weights = (basis(t[:, 1])[:, :, None] * basis(t[:, 0])[:, None, :]).reshape(len(t), -1)
-    return weights @ exact.reshape(len(centres), -1, 2)
+    return weights, exact.reshape(len(centres), -1, 2)
 
 
 def _ncc(a: np.ndarray, b: np.ndarray, weight: np.ndarray) -> np.ndarray:
@@ -423,25 +571,27 @@ def align_windows(
     if not len(points1):
         empty = np.zeros((0, 2))
         return WindowTracks(empty, empty, np.zeros(0, dtype=bool), np.zeros(0))
-    images = _prepare(to_gray(image1), to_gray(image2))
+    images = _prepare(to_gray(image1), to_gray(image2), np.array_equal(points1, np.round(points1)))
     return _align(images, points1, transfer, window, levels, iterations)
 
 
 @dataclass(frozen=True)
 class _Images:
-    """The two images as :func:`align_windows` reads them: 8-bit grey, and the channels of
-    :func:`_channels` at full size (image 1 without gradients, image 2 with)."""
+    """The two images as :func:`align_windows` reads them: 8-bit grey, as the polish samples
+    them (:class:`_Plane`), and image 1 normalised for the search (:func:`_local_contrast`)."""
 
     gray1: np.ndarray
     gray2: np.ndarray
-    stack1: np.ndarray
-    stack2: np.ndarray
+    plane1: _Plane
+    plane2: _Plane
     contrast1: np.ndarray
 
 
-def _prepare(gray1: np.ndarray, gray2: np.ndarray) -> _Images:
-    stack1, stack2 = _channels(gray1, gradients=False), _channels(gray2, gradients=True)
-    return _Images(gray1, gray2, stack1, stack2, _local_contrast(gray1))
+def _prepare(gray1: np.ndarray, gray2: np.ndarray, whole: bool = True) -> _Images:
+    """The images as the alignment reads them; ``whole`` when every window centre in image 1
+    is a whole pixel (then image 1's windows are read directly, without its cells)."""
+    planes = _plane(gray1, gradients=False, cells=not whole), _plane(gray2, gradients=True)
+    return _Images(gray1, gray2, *planes, _local_contrast(gray1))
 
 
 def _dense_transfer(transfer, shape: tuple[int, ...]) -> np.ndarray:
@@ -526,38 +676,50 @@ def _search_range(window: int, levels: int) -> float:
 
 def _align(images: _Images, points1, transfer, window, levels, iterations, start=None):
     """:func:`align_windows` on prepared images (checked arguments, at least one point); with
-    ``start`` (n, 2), from those shifts of image 2's pixels instead of a search."""
-    offsets = _offsets(window)
-    ramp = offsets / (window // 2)
-    k = len(offsets)
-    grid = points1[:, None, :] + offsets[None, :, :]
-    positions = _window_transfer(transfer, points1, offsets)
-    template = _bilinear(images.stack1, grid)
+    ``start`` (n, 2), from those shifts of image 2's pixels instead of a search. The windows
+    are aligned :data:`_CHUNK` pixels at a time, which keeps the arrays in the cache."""
     if start is None:
         seen = _seen_through(images, transfer)
         start = _shifts(_search(images, seen, points1, transfer, window, levels), transfer)
-    d, s = _align_level(template, positions, start.copy(), images.stack2, ramp, iterations)
-    h1, w1 = images.stack1.shape[:2]
-    h2, w2 = images.stack2.shape[:2]
-    final = positions + d[:, None, :]
-    inside = _inside(grid, w1, h1) & _inside(final, w2, h2)
-    weight = _unclipped(template, s)
-    gx, gy = s[..., 1] * weight, s[..., 2] * weight
+    offsets = _offsets(window)
+    weights, exact = _window_transfer(transfer, points1, offsets)
+    step = max(_CHUNK // len(offsets), 1)
+    parts = [
+        _align_chunk(images, points1[rows], weights @ exact[rows], start[rows], offsets, iterations)
+        for rows in (slice(i, i + step) for i in range(0, len(points1), step))
+    ]
+    d, ncc, usable = (np.concatenate(column) for column in zip(*parts, strict=True))
+    valid = usable & np.all(np.isfinite(d), axis=1) & (ncc >= MIN_NCC)
+    valid &= np.abs(d).max(axis=1) < _search_range(window, levels)
+    return WindowTracks(points1=points1, points2=transfer(points1) + d, valid=valid, ncc=ncc)
+
+
+def _align_chunk(images: _Images, points1, positions, start, offsets, iterations):
+    """Windows around ``points1`` (n, 2) whose pixels ``offsets`` (k, 2) image 2 shows at
+    ``positions`` (n, k, 2) less a shift, aligned from the shifts ``start`` (n, 2): the shifts,
+    the normalised cross-correlations and whether each window lies inside both images, has
+    enough pixels away from clipped ones and enough texture."""
+    plane1, plane2 = images.plane1, images.plane2
+    grid = (points1[:, None, :] + offsets[None, :, :]).astype(np.float32)
+    template, template_clear = _template(plane1, grid)
+    ramp = offsets / np.abs(offsets).max()
+    aligned = _align_level(template, template_clear, positions, start.copy(), plane2, ramp,
+                           iterations)  # fmt: skip
+    d, weight = aligned.shifts, aligned.weight
+    inside = _inside(grid, plane1.width, plane1.height)
+    inside &= _inside(positions + d[:, None, :], plane2.width, plane2.height)
+    gx, gy = aligned.gradients[0] * weight, aligned.gradients[1] * weight
     structure = np.stack([np.sum(gx * gx, 1), np.sum(gx * gy, 1), np.sum(gy * gy, 1)], axis=1)
     smallest = 0.5 * (structure[:, 0] + structure[:, 2]) - np.sqrt(
         0.25 * (structure[:, 0] - structure[:, 2]) ** 2 + structure[:, 1] ** 2
     )
-    ncc = _ncc(template[..., 0], s[..., 0], weight)
-    valid = (
+    ncc = _ncc(template, aligned.intensity, weight)
+    usable = (
         inside
         & (weight.mean(axis=1) >= MIN_UNCLIPPED)
-        & np.all(np.isfinite(d), axis=1)
-        & (np.abs(d).max(axis=1) < _search_range(window, levels))
-        & (smallest > 1e-3 * k)
-        & (ncc >= MIN_NCC)
-    )
-    points2 = transfer(points1) + d
-    return WindowTracks(points1=points1, points2=points2, valid=valid, ncc=ncc)
+        & (smallest > 1e-3 * len(offsets))
+    )  # fmt: skip
+    return d, ncc, usable
 
 
 def _as_windows(window) -> tuple[int, ...]:
@@ -852,10 +1014,13 @@ def _best_window_refit(
         corners = _corners(gray1, count, side, transfer_with(start), gray2.shape)
         if len(corners) < MIN_TRACKS:
             continue
-        refined = _refine_side(
-            (images, seen), corners, pixels_to_normalized(corners, K1, dist1), side,
-            levels[side], start, transfer_with, normalize2, focal, priors,
+        y1 = pixels_to_normalized(corners, K1, dist1)
+        refined = _search_side(
+            (images, seen), corners, y1, side, levels[side], start, transfer_with, normalize2,
+            focal, priors,
         )  # fmt: skip
+        if refined is not None:
+            refined = _search_again(images, refined, y1, transfer_with, normalize2, focal, priors)
         if plausible(refined):
             results.append(refined)
     if not results:
@@ -875,13 +1040,12 @@ def _best_window_refit(
     return replace(best, parallax=_plane_parallax(best, K1, K2, dist1, dist2))
 
 
-def _refine_side(
+def _search_side(
     prepared, corners, y1, window, levels, start, transfer_with, normalize2, focal, priors
 ) -> PhotometricRotation | None:
-    """One window side of :func:`refine_rotation_photometric`: search the windows around
-    ``corners`` (normalised ``y1``) through the start model over ``levels`` pyramid levels,
-    fit, search them again at full size in image 2 seen through the fit, and fit again (the
-    first fit when too few tracks agree with the second)."""
+    """One window side of :func:`refine_rotation_photometric`: the windows around ``corners``
+    (normalised ``y1``) searched through the start model over ``levels`` pyramid levels, and
+    the fit; None when too few tracks agree."""
     images, seen = prepared
     transfer = transfer_with(start)
     tracks = _search(images, seen, corners, transfer, window, levels)
@@ -890,12 +1054,19 @@ def _refine_side(
         tracks = _align(images, corners, transfer, window, levels, _ITERATIONS,
                         start=_shifts(tracks, transfer))  # fmt: skip
         found = _fit_windows(tracks, y1, window, start[0], normalize2, focal, priors)
-    if found is None:
-        return None
-    transfer = transfer_with(_model(found.fit))
+    return found
+
+
+def _search_again(
+    images, refined, y1, transfer_with, normalize2, focal, priors
+) -> PhotometricRotation:
+    """The windows of ``refined`` searched again at full size in image 2 seen through its fit,
+    and the fit again; ``refined`` when too few tracks agree."""
+    transfer = transfer_with(_model(refined.fit))
+    corners, window = refined.tracks.points1, refined.window
     tracks = _search(images, _seen_through(images, transfer), corners, transfer, window, 0)
-    again = _fit_windows(tracks, y1, window, found.fit.R, normalize2, focal, priors)
-    return found if again is None else again
+    again = _fit_windows(tracks, y1, window, refined.fit.R, normalize2, focal, priors)
+    return refined if again is None else again
 
 
 def _polish(
