@@ -254,6 +254,30 @@ def test_form_with_points_overwrites_the_input_mask_as_opencv_does():
     np.testing.assert_array_equal(zeros, given[4])  # written in place, as OpenCV does
 
 
+MASK_CALLS = {
+    "camera matrix": lambda f, mask: f(E, P1, 640.0 - P2, K, mask=mask)[3],
+    "focal": lambda f, mask: f(E, P1, 640.0 - P2, focal=800.0, pp=(320.0, 240.0), mask=mask)[3],
+    "distanceThresh": lambda f, mask: f(E, P1, 640.0 - P2, K, distanceThresh=50.0, mask=mask)[3],
+    "points": lambda f, mask: f(P1, P2, K, None, K, None, mask=mask)[4],
+}
+
+
+@pytest.mark.parametrize("shape", [(40, 1), (1, 40), (40,)])
+@pytest.mark.parametrize("form", list(MASK_CALLS))
+def test_the_mask_is_written_in_place_where_opencv_writes_it(form, shape):
+    returned = {}
+    for function in (OPENCV_RECOVER_POSE, ppo_cv.recoverPose):
+        mask = np.full(shape, 7, np.uint8)
+        out = MASK_CALLS[form](function, mask)
+        returned[function] = (out is mask, mask.copy(), out.copy())
+    opencv, ours = returned[OPENCV_RECOVER_POSE], returned[ppo_cv.recoverPose]
+    assert ours[0] == opencv[0] == (shape == (40, 1))
+    if ours[0]:
+        np.testing.assert_array_equal(ours[1], ours[2])
+        assert set(np.unique(ours[1])) == set(np.unique(opencv[1]))
+    assert set(np.unique(ours[2])) == set(np.unique(opencv[2]))
+
+
 def test_uninstall_restores_what_install_replaced():
     def wrapper(*args, **kwargs):
         return OPENCV_RECOVER_POSE(*args, **kwargs)
