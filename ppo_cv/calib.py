@@ -16,6 +16,7 @@ that states the size of its images (COLMAP's WIDTH HEIGHT, OpenCV's ``image_widt
 
 from __future__ import annotations
 
+import codecs
 import json
 import math
 import os
@@ -128,10 +129,21 @@ def _read_opencv(path: str) -> list[Camera]:
     return cameras
 
 
-def _opencv_matrices(path: str) -> tuple:
+def _open_storage(path: str):
+    """OpenCV's FileStorage of ``path``, read from memory past a UTF-8 byte-order mark (which
+    text editors on Windows write and OpenCV's parsers refuse)."""
     import cv2
 
-    storage = cv2.FileStorage(path, cv2.FILE_STORAGE_READ)
+    with open(path, "rb") as handle:
+        head = handle.read(len(codecs.BOM_UTF8))
+        if head != codecs.BOM_UTF8:
+            return cv2.FileStorage(path, cv2.FILE_STORAGE_READ)
+        text = handle.read().decode("utf-8", errors="replace")
+    return cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
+
+
+def _opencv_matrices(path: str) -> tuple:
+    storage = _open_storage(path)
     if not storage.isOpened():
         raise ValueError(f"cannot read OpenCV calibration file {path}")
     if not storage.root().isMap():
@@ -290,7 +302,7 @@ def load_calibration(path: str | os.PathLike) -> list[Camera]:
     if extension in (".yml", ".yaml", ".xml"):
         return _read_opencv(path)
     try:
-        with open(path, encoding="utf-8") as handle:
+        with open(path, encoding="utf-8-sig") as handle:
             text = handle.read()
     except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"cannot read calibration file {path}: {exc}") from None

@@ -83,6 +83,33 @@ def test_opencv_file_storage(tmp_path, extension):
     np.testing.assert_allclose(camera.dist, DIST)
 
 
+def _written_by_opencv(tmp_path, extension: str) -> bytes:
+    path = tmp_path / f"written.{extension}"
+    storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    storage.write("camera_matrix", K_FREIBURG)
+    storage.write("distortion_coefficients", DIST.reshape(1, 5))
+    storage.release()
+    return path.read_bytes()
+
+
+BOM_FILES = {  # the text of each format, as an editor on Windows saves it: a UTF-8 BOM first
+    "yml": lambda tmp_path: _written_by_opencv(tmp_path, "yml"),
+    "xml": lambda tmp_path: _written_by_opencv(tmp_path, "xml"),
+    "json": lambda _: json.dumps({"K": K_FREIBURG.tolist(), "dist": DIST.tolist()}).encode(),
+    "txt": lambda _: b"# Camera list\n1 OPENCV 640 480 535.4 539.2 320.1 247.6 "
+    + " ".join(str(v) for v in DIST[:4]).encode() + b"\n",
+}
+
+
+@pytest.mark.parametrize("extension", list(BOM_FILES))
+def test_a_byte_order_mark_before_a_calibration_is_read_past(tmp_path, extension):
+    path = tmp_path / f"camera.{extension}"
+    path.write_bytes(b"\xef\xbb\xbf" + BOM_FILES[extension](tmp_path))
+    (camera,) = load_calibration(path)
+    np.testing.assert_allclose(camera.K, K_FREIBURG)
+    np.testing.assert_allclose(camera.dist, DIST if extension != "txt" else DIST[:4])
+
+
 def test_opencv_stereo_file_gives_two_cameras(tmp_path):
     path = tmp_path / "stereo.yml"
     K2 = K_FREIBURG * [[1.1], [1.1], [1.0]]
