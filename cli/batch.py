@@ -11,6 +11,7 @@ import contextlib
 import dataclasses
 import json
 import os
+import re
 import sys
 import tempfile
 from pathlib import Path
@@ -72,8 +73,22 @@ PAIRS_FILE_FORMAT = (
     "the 9 of K2 (row-major), optionally followed by the 16 numbers of the ground-truth "
     "motion T_1to2 (row-major 4x4, X2 = R X1 + t). The '0 0' are the EXIF orientations of "
     "the two images in the format of the SuperGlue / LoFTR pair lists, read and ignored. "
-    "Names are relative to IMAGE_DIR; '#' starts a comment line."
+    "Names are relative to IMAGE_DIR; a name with spaces goes in double quotes; '#' starts a "
+    "comment, on its own line or after the fields."
 )
+_FIELD = re.compile(r'"([^"]*)"|(\S+)')
+
+
+def _fields(line: str) -> list[str]:
+    """The fields of a pairs-file line: separated by whitespace, a double-quoted name kept
+    whole, a field starting with '#' ending the line."""
+    fields = []
+    for match in _FIELD.finditer(line):
+        quoted, plain = match.groups()
+        if plain is not None and plain.startswith("#"):
+            break
+        fields.append(plain if quoted is None else quoted)
+    return fields
 
 
 def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dict]:
@@ -99,19 +114,19 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
         cameras = Cameras(matrix, None, matrix, None)
     one_matrix = cameras is not None and np.array_equal(cameras.K1, cameras.K2)
     try:
-        text = pairs_file.read_text(encoding="utf-8")
+        text = pairs_file.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"cannot read pairs file {pairs_file}: {exc}") from None
     rows, first_gt = [], None
     for number, line in enumerate(text.splitlines(), 1):
-        parts = line.split()
-        if not parts or parts[0].startswith("#"):
+        parts = _fields(line)
+        if not parts:
             continue
         where = f"{pairs_file}:{number}"
         if len(parts) not in (2, 4, 22, 38):
             raise ValueError(
                 f"{where}: expected 'name1 name2 [0 0 K1(9) K2(9) [T(16)]]', "
-                f"got {len(parts)} fields"
+                f"got {len(parts)} fields (put a name with spaces in double quotes)"
             )
         row = {"image1": parts[0], "image2": parts[1], "K1": None, "K2": None, "T": None}
         if cameras is not None:
