@@ -164,6 +164,8 @@ CASES = {
     "estimate_pair NaN pixel": (_pair(image1=_image_with_nan()), ValueError,
                                 "image1 has 1 NaN or infinite pixel"),
     "estimate_pair image None": (_pair(image2=None), TypeError, "image2 is required"),
+    "estimate_pair image bytes": (_pair(image1=b"img1.png"), TypeError,
+                                  "image1 must be an image array or a path (str or "),
     "estimate_pair sizes differ without K2": (_pair(image2=GREY[:40]), ValueError,
                                               "pass K2 for image2"),
     "estimate_pair image text dtype": (_pair(image1=np.full((8, 8), "a")), TypeError,
