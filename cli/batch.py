@@ -518,7 +518,7 @@ def run_pairs(
     pairs_file, image_dir, K, output, workers, options, *, cache=True, quiet=False,
     overwrite=False, K2=None, calib=None, exif_orientation=True,
 ) -> int:  # fmt: skip
-    """Run every pair of a pairs file, writing JSON lines to ``output`` (or stdout).
+    """Run every pair of a pairs file, writing JSON lines to ``output`` (None or ``-``: stdout).
 
     Lines without intrinsics take ``K`` (and ``K2``) or the cameras of ``calib``, else those of
     the images' EXIF (with a warning). The output file is written completely or not at all (an
@@ -534,6 +534,8 @@ def run_pairs(
     )
 
     check_range("--workers", workers, 0, WORKERS_MAX)
+    if output is not None and str(output) == "-":
+        output = None
     if output is not None:
         check_target(output, "file", overwrite, [pairs_file, image_dir], "-o ")
     cameras = given_cameras(K, K2, None, None, calib)
@@ -626,7 +628,9 @@ def register(app: typer.Typer) -> None:
         output: Annotated[
             Path | None,
             typer.Option(
-                "--output", "-o", help="JSON lines file (default: stdout); written at the end."
+                "--output",
+                "-o",
+                help="JSON lines file (default, or '-': stdout); written at the end.",
             ),
         ] = None,
         overwrite: Overwrite = False,

@@ -396,6 +396,11 @@ def _run_pair(
     from ppo_cv.pipeline import estimate_pair, load_image
 
     try:
+        if out is not None and str(out) == "-":
+            raise ValueError(
+                "--out takes a folder, not '-' (standard output): without --out the summary, "
+                "or with --json the JSON object, goes to standard output"
+            )
         if out is not None:
             inputs = [image1, image2, *([calib] if calib is not None else [])]
             check_target(out, "folder", overwrite, inputs, "--out ")

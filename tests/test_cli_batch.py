@@ -288,3 +288,14 @@ def test_a_name_with_unquoted_spaces_is_refused_with_the_remedy(tmp_path):
     pairs.write_text("my photo.png other.png\n")
     with pytest.raises(ValueError, match=r"pairs\.txt:1: .*got 3 fields \(put a name with spaces"):
         batch.read_pairs(pairs, K=K_TEXT)
+
+
+def test_output_dash_is_standard_output(tmp_path):
+    (tmp_path / "pairs.txt").write_text("absent1.png absent2.png\n")
+    (tmp_path / "images").mkdir()
+    args = [*COMMAND, "pairs", "pairs.txt", "images", "--K", K_TEXT, "-o", "-", "--quiet"]
+    out = subprocess.run(args, capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    (line,) = [json.loads(text) for text in out.stdout.splitlines()]
+    assert line["image1"] == "absent1.png" and "image not found" in line["error"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["images", "pairs.txt"]
