@@ -48,6 +48,8 @@ from .common import (
     exif_camera,
     fail,
     given_cameras,
+    ignore_library_camera_warnings,
+    implausible_intrinsics,
     pipeline_options,
     print_result,
     stdout_failure,
@@ -303,6 +305,8 @@ def _require_one_size(rows: list[dict], image_dir: Path, pairs_file: Path) -> No
 def _init_worker() -> None:
     from ppo_cv.atomic import import_pycolmap
 
+    ignore_library_camera_warnings()
+
     import_pycolmap()  # first: numpy's threads, started by it, then block SIGTERM too
     import cv2
 
@@ -485,6 +489,36 @@ def _fit_calibration(rows: list[dict], image_dir: Path, calib, K2) -> None:
         warn("pairs", notes[0] + more)
 
 
+def _warn_implausible_cameras(
+    rows: list[dict], image_dir: Path, pairs_file: Path, exif_orientation: bool, given: str
+) -> None:
+    """Warn once per distinct doubt, naming its first line, where a camera matrix given (by
+    ``given``, the option, or on the line) does not fit its image as read (upright when
+    ``exif_orientation``), by the header sizes (:func:`ppo_cv.calib.implausible_intrinsics`)."""
+    from ppo_cv.images import exif_layout
+
+    from .common import image_size
+
+    doubts: dict[str, dict[int, None]] = {}  # each doubt's lines, in order
+    for row in (r for r in rows if r["K1"] is not None):
+        for key in ("K1", "K2"):
+            path = image_dir / row[{"K1": "image1", "K2": "image2"}[key]]
+            size = image_size(path) if path.is_file() else None
+            if size is None:  # unreadable: the pair reports it
+                continue
+            turned = exif_orientation and exif_layout(path).turned
+            second = key == "K2" and given == "--K" and not row["shared_K"]
+            name = f"{given}2" if second else given
+            name = name if row["given_cameras"] else f"{key} of {path.name}"
+            doubt = implausible_intrinsics(row[key], size[::-1] if turned else size, name, turned)
+            if doubt is not None:
+                doubts.setdefault(doubt, {})[row["line"]] = None
+    for doubt, lines in doubts.items():
+        first, others = next(iter(lines)), len(lines) - 1
+        more = f" (and {others} more line{'s' * (others > 1)})" if others else ""
+        warn("pairs", f"{pairs_file}:{first}: {doubt}{more}")
+
+
 def _exif_intrinsics(rows: list[dict], image_dir: Path, exif_orientation: bool) -> None:
     """Give the rows without intrinsics the cameras of their images' EXIF, warning once for
     the run and once for each image whose EXIF focal length is doubtful."""
@@ -550,6 +584,8 @@ def run_pairs(
         check_apart(output, sorted(images), "-o ")
     if calib is not None:
         _fit_calibration(rows, Path(image_dir), calib, K2)
+    given = "--K" if calib is None else f"--calib {calib}"
+    _warn_implausible_cameras(rows, Path(image_dir), Path(pairs_file), exif_orientation, given)
     _exif_intrinsics(rows, Path(image_dir), exif_orientation)
     workers = worker_count(workers, len(rows))
     import_pycolmap()

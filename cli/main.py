@@ -90,6 +90,9 @@ def _run(argv: list[str] | None) -> int:
     if _command(argv).split()[-1] in _PYCOLMAP_COMMANDS:
         import_pycolmap()  # first: numpy's threads, started by it, then block SIGTERM too
     application = _app()
+    from ppo_cv.cli.common import ignore_library_camera_warnings
+
+    ignore_library_camera_warnings()
     try:
         return application(args=argv, prog_name="ppo-cv", standalone_mode=False)
     except Exception as exc:  # click's exceptions (typer vendors click in recent releases)

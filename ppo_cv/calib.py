@@ -21,7 +21,9 @@ import json
 import math
 import os
 import re
+import warnings
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -34,7 +36,11 @@ __all__ = [
     "load_calibration",
     "camera_from_exif",
     "fit_to_image",
+    "implausible_intrinsics",
+    "warn_implausible",
+    "ImplausibleCameraWarning",
     "ASPECT_TOLERANCE",
+    "TURNED_CENTRE_TOLERANCE",
 ]
 
 ASPECT_TOLERANCE = 0.01
@@ -309,6 +315,69 @@ def load_calibration(path: str | os.PathLike) -> list[Camera]:
     if extension == ".json" or text.lstrip().startswith(("{", "[")):
         return _read_json(path, text)
     return _read_colmap(path, text)
+
+
+TURNED_CENTRE_TOLERANCE = 0.02
+"""Distance, as a fraction of the larger image side, within which a principal point counts as
+the centre of the image turned a quarter (:func:`implausible_intrinsics`)."""
+
+
+def _at_turned_centre(cx: float, cy: float, width: int, height: int) -> bool:
+    tolerance = TURNED_CENTRE_TOLERANCE * max(width, height)
+    turned = math.hypot(cx - height / 2, cy - width / 2)
+    centre = math.hypot(cx - width / 2, cy - height / 2)
+    return turned <= tolerance < centre - turned
+
+
+def implausible_intrinsics(
+    K: Any, size: tuple[int, int] | None, name: str = "--K", exif_turned: bool = False
+) -> str | None:
+    """A warning when ``K`` does not fit an image of ``size`` (width, height), else None.
+
+    Plausible: focal lengths within 0.1 to 10 times the larger image side and the principal
+    point inside the image, and not at the centre of the image turned a quarter, within
+    :data:`TURNED_CENTRE_TOLERANCE` of the larger side and closer to it than to the centre.
+    ``exif_turned``: the image was turned upright by its EXIF orientation, and the warning
+    then names that likely cause (a camera matrix of the stored pixels).
+    """
+    if size is None:
+        return None
+    width, height = size
+    fx, fy, cx, cy = float(K[0][0]), float(K[1][1]), float(K[0][2]), float(K[1][2])
+    side = max(width, height)
+    problems = []
+    if not all(0.1 * side <= f <= 10.0 * side for f in (fx, fy)):
+        problems.append(f"focal length fx={fx:g} fy={fy:g} px is outside 0.1..10 x {side} px")
+    if not (0.0 <= cx <= width and 0.0 <= cy <= height):
+        problems.append(f"principal point ({cx:g}, {cy:g}) is outside the {width}x{height} image")
+    elif _at_turned_centre(cx, cy, width, height):
+        cause = (
+            "a camera for the pixels as stored, where the EXIF orientation turns the image "
+            "upright (--no-exif-orientation reads them as stored)?"
+            if exif_turned
+            else "a camera of the image turned a quarter?"
+        )
+        problems.append(
+            f"principal point ({cx:g}, {cy:g}) is the centre of a {height}x{width} image: {cause}"
+        )
+    if not problems:
+        return None
+    return f"{name} looks implausible for a {width}x{height} image: " + "; ".join(problems)
+
+class ImplausibleCameraWarning(UserWarning):
+    """A camera matrix that does not fit its image (:func:`implausible_intrinsics`)."""
+
+
+def warn_implausible(
+    K: np.ndarray, image_shape: tuple[int, ...], name: str, stacklevel: int = 1
+) -> None:
+    """Warn with :class:`ImplausibleCameraWarning` when ``K`` does not fit an image of
+    ``image_shape`` (rows, columns, ...): a camera of another image size or of the image turned
+    a quarter gives a confident wrong pose. ``stacklevel`` counts from the caller, as in
+    :func:`warnings.warn`."""
+    message = implausible_intrinsics(K, (image_shape[1], image_shape[0]), name)
+    if message is not None:
+        warnings.warn(message, ImplausibleCameraWarning, stacklevel=stacklevel + 1)
 
 
 def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> tuple[Camera, bool]:

@@ -69,6 +69,7 @@ from typing import Any
 import numpy as np
 
 from . import ppo
+from .calib import warn_implausible
 from .camera import pixels_to_normalized, principal_point_is_centre
 from .checks import as_camera_matrix, as_distortion
 from .features import (
@@ -682,6 +683,9 @@ def _load_inputs(image1, image2, K1, K2, dist1, dist2, detect: bool, options) ->
         K2, dist2 = as_camera_matrix(K2, "K2"), as_distortion(dist2, "dist2")
     if img1.shape == img2.shape and np.array_equal(img1, img2):
         raise ValueError("the two images are identical: they carry no relative pose")
+    warn_implausible(K1, img1.shape, "K1", stacklevel=3)
+    if K2 is not K1:
+        warn_implausible(K2, img2.shape, "K2", stacklevel=3)
     focal = float(np.mean([K1[0, 0], K1[1, 1], K2[0, 0], K2[1, 1]]))
     return _Inputs(img1, img2, K1, K2, dist1, dist2, focal)
 

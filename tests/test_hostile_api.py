@@ -7,6 +7,8 @@ UMats, the positional call OpenCV reads as the first form, and images of any dep
 from __future__ import annotations
 
 import os
+import warnings
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -15,6 +17,7 @@ from hostile_images import HEADERS, png_header
 from twoview import make_scene, random_rotation, skew
 
 import ppo_cv
+from ppo_cv.calib import ImplausibleCameraWarning
 from ppo_cv.images import load_image
 from ppo_cv.pipeline import PairOptions
 
@@ -377,3 +380,28 @@ def test_a_constant_deep_image_reads_as_blank(tmp_path):
     assert not load_image(path).any()
     with pytest.raises(ValueError, match="too few features"):
         ppo_cv.estimate_pair(path, GREY, K)
+
+
+DEMO_IMAGES = [str(Path(ppo_cv.__file__).parent / "data" / f"demo{i}.png") for i in (1, 2)]
+K_DEMO = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
+
+
+@pytest.mark.parametrize("scale", [1.0, 3.0])
+def test_a_camera_of_another_image_size_is_warned_about(scale):
+    """The demo pair with the camera of a 1920x1440 copy: a confident pose 19 degrees off."""
+    K1 = K_DEMO * [[scale], [scale], [1.0]]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = ppo_cv.estimate_pair(*DEMO_IMAGES, K1)
+    doubts = [w for w in caught if issubclass(w.category, ImplausibleCameraWarning)]
+    angle = np.degrees(np.linalg.norm(cv2.Rodrigues(result.R)[0]))
+    if scale == 1.0:
+        assert doubts == [] and abs(angle - 10.9) < 0.5
+        return
+    assert abs(angle - 10.9) > 5.0  # what the warning is about
+    (doubt,) = doubts
+    assert str(doubt.message) == (
+        "K1 looks implausible for a 640x480 image: principal point (960.3, 742.8) is outside "
+        "the 640x480 image"
+    )
+    assert doubt.filename == __file__  # points at the caller's line
