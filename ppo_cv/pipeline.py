@@ -71,7 +71,14 @@ import numpy as np
 from . import ppo
 from .calib import warn_implausible
 from .camera import pixels_to_normalized, principal_point_is_centre
-from .checks import as_camera_matrix, as_distortion
+from .checks import (
+    MAX_WHOLE_NUMBER,
+    as_camera_matrix,
+    as_distortion,
+    as_flag,
+    as_number,
+    as_whole_number,
+)
 from .features import (
     FEATURE_TYPES,
     Features,
@@ -273,6 +280,15 @@ class PairOptions:
     focal_ratio: str = "auto"
 
     def __post_init__(self) -> None:
+        for name in ("ratio", "ransac_threshold", "confidence", "pri_threshold", "max_log10_nfa"):
+            as_number(getattr(self, name), name)
+        for name in ("mutual", "ordered_sampling", "refine", "plane", "photometric"):
+            as_flag(getattr(self, name), name)
+        for name, low in (("max_features", 8), ("min_trials", 1), ("max_trials", 1),
+                          ("redetect_below", 0), ("min_inliers", 5), ("seed", 0)):  # fmt: skip
+            as_whole_number(getattr(self, name), name, low, MAX_WHOLE_NUMBER)
+        if self.max_image_size is not None:
+            as_whole_number(self.max_image_size, "max_image_size", 32, MAX_WHOLE_NUMBER)
         for name, modes in (
             ("principal_point", PRINCIPAL_POINT_MODES),
             ("focal_ratio", FOCAL_RATIO_MODES),

@@ -67,6 +67,16 @@ def _pair(**kwargs):
     return lambda: ppo_cv.estimate_pair(**args)
 
 
+def _sfm_module():
+    from ppo_cv import sfm
+
+    return sfm
+
+
+def _sfm(**kwargs):
+    return _sfm_module().run_sfm("no such folder", None, K=K, **kwargs)
+
+
 def _form4(**kwargs):
     args = {"distCoeffs1": None, "distCoeffs2": None, **kwargs}
     return lambda: ppo_cv.recoverPose(P1, P2, cameraMatrix1=K, cameraMatrix2=K, **args)
@@ -179,6 +189,32 @@ CASES = {
                                     ValueError, "image1 is 60000x1 pixels: too small or too thin"),
     "estimate_pair 40x12 image": (_pair(image2=GREY[:12, :40], K2=K), ValueError,
                                   "image2 is 40x12 pixels"),
+    # options that reached pycolmap or numpy unchecked, or read "no" as true
+    "PairOptions seed -1": (lambda: PairOptions(seed=-1), ValueError,
+                            "seed must be a whole number in 0..2147483647, got -1"),
+    "PairOptions seed 2**40": (lambda: PairOptions(seed=2**40), ValueError, "seed must be"),
+    "PairOptions seed text": (lambda: PairOptions(seed="1"), TypeError,
+                              "seed must be a whole number, got str"),
+    "PairOptions max_features 100.5": (lambda: PairOptions(max_features=100.5), ValueError,
+                                       "max_features must be a whole number in 8.."),
+    "PairOptions max_features text": (lambda: PairOptions(max_features="a"), TypeError,
+                                      "max_features must be a whole number"),
+    "PairOptions ratio text": (lambda: PairOptions(ratio="0.8"), TypeError,
+                               "ratio must be a number"),
+    "PairOptions plane 'no'": (lambda: PairOptions(plane="no"), TypeError,
+                               "plane must be True or False, got str 'no'"),
+    # structure from motion: numbers and keywords checked before the features are extracted
+    "run_sfm max_num_features 0": (lambda: _sfm(max_num_features=0), ValueError,
+                                   "max_num_features must be a whole number in 1..100000"),
+    "run_sfm num_threads text": (lambda: _sfm(num_threads="2"), TypeError,
+                                 "num_threads must be a whole number"),
+    "run_sfm seed 2**40": (lambda: _sfm(seed=2**40), ValueError, "seed must be a whole number"),
+    "run_sfm scoring typo": (lambda: _sfm(min_inlier=3), TypeError,
+                             "unexpected keyword argument 'min_inlier'; the scoring takes"),
+    "run_sfm scoring text": (lambda: _sfm(pri_threshold="x"), TypeError,
+                             "pri_threshold must be a number"),
+    "score_pairs not a database": (lambda: _sfm_module().score_pairs(__file__), ValueError,
+                                   "is not a COLMAP database (no SQLite header)"),
 }  # fmt: skip
 
 
