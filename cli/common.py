@@ -284,7 +284,9 @@ def given_cameras(K, K2, dist, dist2, calib) -> Cameras | None:
         cameras = load_calibration(calib)
         first, second = cameras[0], cameras[1] if len(cameras) > 1 else cameras[0]
         K2v = parse_intrinsics(K2, "--K2") if K2 else second.K
-        d2 = d2 if d2 is not None else (second.dist if not K2 else None)
+        shared = len(cameras) == 1 and not K2  # --dist then describes the one camera of both
+        if d2 is None and not K2:
+            d2 = d1 if shared and d1 is not None else second.dist
         return Cameras(first.K, d1 if d1 is not None else first.dist, K2v, d2)
     if K is None:
         if K2:

@@ -284,3 +284,18 @@ def test_pair_warns_about_such_a_camera_in_one_line_only():
         "ppo-cv pair: warning: --K looks implausible for a 640x480 image: principal point "
         "(960.3, 742.8) is outside the 640x480 image"
     ]
+
+
+# --- 6. --dist with a calibration of one camera ---------------------------------------------
+
+
+def test_dist_with_a_one_camera_calibration_describes_both_images_as_with_K(tmp_path):
+    calibration = tmp_path / "camera.json"
+    calibration.write_text(json.dumps({"fx": FX, "fy": FY, "cx": CX, "cy": CY}))
+    cameras = {}
+    for source in (["--K", K_TEXT], ["--calib", calibration]):
+        done = ppo_cv("pair", DEMO1, DEMO2, *source, "--dist", "0.05,0,0,0", "--json")
+        assert done.returncode == 0, done.stderr
+        used = json.loads(done.stdout)["cameras"]
+        cameras[source[0]] = (used["dist1"], used["dist2"])
+    assert cameras["--calib"] == cameras["--K"] == ([0.05, 0, 0, 0], [0.05, 0, 0, 0])
