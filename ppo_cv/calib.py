@@ -67,7 +67,7 @@ class Camera:
 
 
 def _numbers(text: str, name: str) -> np.ndarray:
-    parts = [p for p in re.split(r"[,\s;]+", str(text).strip().strip("[]()")) if p]
+    parts = [p for p in re.split(r"[,\s;\[\]()]+", str(text)) if p]  # nested lists as printed
     try:
         values = np.array([float(p) for p in parts], dtype=np.float64)
     except ValueError:

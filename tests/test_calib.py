@@ -36,6 +36,8 @@ def test_docstring_examples():
         "535.4 539.2 320.1 247.6",
         "535.4,0,320.1,0,539.2,247.6,0,0,1",
         "[535.4, 0, 320.1, 0, 539.2, 247.6, 0, 0, 1]",
+        str(K_FREIBURG.tolist()),  # K printed by Python: nested lists
+        str(K_FREIBURG),  # and by numpy, over three lines
     ],
 )
 def test_parse_intrinsics_accepts_four_or_nine_numbers(text):
