@@ -489,6 +489,26 @@ def _fit_calibration(rows: list[dict], image_dir: Path, calib, K2) -> None:
         warn("pairs", notes[0] + more)
 
 
+def _usable_size(path: Path) -> tuple[int, int] | None:
+    """``(width, height)`` of an image by its header; None when it is missing, unreadable,
+    above the pixel limit or too small to detect features on (its pair's error says which)."""
+    from ppo_cv.features import require_detectable
+    from ppo_cv.images import check_header
+
+    from .common import image_size
+
+    try:
+        check_header(path)
+    except ValueError:
+        return None
+    size = image_size(path)
+    try:
+        require_detectable(size[::-1] if size else (0, 0), str(path))
+    except ValueError:
+        return None
+    return size
+
+
 def _warn_implausible_cameras(
     rows: list[dict], image_dir: Path, pairs_file: Path, exif_orientation: bool, given: str
 ) -> None:
@@ -497,14 +517,12 @@ def _warn_implausible_cameras(
     ``exif_orientation``), by the header sizes (:func:`ppo_cv.calib.implausible_intrinsics`)."""
     from ppo_cv.images import exif_layout
 
-    from .common import image_size
-
     doubts: dict[str, dict[int, None]] = {}  # each doubt's lines, in order
     for row in (r for r in rows if r["K1"] is not None):
         for key in ("K1", "K2"):
             path = image_dir / row[{"K1": "image1", "K2": "image2"}[key]]
-            size = image_size(path) if path.is_file() else None
-            if size is None:  # unreadable: the pair reports it
+            size = _usable_size(path)
+            if size is None:  # the pair reports why it cannot be used
                 continue
             turned = exif_orientation and exif_layout(path).turned
             second = key == "K2" and given == "--K" and not row["shared_K"]
