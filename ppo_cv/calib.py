@@ -313,8 +313,29 @@ def load_calibration(path: str | os.PathLike) -> list[Camera]:
     except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"cannot read calibration file {path}: {exc}") from None
     if extension == ".json" or text.lstrip().startswith(("{", "[")):
-        return _read_json(path, text)
-    return _read_colmap(path, text)
+        return _one_or_two(_read_json(path, text), path)
+    return _one_or_two(_read_colmap(path, text), path)
+
+
+def _one_or_two(cameras: list[Camera], path: str) -> list[Camera]:
+    """The cameras of a file, which must be one (shared) or two (image 1, image 2): a file of
+    more cannot say which is whose, unless they are all the same camera."""
+    first = cameras[0]
+    if all(_same_camera(first, camera) for camera in cameras[1:]):
+        return [first]
+    if len(cameras) > 2:
+        raise ValueError(
+            f"{path} describes {len(cameras)} different cameras; give a file of one camera "
+            "(both images) or two (image 1, image 2)"
+        )
+    return cameras
+
+
+def _same_camera(a: Camera, b: Camera) -> bool:
+    if (a.dist is None) != (b.dist is None):
+        return False
+    same_dist = a.dist is None or np.array_equal(a.dist, b.dist)
+    return np.array_equal(a.K, b.K) and same_dist and a.image_size == b.image_size
 
 
 TURNED_CENTRE_TOLERANCE = 0.02

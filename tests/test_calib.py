@@ -196,6 +196,35 @@ def test_colmap_errors(tmp_path, text, message):
 
 
 @pytest.mark.parametrize(
+    "lines, cameras",
+    [
+        (["1 PINHOLE 640 480 500 500 320 240"] * 3, 1),  # one camera per image, all alike
+        (["1 PINHOLE 640 480 500 500 320 240", "2 SIMPLE_RADIAL 640 480 500 320 240 0.1"], 2),
+    ],
+)
+def test_a_colmap_file_of_cameras_all_alike_is_one_camera(tmp_path, lines, cameras):
+    path = tmp_path / "cameras.txt"
+    path.write_text("\n".join(lines) + "\n")
+    assert len(load_calibration(path)) == cameras
+
+
+@pytest.mark.parametrize(
+    "name, text",
+    [
+        ("cameras.txt", "1 PINHOLE 640 480 500 500 320 240\n2 PINHOLE 640 480 510 500 320 240\n"
+         "3 PINHOLE 640 480 500 500 320 240\n"),
+        ("cameras.json", '{"cameras": [[500, 500, 320, 240], [510, 500, 320, 240], '
+         '[520, 500, 320, 240]]}'),
+    ],
+)  # fmt: skip
+def test_a_file_of_more_than_two_cameras_is_refused(tmp_path, name, text):
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(ValueError, match="describes 3 different cameras; give a file of one"):
+        load_calibration(path)
+
+
+@pytest.mark.parametrize(
     "data",
     [
         {"K": K_FREIBURG.tolist(), "dist": DIST.tolist()},
