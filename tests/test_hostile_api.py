@@ -218,6 +218,7 @@ CASES = {
 }  # fmt: skip
 
 
+@pytest.mark.filterwarnings("ignore::ppo_cv.calib.ImplausibleCameraWarning")  # 800 px on 64x48
 @pytest.mark.parametrize("case", list(CASES), ids=list(CASES))
 def test_hostile_input_is_an_error_naming_the_argument(case):
     call, exception, words = CASES[case]
@@ -410,6 +411,7 @@ def test_a_single_channel_float_tiff_is_read(tmp_path):
         np.testing.assert_array_equal(loaded[:, :, channel], GREY)
 
 
+@pytest.mark.filterwarnings("ignore::ppo_cv.calib.ImplausibleCameraWarning")
 def test_a_constant_deep_image_reads_as_blank(tmp_path):
     path = tmp_path / "constant.png"
     cv2.imwrite(str(path), np.full((48, 64), 1000, np.uint16))
