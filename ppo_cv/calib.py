@@ -246,11 +246,28 @@ def _read_colmap(path: str, text: str) -> list[Camera]:
     return cameras
 
 
+_JSON_NUMBER_KEYS = ("K", "camera_matrix", "fx", "fy", "cx", "cy", "f", "dist", "distortion",
+                     "dist_coeffs", "width", "height")  # fmt: skip
+
+
+def _require_no_booleans(value: Any, where: str, key: str = "") -> None:
+    """ValueError for a JSON ``true`` or ``false`` where a number belongs (numpy reads them as
+    1 and 0)."""
+    if isinstance(value, bool):
+        raise ValueError(f"{where}: {key or 'a camera'} must be numbers, got {str(value).lower()}")
+    if isinstance(value, (list, tuple)):
+        for item in value:
+            _require_no_booleans(item, where, key)
+
+
 def _json_camera(entry, where: str) -> Camera:
     if isinstance(entry, (list, tuple)):
+        _require_no_booleans(entry, where)
         return Camera(_matrix_from_values(np.asarray(entry, float), where))
     if not isinstance(entry, dict):
         raise ValueError(f"{where}: expected an object with K or fx, fy, cx, cy")
+    for key in _JSON_NUMBER_KEYS:
+        _require_no_booleans(entry.get(key), where, key)
     if "K" in entry or "camera_matrix" in entry:
         K = entry.get("K", entry.get("camera_matrix"))
         K = _matrix_from_values(np.asarray(K, dtype=np.float64), where)

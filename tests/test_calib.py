@@ -256,6 +256,8 @@ def test_json_two_cameras(tmp_path):
         ('{"focal": 500}', "expected K"),
         ('{"K": [1, 2, 3]}', "4 numbers"),
         ('{"K": [500, 500, 320, 240], "dist": [1, 2, 3]}', "k1,k2,p1,p2"),
+        ('{"fx": true, "fy": 500, "cx": 320, "cy": 240}', "fx must be numbers, got true"),
+        ('{"K": [500, 500, 320, 240], "dist": [false, 0, 0, 0]}', "dist must be numbers"),
     ],
 )
 def test_json_errors(tmp_path, text, message):
