@@ -11,6 +11,7 @@ import contextlib
 import dataclasses
 import json
 import os
+import re
 import sys
 import tempfile
 from pathlib import Path
@@ -47,6 +48,8 @@ from .common import (
     exif_camera,
     fail,
     given_cameras,
+    ignore_library_camera_warnings,
+    implausible_intrinsics,
     pipeline_options,
     print_result,
     stdout_failure,
@@ -72,8 +75,22 @@ PAIRS_FILE_FORMAT = (
     "the 9 of K2 (row-major), optionally followed by the 16 numbers of the ground-truth "
     "motion T_1to2 (row-major 4x4, X2 = R X1 + t). The '0 0' are the EXIF orientations of "
     "the two images in the format of the SuperGlue / LoFTR pair lists, read and ignored. "
-    "Names are relative to IMAGE_DIR; '#' starts a comment line."
+    "Names are relative to IMAGE_DIR; a name with spaces goes in double quotes; '#' starts a "
+    "comment, on its own line or after the fields."
 )
+_FIELD = re.compile(r'"([^"]*)"|(\S+)')
+
+
+def _fields(line: str) -> list[str]:
+    """The fields of a pairs-file line: separated by whitespace, a double-quoted name kept
+    whole, a field starting with '#' ending the line."""
+    fields = []
+    for match in _FIELD.finditer(line):
+        quoted, plain = match.groups()
+        if plain is not None and plain.startswith("#"):
+            break
+        fields.append(plain if quoted is None else quoted)
+    return fields
 
 
 def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dict]:
@@ -99,19 +116,19 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
         cameras = Cameras(matrix, None, matrix, None)
     one_matrix = cameras is not None and np.array_equal(cameras.K1, cameras.K2)
     try:
-        text = pairs_file.read_text(encoding="utf-8")
+        text = pairs_file.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"cannot read pairs file {pairs_file}: {exc}") from None
     rows, first_gt = [], None
     for number, line in enumerate(text.splitlines(), 1):
-        parts = line.split()
-        if not parts or parts[0].startswith("#"):
+        parts = _fields(line)
+        if not parts:
             continue
         where = f"{pairs_file}:{number}"
         if len(parts) not in (2, 4, 22, 38):
             raise ValueError(
                 f"{where}: expected 'name1 name2 [0 0 K1(9) K2(9) [T(16)]]', "
-                f"got {len(parts)} fields"
+                f"got {len(parts)} fields (put a name with spaces in double quotes)"
             )
         row = {"image1": parts[0], "image2": parts[1], "K1": None, "K2": None, "T": None}
         if cameras is not None:
@@ -287,6 +304,8 @@ def _require_one_size(rows: list[dict], image_dir: Path, pairs_file: Path) -> No
 
 def _init_worker() -> None:
     from ppo_cv.atomic import import_pycolmap
+
+    ignore_library_camera_warnings()
 
     import_pycolmap()  # first: numpy's threads, started by it, then block SIGTERM too
     import cv2
@@ -470,6 +489,54 @@ def _fit_calibration(rows: list[dict], image_dir: Path, calib, K2) -> None:
         warn("pairs", notes[0] + more)
 
 
+def _usable_size(path: Path) -> tuple[int, int] | None:
+    """``(width, height)`` of an image by its header; None when it is missing, unreadable,
+    above the pixel limit or too small to detect features on (its pair's error says which)."""
+    from ppo_cv.features import require_detectable
+    from ppo_cv.images import check_header
+
+    from .common import image_size
+
+    try:
+        check_header(path)
+    except ValueError:
+        return None
+    size = image_size(path)
+    try:
+        require_detectable(size[::-1] if size else (0, 0), str(path))
+    except ValueError:
+        return None
+    return size
+
+
+def _warn_implausible_cameras(
+    rows: list[dict], image_dir: Path, pairs_file: Path, exif_orientation: bool, given: str
+) -> None:
+    """Warn once per distinct doubt, naming its first line, where a camera matrix given (by
+    ``given``, the option, or on the line) does not fit its image as read (upright when
+    ``exif_orientation``), by the header sizes (:func:`ppo_cv.calib.implausible_intrinsics`)."""
+    from ppo_cv.images import exif_layout
+
+    doubts: dict[str, dict[int, None]] = {}  # each doubt's lines, in order
+    for row in (r for r in rows if r["K1"] is not None):
+        for key in ("K1", "K2"):
+            path = image_dir / row[{"K1": "image1", "K2": "image2"}[key]]
+            size = _usable_size(path)
+            if size is None:  # the pair reports why it cannot be used
+                continue
+            turned = exif_orientation and exif_layout(path).turned
+            second = key == "K2" and given == "--K" and not row["shared_K"]
+            name = f"{given}2" if second else given
+            name = name if row["given_cameras"] else f"{key} of {path.name}"
+            doubt = implausible_intrinsics(row[key], size[::-1] if turned else size, name, turned)
+            if doubt is not None:
+                doubts.setdefault(doubt, {})[row["line"]] = None
+    for doubt, lines in doubts.items():
+        first, others = next(iter(lines)), len(lines) - 1
+        more = f" (and {others} more line{'s' * (others > 1)})" if others else ""
+        warn("pairs", f"{pairs_file}:{first}: {doubt}{more}")
+
+
 def _exif_intrinsics(rows: list[dict], image_dir: Path, exif_orientation: bool) -> None:
     """Give the rows without intrinsics the cameras of their images' EXIF, warning once for
     the run and once for each image whose EXIF focal length is doubtful."""
@@ -503,7 +570,7 @@ def run_pairs(
     pairs_file, image_dir, K, output, workers, options, *, cache=True, quiet=False,
     overwrite=False, K2=None, calib=None, exif_orientation=True,
 ) -> int:  # fmt: skip
-    """Run every pair of a pairs file, writing JSON lines to ``output`` (or stdout).
+    """Run every pair of a pairs file, writing JSON lines to ``output`` (None or ``-``: stdout).
 
     Lines without intrinsics take ``K`` (and ``K2``) or the cameras of ``calib``, else those of
     the images' EXIF (with a warning). The output file is written completely or not at all (an
@@ -519,6 +586,8 @@ def run_pairs(
     )
 
     check_range("--workers", workers, 0, WORKERS_MAX)
+    if output is not None and str(output) == "-":
+        output = None
     if output is not None:
         check_target(output, "file", overwrite, [pairs_file, image_dir], "-o ")
     cameras = given_cameras(K, K2, None, None, calib)
@@ -533,6 +602,8 @@ def run_pairs(
         check_apart(output, sorted(images), "-o ")
     if calib is not None:
         _fit_calibration(rows, Path(image_dir), calib, K2)
+    given = "--K" if calib is None else f"--calib {calib}"
+    _warn_implausible_cameras(rows, Path(image_dir), Path(pairs_file), exif_orientation, given)
     _exif_intrinsics(rows, Path(image_dir), exif_orientation)
     workers = worker_count(workers, len(rows))
     import_pycolmap()
@@ -611,7 +682,9 @@ def register(app: typer.Typer) -> None:
         output: Annotated[
             Path | None,
             typer.Option(
-                "--output", "-o", help="JSON lines file (default: stdout); written at the end."
+                "--output",
+                "-o",
+                help="JSON lines file (default, or '-': stdout); written at the end.",
             ),
         ] = None,
         overwrite: Overwrite = False,

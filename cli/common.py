@@ -11,11 +11,14 @@ import math
 import os
 import sys
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, NoReturn
 
 import typer
+
+from ppo_cv.calib import implausible_intrinsics
 
 __all__ = [
     "SEED_MAX",
@@ -32,6 +35,7 @@ __all__ = [
     "check_range",
     "check_image_file",
     "implausible_intrinsics",
+    "ignore_library_camera_warnings",
     "image_size",
     "pipeline_options",
     "given_cameras",
@@ -188,6 +192,14 @@ def warn(command: str, message: str) -> None:
     typer.echo(f"ppo-cv {command}: warning: {message}", err=True)
 
 
+def ignore_library_camera_warnings() -> None:
+    """Silence the library's :class:`~ppo_cv.calib.ImplausibleCameraWarning`: the commands
+    check their cameras themselves and say so in their own one-line warnings."""
+    from ppo_cv.calib import ImplausibleCameraWarning
+
+    warnings.filterwarnings("ignore", category=ImplausibleCameraWarning)
+
+
 def check_range(name: str, value: float, low: float, high: float) -> None:
     """ValueError naming the option unless ``low <= value <= high`` (NaN fails)."""
     if not (isinstance(value, (int, float)) and low <= value <= high):
@@ -272,7 +284,9 @@ def given_cameras(K, K2, dist, dist2, calib) -> Cameras | None:
         cameras = load_calibration(calib)
         first, second = cameras[0], cameras[1] if len(cameras) > 1 else cameras[0]
         K2v = parse_intrinsics(K2, "--K2") if K2 else second.K
-        d2 = d2 if d2 is not None else (second.dist if not K2 else None)
+        shared = len(cameras) == 1 and not K2  # --dist then describes the one camera of both
+        if d2 is None and not K2:
+            d2 = d1 if shared and d1 is not None else second.dist
         return Cameras(first.K, d1 if d1 is not None else first.dist, K2v, d2)
     if K is None:
         if K2:
@@ -358,54 +372,6 @@ def image_size(path: str | os.PathLike) -> tuple[int, int] | None:
         return header_size(path)
     except OSError:
         return None
-
-
-TURNED_CENTRE_TOLERANCE = 0.02
-"""Distance, as a fraction of the larger image side, within which a principal point counts as
-the centre of the image turned a quarter (:func:`implausible_intrinsics`)."""
-
-
-def _at_turned_centre(cx: float, cy: float, width: int, height: int) -> bool:
-    tolerance = TURNED_CENTRE_TOLERANCE * max(width, height)
-    turned = math.hypot(cx - height / 2, cy - width / 2)
-    centre = math.hypot(cx - width / 2, cy - height / 2)
-    return turned <= tolerance < centre - turned
-
-
-def implausible_intrinsics(
-    K, size: tuple[int, int] | None, name: str = "--K", exif_turned: bool = False
-) -> str | None:
-    """A warning when ``K`` does not fit an image of ``size`` (width, height), else None.
-
-    Plausible: focal lengths within 0.1 to 10 times the larger image side and the principal
-    point inside the image, and not at the centre of the image turned a quarter, within
-    :data:`TURNED_CENTRE_TOLERANCE` of the larger side and closer to it than to the centre.
-    ``exif_turned``: the image was turned upright by its EXIF orientation, and the warning
-    then names that likely cause (a camera matrix of the stored pixels).
-    """
-    if size is None:
-        return None
-    width, height = size
-    fx, fy, cx, cy = float(K[0][0]), float(K[1][1]), float(K[0][2]), float(K[1][2])
-    side = max(width, height)
-    problems = []
-    if not all(0.1 * side <= f <= 10.0 * side for f in (fx, fy)):
-        problems.append(f"focal length fx={fx:g} fy={fy:g} px is outside 0.1..10 x {side} px")
-    if not (0.0 <= cx <= width and 0.0 <= cy <= height):
-        problems.append(f"principal point ({cx:g}, {cy:g}) is outside the {width}x{height} image")
-    elif _at_turned_centre(cx, cy, width, height):
-        cause = (
-            "a camera for the pixels as stored, where the EXIF orientation turns the image "
-            "upright (--no-exif-orientation reads them as stored)?"
-            if exif_turned
-            else "a camera of the image turned a quarter?"
-        )
-        problems.append(
-            f"principal point ({cx:g}, {cy:g}) is the centre of a {height}x{width} image: {cause}"
-        )
-    if not problems:
-        return None
-    return f"{name} looks implausible for a {width}x{height} image: " + "; ".join(problems)
 
 
 class ProgressReport:

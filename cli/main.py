@@ -37,9 +37,29 @@ def _app():
         add_completion=False,
         pretty_exceptions_enable=False,
     )
+
+    @application.callback()
+    def root(
+        version: bool = typer.Option(
+            False, "--version", is_eager=True, callback=_print_version,
+            help="Print the version and exit.",
+        ),
+    ) -> None:
+        """Relative pose of two calibrated images by the pose-only (PPO) inequalities."""
+
     for module in (synth, sfm, pair, batch):
         module.register(application)
     return application
+
+
+def _print_version(value: bool) -> None:
+    import typer
+
+    if value:
+        from ppo_cv import __version__
+
+        typer.echo(f"ppo-cv {__version__}")
+        raise typer.Exit()
 
 
 def __getattr__(name: str):
@@ -90,6 +110,9 @@ def _run(argv: list[str] | None) -> int:
     if _command(argv).split()[-1] in _PYCOLMAP_COMMANDS:
         import_pycolmap()  # first: numpy's threads, started by it, then block SIGTERM too
     application = _app()
+    from ppo_cv.cli.common import ignore_library_camera_warnings
+
+    ignore_library_camera_warnings()
     try:
         return application(args=argv, prog_name="ppo-cv", standalone_mode=False)
     except Exception as exc:  # click's exceptions (typer vendors click in recent releases)

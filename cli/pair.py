@@ -66,7 +66,8 @@ def _require_one_size(images, sizes, source: str) -> None:
 
 def _calibrated_cameras(calib, images, sizes, K2, dist, dist2):
     """(Cameras, notes) of a calibration file, each camera fitted to its image's size
-    (:func:`ppo_cv.calib.fit_to_image`); ``--K2``, ``--dist``, ``--dist2`` override it."""
+    (:func:`ppo_cv.calib.fit_to_image`); ``--K2``, ``--dist``, ``--dist2`` override it, ``--dist``
+    both images' when the file describes one camera (as with ``--K``)."""
     from ppo_cv.calib import fit_to_image, load_calibration, parse_distortion, parse_intrinsics
 
     cameras = load_calibration(calib)
@@ -82,7 +83,8 @@ def _calibrated_cameras(calib, images, sizes, K2, dist, dist2):
         K2v, d2 = second.K, second.dist
         notes += [note2] if note2 else []
     d1 = parse_distortion(dist, "--dist") if dist else first.dist
-    d2 = parse_distortion(dist2, "--dist2") if dist2 else d2
+    shared = len(cameras) == 1 and not K2  # --dist then describes the one camera of both
+    d2 = parse_distortion(dist2, "--dist2") if dist2 else (d1 if shared and dist else d2)
     return Cameras(first.K, d1, K2v, d2), notes
 
 
@@ -396,6 +398,11 @@ def _run_pair(
     from ppo_cv.pipeline import estimate_pair, load_image
 
     try:
+        if out is not None and str(out) == "-":
+            raise ValueError(
+                "--out takes a folder, not '-' (standard output): without --out the summary, "
+                "or with --json the JSON object, goes to standard output"
+            )
         if out is not None:
             inputs = [image1, image2, *([calib] if calib is not None else [])]
             check_target(out, "folder", overwrite, inputs, "--out ")

@@ -16,11 +16,14 @@ that states the size of its images (COLMAP's WIDTH HEIGHT, OpenCV's ``image_widt
 
 from __future__ import annotations
 
+import codecs
 import json
 import math
 import os
 import re
+import warnings
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -33,7 +36,11 @@ __all__ = [
     "load_calibration",
     "camera_from_exif",
     "fit_to_image",
+    "implausible_intrinsics",
+    "warn_implausible",
+    "ImplausibleCameraWarning",
     "ASPECT_TOLERANCE",
+    "TURNED_CENTRE_TOLERANCE",
 ]
 
 ASPECT_TOLERANCE = 0.01
@@ -60,7 +67,7 @@ class Camera:
 
 
 def _numbers(text: str, name: str) -> np.ndarray:
-    parts = [p for p in re.split(r"[,\s;]+", str(text).strip().strip("[]()")) if p]
+    parts = [p for p in re.split(r"[,\s;\[\]()]+", str(text)) if p]  # nested lists as printed
     try:
         values = np.array([float(p) for p in parts], dtype=np.float64)
     except ValueError:
@@ -128,10 +135,21 @@ def _read_opencv(path: str) -> list[Camera]:
     return cameras
 
 
-def _opencv_matrices(path: str) -> tuple:
+def _open_storage(path: str):
+    """OpenCV's FileStorage of ``path``, read from memory past a UTF-8 byte-order mark (which
+    text editors on Windows write and OpenCV's parsers refuse)."""
     import cv2
 
-    storage = cv2.FileStorage(path, cv2.FILE_STORAGE_READ)
+    with open(path, "rb") as handle:
+        head = handle.read(len(codecs.BOM_UTF8))
+        if head != codecs.BOM_UTF8:
+            return cv2.FileStorage(path, cv2.FILE_STORAGE_READ)
+        text = handle.read().decode("utf-8", errors="replace")
+    return cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
+
+
+def _opencv_matrices(path: str) -> tuple:
+    storage = _open_storage(path)
     if not storage.isOpened():
         raise ValueError(f"cannot read OpenCV calibration file {path}")
     if not storage.root().isMap():
@@ -228,11 +246,28 @@ def _read_colmap(path: str, text: str) -> list[Camera]:
     return cameras
 
 
+_JSON_NUMBER_KEYS = ("K", "camera_matrix", "fx", "fy", "cx", "cy", "f", "dist", "distortion",
+                     "dist_coeffs", "width", "height")  # fmt: skip
+
+
+def _require_no_booleans(value: Any, where: str, key: str = "") -> None:
+    """ValueError for a JSON ``true`` or ``false`` where a number belongs (numpy reads them as
+    1 and 0)."""
+    if isinstance(value, bool):
+        raise ValueError(f"{where}: {key or 'a camera'} must be numbers, got {str(value).lower()}")
+    if isinstance(value, (list, tuple)):
+        for item in value:
+            _require_no_booleans(item, where, key)
+
+
 def _json_camera(entry, where: str) -> Camera:
     if isinstance(entry, (list, tuple)):
+        _require_no_booleans(entry, where)
         return Camera(_matrix_from_values(np.asarray(entry, float), where))
     if not isinstance(entry, dict):
         raise ValueError(f"{where}: expected an object with K or fx, fy, cx, cy")
+    for key in _JSON_NUMBER_KEYS:
+        _require_no_booleans(entry.get(key), where, key)
     if "K" in entry or "camera_matrix" in entry:
         K = entry.get("K", entry.get("camera_matrix"))
         K = _matrix_from_values(np.asarray(K, dtype=np.float64), where)
@@ -290,13 +325,97 @@ def load_calibration(path: str | os.PathLike) -> list[Camera]:
     if extension in (".yml", ".yaml", ".xml"):
         return _read_opencv(path)
     try:
-        with open(path, encoding="utf-8") as handle:
+        with open(path, encoding="utf-8-sig") as handle:
             text = handle.read()
     except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"cannot read calibration file {path}: {exc}") from None
     if extension == ".json" or text.lstrip().startswith(("{", "[")):
-        return _read_json(path, text)
-    return _read_colmap(path, text)
+        return _one_or_two(_read_json(path, text), path)
+    return _one_or_two(_read_colmap(path, text), path)
+
+
+def _one_or_two(cameras: list[Camera], path: str) -> list[Camera]:
+    """The cameras of a file, which must be one (shared) or two (image 1, image 2): a file of
+    more cannot say which is whose, unless they are all the same camera."""
+    first = cameras[0]
+    if all(_same_camera(first, camera) for camera in cameras[1:]):
+        return [first]
+    if len(cameras) > 2:
+        raise ValueError(
+            f"{path} describes {len(cameras)} different cameras; give a file of one camera "
+            "(both images) or two (image 1, image 2)"
+        )
+    return cameras
+
+
+def _same_camera(a: Camera, b: Camera) -> bool:
+    if (a.dist is None) != (b.dist is None):
+        return False
+    same_dist = a.dist is None or np.array_equal(a.dist, b.dist)
+    return np.array_equal(a.K, b.K) and same_dist and a.image_size == b.image_size
+
+
+TURNED_CENTRE_TOLERANCE = 0.02
+"""Distance, as a fraction of the larger image side, within which a principal point counts as
+the centre of the image turned a quarter (:func:`implausible_intrinsics`)."""
+
+
+def _at_turned_centre(cx: float, cy: float, width: int, height: int) -> bool:
+    tolerance = TURNED_CENTRE_TOLERANCE * max(width, height)
+    turned = math.hypot(cx - height / 2, cy - width / 2)
+    centre = math.hypot(cx - width / 2, cy - height / 2)
+    return turned <= tolerance < centre - turned
+
+
+def implausible_intrinsics(
+    K: Any, size: tuple[int, int] | None, name: str = "--K", exif_turned: bool = False
+) -> str | None:
+    """A warning when ``K`` does not fit an image of ``size`` (width, height), else None.
+
+    Plausible: focal lengths within 0.1 to 10 times the larger image side and the principal
+    point inside the image, and not at the centre of the image turned a quarter, within
+    :data:`TURNED_CENTRE_TOLERANCE` of the larger side and closer to it than to the centre.
+    ``exif_turned``: the image was turned upright by its EXIF orientation, and the warning
+    then names that likely cause (a camera matrix of the stored pixels).
+    """
+    if size is None:
+        return None
+    width, height = size
+    fx, fy, cx, cy = float(K[0][0]), float(K[1][1]), float(K[0][2]), float(K[1][2])
+    side = max(width, height)
+    problems = []
+    if not all(0.1 * side <= f <= 10.0 * side for f in (fx, fy)):
+        problems.append(f"focal length fx={fx:g} fy={fy:g} px is outside 0.1..10 x {side} px")
+    if not (0.0 <= cx <= width and 0.0 <= cy <= height):
+        problems.append(f"principal point ({cx:g}, {cy:g}) is outside the {width}x{height} image")
+    elif _at_turned_centre(cx, cy, width, height):
+        cause = (
+            "a camera for the pixels as stored, where the EXIF orientation turns the image "
+            "upright (--no-exif-orientation reads them as stored)?"
+            if exif_turned
+            else "a camera of the image turned a quarter?"
+        )
+        problems.append(
+            f"principal point ({cx:g}, {cy:g}) is the centre of a {height}x{width} image: {cause}"
+        )
+    if not problems:
+        return None
+    return f"{name} looks implausible for a {width}x{height} image: " + "; ".join(problems)
+
+class ImplausibleCameraWarning(UserWarning):
+    """A camera matrix that does not fit its image (:func:`implausible_intrinsics`)."""
+
+
+def warn_implausible(
+    K: np.ndarray, image_shape: tuple[int, ...], name: str, stacklevel: int = 1
+) -> None:
+    """Warn with :class:`ImplausibleCameraWarning` when ``K`` does not fit an image of
+    ``image_shape`` (rows, columns, ...): a camera of another image size or of the image turned
+    a quarter gives a confident wrong pose. ``stacklevel`` counts from the caller, as in
+    :func:`warnings.warn`."""
+    message = implausible_intrinsics(K, (image_shape[1], image_shape[0]), name)
+    if message is not None:
+        warnings.warn(message, ImplausibleCameraWarning, stacklevel=stacklevel + 1)
 
 
 def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> tuple[Camera, bool]:

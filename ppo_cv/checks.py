@@ -19,9 +19,13 @@ __all__ = [
     "as_mask",
     "as_positive",
     "as_nonnegative",
+    "as_number",
+    "as_whole_number",
+    "as_flag",
     "MAX_COORDINATE",
     "MIN_FOCAL",
     "MAX_FOCAL",
+    "MAX_WHOLE_NUMBER",
 ]
 
 MIN_POINTS = 5
@@ -29,6 +33,9 @@ MAX_COORDINATE = 1e8
 """Largest accepted point coordinate or principal point, pixels: beyond it products overflow."""
 MIN_FOCAL, MAX_FOCAL = 1e-6, 1e8
 """Accepted focal lengths, pixels (1 for a camera of normalized coordinates)."""
+MAX_WHOLE_NUMBER = 2**31 - 1
+"""Largest whole-number option (a seed, a count): OpenCV and pycolmap take them as 32-bit
+signed integers."""
 MAX_RADIAL, MAX_RADIAL_RATIONAL, MAX_TANGENTIAL, MAX_PRISM, MAX_TILT = 10.0, 100.0, 1.0, 1.0, 1.0
 
 
@@ -304,3 +311,29 @@ def _as_float(value: Any, name: str) -> float:
         return float(value)
     except (TypeError, ValueError):
         raise TypeError(f"{name} must be a number, got {type(value).__name__}") from None
+
+
+def as_number(value: Any, name: str) -> float:
+    """A real number (NaN and infinities included); TypeError naming ``name`` otherwise."""
+    if isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be a number, got {value!r}")
+    return _as_float(value, name)
+
+
+def as_whole_number(value: Any, name: str, low: int, high: int) -> int:
+    """A whole number in ``low..high``: an int, a numpy integer or an integral float."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+        value, (int, float, np.integer, np.floating)
+    ):
+        raise TypeError(f"{name} must be a whole number, got {type(value).__name__} {value!r}")
+    if not (np.isfinite(value) and float(value).is_integer() and low <= value <= high):
+        raise ValueError(f"{name} must be a whole number in {low}..{high}, got {value}")
+    return int(value)
+
+
+def as_flag(value: Any, name: str) -> bool:
+    """A bool (or numpy bool); TypeError naming ``name`` for anything else, such as the
+    string ``"no"``, which would read as true."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
+    return bool(value)

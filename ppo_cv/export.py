@@ -440,7 +440,8 @@ def write_colmap_model(
     names: tuple[str, str] = ("image1.png", "image2.png"),
     dists: tuple[np.ndarray | None, np.ndarray | None] | None = None,
 ) -> None:
-    """COLMAP text model (cameras, images, points3D) of the two views and the analytic points.
+    """COLMAP text model (cameras, images, points3D) of the two views and the analytic points;
+    COLMAP's binary model when an image name holds whitespace, which the text format cannot keep.
 
     Camera 1 is the world frame; camera 2 has pose ``(R, t)`` (``t`` zero for a pure rotation);
     the unit is the baseline. Each point's error is its mean reprojection error over the two
@@ -494,7 +495,10 @@ def write_colmap_model(
         reconstruction.add_point3D(np.asarray(xyz, float), track, np.asarray(colour, np.uint8))
     reconstruction.update_point_3d_errors()
     os.makedirs(directory, exist_ok=True)
-    reconstruction.write_text(os.fspath(directory))
+    if all(name.split() == [name] for name in names):
+        reconstruction.write_text(os.fspath(directory))
+    else:  # COLMAP's text reader cuts a name at its first space; the binary format keeps it
+        reconstruction.write_binary(os.fspath(directory))
 
 
 def write_outputs(

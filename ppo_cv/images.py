@@ -301,6 +301,11 @@ def as_image(image: Any, name: str) -> np.ndarray:
         return load_image(image)
     if image is None:
         raise TypeError(f"{name} is required: an image array or a path, got None")
+    if isinstance(image, (bytes, bytearray, memoryview)):
+        raise TypeError(
+            f"{name} must be an image array or a path (str or os.PathLike), got "
+            f"{type(image).__name__}: decode a file's bytes with cv2.imdecode first"
+        )
     array = np.asarray(image)
     if (
         array.ndim not in (2, 3)

@@ -13,6 +13,8 @@ defaults, array shapes and return tuples::
 ``retval`` counts the points that satisfy both PPO inequalities, and the output ``mask`` marks
 them (keeping the values of the input mask, 255 where none was given, as OpenCV does; in the
 fourth form OpenCV overwrites the input mask with the robust estimator's, and so does this).
+A ``mask`` given as a contiguous ``uint8`` array of shape (N, 1) receives the output mask in
+place and is returned, as OpenCV's input-output arrays are.
 ``install()`` puts this function in place of ``cv2.recoverPose``.
 
 As in OpenCV, a positional number after ``cameraMatrix`` is the ``R`` output buffer (first
@@ -157,9 +159,11 @@ def _form(args: tuple, kwargs: dict) -> tuple[str, ...]:
 
 
 def _out_matrix(buffer: Any, value: np.ndarray) -> np.ndarray:
-    """Write into a caller's output array when it fits, as OpenCV's bindings do."""
-    fits = isinstance(buffer, np.ndarray) and buffer.shape == value.shape
-    if fits and buffer.dtype == value.dtype:
+    """Write into a caller's output array when it fits, as OpenCV's bindings do: same shape
+    and dtype, contiguous and writable (an input-output ``mask`` of shape (N, 1) included)."""
+    if not isinstance(buffer, np.ndarray) or buffer.shape != value.shape:
+        return value
+    if buffer.dtype == value.dtype and buffer.flags.writeable and buffer.flags.c_contiguous:
         buffer[...] = value
         return buffer
     return value
@@ -169,7 +173,7 @@ def _out_mask(inliers: np.ndarray, mask_in: Any) -> np.ndarray:
     if mask_in is None or np.size(mask_in) != inliers.size:
         return (inliers.view(np.uint8) * _MASK_ON).reshape(-1, 1)
     values = np.asarray(mask_in).reshape(-1).astype(np.uint8)
-    return np.where(inliers, values, 0).astype(np.uint8).reshape(-1, 1)
+    return _out_matrix(mask_in, np.where(inliers, values, 0).astype(np.uint8).reshape(-1, 1))
 
 
 def _homogeneous_points(X1: np.ndarray, X2: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -253,6 +257,7 @@ def _recover_from_points(bound: dict) -> tuple:
     best = int(np.argmax([np.count_nonzero(inliers) for _, _, inliers in results]))
     retval, R, t, mask = _outputs(*results[best], {**bound, "mask": used})
     _fill_mask(bound.get("mask"), mask)
+    mask = _out_matrix(bound.get("mask"), mask)
     return retval, _out_matrix(bound.get("E"), candidates[best].copy()), R, t, mask
 
 

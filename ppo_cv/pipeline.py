@@ -69,8 +69,16 @@ from typing import Any
 import numpy as np
 
 from . import ppo
+from .calib import warn_implausible
 from .camera import pixels_to_normalized, principal_point_is_centre
-from .checks import as_camera_matrix, as_distortion
+from .checks import (
+    MAX_WHOLE_NUMBER,
+    as_camera_matrix,
+    as_distortion,
+    as_flag,
+    as_number,
+    as_whole_number,
+)
 from .features import (
     FEATURE_TYPES,
     Features,
@@ -274,6 +282,15 @@ class PairOptions:
     focal_ratio: str = "auto"
 
     def __post_init__(self) -> None:
+        for name in ("ratio", "ransac_threshold", "confidence", "pri_threshold", "max_log10_nfa"):
+            as_number(getattr(self, name), name)
+        for name in ("mutual", "ordered_sampling", "refine", "plane", "photometric"):
+            as_flag(getattr(self, name), name)
+        for name, low in (("max_features", 8), ("min_trials", 1), ("max_trials", 1),
+                          ("redetect_below", 0), ("min_inliers", 5), ("seed", 0)):  # fmt: skip
+            as_whole_number(getattr(self, name), name, low, MAX_WHOLE_NUMBER)
+        if self.max_image_size is not None:
+            as_whole_number(self.max_image_size, "max_image_size", 32, MAX_WHOLE_NUMBER)
         for name, modes in (
             ("principal_point", PRINCIPAL_POINT_MODES),
             ("focal_ratio", FOCAL_RATIO_MODES),
@@ -684,6 +701,9 @@ def _load_inputs(image1, image2, K1, K2, dist1, dist2, detect: bool, options) ->
         K2, dist2 = as_camera_matrix(K2, "K2"), as_distortion(dist2, "dist2")
     if img1.shape == img2.shape and np.array_equal(img1, img2):
         raise ValueError("the two images are identical: they carry no relative pose")
+    warn_implausible(K1, img1.shape, "K1", stacklevel=3)
+    if K2 is not K1:
+        warn_implausible(K2, img2.shape, "K2", stacklevel=3)
     focal = float(np.mean([K1[0, 0], K1[1, 1], K2[0, 0], K2[1, 1]]))
     return _Inputs(img1, img2, K1, K2, dist1, dist2, focal)
 

@@ -29,6 +29,7 @@ Examples
 from __future__ import annotations
 
 import contextlib
+import inspect
 import itertools
 import os
 import shutil
@@ -44,7 +45,13 @@ import pycolmap
 
 from . import colmap, ppo
 from .atomic import atomic_directory, check_target, signals_deferred, staging_folder
-from .checks import as_camera_matrix, as_positive
+from .checks import (
+    MAX_WHOLE_NUMBER,
+    as_camera_matrix,
+    as_nonnegative,
+    as_positive,
+    as_whole_number,
+)
 from .homography import estimate_homography
 from .images import check_decodes
 from .metrics import direction_error_deg, rotation_error_deg
@@ -58,6 +65,7 @@ __all__ = [
     "SEEDINGS",
     "ReconstructionFailed",
     "MAX_THREADS",
+    "MAX_FEATURES",
     "MAX_IMAGE_CHECKS",
     "PairScore",
     "SfmResult",
@@ -75,6 +83,8 @@ __all__ = [
 
 MAX_THREADS = 256
 """Upper bound of ``num_threads`` (a million threads makes pycolmap abort the process)."""
+MAX_FEATURES = 100_000
+"""Upper bound of ``max_num_features``, SIFT features per image."""
 
 INITIALIZATIONS = ("ppo", "colmap")
 """``ppo``: the best-scored pair seeds the mapper; ``colmap``: pycolmap's own initialisation."""
@@ -91,6 +101,7 @@ _UNUSABLE_CONFIGS = frozenset(
         pycolmap.TwoViewGeometryConfiguration.WATERMARK,
     )
 )
+_SQLITE_HEADER = b"SQLite format 3\x00"
 _HOMOGRAPHY_CONFIDENCE = 0.9999  # of the homography search on a pair's verified matches
 
 MAX_IMAGE_CHECKS = 5
@@ -283,6 +294,13 @@ def _pycolmap_options(K: np.ndarray | None, max_num_features: int, num_threads: 
     return reader, extraction, matching, verification
 
 
+def _check_run_numbers(num_threads: Any, seed: Any, max_num_features: Any = 1) -> None:
+    """ValueError or TypeError naming the first of pycolmap's numbers that is out of range."""
+    as_whole_number(num_threads, "num_threads", 1, MAX_THREADS)
+    as_whole_number(seed, "seed", 0, MAX_WHOLE_NUMBER)
+    as_whole_number(max_num_features, "max_num_features", 1, MAX_FEATURES)
+
+
 def prepare_database(
     image_dir: str | os.PathLike,
     database_path: str | os.PathLike,
@@ -329,6 +347,7 @@ def prepare_database(
         Fewer than two images, images of several sizes with ``K``, or images pycolmap could not
         read (named).
     """
+    _check_run_numbers(num_threads, seed, max_num_features)
     names, skipped = screen_images(image_dir)
     if len(names) < 2:
         refused = f" ({len(skipped)} skipped: {', '.join(skipped)})" if skipped else ""
@@ -488,6 +507,19 @@ def score_pose(
     return float(score), tri_angle, rejection
 
 
+def _require_database(path: Path) -> None:
+    """ValueError unless ``path`` is an SQLite file, as COLMAP's databases are (pycolmap
+    refuses any other with a RuntimeError and a log line)."""
+    if not path.exists():
+        raise ValueError(f"database {str(path)!r} does not exist")
+    if not path.is_file():
+        raise ValueError(f"database {str(path)!r} is not a file")
+    with open(path, "rb") as handle:
+        header = handle.read(len(_SQLITE_HEADER))
+    if header != _SQLITE_HEADER:
+        raise ValueError(f"database {str(path)!r} is not a COLMAP database (no SQLite header)")
+
+
 def score_pairs(
     database_path: str | os.PathLike,
     *,
@@ -508,8 +540,7 @@ def score_pairs(
         Accepted pairs by decreasing score, then the rejected ones by decreasing inlier count.
     """
     database_path = Path(database_path)
-    if not database_path.is_file():
-        raise ValueError(f"database {str(database_path)!r} does not exist")
+    _require_database(database_path)
     scores = []
     with pycolmap.Database.open(database_path) as database:
         cameras = {c.camera_id: c for c in database.read_all_cameras()}
@@ -722,9 +753,10 @@ def reconstruct(
         them, says the images look like a panorama.
     """
     _check_choices(initialization, seeding)
+    _check_scoring(scoring)
+    _check_run_numbers(num_threads, seed)
     database_path, image_dir = Path(database_path), Path(image_dir)
-    if not database_path.is_file():
-        raise ValueError(f"database {str(database_path)!r} does not exist")
+    _require_database(database_path)
     start = time.perf_counter()
     pairs: tuple[PairScore, ...] = ()
     candidates: Iterator[PairScore | None] = iter([None])
@@ -851,6 +883,18 @@ def _with_refusals(pairs: Sequence[PairScore], refused: Sequence[PairScore]) -> 
     by_ids = {(p.image_id1, p.image_id2): p for p in refused}
     updated = [by_ids.get((p.image_id1, p.image_id2), p) for p in pairs]
     return tuple(sorted(updated, key=lambda s: (not s.accepted, -s.score, -s.num_inliers)))
+
+
+def _check_scoring(scoring: dict) -> None:
+    """TypeError naming a keyword that :func:`score_pairs` does not take, ValueError for a
+    value that is not a finite number >= 0: checked before the features are extracted."""
+    accepted = list(inspect.signature(score_pairs).parameters)[1:]
+    for name, value in scoring.items():
+        if name not in accepted:
+            raise TypeError(
+                f"unexpected keyword argument {name!r}; the scoring takes {', '.join(accepted)}"
+            )
+        as_nonnegative(value, name)
 
 
 def _check_choices(initialization: str, seeding: str) -> None:
@@ -990,9 +1034,9 @@ def run_sfm(
         For bad arguments or unreadable images, before anything is written.
     """
     _check_choices(initialization, seeding)
+    _check_scoring(scoring)
+    _check_run_numbers(num_threads, seed, max_num_features)
     image_dir = Path(image_dir)
-    if isinstance(num_threads, bool) or not 1 <= int(num_threads) <= MAX_THREADS:
-        raise ValueError(f"num_threads must be in 1..{MAX_THREADS}, got {num_threads}")
     if output_dir is not None:
         check_target(output_dir, "folder", overwrite)
     if database_path is not None:

@@ -36,6 +36,8 @@ def test_docstring_examples():
         "535.4 539.2 320.1 247.6",
         "535.4,0,320.1,0,539.2,247.6,0,0,1",
         "[535.4, 0, 320.1, 0, 539.2, 247.6, 0, 0, 1]",
+        str(K_FREIBURG.tolist()),  # K printed by Python: nested lists
+        str(K_FREIBURG),  # and by numpy, over three lines
     ],
 )
 def test_parse_intrinsics_accepts_four_or_nine_numbers(text):
@@ -81,6 +83,33 @@ def test_opencv_file_storage(tmp_path, extension):
     (camera,) = load_calibration(path)
     np.testing.assert_allclose(camera.K, K_FREIBURG)
     np.testing.assert_allclose(camera.dist, DIST)
+
+
+def _written_by_opencv(tmp_path, extension: str) -> bytes:
+    path = tmp_path / f"written.{extension}"
+    storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    storage.write("camera_matrix", K_FREIBURG)
+    storage.write("distortion_coefficients", DIST.reshape(1, 5))
+    storage.release()
+    return path.read_bytes()
+
+
+BOM_FILES = {  # the text of each format, as an editor on Windows saves it: a UTF-8 BOM first
+    "yml": lambda tmp_path: _written_by_opencv(tmp_path, "yml"),
+    "xml": lambda tmp_path: _written_by_opencv(tmp_path, "xml"),
+    "json": lambda _: json.dumps({"K": K_FREIBURG.tolist(), "dist": DIST.tolist()}).encode(),
+    "txt": lambda _: b"# Camera list\n1 OPENCV 640 480 535.4 539.2 320.1 247.6 "
+    + " ".join(str(v) for v in DIST[:4]).encode() + b"\n",
+}
+
+
+@pytest.mark.parametrize("extension", list(BOM_FILES))
+def test_a_byte_order_mark_before_a_calibration_is_read_past(tmp_path, extension):
+    path = tmp_path / f"camera.{extension}"
+    path.write_bytes(b"\xef\xbb\xbf" + BOM_FILES[extension](tmp_path))
+    (camera,) = load_calibration(path)
+    np.testing.assert_allclose(camera.K, K_FREIBURG)
+    np.testing.assert_allclose(camera.dist, DIST if extension != "txt" else DIST[:4])
 
 
 def test_opencv_stereo_file_gives_two_cameras(tmp_path):
@@ -167,6 +196,35 @@ def test_colmap_errors(tmp_path, text, message):
 
 
 @pytest.mark.parametrize(
+    "lines, cameras",
+    [
+        (["1 PINHOLE 640 480 500 500 320 240"] * 3, 1),  # one camera per image, all alike
+        (["1 PINHOLE 640 480 500 500 320 240", "2 SIMPLE_RADIAL 640 480 500 320 240 0.1"], 2),
+    ],
+)
+def test_a_colmap_file_of_cameras_all_alike_is_one_camera(tmp_path, lines, cameras):
+    path = tmp_path / "cameras.txt"
+    path.write_text("\n".join(lines) + "\n")
+    assert len(load_calibration(path)) == cameras
+
+
+@pytest.mark.parametrize(
+    "name, text",
+    [
+        ("cameras.txt", "1 PINHOLE 640 480 500 500 320 240\n2 PINHOLE 640 480 510 500 320 240\n"
+         "3 PINHOLE 640 480 500 500 320 240\n"),
+        ("cameras.json", '{"cameras": [[500, 500, 320, 240], [510, 500, 320, 240], '
+         '[520, 500, 320, 240]]}'),
+    ],
+)  # fmt: skip
+def test_a_file_of_more_than_two_cameras_is_refused(tmp_path, name, text):
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(ValueError, match="describes 3 different cameras; give a file of one"):
+        load_calibration(path)
+
+
+@pytest.mark.parametrize(
     "data",
     [
         {"K": K_FREIBURG.tolist(), "dist": DIST.tolist()},
@@ -198,6 +256,8 @@ def test_json_two_cameras(tmp_path):
         ('{"focal": 500}', "expected K"),
         ('{"K": [1, 2, 3]}', "4 numbers"),
         ('{"K": [500, 500, 320, 240], "dist": [1, 2, 3]}', "k1,k2,p1,p2"),
+        ('{"fx": true, "fy": 500, "cx": 320, "cy": 240}', "fx must be numbers, got true"),
+        ('{"K": [500, 500, 320, 240], "dist": [false, 0, 0, 0]}', "dist must be numbers"),
     ],
 )
 def test_json_errors(tmp_path, text, message):

@@ -246,3 +246,56 @@ def test_max_trials_reaches_ransac_and_is_bounded(monkeypatch, tmp_path):
     assert "error" not in line and len(line["R"]) == 3, line
     bad = runner.invoke(app, ["pairs", str(pairs), str(DATA), "--K", K_TEXT, "--max-trials", "0"])
     assert bad.exit_code == 2 and "--max-trials" in bad.output
+
+
+@pytest.mark.parametrize(
+    "line, names",
+    [
+        ('"my photo 1.png" photo2.png', ["my photo 1.png", "photo2.png"]),
+        ("a.png b.png   # the first pair", ["a.png", "b.png"]),
+        ("a.png b.png\t#comment", ["a.png", "b.png"]),
+        ('"été 1.jpg" "b b.jpg" # both quoted', ["été 1.jpg", "b b.jpg"]),
+        ("a#1.png b.png", ["a#1.png", "b.png"]),
+    ],
+)
+def test_pairs_file_fields_quotes_and_trailing_comments(tmp_path, line, names):
+    pairs = tmp_path / "pairs.txt"
+    pairs.write_text(f"# header\n{line}\n", encoding="utf-8")
+    (row,) = batch.read_pairs(pairs, K=K_TEXT)
+    assert [row["image1"], row["image2"]] == names and row["line"] == 2
+
+
+def test_a_pairs_file_as_windows_editors_save_it_is_read(tmp_path):
+    """UTF-8 byte-order mark, CRLF line ends, names with spaces and accents, comments."""
+    images = tmp_path / "photos"
+    images.mkdir()
+    (images / "frame one.png").write_bytes((DATA / NAME1).read_bytes())
+    (images / "cadre deux é.png").write_bytes((DATA / NAME2).read_bytes())
+    text = '# office, two frames\r\n"frame one.png" "cadre deux é.png"  # 1 s apart\r\n'
+    (tmp_path / "pairs.txt").write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
+    args = [*COMMAND, "pairs", str(tmp_path / "pairs.txt"), str(images), "--K", K_TEXT,
+            "--workers", "1", "--quiet"]  # fmt: skip
+    out = subprocess.run(args, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0 and out.stderr == "", out.stderr
+    (result,) = [json.loads(line) for line in out.stdout.splitlines()]
+    assert (result["image1"], result["image2"]) == ("frame one.png", "cadre deux é.png")
+    error = np.degrees(np.arccos((np.trace(np.array(result["R"]).T @ DEMO["reference_R"]) - 1) / 2))
+    assert error < 1.0
+
+
+def test_a_name_with_unquoted_spaces_is_refused_with_the_remedy(tmp_path):
+    pairs = tmp_path / "pairs.txt"
+    pairs.write_text("my photo.png other.png\n")
+    with pytest.raises(ValueError, match=r"pairs\.txt:1: .*got 3 fields \(put a name with spaces"):
+        batch.read_pairs(pairs, K=K_TEXT)
+
+
+def test_output_dash_is_standard_output(tmp_path):
+    (tmp_path / "pairs.txt").write_text("absent1.png absent2.png\n")
+    (tmp_path / "images").mkdir()
+    args = [*COMMAND, "pairs", "pairs.txt", "images", "--K", K_TEXT, "-o", "-", "--quiet"]
+    out = subprocess.run(args, capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    (line,) = [json.loads(text) for text in out.stdout.splitlines()]
+    assert line["image1"] == "absent1.png" and "image not found" in line["error"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["images", "pairs.txt"]

@@ -385,6 +385,8 @@ CASES = [
         "pair",
         r"the images are mirror images of each other",
     ),
+    # '-' is standard output, which cannot hold a folder (no folder named '-' appears)
+    ([*PAIR, "--out", "-"], "pair", r"--out takes a folder, not '-' \(standard output\)"),
 ]
 
 

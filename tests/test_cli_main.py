@@ -2,8 +2,12 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import pytest
 
+import ppo_cv
 from ppo_cv.cli.main import main
 
 
@@ -38,3 +42,9 @@ def test_no_arguments_prints_help_and_exits_2(capsys):
 def test_help_exits_0(capsys):
     code, out, _ = _run(["--help"], capsys)
     assert code == 0 and "synth" in out and "sfm" in out
+
+
+def test_version_is_printed_by_the_installed_command():
+    done = subprocess.run([sys.executable, "-m", "ppo_cv.cli.main", "--version"],
+                          capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert (done.returncode, done.stdout, done.stderr) == (0, f"ppo-cv {ppo_cv.__version__}\n", "")

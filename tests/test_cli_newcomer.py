@@ -257,3 +257,45 @@ def test_sfm_reconstructs_photos_upright_unless_told_not_to(tmp_path):
         sizes[flag] = {(c.width, c.height) for c in model.cameras.values()}
     assert sizes == {"--exif-orientation": {(640, 480)}, "--no-exif-orientation": {(480, 640)}}
     assert sorted(p.name for p in images.iterdir()) == ["a.jpg", "b.jpg"]
+
+
+# --- 5. a camera matrix of another image size ------------------------------------------------
+
+K_OF_A_LARGER_COPY = ",".join(str(3 * v) for v in DEMO["intrinsics"])  # a 1920x1440 original
+
+
+def test_pairs_warns_once_about_a_camera_of_another_image_size(tmp_path):
+    (tmp_path / "pairs.txt").write_text(f"{DEMO1.name} {DEMO2.name}\n{DEMO2.name} {DEMO1.name}\n")
+    done = ppo_cv("pairs", tmp_path / "pairs.txt", DATA, "--K", K_OF_A_LARGER_COPY,
+                  "--workers", "1", "--quiet")  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.splitlines() == [
+        f"ppo-cv pairs: warning: {tmp_path / 'pairs.txt'}:1: --K looks implausible for a "
+        "640x480 image: principal point (960.3, 742.8) is outside the 640x480 image "
+        "(and 1 more line)"
+    ]
+    assert len(done.stdout.splitlines()) == 2
+
+
+def test_pair_warns_about_such_a_camera_in_one_line_only():
+    done = ppo_cv("pair", DEMO1, DEMO2, "--K", K_OF_A_LARGER_COPY, "--quiet")
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.splitlines() == [
+        "ppo-cv pair: warning: --K looks implausible for a 640x480 image: principal point "
+        "(960.3, 742.8) is outside the 640x480 image"
+    ]
+
+
+# --- 6. --dist with a calibration of one camera ---------------------------------------------
+
+
+def test_dist_with_a_one_camera_calibration_describes_both_images_as_with_K(tmp_path):
+    calibration = tmp_path / "camera.json"
+    calibration.write_text(json.dumps({"fx": FX, "fy": FY, "cx": CX, "cy": CY}))
+    cameras = {}
+    for source in (["--K", K_TEXT], ["--calib", calibration]):
+        done = ppo_cv("pair", DEMO1, DEMO2, *source, "--dist", "0.05,0,0,0", "--json")
+        assert done.returncode == 0, done.stderr
+        used = json.loads(done.stdout)["cameras"]
+        cameras[source[0]] = (used["dist1"], used["dist2"])
+    assert cameras["--calib"] == cameras["--K"] == ([0.05, 0, 0, 0], [0.05, 0, 0, 0])

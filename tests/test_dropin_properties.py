@@ -71,7 +71,8 @@ def test_same_pose_and_mask_as_opencv_where_it_is_right(
             mask_kind
         ].reshape(-1, 1)
     x1, x2 = _shape(p1, shape, dtype), _shape(p2, shape, dtype)
-    retval, R_out, t_out, mask_out = ppo_cv.recoverPose(E, x1, x2, K, mask=mask)
+    given = None if mask is None else mask.copy()  # an (N, 1) uint8 mask receives the output
+    retval, R_out, t_out, mask_out = ppo_cv.recoverPose(E, x1, x2, K, mask=given)
     assert R_out.shape == (3, 3) and t_out.shape == (3, 1) and mask_out.shape == (n, 1)
     assert rotation_error_deg(R_out, R) < 1e-3  # right even for a pure rotation
     assert retval == np.count_nonzero(mask_out)

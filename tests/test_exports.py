@@ -193,3 +193,15 @@ def test_points3d_rows_are_the_same_rule_in_recover_pose_and_estimate_pair(demo_
     finite = np.isfinite(result.points3d).all(axis=1)
     np.testing.assert_array_equal(np.flatnonzero(finite), result.point_matches)
     assert result.inliers[finite].all() and result.num_points == finite.sum()
+
+
+@pytest.mark.parametrize(
+    "names, kind",
+    [(("a.png", "b.png"), "txt"), (("frame one.png", "été\t2.png"), "bin")],
+)
+def test_colmap_model_keeps_image_names_with_spaces(demo, demo_result, tmp_path, names, kind):
+    write_outputs(tmp_path / "out", demo_result, demo[0], demo[1], names)
+    model = pycolmap.Reconstruction(str(tmp_path / "out" / "colmap"))
+    assert sorted(image.name for image in model.images.values()) == sorted(names)
+    assert (tmp_path / "out" / "colmap" / f"images.{kind}").is_file()
+    assert model.num_points3D() == demo_result.num_points

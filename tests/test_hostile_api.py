@@ -7,6 +7,8 @@ UMats, the positional call OpenCV reads as the first form, and images of any dep
 from __future__ import annotations
 
 import os
+import warnings
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -15,6 +17,7 @@ from hostile_images import HEADERS, png_header
 from twoview import make_scene, random_rotation, skew
 
 import ppo_cv
+from ppo_cv.calib import ImplausibleCameraWarning
 from ppo_cv.images import load_image
 from ppo_cv.pipeline import PairOptions
 
@@ -62,6 +65,16 @@ def _image_with_nan():
 def _pair(**kwargs):
     args = {"image1": GREY, "image2": GREY[::-1].copy(), "K1": K, **kwargs}
     return lambda: ppo_cv.estimate_pair(**args)
+
+
+def _sfm_module():
+    from ppo_cv import sfm
+
+    return sfm
+
+
+def _sfm(**kwargs):
+    return _sfm_module().run_sfm("no such folder", None, K=K, **kwargs)
 
 
 def _form4(**kwargs):
@@ -164,6 +177,8 @@ CASES = {
     "estimate_pair NaN pixel": (_pair(image1=_image_with_nan()), ValueError,
                                 "image1 has 1 NaN or infinite pixel"),
     "estimate_pair image None": (_pair(image2=None), TypeError, "image2 is required"),
+    "estimate_pair image bytes": (_pair(image1=b"img1.png"), TypeError,
+                                  "image1 must be an image array or a path (str or "),
     "estimate_pair sizes differ without K2": (_pair(image2=GREY[:40]), ValueError,
                                               "pass K2 for image2"),
     "estimate_pair image text dtype": (_pair(image1=np.full((8, 8), "a")), TypeError,
@@ -174,9 +189,36 @@ CASES = {
                                     ValueError, "image1 is 60000x1 pixels: too small or too thin"),
     "estimate_pair 40x12 image": (_pair(image2=GREY[:12, :40], K2=K), ValueError,
                                   "image2 is 40x12 pixels"),
+    # options that reached pycolmap or numpy unchecked, or read "no" as true
+    "PairOptions seed -1": (lambda: PairOptions(seed=-1), ValueError,
+                            "seed must be a whole number in 0..2147483647, got -1"),
+    "PairOptions seed 2**40": (lambda: PairOptions(seed=2**40), ValueError, "seed must be"),
+    "PairOptions seed text": (lambda: PairOptions(seed="1"), TypeError,
+                              "seed must be a whole number, got str"),
+    "PairOptions max_features 100.5": (lambda: PairOptions(max_features=100.5), ValueError,
+                                       "max_features must be a whole number in 8.."),
+    "PairOptions max_features text": (lambda: PairOptions(max_features="a"), TypeError,
+                                      "max_features must be a whole number"),
+    "PairOptions ratio text": (lambda: PairOptions(ratio="0.8"), TypeError,
+                               "ratio must be a number"),
+    "PairOptions plane 'no'": (lambda: PairOptions(plane="no"), TypeError,
+                               "plane must be True or False, got str 'no'"),
+    # structure from motion: numbers and keywords checked before the features are extracted
+    "run_sfm max_num_features 0": (lambda: _sfm(max_num_features=0), ValueError,
+                                   "max_num_features must be a whole number in 1..100000"),
+    "run_sfm num_threads text": (lambda: _sfm(num_threads="2"), TypeError,
+                                 "num_threads must be a whole number"),
+    "run_sfm seed 2**40": (lambda: _sfm(seed=2**40), ValueError, "seed must be a whole number"),
+    "run_sfm scoring typo": (lambda: _sfm(min_inlier=3), TypeError,
+                             "unexpected keyword argument 'min_inlier'; the scoring takes"),
+    "run_sfm scoring text": (lambda: _sfm(pri_threshold="x"), TypeError,
+                             "pri_threshold must be a number"),
+    "score_pairs not a database": (lambda: _sfm_module().score_pairs(__file__), ValueError,
+                                   "is not a COLMAP database (no SQLite header)"),
 }  # fmt: skip
 
 
+@pytest.mark.filterwarnings("ignore::ppo_cv.calib.ImplausibleCameraWarning")  # 800 px on 64x48
 @pytest.mark.parametrize("case", list(CASES), ids=list(CASES))
 def test_hostile_input_is_an_error_naming_the_argument(case):
     call, exception, words = CASES[case]
@@ -252,6 +294,30 @@ def test_form_with_points_overwrites_the_input_mask_as_opencv_does():
     np.testing.assert_array_equal(given[4], plain[4])
     assert set(np.unique(given[4])) == set(np.unique(opencv[4])) == {1}
     np.testing.assert_array_equal(zeros, given[4])  # written in place, as OpenCV does
+
+
+MASK_CALLS = {
+    "camera matrix": lambda f, mask: f(E, P1, 640.0 - P2, K, mask=mask)[3],
+    "focal": lambda f, mask: f(E, P1, 640.0 - P2, focal=800.0, pp=(320.0, 240.0), mask=mask)[3],
+    "distanceThresh": lambda f, mask: f(E, P1, 640.0 - P2, K, distanceThresh=50.0, mask=mask)[3],
+    "points": lambda f, mask: f(P1, P2, K, None, K, None, mask=mask)[4],
+}
+
+
+@pytest.mark.parametrize("shape", [(40, 1), (1, 40), (40,)])
+@pytest.mark.parametrize("form", list(MASK_CALLS))
+def test_the_mask_is_written_in_place_where_opencv_writes_it(form, shape):
+    returned = {}
+    for function in (OPENCV_RECOVER_POSE, ppo_cv.recoverPose):
+        mask = np.full(shape, 7, np.uint8)
+        out = MASK_CALLS[form](function, mask)
+        returned[function] = (out is mask, mask.copy(), out.copy())
+    opencv, ours = returned[OPENCV_RECOVER_POSE], returned[ppo_cv.recoverPose]
+    assert ours[0] == opencv[0] == (shape == (40, 1))
+    if ours[0]:
+        np.testing.assert_array_equal(ours[1], ours[2])
+        assert set(np.unique(ours[1])) == set(np.unique(opencv[1]))
+    assert set(np.unique(ours[2])) == set(np.unique(opencv[2]))
 
 
 def test_uninstall_restores_what_install_replaced():
@@ -345,9 +411,35 @@ def test_a_single_channel_float_tiff_is_read(tmp_path):
         np.testing.assert_array_equal(loaded[:, :, channel], GREY)
 
 
+@pytest.mark.filterwarnings("ignore::ppo_cv.calib.ImplausibleCameraWarning")
 def test_a_constant_deep_image_reads_as_blank(tmp_path):
     path = tmp_path / "constant.png"
     cv2.imwrite(str(path), np.full((48, 64), 1000, np.uint16))
     assert not load_image(path).any()
     with pytest.raises(ValueError, match="too few features"):
         ppo_cv.estimate_pair(path, GREY, K)
+
+
+DEMO_IMAGES = [str(Path(ppo_cv.__file__).parent / "data" / f"demo{i}.png") for i in (1, 2)]
+K_DEMO = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
+
+
+@pytest.mark.parametrize("scale", [1.0, 3.0])
+def test_a_camera_of_another_image_size_is_warned_about(scale):
+    """The demo pair with the camera of a 1920x1440 copy: a confident pose 19 degrees off."""
+    K1 = K_DEMO * [[scale], [scale], [1.0]]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = ppo_cv.estimate_pair(*DEMO_IMAGES, K1)
+    doubts = [w for w in caught if issubclass(w.category, ImplausibleCameraWarning)]
+    angle = np.degrees(np.linalg.norm(cv2.Rodrigues(result.R)[0]))
+    if scale == 1.0:
+        assert doubts == [] and abs(angle - 10.9) < 0.5
+        return
+    assert abs(angle - 10.9) > 5.0  # what the warning is about
+    (doubt,) = doubts
+    assert str(doubt.message) == (
+        "K1 looks implausible for a 640x480 image: principal point (960.3, 742.8) is outside "
+        "the 640x480 image"
+    )
+    assert doubt.filename == __file__  # points at the caller's line

@@ -158,7 +158,9 @@ def test_accepted_shapes_and_dtypes(scene, dtype, shape):
 def test_mask_semantics_follow_opencv(scene):
     no_mask = ppo_cv.recoverPose(scene["E"], scene["p1"], scene["p2"], scene["K"])
     assert set(np.unique(no_mask[3])) <= {0, 255}
-    ours = ppo_cv.recoverPose(scene["E"], scene["p1"], scene["p2"], scene["K"], mask=scene["mask"])
+    ours = ppo_cv.recoverPose(  # a copy: the (N, 1) uint8 mask receives the output, as in OpenCV
+        scene["E"], scene["p1"], scene["p2"], scene["K"], mask=scene["mask"].copy()
+    )
     assert set(np.unique(ours[3])) <= {0, 1}
     assert not np.any(ours[3].ravel()[scene["mask"].ravel() == 0])
     reference = OPENCV_RECOVER_POSE(
