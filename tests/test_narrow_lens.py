@@ -50,7 +50,7 @@ def test_a_rotation_through_a_strong_lens_is_flagged_and_accurate(
     pair, result = _estimate("tripod", index, imperfections, 0.0)
     assert pair.params["k1"] == pytest.approx(k1, abs=5e-4)
     assert result.pure_rotation
-    assert result.rotation_tracks > 0
+    assert result.uncertainty.rotation_tracks > 0
     assert rotation_error_deg(result.R, pair.R) < bound_deg
 
 
@@ -59,7 +59,7 @@ def test_a_narrow_field_translation_whose_tracks_show_parallax_is_not_flagged(in
     pair, result = _estimate("tiny-baseline", index, NARROW_LENS, 0.02)
     assert pair.params["hfov_deg"] < 25.0 and abs(pair.params["k1"]) > 0.09
     assert not result.pure_rotation
-    assert result.track_parallax - 2.0 * result.track_parallax_sigma > NEGLIGIBLE_PARALLAX
+    assert result.evidence.tracks.parallax - 2.0 * result.evidence.tracks.parallax_sigma > NEGLIGIBLE_PARALLAX
 
 
 @pytest.mark.parametrize(

@@ -616,7 +616,7 @@ def test_t_sigma_over_the_tiny_baseline_sweep():
                     imperfections=data_gen.REAL_PHOTO,
                     baseline_ratio=ratio,
                 )  # fmt: skip
-            ).t_sigma_deg
+            ).uncertainty.t_sigma_deg
             for index in (0, 2)
         ]
 
