@@ -59,7 +59,8 @@ def test_a_narrow_field_translation_whose_tracks_show_parallax_is_not_flagged(in
     pair, result = _estimate("tiny-baseline", index, NARROW_LENS, 0.02)
     assert pair.params["hfov_deg"] < 25.0 and abs(pair.params["k1"]) > 0.09
     assert not result.pure_rotation
-    assert result.evidence.tracks.parallax - 2.0 * result.evidence.tracks.parallax_sigma > NEGLIGIBLE_PARALLAX
+    tracks = result.evidence.tracks
+    assert tracks.parallax - 2.0 * tracks.parallax_sigma > NEGLIGIBLE_PARALLAX
 
 
 @pytest.mark.parametrize(
