@@ -681,7 +681,6 @@ class _ModelPart:
     point_matches: np.ndarray
     t_sigma_deg: float
     rotation_sigma_deg: float = float("nan")
-    rotation_fit_sigma_deg: float = float("nan")
     radial_k1: float = float("nan")
     plane: PlaneGeometry | None = None
 
@@ -875,7 +874,6 @@ def _finish_plane(state: _Finishing) -> _ModelPart:
             R, t, c1, c2, inliers, k1_prior=K1_PRIOR, principal_prior=state.priors.principal
         ).translation_deg,
         rotation_sigma_deg=refined.rotation_sigma_deg,
-        rotation_fit_sigma_deg=refined.rotation_fit_sigma_deg,
         plane=PlaneGeometry(refined.n, refined.distance, bool(plane.ambiguous), k1),
     )
 
@@ -911,7 +909,6 @@ def _finish_general(state: _Finishing) -> _ModelPart:
         point_matches=np.flatnonzero(keep),
         t_sigma_deg=sigmas.translation_deg,
         rotation_sigma_deg=rotation_sigma_deg,
-        rotation_fit_sigma_deg=sigmas.rotation_deg,
         radial_k1=radial_k1,
     )
 
