@@ -63,6 +63,7 @@ __all__ = [
     "lens_rotation_residuals",
     "correct_points",
     "transfer_points",
+    "seen_through_lens",
 ]
 
 _BLOCK = 1 << 18  # hypotheses x matches scored per block
@@ -428,10 +429,17 @@ def _lens_transfers(params: np.ndarray, R0: np.ndarray, xy1: np.ndarray, xy2: np
     offset, ratio = params[:, None, 5:7], 1.0 + params[:, 7, None, None]
     q1 = _lens_map(xy1, scale, k1, offset)
     ray = q1 @ np.swapaxes(R[:, :, :2], 1, 2) + R[:, None, :, 2]
+    return seen_through_lens(ray, scale, k1, offset, ratio) - xy2
+
+
+def seen_through_lens(ray: np.ndarray, scale, k1, offset, ratio) -> np.ndarray:
+    """Given normalised points (..., N, 2) where view 2 sees rays (..., N, 3) of its frame
+    through the lens of :func:`fit_rotation_lens`: ``x2 = (p + q2 (1 + k1 |q2|^2)) / (s rho)``,
+    ``q2`` the ray's projection; the lens terms broadcast against ``q2``."""
     z = np.where(np.abs(ray[..., 2:]) > 1e-9, ray[..., 2:], 1e-9)
     q2 = ray[..., :2] / z
     distorted = q2 * (1.0 + k1 * _squared_norms(q2)) + offset
-    return distorted / (scale * ratio) - xy2
+    return distorted / (scale * ratio)
 
 
 def _lens_transfer(params: np.ndarray, R0: np.ndarray, xy1: np.ndarray, xy2: np.ndarray):

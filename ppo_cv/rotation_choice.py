@@ -67,6 +67,7 @@ from .rotation import (
     LensRotationFit,
     correct_points,
     lens_rotation_residuals,
+    seen_through_lens,
 )
 
 __all__ = [
@@ -303,12 +304,8 @@ def _translation_flow(lens: LensRotationFit, x1: np.ndarray, axis: int, step: fl
     """Change (2N,) of view 2's given normalised points under :func:`fit_rotation_lens`'s
     model when the camera moves by ``step`` depths along ``axis``, per unit."""
     q1 = correct_points(x1, lens.focal_scale, lens.k1, lens.principal_offset)
-
-    def seen(ray: np.ndarray) -> np.ndarray:
-        q2 = ray[:, :2] / ray[:, 2:]
-        distorted = q2 * (1.0 + lens.k1 * np.sum(q2 * q2, axis=1, keepdims=True))
-        return (distorted + lens.principal_offset) / (lens.focal_scale * lens.focal_ratio)
-
+    terms = (lens.focal_scale, lens.k1, np.asarray(lens.principal_offset), lens.focal_ratio)
+    seen = lambda ray: seen_through_lens(ray, *terms)  # noqa: E731
     ray = q1 @ np.asarray(lens.R, float).T
     return ((seen(ray + step * np.eye(3)[axis]) - seen(ray)) / step).ravel()
 
