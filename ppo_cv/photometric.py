@@ -416,9 +416,7 @@ def _brightness_of(jacobian_t, target) -> np.ndarray:
     """Gain ramp and offset (n, 4) float64 fitted in closed form to image 2 as it was read
     (rows 2-5 of ``jacobian_t``)."""
     columns = jacobian_t[:, 2:]
-    normal = (columns @ columns.transpose(0, 2, 1)).astype(np.float64)
-    ridge = 1e-9 * np.trace(normal, axis1=1, axis2=2) + 1e-12
-    normal += np.eye(4) * ridge[:, None, None]
+    normal = _regularised((columns @ columns.transpose(0, 2, 1)).astype(np.float64))
     return np.linalg.solve(normal, (columns @ target[..., None]).astype(np.float64))[..., 0]
 
 
@@ -426,10 +424,15 @@ def _normal_inverse(jacobian_t: np.ndarray) -> np.ndarray:
     """Inverse normal matrices (n, m, m) float64 of transposed Jacobians (n, m, k), slightly
     regularised."""
     jacobian = np.ascontiguousarray(jacobian_t.transpose(0, 2, 1))
-    normal = (jacobian_t @ jacobian).astype(np.float64)
+    return np.linalg.inv(_regularised((jacobian_t @ jacobian).astype(np.float64)))
+
+
+def _regularised(normal: np.ndarray) -> np.ndarray:
+    """Normal matrices (n, m, m) float64 with a ridge of 1e-9 of their trace (and 1e-12) added
+    to the diagonal, in place."""
     ridge = 1e-9 * np.trace(normal, axis1=1, axis2=2) + 1e-12
     normal += np.eye(normal.shape[1]) * ridge[:, None, None]
-    return np.linalg.inv(normal)
+    return normal
 
 
 @dataclass(frozen=True)

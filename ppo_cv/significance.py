@@ -142,6 +142,18 @@ def log10_binomial(n: np.ndarray | int, k: np.ndarray | int) -> np.ndarray:
     return log_factorial[n] - log_factorial[k] - log_factorial[n - k]
 
 
+def _log10_nfa(n: int, k: np.ndarray, log_p: np.ndarray, sample_size, models_per_sample):
+    """``log10 NFA`` of consensuses of ``k`` of ``n`` matches, each within a band of chance
+    ``10^log_p``: ``N_out (n - s) C(n, k) C(k, s) p^(k - s)``, ``log_p`` already counting its
+    ``k - s`` factors."""
+    return (
+        np.log10(models_per_sample * (n - sample_size))
+        + log10_binomial(n, k)
+        + log10_binomial(k, sample_size)
+        + log_p
+    )
+
+
 def epipolar_lines(E: np.ndarray, x1: np.ndarray, K2: np.ndarray) -> np.ndarray:
     """Epipolar lines ``l2 = K2^-T E x1`` in pixels of image 2, scaled to unit normals, (N, 3).
 
@@ -226,12 +238,7 @@ def epipolar_significance(
     log_chords = prefix - sample_size * np.minimum.accumulate(log_chord)[k - 1]
     log_band = np.log10(np.maximum(2.0 * eps / (width * height), 1e-300))
     log_p = np.minimum((k - sample_size) * log_band + log_chords, 0.0)
-    log10_nfa = (
-        np.log10(models_per_sample * (n - sample_size))
-        + log10_binomial(n, k)
-        + log10_binomial(k, sample_size)
-        + log_p
-    )
+    log10_nfa = _log10_nfa(n, k, log_p, sample_size, models_per_sample)
     best = int(np.argmin(log10_nfa))
     log_mean_chord = min(log_chords[best] / (k[best] - sample_size), 6.0)
     return Significance(
@@ -317,11 +324,7 @@ def smallest_significant_consensus(
     if k.size == 0:
         return n + 1
     band = MIN_CONSENSUS_BAND * 2.0 * threshold * np.hypot(width, height) / (width * height)
-    log10_nfa = (
-        np.log10(models_per_sample * (n - sample_size))
-        + log10_binomial(n, k)
-        + log10_binomial(k, sample_size)
-        + np.minimum((k - sample_size) * np.log10(min(band, 1.0)), 0.0)
-    )
+    log_p = np.minimum((k - sample_size) * np.log10(min(band, 1.0)), 0.0)
+    log10_nfa = _log10_nfa(n, k, log_p, sample_size, models_per_sample)
     passing = k[log10_nfa <= max_log10_nfa]
     return int(passing[0]) if passing.size else n + 1
