@@ -39,6 +39,7 @@ __all__ = [
     "image_size",
     "pipeline_options",
     "given_cameras",
+    "calibration_dist2",
     "exif_camera",
     "exif_note",
     "ProgressReport",
@@ -271,6 +272,17 @@ class Cameras:
     dist2: Any
 
 
+def calibration_dist2(num_cameras: int, K2, dist1, dist2, file_dist2):
+    """Image 2's distortion with a calibration file of ``num_cameras``: ``--dist2`` (parsed
+    ``dist2``); else none beside ``--K2``; else ``--dist`` (parsed ``dist1``) when the file
+    describes one camera of both images, as with ``--K``; else the file's ``file_dist2``."""
+    if dist2 is not None:
+        return dist2
+    if K2:
+        return None
+    return dist1 if num_cameras == 1 and dist1 is not None else file_dist2
+
+
 def given_cameras(K, K2, dist, dist2, calib) -> Cameras | None:
     """The cameras the options give (``--K``, ``--K2``, ``--dist``, ``--dist2``, ``--calib``);
     None when they give no intrinsics. ValueError naming a malformed or conflicting option."""
@@ -284,9 +296,7 @@ def given_cameras(K, K2, dist, dist2, calib) -> Cameras | None:
         cameras = load_calibration(calib)
         first, second = cameras[0], cameras[1] if len(cameras) > 1 else cameras[0]
         K2v = parse_intrinsics(K2, "--K2") if K2 else second.K
-        shared = len(cameras) == 1 and not K2  # --dist then describes the one camera of both
-        if d2 is None and not K2:
-            d2 = d1 if shared and d1 is not None else second.dist
+        d2 = calibration_dist2(len(cameras), K2, d1, d2, second.dist)
         return Cameras(first.K, d1 if d1 is not None else first.dist, K2v, d2)
     if K is None:
         if K2:

@@ -31,6 +31,7 @@ from .common import (
     Seed,
     StageReport,
     Threshold,
+    calibration_dist2,
     check_image_file,
     exif_camera,
     exif_note,
@@ -82,10 +83,10 @@ def _calibrated_cameras(calib, images, sizes, K2, dist, dist2):
         second, note2 = fit_to_image(cameras[-1], sizes[1], name, str(images[1]))
         K2v, d2 = second.K, second.dist
         notes += [note2] if note2 else []
-    d1 = parse_distortion(dist, "--dist") if dist else first.dist
-    shared = len(cameras) == 1 and not K2  # --dist then describes the one camera of both
-    d2 = parse_distortion(dist2, "--dist2") if dist2 else (d1 if shared and dist else d2)
-    return Cameras(first.K, d1, K2v, d2), notes
+    given1 = parse_distortion(dist, "--dist") if dist else None
+    given2 = parse_distortion(dist2, "--dist2") if dist2 else None
+    d2 = calibration_dist2(len(cameras), K2, given1, given2, d2)
+    return Cameras(first.K, first.dist if given1 is None else given1, K2v, d2), notes
 
 
 def _cameras(images, sizes, K, K2, dist, dist2, calib, exif_orientation=True):
