@@ -518,13 +518,20 @@ def _warn_implausible_cameras(
     from ppo_cv.images import exif_layout
 
     doubts: dict[str, dict[int, None]] = {}  # each doubt's lines, in order
+    layouts: dict[Path, tuple] = {}  # an image's size and whether it is turned, read once
+
+    def layout(path: Path) -> tuple:
+        if path not in layouts:
+            size = _usable_size(path)
+            layouts[path] = size, size is not None and exif_orientation and exif_layout(path).turned
+        return layouts[path]
+
     for row in (r for r in rows if r["K1"] is not None):
         for key in ("K1", "K2"):
             path = image_dir / row[{"K1": "image1", "K2": "image2"}[key]]
-            size = _usable_size(path)
+            size, turned = layout(path)
             if size is None:  # the pair reports why it cannot be used
                 continue
-            turned = exif_orientation and exif_layout(path).turned
             second = key == "K2" and given == "--K" and not row["shared_K"]
             name = f"{given}2" if second else given
             name = name if row["given_cameras"] else f"{key} of {path.name}"

@@ -402,6 +402,7 @@ def implausible_intrinsics(
         return None
     return f"{name} looks implausible for a {width}x{height} image: " + "; ".join(problems)
 
+
 class ImplausibleCameraWarning(UserWarning):
     """A camera matrix that does not fit its image (:func:`implausible_intrinsics`)."""
 
