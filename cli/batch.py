@@ -14,6 +14,7 @@ import os
 import re
 import sys
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated
 
@@ -425,10 +426,75 @@ def _load_features(target: str):
         )  # fmt: skip
 
 
+RECENT_BYTES = 128 * 2**20
+"""Bytes of decoded images and loaded features each process of ``ppo-cv pairs`` keeps for the
+next pairs that name the same image (the least recently used go first)."""
+
+
+class _Recent:
+    """The arrays last read by a process, up to :data:`RECENT_BYTES`, read-only: an image is
+    decoded (and its features loaded) once for all the consecutive pairs that name it."""
+
+    def __init__(self, budget: int = RECENT_BYTES) -> None:
+        self.budget = budget
+        self.entries: dict[tuple, tuple[object, int]] = {}
+
+    def get(self, key: tuple, read: Callable[[], object], arrays: Callable[[object], list]):
+        """The value of ``key``, read by ``read()`` when not kept; ``arrays(value)`` lists
+        its arrays (made read-only and counted against the budget)."""
+        if key in self.entries:
+            self.entries[key] = self.entries.pop(key)  # most recent last
+            return self.entries[key][0]
+        value = read()
+        held = arrays(value)
+        for array in held:
+            array.flags.writeable = False
+        size = sum(array.nbytes for array in held)
+        if size > self.budget:
+            return value
+        while sum(n for _, n in self.entries.values()) + size > self.budget:
+            self.entries.pop(next(iter(self.entries)))
+        self.entries[key] = (value, size)
+        return value
+
+    def clear(self) -> None:
+        """Forget every entry."""
+        self.entries.clear()
+
+
+_recent = _Recent()
+
+
+def _recent_image(path: Path, exif_orientation: bool):
+    """:func:`ppo_cv.pipeline.load_image` of ``path``, decoded again only when the file
+    changed (its size or modification time) or left :data:`_recent`."""
+    from ppo_cv.pipeline import load_image
+
+    try:
+        stat = os.stat(path)
+    except OSError:
+        return load_image(path, exif_orientation=exif_orientation)  # its error names the file
+    key = ("image", os.path.realpath(path), stat.st_mtime_ns, stat.st_size, exif_orientation)
+    return _recent.get(key, lambda: load_image(path, exif_orientation=exif_orientation), _one)
+
+
+def _recent_features(target: str):
+    """:func:`_load_features` of a cache file (written once per run), from :data:`_recent`."""
+    return _recent.get(
+        ("features", target),
+        lambda: _load_features(target),
+        lambda f: [a for a in (f.keypoints, f.descriptors, f.responses) if a is not None],
+    )
+
+
+def _one(array) -> list:
+    return [array]
+
+
 def _pair_job(job: tuple) -> dict:
     """One pair: a JSON-ready dict, with ``error`` instead of a pose on failure."""
     from ppo_cv.export import result_to_dict
-    from ppo_cv.pipeline import estimate_pair, load_image
+    from ppo_cv.pipeline import estimate_pair
 
     row, image_dir, options, cached, exif_orientation = job
     names = {"image1": row["image1"], "image2": row["image2"]}
@@ -439,8 +505,8 @@ def _pair_job(job: tuple) -> dict:
             for (kind, value), name in zip(cached, ("features1", "features2"), strict=True):
                 if kind == "error":
                     raise ValueError(value)
-                given[name] = _load_features(value)
-        images = [load_image(path, exif_orientation=exif_orientation) for path in paths]
+                given[name] = _recent_features(value)
+        images = [_recent_image(path, exif_orientation) for path in paths]
         if row["K1"] is None or row["K2"] is None:
             raise ValueError("no camera: the EXIF of an image could not be read; pass --K")
         dist = (row.get("dist1"), row.get("dist2"))
@@ -641,6 +707,7 @@ def run_pairs(
             for row in rows
         ]
         results = []
+        stack.callback(_recent.clear)
         with ProgressReport("pairs", "pairs", len(jobs), quiet) as report:
             for data in _run_all(_pair_job, jobs, pool, report):
                 try:

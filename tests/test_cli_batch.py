@@ -86,6 +86,49 @@ def test_a_weak_pair_reuses_the_cached_denser_features(tmp_path, monkeypatch):
     assert runs[True][1] == runs[False][1]
 
 
+def test_each_process_decodes_an_image_once_for_all_its_pairs(tmp_path, monkeypatch):
+    decoded = []
+    original = ppo_cv.pipeline.load_image
+
+    def counted(path, *args, **kwargs):
+        decoded.append(Path(path).name)
+        return original(path, *args, **kwargs)
+
+    monkeypatch.setattr(ppo_cv.pipeline, "load_image", counted)
+    lines = [f"{NAME1} {NAME2}", f"{NAME2} {NAME1}", f"{NAME1} {NAME2}"]
+    (tmp_path / "pairs.txt").write_text("\n".join(lines) + "\n")
+    output = tmp_path / "out.jsonl"
+    options = pipeline_options(max_features=2000)
+    code = batch.run_pairs(tmp_path / "pairs.txt", DATA, K_TEXT, output, 1, options, quiet=True)
+    assert code == 0
+    # once to detect the features, once for the three pairs
+    assert sorted(decoded) == sorted([NAME1, NAME2] * 2)
+    assert not batch._recent.entries  # nothing is held after the run
+    rows = _without_timings(output)
+    assert rows[0] == rows[2] and all("error" not in row for row in rows)
+
+
+def test_recent_arrays_are_read_only_within_budget_and_reread_when_the_file_changes(tmp_path):
+    path = tmp_path / "image.png"
+    cv2.imwrite(str(path), np.zeros((40, 60, 3), np.uint8))
+    first = batch._recent_image(path, True)
+    assert batch._recent_image(path, True) is first and not first.flags.writeable
+    cv2.imwrite(str(path), np.full((40, 80, 3), 255, np.uint8))
+    again = batch._recent_image(path, True)
+    assert again.shape == (40, 80, 3) and again.max() == 255  # the new file, decoded
+    batch._recent.clear()
+    recent = batch._Recent(budget=2500)
+    arrays = {name: np.zeros(1000, np.uint8) for name in "abc"}
+    for name in "abc":
+        recent.get((name,), lambda name=name: arrays[name], batch._one)
+    assert list(recent.entries) == [("b",), ("c",)]  # the least recently used went first
+    assert recent.get(("d",), lambda: np.zeros(5000, np.uint8), batch._one).size == 5000
+    assert list(recent.entries) == [("b",), ("c",)]  # above the budget: returned, not kept
+    recent.get(("b",), lambda: None, batch._one)
+    recent.get(("e",), lambda: np.zeros(1000, np.uint8), batch._one)
+    assert list(recent.entries) == [("b",), ("e",)]  # b, used again, outlived c
+
+
 def test_feature_cache_is_keyed_by_path_and_options(tmp_path):
     options = pipeline_options()
     cache = batch.FeatureCache(tmp_path, options)
