@@ -3,6 +3,8 @@
 Each image's features are computed once per run (a cache keyed by the resolved path and the
 feature options, filled up front by the workers and shared through ``.npz`` files in a temporary
 folder); ``--no-cache`` detects per pair, as :func:`~ppo_cv.pipeline.estimate_pair` alone does.
+Each process also keeps the images it decoded last (and their features), read-only, for the next
+pairs that name them (:data:`RECENT_BYTES`).
 """
 
 from __future__ import annotations
