@@ -2,11 +2,12 @@
 
 ``PairResult.uncertainty.rotation_sigma_deg`` is the deviation of the returned rotation: of the
 rotation-only fit for a pure rotation or when the rule of :mod:`ppo_cv.rotation_choice` takes
-it (root-mean-square angle, its bias's deviation included), otherwise the worst direction of
-the covariance of the essential matrix's or the plane's final refinement
-(:func:`ppo_cv.refine.pose_sigmas_deg`). A calibrated deviation has the root-mean-square error
-over many pairs close to the mean deviation: this script prints their ratio per model (and per
-source of the rotation), which should lie within 1/1.5 and 1.5.
+it (root-mean-square angle, its bias's deviation included), otherwise the root-mean-square
+angle of the covariance of the essential matrix's or the plane's final refinement
+(:func:`ppo_cv.refine.pose_sigmas_deg`, :func:`ppo_cv.plane.rms_rotation_angle_deg`). A
+calibrated deviation has the root-mean-square error over many pairs close to the mean
+deviation: this script prints their ratio per model (and per source of the rotation), which
+should lie within 1/1.5 and 1.5.
 
 Pairs: the renders of ``tests/imperfect.py`` (480x360, a 25-35 degree field, radial distortion
 nobody models, the focal length given up to 3 % off, noise and JPEG): pure rotations and

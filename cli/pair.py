@@ -182,8 +182,7 @@ def _rotation_sigma_lines(result) -> list[str]:
             f"  R sigma      {sigma:.3f} deg (rotation angle error, root mean square, {evidence})"
         )
     elif sigma == sigma and sigma < float("inf"):
-        kind = "root mean square" if source == "rotation" else "worst direction"
-        lines.append(f"  R sigma      {sigma:.3f} deg (rotation error, {kind})")
+        lines.append(f"  R sigma      {sigma:.3f} deg (rotation angle error, root mean square)")
     if not result.pure_rotation:
         why = ""
         if source == "rotation":

@@ -894,12 +894,9 @@ def _finish_general(state: _Finishing) -> _ModelPart:
     final = _recover_normalized(essential_from_pose(R, t), c1[:, :2], c2[:, :2], inliers, 0.0)
     keep = final.inliers & np.all(np.isfinite(final.points3d), axis=1)
     sigmas = pose_sigmas_deg(
-        final.R, final.t, c1, c2, inliers, k1_prior=K1_PRIOR if options.refine else None,
-        principal_prior=state.priors.principal,
+        final.R, final.t, c1, c2, inliers, principal_prior=state.priors.principal,
+        **_radial_priors(radial),
     )  # fmt: skip
-    rotation_sigma_deg = sigmas.rotation_deg
-    if radial_k1 == 0.0 and radial is not None and np.isfinite(radial.k1_sigma):
-        rotation_sigma_deg = _held_k1_rotation_sigma_deg(final, c1, c2, inliers, radial, state)
     return _ModelPart(
         R=final.R,
         t=final.t,
@@ -908,19 +905,22 @@ def _finish_general(state: _Finishing) -> _ModelPart:
         points3d=np.where(keep[:, None], final.points3d, np.nan),
         point_matches=np.flatnonzero(keep),
         t_sigma_deg=sigmas.translation_deg,
-        rotation_sigma_deg=rotation_sigma_deg,
+        rotation_sigma_deg=sigmas.rotation_deg,
         radial_k1=radial_k1,
     )
 
 
-def _held_k1_rotation_sigma_deg(final, c1, c2, inliers, radial: RadialPose, state) -> float:
-    """Rotation deviation of a general pose whose refinement held ``k1`` at 0: the held
-    value's error a considered parameter (:func:`held_k1_deviation` of the coefficient the
-    refinement reached) beside the focal length's and the principal point's."""
-    return pose_sigmas_deg(
-        final.R, final.t, c1, c2, inliers, principal_prior=state.priors.principal,
-        held_k1_prior=held_k1_deviation(radial.k1_fitted, radial.k1_sigma),
-    ).rotation_deg  # fmt: skip
+def _radial_priors(radial: RadialPose | None) -> dict[str, float | None]:
+    """How :func:`pose_sigmas_deg` counts the radial term of a general pose: none without a
+    refinement; estimated under :data:`K1_PRIOR` when the refinement kept it; when it held
+    ``k1`` at 0, the held value's error a considered parameter (:func:`held_k1_deviation` of
+    the coefficient the refinement reached) beside the focal length's and the principal
+    point's."""
+    if radial is None:
+        return {"k1_prior": None}
+    if radial.k1 == 0.0 and np.isfinite(radial.k1_sigma):
+        return {"held_k1_prior": held_k1_deviation(radial.k1_fitted, radial.k1_sigma)}
+    return {"k1_prior": K1_PRIOR}
 
 
 FINISHERS: dict[str, Callable[[_Finishing], _ModelPart]] = {

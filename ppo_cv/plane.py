@@ -48,6 +48,7 @@ from .rotation import FOCAL_PRIOR
 __all__ = [
     "K1_SIGNIFICANCE",
     "held_k1_deviation",
+    "rms_rotation_angle_deg",
     "MIN_OFF_PLANE",
     "HomographyCandidates",
     "PlanarPose",
@@ -481,7 +482,7 @@ class RefinedPlanarPose:
     cost_start, cost : float
         Robust cost over the used matches before and after.
     rotation_sigma_deg : float
-        Worst-direction standard deviation (degrees) of ``R`` from the Gauss-Newton covariance
+        Root-mean-square angle error (degrees) of ``R`` from the Gauss-Newton covariance
         of this refinement, ``k1`` estimated under its prior (or, when held at 0, a considered
         parameter of deviation :func:`held_k1_deviation` of ``k1_sigma``) and the given focal
         length's error counted at :data:`ppo_cv.rotation.FOCAL_PRIOR` (inf when not
@@ -679,10 +680,22 @@ def held_k1_deviation(k1_fitted: float, k1_sigma: float) -> float:
     return float(np.hypot(k1_fitted, k1_sigma))
 
 
+def rms_rotation_angle_deg(covariance: np.ndarray) -> float:
+    """Root-mean-square angle (degrees) of a rotation increment ``w`` of covariance
+    ``covariance`` (3, 3), radians: ``sqrt(E |w|^2) = sqrt(trace)``, the angle of
+    ``exp([w]_x)`` being ``|w|``. The largest eigenvalue alone (the worst direction) falls
+    short of it by up to ``sqrt(3)`` when the three directions are alike.
+
+    >>> round(rms_rotation_angle_deg(np.diag([3e-6, 1e-6, 0.0])), 4)
+    0.1146
+    """
+    return float(np.degrees(np.sqrt(max(float(np.trace(covariance)), 0.0))))
+
 def _rotation_sigmas_deg(
     model, p, scale, k1_prior, count: int, held_k1_sigma: float | None
 ) -> tuple[float, float]:
-    """Worst-direction deviations (degrees) of the rotation increment ``p[:3]``: with the given
+    """Root-mean-square angle errors (degrees) of the rotation increment ``p[:3]``
+    (:func:`rms_rotation_angle_deg`): with the given
     intrinsics' errors as considered parameters (Schmidt), and from the matches alone (the
     covariance of :func:`_k1_sigma`, ``k1`` under its prior).
 
@@ -696,7 +709,7 @@ def _rotation_sigmas_deg(
     ``held_k1_sigma`` (:func:`held_k1_deviation`). inf with fewer than 10 matches."""
     if count < 10:
         return float("inf"), float("inf")
-    fit = _worst_rotation_deg(_plane_covariance(model, p, scale, k1_prior)[0])
+    fit = _rotation_deg(_plane_covariance(model, p, scale, k1_prior)[0])
     held = held_k1_sigma is not None and np.isfinite(held_k1_sigma)
     estimated = p[:8] if held else p
     cov, J, r = _plane_covariance(model, estimated, scale, k1_prior)
@@ -710,7 +723,7 @@ def _rotation_sigmas_deg(
     for residuals, deviation in moved:
         S = np.linalg.lstsq(J, (residuals - r) / step, rcond=None)[0]
         cov = cov + deviation**2 * np.outer(S, S)
-    return _worst_rotation_deg(cov), fit
+    return _rotation_deg(cov), fit
 
 
 def _plane_covariance(model, p, scale, k1_prior):
@@ -721,11 +734,9 @@ def _plane_covariance(model, p, scale, k1_prior):
     return gauss_newton_covariance(J, 2.0 * float(r @ r) / max(len(r) - len(p), 1)), J, r
 
 
-def _worst_rotation_deg(cov: np.ndarray | None) -> float:
-    """Square root of the largest eigenvalue of the rotation block, degrees; inf for None."""
-    if cov is None:
-        return float("inf")
-    return float(np.degrees(np.sqrt(max(float(np.linalg.eigvalsh(cov[:3, :3])[-1]), 0.0))))
+def _rotation_deg(cov: np.ndarray | None) -> float:
+    """:func:`rms_rotation_angle_deg` of the rotation block; inf for None."""
+    return float("inf") if cov is None else rms_rotation_angle_deg(cov[:3, :3])
 
 
 def _scaled_model(model: _PlaneModel, focal_error: float) -> _PlaneModel:

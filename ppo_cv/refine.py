@@ -27,7 +27,7 @@ from .lsq import (
     rotation_increments,
     tangent_basis,
 )
-from .plane import K1_SIGNIFICANCE, undistort_division
+from .plane import K1_SIGNIFICANCE, rms_rotation_angle_deg, undistort_division
 from .ppo import rotation_from_rays
 from .robust import sampson_signed, virtual_camera
 from .rotation import FOCAL_PRIOR
@@ -367,14 +367,15 @@ already covers all of it, and a larger linearised value says no more than "undet
 
 @dataclass(frozen=True)
 class PoseSigmas:
-    """Worst-direction standard deviations of a refined pose (:func:`pose_sigmas_deg`).
+    """Standard deviations of a refined pose (:func:`pose_sigmas_deg`).
 
     Attributes
     ----------
     rotation_deg : float
-        Of the rotation, degrees (inf when undetermined).
+        Root-mean-square angle of the rotation's error, degrees (inf when undetermined).
     translation_deg : float
-        Of the direction of ``t``, degrees, at most :data:`T_SIGMA_CAP_DEG`.
+        Of the direction of ``t`` in its worst direction, degrees, at most
+        :data:`T_SIGMA_CAP_DEG`.
     """
 
     rotation_deg: float
@@ -442,9 +443,10 @@ def pose_sigmas_deg(
     in both views), enters as a considered parameter (Schmidt): with ``c`` its cross
     information with the estimated ones, ``focal_prior^2 (I^-1 c)(I^-1 c)^T`` is added to the
     covariance. ``s^2`` is the noise variance of one residual, ``|r|^2 / (n - 5)`` of the fit or
-    ``noise^2``. Each deviation returned is the square root of the largest eigenvalue of its
-    block of the covariance (rotation (3, 3), translation (2, 2)): the worst direction, in
-    degrees, the translation's at most the cap.
+    ``noise^2``. The rotation's deviation is the root-mean-square angle of its (3, 3) block
+    (:func:`ppo_cv.plane.rms_rotation_angle_deg`, as the rotation-only fit reports its own); the
+    translation's the square root of the largest eigenvalue of its (2, 2) block (the worst
+    direction), at most the cap; both in degrees.
 
     Parameters
     ----------
@@ -596,10 +598,9 @@ def _pose_sigmas_deg(
     S = inverse @ fixed
     cov = cov + (S * fixed_sigma**2) @ S.T
 
-    def worst_deg(block: np.ndarray) -> float:
-        return float(np.degrees(np.sqrt(max(float(np.linalg.eigvalsh(block)[-1]), 0.0))))
-
+    worst = np.linalg.eigvalsh(cov[_TRANSLATION, _TRANSLATION])[-1]
     return PoseSigmas(
-        rotation_deg=worst_deg(cov[_ROTATION, _ROTATION]),
-        translation_deg=min(worst_deg(cov[_TRANSLATION, _TRANSLATION]), T_SIGMA_CAP_DEG),
+        rotation_deg=rms_rotation_angle_deg(cov[_ROTATION, _ROTATION]),
+        translation_deg=min(float(np.degrees(np.sqrt(max(worst, 0.0)))), T_SIGMA_CAP_DEG),
     )
+

@@ -76,7 +76,7 @@ class PoseUncertainty:
         When ``R`` was refitted on intensity-aligned windows (``rotation_tracks > 0``), the
         same bound over those tracks, its variance multiplied by how many windows share a pixel
         (:func:`ppo_cv.photometric.window_overlap`). For the rotation of a general motion: the
-        worst direction of the covariance of the final refinement
+        root-mean-square angle of the covariance of the final refinement
         (:func:`ppo_cv.refine.pose_sigmas_deg`, as ``t_sigma_deg``, a ``k1`` the refinement
         held at 0 counted as a considered parameter); of a plane: that of its refinement on
         the homography, the focal length and a held ``k1`` counted the same way

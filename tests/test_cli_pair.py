@@ -87,7 +87,7 @@ def test_human_summary(tmp_path):
     for word in ("rotation", "euler", "translation", "PRI", "general motion", "inliers", "ransac"):
         assert word in result.stdout
     assert "R source     the essential matrix's refined pose" in result.stdout
-    sigma_line = r"R sigma      \d+\.\d{3} deg \(rotation error, worst direction\)"
+    sigma_line = r"R sigma      \d+\.\d{3} deg \(rotation angle error, root mean square\)"
     assert re.search(sigma_line, result.stdout)
 
 
