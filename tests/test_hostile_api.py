@@ -320,6 +320,27 @@ def test_the_mask_is_written_in_place_where_opencv_writes_it(form, shape):
     assert set(np.unique(ours[2])) == set(np.unique(opencv[2]))
 
 
+class _CountedWrites(np.ndarray):
+    """An 8-bit mask that counts the assignments into it and into its views."""
+
+    writes = 0
+
+    def __setitem__(self, key, value):
+        type(self).writes += 1
+        super().__setitem__(key, value)
+
+
+@pytest.mark.parametrize("shape", [(40, 1), (1, 40), (40,)])
+def test_the_form_with_points_writes_a_given_mask_once(shape):
+    expected = OPENCV_RECOVER_POSE(P1, P2, K, None, K, None, mask=np.zeros(shape, np.uint8))[4]
+    mask = np.full(shape, 7, np.uint8).view(_CountedWrites)
+    _CountedWrites.writes = 0
+    out = ppo_cv.recoverPose(P1, P2, K, None, K, None, mask=mask)[4]
+    assert _CountedWrites.writes == 1
+    assert (out is mask) == (shape == (40, 1))
+    np.testing.assert_array_equal(np.asarray(mask).reshape(-1, 1), expected)
+
+
 def test_uninstall_restores_what_install_replaced():
     def wrapper(*args, **kwargs):
         return OPENCV_RECOVER_POSE(*args, **kwargs)
