@@ -290,6 +290,17 @@ def test_a_name_with_unquoted_spaces_is_refused_with_the_remedy(tmp_path):
         batch.read_pairs(pairs, K=K_TEXT)
 
 
+@pytest.mark.parametrize(
+    "line",
+    ['"a.png b.png', 'a.png "b.png', '"a b".png c.png', 'a.png b"c.png', '"a.png" "b.png'],
+)
+def test_a_double_quote_that_does_not_enclose_a_whole_name_is_refused(tmp_path, line):
+    pairs = tmp_path / "pairs.txt"
+    pairs.write_text(f"a.png b.png\n{line}\n")
+    with pytest.raises(ValueError, match=r"pairs\.txt:2: a double quote .* whole name"):
+        batch.read_pairs(pairs, K=K_TEXT)
+
+
 def test_output_dash_is_standard_output(tmp_path):
     (tmp_path / "pairs.txt").write_text("absent1.png absent2.png\n")
     (tmp_path / "images").mkdir()
