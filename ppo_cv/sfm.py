@@ -344,10 +344,14 @@ def prepare_database(
     Raises
     ------
     ValueError
-        Fewer than two images, images of several sizes with ``K``, or images pycolmap could not
-        read (named).
+        Fewer than two images, images of several sizes with ``K``, a ``K`` with skew, or images
+        pycolmap could not read (named).
     """
     _check_run_numbers(num_threads, seed, max_num_features)
+    if K is not None:
+        K = as_camera_matrix(K, "K")
+        if K[0, 1] != 0:
+            raise ValueError(f"K has skew {K[0, 1]}, which pycolmap's PINHOLE camera cannot hold")
     names, skipped = screen_images(image_dir)
     if len(names) < 2:
         refused = f" ({len(skipped)} skipped: {', '.join(skipped)})" if skipped else ""
@@ -359,7 +363,6 @@ def prepare_database(
         raise ValueError(f"database {str(database_path)!r} already exists")
     if K is not None:
         _check_one_size(image_dir, names)
-        K = as_camera_matrix(K, "K")
     reader, extraction, matching, verification = _pycolmap_options(
         K, max_num_features, num_threads, seed
     )

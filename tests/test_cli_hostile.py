@@ -385,6 +385,22 @@ CASES = [
         "pair",
         r"the images are mirror images of each other",
     ),
+    # a camera COLMAP cannot hold is refused before the run, not dropped from the model
+    (
+        [*PAIR[:3], "--K", "535.4,2,320.1,0,539.2,247.6,0,0,1", "--out", "new"],
+        "pair",
+        r"--out: camera 1 has skew 2\.0, which no COLMAP camera model holds",
+    ),
+    (
+        [*PAIR, "--dist", "0,0,0,0,0,0,0,0,0.01,0,0,0", "--out", "new"],
+        "pair",
+        r"--out: camera 1 has thin-prism coefficients s1..s4 \[0\.01, 0\.0, 0\.0, 0\.0\]",
+    ),
+    (
+        ["sfm", "images", "out", "--K", "535.4,2,320.1,0,539.2,247.6,0,0,1"],
+        "sfm",
+        r"K has skew 2\.0, which pycolmap's PINHOLE camera cannot hold",
+    ),
     # '-' is standard output, which cannot hold a folder (no folder named '-' appears)
     ([*PAIR, "--out", "-"], "pair", r"--out takes a folder, not '-' \(standard output\)"),
 ]

@@ -464,3 +464,16 @@ def test_a_camera_of_another_image_size_is_warned_about(scale):
         "the 640x480 image"
     )
     assert doubt.filename == __file__  # points at the caller's line
+
+
+def test_run_sfm_refuses_a_skewed_K_before_any_work(tmp_path):
+    images = tmp_path / "images"
+    images.mkdir()
+    for name in ("demo1.png", "demo2.png"):
+        (images / name).write_bytes((Path(ppo_cv.__file__).parent / "data" / name).read_bytes())
+    skewed = K.copy()
+    skewed[0, 1] = 2.0
+    database = tmp_path / "db.db"
+    with pytest.raises(ValueError, match=r"K has skew 2\.0, which pycolmap's PINHOLE camera"):
+        _sfm_module().run_sfm(images, tmp_path / "model", K=skewed, database_path=database)
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["images"]
