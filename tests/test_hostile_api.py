@@ -477,3 +477,12 @@ def test_run_sfm_refuses_a_skewed_K_before_any_work(tmp_path):
     with pytest.raises(ValueError, match=r"K has skew 2\.0, which pycolmap's PINHOLE camera"):
         _sfm_module().run_sfm(images, tmp_path / "model", K=skewed, database_path=database)
     assert sorted(path.name for path in tmp_path.iterdir()) == ["images"]
+
+
+@pytest.mark.parametrize("shape", [(0, 0), (1, 48, 64, 3), (48, 64, 2), (48, 64, 5), (48,)])
+def test_an_image_array_of_another_shape_is_refused_naming_every_accepted_shape(shape):
+    with pytest.raises(ValueError) as error:
+        ppo_cv.estimate_pair(np.zeros(shape, np.uint8), GREY, K)
+    assert str(error.value) == (
+        f"image1 must be an image of shape (H, W), (H, W, 1), (H, W, 3) or (H, W, 4), got {shape}"
+    )
