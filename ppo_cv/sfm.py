@@ -1119,12 +1119,14 @@ def _staged_file(
 
 
 def format_pairs(pairs: Sequence[PairScore]) -> str:
-    """The ranking as text, one pair a line: names, score, inliers, PRI, angle, verdict."""
+    """The ranking as text, one pair a line: names, score, inliers, PRI, angle, verdict; a
+    name holding whitespace in double quotes, as in a pairs file."""
     lines = ["# name1 name2 score num_inliers num_matches pri tri_angle_deg verdict"]
     for p in pairs:
         verdict = "ok" if p.accepted else p.rejection.replace(" ", "_")
+        name1, name2 = (f'"{n}"' if n.split() != [n] else n for n in (p.name1, p.name2))
         lines.append(
-            f"{p.name1} {p.name2} {p.score:.1f} {p.num_inliers} {p.num_matches} "
+            f"{name1} {name2} {p.score:.1f} {p.num_inliers} {p.num_matches} "
             f"{p.pri:.4f} {p.tri_angle:.2f} {verdict}"
         )
     return "\n".join(lines) + "\n"
@@ -1139,7 +1141,7 @@ def write_model(result: SfmResult, output_dir: str | os.PathLike, overwrite: boo
     with atomic_directory(output_dir, overwrite=overwrite) as staging:
         result.reconstruction.write(staging)
         if result.pairs:
-            (staging / "initial_pairs.txt").write_text(format_pairs(result.pairs))
+            (staging / "initial_pairs.txt").write_text(format_pairs(result.pairs), "utf-8")
 
 
 def pose_errors(reconstruction, gt) -> tuple[list[float], list[float]]:
