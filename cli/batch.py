@@ -99,6 +99,15 @@ def _fields(line: str) -> list[str]:
     return fields
 
 
+def _remedy(parts: list[str]) -> str:
+    """What a line of the wrong number of fields most likely lacks."""
+    try:
+        [float(part) for part in parts[2:]]
+    except ValueError:
+        return "put a name with spaces in double quotes"
+    return "after the names: 0 0, then 9 numbers for K1, 9 for K2 and optionally 16 for T_1to2"
+
+
 def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dict]:
     """Rows of a pairs file: names, intrinsics and, when present, the ground-truth motion.
 
@@ -137,7 +146,7 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
         if len(parts) not in (2, 4, 22, 38):
             raise ValueError(
                 f"{where}: expected 'name1 name2 [0 0 K1(9) K2(9) [T(16)]]', "
-                f"got {len(parts)} fields (put a name with spaces in double quotes)"
+                f"got {len(parts)} fields ({_remedy(parts)})"
             )
         row = {"image1": parts[0], "image2": parts[1], "K1": None, "K2": None, "T": None}
         if cameras is not None:

@@ -301,6 +301,29 @@ def test_a_double_quote_that_does_not_enclose_a_whole_name_is_refused(tmp_path, 
         batch.read_pairs(pairs, K=K_TEXT)
 
 
+_K_FIELDS = "535.4 0 320.1 0 539.2 247.6 0 0 1"
+
+
+@pytest.mark.parametrize(
+    "line, remedy",
+    [
+        ("my photo.png other.png", r"got 3 fields \(put a name with spaces in double quotes\)"),
+        ("a.png b.png 0 0 1", r"got 5 fields \(after the names: 0 0, then 9 numbers for K1"),
+        (f"a.png b.png 0 0 {_K_FIELDS} {_K_FIELDS[:-2]}",
+         r"got 21 fields \(after the names: 0 0, then 9 numbers for K1, 9 for K2 and "
+         r"optionally 16 for T_1to2\)"),
+        (f"a.png b.png 0 0 {_K_FIELDS} {_K_FIELDS} 1 0 0", r"got 25 fields \(after the names"),
+        ("a b.png c.png 0 0", r"got 5 fields \(put a name with spaces in double quotes\)"),
+    ],
+    ids=["space in a name", "one number", "K2 short", "T short", "space and numbers"],
+)
+def test_a_line_of_the_wrong_length_gets_the_remedy_that_fits(tmp_path, line, remedy):
+    pairs = tmp_path / "pairs.txt"
+    pairs.write_text(f"{line}\n")
+    with pytest.raises(ValueError, match=r"pairs\.txt:1: expected .*" + remedy):
+        batch.read_pairs(pairs, K=K_TEXT)
+
+
 def test_output_dash_is_standard_output(tmp_path):
     (tmp_path / "pairs.txt").write_text("absent1.png absent2.png\n")
     (tmp_path / "images").mkdir()
