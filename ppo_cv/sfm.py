@@ -541,7 +541,17 @@ def score_pairs(
     -------
     list of PairScore
         Accepted pairs by decreasing score, then the rejected ones by decreasing inlier count.
+
+    Raises
+    ------
+    ValueError, TypeError
+        For an option that is not a finite number >= 0 (checked first), or a missing database.
     """
+    _check_scoring(
+        {"pri_threshold": pri_threshold, "min_inliers": min_inliers,
+         "min_tri_angle": min_tri_angle, "target_tri_angle": target_tri_angle,
+         "max_forward_motion": max_forward_motion}
+    )  # fmt: skip
     database_path = Path(database_path)
     _require_database(database_path)
     scores = []

@@ -486,3 +486,18 @@ def test_an_image_array_of_another_shape_is_refused_naming_every_accepted_shape(
     assert str(error.value) == (
         f"image1 must be an image of shape (H, W), (H, W, 1), (H, W, 3) or (H, W, 4), got {shape}"
     )
+
+
+@pytest.mark.parametrize(
+    "scoring, error, words",
+    [
+        ({"pri_threshold": -1.0}, ValueError, r"pri_threshold must be a finite number >= 0"),
+        ({"min_inliers": "50"}, TypeError, r"min_inliers must be a number, got str '50'"),
+        ({"min_tri_angle": np.nan}, ValueError, r"min_tri_angle must be a finite number >= 0"),
+        ({"max_forward_motion": -1.0}, ValueError, r"max_forward_motion must be a finite"),
+    ],
+    ids=["negative PRI threshold", "inliers as text", "NaN angle", "negative forward motion"],
+)
+def test_score_pairs_checks_its_options_before_the_database(tmp_path, scoring, error, words):
+    with pytest.raises(error, match=words):
+        _sfm_module().score_pairs(tmp_path / "absent.db", **scoring)
