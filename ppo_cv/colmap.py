@@ -139,7 +139,10 @@ def rays_from_camera(camera: pycolmap.Camera, points: np.ndarray) -> np.ndarray:
 def rigid3d_from_pose(R: Any, t: Any) -> pycolmap.Rigid3d:
     """``cam2_from_cam1`` as a pycolmap ``Rigid3d`` from ``X2 = R X1 + t``."""
     R = as_rotation(R, "R")
-    t = np.asarray(t, dtype=np.float64).reshape(-1)
+    try:
+        t = np.asarray(t, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise TypeError(f"t must be three numbers, got {type(t).__name__} {t!r}") from None
     if t.shape != (3,):
         raise ValueError(f"t must be of length 3, got shape {t.shape}")
     require_finite(t, "t")

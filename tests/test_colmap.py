@@ -277,6 +277,8 @@ _SIX = [[i, i] for i in range(6)]
         (lambda cam: colmap.camera_from_K(K, 640, np.nan), ValueError, r"height must be a whole"),
         (lambda cam: colmap.rigid3d_from_pose(np.eye(3), [np.nan, 0, 1]), ValueError,
          r"t has 1 NaN or infinite"),
+        (lambda cam: colmap.rigid3d_from_pose(np.eye(3), "abc"), TypeError,
+         r"t must be three numbers, got str 'abc'"),
         (lambda cam: colmap.recover_pose_from_geometry(
             _geometry([*_SIX, [2, 50]]), cam, _KEYPOINTS, cam, _KEYPOINTS), ValueError,
          r"inlier_matches index keypoint 50 of image 2, which has 10 keypoints"),
@@ -287,8 +289,8 @@ _SIX = [[i, i] for i in range(6)]
             _geometry(_SIX), cam, _KEYPOINTS[:, 0], cam, _KEYPOINTS), ValueError,
          r"keypoints1 must have shape \(M, >=2\), got \(10,\)"),
     ],
-    ids=["width text", "width fraction", "height NaN", "t NaN", "match beyond keypoints 2",
-         "match beyond keypoints 1", "keypoints of one column"],
+    ids=["width text", "width fraction", "height NaN", "t NaN", "t text",
+         "match beyond keypoints 2", "match beyond keypoints 1", "keypoints of one column"],
 )
 def test_hostile_arguments_are_errors_naming_them(camera, call, error, words):
     with pytest.raises(error, match=words):
