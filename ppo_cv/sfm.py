@@ -76,6 +76,7 @@ __all__ = [
     "run_sfm",
     "list_images",
     "screen_images",
+    "require_two_images",
     "format_pairs",
     "write_model",
     "pose_errors",
@@ -273,6 +274,17 @@ def screen_images(image_dir: str | os.PathLike) -> tuple[list[str], dict[str, st
     return kept, skipped
 
 
+def require_two_images(
+    image_dir: str | os.PathLike, names: Sequence[str], skipped: dict[str, str]
+) -> None:
+    """ValueError naming the skipped images when :func:`screen_images` kept fewer than two."""
+    if len(names) < 2:
+        refused = f" ({len(skipped)} skipped: {', '.join(skipped)})" if skipped else ""
+        raise ValueError(
+            f"need at least 2 images in {str(image_dir)!r}, found {len(names)}{refused}"
+        )
+
+
 def _pycolmap_options(K: np.ndarray | None, max_num_features: int, num_threads: int, seed: int):
     """pycolmap's reader (a ``PINHOLE`` camera of ``K`` when given), extraction, matching and
     verification options of :func:`prepare_database`, on the CPU."""
@@ -353,11 +365,7 @@ def prepare_database(
         if K[0, 1] != 0:
             raise ValueError(f"K has skew {K[0, 1]}, which pycolmap's PINHOLE camera cannot hold")
     names, skipped = screen_images(image_dir)
-    if len(names) < 2:
-        refused = f" ({len(skipped)} skipped: {', '.join(skipped)})" if skipped else ""
-        raise ValueError(
-            f"need at least 2 images in {str(image_dir)!r}, found {len(names)}{refused}"
-        )
+    require_two_images(image_dir, names, skipped)
     database_path = Path(database_path)
     if database_path.exists():
         raise ValueError(f"database {str(database_path)!r} already exists")

@@ -93,6 +93,9 @@ def _workspace(root: Path) -> None:
     os.link(root / "images" / "demo1.png", root / "twin.png")  # a second name of an input
     _images(root)
     shutil.copy(root / "small.png", root / "images")
+    (root / "broken").mkdir()  # one readable image beside a truncated one
+    shutil.copy(DEMO1, root / "broken")
+    shutil.copy(root / "trunc.png", root / "broken")
     (root / "sizes.txt").write_text(
         f"{Path(DEMO1).name} {Path(DEMO2).name}\nsmall.png {Path(DEMO2).name}\n"
     )
@@ -401,6 +404,13 @@ CASES = [
         "sfm",
         r"K has skew 2\.0, which pycolmap's PINHOLE camera cannot hold",
     ),
+    # too few readable images: one line naming the skipped ones, no warning before it
+    *[
+        (["sfm", "broken", "out", *k], "sfm",
+         r"need at least 2 images in 'broken', found 1 \(1 skipped: trunc\.png\)")
+        for k in (["--K", K_TEXT], [])
+    ],
+    (["sfm", "broken", "out", "--K", "1,2"], "sfm", r"--K must be 4 numbers fx,fy,cx,cy"),
     # '-' is standard output, which cannot hold a folder (no folder named '-' appears)
     ([*PAIR, "--out", "-"], "pair", r"--out takes a folder, not '-' \(standard output\)"),
 ]
