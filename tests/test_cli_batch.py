@@ -190,6 +190,8 @@ def test_sfm_passes_its_options_on(monkeypatch, tmp_path):
     monkeypatch.setattr(sfm, "run_sfm", fake_run_sfm)
     images = tmp_path / "images"
     images.mkdir()
+    for name in (NAME1, NAME2):
+        (images / name).write_bytes((DATA / name).read_bytes())
     args = ["sfm", str(images), str(tmp_path / "model"), "--pri-threshold", "0.03", "--seed", "7"]
     run = CliRunner().invoke(app, [*args, "--quiet"])
     assert run.exit_code == 2 and "ppo-cv sfm: stopped here" in run.stderr
