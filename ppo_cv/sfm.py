@@ -274,12 +274,19 @@ def screen_images(image_dir: str | os.PathLike) -> tuple[list[str], dict[str, st
     return kept, skipped
 
 
+MAX_NAMED_SKIPS = 3
+"""Skipped images whose reason the error for too few images gives."""
+
+
 def require_two_images(
     image_dir: str | os.PathLike, names: Sequence[str], skipped: dict[str, str]
 ) -> None:
-    """ValueError naming the skipped images when :func:`screen_images` kept fewer than two."""
+    """ValueError when :func:`screen_images` kept fewer than two images, giving why the first
+    :data:`MAX_NAMED_SKIPS` skipped ones were skipped."""
     if len(names) < 2:
-        refused = f" ({len(skipped)} skipped: {', '.join(skipped)})" if skipped else ""
+        reasons = list(skipped.values())[:MAX_NAMED_SKIPS]
+        more = f"; {len(skipped) - len(reasons)} more" if len(skipped) > len(reasons) else ""
+        refused = f" ({len(skipped)} skipped: {'; '.join(reasons)}{more})" if skipped else ""
         raise ValueError(
             f"need at least 2 images in {str(image_dir)!r}, found {len(names)}{refused}"
         )

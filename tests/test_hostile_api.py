@@ -501,3 +501,13 @@ def test_an_image_array_of_another_shape_is_refused_naming_every_accepted_shape(
 def test_score_pairs_checks_its_options_before_the_database(tmp_path, scoring, error, words):
     with pytest.raises(error, match=words):
         _sfm_module().score_pairs(tmp_path / "absent.db", **scoring)
+
+
+def test_too_few_images_gives_the_first_reasons_and_counts_the_rest():
+    skipped = {f"{i}.png": f"not a readable image: d/{i}.png" for i in range(5)}
+    with pytest.raises(ValueError) as error:
+        _sfm_module().require_two_images("d", ["a.png"], skipped)
+    assert str(error.value) == (
+        "need at least 2 images in 'd', found 1 (5 skipped: not a readable image: d/0.png; "
+        "not a readable image: d/1.png; not a readable image: d/2.png; 2 more)"
+    )
