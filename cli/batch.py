@@ -81,19 +81,34 @@ PAIRS_FILE_FORMAT = (
     "Names are relative to IMAGE_DIR; a name with spaces goes in double quotes; '#' starts a "
     "comment, on its own line or after the fields."
 )
-_FIELD = re.compile(r'"([^"]*)"|(\S+)')
+_FIELD = re.compile(r'\s*(?:"([^"]*)"|([^\s"]+))(?=\s|$)')
 
 
 def _fields(line: str) -> list[str]:
     """The fields of a pairs-file line: separated by whitespace, a double-quoted name kept
-    whole, a field starting with '#' ending the line."""
-    fields = []
-    for match in _FIELD.finditer(line):
+    whole, a field starting with '#' ending the line; ValueError for a double quote that does
+    not enclose a whole field."""
+    fields, position = [], 0
+    while line[position:].strip() and not line[position:].lstrip().startswith("#"):
+        match = _FIELD.match(line, position)
+        if match is None:
+            rest = line[position:].strip()
+            raise ValueError(
+                f"a double quote is not closed or does not enclose a whole name: {rest!r}"
+            )
         quoted, plain = match.groups()
-        if plain is not None and plain.startswith("#"):
-            break
         fields.append(plain if quoted is None else quoted)
+        position = match.end()
     return fields
+
+
+def _remedy(parts: list[str]) -> str:
+    """What a line of the wrong number of fields most likely lacks."""
+    try:
+        [float(part) for part in parts[2:]]
+    except ValueError:
+        return "put a name with spaces in double quotes"
+    return "after the names: 0 0, then 9 numbers for K1, 9 for K2 and optionally 16 for T_1to2"
 
 
 def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dict]:
@@ -124,14 +139,17 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
         raise ValueError(f"cannot read pairs file {pairs_file}: {exc}") from None
     rows, first_gt = [], None
     for number, line in enumerate(text.splitlines(), 1):
-        parts = _fields(line)
+        where = f"{pairs_file}:{number}"
+        try:
+            parts = _fields(line)
+        except ValueError as exc:
+            raise ValueError(f"{where}: {exc}") from None
         if not parts:
             continue
-        where = f"{pairs_file}:{number}"
         if len(parts) not in (2, 4, 22, 38):
             raise ValueError(
                 f"{where}: expected 'name1 name2 [0 0 K1(9) K2(9) [T(16)]]', "
-                f"got {len(parts)} fields (put a name with spaces in double quotes)"
+                f"got {len(parts)} fields ({_remedy(parts)})"
             )
         row = {"image1": parts[0], "image2": parts[1], "K1": None, "K2": None, "T": None}
         if cameras is not None:

@@ -68,7 +68,7 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def _usage_error(exc: Exception) -> int:
+def _usage_error(exc: Exception, argv: list[str] | None) -> int:
     """Print a command-line parsing error as one line; returns the exit code."""
     import typer
 
@@ -76,7 +76,7 @@ def _usage_error(exc: Exception) -> int:
     if type(exc).__name__ == "NoArgsIsHelpError" and ctx is not None:
         typer.echo(ctx.get_help(), err=True)
         return 2
-    command = ctx.command_path if ctx is not None else "ppo-cv"
+    command = ctx.command_path if ctx is not None else _command(argv)
     typer.echo(f"{command}: {exc.format_message()}", err=True)
     return getattr(exc, "exit_code", 2)
 
@@ -120,7 +120,7 @@ def _run(argv: list[str] | None) -> int:
             return 130
         if not hasattr(exc, "format_message"):
             raise
-        return _usage_error(exc)
+        return _usage_error(exc, argv)
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -388,6 +388,17 @@ def _check_cameras(cameras, images, names, turned, command) -> None:
             return
 
 
+def _check_colmap_cameras(cameras) -> None:
+    """Before the run: ValueError when ``--out``'s COLMAP model cannot hold a camera."""
+    from ppo_cv.export import check_colmap_camera
+
+    try:
+        check_colmap_camera(cameras.K1, cameras.dist1, "camera 1")
+        check_colmap_camera(cameras.K2, cameras.dist2, "camera 2")
+    except ValueError as exc:
+        raise ValueError(f"--out: {exc}; run without --out") from None
+
+
 def _run_pair(
     image1, image2, K, K2, dist, dist2, calib, as_json, out, options, note=None, reference=None,
     overwrite=False, command="pair", exif_orientation=True, quiet=False,
@@ -423,6 +434,8 @@ def _run_pair(
             turned = [exif_orientation and exif_layout(i).turned for i in (image1, image2)]
             _check_cameras(cameras, (img1, img2), sources, turned, command)
         d1, d2 = cameras.dist1, cameras.dist2
+        if out is not None:
+            _check_colmap_cameras(cameras)
         with StageReport(command, quiet) as report:
             result = estimate_pair(
                 img1, img2, cameras.K1, cameras.K2, d1, d2, options=options,
@@ -476,7 +489,8 @@ def register(app: typer.Typer) -> None:
         K: KOption = None,
         K2: K2Option = None,
         dist: Annotated[
-            str | None, typer.Option("--dist", help="Distortion k1,k2,p1,p2[,k3].")
+            str | None,
+            typer.Option("--dist", help="Distortion k1,k2,p1,p2[,k3] (or OpenCV's 8, 12 or 14)."),
         ] = None,
         dist2: Annotated[
             str | None, typer.Option("--dist2", help="Distortion of camera 2 (default: --dist).")

@@ -89,10 +89,12 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
         if database.exists():
             raise ValueError(f"database {database} already exists; give a new file name")
         check_target(database, "file")
+    matrix = None if K is None else parse_K(K)
     names, skipped = sfm.screen_images(image_dir)
+    sfm.require_two_images(image_dir, names, skipped)
     for reason in skipped.values():
         warn("sfm", f"skipping an image: {reason}")
-    if K is None:
+    if matrix is None:
         warn(
             "sfm",
             "no intrinsics given: pycolmap guesses the focal length from EXIF or the image "
@@ -100,7 +102,6 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
         )
         _exif_warnings(Path(image_dir), names, exif_orientation)
         return None
-    matrix = parse_K(K)
     if names:
         size, turned = _stored_size(Path(image_dir) / names[0], exif_orientation)
         doubt = implausible_intrinsics(matrix, size, exif_turned=turned)

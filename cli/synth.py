@@ -69,8 +69,8 @@ def _check(out_dir: Path, pairs: int, seed: int, motion: str | None, scene: str 
         _fail(f"--noise must be in [0, {MAX_NOISE:g}], got {noise}")
     if blur is not None and not 0.0 <= blur <= MAX_BLUR:
         _fail(f"--blur must be in [0, {MAX_BLUR:g}], got {blur}")
-    if workers is not None and not 1 <= workers <= 256:
-        _fail(f"--workers must be in 1..256, got {workers}")
+    if workers is not None and not 0 <= workers <= 256:
+        _fail(f"--workers must be in 0..256, got {workers}")
     if warp:
         if motion not in (None, "panorama"):
             _fail(f"--warp makes tripod pans (--motion panorama), not {motion!r}")
@@ -232,8 +232,8 @@ def register(app: typer.Typer) -> None:
         workers: Annotated[
             int | None,
             typer.Option(
-                help="Worker processes (default: CPUs); never more than the CPUs this process "
-                "may use or --pairs."
+                help="Worker processes (0 or none: one per CPU); never more than the CPUs this "
+                "process may use or --pairs."
             ),
         ] = None,
         overwrite: Annotated[
@@ -278,7 +278,7 @@ def register(app: typer.Typer) -> None:
                     make_dataset(  # its own staging folder lands inside ours
                         staging / "render", pairs=pairs, motion=motion, seed=seed, size=size,
                         scene=scene, alpha=alpha, supersample=supersample,
-                        same_intrinsics=not different_k, workers=workers,
+                        same_intrinsics=not different_k, workers=workers or None,
                         baseline_ratio=baseline_ratio, imperfections=imperfections,
                         source="warp" if warp else "render", warp_source=warp_source,
                         pivot_offset=pivot_offset,

@@ -22,6 +22,7 @@ __all__ = [
     "as_number",
     "as_whole_number",
     "as_flag",
+    "require_finite",
     "MAX_COORDINATE",
     "MIN_FOCAL",
     "MAX_FOCAL",
@@ -53,7 +54,8 @@ def _as_real_array(value: Any, name: str) -> np.ndarray:
     return array.astype(np.float64)
 
 
-def _require_finite(array: np.ndarray, name: str) -> None:
+def require_finite(array: np.ndarray, name: str) -> None:
+    """ValueError counting the NaN or infinite entries of ``array``, named ``name``."""
     with np.errstate(over="ignore", invalid="ignore"):  # finite entries may overflow the sum
         if math.isfinite(array.sum()):
             return
@@ -66,7 +68,7 @@ def _require_coordinates(array: np.ndarray, name: str) -> None:
     """Finite entries of magnitude at most :data:`MAX_COORDINATE`."""
     if array.size and -MAX_COORDINATE <= array.min() and array.max() <= MAX_COORDINATE:
         return
-    _require_finite(array, name)
+    require_finite(array, name)
     if array.size:
         largest = float(np.abs(array).max())
         raise ValueError(
@@ -147,7 +149,7 @@ def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
         raise ValueError(f"{name} must be a 3x3 matrix, got shape {K.shape}")
     rows = K.tolist()
     if not math.isfinite(sum(rows[0]) + sum(rows[1]) + sum(rows[2])):
-        _require_finite(K, name)
+        require_finite(K, name)
     (fx, _, _), (k10, fy, _), last = rows
     if max(abs(last[0]), abs(last[1]), abs(last[2] - 1.0), abs(k10)) > 1e-12:
         raise ValueError(
@@ -178,7 +180,7 @@ def as_rotation(value: Any, name: str = "R") -> np.ndarray:
     R = _as_real_array(value, name)
     if R.shape != (3, 3):
         raise ValueError(f"{name} must be a 3x3 rotation matrix, got shape {R.shape}")
-    _require_finite(R, name)
+    require_finite(R, name)
     if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
         raise ValueError(f"{name} is not a rotation matrix (orthonormal, determinant +1)")
     return R
@@ -194,7 +196,7 @@ def as_distortion(value: Any, name: str) -> np.ndarray | None:
             f"{name} must be OpenCV distortion coefficients k1,k2,p1,p2[,k3] (4 or 5 numbers; "
             f"8, 12 or 14 for the rational models), got {coefficients.size}"
         )
-    _require_finite(coefficients, name)
+    require_finite(coefficients, name)
     _require_physical_distortion(coefficients, name)
     return coefficients if coefficients.any() else None
 
@@ -240,7 +242,7 @@ def as_essential(value: Any) -> np.ndarray:
         raise ValueError(f"E must be a 3x3 matrix, got shape {E.shape}")
     entries = E.ravel().tolist()
     if not math.isfinite(sum(entries)):
-        _require_finite(E, "E")
+        require_finite(E, "E")
     largest = max(map(abs, entries))
     if largest == 0:
         raise ValueError("E is all zeros: it defines no pose")

@@ -25,7 +25,14 @@ import numpy as np
 import pycolmap
 
 from . import ppo
-from .checks import as_camera_matrix, as_point_pair, as_rotation
+from .checks import (
+    MAX_WHOLE_NUMBER,
+    as_camera_matrix,
+    as_point_pair,
+    as_rotation,
+    as_whole_number,
+    require_finite,
+)
 from .lsq import cross_matrix
 from .metrics import direction_error_deg
 from .pose import PoseResult, recover_pose
@@ -92,17 +99,18 @@ def camera_from_K(K: Any, width: int, height: int) -> pycolmap.Camera:
     Raises
     ------
     ValueError
-        If ``K`` is not a valid camera matrix, has skew, or the image size is not positive.
+        If ``K`` is not a valid camera matrix or has skew, or the image size is not two whole
+        numbers >= 1 (TypeError when they are no numbers).
     """
     K = as_camera_matrix(K, "K")
     if K[0, 1] != 0:
         raise ValueError(f"K has skew {K[0, 1]}; a COLMAP PINHOLE camera has none")
-    if int(width) <= 0 or int(height) <= 0:
-        raise ValueError(f"image size must be positive, got {width}x{height}")
+    width = as_whole_number(width, "image width", 1, MAX_WHOLE_NUMBER)
+    height = as_whole_number(height, "image height", 1, MAX_WHOLE_NUMBER)
     return pycolmap.Camera(
         model="PINHOLE",
-        width=int(width),
-        height=int(height),
+        width=width,
+        height=height,
         params=[K[0, 0], K[1, 1], K[0, 2], K[1, 2]],
     )
 
@@ -131,9 +139,13 @@ def rays_from_camera(camera: pycolmap.Camera, points: np.ndarray) -> np.ndarray:
 def rigid3d_from_pose(R: Any, t: Any) -> pycolmap.Rigid3d:
     """``cam2_from_cam1`` as a pycolmap ``Rigid3d`` from ``X2 = R X1 + t``."""
     R = as_rotation(R, "R")
-    t = np.asarray(t, dtype=np.float64).reshape(-1)
+    try:
+        t = np.asarray(t, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise TypeError(f"t must be three numbers, got {type(t).__name__} {t!r}") from None
     if t.shape != (3,):
         raise ValueError(f"t must be of length 3, got shape {t.shape}")
+    require_finite(t, "t")
     return pycolmap.Rigid3d(pycolmap.Rotation3d(R), t)
 
 
@@ -247,14 +259,27 @@ def recover_pose_from_geometry(
     """
     matches = np.asarray(geometry.inlier_matches, dtype=np.int64).reshape(-1, 2)
     points1, points2 = as_point_pair(
-        np.asarray(keypoints1, dtype=np.float64)[matches[:, 0], :2],
-        np.asarray(keypoints2, dtype=np.float64)[matches[:, 1], :2],
+        _matched_keypoints(keypoints1, matches[:, 0], 1),
+        _matched_keypoints(keypoints2, matches[:, 1], 2),
     )
     E = geometry.E
     if E is None or not np.any(E):
         E = _essential_by_five_point(camera1, points1, camera2, points2)
     x1, x2 = rays_from_camera(camera1, points1), rays_from_camera(camera2, points2)
     return recover_pose(E, x1, x2, np.eye(3), pri_threshold=pri_threshold)
+
+
+def _matched_keypoints(keypoints: Any, indices: np.ndarray, image: int) -> np.ndarray:
+    """The ``x, y`` of the keypoints of image 1 or 2 that the matches index."""
+    keypoints = np.asarray(keypoints, dtype=np.float64)
+    if keypoints.ndim != 2 or keypoints.shape[1] < 2:
+        raise ValueError(f"keypoints{image} must have shape (M, >=2), got {keypoints.shape}")
+    if indices.size and indices.max() >= len(keypoints):
+        raise ValueError(
+            f"inlier_matches index keypoint {indices.max()} of image {image}, which has "
+            f"{len(keypoints)} keypoints"
+        )
+    return keypoints[indices, :2]
 
 
 def _essential_by_five_point(

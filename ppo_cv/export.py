@@ -39,6 +39,7 @@ __all__ = [
     "matches_to_draw",
     "draw_matches",
     "MAX_DRAWN_MATCHES",
+    "check_colmap_camera",
     "write_colmap_model",
     "write_outputs",
 ]
@@ -418,6 +419,29 @@ def draw_matches(
     return canvas
 
 
+_BEYOND_FULL_OPENCV = {
+    "thin-prism coefficients s1..s4": slice(8, 12),
+    "tilt coefficients tauX, tauY": slice(12, 14),
+}
+
+
+def check_colmap_camera(K: np.ndarray, dist: np.ndarray | None, name: str) -> None:
+    """ValueError naming what COLMAP's camera models cannot hold: a skew in ``K`` or OpenCV's
+    thin-prism and tilt distortion terms (``FULL_OPENCV`` ends at k6)."""
+    if K[0, 1] != 0:
+        raise ValueError(
+            f"{name} has skew {K[0, 1]}, which no COLMAP camera model holds; the COLMAP model "
+            "would describe another camera"
+        )
+    coefficients = np.zeros(0) if dist is None else np.asarray(dist, float).ravel()
+    for terms, where in _BEYOND_FULL_OPENCV.items():
+        if np.any(coefficients[where]):
+            raise ValueError(
+                f"{name} has {terms} {coefficients[where].tolist()}, which no COLMAP camera "
+                "model holds; the COLMAP model would describe another camera"
+            )
+
+
 def _colmap_camera(K: np.ndarray, dist: np.ndarray | None, size: tuple[int, int], camera_id: int):
     import pycolmap
 
@@ -446,12 +470,15 @@ def write_colmap_model(
     Camera 1 is the world frame; camera 2 has pose ``(R, t)`` (``t`` zero for a pure rotation);
     the unit is the baseline. Each point's error is its mean reprojection error over the two
     views in pixels, through the camera models (distortion included), as COLMAP defines it.
-    ``dists`` defaults to the distortion the result was computed with.
+    ``dists`` defaults to the distortion the result was computed with. A camera no COLMAP
+    model holds (:func:`check_colmap_camera`) is a ValueError.
     """
     import pycolmap
 
     cameras = result.cameras
     dists = (cameras.dist1, cameras.dist2) if dists is None else dists
+    check_colmap_camera(cameras.K1, dists[0], "camera 1")
+    check_colmap_camera(cameras.K2, dists[1], "camera 2")
     reconstruction = pycolmap.Reconstruction()
     same = (
         np.allclose(cameras.K1, cameras.K2)
@@ -516,12 +543,16 @@ def write_outputs(
     ``extra`` entries are added to ``result.json``. Everything is written into a temporary
     sibling folder renamed to ``directory`` once complete (:func:`ppo_cv.atomic.atomic_directory`):
     a failure or an interrupt leaves no partial output. An existing non-empty ``directory`` is a
-    ValueError unless ``overwrite``, which replaces it as a whole.
+    ValueError unless ``overwrite``, which replaces it as a whole; so is a camera that the COLMAP
+    model cannot hold (:func:`check_colmap_camera`), before anything is written.
     """
     import cv2
 
     from .atomic import atomic_directory
 
+    dists = (result.cameras.dist1, result.cameras.dist2) if dists is None else dists
+    check_colmap_camera(result.cameras.K1, dists[0], "camera 1")
+    check_colmap_camera(result.cameras.K2, dists[1], "camera 2")
     with atomic_directory(directory, overwrite=overwrite) as staging:
         (staging / "result.json").write_text(
             json.dumps(result_to_dict(result, **(extra or {})), indent=2) + "\n", encoding="utf-8"

@@ -312,7 +312,10 @@ def as_image(image: Any, name: str) -> np.ndarray:
         or array.size == 0
         or (array.ndim == 3 and array.shape[2] not in (1, 3, 4))
     ):
-        raise ValueError(f"{name} must be an image of shape (H, W) or (H, W, 3), got {array.shape}")
+        raise ValueError(
+            f"{name} must be an image of shape (H, W), (H, W, 1), (H, W, 3) or (H, W, 4), got "
+            f"{array.shape}"
+        )
     if array.dtype.kind not in "buif":
         raise TypeError(f"{name} must hold numbers, got dtype {array.dtype}")
     return to_uint8(array, name)

@@ -256,16 +256,19 @@ def _recover_from_points(bound: dict) -> tuple:
     results = [_identify(Ei, points, K_inv, used) for Ei in candidates]
     best = int(np.argmax([np.count_nonzero(inliers) for _, _, inliers in results]))
     retval, R, t, mask = _outputs(*results[best], {**bound, "mask": used})
-    _fill_mask(bound.get("mask"), mask)
-    mask = _out_matrix(bound.get("mask"), mask)
+    mask = _write_mask(bound.get("mask"), mask)
     return retval, _out_matrix(bound.get("E"), candidates[best].copy()), R, t, mask
 
 
-def _fill_mask(buffer: Any, mask: np.ndarray) -> None:
-    """OpenCV writes the output mask into a caller's 8-bit mask array of the right size."""
-    if isinstance(buffer, np.ndarray) and buffer.dtype == np.uint8 and buffer.size == mask.size:
-        if buffer.flags.writeable and buffer.flags.c_contiguous:
-            buffer.reshape(-1)[...] = mask.reshape(-1)
+def _write_mask(buffer: Any, mask: np.ndarray) -> np.ndarray:
+    """OpenCV writes the (N, 1) output mask into a caller's writable 8-bit array of N entries
+    whatever its shape, and returns that array itself only when it is (N, 1)."""
+    if not (isinstance(buffer, np.ndarray) and buffer.dtype == np.uint8):
+        return mask
+    if buffer.size != mask.size or not (buffer.flags.writeable and buffer.flags.c_contiguous):
+        return mask
+    buffer.reshape(-1)[...] = mask.reshape(-1)
+    return buffer if buffer.shape == mask.shape else mask
 
 
 def _identify(

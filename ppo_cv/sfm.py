@@ -76,6 +76,7 @@ __all__ = [
     "run_sfm",
     "list_images",
     "screen_images",
+    "require_two_images",
     "format_pairs",
     "write_model",
     "pose_errors",
@@ -273,6 +274,24 @@ def screen_images(image_dir: str | os.PathLike) -> tuple[list[str], dict[str, st
     return kept, skipped
 
 
+MAX_NAMED_SKIPS = 3
+"""Skipped images whose reason the error for too few images gives."""
+
+
+def require_two_images(
+    image_dir: str | os.PathLike, names: Sequence[str], skipped: dict[str, str]
+) -> None:
+    """ValueError when :func:`screen_images` kept fewer than two images, giving why the first
+    :data:`MAX_NAMED_SKIPS` skipped ones were skipped."""
+    if len(names) < 2:
+        reasons = list(skipped.values())[:MAX_NAMED_SKIPS]
+        more = f"; {len(skipped) - len(reasons)} more" if len(skipped) > len(reasons) else ""
+        refused = f" ({len(skipped)} skipped: {'; '.join(reasons)}{more})" if skipped else ""
+        raise ValueError(
+            f"need at least 2 images in {str(image_dir)!r}, found {len(names)}{refused}"
+        )
+
+
 def _pycolmap_options(K: np.ndarray | None, max_num_features: int, num_threads: int, seed: int):
     """pycolmap's reader (a ``PINHOLE`` camera of ``K`` when given), extraction, matching and
     verification options of :func:`prepare_database`, on the CPU."""
@@ -344,22 +363,21 @@ def prepare_database(
     Raises
     ------
     ValueError
-        Fewer than two images, images of several sizes with ``K``, or images pycolmap could not
-        read (named).
+        Fewer than two images, images of several sizes with ``K``, a ``K`` with skew, or images
+        pycolmap could not read (named).
     """
     _check_run_numbers(num_threads, seed, max_num_features)
+    if K is not None:
+        K = as_camera_matrix(K, "K")
+        if K[0, 1] != 0:
+            raise ValueError(f"K has skew {K[0, 1]}, which pycolmap's PINHOLE camera cannot hold")
     names, skipped = screen_images(image_dir)
-    if len(names) < 2:
-        refused = f" ({len(skipped)} skipped: {', '.join(skipped)})" if skipped else ""
-        raise ValueError(
-            f"need at least 2 images in {str(image_dir)!r}, found {len(names)}{refused}"
-        )
+    require_two_images(image_dir, names, skipped)
     database_path = Path(database_path)
     if database_path.exists():
         raise ValueError(f"database {str(database_path)!r} already exists")
     if K is not None:
         _check_one_size(image_dir, names)
-        K = as_camera_matrix(K, "K")
     reader, extraction, matching, verification = _pycolmap_options(
         K, max_num_features, num_threads, seed
     )
@@ -538,7 +556,17 @@ def score_pairs(
     -------
     list of PairScore
         Accepted pairs by decreasing score, then the rejected ones by decreasing inlier count.
+
+    Raises
+    ------
+    ValueError, TypeError
+        For an option that is not a finite number >= 0 (checked first), or a missing database.
     """
+    _check_scoring(
+        {"pri_threshold": pri_threshold, "min_inliers": min_inliers,
+         "min_tri_angle": min_tri_angle, "target_tri_angle": target_tri_angle,
+         "max_forward_motion": max_forward_motion}
+    )  # fmt: skip
     database_path = Path(database_path)
     _require_database(database_path)
     scores = []
@@ -1116,12 +1144,14 @@ def _staged_file(
 
 
 def format_pairs(pairs: Sequence[PairScore]) -> str:
-    """The ranking as text, one pair a line: names, score, inliers, PRI, angle, verdict."""
+    """The ranking as text, one pair a line: names, score, inliers, PRI, angle, verdict; a
+    name holding whitespace in double quotes, as in a pairs file."""
     lines = ["# name1 name2 score num_inliers num_matches pri tri_angle_deg verdict"]
     for p in pairs:
         verdict = "ok" if p.accepted else p.rejection.replace(" ", "_")
+        name1, name2 = (f'"{n}"' if n.split() != [n] else n for n in (p.name1, p.name2))
         lines.append(
-            f"{p.name1} {p.name2} {p.score:.1f} {p.num_inliers} {p.num_matches} "
+            f"{name1} {name2} {p.score:.1f} {p.num_inliers} {p.num_matches} "
             f"{p.pri:.4f} {p.tri_angle:.2f} {verdict}"
         )
     return "\n".join(lines) + "\n"
@@ -1136,7 +1166,7 @@ def write_model(result: SfmResult, output_dir: str | os.PathLike, overwrite: boo
     with atomic_directory(output_dir, overwrite=overwrite) as staging:
         result.reconstruction.write(staging)
         if result.pairs:
-            (staging / "initial_pairs.txt").write_text(format_pairs(result.pairs))
+            (staging / "initial_pairs.txt").write_text(format_pairs(result.pairs), "utf-8")
 
 
 def pose_errors(reconstruction, gt) -> tuple[list[float], list[float]]:

@@ -233,6 +233,8 @@ def test_sfm_passes_its_options_on(monkeypatch, tmp_path):
     monkeypatch.setattr(sfm, "run_sfm", fake_run_sfm)
     images = tmp_path / "images"
     images.mkdir()
+    for name in (NAME1, NAME2):
+        (images / name).write_bytes((DATA / name).read_bytes())
     args = ["sfm", str(images), str(tmp_path / "model"), "--pri-threshold", "0.03", "--seed", "7"]
     run = CliRunner().invoke(app, [*args, "--quiet"])
     assert run.exit_code == 2 and "ppo-cv sfm: stopped here" in run.stderr
@@ -330,6 +332,40 @@ def test_a_name_with_unquoted_spaces_is_refused_with_the_remedy(tmp_path):
     pairs = tmp_path / "pairs.txt"
     pairs.write_text("my photo.png other.png\n")
     with pytest.raises(ValueError, match=r"pairs\.txt:1: .*got 3 fields \(put a name with spaces"):
+        batch.read_pairs(pairs, K=K_TEXT)
+
+
+@pytest.mark.parametrize(
+    "line",
+    ['"a.png b.png', 'a.png "b.png', '"a b".png c.png', 'a.png b"c.png', '"a.png" "b.png'],
+)
+def test_a_double_quote_that_does_not_enclose_a_whole_name_is_refused(tmp_path, line):
+    pairs = tmp_path / "pairs.txt"
+    pairs.write_text(f"a.png b.png\n{line}\n")
+    with pytest.raises(ValueError, match=r"pairs\.txt:2: a double quote .* whole name"):
+        batch.read_pairs(pairs, K=K_TEXT)
+
+
+_K_FIELDS = "535.4 0 320.1 0 539.2 247.6 0 0 1"
+
+
+@pytest.mark.parametrize(
+    "line, remedy",
+    [
+        ("my photo.png other.png", r"got 3 fields \(put a name with spaces in double quotes\)"),
+        ("a.png b.png 0 0 1", r"got 5 fields \(after the names: 0 0, then 9 numbers for K1"),
+        (f"a.png b.png 0 0 {_K_FIELDS} {_K_FIELDS[:-2]}",
+         r"got 21 fields \(after the names: 0 0, then 9 numbers for K1, 9 for K2 and "
+         r"optionally 16 for T_1to2\)"),
+        (f"a.png b.png 0 0 {_K_FIELDS} {_K_FIELDS} 1 0 0", r"got 25 fields \(after the names"),
+        ("a b.png c.png 0 0", r"got 5 fields \(put a name with spaces in double quotes\)"),
+    ],
+    ids=["space in a name", "one number", "K2 short", "T short", "space and numbers"],
+)
+def test_a_line_of_the_wrong_length_gets_the_remedy_that_fits(tmp_path, line, remedy):
+    pairs = tmp_path / "pairs.txt"
+    pairs.write_text(f"{line}\n")
+    with pytest.raises(ValueError, match=r"pairs\.txt:1: expected .*" + remedy):
         batch.read_pairs(pairs, K=K_TEXT)
 
 

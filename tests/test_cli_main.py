@@ -19,19 +19,22 @@ def _run(argv, capsys):
 
 
 @pytest.mark.parametrize(
-    "argv, message",
+    "argv, prefix, message",
     [
-        (["bogus"], "No such command 'bogus'"),
-        (["pair", "--no-such-option"], "No such option: --no-such-option"),
-        (["pairs"], "Missing argument"),
-        (["synth", "out", "--pairs", "many"], "Invalid value for '--pairs'"),
+        (["bogus"], "ppo-cv: ", "No such command 'bogus'"),
+        (["pair", "--no-such-option"], "ppo-cv pair: ", "No such option: --no-such-option"),
+        (["pairs"], "ppo-cv pairs: ", "Missing argument"),
+        (["synth", "out", "--pairs", "many"], "ppo-cv synth: ", "Invalid value for '--pairs'"),
+        (["pair", "a.png", "b.png", "--features"], "ppo-cv pair: ",
+         "Option '--features' requires an argument"),
+        (["sfm", "images", "model", "--K"], "ppo-cv sfm: ", "Option '--K' requires an argument"),
     ],
 )
-def test_usage_errors_are_one_line_with_exit_code_2(argv, message, capsys):
+def test_usage_errors_are_one_line_with_exit_code_2(argv, prefix, message, capsys):
     code, out, err = _run(argv, capsys)
     assert code == 2 and out == ""
     assert message in err and len(err.strip().splitlines()) == 1
-    assert err.startswith("ppo-cv")
+    assert err.startswith(prefix), err
 
 
 def test_no_arguments_prints_help_and_exits_2(capsys):

@@ -47,7 +47,7 @@ def test_camera_round_trip(camera):
 def test_camera_rejects_what_pinhole_cannot_hold():
     with pytest.raises(ValueError, match="skew"):
         colmap.camera_from_K([[500, 1, 320], [0, 500, 240], [0, 0, 1]], 640, 480)
-    with pytest.raises(ValueError, match="image size"):
+    with pytest.raises(ValueError, match="image width must be a whole number in 1"):
         colmap.camera_from_K(K, 0, 480)
     with pytest.raises(ValueError, match="3x3"):
         colmap.camera_from_K(np.eye(2), 640, 480)
@@ -257,3 +257,41 @@ def test_two_view_reconstruction_rejects_pure_rotation(camera):
     matches = np.stack([np.arange(50), np.arange(50)], axis=1)
     with pytest.raises(ValueError, match="pure rotation"):
         colmap.two_view_reconstruction(camera, camera, image1, image2, p1, p2, matches, result)
+
+
+def _geometry(matches) -> pycolmap.TwoViewGeometry:
+    geometry = pycolmap.TwoViewGeometry()
+    geometry.inlier_matches = np.asarray(matches, dtype=np.uint32)
+    return geometry
+
+
+_KEYPOINTS = np.random.default_rng(0).uniform(0, 480, (10, 2))
+_SIX = [[i, i] for i in range(6)]
+
+
+@pytest.mark.parametrize(
+    "call, error, words",
+    [
+        (lambda cam: colmap.camera_from_K(K, "640", 480), TypeError, r"width must be a whole"),
+        (lambda cam: colmap.camera_from_K(K, 640.5, 480), ValueError, r"width must be a whole"),
+        (lambda cam: colmap.camera_from_K(K, 640, np.nan), ValueError, r"height must be a whole"),
+        (lambda cam: colmap.rigid3d_from_pose(np.eye(3), [np.nan, 0, 1]), ValueError,
+         r"t has 1 NaN or infinite"),
+        (lambda cam: colmap.rigid3d_from_pose(np.eye(3), "abc"), TypeError,
+         r"t must be three numbers, got str 'abc'"),
+        (lambda cam: colmap.recover_pose_from_geometry(
+            _geometry([*_SIX, [2, 50]]), cam, _KEYPOINTS, cam, _KEYPOINTS), ValueError,
+         r"inlier_matches index keypoint 50 of image 2, which has 10 keypoints"),
+        (lambda cam: colmap.recover_pose_from_geometry(
+            _geometry([*_SIX, [10, 2]]), cam, _KEYPOINTS, cam, _KEYPOINTS), ValueError,
+         r"inlier_matches index keypoint 10 of image 1, which has 10 keypoints"),
+        (lambda cam: colmap.recover_pose_from_geometry(
+            _geometry(_SIX), cam, _KEYPOINTS[:, 0], cam, _KEYPOINTS), ValueError,
+         r"keypoints1 must have shape \(M, >=2\), got \(10,\)"),
+    ],
+    ids=["width text", "width fraction", "height NaN", "t NaN", "t text",
+         "match beyond keypoints 2", "match beyond keypoints 1", "keypoints of one column"],
+)
+def test_hostile_arguments_are_errors_naming_them(camera, call, error, words):
+    with pytest.raises(error, match=words):
+        call(camera)

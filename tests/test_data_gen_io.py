@@ -70,11 +70,12 @@ def test_existing_directory_is_refused(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["full"]
 
 
-def test_cli_writes_a_dataset(tmp_path):
+@pytest.mark.parametrize("workers", ["1", "0"], ids=["one worker", "0: one per CPU, as pairs"])
+def test_cli_writes_a_dataset(tmp_path, workers):
     out = tmp_path / "synth"
     result = CliRunner().invoke(app, ["synth", str(out), "--pairs", "2", "--motion",
                                       "pure-rotation", "--seed", "4", "--width", "160",
-                                      "--height", "120", "--workers", "1"])  # fmt: skip
+                                      "--height", "120", "--workers", workers])  # fmt: skip
     assert result.exit_code == 0, result.output
     records = read_pairs(out / PAIRS_FILE)
     assert len(records) == 2 and all(np.all(r["t"] == 0) for r in records)
@@ -89,6 +90,7 @@ def test_cli_writes_a_dataset(tmp_path):
         (["--alpha", "2"], "--alpha"),
         (["--scene", "garden"], "unknown scene"),
         (["--width", "4"], "--width"),
+        (["--workers", "-1"], "--workers must be in 0..256"),
     ],
 )
 def test_cli_bad_input_exits_2_with_one_line(tmp_path, args, message):

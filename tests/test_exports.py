@@ -13,7 +13,13 @@ from twoview import make_scene, random_rotation, skew
 
 import ppo_cv
 from ppo_cv import colmap
-from ppo_cv.export import MAX_DRAWN_MATCHES, draw_matches, matches_to_draw, write_outputs
+from ppo_cv.export import (
+    MAX_DRAWN_MATCHES,
+    check_colmap_camera,
+    draw_matches,
+    matches_to_draw,
+    write_outputs,
+)
 from ppo_cv.features import Features, detect_features, match_features, unique_pixel_pairs
 from ppo_cv.pipeline import estimate_pair, load_image
 
@@ -205,3 +211,51 @@ def test_colmap_model_keeps_image_names_with_spaces(demo, demo_result, tmp_path,
     assert sorted(image.name for image in model.images.values()) == sorted(names)
     assert (tmp_path / "out" / "colmap" / f"images.{kind}").is_file()
     assert model.num_points3D() == demo_result.num_points
+
+
+def _coefficients(count, **entries):
+    dist = np.zeros(count)
+    for index, value in entries.items():
+        dist[int(index[1:])] = value
+    return dist
+
+
+SKEWED = np.array([[700.0, 4.0, 320.0], [0.0, 700.0, 240.0], [0.0, 0.0, 1.0]])
+
+
+@pytest.mark.parametrize(
+    "K_camera, dist, words",
+    [
+        (SKEWED, None, r"camera 1 has skew 4\.0"),
+        (K, _coefficients(12, i8=0.01), r"thin-prism coefficients s1..s4 \[0\.01, 0\.0, 0"),
+        (K, _coefficients(14, i12=0.002), r"tilt coefficients tauX, tauY \[0\.002, 0\.0\]"),
+    ],
+    ids=["skew", "thin prism", "tilt"],
+)
+def test_a_camera_colmap_cannot_hold_is_refused_and_nothing_written(
+    demo, demo_result, tmp_path, K_camera, dist, words
+):
+    with pytest.raises(ValueError, match=words):
+        check_colmap_camera(K_camera, dist, "camera 1")
+    if K_camera is K:
+        with pytest.raises(ValueError, match=words):
+            write_outputs(tmp_path / "out", demo_result, demo[0], demo[1], dists=(dist, None))
+        assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "dist, model, params",
+    [
+        (None, "PINHOLE", []),
+        (_coefficients(5, i0=0.1, i4=0.01), "FULL_OPENCV", [0.1, 0, 0, 0, 0.01, 0, 0, 0]),
+        (_coefficients(8, i0=0.1, i7=0.02), "FULL_OPENCV", [0.1, 0, 0, 0, 0, 0, 0, 0.02]),
+        (_coefficients(14, i0=0.1, i5=0.03), "FULL_OPENCV", [0.1, 0, 0, 0, 0, 0.03, 0, 0]),
+    ],
+    ids=["none", "5", "8", "14 with zero thin prism and tilt"],
+)
+def test_the_colmap_camera_is_the_camera_used(demo, demo_result, tmp_path, dist, model, params):
+    write_outputs(tmp_path / "out", demo_result, demo[0], demo[1], dists=(dist, None))
+    camera = pycolmap.Reconstruction(str(tmp_path / "out" / "colmap")).cameras[1]
+    K1 = demo_result.cameras.K1
+    assert camera.model_name == model
+    np.testing.assert_allclose(camera.params, [K1[0, 0], K1[1, 1], K1[0, 2], K1[1, 2], *params])

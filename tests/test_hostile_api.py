@@ -320,6 +320,27 @@ def test_the_mask_is_written_in_place_where_opencv_writes_it(form, shape):
     assert set(np.unique(ours[2])) == set(np.unique(opencv[2]))
 
 
+class _CountedWrites(np.ndarray):
+    """An 8-bit mask that counts the assignments into it and into its views."""
+
+    writes = 0
+
+    def __setitem__(self, key, value):
+        type(self).writes += 1
+        super().__setitem__(key, value)
+
+
+@pytest.mark.parametrize("shape", [(40, 1), (1, 40), (40,)])
+def test_the_form_with_points_writes_a_given_mask_once(shape):
+    expected = OPENCV_RECOVER_POSE(P1, P2, K, None, K, None, mask=np.zeros(shape, np.uint8))[4]
+    mask = np.full(shape, 7, np.uint8).view(_CountedWrites)
+    _CountedWrites.writes = 0
+    out = ppo_cv.recoverPose(P1, P2, K, None, K, None, mask=mask)[4]
+    assert _CountedWrites.writes == 1
+    assert (out is mask) == (shape == (40, 1))
+    np.testing.assert_array_equal(np.asarray(mask).reshape(-1, 1), expected)
+
+
 def test_uninstall_restores_what_install_replaced():
     def wrapper(*args, **kwargs):
         return OPENCV_RECOVER_POSE(*args, **kwargs)
@@ -443,3 +464,50 @@ def test_a_camera_of_another_image_size_is_warned_about(scale):
         "the 640x480 image"
     )
     assert doubt.filename == __file__  # points at the caller's line
+
+
+def test_run_sfm_refuses_a_skewed_K_before_any_work(tmp_path):
+    images = tmp_path / "images"
+    images.mkdir()
+    for name in ("demo1.png", "demo2.png"):
+        (images / name).write_bytes((Path(ppo_cv.__file__).parent / "data" / name).read_bytes())
+    skewed = K.copy()
+    skewed[0, 1] = 2.0
+    database = tmp_path / "db.db"
+    with pytest.raises(ValueError, match=r"K has skew 2\.0, which pycolmap's PINHOLE camera"):
+        _sfm_module().run_sfm(images, tmp_path / "model", K=skewed, database_path=database)
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["images"]
+
+
+@pytest.mark.parametrize("shape", [(0, 0), (1, 48, 64, 3), (48, 64, 2), (48, 64, 5), (48,)])
+def test_an_image_array_of_another_shape_is_refused_naming_every_accepted_shape(shape):
+    with pytest.raises(ValueError) as error:
+        ppo_cv.estimate_pair(np.zeros(shape, np.uint8), GREY, K)
+    assert str(error.value) == (
+        f"image1 must be an image of shape (H, W), (H, W, 1), (H, W, 3) or (H, W, 4), got {shape}"
+    )
+
+
+@pytest.mark.parametrize(
+    "scoring, error, words",
+    [
+        ({"pri_threshold": -1.0}, ValueError, r"pri_threshold must be a finite number >= 0"),
+        ({"min_inliers": "50"}, TypeError, r"min_inliers must be a number, got str '50'"),
+        ({"min_tri_angle": np.nan}, ValueError, r"min_tri_angle must be a finite number >= 0"),
+        ({"max_forward_motion": -1.0}, ValueError, r"max_forward_motion must be a finite"),
+    ],
+    ids=["negative PRI threshold", "inliers as text", "NaN angle", "negative forward motion"],
+)
+def test_score_pairs_checks_its_options_before_the_database(tmp_path, scoring, error, words):
+    with pytest.raises(error, match=words):
+        _sfm_module().score_pairs(tmp_path / "absent.db", **scoring)
+
+
+def test_too_few_images_gives_the_first_reasons_and_counts_the_rest():
+    skipped = {f"{i}.png": f"not a readable image: d/{i}.png" for i in range(5)}
+    with pytest.raises(ValueError) as error:
+        _sfm_module().require_two_images("d", ["a.png"], skipped)
+    assert str(error.value) == (
+        "need at least 2 images in 'd', found 1 (5 skipped: not a readable image: d/0.png; "
+        "not a readable image: d/1.png; not a readable image: d/2.png; 2 more)"
+    )

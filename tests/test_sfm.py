@@ -295,3 +295,25 @@ def test_score_pairs_scores_a_planar_pair_with_its_homography_pose(tmp_path):
     R, t = (pair.R, pair.t) if score.name1 == "a.png" else (pair.R.T, -pair.R.T @ pair.t)
     assert rotation_error_deg(score.R, R) < 0.2
     assert direction_error_deg(score.t, t) < 0.5
+
+
+def _pair_named(name1: str, name2: str) -> sfm.PairScore:
+    return sfm.PairScore(1, 2, name1, name2, 40, 38, 0.1, False, 5.0, 38.0, "", np.eye(3),
+                         np.array([1.0, 0.0, 0.0]))  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "names",
+    [("a.png", "b.png"), ("frame one.png", "ünï cödé\t2.png"), ("été.jpg", "x y z.jpg")],
+)
+def test_initial_pairs_text_keeps_names_with_spaces_as_the_pairs_file_does(tmp_path, names):
+    from ppo_cv.cli.batch import _fields
+
+    text = sfm.format_pairs([_pair_named(*names)])
+    line = text.splitlines()[1]
+    assert _fields(line)[:2] == list(names) and len(_fields(line)) == 8
+    model = pycolmap.Reconstruction()
+    result = sfm.SfmResult(model, "ppo", names, (_pair_named(*names),), 2, 0, 0, float("nan"), 1,
+                           0.0)  # fmt: skip
+    sfm.write_model(result, tmp_path / "model")
+    assert (tmp_path / "model" / "initial_pairs.txt").read_bytes() == text.encode("utf-8")
