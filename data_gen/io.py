@@ -182,7 +182,7 @@ def pairs_line(
 def read_pairs(path: str | os.PathLike) -> list[dict]:
     """Parse a pairs file into dicts with keys name1, name2, K1, K2, R, t (float64)."""
     records = []
-    for number, line in enumerate(Path(path).read_text().splitlines(), start=1):
+    for number, line in enumerate(Path(path).read_text(encoding="utf-8-sig").splitlines(), start=1):
         fields = line.split()
         if not fields:
             continue
@@ -237,7 +237,7 @@ def write_pair(pair: RenderedPair, root: str | os.PathLike, name: str) -> str:
         "params": pair.params,
     }
     text = json.dumps(record, indent=1, sort_keys=True, default=_json_default)
-    (root / "gt" / f"{name}.json").write_text(text + "\n")
+    (root / "gt" / f"{name}.json").write_text(text + "\n", encoding="utf-8")
     return pairs_line(image1, image2, pair.K1_given, pair.K2_given, pair.R, pair.t)
 
 
@@ -366,7 +366,7 @@ imperfections, pivot_offset
         else:
             with worker_pool(workers, _init_worker) as pool:
                 lines = pool.map(_job, jobs)
-        (tmp / PAIRS_FILE).write_text("\n".join(lines) + "\n")
+        (tmp / PAIRS_FILE).write_text("\n".join(lines) + "\n", encoding="utf-8")
         tmp.chmod(0o755)
         if out.exists():
             out.rmdir()

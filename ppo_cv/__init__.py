@@ -25,7 +25,15 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     from .calib import Camera, camera_from_exif, load_calibration, parse_intrinsics
     from .export import write_outputs
-    from .opencv_compat import install, installed, is_installed, recoverPose, uninstall
+    from .opencv_compat import (
+        RecoverPoseError,
+        RecoverPoseTypeError,
+        install,
+        installed,
+        is_installed,
+        recoverPose,
+        uninstall,
+    )
     from .pipeline import PairOptions, PairResult, estimate_pair
     from .pose import PoseResult, recover_pose
     from .ppo import DEFAULT_PRI_THRESHOLD
@@ -36,6 +44,8 @@ __all__ = [
     "PairOptions",
     "PairResult",
     "PoseResult",
+    "RecoverPoseError",
+    "RecoverPoseTypeError",
     "camera_from_exif",
     "estimate_pair",
     "install",
@@ -58,6 +68,8 @@ _EXPORTED_FROM = {
     "PairOptions": "pipeline",
     "PairResult": "pipeline",
     "PoseResult": "pose",
+    "RecoverPoseError": "opencv_compat",
+    "RecoverPoseTypeError": "opencv_compat",
     "camera_from_exif": "calib",
     "estimate_pair": "pipeline",
     "install": "opencv_compat",

@@ -156,3 +156,12 @@ def test_distortion_coefficients_of_wrong_length(pair):
     _, p1, p2 = pair
     with pytest.raises(ValueError, match="distortion coefficients"):
         ppo_cv.recoverPose(p1, p2, K, np.zeros(3), K, None)
+
+
+def test_drop_in_errors_are_exported_at_the_top_level(pair):
+    E, p1, p2 = pair
+    with pytest.raises(ppo_cv.RecoverPoseError, match="5 point correspondences"):
+        ppo_cv.recoverPose(E, p1[:4], p2[:4], K)
+    with pytest.raises(ppo_cv.RecoverPoseTypeError):
+        ppo_cv.recoverPose(E, p1, p2, "K")
+    assert issubclass(ppo_cv.RecoverPoseError, ValueError)

@@ -223,3 +223,14 @@ def test_cli_new_options_bad_input_exits_2_with_one_line(tmp_path, args, message
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0] and "Traceback" not in result.output
     assert not out.exists()
+
+
+def test_pairs_file_written_by_an_editor_with_a_byte_order_mark_is_read(tmp_path):
+    out = make_dataset(tmp_path / "set", pairs=1, motion="general", seed=2, size=SMALL, workers=1)
+    text = (out / PAIRS_FILE).read_text(encoding="utf-8")
+    marked = tmp_path / "marked.txt"
+    marked.write_bytes(b"\xef\xbb\xbf" + text.replace(" ", "  ").encode("utf-8"))
+    (record,) = read_pairs(marked)
+    (expected,) = read_pairs(out / PAIRS_FILE)
+    assert record["name1"] == expected["name1"]
+    np.testing.assert_array_equal(record["R"], expected["R"])
