@@ -48,6 +48,8 @@ def test_whole_pair_section_lists_wall_and_cpu_time_and_the_baseline(compare_rep
         "OpenCV pipeline": 0.2,
         "cpu": {"ppo_cv estimate_pair": 0.25, "OpenCV pipeline": 0.19},
         "stages": {"features": 0.08, "matching": 0.004},
+        "stage_cpu": {"features": 0.07, "matching": 0.003},
+        "median_pair": {"index": 4, "cpu": 0.2, "stage_cpu": {"features": 0.06, "matching": 0.005}},
         "pairs": 10,
         "source": "freiburg",
         "machine": {"cpu": "Some CPU", "cores": 2, "load": 1.5, "load_after": 2.25},
@@ -65,5 +67,12 @@ def test_whole_pair_section_lists_wall_and_cpu_time_and_the_baseline(compare_rep
         "| ppo_cv estimate_pair | 0.150 | 0.250 |",
         "| OpenCV pipeline | 0.200 | 0.190 |",
     ]
-    assert "| features | 80.0 | 90.0 |" in lines and "| matching | 4.0 | |" in lines
+    stages = lines.index(
+        "| stage | median wall ms | median CPU ms | CPU ms of the median pair "
+        "| median wall ms, before |"
+    )
+    assert lines[stages + 2 : stages + 4] == [
+        "| features | 80.0 | 70.0 | 60.0 | 90.0 |",
+        "| matching | 4.0 | 3.0 | 5.0 |  |",
+    ]
     assert any("Some CPU, 2 logical cores" in line and "1.50" in line for line in lines)
