@@ -76,3 +76,29 @@ def test_whole_pair_section_lists_wall_and_cpu_time_and_the_baseline(compare_rep
         "| matching | 4.0 | 3.0 | 5.0 |  |",
     ]
     assert any("Some CPU, 2 logical cores" in line and "1.50" in line for line in lines)
+
+
+def test_stage_cpu_covers_every_stage_of_estimate_pair_within_its_total():
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        spec = importlib.util.spec_from_file_location("compare_under_test", SCRIPT)
+        compare = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(compare)
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    import time
+
+    import cv2
+
+    from ppo_cv.data_gen.io import make_pair
+
+    pair = make_pair("general", seed=0, index=0)
+    bgr1, bgr2 = (cv2.cvtColor(image, cv2.COLOR_RGB2BGR) for image in (pair.image1, pair.image2))
+    start = time.process_time()
+    stage_cpu = compare._StageCPU()
+    result = compare.run_ppo_cv(bgr1, bgr2, pair.K1, pair.K2, progress=stage_cpu)
+    total = time.process_time() - start
+    assert result.R is not None
+    assert list(stage_cpu.seconds) == list(result.extra["timings"])
+    assert all(seconds >= 0 for seconds in stage_cpu.seconds.values())
+    assert 0 < stage_cpu.seconds["features"] <= sum(stage_cpu.seconds.values()) <= total
