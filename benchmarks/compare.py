@@ -277,7 +277,7 @@ def _opencv_sift(image1, image2, K1, K2) -> anchors.AnchorResult:
     return anchors.AnchorResult(None, None, 0.0)
 
 
-class _StageCPU:
+class StageCPU:
     """Process CPU seconds (all threads) of each stage of ``estimate_pair``, read as its
     ``progress`` reports a stage's end; a stage that runs twice is summed."""
 
@@ -312,7 +312,7 @@ def pipeline_speed(freiburg: Path | None, n_pairs: int, seed: int, ours_only: bo
     stage_cpu: list[dict[str, float]] = []
     for image1, image2, K1, K2 in images:
         for label, call in calls.items():
-            progress = _StageCPU() if label == ours else None
+            progress = StageCPU() if label == ours else None
             if progress is not None:
                 call = partial(call, progress=progress)
             seconds, cpu_seconds, result = _timed(partial(call, image1, image2, K1, K2))

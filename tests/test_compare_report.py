@@ -95,7 +95,7 @@ def test_stage_cpu_covers_every_stage_of_estimate_pair_within_its_total():
     pair = make_pair("general", seed=0, index=0)
     bgr1, bgr2 = (cv2.cvtColor(image, cv2.COLOR_RGB2BGR) for image in (pair.image1, pair.image2))
     start = time.process_time()
-    stage_cpu = compare._StageCPU()
+    stage_cpu = compare.StageCPU()
     result = compare.run_ppo_cv(bgr1, bgr2, pair.K1, pair.K2, progress=stage_cpu)
     total = time.process_time() - start
     assert result.R is not None
