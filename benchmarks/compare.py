@@ -15,8 +15,10 @@ Sections (each prints its table as it finishes; the report collects them):
    pairs: ppo_cv's flag, pycolmap's configuration and the paper's M3 indicator.
 4. Whole-pipeline time per image pair: ``estimate_pair`` against the OpenCV and pycolmap
    pipelines (features and matching included), one process, one pair at a time: median wall
-   and CPU time (``time.process_time``, summed over threads), the median of each stage of
-   ``estimate_pair``, the processor and its load. ``--only-pipeline`` runs this section alone
+   and CPU time (``time.process_time``, summed over threads), the OpenCV pipeline's SIFT
+   alone, the median wall and CPU time of each stage of ``estimate_pair`` (CPU read through
+   its ``progress`` callback) and the stages of the pair of median CPU time, the processor and
+   its load. ``--only-pipeline`` runs this section alone
    and rewrites the report with the other sections' stored results; ``--baseline DIR`` adds
    the same timing of an earlier version's ``estimate_pair`` (``git worktree add DIR <commit>``
    or ``git archive``).
@@ -34,6 +36,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
+import inspect  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
 import shlex  # noqa: E402
@@ -123,14 +126,16 @@ def _estimate_pair():
     return fn
 
 
-def run_ppo_cv(image1, image2, K1, K2) -> anchors.AnchorResult:
-    """Pose, pure-rotation flag, PRI and M3 (of its inliers) of ``ppo_cv.estimate_pair``."""
+def run_ppo_cv(image1, image2, K1, K2, progress=None) -> anchors.AnchorResult:
+    """Pose, pure-rotation flag, PRI and M3 (of its inliers) of ``ppo_cv.estimate_pair``;
+    ``progress`` is passed on when this version's ``estimate_pair`` takes it."""
     fn = _estimate_pair()
     if fn is None:
         return anchors.AnchorResult(None, None, float("nan"), {"missing": True})
+    reports = progress is not None and "progress" in inspect.signature(fn).parameters
     start = time.perf_counter()
     try:
-        result = fn(image1, image2, K1, K2)
+        result = fn(image1, image2, K1, K2, **({"progress": progress} if reports else {}))
     except Exception as exc:  # a failure is a benchmark outcome: record it, keep going
         return anchors.AnchorResult(None, None, time.perf_counter() - start, {"error": repr(exc)})
     seconds = time.perf_counter() - start
@@ -263,6 +268,29 @@ def _opencv_pipeline(anchor: str, image1, image2, K1, K2):
     return anchors.run_anchor(anchor, anchors.sift_matches(image1, image2), K1, K2)
 
 
+def _opencv_sift(image1, image2, K1, K2) -> anchors.AnchorResult:
+    """The detection of the OpenCV pipeline alone (SIFT of both images, as
+    ``anchors.sift_matches`` runs it): the floor of every pipeline here."""
+    sift = cv2.SIFT_create(4000)
+    for image in (image1, image2):
+        sift.detectAndCompute(cv2.cvtColor(image, cv2.COLOR_BGR2GRAY), None)
+    return anchors.AnchorResult(None, None, 0.0)
+
+
+class StageCPU:
+    """Process CPU seconds (all threads) of each stage of ``estimate_pair``, read as its
+    ``progress`` reports a stage's end; a stage that runs twice is summed."""
+
+    def __init__(self) -> None:
+        self.seconds: dict[str, float] = {}
+        self.clock = time.process_time()
+
+    def __call__(self, stage: str) -> None:
+        now = time.process_time()
+        self.seconds[stage] = self.seconds.get(stage, 0.0) + now - self.clock
+        self.clock = now
+
+
 def pipeline_speed(freiburg: Path | None, n_pairs: int, seed: int, ours_only: bool = False) -> dict:
     """Median wall and CPU time per pair of the three pipelines, features and matching
     included, one pair at a time in this process; the median time of each stage of
@@ -270,25 +298,41 @@ def pipeline_speed(freiburg: Path | None, n_pairs: int, seed: int, ours_only: bo
     images = _pipeline_images(freiburg, n_pairs, seed)
     cv2.setNumThreads(1)
     machine = _machine()
-    calls = {"ppo_cv estimate_pair": run_ppo_cv}
+    ours = "ppo_cv estimate_pair"
+    calls = {ours: run_ppo_cv}
     if not ours_only:
         calls["OpenCV pipeline"] = partial(_opencv_pipeline, "opencv")
         calls["pycolmap pipeline"] = partial(_opencv_pipeline, "pycolmap")
+        calls["OpenCV SIFT alone"] = _opencv_sift
     if _estimate_pair() is None:
-        del calls["ppo_cv estimate_pair"]
+        del calls[ours]
     wall = {label: [] for label in calls}
     cpu = {label: [] for label in calls}
     stages: dict[str, list[float]] = {}
+    stage_cpu: list[dict[str, float]] = []
     for image1, image2, K1, K2 in images:
         for label, call in calls.items():
+            progress = StageCPU() if label == ours else None
+            if progress is not None:
+                call = partial(call, progress=progress)
             seconds, cpu_seconds, result = _timed(partial(call, image1, image2, K1, K2))
             wall[label].append(seconds)
             cpu[label].append(cpu_seconds)
             for stage, value in result.extra.get("timings", {}).items():
                 stages.setdefault(stage, []).append(value)
+            if progress is not None and progress.seconds:
+                stage_cpu.append(progress.seconds)
     out = {label: float(np.median(v)) for label, v in wall.items()}
     out["cpu"] = {label: float(np.median(v)) for label, v in cpu.items()}
     out["stages"] = {stage: float(np.median(v)) for stage, v in stages.items()}
+    if len(stage_cpu) == len(images) and images:
+        out["stage_cpu"] = {
+            stage: float(np.median([one.get(stage, 0.0) for one in stage_cpu]))
+            for stage in out["stages"]
+        }
+        middle = int(np.argsort(cpu[ours])[(len(images) - 1) // 2])
+        out["median_pair"] = {"index": middle, "cpu": float(cpu[ours][middle]),
+                              "stage_cpu": stage_cpu[middle]}  # fmt: skip
     out["pairs"] = len(images)
     out["source"] = "freiburg" if freiburg is not None else "rendered general"
     out["machine"] = {**machine, "load_after": _machine()["load"]}

@@ -28,6 +28,7 @@ __all__ = [
 
 FEATURE_TYPES = ("sift", "orb", "akaze")
 _FLANN_MIN_FEATURES = 12000
+_MATCH_BLOCK_ROWS = 256
 PIXEL_PAIR_RESOLUTION = 0.01
 MIN_IMAGE_SIDE = 16
 _SIFT_CONTRAST = 0.04
@@ -289,40 +290,50 @@ def _knn_opencv(query: np.ndarray, train: np.ndarray, k: int, binary: bool, flan
     return index, distance
 
 
-def _two_nearest_dense(d1: np.ndarray, d2: np.ndarray, block: int = 2048):
+def _two_nearest_dense(d1: np.ndarray, d2: np.ndarray, block: int = _MATCH_BLOCK_ROWS):
     """Exact 2-NN of each row of d1 among d2, and whether each row is the nearest in d1 of its
     nearest in d2 (the first such row when several are).
 
-    Squared Euclidean distances ``|a|^2 + |b|^2 - 2 a.b`` by blocks of matrix products. The
-    mutual test compares each row's nearest distance with its column's minimum, a reduction
-    along rows; numpy's ``argmin`` down the columns of a row-major block is strided and cost
-    more than the matrix product itself.
+    Squared Euclidean distances ``|a|^2 + |b|^2 - 2 a.b`` by blocks of ``block`` rows, each a
+    matrix product into one reused buffer (``2 a`` is exact, so the product of the doubled rows
+    is the doubled product). A block of 256 rows stays in the cache through the passes that
+    follow the product (the sum, two row minima, the column minima), which by blocks of 2048
+    rows cost 1.7 times the product itself (1989 x 2177 freiburg descriptors: 25 ms, 18 ms by
+    256 rows, the same matches). The mutual test compares each row's nearest distance
+    with its column's minimum, a reduction along rows; numpy's ``argmin`` down the columns of a
+    row-major block is strided and cost more than the matrix product itself.
 
     Returns
     -------
     index12 : (N1, 2) int, dist12 : (N1, 2) float, mutual12 : (N1,) bool
     """
-    n1 = len(d1)
+    n1, n2 = len(d1), len(d2)
     sq1 = np.einsum("ij,ij->i", d1, d1)
     sq2 = np.einsum("ij,ij->i", d2, d2)
+    doubled1 = d1 * np.asarray(2, d1.dtype)
+    train = np.ascontiguousarray(d2.T)
+    dtype = np.result_type(d1, d2, np.float32)
     index12 = np.empty((n1, 2), dtype=np.int64)
-    squared12 = np.empty((n1, 2), dtype=np.result_type(d1, d2, np.float32))
-    best21 = np.full(len(d2), np.inf, dtype=squared12.dtype)
+    squared12 = np.empty((n1, 2), dtype=dtype)
+    best21 = np.full(n2, np.inf, dtype=dtype)
+    product_buffer = np.empty((min(block, n1), n2), dtype=np.result_type(d1, d2))
+    dist_buffer = np.empty((min(block, n1), n2), dtype=dtype)
     for start in range(0, n1, block):
         stop = min(start + block, n1)
-        product = d1[start:stop] @ d2.T
-        product *= 2.0
-        dist = sq1[start:stop, None] + sq2[None, :]
+        product, dist = product_buffer[: stop - start], dist_buffer[: stop - start]
+        np.matmul(doubled1[start:stop], train, out=product)
+        np.add(sq1[start:stop, None], sq2[None, :], out=dist)
         dist -= product
-        del product
         block_rows = np.arange(stop - start)
         first = np.argmin(dist, axis=1)  # two row minima: far faster than a partition
         nearest = dist[block_rows, first]
         dist[block_rows, first] = np.inf
         second = np.argmin(dist, axis=1)
-        squared12[start:stop] = np.column_stack([nearest, dist[block_rows, second]])
+        squared12[start:stop, 0] = nearest
+        squared12[start:stop, 1] = dist[block_rows, second]
         dist[block_rows, first] = nearest
-        index12[start:stop] = np.column_stack([first, second])
+        index12[start:stop, 0] = first
+        index12[start:stop, 1] = second
         np.minimum(best21, dist.min(axis=0), out=best21)
     achieves = squared12[:, 0] == best21[index12[:, 0]]
     rows = np.flatnonzero(achieves)

@@ -48,6 +48,8 @@ def test_whole_pair_section_lists_wall_and_cpu_time_and_the_baseline(compare_rep
         "OpenCV pipeline": 0.2,
         "cpu": {"ppo_cv estimate_pair": 0.25, "OpenCV pipeline": 0.19},
         "stages": {"features": 0.08, "matching": 0.004},
+        "stage_cpu": {"features": 0.07, "matching": 0.003},
+        "median_pair": {"index": 4, "cpu": 0.2, "stage_cpu": {"features": 0.06, "matching": 0.005}},
         "pairs": 10,
         "source": "freiburg",
         "machine": {"cpu": "Some CPU", "cores": 2, "load": 1.5, "load_after": 2.25},
@@ -65,5 +67,38 @@ def test_whole_pair_section_lists_wall_and_cpu_time_and_the_baseline(compare_rep
         "| ppo_cv estimate_pair | 0.150 | 0.250 |",
         "| OpenCV pipeline | 0.200 | 0.190 |",
     ]
-    assert "| features | 80.0 | 90.0 |" in lines and "| matching | 4.0 | |" in lines
+    stages = lines.index(
+        "| stage | median wall ms | median CPU ms | CPU ms of the median pair "
+        "| median wall ms, before |"
+    )
+    assert lines[stages + 2 : stages + 4] == [
+        "| features | 80.0 | 70.0 | 60.0 | 90.0 |",
+        "| matching | 4.0 | 3.0 | 5.0 |  |",
+    ]
     assert any("Some CPU, 2 logical cores" in line and "1.50" in line for line in lines)
+
+
+def test_stage_cpu_covers_every_stage_of_estimate_pair_within_its_total():
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        spec = importlib.util.spec_from_file_location("compare_under_test", SCRIPT)
+        compare = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(compare)
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    import time
+
+    import cv2
+
+    from ppo_cv.data_gen.io import make_pair
+
+    pair = make_pair("general", seed=0, index=0)
+    bgr1, bgr2 = (cv2.cvtColor(image, cv2.COLOR_RGB2BGR) for image in (pair.image1, pair.image2))
+    start = time.process_time()
+    stage_cpu = compare.StageCPU()
+    result = compare.run_ppo_cv(bgr1, bgr2, pair.K1, pair.K2, progress=stage_cpu)
+    total = time.process_time() - start
+    assert result.R is not None
+    assert list(stage_cpu.seconds) == list(result.extra["timings"])
+    assert all(seconds >= 0 for seconds in stage_cpu.seconds.values())
+    assert 0 < stage_cpu.seconds["features"] <= sum(stage_cpu.seconds.values()) <= total

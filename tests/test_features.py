@@ -8,7 +8,7 @@ import pytest
 from ppo_cv.features import _two_nearest_dense
 
 
-@pytest.mark.parametrize("block", [7, 2048])
+@pytest.mark.parametrize("block", [7, 256, 2048])
 def test_two_nearest_equal_a_full_sort(block):
     rng = np.random.default_rng(3)
     d1 = rng.random((50, 16)).astype(np.float32)

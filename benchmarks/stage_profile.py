@@ -1,0 +1,194 @@
+"""Where a whole pair's time goes: the CPU time of each stage of ``estimate_pair`` against
+OpenCV's pipeline on the same images.
+
+Run ``python benchmarks/stage_profile.py [--freiburg DIR] [--renders 4] [--json FILE]`` from
+the repository root. For every freiburg pair (``../shared/data/freiburg`` beside the
+repository) and ``--renders`` pairs of each motion preset of ``ppo_cv.data_gen`` (640x480),
+one pair after the other in this process: ``estimate_pair`` with its default options, its
+stages timed in process CPU (all threads) through its ``progress`` callback
+(``compare.StageCPU``), then OpenCV's pipeline of ``compare.py`` section 4 on the same images
+in three parts: its SIFT of both images, SIFT with the 2-NN ratio-test matching
+(``anchors.sift_matches``; matching is the difference) and the pose (``findEssentialMat``
+USAC_MAGSAC + ``recoverPose``). Prints markdown tables: the median CPU per pair of each group of
+freiburg pairs (detected once or again, with or without the tracks the rotation choice aligns)
+and of the renders, with the median stages; each stage's share of the CPU summed over the
+freiburg pairs; the stages of the freiburg pair of median CPU. About 10 minutes on 2 cores.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import anchors  # noqa: E402
+import compare  # noqa: E402
+
+from ppo_cv.pipeline import estimate_pair  # noqa: E402
+
+STAGES = ("features", "matching", "ransac", "model", "photometric", "decision")
+TRACKS_CPU = 0.15
+"""Decision-plus-photometric CPU (s) above which a pair counts as aligning tracks: without
+them those stages take 10-70 ms, with them 0.25 s and more."""
+
+
+def _cpu(fn) -> float:
+    start = time.process_time()
+    fn()
+    return time.process_time() - start
+
+
+def profile_pair(image1, image2, K1, K2) -> dict:
+    """CPU per stage of ``estimate_pair`` and of OpenCV's pipeline on one pair of BGR images."""
+    stage_cpu = compare.StageCPU()
+    reported: list[str] = []
+
+    def progress(stage: str) -> None:
+        stage_cpu(stage)
+        reported.append(stage)
+
+    start = time.process_time()
+    stage_cpu.clock = start
+    try:
+        result = estimate_pair(image1, image2, K1, K2, progress=progress)
+        model = result.model
+    except ValueError:
+        model = None
+    row = {"cpu": time.process_time() - start, "stages": stage_cpu.seconds, "model": model}
+    row["detected_again"] = reported.count("features") > 1
+    row["tracks"] = (
+        stage_cpu.seconds.get("decision", 0.0) + stage_cpu.seconds.get("photometric", 0.0)
+        > TRACKS_CPU
+    )
+    sift = _cpu(lambda: compare._opencv_sift(image1, image2, K1, K2))
+    holder = {}
+    with_matching = _cpu(lambda: holder.setdefault("m", anchors.sift_matches(image1, image2)))
+    pose = _cpu(lambda: anchors.run_anchor("opencv", holder["m"], K1, K2))
+    row["opencv"] = {
+        "features": sift, "matching": max(with_matching - sift, 0.0), "pose": pose,
+        "cpu": with_matching + pose,
+    }  # fmt: skip
+    return row
+
+
+def _freiburg(folder: Path):
+    for pair in anchors.read_pairs_file(folder / "pairs_with_gt.txt"):
+        read = (cv2.imread(str(folder / "images" / pair[key])) for key in ("name1", "name2"))
+        yield f"{pair['name1']} {pair['name2']}", (*read, pair["K1"], pair["K2"])
+
+
+def _renders(per_preset: int):
+    from ppo_cv.data_gen.io import make_pair
+
+    for motion in compare.MOTIONS:
+        for index in range(per_preset):
+            pair = make_pair(motion, seed=0, index=index)
+            bgr = (cv2.cvtColor(image, cv2.COLOR_RGB2BGR) for image in (pair.image1, pair.image2))
+            yield f"{motion} {index}", (*bgr, pair.K1, pair.K2)
+
+
+def _group(row: dict) -> str:
+    again = "detected again" if row["detected_again"] else "detected once"
+    return again + (", tracks" if row["tracks"] else "")
+
+
+def _summary_row(label: str, rows: list[dict]) -> str:
+    ours = np.median([r["cpu"] for r in rows])
+    opencv = np.median([r["opencv"]["cpu"] for r in rows])
+    stages = [np.median([r["stages"].get(s, 0.0) for r in rows]) * 1e3 for s in STAGES]
+    cells = " | ".join(f"{v:.0f}" for v in stages)
+    return f"| {label} ({len(rows)}) | {ours:.3f} | {opencv:.3f} | {cells} |"
+
+
+def report(freiburg_rows: list[dict], render_rows: list[dict]) -> list[str]:
+    """Markdown tables of the profiled pairs."""
+    lines = [
+        "| pairs | estimate_pair CPU s | OpenCV pipeline CPU s | "
+        + " | ".join(f"{s} ms" for s in STAGES)
+        + " |",
+        "|---|" + "---:|" * (2 + len(STAGES)),
+    ]
+    groups: dict[str, list[dict]] = {}
+    for row in freiburg_rows:
+        groups.setdefault(_group(row), []).append(row)
+    for label in sorted(groups):
+        lines.append(_summary_row(f"freiburg, {label}", groups[label]))
+    if freiburg_rows:
+        lines.append(_summary_row("freiburg, all", freiburg_rows))
+    if render_rows:
+        lines.append(_summary_row("renders, all", render_rows))
+    for name, rows in (("freiburg", freiburg_rows), ("renders", render_rows)):
+        if not rows:
+            continue
+        opencv = {
+            part: np.median([r["opencv"][part] for r in rows]) * 1e3
+            for part in ("features", "matching", "pose")
+        }
+        lines += ["", f"OpenCV's pipeline on the {name} pairs, median ms: "
+                  + ", ".join(f"{k} {v:.0f}" for k, v in opencv.items())]  # fmt: skip
+    if freiburg_rows:
+        total = sum(sum(r["stages"].values()) for r in freiburg_rows)
+        shares = {
+            s: sum(r["stages"].get(s, 0.0) for r in freiburg_rows) / total for s in STAGES
+        }
+        lines += ["", "Share of the CPU summed over the freiburg pairs: "
+                  + ", ".join(f"{s} {100 * v:.0f} %" for s, v in shares.items())]  # fmt: skip
+        order = np.argsort([r["cpu"] for r in freiburg_rows])
+        middle = freiburg_rows[int(order[(len(order) - 1) // 2])]
+        lines += [
+            "",
+            f"The freiburg pair of median CPU, {middle['name']} ({middle['cpu']:.3f} s, "
+            f"{_group(middle)}): "
+            + ", ".join(f"{s} {v * 1e3:.0f} ms" for s, v in middle["stages"].items() if v > 5e-4)
+            + "; OpenCV's pipeline "
+            + ", ".join(f"{k} {middle['opencv'][k] * 1e3:.0f} ms"
+                        for k in ("features", "matching", "pose")),  # fmt: skip
+        ]
+    return lines
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--freiburg", type=Path, default=compare.FREIBURG)
+    parser.add_argument("--renders", type=int, default=4, help="pairs per motion preset")
+    parser.add_argument("--json", type=Path, help="also write the rows here")
+    args = parser.parse_args(argv)
+    cv2.setNumThreads(1)
+    machine = compare._machine()
+    sources = []
+    if (args.freiburg / "pairs_with_gt.txt").is_file():
+        sources.append(("freiburg", _freiburg(args.freiburg)))
+    else:
+        print(f"no freiburg pairs in {args.freiburg}: rendered pairs only", file=sys.stderr)
+    sources.append(("renders", _renders(args.renders)))
+    rows: dict[str, list[dict]] = {"freiburg": [], "renders": []}
+    for source, pairs in sources:
+        for name, images in pairs:
+            row = {"name": name, **profile_pair(*images)}
+            rows[source].append(row)
+            print(f"{name}: {row['cpu']:.3f} s, OpenCV {row['opencv']['cpu']:.3f} s",
+                  file=sys.stderr, flush=True)  # fmt: skip
+    machine["load_after"] = compare._machine()["load"]
+    print(
+        f"{machine['cpu']}, {machine['cores']} logical cores, 1-minute load average "
+        f"{machine['load']:.2f} at the start and {machine['load_after']:.2f} at the end\n"
+    )
+    print("\n".join(report(rows["freiburg"], rows["renders"])))
+    if args.json is not None:
+        args.json.write_text(json.dumps({"machine": machine, **rows}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
