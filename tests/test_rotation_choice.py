@@ -218,9 +218,11 @@ def test_translating_renders_keep_the_moving_model(seed, baseline, chosen, monke
     result, estimates = _estimates_of(pair, monkeypatch)
     assert not result.pure_rotation and result.rotation_source == chosen
     assert np.allclose(result.R, estimates[chosen].R)
-    assert result.uncertainty.rotation_bias_deg == 0.0
+    # a translation measured well holds the rotation wherever the lens term goes
+    assert result.uncertainty.rotation_bias_deg == estimates[chosen].bias_deg < 0.05
     # weighed with the deviation it reports, the given intrinsics' errors counted
-    assert estimates[chosen].sigma_deg == result.uncertainty.rotation_sigma_deg
+    assert estimates[chosen].rms_error_deg == result.uncertainty.rotation_sigma_deg
+    assert estimates[chosen].sigma_deg <= result.uncertainty.rotation_sigma_deg
     error = rotation_error_deg(result.R, pair.R)
     assert error < 0.1 and error < rotation_error_deg(estimates["rotation"].R, pair.R)
 
