@@ -938,8 +938,9 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     rotation's own; otherwise the moving model's, with the deviation it reports (the given
     intrinsics' errors counted, as the rotation-only fit's lens priors count them) and its
     bias (:func:`_moving_estimate`), or the rotation-only fit's, whose bias is then measured
-    on intensity-aligned tracks when the fit's deviation is below the moving model's expected
-    error, and on the feature matches when no tracks were aligned."""
+    on intensity-aligned tracks, searched over the fit's own deviation, when that deviation is
+    below the moving model's expected error, and on the feature matches when no tracks were
+    aligned."""
     motion = state.motion
     if motion.pure_rotation:
         return RotationEstimate("rotation", part.R, 0.0, part.rotation_sigma_deg)
@@ -949,11 +950,11 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     if (
         state.tracks is None
         and state.options.photometric
-        and rotation_only.sigma_deg < moving.expected_error_deg
+        and rotation_only.fit_sigma_deg < moving.expected_error_deg
     ):
         tracks = _align_tracks(
             state.inputs, motion, state.priors, keep_clipped=True,
-            sigma_deg=rotation_only.sigma_deg,
+            sigma_deg=rotation_only.fit_sigma_deg,
         )  # fmt: skip
         rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used)
     return choose_rotation([moving, rotation_only])

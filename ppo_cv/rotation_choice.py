@@ -139,6 +139,12 @@ class RotationEstimate:
             )
 
     @property
+    def fit_sigma_deg(self) -> float:
+        """Deviation (degrees) of the estimate itself: ``sigma_deg`` without that of the
+        measured bias."""
+        return float(np.sqrt(max(self.sigma_deg**2 - self.bias_sigma_deg**2, 0.0)))
+
+    @property
     def rms_error_deg(self) -> float:
         """Root-mean-square error (degrees): ``sigma_deg`` with the bias's square, the
         measured ``bias_deg`` squared less its variance (an unbiased estimate of the true
