@@ -131,6 +131,7 @@ from .rotation_choice import (
     RotationEstimate,
     choose_rotation,
     focal_bias_deg,
+    released_lens_shift_deg,
     rotation_only_estimate,
     rotation_only_fit,
     translation_bias,
@@ -935,27 +936,42 @@ its pose, points and uncertainty (stage ``decision``)."""
 def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     """The rotation with the smallest expected error (:func:`choose_rotation`): a pure
     rotation's own; otherwise the moving model's, with the deviation it reports (the given
-    intrinsics' errors counted, as the rotation-only fit's lens priors count them), or the
-    rotation-only fit's, whose bias is then measured on intensity-aligned tracks when the fit
-    is the better determined of the two."""
+    intrinsics' errors counted, as the rotation-only fit's lens priors count them) and its
+    bias (:func:`_moving_estimate`), or the rotation-only fit's, whose bias is then measured
+    on intensity-aligned tracks, searched over the fit's own deviation, when that deviation is
+    below the moving model's expected error, and on the feature matches when no tracks were
+    aligned."""
     motion = state.motion
     if motion.pure_rotation:
         return RotationEstimate("rotation", part.R, 0.0, part.rotation_sigma_deg)
-    source = "plane" if motion.model == "plane" else "essential"
-    moving = RotationEstimate(source, part.R, 0.0, part.rotation_sigma_deg)
     x1, x2, used = state.found.x1, state.found.x2, state.pose.inliers | motion.rotation_inliers
+    moving = _moving_estimate(state, part)
     rotation_only = rotation_only_estimate(motion, state.tracks, x1, x2, used)
     if (
         state.tracks is None
         and state.options.photometric
-        and rotation_only.sigma_deg < moving.sigma_deg
+        and rotation_only.fit_sigma_deg < moving.expected_error_deg
     ):
         tracks = _align_tracks(
             state.inputs, motion, state.priors, keep_clipped=True,
-            sigma_deg=rotation_only.sigma_deg,
+            sigma_deg=rotation_only.fit_sigma_deg,
         )  # fmt: skip
         rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used)
     return choose_rotation([moving, rotation_only])
+
+
+def _moving_estimate(state: _Finishing, part: _ModelPart) -> RotationEstimate:
+    """The moving model's rotation with the deviation it reports; the essential matrix's
+    biased by the move of its rotation when its lens term is fitted anew
+    (:func:`~ppo_cv.rotation_choice.released_lens_shift_deg`)."""
+    if state.motion.model == "plane":
+        return RotationEstimate("plane", part.R, 0.0, part.rotation_sigma_deg)
+    bound = huber_bound_px(state.options.ransac_threshold, state.motion.noise_px) / state.focal
+    k1 = part.radial_k1 if np.isfinite(part.radial_k1) else 0.0
+    shift = released_lens_shift_deg(
+        part.R, part.t, k1, state.found.x1, state.found.x2, part.inliers, bound
+    )
+    return RotationEstimate("essential", part.R, shift, part.rotation_sigma_deg)
 
 
 def _lens_terms(motion: MotionDecision, focal: float, radial_k1: float) -> LensTerms:

@@ -78,7 +78,9 @@ class PoseUncertainty:
         (:func:`ppo_cv.photometric.window_overlap`). For the rotation of a general motion: the
         root-mean-square angle of the covariance of the final refinement
         (:func:`ppo_cv.refine.pose_sigmas_deg`, as ``t_sigma_deg``, a ``k1`` the refinement
-        held at 0 counted as a considered parameter); of a plane: that of its refinement on
+        held at 0 counted as a considered parameter), combined with ``rotation_bias_deg``
+        (:attr:`ppo_cv.rotation_choice.RotationEstimate.rms_error_deg`); of a plane: that of
+        its refinement on
         the homography, the focal length and a held ``k1`` counted the same way
         (:attr:`ppo_cv.plane.RefinedPlanarPose.rotation_sigma_deg`); inf when the matches do
         not determine the pose. A pure rotation's adds the parallax of its tracks beyond their
@@ -94,8 +96,11 @@ class PoseUncertainty:
     rotation_bias_deg : float
         The bias of ``R`` (degrees) counted by the rule that chose it
         (:mod:`ppo_cv.rotation_choice`): for the rotation-only fit of a pair that moved, the
-        parallax of the translation it ignores, measured on intensity-aligned tracks; 0 for
-        the moving models' rotations and for a pure rotation.
+        parallax of the translation it ignores, measured on intensity-aligned tracks (on the
+        feature matches when none were aligned); for the essential matrix's rotation, how far
+        it moves when its radial term is fitted anew
+        (:func:`ppo_cv.rotation_choice.released_lens_shift_deg`); 0 for a plane's rotation and
+        for a pure rotation.
     """
 
     t_sigma_deg: float

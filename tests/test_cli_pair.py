@@ -73,9 +73,10 @@ def test_no_arguments_runs_the_demo_pair(demo_json):
     assert REQUIRED_KEYS <= set(data)
     check_demo_pose(data)
     assert not data["pure_rotation"] and data["translation_determined"]
-    # the demo pair translates: its rotation is the essential matrix's, with its deviation
+    # the demo pair translates: its rotation is the essential matrix's, with its deviation;
+    # a 60 degree field holds it within a tenth of a degree wherever its radial term goes
     assert data["rotation_source"] == "essential"
-    assert data["uncertainty"]["rotation_bias_deg"] == 0.0
+    assert 0.0 < data["uncertainty"]["rotation_bias_deg"] < 0.1
     assert 0.0 < data["uncertainty"]["rotation_sigma_deg"] < 1.0
     assert data["num_inliers"] >= 100 and data["num_points"] > 0
     assert np.allclose(data["cameras"]["K1"], [[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, 1]])
