@@ -244,25 +244,23 @@ def _plane(gray: np.ndarray, gradients: bool, cells: bool = True) -> _Plane:
     channels = [image]
     if gradients:
         channels += [cv2.Scharr(image, cv2.CV_32F, *d, scale=1.0 / 32.0) for d in ((1, 0), (0, 1))]
-    table = np.empty((h, w, 13 if gradients else 5), dtype=np.float32)  # a cell's in a row
-    for row, channel in zip((0, _GRADIENT_X, _GRADIENT_Y), channels, strict=False):
-        _bilinear_coefficients(channel, table.transpose(2, 0, 1)[row : row + 4])
     near = np.pad(clipped, ((0, 1), (0, 1)), mode="edge")
-    table[..., _CLEAR] = (near[:-1, :-1] | near[:-1, 1:] | near[1:, :-1] | near[1:, 1:]) == 0
+    clear = (near[:-1, :-1] | near[:-1, 1:] | near[1:, :-1] | near[1:, 1:]) == 0
+    rows = [*_bilinear_coefficients(image), clear.astype(np.float32)]
+    for channel in channels[1:]:
+        rows += _bilinear_coefficients(channel)
+    table = cv2.merge(rows)  # a cell's coefficients in a row
     return _Plane(table.reshape(h * w, -1), w, h, clipped.ravel(), image.ravel())
 
 
-def _bilinear_coefficients(image: np.ndarray, out: np.ndarray) -> None:
-    """``base``, ``slope_x``, ``slope_y``, ``twist`` of every pixel cell of ``image`` (H, W)
-    into ``out`` (4, H, W), the last row and column repeated past the edge."""
-    base, slope_x, slope_y, twist = out
-    base[:] = image
-    slope_x[:, :-1] = image[:, 1:] - image[:, :-1]
-    slope_x[:, -1] = 0.0
-    slope_y[:-1] = image[1:] - image[:-1]
-    slope_y[-1] = 0.0
-    twist[:-1] = slope_x[1:] - slope_x[:-1]
-    twist[-1] = 0.0
+def _bilinear_coefficients(image: np.ndarray) -> list[np.ndarray]:
+    """``base``, ``slope_x``, ``slope_y``, ``twist`` of every pixel cell of ``image`` (H, W),
+    the last row and column repeated past the edge."""
+    slope_x, slope_y, twist = (np.zeros_like(image) for _ in range(3))
+    np.subtract(image[:, 1:], image[:, :-1], out=slope_x[:, :-1])
+    np.subtract(image[1:], image[:-1], out=slope_y[:-1])
+    np.subtract(slope_x[1:], slope_x[:-1], out=twist[:-1])
+    return [image, slope_x, slope_y, twist]
 
 
 @dataclass(frozen=True)
@@ -307,10 +305,13 @@ def _cells(plane: _Plane, x: np.ndarray, y: np.ndarray, rows: Sequence[int]) -> 
 
     Exact bilinear weights (``cv2.remap`` rounds them to 1/32 pixel, a bias that matters at the
     hundredths of a pixel sought here)."""
+    import cv2
+
     x0, y0 = np.floor(x), np.floor(y)
     first = y0.astype(np.intp) * plane.width + x0.astype(np.intp)
     block = np.take(plane.cells, first.ravel(), axis=0, mode="clip")
-    coefficients = {row: np.ascontiguousarray(block[:, row]).reshape(first.shape) for row in rows}
+    columns = cv2.split(block.reshape(len(block), 1, -1))
+    coefficients = {row: columns[row].reshape(first.shape) for row in rows}
     return _Cells(coefficients, x - x0, y - y0)
 
 
@@ -842,7 +843,7 @@ def _fit_tracks(y1, y2, valid, R, focal, priors):
         if np.count_nonzero(used) < MIN_TRACKS:
             return None
         start = R if fit is None else fit.R
-        fit = fit_rotation_lens(y1, y2, used, start, noise=noise, **priors)
+        fit = fit_rotation_lens(y1, y2, used, start, noise=noise, lens_start=fit, **priors)
         noise = robust_sigma(fit.residuals[used], 2)
         within = valid & (fit.residuals < _OUTLIER_SIGMAS * np.sqrt(2.0) * noise)
         if np.array_equal(within, used):
