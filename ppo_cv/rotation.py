@@ -666,9 +666,10 @@ def _solve_rotation_lens(
         params, problem = _without_implausible_terms(
             params, problem, offset_bound, noise, focal_ratio_prior, iterations
         )
-        sigma, rotation_sigma = _sigmas(params, problem)
+        residual, jacobian = _jacobian(params, problem)
+        sigma, rotation_sigma = _sigmas(residual, jacobian, problem)
         if with_noise:
-            excess = _lens_excess(params, problem, bounds, noise)
+            excess = _lens_excess(params, jacobian, problem, bounds, noise)
     if np.any(np.abs(params) > bounds) or not enough:
         params, sigma, rotation_sigma = np.clip(params, -bounds, bounds), np.inf, np.inf
         params[:3] = 0.0
@@ -833,11 +834,11 @@ def _left_jacobian(w: np.ndarray) -> np.ndarray:
     return np.eye(3) + a * K + b * (K @ K)
 
 
-def _sigmas(params, problem) -> tuple[float, float]:
+def _sigmas(residual, J, problem) -> tuple[float, float]:
     """Deviations of the focal scale and of the rotation angle (degrees, root-mean-square) from
-    the covariance ``v (J^T J)^-1``, ``v = |r|^2 / (2I - P)``, ``J`` with the prior rows."""
+    the covariance ``v (J^T J)^-1``, ``v = |r|^2 / (2I - P)``, of the residual ``r`` and its
+    Jacobian ``J`` at the minimum (:func:`_jacobian`, with the prior rows)."""
     count = int(np.count_nonzero(problem[4]))
-    residual, J = _jacobian(params, problem)
     transfer = residual[:-count]
     if len(transfer) <= count:
         return float("inf"), float("inf")
@@ -855,28 +856,28 @@ def _offset_beyond_bound(params, problem, bound, noise) -> bool:
     excess = np.abs(params[5:7]) - bound
     if not np.any(excess > 0):
         return False
-    deviation = _posterior_deviations(params, problem, noise)
+    deviation = _posterior_deviations(_jacobian(params, problem)[1], problem, noise)
     deviation = np.zeros(2) if deviation is None else deviation[5:7]
     return bool(np.any(excess > PRINCIPAL_SIGNIFICANCE * deviation))
 
 
-def _lens_excess(params, problem, bounds, noise) -> float:
+def _lens_excess(params, J, problem, bounds, noise) -> float:
     """Largest ``(|param| - bound) / deviation`` over the free focal scale, ``k1`` and focal
     ratio, the deviations those of :func:`_posterior_deviations` (inf beyond the box when the
     covariance is singular)."""
     bounded = np.flatnonzero(problem[4] & np.isfinite(bounds))
     excess = np.abs(params[bounded]) - bounds[bounded]
-    deviation = _posterior_deviations(params, problem, noise)
+    deviation = _posterior_deviations(J, problem, noise)
     if deviation is None:
         return float("inf") if np.any(excess > 0) else float("-inf")
     return float(np.max(excess / np.maximum(deviation[bounded], np.sqrt(1e-300))))
 
 
-def _posterior_deviations(params, problem, noise) -> np.ndarray | None:
+def _posterior_deviations(J, problem, noise) -> np.ndarray | None:
     """Posterior deviation of each parameter (8,), from ``noise^2 (J^T J)^-1`` with ``J`` the
     Jacobian of the residuals and the prior rows (NaN for the held ones); None when singular."""
     free = problem[4]
-    cov = gauss_newton_covariance(_jacobian(params, problem)[1], noise**2)
+    cov = gauss_newton_covariance(J, noise**2)
     if cov is None:
         return None
     deviation = np.full(free.size, np.nan)
