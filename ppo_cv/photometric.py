@@ -139,6 +139,7 @@ _MAX_LEVELS = 4
 _ITERATIONS = 12
 _CONVERGED = 1e-3  # pixels of shift update
 _CHUNK = 65536  # window pixels aligned at a time
+_THREADS = 2  # aligning chunks at once
 _JACOBIANS = 2  # of the polish: at the start, and where its steps led
 _REGATHER = 0.01  # pixels a window moves from where image 2 was read for another read
 
@@ -681,17 +682,28 @@ def _search_range(window: int, levels: int) -> float:
 def _align(images: _Images, points1, transfer, window, levels, iterations, start=None):
     """:func:`align_windows` on prepared images (checked arguments, at least one point); with
     ``start`` (n, 2), from those shifts of image 2's pixels instead of a search. The windows
-    are aligned :data:`_CHUNK` pixels at a time, which keeps the arrays in the cache."""
+    are aligned :data:`_CHUNK` pixels at a time, which keeps the arrays in the cache, on
+    :data:`_THREADS` threads at most, no more than OpenCV may use (the chunks are independent,
+    numpy and OpenCV release the GIL in their array work)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    import cv2
+
     if start is None:
         seen = _seen_through(images, transfer)
         start = _shifts(_search(images, seen, points1, transfer, window, levels), transfer)
     offsets = _offsets(window)
     weights, exact = _window_transfer(transfer, points1, offsets)
     step = max(_CHUNK // len(offsets), 1)
-    parts = [
-        _align_chunk(images, points1[rows], weights @ exact[rows], start[rows], offsets, iterations)
-        for rows in (slice(i, i + step) for i in range(0, len(points1), step))
-    ]
+    chunks = [slice(i, i + step) for i in range(0, len(points1), step)]
+
+    def align(rows: slice) -> tuple:
+        positions = weights @ exact[rows]
+        return _align_chunk(images, points1[rows], positions, start[rows], offsets, iterations)
+
+    threads = min(_THREADS, max(cv2.getNumThreads(), 1), len(chunks))
+    with ThreadPoolExecutor(max_workers=threads) as pool:
+        parts = list(pool.map(align, chunks))
     d, ncc, usable = (np.concatenate(column) for column in zip(*parts, strict=True))
     valid = usable & np.all(np.isfinite(d), axis=1) & (ncc >= MIN_NCC)
     valid &= np.abs(d).max(axis=1) < _search_range(window, levels)
