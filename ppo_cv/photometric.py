@@ -24,9 +24,10 @@ image 1 lands in image 2, and the intensities fix it far better:
    brightness terms as in Baker, Gross and Matthews, "Lucas-Kanade 20 years on", part 3,
    CMU-RI-TR-03-35), the Jacobian of the start reused and taken again where it led. The
    windows are solved together, a few tens at a time (arrays of windows x window pixels that
-   stay in the cache), with exact bilinear interpolation: image 2 is read once as the
-   polynomial of each pixel's cell, which the steps then move along (a window is read again
-   where it moved more than a hundredth of a pixel). Each window's pixels are transferred
+   stay in the cache, two such chunks at once on two threads), with exact bilinear
+   interpolation: image 2 is read once per Jacobian as the polynomial of each pixel's cell,
+   which the steps then move along (a window is read again where it moved more than a
+   hundredth of a pixel). Each window's pixels are transferred
    through the model by interpolating its exact transfer at 5 x 5 points;
 3. the lens rotation refitted on the tracks, outliers (moving objects, occlusions, windows that
    did not converge) dropped beyond ``3 sqrt(2)`` times the tracks' own noise per coordinate

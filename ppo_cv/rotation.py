@@ -589,7 +589,8 @@ def fit_rotation_lens(
     R : ndarray, shape (3, 3)
         Starting rotation (e.g. :func:`ransac_rotation`'s).
     iterations : int
-        Gauss-Newton steps (each a Levenberg-damped solve).
+        Gauss-Newton steps at most (each a Levenberg-damped solve with the transfer's analytic
+        Jacobian).
     max_focal_change, max_k1 : float
         Bounds on ``|s - 1|`` (and ``|rho - 1|``) and ``|k1|``.
     noise : float, optional
