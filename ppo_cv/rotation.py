@@ -589,8 +589,7 @@ def fit_rotation_lens(
     R : ndarray, shape (3, 3)
         Starting rotation (e.g. :func:`ransac_rotation`'s).
     iterations : int
-        Gauss-Newton steps at most (each a Levenberg-damped solve with the transfer's analytic
-        Jacobian).
+        Gauss-Newton steps (each a Levenberg-damped solve, the transfer's Jacobian analytic).
     max_focal_change, max_k1 : float
         Bounds on ``|s - 1|`` (and ``|rho - 1|``) and ``|k1|``.
     noise : float, optional
@@ -609,9 +608,8 @@ def fit_rotation_lens(
         Largest offset kept, in ``principal_prior`` deviations per coordinate (default
         :data:`PRINCIPAL_BOUND`).
     lens_start : LensRotationFit, optional
-        A fit of nearly the same matches whose lens terms (those fitted here) the steps start
-        from, e.g. the fit before its outliers were dropped: fewer steps to the same minimum.
-        By default they start from the priors' means.
+        A fit of nearly the same matches (e.g. before its outliers were dropped) whose lens
+        terms the steps start from, not the priors' means: fewer steps to the same minimum.
 
     Returns
     -------
@@ -641,14 +639,19 @@ def fit_rotation_lens(
         principal_bound, max_focal_change, max_k1,
     )  # fmt: skip
     problem = (R0, xy1[used], xy2[used], prior, free, centre)
-    start = centre.copy()
-    if lens_start is not None:
-        lens = _lens_params(lens_start.focal_scale, lens_start.k1, lens_start.principal_offset,
-                            lens_start.focal_ratio)  # fmt: skip
-        start = np.where(free & ~_ROTATION & np.all(np.abs(lens) <= bounds), lens, centre)
-    return _solve_rotation_lens(
-        problem, xy1, xy2, bounds, offset_bound, noise, focal_ratio_prior, iterations, start
-    )
+    start = _start_params(lens_start, free, centre, bounds)
+    limits = bounds, offset_bound, noise, focal_ratio_prior
+    return _solve_rotation_lens(problem, xy1, xy2, *limits, iterations, start)
+
+
+def _start_params(lens_start: LensRotationFit | None, free, centre, bounds) -> np.ndarray:
+    """Parameters (8,) the steps start from: ``lens_start``'s free lens terms when it lies
+    in the box, else the priors' means ``centre``; no rotation increment."""
+    if lens_start is None:
+        return centre.copy()
+    lens = _lens_params(lens_start.focal_scale, lens_start.k1, lens_start.principal_offset,
+                        lens_start.focal_ratio)  # fmt: skip
+    return np.where(free & ~_ROTATION & np.all(np.abs(lens) <= bounds), lens, centre)
 
 
 def _solve_rotation_lens(
