@@ -24,9 +24,10 @@ image 1 lands in image 2, and the intensities fix it far better:
    brightness terms as in Baker, Gross and Matthews, "Lucas-Kanade 20 years on", part 3,
    CMU-RI-TR-03-35), the Jacobian of the start reused and taken again where it led. The
    windows are solved together, a few tens at a time (arrays of windows x window pixels that
-   stay in the cache), with exact bilinear interpolation: image 2 is read once as the
-   polynomial of each pixel's cell, which the steps then move along (a window is read again
-   where it moved more than a hundredth of a pixel). Each window's pixels are transferred
+   stay in the cache, two such chunks at once on two threads), with exact bilinear
+   interpolation: image 2 is read once per Jacobian as the polynomial of each pixel's cell,
+   which the steps then move along (a window is read again where it moved more than a
+   hundredth of a pixel). Each window's pixels are transferred
    through the model by interpolating its exact transfer at 5 x 5 points;
 3. the lens rotation refitted on the tracks, outliers (moving objects, occlusions, windows that
    did not converge) dropped beyond ``3 sqrt(2)`` times the tracks' own noise per coordinate
@@ -139,6 +140,7 @@ _MAX_LEVELS = 4
 _ITERATIONS = 12
 _CONVERGED = 1e-3  # pixels of shift update
 _CHUNK = 65536  # window pixels aligned at a time
+_THREADS = 2  # aligning chunks at once
 _JACOBIANS = 2  # of the polish: at the start, and where its steps led
 _REGATHER = 0.01  # pixels a window moves from where image 2 was read for another read
 
@@ -244,25 +246,23 @@ def _plane(gray: np.ndarray, gradients: bool, cells: bool = True) -> _Plane:
     channels = [image]
     if gradients:
         channels += [cv2.Scharr(image, cv2.CV_32F, *d, scale=1.0 / 32.0) for d in ((1, 0), (0, 1))]
-    table = np.empty((h, w, 13 if gradients else 5), dtype=np.float32)  # a cell's in a row
-    for row, channel in zip((0, _GRADIENT_X, _GRADIENT_Y), channels, strict=False):
-        _bilinear_coefficients(channel, table.transpose(2, 0, 1)[row : row + 4])
     near = np.pad(clipped, ((0, 1), (0, 1)), mode="edge")
-    table[..., _CLEAR] = (near[:-1, :-1] | near[:-1, 1:] | near[1:, :-1] | near[1:, 1:]) == 0
+    clear = (near[:-1, :-1] | near[:-1, 1:] | near[1:, :-1] | near[1:, 1:]) == 0
+    rows = [*_bilinear_coefficients(image), clear.astype(np.float32)]
+    for channel in channels[1:]:
+        rows += _bilinear_coefficients(channel)
+    table = cv2.merge(rows)  # a cell's coefficients in a row
     return _Plane(table.reshape(h * w, -1), w, h, clipped.ravel(), image.ravel())
 
 
-def _bilinear_coefficients(image: np.ndarray, out: np.ndarray) -> None:
-    """``base``, ``slope_x``, ``slope_y``, ``twist`` of every pixel cell of ``image`` (H, W)
-    into ``out`` (4, H, W), the last row and column repeated past the edge."""
-    base, slope_x, slope_y, twist = out
-    base[:] = image
-    slope_x[:, :-1] = image[:, 1:] - image[:, :-1]
-    slope_x[:, -1] = 0.0
-    slope_y[:-1] = image[1:] - image[:-1]
-    slope_y[-1] = 0.0
-    twist[:-1] = slope_x[1:] - slope_x[:-1]
-    twist[-1] = 0.0
+def _bilinear_coefficients(image: np.ndarray) -> list[np.ndarray]:
+    """``base``, ``slope_x``, ``slope_y``, ``twist`` of every pixel cell of ``image`` (H, W),
+    the last row and column repeated past the edge."""
+    slope_x, slope_y, twist = (np.zeros_like(image) for _ in range(3))
+    np.subtract(image[:, 1:], image[:, :-1], out=slope_x[:, :-1])
+    np.subtract(image[1:], image[:-1], out=slope_y[:-1])
+    np.subtract(slope_x[1:], slope_x[:-1], out=twist[:-1])
+    return [image, slope_x, slope_y, twist]
 
 
 @dataclass(frozen=True)
@@ -307,10 +307,13 @@ def _cells(plane: _Plane, x: np.ndarray, y: np.ndarray, rows: Sequence[int]) -> 
 
     Exact bilinear weights (``cv2.remap`` rounds them to 1/32 pixel, a bias that matters at the
     hundredths of a pixel sought here)."""
+    import cv2
+
     x0, y0 = np.floor(x), np.floor(y)
     first = y0.astype(np.intp) * plane.width + x0.astype(np.intp)
     block = np.take(plane.cells, first.ravel(), axis=0, mode="clip")
-    coefficients = {row: np.ascontiguousarray(block[:, row]).reshape(first.shape) for row in rows}
+    columns = cv2.split(block.reshape(len(block), 1, -1))
+    coefficients = {row: columns[row].reshape(first.shape) for row in rows}
     return _Cells(coefficients, x - x0, y - y0)
 
 
@@ -680,17 +683,28 @@ def _search_range(window: int, levels: int) -> float:
 def _align(images: _Images, points1, transfer, window, levels, iterations, start=None):
     """:func:`align_windows` on prepared images (checked arguments, at least one point); with
     ``start`` (n, 2), from those shifts of image 2's pixels instead of a search. The windows
-    are aligned :data:`_CHUNK` pixels at a time, which keeps the arrays in the cache."""
+    are aligned :data:`_CHUNK` pixels at a time, which keeps the arrays in the cache, on
+    :data:`_THREADS` threads at most, no more than OpenCV may use (the chunks are independent,
+    numpy and OpenCV release the GIL in their array work)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    import cv2
+
     if start is None:
         seen = _seen_through(images, transfer)
         start = _shifts(_search(images, seen, points1, transfer, window, levels), transfer)
     offsets = _offsets(window)
     weights, exact = _window_transfer(transfer, points1, offsets)
     step = max(_CHUNK // len(offsets), 1)
-    parts = [
-        _align_chunk(images, points1[rows], weights @ exact[rows], start[rows], offsets, iterations)
-        for rows in (slice(i, i + step) for i in range(0, len(points1), step))
-    ]
+    chunks = [slice(i, i + step) for i in range(0, len(points1), step)]
+
+    def align(rows: slice) -> tuple:
+        positions = weights @ exact[rows]
+        return _align_chunk(images, points1[rows], positions, start[rows], offsets, iterations)
+
+    threads = min(_THREADS, max(cv2.getNumThreads(), 1), len(chunks))
+    with ThreadPoolExecutor(max_workers=threads) as pool:
+        parts = list(pool.map(align, chunks))
     d, ncc, usable = (np.concatenate(column) for column in zip(*parts, strict=True))
     valid = usable & np.all(np.isfinite(d), axis=1) & (ncc >= MIN_NCC)
     valid &= np.abs(d).max(axis=1) < _search_range(window, levels)
@@ -842,7 +856,7 @@ def _fit_tracks(y1, y2, valid, R, focal, priors):
         if np.count_nonzero(used) < MIN_TRACKS:
             return None
         start = R if fit is None else fit.R
-        fit = fit_rotation_lens(y1, y2, used, start, noise=noise, **priors)
+        fit = fit_rotation_lens(y1, y2, used, start, noise=noise, lens_start=fit, **priors)
         noise = robust_sigma(fit.residuals[used], 2)
         within = valid & (fit.residuals < _OUTLIER_SIGMAS * np.sqrt(2.0) * noise)
         if np.array_equal(within, used):

@@ -36,7 +36,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .checks import as_positive
-from .lsq import gauss_newton_covariance, rotation_increment, rotation_increments
+from .lsq import (
+    cross_matrix,
+    gauss_newton_covariance,
+    rotation_increment,
+    rotation_increments,
+)
 from .ppo import rotation_from_rays
 
 __all__ = [
@@ -553,6 +558,7 @@ def fit_rotation_lens(
     focal_ratio_prior: float | None = None,
     focal_ratio_mean: float = 1.0,
     principal_bound: float = PRINCIPAL_BOUND,
+    lens_start: LensRotationFit | None = None,
 ) -> LensRotationFit:
     """Rotation, focal scale, radial coefficient (principal point, focal ratio) by Gauss-Newton.
 
@@ -583,7 +589,7 @@ def fit_rotation_lens(
     R : ndarray, shape (3, 3)
         Starting rotation (e.g. :func:`ransac_rotation`'s).
     iterations : int
-        Gauss-Newton steps (each a Levenberg-damped solve).
+        Gauss-Newton steps (each a Levenberg-damped solve, the transfer's Jacobian analytic).
     max_focal_change, max_k1 : float
         Bounds on ``|s - 1|`` (and ``|rho - 1|``) and ``|k1|``.
     noise : float, optional
@@ -601,6 +607,9 @@ def fit_rotation_lens(
     principal_bound : float
         Largest offset kept, in ``principal_prior`` deviations per coordinate (default
         :data:`PRINCIPAL_BOUND`).
+    lens_start : LensRotationFit, optional
+        A fit of nearly the same matches (e.g. before its outliers were dropped) whose lens
+        terms the steps start from, not the priors' means: fewer steps to the same minimum.
 
     Returns
     -------
@@ -630,28 +639,41 @@ def fit_rotation_lens(
         principal_bound, max_focal_change, max_k1,
     )  # fmt: skip
     problem = (R0, xy1[used], xy2[used], prior, free, centre)
-    return _solve_rotation_lens(
-        problem, xy1, xy2, bounds, offset_bound, noise, focal_ratio_prior, iterations
-    )
+    start = _start_params(lens_start, free, centre, bounds)
+    limits = bounds, offset_bound, noise, focal_ratio_prior
+    return _solve_rotation_lens(problem, xy1, xy2, *limits, iterations, start)
+
+
+def _start_params(lens_start: LensRotationFit | None, free, centre, bounds) -> np.ndarray:
+    """Parameters (8,) the steps start from: ``lens_start``'s free lens terms when it lies
+    in the box, else the priors' means ``centre``; no rotation increment."""
+    if lens_start is None:
+        return centre.copy()
+    lens = _lens_params(lens_start.focal_scale, lens_start.k1, lens_start.principal_offset,
+                        lens_start.focal_ratio)  # fmt: skip
+    return np.where(free & ~_ROTATION & np.all(np.abs(lens) <= bounds), lens, centre)
 
 
 def _solve_rotation_lens(
-    problem, xy1, xy2, bounds, offset_bound, noise, focal_ratio_prior, iterations
+    problem, xy1, xy2, bounds, offset_bound, noise, focal_ratio_prior, iterations, start
 ) -> LensRotationFit:
-    """:func:`fit_rotation_lens` on its ``problem``: lens terms beyond their box clipped and
-    the rotation alone refitted; residuals over all matches ``xy1``, ``xy2``."""
+    """:func:`fit_rotation_lens` on its ``problem`` from the parameters ``start``: lens terms
+    beyond their box clipped and the rotation alone refitted; residuals over all matches
+    ``xy1``, ``xy2``."""
     R0, a, b, prior, free, centre = problem
     with_noise = noise is not None and noise > 0
-    params, sigma, rotation_sigma, excess = centre.copy(), np.inf, np.inf, -np.inf
     enough = len(a) >= (MIN_LENS_MATCHES if prior[3] > 0 else 2 * int(np.count_nonzero(_LENS)))
+    params = (start if enough else centre).copy()
+    sigma, rotation_sigma, excess = np.inf, np.inf, -np.inf
     if enough:
         params = _gauss_newton(params, problem, iterations)
         params, problem = _without_implausible_terms(
             params, problem, offset_bound, noise, focal_ratio_prior, iterations
         )
-        sigma, rotation_sigma = _sigmas(params, problem)
+        residual, jacobian = _jacobian(params, problem)
+        sigma, rotation_sigma = _sigmas(residual, jacobian, problem)
         if with_noise:
-            excess = _lens_excess(params, problem, bounds, noise)
+            excess = _lens_excess(params, jacobian, problem, bounds, noise)
     if np.any(np.abs(params) > bounds) or not enough:
         params, sigma, rotation_sigma = np.clip(params, -bounds, bounds), np.inf, np.inf
         params[:3] = 0.0
@@ -735,19 +757,92 @@ def _objective(params, problem) -> np.ndarray:
     return _objectives(params[None], problem)[0]
 
 
-def _jacobian(params, problem, step: float = 1e-6):
-    """Residual and its forward-difference Jacobian in the free parameters of ``problem``,
-    every perturbation evaluated in one batch."""
-    deltas = np.eye(_NPARAMS)[problem[4]] * step
-    values = _objectives(params + np.vstack([np.zeros(_NPARAMS), deltas]), problem)
-    return values[0], ((values[1:] - values[0]) / step).T
+def _jacobian(params, problem):
+    """Residual and its Jacobian in the free parameters of ``problem`` (:func:`_objectives`),
+    analytic (:func:`_transfer_jacobian`) with the prior rows below."""
+    R0, a, b, prior, free, centre = problem
+    residual, transfer = _transfer_jacobian(params, R0, a, b)
+    prior_rows = np.diag(prior)[free]
+    jacobian = np.concatenate([transfer.reshape(-1, _NPARAMS), prior_rows])[:, free]
+    return np.concatenate([residual.ravel(), prior[free] * (params - centre)[free]]), jacobian
 
 
-def _sigmas(params, problem) -> tuple[float, float]:
+def _transfer_jacobian(params: np.ndarray, R0: np.ndarray, xy1: np.ndarray, xy2: np.ndarray):
+    """Residual vectors (N, 2) of :func:`_lens_transfers` at ``params`` (8,) and their
+    derivatives (N, 2, 8) in every parameter.
+
+    ``q1`` solves ``s x1 - p = q1 (1 + k1 |q1|^2)``, so ``D1 dq1 = x1 ds - dp - q1 |q1|^2 dk1``
+    with ``D = (1 + k1 |q|^2) I + 2 k1 q q^T``; a rotation increment moves the ray ``R q1`` by
+    ``-[R q1]_x J(w) dw``, ``J`` the left Jacobian of the rotation's exponential; view 2's
+    distortion of the projection ``q2`` changes by ``D2 dq2 + q2 |q2|^2 dk1 + dp``, and the
+    transfer is that over ``s rho``."""
+    w, scale, k1 = params[:3], 1.0 + params[3], params[4]
+    offset, ratio = params[5:7], 1.0 + params[7]
+    R = rotation_increment(w) @ R0
+    q1 = _lens_map(xy1, scale, k1, offset)
+    ray = q1 @ R[:, :2].T + R[:, 2]
+    z = np.where(np.abs(ray[:, 2:]) > 1e-9, ray[:, 2:], 1e-9)
+    q2 = ray[:, :2] / z
+    norm2 = _squared_norms(q2)
+    distorted = q2 * (1.0 + k1 * norm2) + offset
+    residual = distorted / (scale * ratio) - xy2
+    lens = np.zeros((2, len(q1), _NPARAMS))  # D1 dq1, x and y
+    lens[:, :, 3] = xy1.T
+    lens[:, :, 4] = -(q1 * _squared_norms(q1)).T
+    lens[0, :, 5] = lens[1, :, 6] = -1.0
+    d_q1 = _distortion_solve(q1, k1, lens)
+    d_ray = np.einsum("ij,jnk->ink", R[:, :2], d_q1)
+    d_ray[:, :, :3] = np.cross(_left_jacobian(w).T[:, None, :], ray[None], axis=2).transpose(
+        2, 1, 0
+    )
+    d_q2 = (d_ray[:2] - q2.T[:, :, None] * d_ray[2]) / z[:, 0, None]
+    d_distorted = _distortion_apply(q2, k1, d_q2)
+    d_distorted[:, :, 4] += (q2 * norm2).T
+    d_distorted[0, :, 5] += 1.0
+    d_distorted[1, :, 6] += 1.0
+    derivative = d_distorted / (scale * ratio)
+    derivative[:, :, 3] -= distorted.T / (scale * scale * ratio)
+    derivative[:, :, 7] = -distorted.T / (scale * ratio * ratio)
+    return residual, derivative.transpose(1, 0, 2)
+
+
+def _distortion_apply(q: np.ndarray, k1: float, d: np.ndarray) -> np.ndarray:
+    """``D d`` with ``D = d (q (1 + k1 |q|^2)) / dq`` at points ``q`` (N, 2), ``d`` (2, N, M)."""
+    x, y = q[:, :1], q[:, 1:]
+    radial = 1.0 + k1 * (x * x + y * y)
+    cross = 2.0 * k1 * x * y
+    return np.stack([
+        (radial + 2.0 * k1 * x * x) * d[0] + cross * d[1],
+        cross * d[0] + (radial + 2.0 * k1 * y * y) * d[1],
+    ])  # fmt: skip
+
+
+def _distortion_solve(q: np.ndarray, k1: float, d: np.ndarray) -> np.ndarray:
+    """``D^-1 d`` for the ``D`` of :func:`_distortion_apply`."""
+    x, y = q[:, :1], q[:, 1:]
+    radial = 1.0 + k1 * (x * x + y * y)
+    cross = 2.0 * k1 * x * y
+    xx, yy = radial + 2.0 * k1 * x * x, radial + 2.0 * k1 * y * y
+    det = xx * yy - cross * cross
+    return np.stack([(yy * d[0] - cross * d[1]) / det, (xx * d[1] - cross * d[0]) / det])
+
+
+def _left_jacobian(w: np.ndarray) -> np.ndarray:
+    """``J(w)`` (3, 3) with ``exp([w + dw]x) = exp([J(w) dw]x) exp([w]x)`` to first order."""
+    theta = float(np.linalg.norm(w))
+    K = cross_matrix(w)
+    if theta < 1e-8:
+        return np.eye(3) + 0.5 * K
+    a = (1.0 - np.cos(theta)) / theta**2
+    b = (theta - np.sin(theta)) / theta**3
+    return np.eye(3) + a * K + b * (K @ K)
+
+
+def _sigmas(residual, J, problem) -> tuple[float, float]:
     """Deviations of the focal scale and of the rotation angle (degrees, root-mean-square) from
-    the covariance ``v (J^T J)^-1``, ``v = |r|^2 / (2I - P)``, ``J`` with the prior rows."""
+    the covariance ``v (J^T J)^-1``, ``v = |r|^2 / (2I - P)``, of the residual ``r`` and its
+    Jacobian ``J`` at the minimum (:func:`_jacobian`, with the prior rows)."""
     count = int(np.count_nonzero(problem[4]))
-    residual, J = _jacobian(params, problem)
     transfer = residual[:-count]
     if len(transfer) <= count:
         return float("inf"), float("inf")
@@ -765,28 +860,28 @@ def _offset_beyond_bound(params, problem, bound, noise) -> bool:
     excess = np.abs(params[5:7]) - bound
     if not np.any(excess > 0):
         return False
-    deviation = _posterior_deviations(params, problem, noise)
+    deviation = _posterior_deviations(_jacobian(params, problem)[1], problem, noise)
     deviation = np.zeros(2) if deviation is None else deviation[5:7]
     return bool(np.any(excess > PRINCIPAL_SIGNIFICANCE * deviation))
 
 
-def _lens_excess(params, problem, bounds, noise) -> float:
+def _lens_excess(params, J, problem, bounds, noise) -> float:
     """Largest ``(|param| - bound) / deviation`` over the free focal scale, ``k1`` and focal
     ratio, the deviations those of :func:`_posterior_deviations` (inf beyond the box when the
     covariance is singular)."""
     bounded = np.flatnonzero(problem[4] & np.isfinite(bounds))
     excess = np.abs(params[bounded]) - bounds[bounded]
-    deviation = _posterior_deviations(params, problem, noise)
+    deviation = _posterior_deviations(J, problem, noise)
     if deviation is None:
         return float("inf") if np.any(excess > 0) else float("-inf")
     return float(np.max(excess / np.maximum(deviation[bounded], np.sqrt(1e-300))))
 
 
-def _posterior_deviations(params, problem, noise) -> np.ndarray | None:
+def _posterior_deviations(J, problem, noise) -> np.ndarray | None:
     """Posterior deviation of each parameter (8,), from ``noise^2 (J^T J)^-1`` with ``J`` the
     Jacobian of the residuals and the prior rows (NaN for the held ones); None when singular."""
     free = problem[4]
-    cov = gauss_newton_covariance(_jacobian(params, problem)[1], noise**2)
+    cov = gauss_newton_covariance(J, noise**2)
     if cov is None:
         return None
     deviation = np.full(free.size, np.nan)
@@ -794,22 +889,26 @@ def _posterior_deviations(params, problem, noise) -> np.ndarray | None:
     return deviation
 
 
-def _gauss_newton(params, problem, iterations, step=1e-6):
-    """Levenberg-Marquardt on the free parameters of ``problem`` (its boolean mask ``free``)."""
+def _gauss_newton(params, problem, iterations):
+    """Levenberg-Marquardt on the free parameters of ``problem`` (its boolean mask ``free``);
+    a rejected step keeps the Jacobian of the point it left from."""
     free = problem[4]
     damping = 1e-6
     residual = _objective(params, problem)
     cost = residual @ residual
+    normal = None
     for _ in range(iterations):
-        J = _jacobian(params, problem, step)[1]
-        H, g = J.T @ J, J.T @ residual
+        if normal is None:
+            J = _jacobian(params, problem)[1]
+            normal = J.T @ J, J.T @ residual
+        H, g = normal
         update = np.linalg.solve(H + damping * np.diag(np.diag(H) + 1e-12), -g)
         trial = params.copy()
         trial[free] += update
         new_residual = _objective(trial, problem)
         new_cost = new_residual @ new_residual
         if new_cost < cost:
-            params, residual, damping = trial, new_residual, damping * 0.1
+            params, residual, damping, normal = trial, new_residual, damping * 0.1, None
             if cost - new_cost < 1e-12 * cost:
                 break
             cost = new_cost

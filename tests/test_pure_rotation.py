@@ -114,6 +114,41 @@ def test_lens_fit_with_priors_works_from_a_few_matches():
     assert rotation_error_deg(with_priors.R, R) < 0.1
 
 
+@pytest.mark.parametrize("ratio_prior", [None, 0.02])
+def test_lens_fit_started_from_an_earlier_fit_reaches_the_same_fit(ratio_prior):
+    # Every lens term free (focal, k1, principal point, focal ratio): the fit of the inliers
+    # started from the lens of the fit with outliers lands where the fit from scratch does,
+    # its deviations included (the analytic Jacobian of the transfer at the same minimum).
+    rng = np.random.default_rng(21)
+    c, s = np.cos(np.radians(12.0)), np.sin(np.radians(12.0))
+    R = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    q1 = rng.uniform(-0.35, 0.35, (400, 2))
+    ray = np.column_stack([q1, np.ones(400)]) @ R.T
+    q2 = ray[:, :2] / ray[:, 2:]
+    k1, offset, noise = -0.06, np.array([0.004, -0.003]), 0.3 / 800
+
+    def observe(q, scale):
+        return (offset + q * (1 + k1 * np.sum(q * q, axis=1, keepdims=True))) / scale
+
+    x1 = observe(q1, 1.02) + rng.normal(0, noise, q1.shape)
+    ratio = 1.01 if ratio_prior else 1.0
+    x2 = observe(q2, 1.02 * ratio) + rng.normal(0, noise, q2.shape)
+    x2[:40] += rng.normal(0, 0.02, (40, 2))  # outliers
+    priors = {"noise": noise * np.sqrt(2), "principal_prior": 0.01}
+    priors["focal_ratio_prior"] = ratio_prior
+    everything = fit_rotation_lens(x1, x2, np.ones(400, bool), np.eye(3), **priors)
+    inliers = np.arange(400) >= 40
+    fresh = fit_rotation_lens(x1, x2, inliers, everything.R, **priors)
+    started = fit_rotation_lens(x1, x2, inliers, everything.R, lens_start=everything, **priors)
+    assert rotation_error_deg(fresh.R, R) < 0.1
+    assert rotation_error_deg(started.R, fresh.R) < 1e-3 * fresh.rotation_sigma_deg
+    for name in ("focal_scale", "k1", "focal_ratio", "rotation_sigma_deg", "focal_scale_sigma"):
+        assert getattr(started, name) == pytest.approx(getattr(fresh, name), rel=1e-5), name
+    np.testing.assert_allclose(started.principal_offset, fresh.principal_offset, atol=1e-7)
+    assert abs(fresh.k1 - k1) < 0.02 and abs(fresh.focal_ratio - ratio) < 0.005
+    assert not fresh.offset_dropped
+
+
 def test_lens_excess_is_the_distance_beyond_the_box_in_posterior_deviations():
     # A 25 deg pan over 400 matches pins the focal to about 0.2 %: the clipped fit reports how
     # far the free one lay beyond |s - 1| <= 0.05, the free one measured with a wider box.
