@@ -11,7 +11,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from ppo_cv import sfm
-from ppo_cv.data_gen import render_tripod_then_move
+from ppo_cv.data_gen import read_pairs, render_tripod_then_move
 from ppo_cv.pipeline import estimate_pair
 
 COMMAND = [sys.executable, "-m", "ppo_cv.cli.main"]
@@ -187,3 +187,43 @@ def test_real_tripod_panorama_exits_1_where_it_seeded_a_two_image_model(pano_dev
     assert "the 10 images look like a panorama (pure rotations about one point)" in line
     assert "pure rotation on the images" in line
     assert not (tmp_path / "model").exists()
+
+
+def test_real_tripod_panorama_exits_1_without_K(pano_dev, tmp_path):
+    """Four ``book`` frames of pano_dev: pycolmap takes their EXIF focal length (917.5 px,
+    997 px in the reference), with which ``ppo-cv pair`` calls them general motion; the focal
+    length fitted to each pair's homography calls them rotations (they registered 4 of 4)."""
+    images = tmp_path / "book"
+    images.mkdir()
+    for index in range(4214, 4218):
+        name = f"book_DSC0{index}.JPG"
+        (images / name).symlink_to(pano_dev / "images" / name)
+    run = subprocess.run(
+        [*COMMAND, "sfm", str(images), "model", "--database", "db.db"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert run.returncode == 1, run.stderr
+    line = run.stderr.strip().splitlines()[-1]
+    assert "the 4 images look like a panorama (pure rotations about one point)" in line
+    assert "pure rotation on the images" in line
+    assert "px fitted to the homography" in run.stderr
+    assert not (tmp_path / "model").exists()
+
+
+def test_freiburg_reconstructs_without_K(freiburg, tmp_path):
+    run = subprocess.run(
+        [*COMMAND, "sfm", str(freiburg / "images"), "model", "--quiet"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=900,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.startswith("registered 17/17 images"), run.stdout
+    ranking = (tmp_path / "model" / "initial_pairs.txt").read_text().splitlines()
+    assert ranking[1].endswith(" ok")
+    gt = {
+        (r["name1"], r["name2"]): (r["R"], r["t"])
+        for r in read_pairs(freiburg / "pairs_with_gt.txt")
+    }
+    model = pycolmap.Reconstruction(tmp_path / "model")
+    rotation_errors, translation_errors = sfm.pose_errors(model, gt)
+    assert len(rotation_errors) == 85
+    assert np.median(rotation_errors) < 1.0 and np.median(translation_errors) < 2.0
