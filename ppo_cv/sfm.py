@@ -749,11 +749,7 @@ def reconstruct(
         seeds the mapper, :func:`ppo_cv.pipeline.estimate_pair` (default options, the database
         cameras) decides it on its two images, as ``ppo-cv pair`` does: a pure rotation, or no
         reliable geometry, refuses it and the next pair is checked, up to
-        :data:`MAX_IMAGE_CHECKS` pairs; the refusals are in the returned ranking. Without
-        ``fix_intrinsics`` (guessed cameras) a pair not refused is decided again with the focal
-        length fitted to the homography of its verified matches
-        (:func:`rotation_focal_scale`): by the ranking's model decision on those matches and by
-        ``estimate_pair``, either calling it a pure rotation refusing it.
+        :data:`MAX_IMAGE_CHECKS` pairs; the refusals are in the returned ranking.
         ``colmap``: pycolmap's default initial-pair search (no pair is checked).
     seeding : {"two-view", "pair-options"}
         How a ``ppo`` pair starts the mapper. ``two-view``: a reconstruction of the two images
@@ -763,8 +759,8 @@ def reconstruct(
         pair options, with its minimum initial triangulation angle and inlier count lowered to
         what the pair offers; pycolmap estimates the pair's pose itself.
     fix_intrinsics : bool
-        Keep the database cameras fixed in bundle adjustment (known calibration); otherwise
-        the checks on the images also try a focal length fitted to each pair.
+        Keep the database cameras fixed (known calibration); else the checks on the images
+        also try the focal length fitted to each pair (:func:`rotation_focal_scale`).
     max_init_trials : int
     num_threads, seed : int
         pycolmap threads and random seed.
@@ -797,7 +793,7 @@ def reconstruct(
     candidates: Iterator[PairScore | None] = iter([None])
     if initialization == "ppo":
         pairs, candidates, refused = _ppo_candidates(
-            database_path, image_dir, scoring, progress, fit_focal=not fix_intrinsics
+            database_path, image_dir, scoring, progress, not fix_intrinsics
         )
     models: list[pycolmap.Reconstruction] = []
     initial_pair = None
@@ -828,7 +824,7 @@ def reconstruct(
 
 
 def _ppo_candidates(
-    database_path: Path, image_dir: Path, scoring: dict, progress, *, fit_focal: bool = False
+    database_path: Path, image_dir: Path, scoring: dict, progress, fit_focal: bool = False
 ):
     """The pairs scored by PPO, the accepted ones that ``ppo-cv pair`` also accepts on their
     images (lazily, best first), and the list that collects the refused ones as they are
