@@ -98,7 +98,8 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
         warn(
             "sfm",
             "no intrinsics given: pycolmap guesses the focal length from EXIF or the image "
-            "size, and pure rotations are not reliably detected; pass --K fx,fy,cx,cy",
+            "size, and pure rotations are found with a focal length fitted to each checked "
+            "pair; pass --K fx,fy,cx,cy for accurate poses",
         )
         _exif_warnings(Path(image_dir), names, exif_orientation)
         return None
@@ -132,8 +133,8 @@ def register(app: typer.Typer) -> None:
             typer.Option(
                 "--K",
                 help="Intrinsics fx,fy,cx,cy, held fixed (all images of one size). Give them "
-                "when known: without them pycolmap guesses a focal length and pure rotations "
-                "are not reliably detected.",
+                "when known: without them pycolmap guesses a focal length, and the initial "
+                "pairs are checked for a pure rotation with one fitted to each pair.",
             ),
         ] = None,
         init: Annotated[

@@ -67,11 +67,13 @@ __all__ = [
     "MAX_THREADS",
     "MAX_FEATURES",
     "MAX_IMAGE_CHECKS",
+    "FIELD_RANGE_DEG",
     "PairScore",
     "SfmResult",
     "prepare_database",
     "score_pose",
     "score_pairs",
+    "rotation_focal_scale",
     "reconstruct",
     "run_sfm",
     "list_images",
@@ -757,7 +759,8 @@ def reconstruct(
         pair options, with its minimum initial triangulation angle and inlier count lowered to
         what the pair offers; pycolmap estimates the pair's pose itself.
     fix_intrinsics : bool
-        Keep the database cameras fixed in bundle adjustment (known calibration).
+        Keep the database cameras fixed (known calibration); else the checks on the images
+        also try the focal length fitted to each pair (:func:`rotation_focal_scale`).
     max_init_trials : int
     num_threads, seed : int
         pycolmap threads and random seed.
@@ -789,7 +792,9 @@ def reconstruct(
     pairs: tuple[PairScore, ...] = ()
     candidates: Iterator[PairScore | None] = iter([None])
     if initialization == "ppo":
-        pairs, candidates, refused = _ppo_candidates(database_path, image_dir, scoring, progress)
+        pairs, candidates, refused = _ppo_candidates(
+            database_path, image_dir, scoring, progress, not fix_intrinsics
+        )
     models: list[pycolmap.Reconstruction] = []
     initial_pair = None
     with _quiet(verbose), pycolmap.Database.open(database_path) as database:
@@ -818,7 +823,9 @@ def reconstruct(
     return _result(models, initialization, initial_pair, pairs, num_images, start)
 
 
-def _ppo_candidates(database_path: Path, image_dir: Path, scoring: dict, progress):
+def _ppo_candidates(
+    database_path: Path, image_dir: Path, scoring: dict, progress, fit_focal: bool = False
+):
     """The pairs scored by PPO, the accepted ones that ``ppo-cv pair`` also accepts on their
     images (lazily, best first), and the list that collects the refused ones as they are
     checked; :class:`ReconstructionFailed` when PPO accepts none."""
@@ -830,7 +837,9 @@ def _ppo_candidates(database_path: Path, image_dir: Path, scoring: dict, progres
         raise ReconstructionFailed(_no_initial_pair(pairs, num_images))
     threshold = scoring.get("pri_threshold", ppo.DEFAULT_PRI_THRESHOLD)
     refused: list[PairScore] = []
-    candidates = _checked_candidates(database_path, image_dir, pairs, refused, threshold, progress)
+    candidates = _checked_candidates(
+        database_path, image_dir, pairs, refused, threshold, progress, fit_focal
+    )
     return pairs, candidates, refused
 
 
@@ -841,13 +850,16 @@ def _checked_candidates(
     refused: list[PairScore],
     pri_threshold: float,
     progress: Progress | None,
+    fit_focal: bool = False,
 ) -> Iterator[PairScore]:
     """The accepted pairs, best first, that :func:`ppo_cv.pipeline.estimate_pair` does not
     refuse on their images (the first :data:`MAX_IMAGE_CHECKS` accepted pairs are checked,
     as they are needed); the refused ones, rejection rewritten, are appended to ``refused``."""
     for pair in [p for p in pairs if p.accepted][:MAX_IMAGE_CHECKS]:
         _say(progress, f"checking {pair.name1} {pair.name2} on the images")
-        rejection = _image_rejection(database_path, image_dir, pair, pri_threshold)
+        rejection = _image_rejection(
+            database_path, image_dir, pair, pri_threshold, fit_focal=fit_focal
+        )
         if not rejection:
             yield pair
             continue
@@ -865,22 +877,71 @@ def _checked_candidates(
 
 
 def _image_rejection(
-    database_path: Path, image_dir: Path, pair: PairScore, pri_threshold: float
+    database_path: Path,
+    image_dir: Path,
+    pair: PairScore,
+    pri_threshold: float,
+    *,
+    fit_focal: bool = False,
 ) -> str:
     """Why ``ppo-cv pair``'s decision refuses ``pair`` as an initial pair; empty when it does
-    not. The images are read as pycolmap read them, with the database cameras."""
+    not. The images are read as pycolmap read them, with the database cameras (those
+    ``ppo-cv pair`` guesses without ``--K``: the EXIF focal length or 1.2 times the larger
+    side). With ``fit_focal`` (guessed cameras) a pair it does not refuse is decided again
+    with the focal length of the conjugate rotation nearest the homography of its verified
+    matches (:func:`rotation_focal_scale`), when one lies in :data:`FIELD_RANGE_DEG`."""
     from .images import load_image
-    from .pipeline import PairOptions, estimate_pair
 
     with pycolmap.Database.open(database_path) as database:
         cameras = [
-            _pipeline_camera(database.read_camera(database.read_image(image_id).camera_id))
+            database.read_camera(database.read_image(image_id).camera_id)
             for image_id in (pair.image_id1, pair.image_id2)
         ]
+        scale = _fitted_focal_scale(database, pair, cameras) if fit_focal else None
+        ranking = "" if scale is None else _ranking_rejection(database, pair, scale, pri_threshold)
     images = [
         load_image(image_dir / name, exif_orientation=False) for name in (pair.name1, pair.name2)
     ]
-    (K1, dist1), (K2, dist2) = cameras
+    (K1, dist1), (K2, dist2) = (_pipeline_camera(camera) for camera in cameras)
+    rejection = _pair_decision(images, K1, K2, dist1, dist2, pri_threshold, "")
+    if rejection or scale is None:
+        return rejection
+    focal = f"focal length {scale * K1[0, 0]:.1f} px fitted to the homography"
+    if ranking:
+        return f"pure rotation on the images ({focal}: {ranking})"
+    K1, K2 = _scaled_camera(K1, scale), _scaled_camera(K2, scale)
+    return _pair_decision(images, K1, K2, dist1, dist2, pri_threshold, f", {focal}")
+
+
+def _ranking_rejection(database, pair: PairScore, scale: float, pri_threshold: float) -> str:
+    """The rejection :func:`score_pairs` gives ``pair`` when its cameras' focal lengths are
+    multiplied by ``scale`` and their distortion dropped; empty unless a pure rotation."""
+    image1, image2 = database.read_image(pair.image_id1), database.read_image(pair.image_id2)
+    cameras = {}
+    for image in (image1, image2):
+        camera = database.read_camera(image.camera_id)
+        K = _scaled_camera(np.asarray(camera.calibration_matrix(), dtype=np.float64), scale)
+        cameras[image.camera_id] = pycolmap.Camera(
+            model="PINHOLE", width=camera.width, height=camera.height,
+            params=[K[0, 0], K[1, 1], K[0, 2], K[1, 2]],
+        )  # fmt: skip
+    keypoints = {i.image_id: database.read_keypoints(i.image_id) for i in (image1, image2)}
+    geometry = database.read_two_view_geometry(image1.image_id, image2.image_id)
+    scored = _score_geometry(
+        geometry, image1, image2, cameras, keypoints, pri_threshold=pri_threshold
+    )
+    return scored.rejection if scored.rejection.startswith("pure rotation") else ""
+
+
+def _scaled_camera(K: np.ndarray, scale: float) -> np.ndarray:
+    """``K`` with its focal lengths multiplied by ``scale``."""
+    return K @ np.diag([scale, scale, 1.0])
+
+
+def _pair_decision(images, K1, K2, dist1, dist2, pri_threshold: float, focal_note: str) -> str:
+    """The rejection of :func:`_image_rejection` for one set of cameras."""
+    from .pipeline import PairOptions, estimate_pair
+
     try:
         result = estimate_pair(
             *images, K1, K2, dist1, dist2, options=PairOptions(pri_threshold=pri_threshold)
@@ -888,8 +949,107 @@ def _image_rejection(
     except ValueError as exc:
         return f"no reliable geometry on the images ({exc})"
     if result.pure_rotation:
-        return f"pure rotation on the images (ppo-cv pair: PRI {result.pri:.4f}, {result.model})"
+        return (
+            f"pure rotation on the images (ppo-cv pair: PRI {result.pri:.4f}, {result.model}"
+            f"{focal_note})"
+        )
     return ""
+
+
+def _fitted_focal_scale(database, pair: PairScore, cameras) -> float | None:
+    """:func:`rotation_focal_scale` of the homography of the pair's verified matches, in the
+    normalized coordinates of the database cameras; None with fewer than 8 matches, no
+    homography, or no focal length in :data:`FIELD_RANGE_DEG`."""
+    geometry = database.read_two_view_geometry(pair.image_id1, pair.image_id2)
+    matches = np.asarray(geometry.inlier_matches, dtype=np.int64).reshape(-1, 2)
+    if len(matches) < 8:
+        return None
+    x1, x2 = (
+        np.column_stack([xy, np.ones(len(xy))])
+        for xy in (
+            colmap.rays_from_camera(
+                camera, np.asarray(database.read_keypoints(image_id), dtype=np.float64)[rows, :2]
+            )
+            for camera, image_id, rows in ((cameras[0], pair.image_id1, matches[:, 0]),
+                                           (cameras[1], pair.image_id2, matches[:, 1]))
+        )
+    )  # fmt: skip
+    focal = cameras[0].mean_focal_length()
+    homography = estimate_homography(x1, x2, focal, confidence=_HOMOGRAPHY_CONFIDENCE)
+    if homography is None:
+        return None
+    width = max(int(cameras[0].width), int(cameras[0].height))
+    return rotation_focal_scale(homography.H, focal, width)
+
+
+FIELD_RANGE_DEG = (5.0, 150.0)
+"""Fields of view, across the larger image side, within which :func:`rotation_focal_scale`
+looks for a focal length: a long telephoto to a wide lens short of a fisheye."""
+
+_SCALE_GRID = 401  # focal lengths tried, evenly in log scale, before the bounded refinement
+
+
+def rotation_focal_scale(H: Any, focal: float, size: float) -> float | None:
+    """The scale of the focal length for which a homography is nearest a rotation.
+
+    Between two views of a camera turning about its centre, with intrinsics ``K`` and a
+    centred principal point, the homography of the pixels is the conjugate rotation
+    ``K R K^-1``. On points normalized with a guessed focal length ``focal``, a true focal
+    length ``s * focal`` makes it ``S R S^-1`` with ``S = diag(s, s, 1)``: the scale ``s`` is
+    the one for which ``S^-1 H S`` is a rotation times a scalar, its three singular values
+    equal. It is found by minimising ``log(sigma_1 / sigma_3)`` of ``S^-1 H S`` over ``s``,
+    first on a grid, then by a bounded scalar search around the grid's best (Hartley and
+    Zisserman, *Multiple View Geometry*, 2nd ed., sec. 8.8 and 19.3: the homography of a
+    rotating camera is ``K R K^-1``, and its constraints on ``K``).
+
+    Parameters
+    ----------
+    H : array_like, shape (3, 3)
+        Homography ``x2 ~ H x1`` of normalized points.
+    focal : float
+        The focal length that normalized the points, pixels.
+    size : float
+        The larger image side, pixels: bounds the focal lengths tried to the fields of view of
+        :data:`FIELD_RANGE_DEG`.
+
+    Returns
+    -------
+    float or None
+        ``s``; None when ``H`` is not finite or the best scale lies on a bound of the range
+        (no focal length inside it makes ``H`` a rotation, or the rotation is about the
+        optical axis, which says nothing of the focal length).
+    """
+    from scipy.optimize import minimize_scalar
+
+    H = np.asarray(H, dtype=np.float64)
+    if H.shape != (3, 3) or not np.all(np.isfinite(H)):
+        return None
+    low, high = (
+        np.log(0.5 * size / np.tan(np.radians(0.5 * field)) / focal)
+        for field in FIELD_RANGE_DEG[::-1]
+    )
+    log_scales = np.linspace(low, high, _SCALE_GRID)
+    spreads = _rotation_spread(H, log_scales)
+    best = int(np.argmin(spreads))
+    if best in (0, _SCALE_GRID - 1) or not np.isfinite(spreads[best]):
+        return None
+    bracket = (log_scales[best - 1], log_scales[best + 1])
+    found = minimize_scalar(
+        lambda v: _rotation_spread(H, np.array([v]))[0], bounds=bracket, method="bounded"
+    )
+    return float(np.exp(found.x))
+
+
+def _rotation_spread(H: np.ndarray, log_scales: np.ndarray) -> np.ndarray:
+    """``log(sigma_1 / sigma_3)`` of ``S^-1 H S`` for each ``S = diag(s, s, 1)``."""
+    s = np.exp(log_scales)[:, None]
+    ones = np.ones_like(s)
+    rows = np.hstack([1.0 / s, 1.0 / s, ones])
+    columns = np.hstack([s, s, ones])
+    conjugated = H[None] * rows[:, :, None] * columns[:, None, :]
+    singular = np.linalg.svd(conjugated, compute_uv=False)
+    with np.errstate(divide="ignore"):
+        return np.log(singular[:, 0] / singular[:, 2])
 
 
 def _pipeline_camera(camera: pycolmap.Camera) -> tuple[np.ndarray, np.ndarray | None]:

@@ -5,11 +5,13 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import numpy as np
 import pycolmap
 import pytest
+from scipy.spatial.transform import Rotation
 
 from ppo_cv import sfm
-from ppo_cv.data_gen import render_tripod_then_move
+from ppo_cv.data_gen import read_pairs, render_tripod_then_move
 from ppo_cv.pipeline import estimate_pair
 
 COMMAND = [sys.executable, "-m", "ppo_cv.cli.main"]
@@ -26,22 +28,77 @@ def tripod(tmp_path_factory):
     return images, database, K, {n for n in names if "pan" in n}
 
 
-def test_pan_folder_exits_1_as_a_panorama_and_keeps_the_database(tmp_path):
+@pytest.mark.parametrize(
+    ("with_K", "counts"),
+    [
+        (True, "of 10 matched pairs, 10 pure rotation"),
+        (False, "of 10 matched pairs, 5 not checked on the images, 5 pure rotation on the images"),
+    ],
+    ids=["K", "guessed camera"],
+)
+def test_pan_folder_exits_1_as_a_panorama_and_keeps_the_database(tmp_path, with_K, counts):
+    """Without --K pycolmap guesses 1.2 x 480 = 576 px for a 408 px lens: the focal length
+    fitted to each checked pair's homography finds the rotation."""
     images = tmp_path / "pan"
     _, K, _ = render_tripod_then_move(images, n_pan=5, n_move=0)
-    k = f"{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]}"
+    k = ["--K", f"{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]}"] if with_K else []
     run = subprocess.run(
-        [*COMMAND, "sfm", str(images), "model", "--K", k, "--database", "db.db", "--quiet"],
-        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+        [*COMMAND, "sfm", str(images), "model", *k, "--database", "db.db", "--quiet"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert run.returncode == 1, run.stderr
-    (line,) = run.stderr.strip().splitlines()
+    line = run.stderr.strip().splitlines()[-1]
     assert line.startswith("ppo-cv sfm: the 5 images look like a panorama (pure rotations")
-    assert "hold no structure to reconstruct: of 10 matched pairs, 10 pure rotation" in line
+    assert f"hold no structure to reconstruct: {counts}" in line
     assert line.endswith("the matched features are in db.db")
     assert run.stdout == "" and not (tmp_path / "model").exists()
     with pycolmap.Database.open(tmp_path / "db.db") as database:
         assert database.num_images() == 5
+
+
+def test_translating_folder_reconstructs_with_a_guessed_camera(tmp_path):
+    images = tmp_path / "walk"
+    render_tripod_then_move(images, n_pan=1, n_move=4)
+    run = subprocess.run(
+        [*COMMAND, "sfm", str(images), "model", "--quiet"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.startswith("registered 5/5 images"), run.stdout
+    model = pycolmap.Reconstruction(tmp_path / "model")
+    assert model.num_reg_images() == 5 and model.num_points3D() > 500
+
+
+def _conjugate_rotation(rotvec, focal_scale: float) -> np.ndarray:
+    S = np.diag([focal_scale, focal_scale, 1.0])
+    return S @ Rotation.from_rotvec(rotvec).as_matrix() @ np.linalg.inv(S)
+
+
+@pytest.mark.parametrize(
+    ("rotvec", "focal_scale"),
+    [
+        ([0.0, 0.28, 0.0], 408 / 576),  # the rendered pan's lens against pycolmap's guess
+        ([0.02, 0.15, 0.01], 997 / 917.5),  # pano_dev book against its EXIF focal length
+        ([0.1, -0.05, 0.2], 1.5),
+        ([0.0, 0.05, 0.0], 0.8),
+    ],
+)
+def test_rotation_focal_scale_recovers_the_focal_length_of_a_rotation(rotvec, focal_scale):
+    H = 3.7 * _conjugate_rotation(rotvec, focal_scale)
+    assert sfm.rotation_focal_scale(H, 600.0, 640) == pytest.approx(focal_scale, rel=1e-4)
+
+
+@pytest.mark.parametrize(
+    "H",
+    [
+        Rotation.from_rotvec([0.0, 0.0, 0.3]).as_matrix(),  # about the optical axis only
+        _conjugate_rotation([0.0, 0.2, 0.0], 20.0),  # a focal length far outside the range
+        np.full((3, 3), np.nan),
+    ],
+    ids=["roll", "out of range", "not finite"],
+)
+def test_rotation_focal_scale_is_none_without_a_focal_length_in_range(H):
+    assert sfm.rotation_focal_scale(H, 600.0, 640) is None
 
 
 def test_image_check_agrees_with_estimate_pair(tripod):
@@ -61,11 +118,11 @@ def _refusing(pairs_to_refuse, calls):
     """``_image_rejection`` that refuses the given pairs as rotations and checks the others."""
     real = sfm._image_rejection
 
-    def check(database_path, image_dir, pair, pri_threshold):
+    def check(database_path, image_dir, pair, pri_threshold, **options):
         calls.append((pair.name1, pair.name2))
         if (pair.name1, pair.name2) in pairs_to_refuse:
             return "pure rotation on the images (ppo-cv pair: PRI 0.0001, rotation)"
-        return real(database_path, image_dir, pair, pri_threshold)
+        return real(database_path, image_dir, pair, pri_threshold, **options)
 
     return check
 
@@ -130,3 +187,43 @@ def test_real_tripod_panorama_exits_1_where_it_seeded_a_two_image_model(pano_dev
     assert "the 10 images look like a panorama (pure rotations about one point)" in line
     assert "pure rotation on the images" in line
     assert not (tmp_path / "model").exists()
+
+
+def test_real_tripod_panorama_exits_1_without_K(pano_dev, tmp_path):
+    """Four ``book`` frames of pano_dev: pycolmap takes their EXIF focal length (917.5 px,
+    997 px in the reference), with which ``ppo-cv pair`` calls them general motion; the focal
+    length fitted to each pair's homography calls them rotations (they registered 4 of 4)."""
+    images = tmp_path / "book"
+    images.mkdir()
+    for index in range(4214, 4218):
+        name = f"book_DSC0{index}.JPG"
+        (images / name).symlink_to(pano_dev / "images" / name)
+    run = subprocess.run(
+        [*COMMAND, "sfm", str(images), "model", "--database", "db.db"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert run.returncode == 1, run.stderr
+    line = run.stderr.strip().splitlines()[-1]
+    assert "the 4 images look like a panorama (pure rotations about one point)" in line
+    assert "pure rotation on the images" in line
+    assert "px fitted to the homography" in run.stderr
+    assert not (tmp_path / "model").exists()
+
+
+def test_freiburg_reconstructs_without_K(freiburg, tmp_path):
+    run = subprocess.run(
+        [*COMMAND, "sfm", str(freiburg / "images"), "model", "--quiet"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=900,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.startswith("registered 17/17 images"), run.stdout
+    ranking = (tmp_path / "model" / "initial_pairs.txt").read_text().splitlines()
+    assert ranking[1].endswith(" ok")
+    gt = {
+        (r["name1"], r["name2"]): (r["R"], r["t"])
+        for r in read_pairs(freiburg / "pairs_with_gt.txt")
+    }
+    model = pycolmap.Reconstruction(tmp_path / "model")
+    rotation_errors, translation_errors = sfm.pose_errors(model, gt)
+    assert len(rotation_errors) == 85
+    assert np.median(rotation_errors) < 1.0 and np.median(translation_errors) < 2.0
