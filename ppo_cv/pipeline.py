@@ -7,7 +7,9 @@ Stages (each timed in ``PairResult.timings``, seconds):
    When the essential matrix (stage 4) finds fewer than ``PairOptions.redetect_below``
    inliers, stages 1-4 run again on features detected at a lower threshold
    (:data:`REDETECT_THRESHOLD_SCALE`) and the fit that chance explains less (lower ``log10``
-   NFA, :mod:`ppo_cv.significance`) is kept; each stage's time is the sum of both runs.
+   NFA, :mod:`ppo_cv.significance`) is kept; each stage's time is the sum of both runs. When
+   ordered sampling cannot settle the first features, the denser ones are fitted first and
+   the first ones' uniform fit runs only if the denser give no significant consensus.
 2. ``matching``: mutual nearest neighbours with Lowe's ratio test, one match per pixel pair.
 3. ``undistort``: matched pixels to normalized coordinates ``K^-1 [u, v, 1]``, lens distortion
    removed from the points (never from the images).
