@@ -248,6 +248,17 @@ def test_a_weak_fit_over_few_chance_matches_stops_at_the_significant_consensus(t
     assert fit is None or epipolar_significance(fit.E, x1, x2, K, SIZE).log10_nfa > 5.0
 
 
+def test_a_weak_result_left_to_the_caller_is_none_and_costs_no_full_fit(trial_caps):
+    """Chance matches: with ``uniform_when_weak`` False the weak ordered result gives None
+    after the ordered fits alone; with it, the full fit runs over all 40 matches."""
+    x1, x2, _, _, _ = synthetic_matches(0, 40, seed=3)
+    scores = np.linspace(0.5, 0.9, 40)
+    assert estimate_essential_ordered(x1, x2, FOCAL, scores, SIZE, uniform_when_weak=False) is None
+    assert trial_caps and set(trial_caps) == {robust_module.ORDERED_MAX_TRIALS}
+    estimate_essential_ordered(x1, x2, FOCAL, scores, SIZE)
+    assert trial_caps[-1] != robust_module.ORDERED_MAX_TRIALS
+
+
 @pytest.mark.slow
 def test_a_weak_freiburg_pair_keeps_the_consensus_of_the_full_budget(freiburg, monkeypatch):
     """A wide-baseline freiburg pair (23 inliers among 155 matches) decided by the uniform fit:
