@@ -7,7 +7,9 @@ Stages (each timed in ``PairResult.timings``, seconds):
    When the essential matrix (stage 4) finds fewer than ``PairOptions.redetect_below``
    inliers, stages 1-4 run again on features detected at a lower threshold
    (:data:`REDETECT_THRESHOLD_SCALE`) and the fit that chance explains less (lower ``log10``
-   NFA, :mod:`ppo_cv.significance`) is kept; each stage's time is the sum of both runs.
+   NFA, :mod:`ppo_cv.significance`) is kept; each stage's time is the sum of both runs. When
+   ordered sampling cannot settle the first features, the denser ones are fitted first and
+   the first ones' uniform fit runs only if the denser give no significant consensus.
 2. ``matching``: mutual nearest neighbours with Lowe's ratio test, one match per pixel pair.
 3. ``undistort``: matched pixels to normalized coordinates ``K^-1 [u, v, 1]``, lens distortion
    removed from the points (never from the images).
@@ -519,11 +521,12 @@ class _Consensus:
 
 
 def _consensus(
-    f1, f2, threshold_scale, K1, K2, dist1, dist2, focal, shape2, options, lap
-) -> _Consensus:
+    f1, f2, threshold_scale, K1, K2, dist1, dist2, focal, shape2, options, lap, settle=True
+) -> _Consensus | None:
     """Match, normalise and fit ``E`` robustly (stages 2-4) on the features at
     ``threshold_scale`` (SIFT features detected lower thinned to it); ValueError names what is
-    missing."""
+    missing. None when ordered sampling does not settle the matches and ``settle`` is False:
+    the uniform fit that would settle them is left to the caller (:func:`_robust_essential`)."""
     f1, f2 = _thinned(f1, threshold_scale), _thinned(f2, threshold_scale)
     for name, f in (("image1", f1), ("image2", f2)):
         if len(f) < MIN_MATCHES:
@@ -542,22 +545,30 @@ def _consensus(
     lap("undistort")
 
     try:
-        fit = _robust_essential(x1, x2, focal, scores, K2, shape2, options)
+        fit = _robust_essential(x1, x2, focal, scores, K2, shape2, options, settle)
+        if fit is None:
+            return None
         significance = _require_significance(fit.E, x1, x2, K2, shape2, options, scores)
     finally:
         lap("ransac")
     return _Consensus(f1, f2, threshold_scale, matches, x1, x2, fit, significance)
 
 
-def _robust_essential(x1, x2, focal, scores, K2, shape2, options: PairOptions) -> RobustEstimate:
+def _robust_essential(
+    x1, x2, focal, scores, K2, shape2, options: PairOptions, uniform_when_weak: bool = True
+) -> RobustEstimate | None:
     """The robust essential matrix of the matches (stage ``ransac``); ValueError when it has
-    fewer than ``options.min_inliers`` inliers."""
+    fewer than ``options.min_inliers`` inliers. None when ordered sampling is weak and
+    ``uniform_when_weak`` is False: the uniform fit it would need is left to the caller."""
     ransac = _ransac_keywords(options)
     if options.ordered_sampling:
         size2 = (int(shape2[1]), int(shape2[0]))
         fit = estimate_essential_ordered(
-            x1, x2, focal, scores, size2, max_log10_nfa=options.max_log10_nfa, K2=K2, **ransac
-        )
+            x1, x2, focal, scores, size2, max_log10_nfa=options.max_log10_nfa, K2=K2,
+            uniform_when_weak=uniform_when_weak, **ransac,
+        )  # fmt: skip
+        if fit is None and not uniform_when_weak:
+            return None
     else:
         fit = estimate_essential(x1, x2, focal, **ransac)
     if fit is None or fit.num_inliers < options.min_inliers:
@@ -575,25 +586,34 @@ def _best_consensus(
     """The consensus of the given features, or of features detected at
     :data:`REDETECT_THRESHOLD_SCALE` when that one is weak (``PairOptions.redetect_below``)
     and chance explains the denser one less (lower ``log10`` NFA, which counts the matches
-    each was drawn from); the first failure's ValueError when neither holds."""
+    each was drawn from); the first failure's ValueError when neither holds.
+
+    One uniform fit settles a weak pair: when ordered sampling cannot settle the given
+    features, the denser ones are fitted first (they hold the given ones: thinned to threshold
+    1 they are the given set), and the given features are fitted uniformly only when the
+    denser ones give no significant consensus."""
     img1, img2 = inputs.img1, inputs.img2
     camera = (
         inputs.K1, inputs.K2, inputs.dist1, inputs.dist2, inputs.focal, img2.shape, options, lap
     )  # fmt: skip
-    try:
-        found, failure = _consensus(f1, f2, 1.0, *camera), None
-    except ValueError as exc:
-        found, failure = None, exc
-    weak = found is None or found.fit.num_inliers < options.redetect_below
-    if options.redetect_below > 0 and weak:
+
+    def attempt(features1, features2, scale, settle=True):
+        try:
+            return _consensus(features1, features2, scale, *camera, settle), None
+        except ValueError as exc:
+            return None, exc
+
+    redetect = options.redetect_below > 0
+    found, failure = attempt(f1, f2, 1.0, settle=not redetect)
+    unsettled = found is None and failure is None
+    if redetect and (found is None or found.fit.num_inliers < options.redetect_below):
         d1, d2 = f1, f2
         if not all(_thins_to(f, REDETECT_THRESHOLD_SCALE) for f in (f1, f2)):
             d1, d2, _ = _detect_both(img1, img2, options, REDETECT_THRESHOLD_SCALE)
         lap("features")
-        try:
-            denser = _consensus(d1, d2, REDETECT_THRESHOLD_SCALE, *camera)
-        except ValueError:
-            denser = None
+        denser, _ = attempt(d1, d2, REDETECT_THRESHOLD_SCALE)
+        if unsettled and denser is None:
+            found, failure = attempt(f1, f2, 1.0)
         if denser is not None and (
             found is None or denser.significance.log10_nfa < found.significance.log10_nfa
         ):

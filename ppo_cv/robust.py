@@ -288,6 +288,7 @@ def estimate_essential_ordered(
     seed: int = 0,
     max_log10_nfa: float = 5.0,
     K2: np.ndarray | None = None,
+    uniform_when_weak: bool = True,
 ) -> RobustEstimate | None:
     """Robust essential matrix sampling the best-ranked matches first.
 
@@ -304,7 +305,9 @@ def estimate_essential_ordered(
        (``log10 NFA`` above ``max_log10_nfa`` or ``ORDERED_TRUSTED_LOG10_NFA``) is replaced
        by the full fit as it is (no refit), the consensus that the significance test was
        calibrated on (uniform sampling alone), of at most ``max_trials`` hypotheses and
-       stopped by the evidence it can still gain (module docstring).
+       stopped by the evidence it can still gain (module docstring); with
+       ``uniform_when_weak`` False that fit is left to the caller: ordered sampling has not
+       settled the matches, and None says so.
 
     Parameters
     ----------
@@ -325,11 +328,15 @@ def estimate_essential_ordered(
     K2 : ndarray, shape (3, 3), optional
         Intrinsics of camera 2 for the significance test; by default ``focal`` with the
         principal point at the centre of ``image_size``.
+    uniform_when_weak : bool
+        Run the full fit of a weak result (step 3); False returns None instead, for a caller
+        with other matches of the same images to try first.
 
     Returns
     -------
     RobustEstimate or None
-        ``sampling`` says which fit it is; None when no fit finds a model.
+        ``sampling`` says which fit it is; None when no fit finds a model, or when ordered
+        sampling is weak and ``uniform_when_weak`` is False.
     """
     x1 = np.ascontiguousarray(x1, dtype=np.float64)
     x2 = np.ascontiguousarray(x2, dtype=np.float64)
@@ -362,6 +369,8 @@ def estimate_essential_ordered(
         if nfa <= FALLBACK_MAX_LOG10_NFA:
             return fit
     if not nfa <= min(max_log10_nfa, ORDERED_TRUSTED_LOG10_NFA):
+        if not uniform_when_weak:
+            return None
         full = _uniform_fit_to_evidence(
             x1, x2, focal, image_size, max_trials, max_log10_nfa, settings
         )

@@ -248,6 +248,17 @@ def test_a_weak_fit_over_few_chance_matches_stops_at_the_significant_consensus(t
     assert fit is None or epipolar_significance(fit.E, x1, x2, K, SIZE).log10_nfa > 5.0
 
 
+def test_a_weak_result_left_to_the_caller_is_none_and_costs_no_full_fit(trial_caps):
+    """Chance matches: with ``uniform_when_weak`` False the weak ordered result gives None
+    after the ordered fits alone; with it, the full fit runs over all 40 matches."""
+    x1, x2, _, _, _ = synthetic_matches(0, 40, seed=3)
+    scores = np.linspace(0.5, 0.9, 40)
+    assert estimate_essential_ordered(x1, x2, FOCAL, scores, SIZE, uniform_when_weak=False) is None
+    assert trial_caps and set(trial_caps) == {robust_module.ORDERED_MAX_TRIALS}
+    estimate_essential_ordered(x1, x2, FOCAL, scores, SIZE)
+    assert trial_caps[-1] != robust_module.ORDERED_MAX_TRIALS
+
+
 @pytest.mark.slow
 def test_a_weak_freiburg_pair_keeps_the_consensus_of_the_full_budget(freiburg, monkeypatch):
     """A wide-baseline freiburg pair (23 inliers among 155 matches) decided by the uniform fit:
@@ -272,5 +283,39 @@ def test_a_weak_freiburg_pair_keeps_the_consensus_of_the_full_budget(freiburg, m
         full = robust_module.estimate_essential(x1, x2, focal, max_trials=100_000, **settings)
         np.testing.assert_array_equal(found.inliers, full.inliers)
         np.testing.assert_allclose(found.E, full.E, atol=1e-12)
+    assert rotation_error_deg(result.R, record["R"]) < 5.0
+    assert direction_error_deg(result.t, record["t"]) < 5.0
+
+
+def test_a_weak_freiburg_pair_pays_one_uniform_fit(freiburg, monkeypatch):
+    """The same wide-baseline pair: ordered sampling does not settle its first features, the
+    denser features' consensus is significant, so the first features are never fitted
+    uniformly; one uniform fit, on the denser matches, and the pose within 5 degrees of the
+    pseudo ground truth."""
+    from ppo_cv.data_gen.io import read_pairs
+    from ppo_cv.pipeline import REDETECT_THRESHOLD_SCALE
+
+    ordered, uniform = [], []
+    real_ordered = robust_module.estimate_essential_ordered
+    real_uniform = robust_module._uniform_fit_to_evidence
+
+    def ordered_spy(x1, *args, **kwargs):
+        found = real_ordered(x1, *args, **kwargs)
+        ordered.append((len(x1), kwargs.get("uniform_when_weak", True), found))
+        return found
+
+    def uniform_spy(x1, *args):
+        uniform.append(len(x1))
+        return real_uniform(x1, *args)
+
+    monkeypatch.setattr(robust_module, "_uniform_fit_to_evidence", uniform_spy)
+    monkeypatch.setattr("ppo_cv.pipeline.estimate_essential_ordered", ordered_spy)
+    record = read_pairs(freiburg / "pairs_with_gt.txt")[37]
+    images = [cv2.imread(str(freiburg / "images" / record[n])) for n in ("name1", "name2")]
+    result = estimate_pair(*images, record["K1"], record["K2"])
+    (first, settle, unsettled), (denser, _, _) = ordered
+    assert not settle and unsettled is None and denser > first
+    assert uniform == [denser] == [len(result.matches)]
+    assert result.evidence.significance.threshold_scale == REDETECT_THRESHOLD_SCALE
     assert rotation_error_deg(result.R, record["R"]) < 5.0
     assert direction_error_deg(result.t, record["t"]) < 5.0
