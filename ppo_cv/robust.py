@@ -338,15 +338,7 @@ def estimate_essential_ordered(
         ``sampling`` says which fit it is; None when no fit finds a model, or when ordered
         sampling is weak and ``uniform_when_weak`` is False.
     """
-    x1 = np.ascontiguousarray(x1, dtype=np.float64)
-    x2 = np.ascontiguousarray(x2, dtype=np.float64)
-    scores = np.asarray(scores, dtype=np.float64).reshape(-1)
-    if scores.shape[0] != x1.shape[0] or x1.shape != x2.shape:
-        raise ValueError(
-            f"need one score per match: x1 {x1.shape}, x2 {x2.shape}, scores {scores.shape}"
-        )
-    if not np.all(np.isfinite(scores)):
-        raise ValueError("scores must be finite")
+    x1, x2, scores = _scored_matches(x1, x2, scores)
     settings = {
         "backend": backend,
         "threshold": threshold,
@@ -361,9 +353,8 @@ def estimate_essential_ordered(
     best = np.argsort(scores, kind="stable")[:size]
     cap = min(int(max_trials), ORDERED_MAX_TRIALS)
     found = estimate_essential(x1[best], x2[best], focal, max_trials=cap, **settings)
-    fit, nfa = None, np.inf
-    if found is not None:
-        fit = _consensus_fit(found.E, x1, x2, focal, cap, settings)
+    fit = None if found is None else _consensus_fit(found.E, x1, x2, focal, cap, settings)
+    nfa = np.inf
     if fit is not None:
         nfa = epipolar_significance(fit.E, x1, x2, K2, image_size).log10_nfa
         if nfa <= FALLBACK_MAX_LOG10_NFA:
@@ -382,6 +373,21 @@ def estimate_essential_ordered(
     if full is not None and (fit is None or full.num_inliers > fit.num_inliers):
         return RobustEstimate(full.E, full.inliers, backend, "fallback")
     return fit
+
+
+def _scored_matches(x1, x2, scores) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``x1``, ``x2`` as contiguous float64 and ``scores`` as a flat float64 array; ValueError
+    unless there is one finite score per match."""
+    x1 = np.ascontiguousarray(x1, dtype=np.float64)
+    x2 = np.ascontiguousarray(x2, dtype=np.float64)
+    scores = np.asarray(scores, dtype=np.float64).reshape(-1)
+    if scores.shape[0] != x1.shape[0] or x1.shape != x2.shape:
+        raise ValueError(
+            f"need one score per match: x1 {x1.shape}, x2 {x2.shape}, scores {scores.shape}"
+        )
+    if not np.all(np.isfinite(scores)):
+        raise ValueError("scores must be finite")
+    return x1, x2, scores
 
 
 def trials_for_consensus(
