@@ -18,10 +18,16 @@ from ppo_cv.atomic import (
     stop_listening,
 )
 
-__all__ = ["main"]
+__all__ = ["BLAS_THREAD_VARIABLES", "main"]
 
 _PYCOLMAP_COMMANDS = {"pair", "demo", "pairs", "sfm"}
 """Commands that import pycolmap: it is imported first, with the signals held back."""
+
+BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+"""Set to 1 by :func:`main` before numpy loads, unless the user set them: the linear algebra of
+a pair is on small matrices, where BLAS threads only wait for each other and contend with the
+detector's threads and the other workers (``ppo-cv pairs`` on freiburg, 2 workers: 20 % less
+CPU and wall time, docs/performance.md)."""
 
 
 @functools.cache
@@ -129,6 +135,8 @@ def main(argv: list[str] | None = None) -> None:
     SIGINT and SIGTERM stop the run: outputs in progress are removed, one line on stderr,
     exit code 130 (SIGINT) or 143 (SIGTERM).
     """
+    for variable in BLAS_THREAD_VARIABLES:
+        os.environ.setdefault(variable, "1")
     sigterm_as_interrupt()
     if sys.stdout is None:  # started with ">&-": every command prints its result there
         print(f"{_command(argv)}: standard output is closed; redirect it to a file or "

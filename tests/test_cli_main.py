@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
 import pytest
 
 import ppo_cv
-from ppo_cv.cli.main import main
+from ppo_cv.cli.main import BLAS_THREAD_VARIABLES, main
 
 
 def _run(argv, capsys):
@@ -51,3 +52,27 @@ def test_version_is_printed_by_the_installed_command():
     done = subprocess.run([sys.executable, "-m", "ppo_cv.cli.main", "--version"],
                           capture_output=True, text=True, timeout=60)  # fmt: skip
     assert (done.returncode, done.stdout, done.stderr) == (0, f"ppo-cv {ppo_cv.__version__}\n", "")
+
+
+_BLAS_PROBE = """
+import os, sys
+from ppo_cv.cli.main import main
+numpy_before = 'numpy' in sys.modules
+try:
+    main(['--version'])
+except SystemExit:
+    pass
+print(numpy_before, os.environ.get('OPENBLAS_NUM_THREADS'), os.environ.get('MKL_NUM_THREADS'))
+"""
+
+
+@pytest.mark.parametrize(
+    "given, expected", [(None, "False 1 1"), ("2", "False 2 1")], ids=["unset", "user's"]
+)
+def test_the_command_runs_blas_on_one_thread_unless_told_otherwise(given, expected):
+    env = {k: v for k, v in os.environ.items() if k not in BLAS_THREAD_VARIABLES}
+    if given is not None:
+        env["OPENBLAS_NUM_THREADS"] = given
+    done = subprocess.run([sys.executable, "-c", _BLAS_PROBE], capture_output=True, text=True,
+                          timeout=60, env=env)  # fmt: skip
+    assert done.stdout.split("\n")[-2] == expected, done.stderr
