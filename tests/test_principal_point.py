@@ -188,7 +188,9 @@ def test_a_narrow_pan_whose_principal_point_lies_near_the_bound_is_flagged(
 def test_a_narrow_pan_flagged_only_through_the_wide_bound(size, seed, index, pivot):
     # 20 deg pans in a 28-30 deg field, 8 or 15 cm before the axis, as stitched, the true
     # principal point 1.9 % of a side off the centre: the fit overshoots 2 % and drops it,
-    # focal and k1 absorb what they can, and the pairs are called general, 1.3-3.7 deg off;
+    # focal and k1 absorb what they can, and the pairs are called general, their essential
+    # matrices 1.3-3.7 deg off and sliding with the lens term, so that the rotation-only fit's
+    # rotation (bias read on the matches' plane) is returned, 0.08-0.21 deg off;
     # within 3 % the rotation fits, and its windows' plane moved less than NEGLIGIBLE_PARALLAX
     # (seed 3: 0.0010 +- 0.0009, within two deviations, not three)
     pair = data_gen.make_pair(
@@ -201,7 +203,8 @@ def test_a_narrow_pan_flagged_only_through_the_wide_bound(size, seed, index, piv
     matches_only = _run(pair, photometric=False)
     assert not matches_only.pure_rotation
     assert matches_only.lens.principal_bound == PRINCIPAL_WIDE_BOUND
-    assert rotation_error_deg(matches_only.R, pair.R) > 1.0
+    assert matches_only.rotation_source == "rotation"
+    assert rotation_error_deg(matches_only.R, pair.R) < 0.3
     result = _run(pair)
     assert result.pure_rotation and result.lens.principal_bound == PRINCIPAL_WIDE_BOUND
     deviations = NEGLIGIBLE_SIGNIFICANCE * result.evidence.tracks.parallax_sigma
