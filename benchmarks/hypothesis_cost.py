@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
+import sys
 import time
 from pathlib import Path
 
@@ -22,6 +22,9 @@ import numpy as np
 
 from ppo_cv.atomic import import_pycolmap
 from ppo_cv.robust import ransac_options, virtual_camera
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from pairs_cache import _cpu_model, _load  # noqa: E402
 
 MATCHES = (30, 150, 600)
 FOCAL = 500.0
@@ -51,20 +54,6 @@ def lapack_cost(batch: int, rng: np.random.Generator) -> dict[str, float]:
         call()
         costs[name] = (time.process_time() - start) / batch
     return costs
-
-
-def _cpu_model() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or platform.machine()
-
-
-def _load() -> str:
-    return ", ".join(f"{v:.1f}" for v in os.getloadavg()) if hasattr(os, "getloadavg") else "?"
 
 
 def main(argv: list[str] | None = None) -> None:
