@@ -1075,14 +1075,18 @@ def _with_refusals(pairs: Sequence[PairScore], refused: Sequence[PairScore]) -> 
 
 def _check_scoring(scoring: dict) -> None:
     """TypeError naming a keyword that :func:`score_pairs` does not take, ValueError for a
-    value that is not a finite number >= 0: checked before the features are extracted."""
+    value that is not a finite number >= 0 (a whole number for ``min_inliers``): checked before
+    the features are extracted."""
     accepted = list(inspect.signature(score_pairs).parameters)[1:]
     for name, value in scoring.items():
         if name not in accepted:
             raise TypeError(
                 f"unexpected keyword argument {name!r}; the scoring takes {', '.join(accepted)}"
             )
-        as_nonnegative(value, name)
+        if name == "min_inliers":
+            as_whole_number(value, name, 0, MAX_WHOLE_NUMBER)
+        else:
+            as_nonnegative(value, name)
 
 
 def _check_choices(initialization: str, seeding: str) -> None:

@@ -492,11 +492,13 @@ def test_an_image_array_of_another_shape_is_refused_naming_every_accepted_shape(
     "scoring, error, words",
     [
         ({"pri_threshold": -1.0}, ValueError, r"pri_threshold must be a finite number >= 0"),
-        ({"min_inliers": "50"}, TypeError, r"min_inliers must be a number, got str '50'"),
+        ({"min_inliers": "50"}, TypeError, r"min_inliers must be a whole number, got str '50'"),
+        ({"min_inliers": 2.5}, ValueError, r"min_inliers must be a whole number in .*, got 2\.5"),
         ({"min_tri_angle": np.nan}, ValueError, r"min_tri_angle must be a finite number >= 0"),
         ({"max_forward_motion": -1.0}, ValueError, r"max_forward_motion must be a finite"),
     ],
-    ids=["negative PRI threshold", "inliers as text", "NaN angle", "negative forward motion"],
+    ids=["negative PRI threshold", "inliers as text", "a fraction of an inlier", "NaN angle",
+         "negative forward motion"],
 )
 def test_score_pairs_checks_its_options_before_the_database(tmp_path, scoring, error, words):
     with pytest.raises(error, match=words):
