@@ -7,7 +7,7 @@ plane's. Each is scored by its expected error, ``|bias| + deviation`` (degrees),
 smaller wins (:func:`choose_rotation`).
 
 - The moving model explains a translation, so a translation does not bias its rotation; its
-  deviation is the worst direction of the covariance of its final refinement
+  deviation is the root-mean-square angle of the covariance of its final refinement
   (:func:`ppo_cv.refine.pose_sigmas_deg`), which in a narrow field with a tiny baseline is
   large: a sideways translation and a pan make nearly the same flow (the bas-relief
   ambiguity), and a radial term lets the angle slide further. How far it slides is not what
