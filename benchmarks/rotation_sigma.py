@@ -16,8 +16,9 @@ data is needed.
 
 Run ``python benchmarks/rotation_sigma.py [--seeds 8] [--pairs]`` (a few minutes on 2 shared
 cores); it prints the machine and markdown tables per model, rotation source and baseline,
-with ``--pairs`` every pair's error against its sigma, the lens and the focal length's
-error. The tables, what the deviations count and what is left: ``docs/rotation_sigma.md``.
+with ``--pairs`` every pair's error against its sigma, its share of its model's squared error
+(the pairs that carry the model's ratio), the lens and the focal length's error. The tables,
+what the deviations count and what is left: ``docs/rotation_sigma.md``.
 """
 
 from __future__ import annotations
@@ -40,7 +41,10 @@ from imperfect import imperfect_render  # noqa: E402
 
 BASELINES = (0.0, 0.005, 0.02, 0.05)
 
-__all__ = ["BASELINES", "calibration_rows", "pair_lines", "pairwise_rms", "run", "main"]
+__all__ = [
+    "BASELINES", "calibration_rows", "pair_lines", "pairwise_rms", "squared_error_shares", "run",
+    "main",
+]
 
 
 def run(seeds: int) -> list[dict]:
@@ -93,18 +97,29 @@ def pairwise_rms(rows: list[dict], key: str) -> dict[str, float]:
     return {value: float(np.sqrt(np.mean(np.square(z)))) for value, z in ratios.items()}
 
 
+def squared_error_shares(rows: list[dict], key: str = "model") -> np.ndarray:
+    """Each pair's share of the squared error summed over the pairs of its ``key`` value: the
+    pairs that carry that value's RMS error, and so its ratio to the mean sigma."""
+    squared = np.array([r["error"] ** 2 for r in rows])
+    totals = {}
+    for r, e2 in zip(rows, squared, strict=True):
+        totals[r[key]] = totals.get(r[key], 0.0) + e2
+    return np.array([e2 / max(totals[r[key]], 1e-300) for r, e2 in zip(rows, squared, strict=True)])
+
+
 def pair_lines(rows: list[dict]) -> list[str]:
-    """A markdown table of every pair: its render, model, source, error against sigma."""
+    """A markdown table of every pair: its render, model, source, error against sigma and its
+    share of its model's squared error."""
     lines = [
-        "| baseline | seed | model | source | error (deg) | sigma (deg) | error / sigma | k1 "
-        "| focal error |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| baseline | seed | model | source | error (deg) | sigma (deg) | error / sigma "
+        "| share of model's error^2 | k1 | focal error |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
-    for r in rows:
+    for r, share in zip(rows, squared_error_shares(rows), strict=True):
         lines.append(
             f"| {r['baseline']} | {r['seed']} | {r['model']} | {r['source']} | {r['error']:.3f} "
-            f"| {r['sigma']:.3f} | {r['error'] / r['sigma']:.1f} | {r['k1']:+.3f} "
-            f"| {r['focal_error']:+.3f} |"
+            f"| {r['sigma']:.3f} | {r['error'] / r['sigma']:.1f} | {100 * share:.0f} % "
+            f"| {r['k1']:+.3f} | {r['focal_error']:+.3f} |"
         )
     return lines + [""]
 
