@@ -278,10 +278,10 @@ class PlaneGeometry:
     distance : float
         ``d`` in baselines (the unit of ``points3d``).
     ambiguous : bool
-        A second decomposition candidate also keeps every point in front of both cameras (the
-        two-fold ambiguity of a homography), and the tie was broken by the matches off the
-        plane or by the prior that the plane faces the cameras
-        (:func:`ppo_cv.plane.select_plane_pose`).
+        A second decomposition candidate keeps as many points in front of both cameras, within
+        the noise of a sign test (:func:`ppo_cv.plane.support_ties`; the two-fold ambiguity of
+        a homography), and the tie was broken by the matches off the plane or by the prior
+        that the plane faces the cameras (:func:`ppo_cv.plane.select_plane_pose`).
     k1 : float
         The radial (division-model) coefficient fitted with its homography
         (:func:`ppo_cv.plane.refine_planar_pose`; 0 when not significant).
