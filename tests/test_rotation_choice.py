@@ -353,3 +353,24 @@ def test_decision_aligns_windows_only_where_the_rotation_only_fit_could_win(
     assert not result.pure_rotation and result.rotation_source == chosen
     error = rotation_error_deg(result.R, R_ref)
     assert error < 1.0 and error + 1.0 < rotation_error_deg(seen[other].R, R_ref)
+
+
+@pytest.mark.parametrize(
+    ("apart_deg", "moving", "fit_sigma_deg", "could_win"),
+    [
+        (2.0, (0.2, 0.8), 0.1, True),  # 2 - 0.5 reach < 2 x 1.0
+        (2.6, (0.2, 0.8), 0.1, False),  # 2.1 beyond the budgets of both
+        (2.6, (0.2, 0.8), 0.2, True),  # a wider search reaches 0.9 degree
+        (30.0, (0.0, 0.5), 10.0, False),  # the search is capped at MAX_SEARCH_SIGMA_DEG
+        (30.0, (0.0, float("inf")), 0.1, True),  # a moving model of unknown error
+    ],
+)
+def test_tracks_are_aligned_while_the_refit_could_come_within_both_budgets(
+    apart_deg, moving, fit_sigma_deg, could_win
+):
+    from ppo_cv.pipeline import _tracks_could_win
+
+    essential = RotationEstimate("essential", np.eye(3), *moving)
+    rotation = RotationEstimate("rotation", _turn(apart_deg), 5.0, fit_sigma_deg)
+    assert rotation_error_deg(rotation.R, essential.R) == pytest.approx(apart_deg)
+    assert _tracks_could_win(essential, rotation) is could_win
