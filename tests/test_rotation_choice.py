@@ -308,3 +308,69 @@ def test_real_tripod_pair_called_general_returns_the_rotation_only_fit(pano_dev,
     error = rotation_error_deg(result.R, R_ref)
     assert error < 1.0 and error < rotation_error_deg(seen["essential"].R, R_ref)
     assert 0.0 < result.uncertainty.rotation_bias_deg < 1.0
+
+
+@pytest.mark.parametrize(
+    ("data", "names", "aligned", "chosen"),
+    [
+        # freiburg desk, a hand-held step: the rotation-only fit 2 degrees from an essential
+        # matrix of expected error 0.06 took a bias no tracks could read away
+        ("freiburg", ("1341847980.722988.png", "1341847981.726650.png"), False, "essential"),
+        # a tripod pan called general: the essential matrix slid 8 degrees (its budget 8.6),
+        # the tracks' plane reads a bias of about 3 degrees, the matches' 9
+        ("pano_dev", ("csie_IMG_8715.JPG", "csie_IMG_8716.JPG"), True, "rotation"),
+    ],
+)
+def test_decision_aligns_windows_only_where_the_rotation_only_fit_could_win(
+    data, names, aligned, chosen, request, monkeypatch
+):
+    import ppo_cv.pipeline as pipeline
+    from ppo_cv import estimate_pair
+
+    folder = request.getfixturevalue(data)
+    line = next(
+        row.split()
+        for row in (folder / "pairs_with_gt.txt").read_text().splitlines()
+        if row.split()[:2] == list(names)
+    )
+    K1, K2 = (np.array(line[i : i + 9], float).reshape(3, 3) for i in (4, 13))
+    R_ref = np.array(line[22:38], float).reshape(4, 4)[:3, :3]
+    seen, align = {"aligned": False}, pipeline._align_tracks
+
+    def recording_align(*args, keep_clipped=False, **keywords):
+        seen["aligned"] |= keep_clipped
+        return align(*args, keep_clipped=keep_clipped, **keywords)
+
+    def recording_choice(estimates):
+        seen.update({e.source: e for e in estimates})
+        return choose_rotation(estimates)
+
+    monkeypatch.setattr(pipeline, "_align_tracks", recording_align)
+    monkeypatch.setattr(pipeline, "choose_rotation", recording_choice)
+    result = estimate_pair(*(str(folder / "images" / name) for name in names), K1, K2)
+    other = "rotation" if chosen == "essential" else "essential"
+    assert seen["aligned"] is aligned
+    assert not result.pure_rotation and result.rotation_source == chosen
+    error = rotation_error_deg(result.R, R_ref)
+    assert error < 1.0 and error + 1.0 < rotation_error_deg(seen[other].R, R_ref)
+
+
+@pytest.mark.parametrize(
+    ("apart_deg", "moving", "fit_sigma_deg", "could_win"),
+    [
+        (2.0, (0.2, 0.8), 0.1, True),  # 2 - 0.5 reach < 2 x 1.0
+        (2.6, (0.2, 0.8), 0.1, False),  # 2.1 beyond the budgets of both
+        (2.6, (0.2, 0.8), 0.2, True),  # a wider search reaches 0.9 degree
+        (30.0, (0.0, 0.5), 10.0, False),  # the search is capped at MAX_SEARCH_SIGMA_DEG
+        (30.0, (0.0, float("inf")), 0.1, True),  # a moving model of unknown error
+    ],
+)
+def test_tracks_are_aligned_while_the_refit_could_come_within_both_budgets(
+    apart_deg, moving, fit_sigma_deg, could_win
+):
+    from ppo_cv.pipeline import _tracks_could_win
+
+    essential = RotationEstimate("essential", np.eye(3), *moving)
+    rotation = RotationEstimate("rotation", _turn(apart_deg), 5.0, fit_sigma_deg)
+    assert rotation_error_deg(rotation.R, essential.R) == pytest.approx(apart_deg)
+    assert _tracks_could_win(essential, rotation) is could_win
