@@ -35,16 +35,14 @@ image 1 lands in image 2, and the intensities fix it far better:
    tracks are too rough for it (a narrow strip of overlap, shots a stop apart), they are
    polished through the start model first. The fit's variances are multiplied by the
    windows' overlap (:func:`window_overlap`): overlapping windows are made of the same
-   pixels, and their errors are not independent;
+   pixels, and their errors are not independent. Then the windows are searched again at full
+   size in image 2 seen through the refitted model, and the fit repeated;
 4. steps 1-3 with each window side of :data:`WINDOWS`, keeping the refit whose rotation is
    the least uncertain: large windows locate tracks better in noisy images, small ones are
    more numerous in weak texture;
-5. the windows of that side searched again at full size in image 2 seen through its fit and
-   the fit repeated, then polished through that fit from where the search found them, and
-   the fit repeated once more; the next side too while its searched bound is below the
-   polished one, the least uncertain polished refit kept. A side that is not polished is not
-   searched again either (its second search would only sharpen a bound the polished side
-   already beats). The search is the cheap part (a few tens of
+5. the windows of that side polished through its fit, from where the search found them, and
+   the fit repeated; the next side too while its searched bound is below the polished one,
+   the least uncertain polished refit kept. The search is the cheap part (a few tens of
    milliseconds for both sides), the polish the accurate one (on the demo frame warped by a
    rotation the rotation error of the search alone was 0.02-0.05 degrees, 0.001-0.04
    polished); on the sets of ``benchmarks/pure_rotation.py`` checked (56 pairs) one side was
@@ -1039,17 +1037,18 @@ def _best_window_refit(
             focal, priors,
         )  # fmt: skip
         if refined is not None:
+            refined = _search_again(images, refined, y1, transfer_with, normalize2, focal, priors)
+        if plausible(refined):
             results.append(refined)
+    if not results:
+        return None
     sigma = lambda refined: refined.fit.rotation_sigma_deg  # noqa: E731
     polished = []
     for searched in sorted(results, key=sigma):
         if polished and min(map(sigma, polished)) <= sigma(searched):
             break
         y1 = pixels_to_normalized(searched.tracks.points1, K1, dist1)
-        again = _search_again(images, searched, y1, transfer_with, normalize2, focal, priors)
-        if not plausible(again):
-            continue
-        refined = _polish(images, again, y1, transfer_with, normalize2, focal, priors)
+        refined = _polish(images, searched, y1, transfer_with, normalize2, focal, priors)
         if plausible(refined):
             polished.append(refined)
     if not polished:
