@@ -6,10 +6,12 @@
 - a real tripod pair of ``../shared/data/pano_dev`` (its first pair, a pure rotation that runs
   the refit), skipped with a note when the shared data is absent.
 
-Run ``python benchmarks/cli_time.py [--runs 7]``: prints the machine, the median wall time of
-the whole command per pair with its ratio to the demo pair's, and the median of each pipeline
-stage as reported in the ``--json`` output. The pairs take turns within each run, so a change
-of load on the machine touches them alike.
+Run ``python benchmarks/cli_time.py [--runs 7] [--floor]``: prints the machine, the median
+wall time of the whole command per pair with its ratio to the demo pair's, and the median of
+each pipeline stage as reported in the ``--json`` output. The pairs take turns within each
+run, so a change of load on the machine touches them alike. ``--floor`` adds each rotation
+pair once more with ``--no-photometric``: what the pair costs without its refit, the part of
+its time that the refit cannot explain.
 """
 
 from __future__ import annotations
@@ -129,6 +131,9 @@ def report(measured: dict[str, tuple[list, dict, list]], runs: int, notes: list[
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--runs", type=int, default=7)
+    parser.add_argument(
+        "--floor", action="store_true", help="the rotation pairs also with --no-photometric"
+    )
     args = parser.parse_args(argv)
     notes = []
     with tempfile.TemporaryDirectory() as folder:
@@ -141,6 +146,11 @@ def main(argv: list[str] | None = None) -> None:
             notes.append(f"Note: no real tripod pair measured ({PANO_DEV} is absent).")
         else:
             pairs[tripod[0]] = tripod[1]
+        if args.floor:
+            pairs |= {
+                f"{label}, --no-photometric": [*arguments, "--no-photometric"]
+                for label, arguments in list(pairs.items())[1:]
+            }
         measured = run(pairs, args.runs)
     print(report(measured, args.runs, notes))
 

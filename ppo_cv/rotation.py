@@ -78,6 +78,7 @@ _ROTATION = np.arange(_NPARAMS) < 3
 _LENS = np.arange(_NPARAMS) < 5  # rotation, focal scale and k1
 _OFFSET = np.isin(np.arange(_NPARAMS), (5, 6))
 _RATIO = np.arange(_NPARAMS) == 7
+_SETTLED = 0.05  # deviations of the parameters: a smaller Gauss-Newton step ends the steps
 FOCAL_PRIOR = 0.02
 """Standard deviation of the relative error of a focal length given by a user (calibration
 files, EXIF, autostitch): "a few percent". The prior of :func:`fit_rotation_lens` on ``s - 1``.
@@ -891,11 +892,16 @@ def _posterior_deviations(J, problem, noise) -> np.ndarray | None:
 
 def _gauss_newton(params, problem, iterations):
     """Levenberg-Marquardt on the free parameters of ``problem`` (its boolean mask ``free``);
-    a rejected step keeps the Jacobian of the point it left from."""
+    a rejected step keeps the Jacobian of the point it left from. The steps end after one
+    shorter than :data:`_SETTLED` deviations of the parameters (``u^T H u`` against the
+    residual's variance per degree of freedom): Gauss-Newton converges quadratically, so the
+    next would move them by a far smaller fraction of their uncertainty, at the price of a
+    Jacobian."""
     free = problem[4]
     damping = 1e-6
     residual = _objective(params, problem)
     cost = residual @ residual
+    freedom = max(len(residual) - int(np.count_nonzero(free)), 1)
     normal = None
     for _ in range(iterations):
         if normal is None:
@@ -909,7 +915,8 @@ def _gauss_newton(params, problem, iterations):
         new_cost = new_residual @ new_residual
         if new_cost < cost:
             params, residual, damping, normal = trial, new_residual, damping * 0.1, None
-            if cost - new_cost < 1e-12 * cost:
+            settled = update @ H @ update < _SETTLED**2 * new_cost / freedom
+            if settled or cost - new_cost < 1e-12 * cost:
                 break
             cost = new_cost
         else:
