@@ -87,6 +87,7 @@ __all__ = [
     "MAX_SEARCH_SIGMA_DEG",
     "align_windows",
     "refine_rotation_photometric",
+    "refit_reach_deg",
     "window_overlap",
 ]
 
@@ -997,6 +998,17 @@ def _checked_inputs(
     return (K1, K2, dist1, dist2), R, rotation_sigma_deg, focal_ratio, priors
 
 
+def refit_reach_deg(rotation_sigma_deg: float) -> float:
+    """Farthest (degrees) :func:`refine_rotation_photometric` lets a refit move the rotation from
+    its start when searched over ``rotation_sigma_deg``: ``4 rotation_sigma_deg + 0.1``; a refit
+    beyond is refused.
+
+    >>> refit_reach_deg(0.5)
+    2.1
+    """
+    return 4.0 * float(rotation_sigma_deg) + 0.1
+
+
 def _best_window_refit(
     image1, image2, cameras, start, priors: dict, rotation_sigma_deg: float, windows, max_corners
 ) -> PhotometricRotation | None:
@@ -1024,7 +1036,7 @@ def _best_window_refit(
     normalize2 = lambda pixels: pixels_to_normalized(pixels, K2, dist2)  # noqa: E731
     plausible = lambda refined: (  # noqa: E731
         refined is not None
-        and rotation_error_deg(refined.fit.R, R) <= 4.0 * rotation_sigma_deg + 0.1
+        and rotation_error_deg(refined.fit.R, R) <= refit_reach_deg(rotation_sigma_deg)
     )
     results = []
     for side in windows:

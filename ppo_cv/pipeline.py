@@ -94,7 +94,12 @@ from .images import as_image as _as_image
 from .images import load_image
 from .metrics import rotation_error_deg
 from .motion_model import MotionDecision, decide_motion, plane_ransac_trials, with_tracks
-from .photometric import MAX_SEARCH_SIGMA_DEG, PhotometricRotation, refine_rotation_photometric
+from .photometric import (
+    MAX_SEARCH_SIGMA_DEG,
+    PhotometricRotation,
+    refine_rotation_photometric,
+    refit_reach_deg,
+)
 from .plane import held_k1_deviation, refine_planar_pose, undistort_division
 from .pose import _recover_normalized
 from .refine import (
@@ -983,27 +988,23 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     return choose_rotation([moving, rotation_only])
 
 
-def _refit_reach_deg(sigma_deg: float) -> float:
-    """Farthest (degrees) a refit on tracks searched over ``sigma_deg`` may move the rotation
-    from its start before :func:`refine_rotation_photometric` refuses it."""
-    return 4.0 * min(sigma_deg, MAX_SEARCH_SIGMA_DEG) + 0.1
-
-
 def _tracks_could_win(moving: RotationEstimate, rotation_only: RotationEstimate) -> bool:
     """Whether the rotation-only fit, refitted on tracks, could have the smaller expected error
     while both estimates keep within their expected errors of the truth.
 
     The two rotations are ``apart`` degrees; the refit moves the rotation-only one by at most
-    its reach (:func:`_refit_reach_deg`), so refitted they are at least
-    ``apart - reach`` apart. Both within their expected errors of the truth, that distance is
-    at most the sum of the two, which is below twice the moving model's when the refit wins:
-    a rotation-only fit farther than ``2 expected + reach`` from the moving model's took a
-    bias the tracks would have to read (or else the moving model is off by more than its own
-    budget) and cannot win; its windows are not aligned. A moving model of infinite expected
-    error keeps them aligned.
+    its reach (:func:`~ppo_cv.photometric.refit_reach_deg` of its deviation, capped at
+    :data:`~ppo_cv.photometric.MAX_SEARCH_SIGMA_DEG` as the search is), so refitted they are
+    at least ``apart - reach`` apart. Both within their expected errors of the truth, that
+    distance is at most the sum of the two, which is below twice the moving model's when the
+    refit wins: a rotation-only fit farther than ``2 expected + reach`` from the moving
+    model's took a bias the tracks would have to read (or else the moving model is off by
+    more than its own budget) and cannot win; its windows are not aligned. A moving model of
+    infinite expected error keeps them aligned.
     """
     apart = float(rotation_error_deg(rotation_only.R, moving.R))
-    return apart - _refit_reach_deg(rotation_only.fit_sigma_deg) < 2.0 * moving.expected_error_deg
+    reach = refit_reach_deg(min(rotation_only.fit_sigma_deg, MAX_SEARCH_SIGMA_DEG))
+    return apart - reach < 2.0 * moving.expected_error_deg
 
 
 def _moving_estimate(state: _Finishing, part: _ModelPart) -> RotationEstimate:
