@@ -4,13 +4,13 @@ Stages (each timed in ``PairResult.timings``, seconds):
 
 1. ``features``: SIFT (RootSIFT) keypoints, or ORB / AKAZE (:mod:`ppo_cv.features`);
    ``pycolmap_import`` is the wait for the first import of pycolmap that runs beside it.
-   SIFT is detected once at a lower threshold (:data:`REDETECT_THRESHOLD_SCALE`, at most
-   :data:`FIRST_DETECTION_PER_MEGAPIXEL` keypoints) and thinned to the default one for the
-   first consensus. When the essential matrix (stage 4) finds fewer than
-   ``PairOptions.redetect_below`` inliers, stages 2-4 run again on the denser features (stage
-   1 too when the first detection was cut short of them) and the fit that chance explains
-   less (lower ``log10`` NFA, :mod:`ppo_cv.significance`) is kept; each stage's time is the
-   sum of both runs. When
+   When the essential matrix (stage 4) finds fewer than ``PairOptions.redetect_below``
+   inliers, stages 1-4 run again on features detected at a lower threshold
+   (:data:`REDETECT_THRESHOLD_SCALE`) and the fit that chance explains less (lower ``log10``
+   NFA, :mod:`ppo_cv.significance`) is kept; each stage's time is the sum of both runs. With
+   ``PairOptions.detect_once`` SIFT is detected once at the lower threshold and thinned to the
+   default one for the first consensus, and stage 1 does not run again unless
+   :data:`FIRST_DETECTION_PER_MEGAPIXEL` cut the denser features. When
    ordered sampling cannot settle the first features, the denser ones are fitted first and
    the first ones' uniform fit runs only if the denser give no significant consensus.
 2. ``matching``: mutual nearest neighbours with Lowe's ratio test, one match per pixel pair.
@@ -181,13 +181,14 @@ about half). Detecting at a lower
 threshold on every pair costs the pairs with many inliers accuracy, weak keypoints being
 located worse: at 0.02 throughout, freiburg's AUC@5 fell to 60.6."""
 FIRST_DETECTION_PER_MEGAPIXEL = 13_000
-"""Keypoints per megapixel of the detected image that the first SIFT detection, run at
-:data:`REDETECT_THRESHOLD_SCALE`, keeps at most (never more than ``PairOptions.max_features``):
-enough for every keypoint of the default threshold, which it is thinned to, on the images
-measured (freiburg 2,800-4,800 per megapixel, pano_dev 2,700-4,500, renders of every preset
-4,500-11,700), while a textured image does not pay the descriptors of all its weak keypoints
-(a 640x480 render: 5,000-6,500 at the lower threshold, cut to 3,994). An image that holds more
-at the default threshold is detected there again (:func:`_first_detection`)."""
+"""Keypoints per megapixel of the detected image that the first SIFT detection of
+``PairOptions.detect_once``, run at :data:`REDETECT_THRESHOLD_SCALE`, keeps at most (never
+more than ``PairOptions.max_features``): enough for every keypoint of the default
+threshold, which it is thinned to, on the images measured (freiburg 2,800-4,800 per
+megapixel, pano_dev 2,700-4,500, renders of every preset 4,500-11,700), while a textured
+image does not pay the descriptors of all its weak keypoints (a 640x480 render: 5,000-6,500
+at the lower threshold, cut to 3,994). An image that holds more at the default threshold is
+detected there again (:func:`_first_detection`)."""
 
 
 @dataclass(frozen=True)
@@ -221,6 +222,15 @@ class PairOptions:
         again with the detector threshold scaled by :data:`REDETECT_THRESHOLD_SCALE` and keep
         the fit whose consensus has the lower ``log10`` NFA; 0 never does. Given ``features1``
         and ``features2``, the second detection runs on the images.
+    detect_once : bool
+        Detect SIFT once, at :data:`REDETECT_THRESHOLD_SCALE` (at most
+        :data:`FIRST_DETECTION_PER_MEGAPIXEL` keypoints), thinned to the default threshold for
+        the first consensus, so that a weak pair's second consensus needs no second detection
+        (:func:`_first_detection`); the same features, so the same answers. It costs a pair
+        that is not weak the descriptors of its weaker keypoints: on the 85 freiburg pairs
+        (47 weak) the detection's CPU time summed 14 % lower, a weak pair's 37 % and a strong
+        one's 50 % higher; on 20 renders (none weak) 52 % higher (``docs/performance.md``).
+        False detects at the default threshold and again only for a weak pair.
     ordered_sampling : bool
         Fit ``E`` on the best-ranked matches (ratio test) first and over all of them only when
         that is not significant (:func:`ppo_cv.robust.estimate_essential_ordered`), and sample
@@ -285,6 +295,7 @@ class PairOptions:
     max_trials: int = 100_000
     ordered_sampling: bool = True
     redetect_below: int = 100
+    detect_once: bool = False
     refine: bool = True
     pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD
     min_inliers: int = 8
@@ -298,7 +309,7 @@ class PairOptions:
     def __post_init__(self) -> None:
         for name in ("ratio", "ransac_threshold", "confidence", "pri_threshold", "max_log10_nfa"):
             as_number(getattr(self, name), name)
-        for name in ("mutual", "ordered_sampling", "refine", "plane", "photometric"):
+        for name in ("mutual", "detect_once", "ordered_sampling", "refine", "plane", "photometric"):
             as_flag(getattr(self, name), name)
         for name, low in (("max_features", 8), ("min_trials", 1), ("max_trials", 1),
                           ("redetect_below", 0), ("min_inliers", 5), ("seed", 0)):  # fmt: skip
@@ -381,14 +392,14 @@ def _colours(image: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 
 def _first_detection(image: np.ndarray, options: PairOptions) -> Features:
-    """The features of the first consensus: SIFT detected once at
+    """The features of the first consensus. With ``options.detect_once``, SIFT detected once at
     :data:`REDETECT_THRESHOLD_SCALE`, at most :func:`_first_detection_cap` keypoints, which
     thinned to threshold 1 (:func:`ppo_cv.features.at_threshold`) are those of a detection
     there and, unless the cap cut them, serve a weak pair's second consensus without a second
-    detection; detected at threshold 1 when the cap cut into those. Other detectors, or
-    without a second consensus (``redetect_below`` 0), at threshold 1."""
+    detection; detected at threshold 1 when the cap cut into those. Otherwise (also for other
+    detectors, or without a second consensus) at threshold 1."""
     detect = (image, options.features, options.max_features, options.max_image_size)
-    if options.features != "sift" or options.redetect_below == 0:
+    if not options.detect_once or options.features != "sift" or options.redetect_below == 0:
         return detect_features(*detect)
     cap = _first_detection_cap(image.shape, options)
     found = detect_features(image, "sift", cap, options.max_image_size, REDETECT_THRESHOLD_SCALE)

@@ -107,12 +107,18 @@ def _counted_detections(monkeypatch) -> list[float]:
     return scales
 
 
-@pytest.mark.parametrize("per_megapixel", [None, 100])
-def test_one_detection_serves_a_weak_pair_unless_cut(narrow_pair, monkeypatch, per_megapixel):
-    """The narrow pan detected once at the lower threshold: both consensuses from it, the
-    pose of the two detections of the given default-threshold features. With a cap below
-    its default keypoints, each image is detected again at the default threshold, and again
-    at the lower one for the second consensus: the same pose."""
+@pytest.mark.parametrize(
+    ("detect_once", "per_megapixel", "detections"),
+    [(False, None, [0.25] * 2 + [1.0] * 2), (True, None, [0.25] * 2),
+     (True, 100, [0.25] * 4 + [1.0] * 2)],
+)  # fmt: skip
+def test_one_detection_serves_a_weak_pair_unless_cut(
+    narrow_pair, monkeypatch, detect_once, per_megapixel, detections
+):
+    """The narrow pan, detected twice by default, with ``detect_once`` once at the lower
+    threshold: both consensuses from it, the pose of the two detections. With a cap below its
+    default keypoints, each image is detected again at the default threshold, and again at the
+    lower one for the second consensus: the same pose."""
     image1, image2 = _bgr(narrow_pair.image1), _bgr(narrow_pair.image2)
     given = {"features1": detect_features(image1), "features2": detect_features(image2)}
     two_detections = estimate_pair(
@@ -121,9 +127,12 @@ def test_one_detection_serves_a_weak_pair_unless_cut(narrow_pair, monkeypatch, p
     if per_megapixel is not None:
         monkeypatch.setattr("ppo_cv.pipeline.FIRST_DETECTION_PER_MEGAPIXEL", per_megapixel)
     scales = _counted_detections(monkeypatch)
-    result = estimate_pair(image1, image2, narrow_pair.K1_given, narrow_pair.K2_given)
+    result = estimate_pair(
+        image1, image2, narrow_pair.K1_given, narrow_pair.K2_given,
+        options=PairOptions(detect_once=detect_once),
+    )  # fmt: skip
     low = REDETECT_THRESHOLD_SCALE
-    assert sorted(scales) == ([low] * 2 if per_megapixel is None else [low] * 4 + [1.0] * 2)
+    assert low == 0.25 and sorted(scales) == detections
     assert result.evidence.significance.threshold_scale == low
     np.testing.assert_allclose(result.R, two_detections.R, atol=1e-12)
     np.testing.assert_array_equal(result.inliers, two_detections.inliers)
