@@ -228,9 +228,11 @@ class PairOptions:
         the first consensus, so that a weak pair's second consensus needs no second detection
         (:func:`_first_detection`); the same features, so the same answers. It costs a pair
         that is not weak the descriptors of its weaker keypoints: on the 85 freiburg pairs
-        (47 weak) the detection's CPU time summed 14 % lower, a weak pair's 37 % and a strong
-        one's 50 % higher; on 20 renders (none weak) 52 % higher (``docs/performance.md``).
-        False detects at the default threshold and again only for a weak pair.
+        (47 weak) the detection's CPU time summed 25 % lower (a weak pair's median 398 -> 226
+        ms, a strong one's 172 -> 230 ms), on 20 renders (none weak) 30 % higher, on the
+        pano_dev tripod pair of ``benchmarks/cli_time.py`` the whole pair 43 % longer
+        (``docs/performance.md``). False detects at the default threshold and again only for
+        a weak pair.
     ordered_sampling : bool
         Fit ``E`` on the best-ranked matches (ratio test) first and over all of them only when
         that is not significant (:func:`ppo_cv.robust.estimate_essential_ordered`), and sample
