@@ -1,16 +1,18 @@
 """Where a whole pair's time goes: the CPU time of each stage of ``estimate_pair`` against
 OpenCV's pipeline on the same images.
 
-Run ``python benchmarks/stage_profile.py [--freiburg DIR] [--renders 4] [--json FILE]`` from
-the repository root. For every freiburg pair (``../shared/data/freiburg`` beside the
-repository) and ``--renders`` pairs of each motion preset of ``ppo_cv.data_gen`` (640x480),
-one pair after the other in this process: ``estimate_pair`` with its default options, its
+Run ``python benchmarks/stage_profile.py [--freiburg DIR] [--renders 4] [--detect-once]
+[--json FILE]`` from the repository root (``--detect-once``: ``PairOptions(detect_once=True)``).
+For every freiburg pair (``../shared/data/freiburg`` beside the repository) and ``--renders``
+pairs of each motion preset of ``ppo_cv.data_gen`` (640x480), one pair after the other in
+this process: ``estimate_pair`` with its default options, its
 stages timed in process CPU (all threads) through its ``progress`` callback
 (``compare.StageCPU``), then OpenCV's pipeline of ``compare.py`` section 4 on the same images
 in three parts: its SIFT of both images, SIFT with the 2-NN ratio-test matching
 (``anchors.sift_matches``; matching is the difference) and the pose (``findEssentialMat``
 USAC_MAGSAC + ``recoverPose``). Prints markdown tables: the median CPU per pair of each group of
-freiburg pairs (detected once or again, with or without the tracks the rotation choice aligns)
+freiburg pairs (one consensus or a second on denser features, with or without the tracks the
+rotation choice aligns)
 and of the renders, with the median stages; each stage's share of the CPU summed over the
 freiburg pairs; the stages of the freiburg pair of median CPU. About 10 minutes on 2 cores.
 """
@@ -36,7 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import anchors  # noqa: E402
 import compare  # noqa: E402
 
-from ppo_cv.pipeline import estimate_pair  # noqa: E402
+from ppo_cv.pipeline import PairOptions, estimate_pair  # noqa: E402
 
 STAGES = ("features", "matching", "ransac", "model", "photometric", "decision")
 TRACKS_CPU = 0.15
@@ -50,7 +52,7 @@ def _cpu(fn) -> float:
     return time.process_time() - start
 
 
-def profile_pair(image1, image2, K1, K2) -> dict:
+def profile_pair(image1, image2, K1, K2, options: PairOptions | None = None) -> dict:
     """CPU per stage of ``estimate_pair`` and of OpenCV's pipeline on one pair of BGR images."""
     stage_cpu = compare.StageCPU()
     reported: list[str] = []
@@ -62,12 +64,12 @@ def profile_pair(image1, image2, K1, K2) -> dict:
     start = time.process_time()
     stage_cpu.clock = start
     try:
-        result = estimate_pair(image1, image2, K1, K2, progress=progress)
+        result = estimate_pair(image1, image2, K1, K2, options=options, progress=progress)
         model = result.model
     except ValueError:
         model = None
     row = {"cpu": time.process_time() - start, "stages": stage_cpu.seconds, "model": model}
-    row["detected_again"] = reported.count("features") > 1
+    row["second_consensus"] = reported.count("features") > 1
     row["tracks"] = (
         stage_cpu.seconds.get("decision", 0.0) + stage_cpu.seconds.get("photometric", 0.0)
         > TRACKS_CPU
@@ -100,7 +102,7 @@ def _renders(per_preset: int):
 
 
 def _group(row: dict) -> str:
-    again = "detected again" if row["detected_again"] else "detected once"
+    again = "second consensus" if row["second_consensus"] else "one consensus"
     return again + (", tracks" if row["tracks"] else "")
 
 
@@ -164,7 +166,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--freiburg", type=Path, default=compare.FREIBURG)
     parser.add_argument("--renders", type=int, default=4, help="pairs per motion preset")
     parser.add_argument("--json", type=Path, help="also write the rows here")
+    parser.add_argument(
+        "--detect-once", action="store_true", help="estimate_pair with detect_once=True"
+    )
     args = parser.parse_args(argv)
+    options = PairOptions(detect_once=args.detect_once)
     cv2.setNumThreads(1)
     machine = compare._machine()
     sources = []
@@ -176,14 +182,15 @@ def main(argv: list[str] | None = None) -> None:
     rows: dict[str, list[dict]] = {"freiburg": [], "renders": []}
     for source, pairs in sources:
         for name, images in pairs:
-            row = {"name": name, **profile_pair(*images)}
+            row = {"name": name, **profile_pair(*images, options)}
             rows[source].append(row)
             print(f"{name}: {row['cpu']:.3f} s, OpenCV {row['opencv']['cpu']:.3f} s",
                   file=sys.stderr, flush=True)  # fmt: skip
     machine["load_after"] = compare._machine()["load"]
     print(
         f"{machine['cpu']}, {machine['cores']} logical cores, 1-minute load average "
-        f"{machine['load']:.2f} at the start and {machine['load_after']:.2f} at the end\n"
+        f"{machine['load']:.2f} at the start and {machine['load_after']:.2f} at the end; "
+        f"detect_once={options.detect_once}\n"
     )
     print("\n".join(report(rows["freiburg"], rows["renders"])))
     if args.json is not None:

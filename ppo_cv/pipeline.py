@@ -7,7 +7,10 @@ Stages (each timed in ``PairResult.timings``, seconds):
    When the essential matrix (stage 4) finds fewer than ``PairOptions.redetect_below``
    inliers, stages 1-4 run again on features detected at a lower threshold
    (:data:`REDETECT_THRESHOLD_SCALE`) and the fit that chance explains less (lower ``log10``
-   NFA, :mod:`ppo_cv.significance`) is kept; each stage's time is the sum of both runs. When
+   NFA, :mod:`ppo_cv.significance`) is kept; each stage's time is the sum of both runs. With
+   ``PairOptions.detect_once`` SIFT is detected once at the lower threshold and thinned to the
+   default one for the first consensus, and stage 1 does not run again unless
+   :data:`FIRST_DETECTION_PER_MEGAPIXEL` cut the denser features. When
    ordered sampling cannot settle the first features, the denser ones are fitted first and
    the first ones' uniform fit runs only if the denser give no significant consensus.
 2. ``matching``: mutual nearest neighbours with Lowe's ratio test, one match per pixel pair.
@@ -46,9 +49,9 @@ choice of the rotation with the smallest expected error (``_choose_rotation``,
 Given features. ``features1`` and ``features2`` (as :func:`~ppo_cv.features.detect_features`
 gives with the ``options``) skip the first detection; a second one, on the images, follows a
 weak consensus (``PairOptions.redetect_below``). SIFT features detected at
-:data:`REDETECT_THRESHOLD_SCALE` serve both: thinned to threshold 1 for the first consensus
-(:func:`ppo_cv.features.at_threshold`), as they are for the second. Batch runs use them to
-detect each image once.
+:data:`REDETECT_THRESHOLD_SCALE` serve both, as those of the first detection do: thinned to
+threshold 1 for the first consensus (:func:`ppo_cv.features.at_threshold`), as they are for
+the second. Batch runs use them to detect each image once.
 
 Errors. ``estimate_pair`` raises ValueError for an unreadable or oversized image
 (:func:`ppo_cv.images.load_image`), NaN pixels, an image too small or thin to detect features
@@ -183,6 +186,15 @@ pairs detected again, 37 keeping the denser features; at 0.02 the gain at AUC@5 
 about half). Detecting at a lower
 threshold on every pair costs the pairs with many inliers accuracy, weak keypoints being
 located worse: at 0.02 throughout, freiburg's AUC@5 fell to 60.6."""
+FIRST_DETECTION_PER_MEGAPIXEL = 13_000
+"""Keypoints per megapixel of the detected image that the first SIFT detection of
+``PairOptions.detect_once``, run at :data:`REDETECT_THRESHOLD_SCALE`, keeps at most (never
+more than ``PairOptions.max_features``): enough for every keypoint of the default
+threshold, which it is thinned to, on the images measured (freiburg 2,800-4,800 per
+megapixel, pano_dev 2,700-4,500, renders of every preset 4,500-11,700), while a textured
+image does not pay the descriptors of all its weak keypoints (a 640x480 render: 5,000-6,500
+at the lower threshold, cut to 3,994). An image that holds more at the default threshold is
+detected there again (:func:`_first_detection`)."""
 
 
 @dataclass(frozen=True)
@@ -216,6 +228,17 @@ class PairOptions:
         again with the detector threshold scaled by :data:`REDETECT_THRESHOLD_SCALE` and keep
         the fit whose consensus has the lower ``log10`` NFA; 0 never does. Given ``features1``
         and ``features2``, the second detection runs on the images.
+    detect_once : bool
+        Detect SIFT once, at :data:`REDETECT_THRESHOLD_SCALE` (at most
+        :data:`FIRST_DETECTION_PER_MEGAPIXEL` keypoints), thinned to the default threshold for
+        the first consensus, so that a weak pair's second consensus needs no second detection
+        (:func:`_first_detection`); the same features, so the same answers. It costs a pair
+        that is not weak the descriptors of its weaker keypoints: on the 85 freiburg pairs
+        (47 weak) the detection's CPU time summed 25 % lower (a weak pair's median 398 -> 226
+        ms, a strong one's 172 -> 230 ms), on 20 renders (none weak) 30 % higher, on the
+        pano_dev tripod pair of ``benchmarks/cli_time.py`` the whole pair 43 % longer
+        (``docs/performance.md``). False detects at the default threshold and again only for
+        a weak pair.
     ordered_sampling : bool
         Fit ``E`` on the best-ranked matches (ratio test) first and over all of them only when
         that is not significant (:func:`ppo_cv.robust.estimate_essential_ordered`), and sample
@@ -280,6 +303,7 @@ class PairOptions:
     max_trials: int = 100_000
     ordered_sampling: bool = True
     redetect_below: int = 100
+    detect_once: bool = False
     refine: bool = True
     pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD
     min_inliers: int = 8
@@ -293,7 +317,7 @@ class PairOptions:
     def __post_init__(self) -> None:
         for name in ("ratio", "ransac_threshold", "confidence", "pri_threshold", "max_log10_nfa"):
             as_number(getattr(self, name), name)
-        for name in ("mutual", "ordered_sampling", "refine", "plane", "photometric"):
+        for name in ("mutual", "detect_once", "ordered_sampling", "refine", "plane", "photometric"):
             as_flag(getattr(self, name), name)
         for name, low in (("max_features", 8), ("min_trials", 1), ("max_trials", 1),
                           ("redetect_below", 0), ("min_inliers", 5), ("seed", 0)):  # fmt: skip
@@ -375,17 +399,38 @@ def _colours(image: np.ndarray, points: np.ndarray) -> np.ndarray:
     return np.clip(pixels, 0, 255).astype(np.uint8)
 
 
-def _detect_both(
-    image1, image2, options: PairOptions, threshold_scale: float = 1.0
-) -> tuple[Features, Features, float]:
-    """Features of both images on two threads (OpenCV releases the GIL), and when both were done.
+def _first_detection(image: np.ndarray, options: PairOptions) -> Features:
+    """The features of the first consensus. With ``options.detect_once``, SIFT detected once at
+    :data:`REDETECT_THRESHOLD_SCALE`, at most :func:`_first_detection_cap` keypoints, which
+    thinned to threshold 1 (:func:`ppo_cv.features.at_threshold`) are those of a detection
+    there and, unless the cap cut them, serve a weak pair's second consensus without a second
+    detection; detected at threshold 1 when the cap cut into those. Otherwise (also for other
+    detectors, or without a second consensus) at threshold 1."""
+    detect = (image, options.features, options.max_features, options.max_image_size)
+    if not options.detect_once or options.features != "sift" or options.redetect_below == 0:
+        return detect_features(*detect)
+    cap = _first_detection_cap(image.shape, options)
+    found = detect_features(image, "sift", cap, options.max_image_size, REDETECT_THRESHOLD_SCALE)
+    if found.threshold_scale > 1.0 and len(found) < options.max_features:
+        return detect_features(*detect)
+    return found
 
-    One pair detects at threshold 1 and again lower only when its consensus is weak: SIFT
-    detected once at :data:`REDETECT_THRESHOLD_SCALE` and thinned to 1
-    (:func:`ppo_cv.features.at_threshold`, what the feature cache of ``ppo-cv pairs`` holds)
-    costs a weak pair less but a strong one more, up to twice as much on finely textured
-    images (a 640x480 render 141 -> 228 ms per image, the 611x918 pano_dev pair 147 -> 282),
-    and left the median whole-pair time of ten freiburg pairs unchanged (0.39-0.41 s CPU).
+
+def _first_detection_cap(shape: tuple, options: PairOptions) -> int:
+    """Keypoints the first detection keeps (:data:`FIRST_DETECTION_PER_MEGAPIXEL`)."""
+    height, width = int(shape[0]), int(shape[1])
+    scale = 1.0
+    if options.max_image_size is not None and max(height, width) > options.max_image_size:
+        scale = options.max_image_size / max(height, width)
+    megapixels = height * width * scale**2 / 1e6
+    return min(options.max_features, int(np.ceil(FIRST_DETECTION_PER_MEGAPIXEL * megapixels)))
+
+
+def _detect_both(
+    image1, image2, options: PairOptions, threshold_scale: float | None = None
+) -> tuple[Features, Features, float]:
+    """Features of both images on two threads (OpenCV releases the GIL), and when both were done:
+    at ``threshold_scale``, by default those of the first consensus (:func:`_first_detection`).
 
     The first use of pycolmap in a process pays its import; it is overlapped with detection.
     The returned ``time.perf_counter()`` of the end of detection separates the two.
@@ -393,6 +438,8 @@ def _detect_both(
     from concurrent.futures import ThreadPoolExecutor
 
     def run(image):
+        if threshold_scale is None:
+            return _first_detection(image, options), time.perf_counter()
         features = detect_features(
             image, options.features, options.max_features, options.max_image_size, threshold_scale
         )
@@ -594,6 +641,8 @@ def _best_consensus(
     and chance explains the denser one less (lower ``log10`` NFA, which counts the matches
     each was drawn from); the first failure's ValueError when neither holds.
 
+    The denser features are ``f1`` and ``f2`` themselves when they hold those of
+    :data:`REDETECT_THRESHOLD_SCALE` (:func:`_first_detection`), else detected on the images.
     One uniform fit settles a weak pair: when ordered sampling cannot settle the given
     features, the denser ones are fitted first (they hold the given ones: thinned to threshold
     1 they are the given set), and the given features are fitted uniformly only when the

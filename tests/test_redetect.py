@@ -78,6 +78,66 @@ def test_denser_sift_features_thinned_are_those_of_the_default_threshold(max_ima
         assert thinned.threshold_scale == 1.0
 
 
+@pytest.mark.parametrize("cap", [900, 1500])
+def test_sift_cut_to_max_features_thins_to_the_default_threshold(cap):
+    """The demo images hold 1210 and 991 keypoints at the default threshold, 2228 and 1989 at
+    the lower one: cut at 1500 the lower detection still holds every default keypoint, cut at
+    900 it holds the 900 strongest, as a detection at the default threshold cut there."""
+    for image in _demo_images():
+        cut = detect_features(image, max_features=cap, threshold_scale=REDETECT_THRESHOLD_SCALE)
+        assert len(cut) >= cap and cut.threshold_scale > REDETECT_THRESHOLD_SCALE
+        holds_default = cut.threshold_scale <= 1.0
+        assert holds_default == (cap == 1500)
+        expected = detect_features(image, max_features=8000 if holds_default else cap)
+        found = at_threshold(cut, 1.0) if holds_default else cut
+        np.testing.assert_array_equal(found.keypoints, expected.keypoints)
+        np.testing.assert_array_equal(found.descriptors, expected.descriptors)
+
+
+def _counted_detections(monkeypatch) -> list[float]:
+    """The threshold scale of each detection ``estimate_pair`` runs from now on."""
+    scales: list[float] = []
+
+    def counted(image, *args, **kwargs):
+        found = detect_features(image, *args, **kwargs)
+        scales.append(kwargs.get("threshold_scale", args[3] if len(args) > 3 else 1.0))
+        return found
+
+    monkeypatch.setattr("ppo_cv.pipeline.detect_features", counted)
+    return scales
+
+
+@pytest.mark.parametrize(
+    ("detect_once", "per_megapixel", "detections"),
+    [(False, None, [0.25] * 2 + [1.0] * 2), (True, None, [0.25] * 2),
+     (True, 100, [0.25] * 4 + [1.0] * 2)],
+)  # fmt: skip
+def test_one_detection_serves_a_weak_pair_unless_cut(
+    narrow_pair, monkeypatch, detect_once, per_megapixel, detections
+):
+    """The narrow pan, detected twice by default, with ``detect_once`` once at the lower
+    threshold: both consensuses from it, the pose of the two detections. With a cap below its
+    default keypoints, each image is detected again at the default threshold, and again at the
+    lower one for the second consensus: the same pose."""
+    image1, image2 = _bgr(narrow_pair.image1), _bgr(narrow_pair.image2)
+    given = {"features1": detect_features(image1), "features2": detect_features(image2)}
+    two_detections = estimate_pair(
+        image1, image2, narrow_pair.K1_given, narrow_pair.K2_given, **given
+    )
+    if per_megapixel is not None:
+        monkeypatch.setattr("ppo_cv.pipeline.FIRST_DETECTION_PER_MEGAPIXEL", per_megapixel)
+    scales = _counted_detections(monkeypatch)
+    result = estimate_pair(
+        image1, image2, narrow_pair.K1_given, narrow_pair.K2_given,
+        options=PairOptions(detect_once=detect_once),
+    )  # fmt: skip
+    low = REDETECT_THRESHOLD_SCALE
+    assert low == 0.25 and sorted(scales) == detections
+    assert result.evidence.significance.threshold_scale == low
+    np.testing.assert_allclose(result.R, two_detections.R, atol=1e-12)
+    np.testing.assert_array_equal(result.inliers, two_detections.inliers)
+
+
 def test_only_sift_features_detected_lower_are_thinned():
     image = _demo_images()[0]
     with pytest.raises(ValueError, match="only SIFT"):
