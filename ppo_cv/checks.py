@@ -306,6 +306,15 @@ def as_nonnegative(value: Any, name: str) -> float:
     return number
 
 
+def as_pri_threshold(value: Any, name: str = "pri_threshold") -> float:
+    """A pure-rotation threshold on PRI in ``[0, 1]``: the paper's is 0.015, and one above 1
+    would call nearly every pair a pure rotation."""
+    number = _as_float(value, name)
+    if not 0 <= number <= 1:
+        raise ValueError(f"{name} must be a number in [0, 1] (the paper's is 0.015), got {number}")
+    return number
+
+
 def _as_float(value: Any, name: str) -> float:
     if isinstance(value, (str, bytes)):
         raise TypeError(f"{name} must be a number, got {type(value).__name__} {value!r}")

@@ -50,6 +50,7 @@ from .checks import (
     as_camera_matrix,
     as_nonnegative,
     as_positive,
+    as_pri_threshold,
     as_whole_number,
 )
 from .homography import estimate_homography
@@ -1085,6 +1086,8 @@ def _check_scoring(scoring: dict) -> None:
             )
         if name == "min_inliers":
             as_whole_number(value, name, 0, MAX_WHOLE_NUMBER)
+        elif name == "pri_threshold":
+            as_pri_threshold(value)
         else:
             as_nonnegative(value, name)
 
