@@ -121,7 +121,8 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
     ``cameras`` (:class:`~ppo_cv.cli.common.Cameras`, with their distortion) or ``K`` for both
     images, else ``K1`` and ``K2`` are None (the caller guesses them from EXIF); a line with
     intrinsics has no distortion. ``shared_K`` marks the lines whose two images take one given
-    camera matrix.
+    camera matrix. ``repeats`` is the number of the first line with the same fields (the
+    line's own number when it is the first).
     """
     import numpy as np
 
@@ -137,7 +138,7 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
         text = pairs_file.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"cannot read pairs file {pairs_file}: {exc}") from None
-    rows, first_gt = [], None
+    rows, first_gt, seen = [], None, {}
     for number, line in enumerate(text.splitlines(), 1):
         where = f"{pairs_file}:{number}"
         try:
@@ -180,6 +181,7 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
                 f"{missing} does not; give it on every line or on none"
             )
         row["line"] = number
+        row["repeats"] = seen.setdefault(tuple(parts), number)
         rows.append(row)
     if not rows:
         raise ValueError(f"no pairs in {pairs_file}")
@@ -189,6 +191,18 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
 RIGID_TOLERANCE = 1e-4
 """Largest deviation of a ground-truth rotation from orthonormal (``|R^T R - I|``) accepted:
 files print their numbers to about six digits."""
+
+
+def _warn_repeated_lines(rows: list[dict], pairs_file: Path) -> None:
+    """One warning naming the lines that repeat an earlier line's fields: they run again."""
+    repeated = [row for row in rows if row["repeats"] != row["line"]]
+    if repeated:
+        pairs = ", ".join(f"{row['line']} (= {row['repeats']})" for row in repeated)
+        warn(
+            "pairs",
+            f"{pairs_file}: line{'s' if len(repeated) > 1 else ''} {pairs} repeat an earlier "
+            "line; each runs again and gives its own JSON line",
+        )
 
 
 def _require_regular_file(path: Path, what: str) -> None:
@@ -695,6 +709,7 @@ def run_pairs(
         check_apart(output, sorted(images), "-o ")
     if calib is not None:
         _fit_calibration(rows, Path(image_dir), calib, K2)
+    _warn_repeated_lines(rows, Path(pairs_file))
     given = "--K" if calib is None else f"--calib {calib}"
     _warn_implausible_cameras(rows, Path(image_dir), Path(pairs_file), exif_orientation, given)
     _exif_intrinsics(rows, Path(image_dir), exif_orientation)

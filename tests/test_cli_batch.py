@@ -378,3 +378,22 @@ def test_output_dash_is_standard_output(tmp_path):
     (line,) = [json.loads(text) for text in out.stdout.splitlines()]
     assert line["image1"] == "absent1.png" and "image not found" in line["error"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["images", "pairs.txt"]
+
+
+def test_repeated_pairs_file_lines_run_again_under_one_warning(tmp_path):
+    lines = [f"{NAME1} {NAME2}", "# again, quoted and commented", f"{NAME2} {NAME1}",
+             f'"{NAME1}"  {NAME2}  # the first pair', f"{NAME2} {NAME1}"]  # fmt: skip
+    (tmp_path / "pairs.txt").write_text("\n".join(lines) + "\n")
+    args = [*COMMAND, "pairs", str(tmp_path / "pairs.txt"), str(DATA), "--K", K_TEXT,
+            "--workers", "1", "--quiet", "--max-features", "1000"]  # fmt: skip
+    out = subprocess.run(args, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stderr.splitlines() == [
+        f"ppo-cv pairs: warning: {tmp_path / 'pairs.txt'}: lines 4 (= 1), 5 (= 3) repeat an "
+        "earlier line; each runs again and gives its own JSON line"
+    ]
+    results = [json.loads(line) for line in out.stdout.splitlines()]
+    assert [(r["image1"], r["image2"]) for r in results] == [
+        (NAME1, NAME2), (NAME2, NAME1), (NAME1, NAME2), (NAME2, NAME1)
+    ]
+    assert results[0]["R"] == results[2]["R"] and "error" not in results[0]

@@ -505,8 +505,8 @@ def test_an_image_array_of_another_shape_is_refused_naming_every_accepted_shape(
         ({"min_tri_angle": np.nan}, ValueError, r"min_tri_angle must be a finite number >= 0"),
         ({"max_forward_motion": -1.0}, ValueError, r"max_forward_motion must be a finite"),
     ],
-    ids=["negative PRI threshold", "PRI threshold above 1", "inliers as text", "a fraction of an inlier", "NaN angle",
-         "negative forward motion"],
+    ids=["negative PRI threshold", "PRI threshold above 1", "inliers as text",
+         "a fraction of an inlier", "NaN angle", "negative forward motion"],
 )
 def test_score_pairs_checks_its_options_before_the_database(tmp_path, scoring, error, words):
     with pytest.raises(error, match=words):
