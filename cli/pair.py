@@ -377,15 +377,15 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
     return "\n".join(lines)
 
 
-def _check_cameras(cameras, images, names, turned, command) -> None:
-    """Warn (once) when a given camera matrix does not fit its image."""
+def _camera_doubts(cameras, images, names, turned) -> list[str]:
+    """The warning (one at most) that a given camera matrix does not fit its image."""
     for matrix, img, name, exif_turned in zip(
         (cameras.K1, cameras.K2), images, names, turned, strict=True
     ):
         doubt = implausible_intrinsics(matrix, (img.shape[1], img.shape[0]), name, exif_turned)
         if doubt:
-            _warn(doubt, command)
-            return
+            return [doubt]
+    return []
 
 
 def _check_colmap_cameras(cameras) -> None:
@@ -426,13 +426,12 @@ def _run_pair(
         cameras, exif_text, notes = _cameras(
             (image1, image2), sizes, K, K2, dist, dist2, calib, exif_orientation
         )
-        for message in [exif_text, *notes] if exif_text else notes:
-            _warn(message, command)
+        warnings = [exif_text, *notes] if exif_text else notes
         if not exif_text:
             second = "--K2" if K2 else "--K"
             sources = ("--calib", "--calib") if calib is not None else ("--K", second)
             turned = [exif_orientation and exif_layout(i).turned for i in (image1, image2)]
-            _check_cameras(cameras, (img1, img2), sources, turned, command)
+            warnings += _camera_doubts(cameras, (img1, img2), sources, turned)
         d1, d2 = cameras.dist1, cameras.dist2
         if out is not None:
             _check_colmap_cameras(cameras)
@@ -453,6 +452,8 @@ def _run_pair(
             write_outputs(out, result, img1, img2, names, (d1, d2), extra, overwrite=overwrite)
     except (ValueError, TypeError, OSError) as exc:
         _fail(str(exc) or type(exc).__name__, command)
+    for message in warnings:  # after the run: a failure is its one line
+        _warn(message, command)
     if as_json:
         from ppo_cv.export import result_to_dict
 

@@ -275,6 +275,13 @@ CASES = [
         "pair",
         r"image1 has too few features \(0\): blank",
     ),
+    # a blank image is the one line, not after the warnings its camera would have had
+    (["pair", "const16.png", DEMO2], "pair", r"image1 has too few features \(0\): blank"),
+    (
+        ["pair", DEMO1, "const16.png", "--K", "1,2,-400,247.6"],
+        "pair",
+        r"image2 has too few features \(0\): blank",
+    ),
     (
         ["pair", "thin.png", DEMO2, "--K", K_TEXT],
         "pair",
