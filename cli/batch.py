@@ -48,6 +48,7 @@ from .common import (
     Threshold,
     check_image_file,
     check_range,
+    decide_with_fitted_focal,
     exif_camera,
     fail,
     given_cameras,
@@ -545,9 +546,14 @@ def _pair_job(job: tuple) -> dict:
             raise ValueError("no camera: the EXIF of an image could not be read; pass --K")
         dist = (row.get("dist1"), row.get("dist2"))
         result = estimate_pair(*images, row["K1"], row["K2"], *dist, options=options, **given)
+        note = None
+        if row.get("guessed_cameras"):
+            result, note = decide_with_fitted_focal(result, images, options, **given)
     except Exception as exc:  # one pair's failure is its error line, not the batch's
         return {**names, "error": _error_line(exc)}
     data = result_to_dict(result, **names)
+    if note:
+        data["camera_note"] = note
     if row["T"] is not None:
         data.update(pose_errors(result.R, result.t, row["T"]))
     return data
@@ -659,6 +665,7 @@ def _exif_intrinsics(rows: list[dict], image_dir: Path, exif_orientation: bool) 
         doubts += warnings
     for row in missing:
         row["K1"], row["K2"] = (cameras.get(row[k], (None,))[0] for k in ("image1", "image2"))
+        row["guessed_cameras"] = True
     if not missing:
         return
     found = sum(f for _, f in cameras.values())

@@ -33,6 +33,7 @@ from .common import (
     Threshold,
     calibration_dist2,
     check_image_file,
+    decide_with_fitted_focal,
     exif_camera,
     exif_note,
     fail,
@@ -440,6 +441,9 @@ def _run_pair(
                 img1, img2, cameras.K1, cameras.K2, d1, d2, options=options,
                 progress=report.stage,
             )  # fmt: skip
+            if exif_text:
+                result, focal_note = decide_with_fitted_focal(result, (img1, img2), options)
+                warnings += [focal_note] if focal_note else []
         names = (Path(image1).name, Path(image2).name)
         if names[0] == names[1]:
             names = (f"1_{names[0]}", f"2_{names[1]}")

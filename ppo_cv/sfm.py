@@ -75,6 +75,7 @@ __all__ = [
     "score_pose",
     "score_pairs",
     "rotation_focal_scale",
+    "homography_rotation_focal",
     "reconstruct",
     "run_sfm",
     "list_images",
@@ -982,20 +983,48 @@ def _fitted_focal_scale(stored: _StoredPair) -> float | None:
     if len(matches) < 8:
         return None
     x1, x2 = (
-        np.column_stack([xy, np.ones(len(xy))])
-        for xy in (
-            colmap.rays_from_camera(camera, np.asarray(points, dtype=np.float64)[rows, :2])
-            for camera, points, rows in zip(
-                stored.cameras, stored.keypoints, matches.T, strict=True
-            )
-        )
+        colmap.rays_from_camera(camera, np.asarray(points, dtype=np.float64)[rows, :2])
+        for camera, points, rows in zip(stored.cameras, stored.keypoints, matches.T, strict=True)
     )
-    focal = stored.cameras[0].mean_focal_length()
+    camera = stored.cameras[0]
+    fit = homography_rotation_focal(
+        x1, x2, camera.mean_focal_length(), max(int(camera.width), int(camera.height))
+    )
+    return None if fit is None else fit[0]
+
+
+def homography_rotation_focal(
+    x1: np.ndarray, x2: np.ndarray, focal: float, size: float
+) -> tuple[float, float] | None:
+    """The focal-length scale that makes the homography of matches a rotation, and how far
+    from a rotation it then is.
+
+    Parameters
+    ----------
+    x1, x2 : ndarray, shape (N, 2)
+        Normalized coordinates of the matches under a guessed focal length, N >= 8.
+    focal : float
+        The guessed focal length, pixels.
+    size : float
+        The larger image side, pixels.
+
+    Returns
+    -------
+    tuple of float or None
+        ``(s, spread)``: :func:`rotation_focal_scale` of the robust homography of the matches
+        and ``log(sigma_1 / sigma_3)`` of the homography conjugated by ``s`` (0 for an exact
+        rotation); None with fewer than 8 matches, no homography or no such ``s``.
+    """
+    if len(x1) < 8:
+        return None
+    x1, x2 = (np.column_stack([xy[:, :2], np.ones(len(xy))]) for xy in (x1, x2))
     homography = estimate_homography(x1, x2, focal, confidence=_HOMOGRAPHY_CONFIDENCE)
     if homography is None:
         return None
-    width = max(int(stored.cameras[0].width), int(stored.cameras[0].height))
-    return rotation_focal_scale(homography.H, focal, width)
+    scale = rotation_focal_scale(homography.H, focal, size)
+    if scale is None:
+        return None
+    return scale, float(_rotation_spread(homography.H, np.array([np.log(scale)]))[0])
 
 
 FIELD_RANGE_DEG = (5.0, 150.0)
