@@ -783,7 +783,9 @@ def register(app: typer.Typer) -> None:
         "max(rotation error, translation-direction error), the rotation error alone where the "
         "true translation is zero. -o is written completely or not at all."
         "\n\nPAIRS_FILE: " + PAIRS_FILE_FORMAT + " Lines without intrinsics take --K (and "
-        "--K2) or --calib, else the EXIF focal length of each image, with a warning.",
+        "--K2) or --calib, else the EXIF focal length of each image, with a warning (and, as "
+        "in 'ppo-cv pair', the focal length fitted to a pair's homography when that one makes "
+        "it a pure rotation: the line's camera_note says so).",
     )
     def pairs(
         pairs_file: Annotated[

@@ -531,7 +531,10 @@ def register(app: typer.Typer) -> None:
 
         Without intrinsics the focal length is read from EXIF (with a
         warning, and another when the EXIF pixel size is not the image's or
-        the field of view it implies is outside 15..120 deg). Photos are
+        the field of view it implies is outside 15..120 deg); a pair that
+        is not a pure rotation with that guess is decided again with the
+        focal length that makes its homography a rotation, and reported
+        as a rotation (with a warning) when that decision is one. Photos are
         turned upright as their EXIF orientation says unless
         --no-exif-orientation. Without images it runs on the built-in demo
         pair. On a terminal, stderr shows the stage reached while it runs.
