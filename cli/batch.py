@@ -194,15 +194,26 @@ RIGID_TOLERANCE = 1e-4
 files print their numbers to about six digits."""
 
 
+def _require_some_image(rows: list[dict], image_dir: Path, pairs_file: Path) -> None:
+    """ValueError when the image folder holds none of the images the pairs file names: the
+    wrong folder, not pairs that each fail."""
+    names = dict.fromkeys(row[key] for row in rows for key in ("image1", "image2"))
+    if not any((image_dir / name).exists() for name in names):
+        raise ValueError(
+            f"image folder {image_dir} holds none of the {len(names)} images {pairs_file} names "
+            f"(the first: {next(iter(names))}); names are relative to the image folder"
+        )
+
+
 def _warn_repeated_lines(rows: list[dict], pairs_file: Path) -> None:
     """One warning naming the lines that repeat an earlier line's fields: they run again."""
     repeated = [row for row in rows if row["repeats"] != row["line"]]
     if repeated:
         pairs = ", ".join(f"{row['line']} (= {row['repeats']})" for row in repeated)
+        lines = f"lines {pairs} repeat" if len(repeated) > 1 else f"line {pairs} repeats"
         warn(
             "pairs",
-            f"{pairs_file}: line{'s' if len(repeated) > 1 else ''} {pairs} repeat an earlier "
-            "line; each runs again and gives its own JSON line",
+            f"{pairs_file}: {lines} an earlier line; each runs again and gives its own JSON line",
         )
 
 
@@ -710,6 +721,7 @@ def run_pairs(
         raise ValueError(f"image folder not found: {image_dir}")
     if not Path(image_dir).is_dir():
         raise ValueError(f"image folder {image_dir} is not a folder")
+    _require_some_image(rows, Path(image_dir), Path(pairs_file))
     _require_one_size(rows, Path(image_dir), Path(pairs_file))
     if output is not None:
         images = {Path(image_dir) / r[k] for r in rows for k in ("image1", "image2")}

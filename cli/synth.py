@@ -294,4 +294,9 @@ def register(app: typer.Typer) -> None:
             _fail(str(error))
         from ppo_cv.data_gen.io import PAIRS_FILE
 
-        print_result("synth", f"wrote {pairs} pairs to {out_dir} ({out_dir / PAIRS_FILE})")
+        print_result(
+            "synth",
+            f"wrote {pairs} pairs to {out_dir} ({out_dir / PAIRS_FILE}, images in "
+            f"{out_dir / 'images'}); run them with: ppo-cv pairs {out_dir / PAIRS_FILE} "
+            f"{out_dir / 'images'}",
+        )

@@ -370,13 +370,14 @@ def test_a_line_of_the_wrong_length_gets_the_remedy_that_fits(tmp_path, line, re
 
 
 def test_output_dash_is_standard_output(tmp_path):
-    (tmp_path / "pairs.txt").write_text("absent1.png absent2.png\n")
+    (tmp_path / "pairs.txt").write_text(f"{NAME1} absent2.png\n")
     (tmp_path / "images").mkdir()
+    (tmp_path / "images" / NAME1).write_bytes((DATA / NAME1).read_bytes())
     args = [*COMMAND, "pairs", "pairs.txt", "images", "--K", K_TEXT, "-o", "-", "--quiet"]
     out = subprocess.run(args, capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert out.returncode == 0, out.stderr
     (line,) = [json.loads(text) for text in out.stdout.splitlines()]
-    assert line["image1"] == "absent1.png" and "image not found" in line["error"]
+    assert line["image2"] == "absent2.png" and "image not found" in line["error"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["images", "pairs.txt"]
 
 

@@ -275,6 +275,12 @@ CASES = [
         "pair",
         r"image1 has too few features \(0\): blank",
     ),
+    # the wrong image folder: one line, not a batch of failed pairs
+    (
+        ["pairs", "pairs_demo.txt", ".", "--K", K_TEXT],
+        "pairs",
+        r"image folder \. holds none of the 2 images pairs_demo\.txt names \(the first: demo1",
+    ),
     # a blank image is the one line, not after the warnings its camera would have had
     (["pair", "const16.png", DEMO2], "pair", r"image1 has too few features \(0\): blank"),
     (
@@ -717,7 +723,11 @@ def test_bad_images_in_a_batch_are_failed_lines(tmp_path, cache):
     out = subprocess.run([*COMMAND, "pairs", "-q", "pairs.txt", ".", *cache], cwd=tmp_path,
                          capture_output=True, text=True, timeout=300)  # fmt: skip
     assert out.returncode == 0, out.stderr
-    assert out.stderr.strip().splitlines() == ["ppo-cv pairs: warning: 4 of 6 pairs failed"]
+    assert out.stderr.strip().splitlines() == [
+        "ppo-cv pairs: warning: pairs.txt: line 6 (= 1) repeats an earlier line; each runs again "
+        "and gives its own JSON line",
+        "ppo-cv pairs: warning: 4 of 6 pairs failed",
+    ]
     rows = [json.loads(line) for line in out.stdout.splitlines()]
     assert [row["image1"] for row in rows] == firsts
     assert _demo_rotation_error(rows[0]) < 1.0 and rows[5]["R"] == rows[0]["R"]
