@@ -105,6 +105,8 @@ def _fields(line: str) -> list[str]:
 
 def _remedy(parts: list[str]) -> str:
     """What a line of the wrong number of fields most likely lacks."""
+    if len(parts) == 1:
+        return "a pair needs two image names"
     try:
         [float(part) for part in parts[2:]]
     except ValueError:
@@ -151,7 +153,7 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
         if len(parts) not in (2, 4, 22, 38):
             raise ValueError(
                 f"{where}: expected 'name1 name2 [0 0 K1(9) K2(9) [T(16)]]', "
-                f"got {len(parts)} fields ({_remedy(parts)})"
+                f"got {len(parts)} field{'' if len(parts) == 1 else 's'} ({_remedy(parts)})"
             )
         row = {"image1": parts[0], "image2": parts[1], "K1": None, "K2": None, "T": None}
         if cameras is not None:

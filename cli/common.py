@@ -280,7 +280,7 @@ def calibration_dist2(num_cameras: int, K2, dist1, dist2, file_dist2):
     describes one camera of both images, as with ``--K``; else the file's ``file_dist2``."""
     if dist2 is not None:
         return dist2
-    if K2:
+    if K2 is not None:
         return None
     return dist1 if num_cameras == 1 and dist1 is not None else file_dist2
 
@@ -290,22 +290,22 @@ def given_cameras(K, K2, dist, dist2, calib) -> Cameras | None:
     None when they give no intrinsics. ValueError naming a malformed or conflicting option."""
     from ppo_cv.calib import load_calibration, parse_distortion, parse_intrinsics
 
-    d1 = parse_distortion(dist, "--dist") if dist else None
-    d2 = parse_distortion(dist2, "--dist2") if dist2 else None
+    d1 = parse_distortion(dist, "--dist") if dist is not None else None
+    d2 = parse_distortion(dist2, "--dist2") if dist2 is not None else None
     if calib is not None:
         if K is not None:
             raise ValueError("give either --K or --calib, not both")
         cameras = load_calibration(calib)
         first, second = cameras[0], cameras[1] if len(cameras) > 1 else cameras[0]
-        K2v = parse_intrinsics(K2, "--K2") if K2 else second.K
+        K2v = parse_intrinsics(K2, "--K2") if K2 is not None else second.K
         d2 = calibration_dist2(len(cameras), K2, d1, d2, second.dist)
         return Cameras(first.K, d1 if d1 is not None else first.dist, K2v, d2)
     if K is None:
-        if K2:
+        if K2 is not None:
             raise ValueError("--K2 needs --K (or --calib) for the first camera")
         return None
     K1 = parse_intrinsics(K, "--K")
-    if K2:
+    if K2 is not None:
         return Cameras(K1, d1, parse_intrinsics(K2, "--K2"), d2)
     return Cameras(K1, d1, K1, d2 if d2 is not None else d1)
 

@@ -73,19 +73,19 @@ def _calibrated_cameras(calib, images, sizes, K2, dist, dist2):
     from ppo_cv.calib import fit_to_image, load_calibration, parse_distortion, parse_intrinsics
 
     cameras = load_calibration(calib)
-    if len(cameras) == 1 and not K2 and cameras[0].image_size is None:
+    if len(cameras) == 1 and K2 is None and cameras[0].image_size is None:
         _require_one_size(images, sizes, f"--calib {calib}")
     name = f"--calib {calib}"
     first, note1 = fit_to_image(cameras[0], sizes[0], name, str(images[0]))
     notes = [note1] if note1 else []
-    if K2:
+    if K2 is not None:
         K2v, d2 = parse_intrinsics(K2, "--K2"), None
     else:
         second, note2 = fit_to_image(cameras[-1], sizes[1], name, str(images[1]))
         K2v, d2 = second.K, second.dist
         notes += [note2] if note2 else []
-    given1 = parse_distortion(dist, "--dist") if dist else None
-    given2 = parse_distortion(dist2, "--dist2") if dist2 else None
+    given1 = parse_distortion(dist, "--dist") if dist is not None else None
+    given2 = parse_distortion(dist2, "--dist2") if dist2 is not None else None
     d2 = calibration_dist2(len(cameras), K2, given1, given2, d2)
     return Cameras(first.K, first.dist if given1 is None else given1, K2v, d2), notes
 
@@ -102,15 +102,15 @@ def _cameras(images, sizes, K, K2, dist, dist2, calib, exif_orientation=True):
         return cameras, None, notes
     cameras = given_cameras(K, K2, dist, dist2, None)
     if cameras is not None:
-        if not K2:
+        if K2 is None:
             _require_one_size(images, sizes, "--K")
         return cameras, None, []
     (K1, found1, warnings1), (K2v, found2, warnings2) = (
         exif_camera(image, exif_orientation) for image in images
     )
     note = exif_note((K1[0, 0], K2v[0, 0]), (found1, found2), tuple(str(i) for i in images))
-    d1 = parse_distortion(dist, "--dist") if dist else None
-    d2 = parse_distortion(dist2, "--dist2") if dist2 else d1
+    d1 = parse_distortion(dist, "--dist") if dist is not None else None
+    d2 = parse_distortion(dist2, "--dist2") if dist2 is not None else d1
     return Cameras(K1, d1, K2v, d2), note, [*warnings1, *warnings2]
 
 
@@ -548,7 +548,7 @@ def register(app: typer.Typer) -> None:
             _fail(str(exc))
         note = reference = None
         if image1 is None and image2 is None:
-            if K or K2 or calib:
+            if K is not None or K2 is not None or calib is not None:
                 _fail("intrinsics given without images")
             image1, image2, info = _demo_inputs()
             K = ",".join(str(v) for v in info["intrinsics"])

@@ -275,6 +275,11 @@ CASES = [
         "pair",
         r"image1 has too few features \(0\): blank",
     ),
+    # an empty camera option is an error, not the option left out
+    ([*PAIR, "--dist", ""], "pair", r"--dist is empty: give k1,k2,p1,p2\[,k3\]"),
+    ([*PAIR, "--dist2", ""], "pair", r"--dist2 is empty"),
+    ([*PAIR, "--K2", ""], "pair", r"--K2 must be 4 numbers fx,fy,cx,cy .*, got 0"),
+    (["pairs", "pairs_demo.txt", "images", "--K", K_TEXT, "--K2", ""], "pairs", r"--K2 must be"),
     # the wrong image folder: one line, not a batch of failed pairs
     (
         ["pairs", "pairs_demo.txt", ".", "--K", K_TEXT],
