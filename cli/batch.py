@@ -211,8 +211,9 @@ def _warn_repeated_lines(rows: list[dict], pairs_file: Path) -> None:
     """One warning naming the lines that repeat an earlier line's fields: they run again."""
     repeated = [row for row in rows if row["repeats"] != row["line"]]
     if repeated:
-        pairs = ", ".join(f"{row['line']} (= {row['repeats']})" for row in repeated)
-        lines = f"lines {pairs} repeat" if len(repeated) > 1 else f"line {pairs} repeats"
+        pairs = ", ".join(f"{row['line']} (= {row['repeats']})" for row in repeated[:5])
+        more = f" and {len(repeated) - 5} more" if len(repeated) > 5 else ""
+        lines = f"lines {pairs}{more} repeat" if len(repeated) > 1 else f"line {pairs} repeats"
         warn(
             "pairs",
             f"{pairs_file}: {lines} an earlier line; each runs again and gives its own JSON line",

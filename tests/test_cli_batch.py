@@ -399,3 +399,23 @@ def test_repeated_pairs_file_lines_run_again_under_one_warning(tmp_path):
         (NAME1, NAME2), (NAME2, NAME1), (NAME1, NAME2), (NAME2, NAME1)
     ]
     assert results[0]["R"] == results[2]["R"] and "error" not in results[0]
+
+
+@pytest.mark.parametrize(
+    "lines, named",
+    [
+        (["a.png b.png", "a.png b.png"], "line 2 (= 1) repeats"),
+        (["a.png b.png", "b.png a.png"] * 2, "lines 3 (= 1), 4 (= 2) repeat"),
+        (["a.png b.png"] * 1000,
+         "lines 2 (= 1), 3 (= 1), 4 (= 1), 5 (= 1), 6 (= 1) and 994 more repeat"),
+    ],
+    ids=["one", "two", "a thousand"],
+)
+def test_the_repeated_lines_warning_is_one_short_line(tmp_path, capsys, lines, named):
+    pairs = tmp_path / "pairs.txt"
+    pairs.write_text("\n".join(lines) + "\n")
+    batch._warn_repeated_lines(batch.read_pairs(pairs, K=K_TEXT), pairs)
+    assert capsys.readouterr().err == (
+        f"ppo-cv pairs: warning: {pairs}: {named} an earlier line; each runs again and gives "
+        "its own JSON line\n"
+    )
