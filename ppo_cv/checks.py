@@ -19,6 +19,7 @@ __all__ = [
     "as_mask",
     "as_positive",
     "as_nonnegative",
+    "as_pri_threshold",
     "as_number",
     "as_whole_number",
     "as_flag",
