@@ -48,6 +48,7 @@ from .common import (
     Threshold,
     check_image_file,
     check_range,
+    decide_with_fitted_focal,
     exif_camera,
     fail,
     given_cameras,
@@ -104,6 +105,8 @@ def _fields(line: str) -> list[str]:
 
 def _remedy(parts: list[str]) -> str:
     """What a line of the wrong number of fields most likely lacks."""
+    if len(parts) == 1:
+        return "a pair needs two image names"
     try:
         [float(part) for part in parts[2:]]
     except ValueError:
@@ -121,7 +124,8 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
     ``cameras`` (:class:`~ppo_cv.cli.common.Cameras`, with their distortion) or ``K`` for both
     images, else ``K1`` and ``K2`` are None (the caller guesses them from EXIF); a line with
     intrinsics has no distortion. ``shared_K`` marks the lines whose two images take one given
-    camera matrix.
+    camera matrix. ``repeats`` is the number of the first line with the same fields (the
+    line's own number when it is the first).
     """
     import numpy as np
 
@@ -137,7 +141,7 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
         text = pairs_file.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"cannot read pairs file {pairs_file}: {exc}") from None
-    rows, first_gt = [], None
+    rows, first_gt, seen = [], None, {}
     for number, line in enumerate(text.splitlines(), 1):
         where = f"{pairs_file}:{number}"
         try:
@@ -149,7 +153,7 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
         if len(parts) not in (2, 4, 22, 38):
             raise ValueError(
                 f"{where}: expected 'name1 name2 [0 0 K1(9) K2(9) [T(16)]]', "
-                f"got {len(parts)} fields ({_remedy(parts)})"
+                f"got {len(parts)} field{'' if len(parts) == 1 else 's'} ({_remedy(parts)})"
             )
         row = {"image1": parts[0], "image2": parts[1], "K1": None, "K2": None, "T": None}
         if cameras is not None:
@@ -180,6 +184,7 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
                 f"{missing} does not; give it on every line or on none"
             )
         row["line"] = number
+        row["repeats"] = seen.setdefault(tuple(parts), number)
         rows.append(row)
     if not rows:
         raise ValueError(f"no pairs in {pairs_file}")
@@ -189,6 +194,30 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
 RIGID_TOLERANCE = 1e-4
 """Largest deviation of a ground-truth rotation from orthonormal (``|R^T R - I|``) accepted:
 files print their numbers to about six digits."""
+
+
+def _require_some_image(rows: list[dict], image_dir: Path, pairs_file: Path) -> None:
+    """ValueError when the image folder holds none of the images the pairs file names: the
+    wrong folder, not pairs that each fail."""
+    names = dict.fromkeys(row[key] for row in rows for key in ("image1", "image2"))
+    if not any((image_dir / name).exists() for name in names):
+        raise ValueError(
+            f"image folder {image_dir} holds none of the {len(names)} images {pairs_file} names "
+            f"(the first: {next(iter(names))}); names are relative to the image folder"
+        )
+
+
+def _warn_repeated_lines(rows: list[dict], pairs_file: Path) -> None:
+    """One warning naming the lines that repeat an earlier line's fields: they run again."""
+    repeated = [row for row in rows if row["repeats"] != row["line"]]
+    if repeated:
+        pairs = ", ".join(f"{row['line']} (= {row['repeats']})" for row in repeated[:5])
+        more = f" and {len(repeated) - 5} more" if len(repeated) > 5 else ""
+        lines = f"lines {pairs}{more} repeat" if len(repeated) > 1 else f"line {pairs} repeats"
+        warn(
+            "pairs",
+            f"{pairs_file}: {lines} an earlier line; each runs again and gives its own JSON line",
+        )
 
 
 def _require_regular_file(path: Path, what: str) -> None:
@@ -531,9 +560,14 @@ def _pair_job(job: tuple) -> dict:
             raise ValueError("no camera: the EXIF of an image could not be read; pass --K")
         dist = (row.get("dist1"), row.get("dist2"))
         result = estimate_pair(*images, row["K1"], row["K2"], *dist, options=options, **given)
+        note = None
+        if row.get("guessed_cameras"):
+            result, note = decide_with_fitted_focal(result, images, options, **given)
     except Exception as exc:  # one pair's failure is its error line, not the batch's
         return {**names, "error": _error_line(exc)}
     data = result_to_dict(result, **names)
+    if note:
+        data["camera_note"] = note
     if row["T"] is not None:
         data.update(pose_errors(result.R, result.t, row["T"]))
     return data
@@ -645,6 +679,7 @@ def _exif_intrinsics(rows: list[dict], image_dir: Path, exif_orientation: bool) 
         doubts += warnings
     for row in missing:
         row["K1"], row["K2"] = (cameras.get(row[k], (None,))[0] for k in ("image1", "image2"))
+        row["guessed_cameras"] = True
     if not missing:
         return
     found = sum(f for _, f in cameras.values())
@@ -689,12 +724,14 @@ def run_pairs(
         raise ValueError(f"image folder not found: {image_dir}")
     if not Path(image_dir).is_dir():
         raise ValueError(f"image folder {image_dir} is not a folder")
+    _require_some_image(rows, Path(image_dir), Path(pairs_file))
     _require_one_size(rows, Path(image_dir), Path(pairs_file))
     if output is not None:
         images = {Path(image_dir) / r[k] for r in rows for k in ("image1", "image2")}
         check_apart(output, sorted(images), "-o ")
     if calib is not None:
         _fit_calibration(rows, Path(image_dir), calib, K2)
+    _warn_repeated_lines(rows, Path(pairs_file))
     given = "--K" if calib is None else f"--calib {calib}"
     _warn_implausible_cameras(rows, Path(image_dir), Path(pairs_file), exif_orientation, given)
     _exif_intrinsics(rows, Path(image_dir), exif_orientation)
@@ -761,7 +798,9 @@ def register(app: typer.Typer) -> None:
         "max(rotation error, translation-direction error), the rotation error alone where the "
         "true translation is zero. -o is written completely or not at all."
         "\n\nPAIRS_FILE: " + PAIRS_FILE_FORMAT + " Lines without intrinsics take --K (and "
-        "--K2) or --calib, else the EXIF focal length of each image, with a warning.",
+        "--K2) or --calib, else the EXIF focal length of each image, with a warning (and, as "
+        "in 'ppo-cv pair', the focal length fitted to a pair's homography when that one makes "
+        "it a pure rotation: the line's camera_note says so).",
     )
     def pairs(
         pairs_file: Annotated[

@@ -33,6 +33,7 @@ from .common import (
     Threshold,
     calibration_dist2,
     check_image_file,
+    decide_with_fitted_focal,
     exif_camera,
     exif_note,
     fail,
@@ -72,19 +73,19 @@ def _calibrated_cameras(calib, images, sizes, K2, dist, dist2):
     from ppo_cv.calib import fit_to_image, load_calibration, parse_distortion, parse_intrinsics
 
     cameras = load_calibration(calib)
-    if len(cameras) == 1 and not K2 and cameras[0].image_size is None:
+    if len(cameras) == 1 and K2 is None and cameras[0].image_size is None:
         _require_one_size(images, sizes, f"--calib {calib}")
     name = f"--calib {calib}"
     first, note1 = fit_to_image(cameras[0], sizes[0], name, str(images[0]))
     notes = [note1] if note1 else []
-    if K2:
+    if K2 is not None:
         K2v, d2 = parse_intrinsics(K2, "--K2"), None
     else:
         second, note2 = fit_to_image(cameras[-1], sizes[1], name, str(images[1]))
         K2v, d2 = second.K, second.dist
         notes += [note2] if note2 else []
-    given1 = parse_distortion(dist, "--dist") if dist else None
-    given2 = parse_distortion(dist2, "--dist2") if dist2 else None
+    given1 = parse_distortion(dist, "--dist") if dist is not None else None
+    given2 = parse_distortion(dist2, "--dist2") if dist2 is not None else None
     d2 = calibration_dist2(len(cameras), K2, given1, given2, d2)
     return Cameras(first.K, first.dist if given1 is None else given1, K2v, d2), notes
 
@@ -101,15 +102,15 @@ def _cameras(images, sizes, K, K2, dist, dist2, calib, exif_orientation=True):
         return cameras, None, notes
     cameras = given_cameras(K, K2, dist, dist2, None)
     if cameras is not None:
-        if not K2:
+        if K2 is None:
             _require_one_size(images, sizes, "--K")
         return cameras, None, []
     (K1, found1, warnings1), (K2v, found2, warnings2) = (
         exif_camera(image, exif_orientation) for image in images
     )
     note = exif_note((K1[0, 0], K2v[0, 0]), (found1, found2), tuple(str(i) for i in images))
-    d1 = parse_distortion(dist, "--dist") if dist else None
-    d2 = parse_distortion(dist2, "--dist2") if dist2 else d1
+    d1 = parse_distortion(dist, "--dist") if dist is not None else None
+    d2 = parse_distortion(dist2, "--dist2") if dist2 is not None else d1
     return Cameras(K1, d1, K2v, d2), note, [*warnings1, *warnings2]
 
 
@@ -377,15 +378,15 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
     return "\n".join(lines)
 
 
-def _check_cameras(cameras, images, names, turned, command) -> None:
-    """Warn (once) when a given camera matrix does not fit its image."""
+def _camera_doubts(cameras, images, names, turned) -> list[str]:
+    """The warning (one at most) that a given camera matrix does not fit its image."""
     for matrix, img, name, exif_turned in zip(
         (cameras.K1, cameras.K2), images, names, turned, strict=True
     ):
         doubt = implausible_intrinsics(matrix, (img.shape[1], img.shape[0]), name, exif_turned)
         if doubt:
-            _warn(doubt, command)
-            return
+            return [doubt]
+    return []
 
 
 def _check_colmap_cameras(cameras) -> None:
@@ -426,13 +427,12 @@ def _run_pair(
         cameras, exif_text, notes = _cameras(
             (image1, image2), sizes, K, K2, dist, dist2, calib, exif_orientation
         )
-        for message in [exif_text, *notes] if exif_text else notes:
-            _warn(message, command)
+        warnings = [exif_text, *notes] if exif_text else notes
         if not exif_text:
             second = "--K2" if K2 else "--K"
             sources = ("--calib", "--calib") if calib is not None else ("--K", second)
             turned = [exif_orientation and exif_layout(i).turned for i in (image1, image2)]
-            _check_cameras(cameras, (img1, img2), sources, turned, command)
+            warnings += _camera_doubts(cameras, (img1, img2), sources, turned)
         d1, d2 = cameras.dist1, cameras.dist2
         if out is not None:
             _check_colmap_cameras(cameras)
@@ -441,6 +441,9 @@ def _run_pair(
                 img1, img2, cameras.K1, cameras.K2, d1, d2, options=options,
                 progress=report.stage,
             )  # fmt: skip
+            if exif_text:
+                result, focal_note = decide_with_fitted_focal(result, (img1, img2), options)
+                warnings += [focal_note] if focal_note else []
         names = (Path(image1).name, Path(image2).name)
         if names[0] == names[1]:
             names = (f"1_{names[0]}", f"2_{names[1]}")
@@ -453,6 +456,8 @@ def _run_pair(
             write_outputs(out, result, img1, img2, names, (d1, d2), extra, overwrite=overwrite)
     except (ValueError, TypeError, OSError) as exc:
         _fail(str(exc) or type(exc).__name__, command)
+    for message in warnings:  # after the run: a failure is its one line
+        _warn(message, command)
     if as_json:
         from ppo_cv.export import result_to_dict
 
@@ -526,7 +531,10 @@ def register(app: typer.Typer) -> None:
 
         Without intrinsics the focal length is read from EXIF (with a
         warning, and another when the EXIF pixel size is not the image's or
-        the field of view it implies is outside 15..120 deg). Photos are
+        the field of view it implies is outside 15..120 deg); a pair that
+        is not a pure rotation with that guess is decided again with the
+        focal length that makes its homography a rotation, and reported
+        as a rotation (with a warning) when that decision is one. Photos are
         turned upright as their EXIF orientation says unless
         --no-exif-orientation. Without images it runs on the built-in demo
         pair. On a terminal, stderr shows the stage reached while it runs.
@@ -540,7 +548,7 @@ def register(app: typer.Typer) -> None:
             _fail(str(exc))
         note = reference = None
         if image1 is None and image2 is None:
-            if K or K2 or calib:
+            if K is not None or K2 is not None or calib is not None:
                 _fail("intrinsics given without images")
             image1, image2, info = _demo_inputs()
             K = ",".join(str(v) for v in info["intrinsics"])

@@ -128,12 +128,12 @@ def register(app: typer.Typer) -> None:
         out_dir: Annotated[Path, typer.Argument(help="New (or empty) output directory.")],
         pairs: Annotated[int, typer.Option("--pairs", "-n", help="Number of image pairs.")] = 20,
         motion: Annotated[
-            str | None, typer.Option(help=f"Motion preset: {'|'.join(MOTIONS)} (general).")
+            str | None, typer.Option(help=f"Motion preset: {', '.join(MOTIONS)} (default general).")
         ] = None,
         seed: Annotated[int, typer.Option(help="Seed (>= 0): same seed, same bytes.")] = 0,
         scene: Annotated[
             str | None,
-            typer.Option(help=f"Scene ({'|'.join(SCENES)}); default depends on the motion."),
+            typer.Option(help=f"Scene: {', '.join(SCENES)}; the default depends on the motion."),
         ] = None,
         width: Annotated[
             int | None, typer.Option(help="Image width (pixels); 640, or 0.65 of the photo.")
@@ -294,4 +294,9 @@ def register(app: typer.Typer) -> None:
             _fail(str(error))
         from ppo_cv.data_gen.io import PAIRS_FILE
 
-        print_result("synth", f"wrote {pairs} pairs to {out_dir} ({out_dir / PAIRS_FILE})")
+        print_result(
+            "synth",
+            f"wrote {pairs} pairs to {out_dir} ({out_dir / PAIRS_FILE}, images in "
+            f"{out_dir / 'images'}); run them with: ppo-cv pairs {out_dir / PAIRS_FILE} "
+            f"{out_dir / 'images'}",
+        )

@@ -107,8 +107,12 @@ def parse_intrinsics(text: str, name: str = "--K") -> np.ndarray:
 
 
 def parse_distortion(text: str, name: str = "--dist") -> np.ndarray | None:
-    """``"k1,k2,p1,p2[,k3]"`` to OpenCV distortion coefficients; None when all are zero."""
-    return as_distortion(_numbers(text, name), name)
+    """``"k1,k2,p1,p2[,k3]"`` to OpenCV distortion coefficients; None when all are zero.
+    ValueError for a text without numbers (an empty option is no way to say "none")."""
+    values = _numbers(text, name)
+    if values.size == 0:
+        raise ValueError(f"{name} is empty: give k1,k2,p1,p2[,k3] (or 8, 12 or 14 numbers)")
+    return as_distortion(values, name)
 
 
 def _read_opencv(path: str) -> list[Camera]:

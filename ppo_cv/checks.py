@@ -19,6 +19,7 @@ __all__ = [
     "as_mask",
     "as_positive",
     "as_nonnegative",
+    "as_pri_threshold",
     "as_number",
     "as_whole_number",
     "as_flag",
@@ -303,6 +304,15 @@ def as_nonnegative(value: Any, name: str) -> float:
     number = _as_float(value, name)
     if not np.isfinite(number) or number < 0:
         raise ValueError(f"{name} must be a finite number >= 0, got {number}")
+    return number
+
+
+def as_pri_threshold(value: Any, name: str = "pri_threshold") -> float:
+    """A pure-rotation threshold on PRI in ``[0, 1]``: the paper's is 0.015, and one above 1
+    would call nearly every pair a pure rotation."""
+    number = _as_float(value, name)
+    if not 0 <= number <= 1:
+        raise ValueError(f"{name} must be a number in [0, 1] (the paper's is 0.015), got {number}")
     return number
 
 

@@ -82,6 +82,7 @@ from .checks import (
     as_distortion,
     as_flag,
     as_number,
+    as_pri_threshold,
     as_whole_number,
 )
 from .features import (
@@ -347,10 +348,7 @@ class PairOptions:
                 f"ransac_threshold must be in (0, {MAX_RANSAC_THRESHOLD:g}] pixels, "
                 f"got {self.ransac_threshold}"
             )
-        if not (0 <= self.pri_threshold < float("inf")):
-            raise ValueError(
-                f"pri_threshold must be a finite number >= 0, got {self.pri_threshold}"
-            )
+        as_pri_threshold(self.pri_threshold)
         if self.max_log10_nfa != self.max_log10_nfa:
             raise ValueError("max_log10_nfa must be a number (inf disables the test), got nan")
         if not 0 < self.confidence < 1:

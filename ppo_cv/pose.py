@@ -12,9 +12,9 @@ from .checks import (
     as_camera_matrix,
     as_essential,
     as_mask,
-    as_nonnegative,
     as_point_pair,
     as_positive,
+    as_pri_threshold,
 )
 
 __all__ = ["PoseResult", "recover_pose", "pixel_rays", "inverse_camera"]
@@ -158,7 +158,7 @@ def recover_pose(
     (True, 50, False)
     """
     E = as_essential(E)
-    pri_threshold = as_nonnegative(pri_threshold, "pri_threshold")
+    pri_threshold = as_pri_threshold(pri_threshold)
     p1, p2 = as_point_pair(points1, points2)
     K1 = as_camera_matrix(K1, "K1")
     K2 = K1 if K2 is None else as_camera_matrix(K2, "K2")

@@ -50,6 +50,7 @@ from .checks import (
     as_camera_matrix,
     as_nonnegative,
     as_positive,
+    as_pri_threshold,
     as_whole_number,
 )
 from .homography import estimate_homography
@@ -74,6 +75,7 @@ __all__ = [
     "score_pose",
     "score_pairs",
     "rotation_focal_scale",
+    "homography_rotation_focal",
     "reconstruct",
     "run_sfm",
     "list_images",
@@ -893,16 +895,13 @@ def _image_rejection(
     from .images import load_image
 
     with pycolmap.Database.open(database_path) as database:
-        cameras = [
-            database.read_camera(database.read_image(image_id).camera_id)
-            for image_id in (pair.image_id1, pair.image_id2)
-        ]
-        scale = _fitted_focal_scale(database, pair, cameras) if fit_focal else None
-        ranking = "" if scale is None else _ranking_rejection(database, pair, scale, pri_threshold)
+        stored = _read_stored_pair(database, pair, with_matches=fit_focal)
+    scale = _fitted_focal_scale(stored) if fit_focal else None
+    ranking = "" if scale is None else _ranking_rejection(stored, scale, pri_threshold)
     images = [
         load_image(image_dir / name, exif_orientation=False) for name in (pair.name1, pair.name2)
     ]
-    (K1, dist1), (K2, dist2) = (_pipeline_camera(camera) for camera in cameras)
+    (K1, dist1), (K2, dist2) = (_pipeline_camera(camera) for camera in stored.cameras)
     rejection = _pair_decision(images, K1, K2, dist1, dist2, pri_threshold, "")
     if rejection or scale is None:
         return rejection
@@ -913,22 +912,42 @@ def _image_rejection(
     return _pair_decision(images, K1, K2, dist1, dist2, pri_threshold, f", {focal}")
 
 
-def _ranking_rejection(database, pair: PairScore, scale: float, pri_threshold: float) -> str:
-    """The rejection :func:`score_pairs` gives ``pair`` when its cameras' focal lengths are
+@dataclass(frozen=True)
+class _StoredPair:
+    """What a database holds of one pair: its two images and their cameras, and (when read)
+    their keypoints and the pair's verified two-view geometry, read once for both the focal
+    fit and the ranking."""
+
+    images: tuple
+    cameras: tuple
+    keypoints: tuple | None = None
+    geometry: Any = None
+
+
+def _read_stored_pair(database, pair: PairScore, with_matches: bool) -> _StoredPair:
+    images = tuple(database.read_image(i) for i in (pair.image_id1, pair.image_id2))
+    cameras = tuple(database.read_camera(image.camera_id) for image in images)
+    if not with_matches:
+        return _StoredPair(images, cameras)
+    keypoints = tuple(database.read_keypoints(image.image_id) for image in images)
+    geometry = database.read_two_view_geometry(pair.image_id1, pair.image_id2)
+    return _StoredPair(images, cameras, keypoints, geometry)
+
+
+def _ranking_rejection(stored: _StoredPair, scale: float, pri_threshold: float) -> str:
+    """The rejection :func:`score_pairs` gives the pair when its cameras' focal lengths are
     multiplied by ``scale`` and their distortion dropped; empty unless a pure rotation."""
-    image1, image2 = database.read_image(pair.image_id1), database.read_image(pair.image_id2)
     cameras = {}
-    for image in (image1, image2):
-        camera = database.read_camera(image.camera_id)
+    for image, camera in zip(stored.images, stored.cameras, strict=True):
         K = _scaled_camera(np.asarray(camera.calibration_matrix(), dtype=np.float64), scale)
         cameras[image.camera_id] = pycolmap.Camera(
             model="PINHOLE", width=camera.width, height=camera.height,
             params=[K[0, 0], K[1, 1], K[0, 2], K[1, 2]],
         )  # fmt: skip
-    keypoints = {i.image_id: database.read_keypoints(i.image_id) for i in (image1, image2)}
-    geometry = database.read_two_view_geometry(image1.image_id, image2.image_id)
+    ids = (image.image_id for image in stored.images)
+    keypoints = dict(zip(ids, stored.keypoints, strict=True))
     scored = _score_geometry(
-        geometry, image1, image2, cameras, keypoints, pri_threshold=pri_threshold
+        stored.geometry, *stored.images, cameras, keypoints, pri_threshold=pri_threshold
     )
     return scored.rejection if scored.rejection.startswith("pure rotation") else ""
 
@@ -956,30 +975,56 @@ def _pair_decision(images, K1, K2, dist1, dist2, pri_threshold: float, focal_not
     return ""
 
 
-def _fitted_focal_scale(database, pair: PairScore, cameras) -> float | None:
+def _fitted_focal_scale(stored: _StoredPair) -> float | None:
     """:func:`rotation_focal_scale` of the homography of the pair's verified matches, in the
     normalized coordinates of the database cameras; None with fewer than 8 matches, no
     homography, or no focal length in :data:`FIELD_RANGE_DEG`."""
-    geometry = database.read_two_view_geometry(pair.image_id1, pair.image_id2)
-    matches = np.asarray(geometry.inlier_matches, dtype=np.int64).reshape(-1, 2)
+    matches = np.asarray(stored.geometry.inlier_matches, dtype=np.int64).reshape(-1, 2)
     if len(matches) < 8:
         return None
     x1, x2 = (
-        np.column_stack([xy, np.ones(len(xy))])
-        for xy in (
-            colmap.rays_from_camera(
-                camera, np.asarray(database.read_keypoints(image_id), dtype=np.float64)[rows, :2]
-            )
-            for camera, image_id, rows in ((cameras[0], pair.image_id1, matches[:, 0]),
-                                           (cameras[1], pair.image_id2, matches[:, 1]))
-        )
-    )  # fmt: skip
-    focal = cameras[0].mean_focal_length()
+        colmap.rays_from_camera(camera, np.asarray(points, dtype=np.float64)[rows, :2])
+        for camera, points, rows in zip(stored.cameras, stored.keypoints, matches.T, strict=True)
+    )
+    camera = stored.cameras[0]
+    fit = homography_rotation_focal(
+        x1, x2, camera.mean_focal_length(), max(int(camera.width), int(camera.height))
+    )
+    return None if fit is None else fit[0]
+
+
+def homography_rotation_focal(
+    x1: np.ndarray, x2: np.ndarray, focal: float, size: float
+) -> tuple[float, float] | None:
+    """The focal-length scale that makes the homography of matches a rotation, and how far
+    from a rotation it then is.
+
+    Parameters
+    ----------
+    x1, x2 : ndarray, shape (N, 2)
+        Normalized coordinates of the matches under a guessed focal length, N >= 8.
+    focal : float
+        The guessed focal length, pixels.
+    size : float
+        The larger image side, pixels.
+
+    Returns
+    -------
+    tuple of float or None
+        ``(s, spread)``: :func:`rotation_focal_scale` of the robust homography of the matches
+        and ``log(sigma_1 / sigma_3)`` of the homography conjugated by ``s`` (0 for an exact
+        rotation); None with fewer than 8 matches, no homography or no such ``s``.
+    """
+    if len(x1) < 8:
+        return None
+    x1, x2 = (np.column_stack([xy[:, :2], np.ones(len(xy))]) for xy in (x1, x2))
     homography = estimate_homography(x1, x2, focal, confidence=_HOMOGRAPHY_CONFIDENCE)
     if homography is None:
         return None
-    width = max(int(cameras[0].width), int(cameras[0].height))
-    return rotation_focal_scale(homography.H, focal, width)
+    scale = rotation_focal_scale(homography.H, focal, size)
+    if scale is None:
+        return None
+    return scale, float(_rotation_spread(homography.H, np.array([np.log(scale)]))[0])
 
 
 FIELD_RANGE_DEG = (5.0, 150.0)
@@ -1085,6 +1130,8 @@ def _check_scoring(scoring: dict) -> None:
             )
         if name == "min_inliers":
             as_whole_number(value, name, 0, MAX_WHOLE_NUMBER)
+        elif name == "pri_threshold":
+            as_pri_threshold(value)
         else:
             as_nonnegative(value, name)
 

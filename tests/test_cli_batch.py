@@ -359,8 +359,9 @@ _K_FIELDS = "535.4 0 320.1 0 539.2 247.6 0 0 1"
          r"optionally 16 for T_1to2\)"),
         (f"a.png b.png 0 0 {_K_FIELDS} {_K_FIELDS} 1 0 0", r"got 25 fields \(after the names"),
         ("a b.png c.png 0 0", r"got 5 fields \(put a name with spaces in double quotes\)"),
+        ("a.png", r"got 1 field \(a pair needs two image names\)"),
     ],
-    ids=["space in a name", "one number", "K2 short", "T short", "space and numbers"],
+    ids=["space in a name", "one number", "K2 short", "T short", "space and numbers", "one name"],
 )
 def test_a_line_of_the_wrong_length_gets_the_remedy_that_fits(tmp_path, line, remedy):
     pairs = tmp_path / "pairs.txt"
@@ -370,11 +371,51 @@ def test_a_line_of_the_wrong_length_gets_the_remedy_that_fits(tmp_path, line, re
 
 
 def test_output_dash_is_standard_output(tmp_path):
-    (tmp_path / "pairs.txt").write_text("absent1.png absent2.png\n")
+    (tmp_path / "pairs.txt").write_text(f"{NAME1} absent2.png\n")
     (tmp_path / "images").mkdir()
+    (tmp_path / "images" / NAME1).write_bytes((DATA / NAME1).read_bytes())
     args = [*COMMAND, "pairs", "pairs.txt", "images", "--K", K_TEXT, "-o", "-", "--quiet"]
     out = subprocess.run(args, capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert out.returncode == 0, out.stderr
     (line,) = [json.loads(text) for text in out.stdout.splitlines()]
-    assert line["image1"] == "absent1.png" and "image not found" in line["error"]
+    assert line["image2"] == "absent2.png" and "image not found" in line["error"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["images", "pairs.txt"]
+
+
+def test_repeated_pairs_file_lines_run_again_under_one_warning(tmp_path):
+    lines = [f"{NAME1} {NAME2}", "# again, quoted and commented", f"{NAME2} {NAME1}",
+             f'"{NAME1}"  {NAME2}  # the first pair', f"{NAME2} {NAME1}"]  # fmt: skip
+    (tmp_path / "pairs.txt").write_text("\n".join(lines) + "\n")
+    args = [*COMMAND, "pairs", str(tmp_path / "pairs.txt"), str(DATA), "--K", K_TEXT,
+            "--workers", "1", "--quiet", "--max-features", "1000"]  # fmt: skip
+    out = subprocess.run(args, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stderr.splitlines() == [
+        f"ppo-cv pairs: warning: {tmp_path / 'pairs.txt'}: lines 4 (= 1), 5 (= 3) repeat an "
+        "earlier line; each runs again and gives its own JSON line"
+    ]
+    results = [json.loads(line) for line in out.stdout.splitlines()]
+    assert [(r["image1"], r["image2"]) for r in results] == [
+        (NAME1, NAME2), (NAME2, NAME1), (NAME1, NAME2), (NAME2, NAME1)
+    ]
+    assert results[0]["R"] == results[2]["R"] and "error" not in results[0]
+
+
+@pytest.mark.parametrize(
+    "lines, named",
+    [
+        (["a.png b.png", "a.png b.png"], "line 2 (= 1) repeats"),
+        (["a.png b.png", "b.png a.png"] * 2, "lines 3 (= 1), 4 (= 2) repeat"),
+        (["a.png b.png"] * 1000,
+         "lines 2 (= 1), 3 (= 1), 4 (= 1), 5 (= 1), 6 (= 1) and 994 more repeat"),
+    ],
+    ids=["one", "two", "a thousand"],
+)
+def test_the_repeated_lines_warning_is_one_short_line(tmp_path, capsys, lines, named):
+    pairs = tmp_path / "pairs.txt"
+    pairs.write_text("\n".join(lines) + "\n")
+    batch._warn_repeated_lines(batch.read_pairs(pairs, K=K_TEXT), pairs)
+    assert capsys.readouterr().err == (
+        f"ppo-cv pairs: warning: {pairs}: {named} an earlier line; each runs again and gives "
+        "its own JSON line\n"
+    )

@@ -275,6 +275,24 @@ CASES = [
         "pair",
         r"image1 has too few features \(0\): blank",
     ),
+    # an empty camera option is an error, not the option left out
+    ([*PAIR, "--dist", ""], "pair", r"--dist is empty: give k1,k2,p1,p2\[,k3\]"),
+    ([*PAIR, "--dist2", ""], "pair", r"--dist2 is empty"),
+    ([*PAIR, "--K2", ""], "pair", r"--K2 must be 4 numbers fx,fy,cx,cy .*, got 0"),
+    (["pairs", "pairs_demo.txt", "images", "--K", K_TEXT, "--K2", ""], "pairs", r"--K2 must be"),
+    # the wrong image folder: one line, not a batch of failed pairs
+    (
+        ["pairs", "pairs_demo.txt", ".", "--K", K_TEXT],
+        "pairs",
+        r"image folder \. holds none of the 2 images pairs_demo\.txt names \(the first: demo1",
+    ),
+    # a blank image is the one line, not after the warnings its camera would have had
+    (["pair", "const16.png", DEMO2], "pair", r"image1 has too few features \(0\): blank"),
+    (
+        ["pair", DEMO1, "const16.png", "--K", "1,2,-400,247.6"],
+        "pair",
+        r"image2 has too few features \(0\): blank",
+    ),
     (
         ["pair", "thin.png", DEMO2, "--K", K_TEXT],
         "pair",
@@ -710,7 +728,11 @@ def test_bad_images_in_a_batch_are_failed_lines(tmp_path, cache):
     out = subprocess.run([*COMMAND, "pairs", "-q", "pairs.txt", ".", *cache], cwd=tmp_path,
                          capture_output=True, text=True, timeout=300)  # fmt: skip
     assert out.returncode == 0, out.stderr
-    assert out.stderr.strip().splitlines() == ["ppo-cv pairs: warning: 4 of 6 pairs failed"]
+    assert out.stderr.strip().splitlines() == [
+        "ppo-cv pairs: warning: pairs.txt: line 6 (= 1) repeats an earlier line; each runs again "
+        "and gives its own JSON line",
+        "ppo-cv pairs: warning: 4 of 6 pairs failed",
+    ]
     rows = [json.loads(line) for line in out.stdout.splitlines()]
     assert [row["image1"] for row in rows] == firsts
     assert _demo_rotation_error(rows[0]) < 1.0 and rows[5]["R"] == rows[0]["R"]

@@ -76,3 +76,14 @@ def test_the_command_runs_blas_on_one_thread_unless_told_otherwise(given, expect
     done = subprocess.run([sys.executable, "-c", _BLAS_PROBE], capture_output=True, text=True,
                           timeout=60, env=env)  # fmt: skip
     assert done.stdout.split("\n")[-2] == expected, done.stderr
+
+
+def test_synth_help_lists_every_motion_and_scene_in_an_80_column_terminal():
+    from ppo_cv.data_gen import MOTIONS, SCENES
+
+    env = {**os.environ, "COLUMNS": "80", "TERMINAL_WIDTH": "80"}
+    done = subprocess.run([sys.executable, "-m", "ppo_cv.cli.main", "synth", "--help"],
+                          capture_output=True, text=True, timeout=60, env=env)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    for name in (*MOTIONS, *SCENES):
+        assert name in done.stdout, name

@@ -299,3 +299,15 @@ def test_dist_with_a_one_camera_calibration_describes_both_images_as_with_K(tmp_
         used = json.loads(done.stdout)["cameras"]
         cameras[source[0]] = (used["dist1"], used["dist2"])
     assert cameras["--calib"] == cameras["--K"] == ([0.05, 0, 0, 0], [0.05, 0, 0, 0])
+
+
+def test_synth_names_the_images_folder_and_the_pairs_command_runs_as_printed(tmp_path):
+    done = ppo_cv("synth", "render", "--pairs", "1", "--width", "160", "--height", "120",
+                  "--supersample", "1", "-q", cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    printed = done.stdout.strip().split("run them with: ppo-cv ")[1].split()
+    assert printed == ["pairs", "render/pairs_with_gt.txt", "render/images"]
+    run = ppo_cv(*printed, "--quiet", cwd=tmp_path)
+    assert run.returncode == 0, run.stderr
+    (line,) = [json.loads(text) for text in run.stdout.splitlines()]
+    assert line["image1"] == "pair_000_1.png" and "error" not in line, line

@@ -149,7 +149,10 @@ CASES = {
         "distanceThresh"),
     "recover_pose pri_threshold -1": (
         lambda: ppo_cv.recover_pose(E, P1, P2, K, pri_threshold=-1), ValueError,
-        "pri_threshold must be a finite number >= 0"),
+        "pri_threshold must be a number in [0, 1]"),
+    "recover_pose pri_threshold 2": (
+        lambda: ppo_cv.recover_pose(E, P1, P2, K, pri_threshold=2.0), ValueError,
+        "pri_threshold must be a number in [0, 1] (the paper's is 0.015), got 2.0"),
     "recover_pose pri_threshold nan": (
         lambda: ppo_cv.recover_pose(E, P1, P2, K, pri_threshold=np.nan), ValueError,
         "pri_threshold"),
@@ -166,7 +169,11 @@ CASES = {
     "PairOptions threshold 101": (lambda: PairOptions(ransac_threshold=101.0), ValueError,
                                   "ransac_threshold"),
     "PairOptions pri_threshold -1": (lambda: PairOptions(pri_threshold=-1.0), ValueError,
-                                     "pri_threshold must be a finite number >= 0"),
+                                     "pri_threshold must be a number in [0, 1]"),
+    "PairOptions pri_threshold 1.5": (lambda: PairOptions(pri_threshold=1.5), ValueError,
+                                      "pri_threshold must be a number in [0, 1]"),
+    "PairOptions pri_threshold inf": (lambda: PairOptions(pri_threshold=np.inf), ValueError,
+                                      "pri_threshold must be a number in [0, 1]"),
     "PairOptions max_log10_nfa nan": (lambda: PairOptions(max_log10_nfa=np.nan), ValueError,
                                       "max_log10_nfa"),
     "estimate_pair dist 1e10": (_pair(dist1=[1e10, 0, 0, 0]), ValueError,
@@ -491,14 +498,15 @@ def test_an_image_array_of_another_shape_is_refused_naming_every_accepted_shape(
 @pytest.mark.parametrize(
     "scoring, error, words",
     [
-        ({"pri_threshold": -1.0}, ValueError, r"pri_threshold must be a finite number >= 0"),
+        ({"pri_threshold": -1.0}, ValueError, r"pri_threshold must be a number in \[0, 1\]"),
+        ({"pri_threshold": 1.5}, ValueError, r"pri_threshold must be a number in \[0, 1\]"),
         ({"min_inliers": "50"}, TypeError, r"min_inliers must be a whole number, got str '50'"),
         ({"min_inliers": 2.5}, ValueError, r"min_inliers must be a whole number in .*, got 2\.5"),
         ({"min_tri_angle": np.nan}, ValueError, r"min_tri_angle must be a finite number >= 0"),
         ({"max_forward_motion": -1.0}, ValueError, r"max_forward_motion must be a finite"),
     ],
-    ids=["negative PRI threshold", "inliers as text", "a fraction of an inlier", "NaN angle",
-         "negative forward motion"],
+    ids=["negative PRI threshold", "PRI threshold above 1", "inliers as text",
+         "a fraction of an inlier", "NaN angle", "negative forward motion"],
 )
 def test_score_pairs_checks_its_options_before_the_database(tmp_path, scoring, error, words):
     with pytest.raises(error, match=words):

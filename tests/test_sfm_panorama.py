@@ -227,3 +227,51 @@ def test_freiburg_reconstructs_without_K(freiburg, tmp_path):
     rotation_errors, translation_errors = sfm.pose_errors(model, gt)
     assert len(rotation_errors) == 85
     assert np.median(rotation_errors) < 1.0 and np.median(translation_errors) < 2.0
+
+
+class _CountingDatabase:
+    """A pycolmap database whose reads are counted by method name."""
+
+    def __init__(self, database, reads: dict) -> None:
+        self._database, self._reads = database, reads
+
+    def __getattr__(self, name):
+        method = getattr(self._database, name)
+        if not name.startswith("read_"):
+            return method
+
+        def counted(*args):
+            self._reads[name] = self._reads.get(name, 0) + 1
+            return method(*args)
+
+        return counted
+
+
+def test_the_focal_fit_and_the_ranking_read_the_pair_once(tripod, monkeypatch):
+    images, database, K, pan = tripod
+    rotation = {(p.name1, p.name2): p for p in sfm.score_pairs(database)}[
+        ("00_pan.png", "02_pan.png")
+    ]
+    reads: dict = {}
+    opened = pycolmap.Database.open
+
+    class Opening:
+        def __init__(self, path) -> None:
+            self._context = opened(path)
+
+        def __enter__(self):
+            return _CountingDatabase(self._context.__enter__(), reads)
+
+        def __exit__(self, *exc):
+            return self._context.__exit__(*exc)
+
+    class Pycolmap:
+        Database = type("Database", (), {"open": staticmethod(Opening)})
+
+        def __getattr__(self, name):
+            return getattr(pycolmap, name)
+
+    monkeypatch.setattr(sfm, "pycolmap", Pycolmap())
+    refusal = sfm._image_rejection(database, images, rotation, 0.01, fit_focal=True)
+    assert refusal.startswith("pure rotation on the images")
+    assert reads["read_two_view_geometry"] == 1 and reads["read_keypoints"] == 2, reads

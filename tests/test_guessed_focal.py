@@ -1,0 +1,97 @@
+"""A pair whose camera is guessed (no ``--K``): a focal length 8 % short, as the EXIF of
+pano_dev's ``book`` sequence gives it, must not turn a tripod rotation into a motion with
+translation, nor a translation into a rotation."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import cv2
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from ppo_cv.data_gen import make_scene
+from ppo_cv.data_gen.render import render_pair
+from ppo_cv.metrics import rotation_error_deg
+
+COMMAND = [sys.executable, "-m", "ppo_cv.cli.main"]
+SIZE = (640, 480)
+GUESS = 1.2 * max(SIZE)  # the focal length ppo-cv guesses for an image without EXIF
+TRUE_FOCAL = GUESS / 0.92  # the guess is 8 % short
+ROTATION = Rotation.from_rotvec(np.radians([2.0, 12.0, 1.0])).as_matrix()
+MOTIONS = {"rotation": np.zeros(3), "translation": np.array([0.5, 0.05, 0.1])}
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory):
+    """Both motions of the ``clutter`` scene as PNGs without EXIF, and a pairs file."""
+    root = tmp_path_factory.mktemp("guessed_focal")
+    K = np.array([[TRUE_FOCAL, 0, 319.5], [0, TRUE_FOCAL, 239.5], [0, 0, 1.0]])
+    for motion, t in MOTIONS.items():
+        pair = render_pair(make_scene("clutter", 0), K, K, ROTATION, t, SIZE, 2,
+                           noise_std=1.0 / 255, seed=0)  # fmt: skip
+        for index, image in enumerate((pair.image1, pair.image2), 1):
+            pixels = np.clip(np.rint(image * 255), 0, 255).astype(np.uint8)
+            cv2.imwrite(str(root / f"{motion}{index}.png"), pixels[..., ::-1])
+    (root / "pairs.txt").write_text("".join(f"{m}1.png {m}2.png\n" for m in MOTIONS))
+    return root
+
+
+@pytest.mark.parametrize(
+    "motion, pure_rotation, focal, max_error_deg",
+    [("rotation", True, TRUE_FOCAL, 0.2), ("translation", False, GUESS, 1.5)],
+)
+def test_pair_decides_a_guessed_camera_with_the_focal_length_of_its_homography(
+    rendered, motion, pure_rotation, focal, max_error_deg
+):
+    done = subprocess.run(
+        [*COMMAND, "pair", rendered / f"{motion}1.png", rendered / f"{motion}2.png", "--json"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    data = json.loads(done.stdout)
+    assert data["pure_rotation"] is pure_rotation
+    assert rotation_error_deg(np.array(data["R"]), ROTATION) < max_error_deg
+    assert data["cameras"]["K1"][0][0] == pytest.approx(focal, rel=0.005)
+    refitted = [line for line in done.stderr.splitlines() if "fitted to the homography" in line]
+    assert len(refitted) == (1 if pure_rotation else 0), done.stderr
+    if pure_rotation:
+        assert refitted[0].startswith(
+            "ppo-cv pair: warning: the guessed focal length 768.0 px calls this pair a "
+        )
+
+
+def test_pairs_decides_the_guessed_cameras_as_pair_does(rendered):
+    done = subprocess.run(
+        [*COMMAND, "pairs", rendered / "pairs.txt", rendered, "--workers", "1", "--quiet"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    rotation, translation = (json.loads(line) for line in done.stdout.splitlines())
+    assert rotation["pure_rotation"] and not translation["pure_rotation"]
+    assert rotation["cameras"]["K1"][0][0] == pytest.approx(TRUE_FOCAL, rel=0.005)
+    assert "fitted to the homography" in rotation["camera_note"]
+    assert "camera_note" not in translation
+    assert translation["cameras"]["K1"][0][0] == GUESS
+
+
+def test_the_book_pair_with_its_exif_focal_length_is_a_rotation(pano_dev):
+    """pano_dev's book 04214 -> 04215: its EXIF focal length (917.5 px) is 8 % short of the
+    reference 996.9 px (autostitch's); the fitted one (976 px) is within 3 % of it, and the
+    rotation within 0.6 deg of the reference, which inherits the reference's focal length."""
+    names = ("book_DSC04214.JPG", "book_DSC04215.JPG")
+    done = subprocess.run(
+        [*COMMAND, "pair", *(pano_dev / "images" / name for name in names), "--json"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    data = json.loads(done.stdout)
+    fields = (pano_dev / "pairs_with_gt.txt").read_text().splitlines()[0].split()
+    assert fields[:2] == list(names)
+    reference_R = np.array(fields[22:38], dtype=float).reshape(4, 4)[:3, :3]
+    assert data["pure_rotation"] and "fitted to the homography" in done.stderr
+    assert data["cameras"]["K1"][0][0] == pytest.approx(float(fields[4]), rel=0.03)
+    assert rotation_error_deg(np.array(data["R"]), reference_R) < 0.6
