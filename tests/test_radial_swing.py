@@ -38,10 +38,10 @@ def _swing(scene_name: str, seed: int, pivot_m: float):
     return pair.image1, pair.image2, K, R
 
 
-KNOWN_SPURIOUS_K1 = pytest.mark.xfail(
+RELEASED_SHIFT_OVERSTATED = pytest.mark.xfail(
     strict=True,
-    reason="the refinement keeps k1 +0.042 (3.3 deviations) on a lens without distortion, which "
-    "moves the rotation 0.6 degree along the bas-relief valley (0.006 without the refinement)",
+    reason="the general pose is 0.01 degree off, but the rotation choice reads a 2.5 degree move "
+    "of it when k1 is released (released_lens_shift_deg) and takes the rotation-only fit, 1.2 off",
 )
 
 
@@ -49,7 +49,9 @@ KNOWN_SPURIOUS_K1 = pytest.mark.xfail(
 @pytest.mark.parametrize(
     "scene_name, seed, pivot_m",
     [
-        pytest.param("room", 0, 0.4, marks=KNOWN_SPURIOUS_K1),
+        ("room", 0, 0.4),
+        ("room", 1, 0.4),
+        pytest.param("backdrop", 0, 0.4, marks=RELEASED_SHIFT_OVERSTATED),
         ("backdrop", 1, 0.4),
     ],
 )
