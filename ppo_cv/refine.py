@@ -44,6 +44,7 @@ __all__ = [
     "refine_pose_radial",
     "fit_rotation",
     "k1_noise_bias",
+    "noise_replicates",
     "rotation_residuals",
     "pose_sigmas_deg",
     "translation_sigma_deg",
@@ -270,12 +271,15 @@ class _RadialFit:
     pose: object
 
 
-def _radial_fit(R0, t0, a, b, scale, k1_prior, iterations) -> _RadialFit:
-    U = tangent_basis(t0)
+def _radial_pose(R0: np.ndarray, t0: np.ndarray, p: np.ndarray) -> tuple:
+    """Pose ``(R, t)`` of the parameters ``p`` of :func:`refine_pose_radial`'s fit."""
+    tp = t0 + p[3:5] @ tangent_basis(t0)
+    return rotation_increment(p[:3]) @ R0, tp / np.linalg.norm(tp)
 
+
+def _radial_fit(R0, t0, a, b, scale, k1_prior, iterations) -> _RadialFit:
     def pose(p):
-        tp = t0 + p[3:5] @ U
-        return rotation_increment(p[:3]) @ R0, tp / np.linalg.norm(tp)
+        return _radial_pose(R0, t0, p)
 
     def stacked(p, focal_error=0.0, offset=(0.0, 0.0)):
         Rp, tp = pose(p)
@@ -304,17 +308,16 @@ def k1_noise_bias(
 ) -> tuple[float, float]:
     """Coefficient (and the deviation of that mean) that :func:`refine_pose_radial` fits on
     matches of the pose ``(R, t)`` without any lens distortion, perturbed by the noise the
-    matches show: a parametric bootstrap of the estimator's bias.
+    matches show (their residuals with the coefficient fitted): a parametric bootstrap of the
+    estimator's bias.
 
     The noise of the points enters the Sampson cost nonlinearly (errors in the variables): the
     fitted coefficient is biased, by a fraction of its deviation where ``k1`` has its own
     signature, by several where the pose's bas-relief valley mimics all but a few tenths of a
     percent of it (a handheld swing, a narrow field with a tiny baseline), and a linearised
-    deviation does not see the bias. Each replicate moves the matches ``x1, x2`` (inliers,
-    normalised (N, 3)) onto the epipolar constraint of ``(R, t)`` (first order, along the
-    Sampson gradient), adds to each coordinate a Gaussian of the size of one of the matches'
-    own Sampson residuals (drawn without replacement, so that the simulated noise has the
-    measured spread and tail) and refits from ``(R, t)``. Deterministic (fixed seed).
+    deviation does not see the bias. Each replicate (:func:`noise_replicates` of the matches
+    ``x1, x2``, inliers, normalised (N, 3), and the essential matrix of ``(R, t)``) is refitted
+    from ``(R, t)``.
 
     Returns
     -------
@@ -326,17 +329,39 @@ def k1_noise_bias(
     R = np.asarray(R, dtype=np.float64)
     t = np.asarray(t, dtype=np.float64).reshape(3)
     t = t / np.linalg.norm(t)
-    a, b = (np.asarray(x, float) / np.asarray(x, float)[:, 2:] for x in (x1, x2))
     E = cross_matrices(t[None])[0] @ R
-    sizes = np.abs(sampson_signed(E, a, b))
+    p = _radial_fit(R, t, x1, x2, scale, k1_prior, iterations).p
+    sizes = np.abs(
+        _sampson_signed(*_radial_pose(R, t, p), *(undistort_division(x, p[5]) for x in (x1, x2)))
+    )
+    fitted = [
+        _radial_fit(R, t, a, b, scale, k1_prior, iterations).p[5]
+        for a, b in noise_replicates(E, x1, x2, sizes, replicates)
+    ]
+    return float(np.mean(fitted)), float(np.std(fitted, ddof=1) / np.sqrt(replicates))
+
+
+def noise_replicates(E: np.ndarray, x1: np.ndarray, x2: np.ndarray, sizes: np.ndarray, count: int):
+    """Simulated match sets of the epipolar model ``E`` under the noise the matches show.
+
+    The matches ``x1, x2`` (normalised (N, 3)) are moved onto ``x2^T E x1 = 0`` (first order,
+    along the Sampson gradient), and each coordinate of a replicate gets a Gaussian of one of
+    the ``sizes`` (N,), drawn without replacement: the matches' Sampson residuals to the model
+    that explains them best (with its lens term, so that they are noise and not a lens's
+    misfit), whose spread and tail the simulated noise then has. Deterministic (fixed seed).
+
+    Yields
+    ------
+    x1, x2 : ndarray, shape (N, 3)
+        ``count`` times.
+    """
+    a, b = (np.asarray(x, float) / np.asarray(x, float)[:, 2:] for x in (x1, x2))
     a, b = _sampson_corrected(E, a, b)
     rng = np.random.default_rng(0)
-    fitted = np.empty(replicates)
-    for k in range(replicates):
+    for _ in range(count):
         noise = rng.permutation(sizes)[:, None, None] * rng.standard_normal((len(a), 2, 2))
-        moved = (np.column_stack([x[:, :2] + noise[:, i], x[:, 2]]) for i, x in enumerate((a, b)))
-        fitted[k] = _radial_fit(R, t, *moved, scale, k1_prior, iterations).p[5]
-    return float(fitted.mean()), float(fitted.std(ddof=1) / np.sqrt(replicates))
+        moved = (x[:, :2] + noise[:, i] for i, x in enumerate((a, b)))
+        yield tuple(np.column_stack([xy, np.ones(len(xy))]) for xy in moved)
 
 
 def _sampson_corrected(E: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> tuple:
