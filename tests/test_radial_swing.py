@@ -45,6 +45,13 @@ RELEASED_SHIFT_OVERSTATED = pytest.mark.xfail(
 )
 
 
+ROTATION_ONLY_CHOSEN = pytest.mark.xfail(
+    strict=True,
+    reason="|t| / depth 0.031: the general pose is 0.02 degree off, but the rotation choice "
+    "finds the rotation-only fit's expected error smaller and returns it, 0.56 off",
+)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "scene_name, seed, pivot_m",
@@ -52,6 +59,7 @@ RELEASED_SHIFT_OVERSTATED = pytest.mark.xfail(
         ("room", 0, 0.4),
         ("room", 1, 0.4),
         pytest.param("backdrop", 0, 0.4, marks=RELEASED_SHIFT_OVERSTATED),
+        pytest.param("room", 1, 1.2, marks=ROTATION_ONLY_CHOSEN),
         ("backdrop", 1, 0.4),
     ],
 )
