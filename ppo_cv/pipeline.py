@@ -988,12 +988,13 @@ def _radial_priors(radial: RadialPose | None) -> dict[str, float | None]:
     """How :func:`pose_sigmas_deg` counts the radial term of a general pose: none without a
     refinement; estimated under :data:`K1_PRIOR` when the refinement kept it; when it held
     ``k1`` at 0, the held value's error a considered parameter (:func:`held_k1_deviation` of
-    the coefficient the refinement reached) beside the focal length's and the principal
-    point's."""
+    the coefficient the refinement reached less its noise bias) beside the focal length's and
+    the principal point's."""
     if radial is None:
         return {"k1_prior": None}
     if radial.k1 == 0.0 and np.isfinite(radial.k1_sigma):
-        return {"held_k1_prior": held_k1_deviation(radial.k1_fitted, radial.k1_sigma)}
+        held = radial.k1_fitted - radial.k1_noise_bias
+        return {"held_k1_prior": held_k1_deviation(held, radial.k1_sigma)}
     return {"k1_prior": K1_PRIOR}
 
 
