@@ -278,6 +278,18 @@ def test_translating_renders_keep_the_moving_model(seed, baseline, chosen, monke
     assert error < 0.1 and error < rotation_error_deg(estimates["rotation"].R, pair.R)
 
 
+def _pairs_file_line(folder, names):
+    """``K1, K2`` and the reference rotation of the pair ``names`` in ``folder``'s
+    ``pairs_with_gt.txt``."""
+    line = next(
+        row.split()
+        for row in (folder / "pairs_with_gt.txt").read_text().splitlines()
+        if row.split()[:2] == list(names)
+    )
+    K1, K2 = (np.array(line[i : i + 9], float).reshape(3, 3) for i in (4, 13))
+    return K1, K2, np.array(line[22:38], float).reshape(4, 4)[:3, :3]
+
+
 def test_real_tripod_pair_called_general_returns_the_rotation_only_fit(pano_dev, monkeypatch):
     """bookshelf DSC04143 -> DSC04144 (382x574, a 37 degree field): GRIC sees a translation,
     the essential matrix's rotation slides with its radial term; its tracks' plane moved
@@ -286,13 +298,7 @@ def test_real_tripod_pair_called_general_returns_the_rotation_only_fit(pano_dev,
     from ppo_cv import estimate_pair
 
     names = ("bookshelf_DSC04143.JPG", "bookshelf_DSC04144.JPG")
-    line = next(
-        row.split()
-        for row in (pano_dev / "pairs_with_gt.txt").read_text().splitlines()
-        if row.split()[:2] == list(names)
-    )
-    K1, K2 = (np.array(line[i : i + 9], float).reshape(3, 3) for i in (4, 13))
-    R_ref = np.array(line[22:38], float).reshape(4, 4)[:3, :3]
+    K1, K2, R_ref = _pairs_file_line(pano_dev, names)
     images = [str(pano_dev / "images" / name) for name in names]
     import ppo_cv.pipeline as pipeline
 
@@ -328,13 +334,7 @@ def test_decision_aligns_windows_only_where_the_rotation_only_fit_could_win(
     from ppo_cv import estimate_pair
 
     folder = request.getfixturevalue(data)
-    line = next(
-        row.split()
-        for row in (folder / "pairs_with_gt.txt").read_text().splitlines()
-        if row.split()[:2] == list(names)
-    )
-    K1, K2 = (np.array(line[i : i + 9], float).reshape(3, 3) for i in (4, 13))
-    R_ref = np.array(line[22:38], float).reshape(4, 4)[:3, :3]
+    K1, K2, R_ref = _pairs_file_line(folder, names)
     seen, align = {"aligned": False}, pipeline._align_tracks
 
     def recording_align(*args, keep_clipped=False, **keywords):
