@@ -48,7 +48,6 @@ from .common import (
     Threshold,
     check_image_file,
     check_range,
-    decide_with_fitted_focal,
     exif_camera,
     fail,
     given_cameras,
@@ -562,6 +561,8 @@ def _pair_job(job: tuple) -> dict:
         result = estimate_pair(*images, row["K1"], row["K2"], *dist, options=options, **given)
         note = None
         if row.get("guessed_cameras"):
+            from ppo_cv.guessed_camera import decide_with_fitted_focal
+
             result, note = decide_with_fitted_focal(result, images, options, **given)
     except Exception as exc:  # one pair's failure is its error line, not the batch's
         return {**names, "error": _error_line(exc)}

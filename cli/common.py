@@ -42,8 +42,6 @@ __all__ = [
     "calibration_dist2",
     "exif_camera",
     "exif_note",
-    "GUESSED_FOCAL_SPREAD",
-    "decide_with_fitted_focal",
     "ProgressReport",
     "StageReport",
 ]
@@ -366,62 +364,6 @@ def exif_note(focals: tuple[float, float], found: tuple[bool, bool], names=("", 
     return (
         f"no intrinsics given and no EXIF focal length in {where}: guessing {focal} "
         "(1.2 x image size); the pose will be rough, pass --K or --calib"
-    )
-
-
-GUESSED_FOCAL_SPREAD = 0.05
-"""Largest ``log(sigma_1 / sigma_3)`` of the matches' homography, conjugated by the focal length
-that makes it nearest a rotation (:func:`ppo_cv.sfm.homography_rotation_focal`), for which a
-pair decided with a guessed camera is decided again with that focal length: 0.002 to 0.029 on
-14 pano_dev tripod pairs under their EXIF focal lengths, 0.055 to 1.02 on 9 freiburg
-translating pairs under the 1.2 x image size guess, where the second run would only cost time."""
-
-MIN_FOCAL_REFIT = 0.01
-"""Relative change of the focal length below which a pair is not decided again."""
-
-_MODEL_WORDS = {"general": "a general motion", "plane": "a plane", "rotation": "a rotation"}
-
-
-def decide_with_fitted_focal(result, images, options, **features) -> tuple[Any, str | None]:
-    """``(result, note)``: for a pair decided with a guessed camera (EXIF or 1.2 x image size)
-    that is not a pure rotation, the decision with the focal length that makes the homography
-    of its inliers a rotation, when that decision is a pure rotation, and a note saying so;
-    otherwise ``result`` unchanged and None.
-
-    A focal length a few percent off leaves a rotation's matches a residual that a translation
-    explains better: on pano_dev's tripod pairs the EXIF focal length (8 % short on ``book``)
-    makes ``estimate_pair`` call every pair general motion. ``features`` (``features1``,
-    ``features2``) go to the second :func:`~ppo_cv.pipeline.estimate_pair` as to the first.
-    """
-    import numpy as np
-
-    from ppo_cv.camera import pixels_to_normalized
-    from ppo_cv.pipeline import estimate_pair
-    from ppo_cv.sfm import homography_rotation_focal
-
-    if result.pure_rotation:
-        return result, None
-    cameras, used = result.cameras, result.matches[result.inliers]
-    x1 = pixels_to_normalized(result.keypoints1[used[:, 0]], cameras.K1, cameras.dist1)
-    x2 = pixels_to_normalized(result.keypoints2[used[:, 1]], cameras.K2, cameras.dist2)
-    focal = float(cameras.K1[0, 0])
-    fit = homography_rotation_focal(x1, x2, focal, max(cameras.image_size1))
-    if fit is None or fit[1] > GUESSED_FOCAL_SPREAD or abs(math.log(fit[0])) < MIN_FOCAL_REFIT:
-        return result, None
-    scale = np.diag([fit[0], fit[0], 1.0])
-    try:
-        again = estimate_pair(
-            *images, cameras.K1 @ scale, cameras.K2 @ scale, cameras.dist1, cameras.dist2,
-            options=options, **features,
-        )  # fmt: skip
-    except ValueError:
-        return result, None
-    if not again.pure_rotation:
-        return result, None
-    return again, (
-        f"the guessed focal length {focal:.1f} px calls this pair {_MODEL_WORDS[result.model]}; "
-        f"{fit[0] * focal:.1f} px, fitted to the homography of its matches, calls it a pure "
-        "rotation, which is reported; pass --K or --calib to decide"
     )
 
 

@@ -33,7 +33,6 @@ from .common import (
     Threshold,
     calibration_dist2,
     check_image_file,
-    decide_with_fitted_focal,
     exif_camera,
     exif_note,
     fail,
@@ -442,6 +441,8 @@ def _run_pair(
                 progress=report.stage,
             )  # fmt: skip
             if exif_text:
+                from ppo_cv.guessed_camera import decide_with_fitted_focal
+
                 result, focal_note = decide_with_fitted_focal(result, (img1, img2), options)
                 warnings += [focal_note] if focal_note else []
         names = (Path(image1).name, Path(image2).name)

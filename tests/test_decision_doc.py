@@ -25,6 +25,7 @@ MODULES = {
     "significance": None,
     "plane": None,
     "pipeline": None,
+    "guessed_camera": None,
     "ppo": ("DEFAULT_PRI_THRESHOLD",),
 }
 CONSTANT = re.compile(r"_?[A-Z][A-Z0-9_]*")
