@@ -428,7 +428,7 @@ def _run_pair(
         )
         warnings = [exif_text, *notes] if exif_text else notes
         if not exif_text:
-            second = "--K2" if K2 else "--K"
+            second = "--K2" if K2 is not None else "--K"
             sources = ("--calib", "--calib") if calib is not None else ("--K", second)
             turned = [exif_orientation and exif_layout(i).turned for i in (image1, image2)]
             warnings += _camera_doubts(cameras, (img1, img2), sources, turned)

@@ -20,6 +20,7 @@ import numpy as np
 
 from .lsq import (
     cross_matrices,
+    cross_matrix,
     gauss_newton_covariance,
     huber_weights,
     levenberg_marquardt,
@@ -251,7 +252,9 @@ def refine_pose_radial(
     kept = K1_MIN <= abs(k1) <= max_k1 and abs(k1) > K1_SIGNIFICANCE * k1_sigma
     bias = 0.0
     if kept:
-        bias, bias_sigma = k1_noise_bias(R0, t0, a, b, scale, k1_prior, iterations)
+        bias, bias_sigma = _k1_noise_bias(
+            R0, t0, a, b, fit.p, scale, k1_prior, iterations, K1_BIAS_REPLICATES
+        )
         kept = abs(k1 - bias) > K1_SIGNIFICANCE * np.hypot(k1_sigma, bias_sigma)
     if not (kept and r @ r < r_start @ r_start):
         return RadialPose(R0, t0, 0.0, k1_sigma, k1, bias)
@@ -329,8 +332,14 @@ def k1_noise_bias(
     R = np.asarray(R, dtype=np.float64)
     t = np.asarray(t, dtype=np.float64).reshape(3)
     t = t / np.linalg.norm(t)
-    E = cross_matrices(t[None])[0] @ R
     p = _radial_fit(R, t, x1, x2, scale, k1_prior, iterations).p
+    return _k1_noise_bias(R, t, x1, x2, p, scale, k1_prior, iterations, replicates)
+
+
+def _k1_noise_bias(R, t, x1, x2, p, scale, k1_prior, iterations, replicates) -> tuple:
+    """:func:`k1_noise_bias` given the parameters ``p`` (6,) the fit reached on the matches
+    themselves (``t`` a unit vector), whose residuals size the simulated noise."""
+    E = cross_matrix(t) @ R
     sizes = np.abs(
         _sampson_signed(*_radial_pose(R, t, p), *(undistort_division(x, p[5]) for x in (x1, x2)))
     )
