@@ -700,15 +700,16 @@ def _run_pipeline(
     options: pycolmap.IncrementalPipelineOptions,
     manager: pycolmap.ReconstructionManager,
     progress: Progress | None,
+    candidate: PairScore | None = None,
 ) -> tuple[list[pycolmap.Reconstruction], tuple[str, str] | None]:
     pipeline = pycolmap.IncrementalPipeline(options, database, manager)
     seeds: list[tuple[str, str]] = []
 
     def on_initial_pair() -> None:
         reconstruction = manager.get(manager.size() - 1)
-        names = sorted(reconstruction.image(i).name for i in reconstruction.reg_image_ids())
-        seeds.append((names[0], names[-1]))
-        _say(progress, f"initial pair {names[0]} {names[-1]}")
+        names = _initial_pair_names(reconstruction, candidate)
+        seeds.append(names)
+        _say(progress, f"initial pair {names[0]} {names[1]}")
 
     def on_next_image() -> None:
         reconstruction = manager.get(manager.size() - 1)
@@ -721,6 +722,17 @@ def _run_pipeline(
     models = [manager.get(i) for i in range(manager.size())]
     first_seed = seeds[0] if seeds else None
     return models, first_seed
+
+
+def _initial_pair_names(
+    reconstruction: pycolmap.Reconstruction, candidate: PairScore | None
+) -> tuple[str, str]:
+    """The two images the mapper started from: in the order of ``candidate`` when they are its
+    two images (camera 1 first, as its pose and the ranking name them), else sorted."""
+    names = sorted(reconstruction.image(i).name for i in reconstruction.reg_image_ids())
+    if candidate is not None and set(names) == {candidate.name1, candidate.name2}:
+        return candidate.name1, candidate.name2
+    return names[0], names[-1]
 
 
 def reconstruct(
@@ -813,7 +825,7 @@ def reconstruct(
                 else:
                     threshold = scoring.get("pri_threshold", ppo.DEFAULT_PRI_THRESHOLD)
                     _seed_two_view(database, candidate, manager, threshold)
-            models, initial_pair = _run_pipeline(database, options, manager, progress)
+            models, initial_pair = _run_pipeline(database, options, manager, progress, candidate)
             if candidate is not None and seeding == "two-view":
                 initial_pair = (candidate.name1, candidate.name2)
             if _grew_from(models, candidate):

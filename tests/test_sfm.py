@@ -168,6 +168,38 @@ def test_ppo_seeded_reconstruction_registers_every_view(tripod, seeding):
     assert any("registered 8 images" in m for m in messages)
 
 
+def _database_named_against_id_order(tripod, folder: Path) -> tuple[Path, Path]:
+    """A copy of the tripod database whose image names sort opposite to their ids, as in a
+    database made elsewhere: PPO then ranks each pair with its later name first."""
+    images, database = tripod[0], tripod[1]
+    copy, renamed = folder / "db.db", folder / "images"
+    renamed.mkdir()
+    shutil.copy(database, copy)
+    with pycolmap.Database.open(copy) as opened:
+        for rank, image in enumerate(sorted(opened.read_all_images(), key=lambda i: i.image_id)):
+            new_name = f"{99 - rank:02d}_{image.name}"
+            shutil.copy(images / image.name, renamed / new_name)
+            image.name = new_name
+            opened.update_image(image)
+    return copy, renamed
+
+
+@pytest.mark.parametrize("seeding", sfm.SEEDINGS)
+def test_progress_names_the_initial_pair_in_the_order_of_the_result(tripod, tmp_path, seeding):
+    database, images = _database_named_against_id_order(tripod, tmp_path)
+    messages = []
+    result = sfm.reconstruct(
+        database, images, seeding=seeding, fix_intrinsics=True, progress=messages.append
+    )
+    best = result.pairs[0]
+    assert best.name1 > best.name2  # the ranking's order is not the sorted one
+    seeded = [m for m in messages if m.startswith("seeding with")]
+    started = [m for m in messages if m.startswith("initial pair")]
+    assert seeded == [f"seeding with {best.name1} {best.name2} ({seeding})"]
+    assert started == [f"initial pair {best.name1} {best.name2}"]
+    assert result.initial_pair == (best.name1, best.name2)
+
+
 def test_reconstruct_rejects_bad_arguments(tripod, tmp_path):
     images, database, *_ = tripod
     with pytest.raises(ValueError, match="initialization"):
@@ -211,6 +243,8 @@ def test_cli_sfm_writes_a_colmap_model(tripod, tmp_path):
     assert run.exit_code == 0, run.output
     summary = json.loads(run.stdout.strip().splitlines()[-1])
     assert summary["registered"] == summary["images"] == 5
+    started = [line for line in run.stderr.splitlines() if ": initial pair" in line]
+    assert started == [f"ppo-cv sfm: initial pair {' '.join(summary['initial_pair'])}"]
     assert not set(summary["initial_pair"]) <= pan
     reconstruction = pycolmap.Reconstruction(out)
     assert reconstruction.num_reg_images() == 5
