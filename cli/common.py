@@ -16,7 +16,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, NoReturn
 
+import click
 import typer
+from typer.core import TyperCommand, TyperGroup
 
 from ppo_cv.calib import implausible_intrinsics
 
@@ -44,6 +46,8 @@ __all__ = [
     "exif_note",
     "ProgressReport",
     "StageReport",
+    "PanelledHelpCommand",
+    "WrappedHelpGroup",
 ]
 
 SEED_MAX = 2**31 - 1  # pycolmap and OpenCV take the seed as a 32-bit signed integer
@@ -164,6 +168,46 @@ Overwrite = Annotated[
     typer.Option("--overwrite", help="Replace an existing output (never done without it)."),
 ]
 Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="No progress on stderr.")]
+
+
+class PanelledHelpCommand(TyperCommand):
+    """A command whose ``--help`` is plain text wrapped to the terminal, every option name whole
+    on its own line when it is long, the options grouped under their ``rich_help_panel``.
+
+    typer's tables cut long option names (``--no-exif-orientation``) and words of the help at
+    80 columns.
+    """
+
+    def format_options(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        sections: dict[str, list[tuple[str, str]]] = {"Arguments": [], "Options": []}
+        for param in self.get_params(ctx):
+            record = param.get_help_record(ctx)
+            if record is None:
+                continue
+            if param.param_type_name == "argument":
+                title = "Arguments"
+            else:
+                title = getattr(param, "rich_help_panel", None) or "Options"
+            sections.setdefault(title, []).append(record)
+        for title, records in sections.items():
+            if records:
+                with formatter.section(title):
+                    formatter.write_dl(records)
+
+
+class WrappedHelpGroup(TyperGroup):
+    """The ``ppo-cv`` group: its ``--help`` gives each command's first sentence whole, wrapped,
+    where click cuts it at the terminal width with an ellipsis."""
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        records = []
+        for name in self.list_commands(ctx):
+            command = self.get_command(ctx, name)
+            if command is not None and not command.hidden:
+                records.append((name, command.get_short_help_str(limit=1_000)))
+        if records:
+            with formatter.section("Commands"):
+                formatter.write_dl(records)
 
 
 def fail(command: str, message: str, code: int = 2) -> NoReturn:

@@ -35,6 +35,7 @@ def _app():
     import typer
 
     from ppo_cv.cli import batch, pair, sfm, synth
+    from ppo_cv.cli.common import PanelledHelpCommand, WrappedHelpGroup
 
     application = typer.Typer(
         name="ppo-cv",
@@ -42,6 +43,8 @@ def _app():
         no_args_is_help=True,
         add_completion=False,
         pretty_exceptions_enable=False,
+        rich_markup_mode=None,
+        cls=WrappedHelpGroup,
     )
 
     @application.callback()
@@ -55,6 +58,8 @@ def _app():
 
     for module in (synth, sfm, pair, batch):
         module.register(application)
+    for command in application.registered_commands:
+        command.cls = PanelledHelpCommand
     return application
 
 

@@ -87,3 +87,28 @@ def test_synth_help_lists_every_motion_and_scene_in_an_80_column_terminal():
     assert done.returncode == 0, done.stderr
     for name in (*MOTIONS, *SCENES):
         assert name in done.stdout, name
+
+
+def _long_names(command: str) -> set[str]:
+    import typer
+
+    from ppo_cv.cli.main import app
+
+    group = typer.main.get_command(app)
+    params = group.params if command == "" else group.commands[command].params
+    return {n for p in params for n in (*p.opts, *p.secondary_opts) if n.startswith("--")}
+
+
+@pytest.mark.parametrize("command", ["", "pair", "demo", "pairs", "sfm", "synth"])
+def test_help_fits_80_columns_with_every_option_name_whole(command):
+    env = {**os.environ, "COLUMNS": "80", "TERMINAL_WIDTH": "80"}
+    argv = [sys.executable, "-m", "ppo_cv.cli.main", *([command] if command else []), "--help"]
+    done = subprocess.run(argv, capture_output=True, text=True, timeout=60, env=env)
+    assert done.returncode == 0 and done.stderr == "", done.stderr
+    lines = done.stdout.splitlines()
+    assert max(len(line) for line in lines) <= 80
+    assert "…" not in done.stdout and "..." not in done.stdout.split("Commands:")[-1]
+    words = set(done.stdout.replace("/", " ").replace(",", " ").split())
+    assert _long_names(command) <= words, _long_names(command) - words
+    if command in ("pair", "pairs"):
+        assert "Pipeline:" in lines and lines.index("Pipeline:") > lines.index("Options:")
