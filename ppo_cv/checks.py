@@ -28,6 +28,7 @@ __all__ = [
     "MIN_FOCAL",
     "MAX_FOCAL",
     "MAX_WHOLE_NUMBER",
+    "ESSENTIAL_SPREAD",
 ]
 
 MIN_POINTS = 5
@@ -38,6 +39,12 @@ MIN_FOCAL, MAX_FOCAL = 1e-6, 1e8
 MAX_WHOLE_NUMBER = 2**31 - 1
 """Largest whole-number option (a seed, a count): OpenCV and pycolmap take them as 32-bit
 signed integers."""
+ESSENTIAL_SPREAD = 10.0
+"""An essential matrix has two equal singular values and a zero one. ``E`` is refused when its
+largest singular value exceeds the middle one by more than this factor (a fundamental matrix in
+pixels: about 190 for a 500 px focal length; a rank-1 matrix) or its smallest one exceeds the
+middle one over this factor (rank 3, as the identity). A linear eight-point ``E`` of noisy points,
+never projected onto the essential matrices, stays within 1.13 and 0.004 (5 px of noise)."""
 MAX_RADIAL, MAX_RADIAL_RATIONAL, MAX_TANGENTIAL, MAX_PRISM, MAX_TILT = 10.0, 100.0, 1.0, 1.0, 1.0
 
 
@@ -228,6 +235,9 @@ def _require_physical_distortion(coefficients: np.ndarray, name: str) -> None:
 def as_essential(value: Any) -> np.ndarray:
     """A single finite, nonzero 3x3 essential matrix, rescaled to a largest entry of 1.
 
+    A matrix far from every essential matrix (:data:`ESSENTIAL_SPREAD`), such as a fundamental
+    matrix in pixels, is a ValueError: its decomposition would give a pose without a warning.
+
     The pose does not depend on the scale of ``E``; the rescaling keeps any finite scale
     (1e-200, 1e300 or a subnormal 1e-310) clear of underflow and overflow in the
     decomposition. It divides by a power of two, exactly, so that a subnormal ``E``, whose
@@ -247,9 +257,33 @@ def as_essential(value: Any) -> np.ndarray:
     largest = max(map(abs, entries))
     if largest == 0:
         raise ValueError("E is all zeros: it defines no pose")
-    if largest == 1.0:
-        return E
-    return np.ldexp(E, -math.frexp(largest)[1]) * (1.0 / math.frexp(largest)[0])
+    if largest != 1.0:
+        E = np.ldexp(E, -math.frexp(largest)[1]) * (1.0 / math.frexp(largest)[0])
+    _require_essential_spread(E)
+    return E
+
+
+def _require_essential_spread(E: np.ndarray) -> None:
+    """ValueError when ``E`` (largest entry near 1) is far from every essential matrix
+    (:data:`ESSENTIAL_SPREAD`)."""
+    s1, s2, s3 = np.linalg.svd(E, compute_uv=False).tolist()
+    values = f"({s1:.3g}, {s2:.3g}, {s3:.3g})"
+    if s2 <= 1e-9 * s1:
+        raise ValueError(
+            f"E is not an essential matrix: its singular values {values} should be two equal "
+            "and one zero, and it has rank 1"
+        )
+    if s1 > ESSENTIAL_SPREAD * s2:
+        raise ValueError(
+            f"E is not an essential matrix: its singular values {values} should be two equal "
+            f"and one zero, and the two largest differ by a factor {s1 / s2:.3g} (a fundamental "
+            "matrix in pixels? pass E = K2^T F K1)"
+        )
+    if ESSENTIAL_SPREAD * s3 > s2:
+        raise ValueError(
+            f"E is not an essential matrix: its singular values {values} should be two equal "
+            "and one zero, and it has rank 3"
+        )
 
 
 def as_mask(value: Any, n: int, min_selected: int = MIN_POINTS) -> np.ndarray | None:

@@ -25,8 +25,9 @@ positional arguments). ``E`` may have any shape of nine entries (``(9,)``, ``(1,
 Bad input raises :class:`RecoverPoseError` (a ``ValueError``) or :class:`RecoverPoseTypeError`
 (a ``TypeError``), both subclasses of ``cv2.error``, so code written for OpenCV that catches
 ``cv2.error`` keeps working under :func:`install`. Unlike OpenCV, a mask selecting fewer than
-five points, mask values other than 0..255 whole numbers, and non-positive focal lengths are
-errors rather than silent zeros or mirrored poses.
+five points, mask values other than 0..255 whole numbers, non-positive focal lengths and an
+``E`` far from every essential matrix (a fundamental matrix in pixels, the identity) are errors
+rather than silent zeros, mirrored poses or poses of no meaning.
 """
 
 from __future__ import annotations

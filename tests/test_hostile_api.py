@@ -77,6 +77,11 @@ def _sfm(**kwargs):
     return _sfm_module().run_sfm("no such folder", None, K=K, **kwargs)
 
 
+def _fundamental():
+    K_inverse = np.linalg.inv(K)
+    return K_inverse.T @ E @ K_inverse
+
+
 def _form4(**kwargs):
     args = {"distCoeffs1": None, "distCoeffs2": None, **kwargs}
     return lambda: ppo_cv.recoverPose(P1, P2, cameraMatrix1=K, cameraMatrix2=K, **args)
@@ -108,6 +113,15 @@ CASES = {
                                            ValueError, "K1 has a skew or principal point"),
     "estimate_pair negative K1": (_pair(K1=_K(fx=-800)), ValueError, "K1 has a negative"),
     "estimate_pair tiny K2": (_pair(K2=_K(fx=1e-200)), ValueError, "K2 has an implausible"),
+    # matrices that are not essential: a fundamental matrix in pixels, rank 3, rank 1
+    "recoverPose F for E": (lambda: ppo_cv.recoverPose(_fundamental(), P1, P2, K), ValueError,
+                            "E is not an essential matrix"),
+    "recover_pose F for E": (lambda: ppo_cv.recover_pose(_fundamental(), P1, P2, K), ValueError,
+                             "two largest differ by a factor"),
+    "recoverPose identity E": (lambda: ppo_cv.recoverPose(np.eye(3), P1, P2, K), ValueError,
+                               "it has rank 3"),
+    "recover_pose rank-1 E": (lambda: ppo_cv.recover_pose(np.outer([1, 2, 3], [1, 0, 1]), P1, P2,
+                                                          K), ValueError, "it has rank 1"),
     # points that overflow
     "recoverPose points 1e300": (lambda: ppo_cv.recoverPose(E, P1, _points(3, 1e300), K),
                                  ValueError, "points2 has coordinates up to 1e+300"),
@@ -263,6 +277,21 @@ def test_any_finite_scale_of_E_gives_the_same_pose(scale):
     np.testing.assert_allclose(t.ravel(), T_TRUE, atol=1e-9)
     result = ppo_cv.recover_pose(E * scale, P1, P2, K)
     np.testing.assert_allclose(result.R, R_TRUE, atol=1e-9)
+
+
+@pytest.mark.parametrize("noise_px", [0.5, 2.0, 5.0])
+def test_a_linear_eight_point_E_of_noisy_points_is_still_read(noise_px):
+    rng = np.random.default_rng(3)
+    noisy = [p + rng.normal(0.0, noise_px, p.shape) for p in (P1, P2)]
+    rays = [np.c_[p, np.ones(len(p))] @ np.linalg.inv(K).T for p in noisy]
+    design = np.einsum("ni,nj->nij", rays[1], rays[0]).reshape(len(P1), 9)
+    E_linear = np.linalg.svd(design)[2][-1].reshape(3, 3)  # not projected onto essentials
+    spread = np.linalg.svd(E_linear, compute_uv=False)
+    assert spread[0] > 1.001 * spread[1] and spread[2] > 1e-6 * spread[0]
+    retval, R, t, _ = ppo_cv.recoverPose(E_linear, *noisy, K)
+    reference = OPENCV_RECOVER_POSE(E_linear, *noisy, K)
+    np.testing.assert_allclose(R, reference[1], atol=1e-9)
+    assert np.degrees(np.arccos((np.trace(R @ R_TRUE.T) - 1) / 2)) < 3.0
 
 
 @pytest.mark.parametrize("shape", [(9,), (1, 9), (9, 1), (3, 3, 1)])
