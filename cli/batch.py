@@ -48,6 +48,7 @@ from .common import (
     Threshold,
     check_image_file,
     check_range,
+    error_message,
     exif_camera,
     fail,
     given_cameras,
@@ -885,5 +886,5 @@ def register(app: typer.Typer) -> None:
                 exif_orientation=exif_orientation,
             )  # fmt: skip
         except (ValueError, OSError) as exc:
-            fail("pairs", str(exc) or type(exc).__name__)
+            fail("pairs", error_message(exc))
         raise typer.Exit(code)

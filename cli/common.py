@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import sys
 import time
 import warnings
@@ -31,6 +32,7 @@ __all__ = [
     "ExifOrientation",
     "Cameras",
     "fail",
+    "error_message",
     "warn",
     "stdout_failure",
     "print_result",
@@ -215,6 +217,22 @@ def fail(command: str, message: str, code: int = 2) -> NoReturn:
     first = message.strip().splitlines()[0] if message.strip() else "failed"
     typer.echo(f"ppo-cv {command}: {first}", err=True)
     raise typer.Exit(code)
+
+
+_STAGING_NAME = re.compile(r"\.(?P<name>.+)\.(?:\d+|old)\.[a-z0-9_]{8}")
+
+
+def error_message(exc: BaseException) -> str:
+    """The one-line message of a failure: an operating-system error as its reason and the path
+    the user gave (not the hidden name its output was being built under), else ``str(exc)``."""
+    if isinstance(exc, OSError) and exc.strerror:
+        if not exc.filename:
+            return exc.strerror
+        path = Path(os.fsdecode(exc.filename))
+        staged = _STAGING_NAME.fullmatch(path.name)
+        shown = path.parent / staged["name"] if staged else path
+        return f"cannot write {shown}: {exc.strerror}" if staged else f"{exc.strerror}: {shown}"
+    return str(exc) or type(exc).__name__
 
 
 def stdout_failure(exc: OSError) -> str:

@@ -33,6 +33,7 @@ from .common import (
     Threshold,
     calibration_dist2,
     check_image_file,
+    error_message,
     exif_camera,
     exif_note,
     fail,
@@ -456,7 +457,7 @@ def _run_pair(
             sigterm_as_interrupt()  # again: the pipeline imported pycolmap, which replaces it
             write_outputs(out, result, img1, img2, names, (d1, d2), extra, overwrite=overwrite)
     except (ValueError, TypeError, OSError) as exc:
-        _fail(str(exc) or type(exc).__name__, command)
+        _fail(error_message(exc), command)
     for message in warnings:  # after the run: a failure is its one line
         _warn(message, command)
     if as_json:

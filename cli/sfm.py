@@ -17,6 +17,7 @@ from .common import (
     PriThreshold,
     Quiet,
     check_range,
+    error_message,
     exif_camera,
     fail,
     image_size,
@@ -187,7 +188,7 @@ def register(app: typer.Typer) -> None:
             kept = f"; the matched features are in {database}" if database is not None else ""
             _fail(f"{exc}{kept}", code=1)
         except (ValueError, OSError) as exc:
-            _fail(str(exc))
+            _fail(error_message(exc))
         except RuntimeError as exc:
             _fail(f"pycolmap failed: {exc}", code=1)
         print_result("sfm", _summary(result, out_dir, as_json))

@@ -16,7 +16,7 @@ from ppo_cv.data_gen.names import (
     SCENES,
 )
 
-from .common import ProgressReport, Quiet, fail, print_result
+from .common import ProgressReport, Quiet, error_message, fail, print_result
 
 __all__ = ["register", "MAX_BLUR", "MAX_NOISE"]
 
@@ -291,7 +291,7 @@ def register(app: typer.Typer) -> None:
                     entry.rename(staging / entry.name)
                 (staging / "render").rmdir()
         except (ValueError, TypeError, OSError) as error:
-            _fail(str(error))
+            _fail(error_message(error))
         from ppo_cv.data_gen.io import PAIRS_FILE
 
         print_result(

@@ -67,6 +67,7 @@ def check_target(
         ``path``, its parent folder existing and writable.
     """
     target = Path(path)
+    _require_short_names(target)
     parent = target.parent
     for ancestor in (parent, *parent.parents):
         if ancestor.exists() and not ancestor.is_dir():
@@ -99,6 +100,37 @@ def check_target(
     if not os.access(existing, os.W_OK | os.X_OK):
         raise ValueError(f"cannot write {target}: {existing} is not writable")
     return target
+
+
+STAGING_NAME_EXTRA = 20
+"""Bytes a staging name (``.NAME.PID.XXXXXXXX``, ``.NAME.old.XXXXXXXX``) adds to the name of
+its target."""
+
+
+def _require_short_names(target: Path) -> None:
+    """ValueError when ``target``'s staging name, or a folder to create on the way to it, is
+    longer than its file system allows: the error would come after the work, naming a hidden
+    file."""
+    limit, missing = 255, []
+    for folder in (target.parent, *target.parent.parents):
+        try:
+            limit = os.pathconf(folder, "PC_NAME_MAX")
+            break
+        except (OSError, ValueError):
+            missing.append(folder)
+    for folder in missing:
+        if len(os.fsencode(folder.name)) > limit:
+            raise ValueError(
+                f"cannot write {target}: folder name {folder.name[:40]!r}... is "
+                f"{len(os.fsencode(folder.name))} bytes, above the {limit} the file system allows"
+            )
+    allowed = limit - STAGING_NAME_EXTRA
+    if len(os.fsencode(target.name)) > allowed:
+        raise ValueError(
+            f"cannot write {target}: its name is {len(os.fsencode(target.name))} bytes; the "
+            f"file system allows {limit}, of which {STAGING_NAME_EXTRA} go to the hidden name it "
+            f"is built under, so at most {allowed}"
+        )
 
 
 def check_apart(

@@ -430,6 +430,16 @@ CASES = [
         for k in (["--K", K_TEXT], [])
     ],
     (["sfm", "broken", "out", "--K", "1,2"], "sfm", r"--K must be 4 numbers fx,fy,cx,cy"),
+    # an output name with no room for the hidden name it is built under: refused before the
+    # work, naming the output (it failed after the run, naming the hidden file)
+    ([*PAIR, "--out", "o" * 250], "pair", r"cannot write o{250}: its name is 250 bytes; .* at "
+     r"most 235$"),
+    (["pairs", "pairs_demo.txt", "images", "--K", K_TEXT, "-o", "o" * 246 + ".jsonl"], "pairs",
+     r"cannot write o{246}\.jsonl: its name is 252 bytes"),
+    (["synth", "s" * 240, "-n", "1"], "synth", r"cannot write s{240}: its name is 240 bytes"),
+    (["sfm", "images", "m" * 236, "--K", K_TEXT], "sfm", r"its name is 236 bytes"),
+    ([*PAIR, "--out", "d" * 256 + "/new"], "pair",
+     r"cannot write d{256}/new: folder name 'd{40}'\.\.\. is 256 bytes, above the 255"),
     # '-' is standard output, which cannot hold a folder (no folder named '-' appears)
     ([*PAIR, "--out", "-"], "pair", r"--out takes a folder, not '-' \(standard output\)"),
 ]
@@ -852,3 +862,22 @@ def test_the_unscaled_calibration_of_resized_images_is_wrong():
                          text=True, timeout=120)  # fmt: skip
     assert out.returncode == 0, out.stderr
     assert _demo_rotation_error(json.loads(out.stdout)) > 2.0
+
+
+@pytest.mark.parametrize(
+    "error, message",
+    [
+        (OSError(1, "Operation not permitted", "/sys/.out.4242.ab_c9xyz"),
+         "cannot write /sys/out: Operation not permitted"),
+        (OSError(28, "No space left on device", "/d/.poses.jsonl.old.k2j4h5g6"),
+         "cannot write /d/poses.jsonl: No space left on device"),
+        (PermissionError(13, "Permission denied", "/data/a.png"), "Permission denied: /data/a.png"),
+        (OSError(28, "No space left on device"), "No space left on device"),
+        (ValueError("image not found: a.png"), "image not found: a.png"),
+        (ValueError(), "ValueError"),
+    ],
+)  # fmt: skip
+def test_a_failure_names_the_path_given_not_the_hidden_one_it_was_built_under(error, message):
+    from ppo_cv.cli.common import error_message
+
+    assert error_message(error) == message
