@@ -130,12 +130,11 @@ def _read_opencv(path: str) -> list[Camera]:
         raise ValueError(f"malformed OpenCV calibration file {path}: {reason}") from None
     if K1 is None:
         raise ValueError(f"no camera matrix (camera_matrix, cameraMatrix, K or M1) in {path}")
-    cameras = [
-        Camera(_matrix_from_values(K1, f"camera matrix in {path}"), as_distortion(D1, "dist"), size)
-    ]
+    dist1 = as_distortion(D1, f"distortion coefficients in {path}")
+    cameras = [Camera(_matrix_from_values(K1, f"camera matrix in {path}"), dist1, size)]
     if K2 is not None:
         K2 = _matrix_from_values(K2, f"camera matrix 2 in {path}")
-        cameras.append(Camera(K2, as_distortion(D2, "dist2"), size))
+        cameras.append(Camera(K2, as_distortion(D2, f"distortion coefficients 2 in {path}"), size))
     return cameras
 
 
@@ -264,25 +263,38 @@ def _require_no_booleans(value: Any, where: str, key: str = "") -> None:
             _require_no_booleans(item, where, key)
 
 
+def _json_numbers(value: Any, where: str, key: str) -> np.ndarray:
+    """``value`` of JSON ``key`` as float64; ValueError naming the key for anything else."""
+    _require_no_booleans(value, where, key)
+    try:
+        return np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        shown = json.dumps(value)
+        shown = shown if len(shown) <= 40 else shown[:37] + "..."
+        raise ValueError(f"{where}: {key} must be numbers, got {shown}") from None
+
+
 def _json_camera(entry, where: str) -> Camera:
     if isinstance(entry, (list, tuple)):
-        _require_no_booleans(entry, where)
-        return Camera(_matrix_from_values(np.asarray(entry, float), where))
+        return Camera(_matrix_from_values(_json_numbers(entry, where, "a camera"), where))
     if not isinstance(entry, dict):
         raise ValueError(f"{where}: expected an object with K or fx, fy, cx, cy")
     for key in _JSON_NUMBER_KEYS:
         _require_no_booleans(entry.get(key), where, key)
     if "K" in entry or "camera_matrix" in entry:
-        K = entry.get("K", entry.get("camera_matrix"))
-        K = _matrix_from_values(np.asarray(K, dtype=np.float64), where)
+        key = "K" if "K" in entry else "camera_matrix"
+        K = _matrix_from_values(_json_numbers(entry[key], where, key), where)
     elif all(k in entry for k in ("fx", "fy", "cx", "cy")):
-        K = _matrix_from_values([entry[k] for k in ("fx", "fy", "cx", "cy")], where)
+        values = [_json_numbers(entry[k], where, k) for k in ("fx", "fy", "cx", "cy")]
+        K = _matrix_from_values(values, where)
     elif all(k in entry for k in ("f", "cx", "cy")):
-        K = _matrix_from_values([entry["f"], entry["f"], entry["cx"], entry["cy"]], where)
+        values = [_json_numbers(entry[k], where, k) for k in ("f", "f", "cx", "cy")]
+        K = _matrix_from_values(values, where)
     else:
         raise ValueError(f"{where}: expected K or fx, fy, cx, cy")
-    dist = entry.get("dist", entry.get("distortion", entry.get("dist_coeffs")))
-    dist = as_distortion(None if dist is None else np.asarray(dist, float), where)
+    key = next((k for k in ("dist", "distortion", "dist_coeffs") if k in entry), None)
+    dist = None if key is None or entry[key] is None else _json_numbers(entry[key], where, key)
+    dist = as_distortion(dist, f"{where}: {key}")
     width, height = entry.get("width"), entry.get("height")
     if width is None and height is None:
         return Camera(K, dist)
@@ -297,10 +309,13 @@ def _read_json(path: str, text: str) -> list[Camera]:
     except RecursionError:
         raise ValueError(f"{path} is nested too deeply to be a calibration file") from None
     try:
-        if isinstance(data, dict) and "cameras" in data:
-            cameras = [
-                _json_camera(c, f"{path} camera {i + 1}") for i, c in enumerate(data["cameras"])
-            ]
+        listed = data.get("cameras") if isinstance(data, dict) else data
+        if isinstance(data, dict) and "cameras" in data and not isinstance(listed, list):
+            raise ValueError(f"{path}: cameras must be a list of cameras")
+        if isinstance(data, dict) and "cameras" in data or (
+            isinstance(data, list) and data and all(isinstance(c, dict) for c in data)
+        ):
+            cameras = [_json_camera(c, f"{path} camera {i + 1}") for i, c in enumerate(listed)]
         elif isinstance(data, dict) and "K1" in data:
             cameras = [_json_camera({"K": data["K1"], "dist": data.get("dist1")}, path)]
             if "K2" in data:

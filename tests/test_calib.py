@@ -126,6 +126,16 @@ def test_opencv_stereo_file_gives_two_cameras(tmp_path):
     assert second.dist is None
 
 
+def test_opencv_file_with_bad_distortion_names_the_file(tmp_path):
+    path = tmp_path / "short.yml"
+    storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    storage.write("camera_matrix", K_FREIBURG)
+    storage.write("distortion_coefficients", np.array([0.1, 0.0, 0.0]))
+    storage.release()
+    with pytest.raises(ValueError, match=r"distortion coefficients in .*short\.yml must be"):
+        load_calibration(path)
+
+
 def test_opencv_file_without_camera_matrix(tmp_path):
     path = tmp_path / "empty.yml"
     storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
@@ -241,9 +251,18 @@ def test_json_single_camera(tmp_path, data):
     np.testing.assert_allclose(camera.dist, DIST)
 
 
-def test_json_two_cameras(tmp_path):
+@pytest.mark.parametrize(
+    "data",
+    [
+        {"K1": [535.4, 539.2, 320.1, 247.6], "K2": [600, 600, 300, 200]},
+        [{"K": K_FREIBURG.tolist()}, {"fx": 600, "fy": 600, "cx": 300, "cy": 200}],
+        {"cameras": [[535.4, 539.2, 320.1, 247.6], [600, 600, 300, 200]]},
+    ],
+    ids=["K1 K2", "list of objects", "cameras of numbers"],
+)
+def test_json_two_cameras(tmp_path, data):
     path = tmp_path / "rig.json"
-    path.write_text(json.dumps({"K1": [535.4, 539.2, 320.1, 247.6], "K2": [600, 600, 300, 200]}))
+    path.write_text(json.dumps(data))
     first, second = load_calibration(path)
     np.testing.assert_allclose(first.K, K_FREIBURG)
     np.testing.assert_allclose(second.K, [[600, 0, 300], [0, 600, 200], [0, 0, 1]])
@@ -258,6 +277,14 @@ def test_json_two_cameras(tmp_path):
         ('{"K": [500, 500, 320, 240], "dist": [1, 2, 3]}', "k1,k2,p1,p2"),
         ('{"fx": true, "fy": 500, "cx": 320, "cy": 240}', "fx must be numbers, got true"),
         ('{"K": [500, 500, 320, 240], "dist": [false, 0, 0, 0]}', "dist must be numbers"),
+        ('{"K": "500,500,320,240"}', r'K must be numbers, got "500,500,320,240"'),
+        ('{"fx": "a", "fy": 500, "cx": 320, "cy": 240}', 'fx must be numbers, got "a"'),
+        ('{"K": [500, 500, 320, 240], "dist": [0.1, "a", 0, 0]}', r"dist must be numbers, got "
+         r'\[0.1, "a", 0, 0\]'),
+        ('{"cameras": [{"K": [500, 500, 320, 240], "dist": [1, 2]}]}', "camera 1: dist must be "
+         "OpenCV distortion"),
+        ('{"cameras": {"K": [500, 500, 320, 240]}}', "cameras must be a list of cameras"),
+        ('{"cameras": []}', "no camera in"),
     ],
 )
 def test_json_errors(tmp_path, text, message):
