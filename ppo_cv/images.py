@@ -11,8 +11,8 @@ given as an image cannot block.
 Images of 16 bits (or any integer depth) and float images (also single-channel float TIFF,
 which OpenCV decodes only unchanged) are scaled to 8 bits by their actual range
 (:func:`ppo_cv.features.to_uint8`): a 12-bit PNG keeps its contrast instead of reading as
-blank. What the codecs print while failing (libpng's and OpenCV's own lines on stderr) is held
-back: the ValueError says what went wrong.
+blank. What the codecs print while failing (libpng's and OpenCV's own lines on stderr, Pillow's
+warnings about a damaged EXIF block) is held back: the ValueError says what went wrong.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ import os
 import stat
 import struct
 import sys
+import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -103,12 +104,21 @@ def image_size(path: str | os.PathLike) -> tuple[int, int] | None:
     bomb_limit = Image.MAX_IMAGE_PIXELS
     Image.MAX_IMAGE_PIXELS = None  # only the header is read: the real size, however large
     try:
-        with Image.open(path) as image:
+        with _pillow_warnings_held(), Image.open(path) as image:
             return tuple(int(v) for v in image.size)
     except Exception:  # not a format Pillow knows: OpenCV may still read it
         return None
     finally:
         Image.MAX_IMAGE_PIXELS = bomb_limit
+
+
+@contextlib.contextmanager
+def _pillow_warnings_held() -> Iterator[None]:
+    """No warning from Pillow while opening a file (a truncated TIFF's "Corrupt EXIF data"
+    printed two lines before the command's own)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        yield
 
 
 def check_header(path: str | os.PathLike, max_pixels: int | None = None) -> None:
@@ -173,7 +183,7 @@ def exif_layout(path: str | os.PathLike) -> ExifLayout:
     try:
         from PIL import Image
 
-        with Image.open(os.fspath(path)) as image:
+        with _pillow_warnings_held(), Image.open(os.fspath(path)) as image:
             exif = image.getexif()
             orientation = exif.get(_ORIENTATION_TAG)
             sub = exif.get_ifd(_EXIF_IFD)

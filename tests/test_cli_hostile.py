@@ -51,6 +51,8 @@ def _images(root: Path) -> None:
     cv2.imwrite(str(root / "const16.png"), np.full((480, 640), 1000, np.uint16))
     cv2.imwrite(str(root / "thin.png"), np.arange(60000, dtype=np.uint8).reshape(1, -1))
     (root / "trunc.png").write_bytes(Path(DEMO1).read_bytes()[:20000])
+    tiff = cv2.imencode(".tif", cv2.imread(DEMO1))[1].tobytes()
+    (root / "trunc.tif").write_bytes(tiff[: len(tiff) // 2])  # Pillow warns of its EXIF
     for extension, header in HEADERS.items():
         (root / f"huge.{extension}").write_bytes(header(30000, 30000))
     (root / "crop.txt").write_text("1 PINHOLE 640 400 535.4 539.2 320.1 247.6\n")
@@ -440,6 +442,8 @@ CASES = [
     (["sfm", "images", "m" * 236, "--K", K_TEXT], "sfm", r"its name is 236 bytes"),
     ([*PAIR, "--out", "d" * 256 + "/new"], "pair",
      r"cannot write d{256}/new: folder name 'd{40}'\.\.\. is 256 bytes, above the 255"),
+    # a truncated TIFF: one line, without Pillow's warning about its EXIF block before it
+    (["pair", "trunc.tif", DEMO2, "--K", K_TEXT], "pair", r"not a readable image: trunc\.tif$"),
     # '-' is standard output, which cannot hold a folder (no folder named '-' appears)
     ([*PAIR, "--out", "-"], "pair", r"--out takes a folder, not '-' \(standard output\)"),
 ]
