@@ -236,6 +236,15 @@ CASES = {
                              "pri_threshold must be a number"),
     "score_pairs not a database": (lambda: _sfm_module().score_pairs(__file__), ValueError,
                                    "is not a COLMAP database (no SQLite header)"),
+    # paths that are not paths, or no folder: named before anything is read
+    "run_sfm image_dir None": (lambda: _sfm_module().run_sfm(None, None, K=K), TypeError,
+                               "image_dir must be a path (str or os.PathLike), got NoneType"),
+    "run_sfm output_dir 5": (lambda: _sfm_module().run_sfm(".", 5, K=K), TypeError,
+                             "output_dir must be a path"),
+    "score_pairs None": (lambda: _sfm_module().score_pairs(None), TypeError,
+                         "database_path must be a path"),
+    "reconstruct no image folder": (lambda: _sfm_module().reconstruct(__file__, "no such folder"),
+                                    ValueError, "image folder 'no such folder' does not exist"),
 }  # fmt: skip
 
 
