@@ -317,6 +317,11 @@ def as_image(image: Any, name: str) -> np.ndarray:
             f"{type(image).__name__}: decode a file's bytes with cv2.imdecode first"
         )
     array = np.asarray(image)
+    if array.ndim == 0:
+        raise TypeError(
+            f"{name} must be an image array or a path (str or os.PathLike), got "
+            f"{type(image).__name__} {image!r:.40}"
+        )
     if (
         array.ndim not in (2, 3)
         or array.size == 0

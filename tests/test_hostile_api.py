@@ -237,6 +237,9 @@ CASES = {
     "score_pairs not a database": (lambda: _sfm_module().score_pairs(__file__), ValueError,
                                    "is not a COLMAP database (no SQLite header)"),
     # paths that are not paths, or no folder: named before anything is read
+    "estimate_pair image1 5": (_pair(image1=5), TypeError,
+                               "image1 must be an image array or a path (str or os.PathLike), got "
+                               "int 5"),
     "run_sfm image_dir None": (lambda: _sfm_module().run_sfm(None, None, K=K), TypeError,
                                "image_dir must be a path (str or os.PathLike), got NoneType"),
     "run_sfm output_dir 5": (lambda: _sfm_module().run_sfm(".", 5, K=K), TypeError,
