@@ -126,7 +126,10 @@ _FORM4 = (
 
 def _bind(names: tuple[str, ...], args: tuple, kwargs: dict) -> dict[str, Any]:
     if len(args) > len(names):
-        raise TypeError(f"recoverPose takes at most {len(names)} positional arguments here")
+        raise TypeError(
+            f"recoverPose({', '.join(names[:4])}, ...) takes at most {len(names)} positional "
+            f"arguments, got {len(args)}"
+        )
     bound = dict(zip(names, args, strict=False))
     for key, value in kwargs.items():
         if key not in names:

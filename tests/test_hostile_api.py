@@ -236,6 +236,9 @@ CASES = {
                              "pri_threshold must be a number"),
     "score_pairs not a database": (lambda: _sfm_module().score_pairs(__file__), ValueError,
                                    "is not a COLMAP database (no SQLite header)"),
+    "recoverPose 14 positional": (lambda: ppo_cv.recoverPose(E, P1, P2, K, *[None] * 10), TypeError,
+                                  "recoverPose(E, points1, points2, cameraMatrix, ...) takes at "
+                                  "most 7 positional arguments, got 14"),
     # paths that are not paths, or no folder: named before anything is read
     "estimate_pair image1 5": (_pair(image1=5), TypeError,
                                "image1 must be an image array or a path (str or os.PathLike), got "
