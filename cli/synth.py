@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import threading
 from pathlib import Path
 from typing import Annotated
@@ -24,6 +25,9 @@ MAX_PAIRS = 10_000
 MAX_SIDE = 4096
 MAX_SAMPLES = 20_000_000
 """Bound on ``width * height * supersample^2`` (rays cast per view): about 15 s a pair."""
+MIN_SIDE = 16
+"""Smallest ``--width`` and ``--height``: the shortest side features are detected on
+(:data:`ppo_cv.features.MIN_IMAGE_SIDE`, not imported here to keep OpenCV out of ``--help``)."""
 MAX_NOISE = 50.0
 MAX_BLUR = 50.0
 
@@ -46,8 +50,8 @@ def _check(out_dir: Path, pairs: int, seed: int, motion: str | None, scene: str 
     if not 1 <= pairs <= MAX_PAIRS:
         _fail(f"--pairs must be in 1..{MAX_PAIRS}, got {pairs}")
     for name, value in (("--width", width), ("--height", height)):
-        if value is not None and not 8 <= value <= MAX_SIDE:
-            _fail(f"{name} must be in 8..{MAX_SIDE}, got {value}")
+        if value is not None and not MIN_SIDE <= value <= MAX_SIDE:
+            _fail(f"{name} must be in {MIN_SIDE}..{MAX_SIDE}, got {value}")
     sides = [v for v in (width, height) if v is not None]
     if not 1 <= supersample <= 8:
         _fail(f"--supersample must be in 1..8, got {supersample}")
@@ -57,6 +61,8 @@ def _check(out_dir: Path, pairs: int, seed: int, motion: str | None, scene: str 
               f"got {samples:,}")  # fmt: skip
     if alpha is not None and not 0.0 < alpha <= 1.0:
         _fail(f"--alpha must be in (0, 1], got {alpha}")
+    if alpha is not None and motion != "small-parallax" and not warp:
+        _fail("--alpha applies to --motion small-parallax only")
     if baseline_ratio is not None and not 0.0 <= baseline_ratio <= MAX_BASELINE_RATIO:
         _fail(f"--baseline-ratio must be in [0, {MAX_BASELINE_RATIO}], got {baseline_ratio}")
     if baseline_ratio is not None and (motion not in BASELINE_MOTIONS or warp):
@@ -105,7 +111,18 @@ def _imperfections(imperfect: bool, noise: float | None, blur: float | None,
     try:
         return dataclasses.replace(NARROW_LENS if narrow_lens else REAL_PHOTO, **changes)
     except ValueError as exc:
-        _fail(str(exc))
+        message = str(exc)
+        for field, option in _IMPERFECTION_OPTIONS.items():
+            message = re.sub(rf"\b{field}\b", option, message)
+        _fail(message)
+
+
+_IMPERFECTION_OPTIONS = {
+    "noise_std": "--noise", "blur_sigma": "--blur", "view_focal_error": "--view-focal-error",
+    "exposure_ev": "--exposure-ev", "vignetting": "--vignetting",
+}  # fmt: skip
+"""The options of ``synth`` that set fields of ``Imperfections``, by field: its errors name the
+option."""
 
 
 def _watch(staging: Path, total: int, quiet: bool, stop: threading.Event) -> None:

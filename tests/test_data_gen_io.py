@@ -91,6 +91,10 @@ def test_cli_writes_a_dataset(tmp_path, workers):
         (["--scene", "garden"], "unknown scene"),
         (["--width", "4"], "--width"),
         (["--workers", "-1"], "--workers must be in 0..256"),
+        (["--height", "15"], "--height must be in 16..4096"),  # too thin to detect features on
+        (["--alpha", "0.5"], "--alpha applies to --motion small-parallax only"),
+        (["--imperfect", "--exposure-ev", "100"], "--exposure-ev must be in [0.0, 3.0]"),
+        (["--imperfect", "--noise", "60"], "--noise must be in [0, 50]"),
     ],
 )
 def test_cli_bad_input_exits_2_with_one_line(tmp_path, args, message):
@@ -100,6 +104,13 @@ def test_cli_bad_input_exits_2_with_one_line(tmp_path, args, message):
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and message in lines[0] and "Traceback" not in result.output
     assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_cli_smallest_side_is_the_one_features_are_detected_on():
+    from ppo_cv.cli.synth import MIN_SIDE
+    from ppo_cv.features import MIN_IMAGE_SIDE
+
+    assert MIN_SIDE == MIN_IMAGE_SIDE
 
 
 def test_cli_refuses_a_non_empty_directory(tmp_path):
