@@ -389,6 +389,16 @@ def _camera_doubts(cameras, images, names, turned) -> list[str]:
     return []
 
 
+def _check_colmap_names(image1, image2) -> None:
+    """Before the run: ValueError when ``--out``'s COLMAP model cannot hold an image name."""
+    from ppo_cv.export import check_colmap_names
+
+    try:
+        check_colmap_names((Path(image1).name, Path(image2).name))
+    except ValueError as exc:
+        raise ValueError(f"--out: {exc}; run without --out") from None
+
+
 def _check_colmap_cameras(cameras) -> None:
     """Before the run: ValueError when ``--out``'s COLMAP model cannot hold a camera."""
     from ppo_cv.export import check_colmap_camera
@@ -418,6 +428,7 @@ def _run_pair(
         if out is not None:
             inputs = [image1, image2, *([calib] if calib is not None else [])]
             check_target(out, "folder", overwrite, inputs, "--out ")
+            _check_colmap_names(image1, image2)
         for image in (image1, image2):
             check_image_file(image)
         img1, img2 = (load_image(i, exif_orientation=exif_orientation) for i in (image1, image2))

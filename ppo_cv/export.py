@@ -40,6 +40,7 @@ __all__ = [
     "draw_matches",
     "MAX_DRAWN_MATCHES",
     "check_colmap_camera",
+    "check_colmap_names",
     "write_colmap_model",
     "write_outputs",
 ]
@@ -442,6 +443,19 @@ def check_colmap_camera(K: np.ndarray, dist: np.ndarray | None, name: str) -> No
             )
 
 
+def check_colmap_names(names: tuple[str, str]) -> None:
+    """ValueError naming an image name that is not valid UTF-8 (a file name of other bytes, as
+    Python gives it with surrogate escapes), which a COLMAP model cannot hold."""
+    for name in names:
+        try:
+            name.encode("utf-8")
+        except UnicodeEncodeError:
+            shown = os.fsencode(name).decode("utf-8", "backslashreplace")
+            raise ValueError(
+                f"image name '{shown}' is not valid UTF-8, which a COLMAP model cannot hold"
+            ) from None
+
+
 def _colmap_camera(K: np.ndarray, dist: np.ndarray | None, size: tuple[int, int], camera_id: int):
     import pycolmap
 
@@ -479,6 +493,7 @@ def write_colmap_model(
     dists = (cameras.dist1, cameras.dist2) if dists is None else dists
     check_colmap_camera(cameras.K1, dists[0], "camera 1")
     check_colmap_camera(cameras.K2, dists[1], "camera 2")
+    check_colmap_names(names)
     reconstruction = pycolmap.Reconstruction()
     same = (
         np.allclose(cameras.K1, cameras.K2)
@@ -543,8 +558,9 @@ def write_outputs(
     ``extra`` entries are added to ``result.json``. Everything is written into a temporary
     sibling folder renamed to ``directory`` once complete (:func:`ppo_cv.atomic.atomic_directory`):
     a failure or an interrupt leaves no partial output. An existing non-empty ``directory`` is a
-    ValueError unless ``overwrite``, which replaces it as a whole; so is a camera that the COLMAP
-    model cannot hold (:func:`check_colmap_camera`), before anything is written.
+    ValueError unless ``overwrite``, which replaces it as a whole; so is a camera or an image name
+    that the COLMAP model cannot hold (:func:`check_colmap_camera`, :func:`check_colmap_names`),
+    before anything is written.
     """
     import cv2
 
@@ -553,6 +569,7 @@ def write_outputs(
     dists = (result.cameras.dist1, result.cameras.dist2) if dists is None else dists
     check_colmap_camera(result.cameras.K1, dists[0], "camera 1")
     check_colmap_camera(result.cameras.K2, dists[1], "camera 2")
+    check_colmap_names(names)
     with atomic_directory(directory, overwrite=overwrite) as staging:
         (staging / "result.json").write_text(
             json.dumps(result_to_dict(result, **(extra or {})), indent=2) + "\n", encoding="utf-8"

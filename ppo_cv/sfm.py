@@ -276,19 +276,30 @@ def list_images(image_dir: str | os.PathLike) -> list[str]:
 
 
 def screen_images(image_dir: str | os.PathLike) -> tuple[list[str], dict[str, str]]:
-    """The image files of ``image_dir`` (:func:`list_images`) that pass
+    """The image files of ``image_dir`` (:func:`list_images`) named in UTF-8 that pass
     :func:`ppo_cv.images.check_decodes`, and the others with the reason, by name: an image
     declaring more pixels than accepted would be decoded whole before pycolmap refused it, a
     damaged one would have libpng print its own errors."""
     kept, skipped = [], {}
     for name in list_images(image_dir):
         try:
+            _require_utf8_name(name)
             check_decodes(Path(image_dir) / name)
         except ValueError as exc:
             skipped[name] = str(exc)
         else:
             kept.append(name)
     return kept, skipped
+
+
+def _require_utf8_name(name: str) -> None:
+    """ValueError for a file name that is not valid UTF-8, which pycolmap cannot take."""
+    try:
+        name.encode("utf-8")
+    except UnicodeEncodeError:
+        shown = os.fsencode(name).decode("utf-8", "backslashreplace")
+        reason = f"the name '{shown}' is not valid UTF-8, which pycolmap cannot read"
+        raise ValueError(reason) from None
 
 
 MAX_NAMED_SKIPS = 3

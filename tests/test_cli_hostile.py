@@ -32,6 +32,7 @@ PAIR = ["pair", DEMO1, DEMO2, "--K", K_TEXT]
 INTRINSICS = " ".join(["0 0"] + ["535.4 0 320.1 0 539.2 247.6 0 0 1"] * 2)
 GT = INTRINSICS + " 1 0 0 0 0 1 0 0 0 0 1 0 0 0 0 1"
 PARALLEL = 6  # processes at a time
+NOT_UTF8 = os.fsdecode(b"bad\xff.png")  # a file name of bytes that are no UTF-8
 IMAGES = [f"images/{DEMO['image1']}", f"images/{DEMO['image2']}"]
 BAD_GROUND_TRUTH = {  # issue 44, defect 16: what a T_1to2 of a pairs file must not be
     "bottom_row.txt": INTRINSICS + " 1 0 0 0 0 1 0 0 0 0 1 0 1 2 3 4",
@@ -53,6 +54,7 @@ def _images(root: Path) -> None:
     (root / "trunc.png").write_bytes(Path(DEMO1).read_bytes()[:20000])
     tiff = cv2.imencode(".tif", cv2.imread(DEMO1))[1].tobytes()
     (root / "trunc.tif").write_bytes(tiff[: len(tiff) // 2])  # Pillow warns of its EXIF
+    shutil.copy(DEMO2, root / NOT_UTF8)
     for extension, header in HEADERS.items():
         (root / f"huge.{extension}").write_bytes(header(30000, 30000))
     (root / "crop.txt").write_text("1 PINHOLE 640 400 535.4 539.2 320.1 247.6\n")
@@ -231,12 +233,12 @@ CASES = [
     (
         ["synth", "new", "--imperfect", "--vignetting", "1.5"],
         "synth",
-        r"vignetting must be in \[0\.0, 0\.9\]",
+        r"--vignetting must be in \[0\.0, 0\.9\]",
     ),
     (
         ["synth", "new", "--imperfect", "--view-focal-error", "0.9"],
         "synth",
-        r"view_focal_error must be in \[0\.0, 0\.5\]",
+        r"--view-focal-error must be in \[0\.0, 0\.5\]",
     ),
     (["pair", "fifo.png", DEMO2, "--K", K_TEXT], "pair", r"not a regular file: fifo\.png"),
     # issue 44, defect 1: an output that is or holds an input, refused even with --overwrite
@@ -444,6 +446,10 @@ CASES = [
      r"cannot write d{256}/new: folder name 'd{40}'\.\.\. is 256 bytes, above the 255"),
     # a truncated TIFF: one line, without Pillow's warning about its EXIF block before it
     (["pair", "trunc.tif", DEMO2, "--K", K_TEXT], "pair", r"not a readable image: trunc\.tif$"),
+    # a file name that is not UTF-8: the COLMAP model of --out cannot hold it, said before the run
+    ([*PAIR[:2], NOT_UTF8, "--K", K_TEXT, "--out", "new"], "pair",
+     r"--out: image name 'bad\\xff\.png' is not valid UTF-8, which a COLMAP model cannot hold; "
+     r"run without --out$"),
     # '-' is standard output, which cannot hold a folder (no folder named '-' appears)
     ([*PAIR, "--out", "-"], "pair", r"--out takes a folder, not '-' \(standard output\)"),
 ]
@@ -781,13 +787,15 @@ def test_sfm_names_the_images_it_skips(tmp_path):
     shutil.copy(DEMO1, tmp_path / "images")
     (tmp_path / "images" / "huge.png").write_bytes(HEADERS["png"](30000, 30000))
     (tmp_path / "images" / "trunc.png").write_bytes(Path(DEMO1).read_bytes()[:20000])
+    shutil.copy(DEMO2, tmp_path / "images" / NOT_UTF8)  # pycolmap takes names as UTF-8 only
     kept, skipped = screen_images(tmp_path / "images")
-    assert kept == [Path(DEMO1).name] and list(skipped) == ["huge.png", "trunc.png"]
+    assert kept == [Path(DEMO1).name] and list(skipped) == [NOT_UTF8, "huge.png", "trunc.png"]
     out = subprocess.run([*COMMAND, "sfm", "images", "model", "--K", K_TEXT], cwd=tmp_path,
                          capture_output=True, text=True, timeout=120)  # fmt: skip
     assert out.returncode == 2
     assert re.fullmatch(
-        r"ppo-cv sfm: need at least 2 images in 'images', found 1 \(2 skipped: image too large: "
+        r"ppo-cv sfm: need at least 2 images in 'images', found 1 \(3 skipped: the name "
+        r"'bad\\xff\.png' is not valid UTF-8, which pycolmap cannot read; image too large: "
         r"images/huge\.png declares 30000x30000 pixels, above the limit [^;]*; not a readable "
         r"image: images/trunc\.png\)\n",
         out.stderr,
