@@ -267,23 +267,21 @@ def _require_essential_spread(E: np.ndarray) -> None:
     """ValueError when ``E`` (largest entry near 1) is far from every essential matrix
     (:data:`ESSENTIAL_SPREAD`)."""
     s1, s2, s3 = np.linalg.svd(E, compute_uv=False).tolist()
-    values = f"({s1:.3g}, {s2:.3g}, {s3:.3g})"
+    if ESSENTIAL_SPREAD * s2 >= s1 and ESSENTIAL_SPREAD * s3 <= s2:
+        return
     if s2 <= 1e-9 * s1:
-        raise ValueError(
-            f"E is not an essential matrix: its singular values {values} should be two equal "
-            "and one zero, and it has rank 1"
+        reason = "it has rank 1"
+    elif s1 > ESSENTIAL_SPREAD * s2:
+        reason = (
+            f"the two largest differ by a factor {s1 / s2:.3g} (a fundamental matrix in "
+            "pixels? pass E = K2^T F K1)"
         )
-    if s1 > ESSENTIAL_SPREAD * s2:
-        raise ValueError(
-            f"E is not an essential matrix: its singular values {values} should be two equal "
-            f"and one zero, and the two largest differ by a factor {s1 / s2:.3g} (a fundamental "
-            "matrix in pixels? pass E = K2^T F K1)"
-        )
-    if ESSENTIAL_SPREAD * s3 > s2:
-        raise ValueError(
-            f"E is not an essential matrix: its singular values {values} should be two equal "
-            "and one zero, and it has rank 3"
-        )
+    else:
+        reason = "it has rank 3"
+    raise ValueError(
+        f"E is not an essential matrix: its singular values ({s1:.3g}, {s2:.3g}, {s3:.3g}) "
+        f"should be two equal and one zero, and {reason}"
+    )
 
 
 def as_mask(value: Any, n: int, min_selected: int = MIN_POINTS) -> np.ndarray | None:
