@@ -584,6 +584,9 @@ def score_pairs(
     -------
     list of PairScore
         Accepted pairs by decreasing score, then the rejected ones by decreasing inlier count.
+        Each pair names its images in sorted order (``name1 < name2``, camera 1 the first):
+        pycolmap numbers the images in the order its extraction threads finish them, which
+        changes from run to run.
 
     Raises
     ------
@@ -605,6 +608,9 @@ def score_pairs(
         pair_ids, geometries = database.read_two_view_geometries()
         for pair_id, geometry in zip(pair_ids, geometries, strict=True):
             id1, id2 = pycolmap.pair_id_to_image_pair(pair_id)
+            if images[id1].name > images[id2].name:  # ids follow the extraction threads
+                id1, id2 = id2, id1
+                geometry = database.read_two_view_geometry(id1, id2)  # inverted
             for image_id in (id1, id2):
                 if image_id not in keypoints:
                     keypoints[image_id] = database.read_keypoints(image_id)

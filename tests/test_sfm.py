@@ -169,8 +169,8 @@ def test_ppo_seeded_reconstruction_registers_every_view(tripod, seeding):
 
 
 def _database_named_against_id_order(tripod, folder: Path) -> tuple[Path, Path]:
-    """A copy of the tripod database whose image names sort opposite to their ids, as in a
-    database made elsewhere: PPO then ranks each pair with its later name first."""
+    """A copy of the tripod database whose image names sort opposite to their ids, as the
+    extraction threads can number them."""
     images, database = tripod[0], tripod[1]
     copy, renamed = folder / "db.db", folder / "images"
     renamed.mkdir()
@@ -192,7 +192,10 @@ def test_progress_names_the_initial_pair_in_the_order_of_the_result(tripod, tmp_
         database, images, seeding=seeding, fix_intrinsics=True, progress=messages.append
     )
     best = result.pairs[0]
-    assert best.name1 > best.name2  # the ranking's order is not the sorted one
+    assert best.name1 < best.name2 and best.image_id1 > best.image_id2  # names, not ids
+    for pair in result.pairs:  # each pose is that of its order: camera 1 is name1
+        R_gt, _ = gt_pose(tripod[3], pair.name1[3:], pair.name2[3:])
+        assert pair.name1 < pair.name2 and rotation_error_deg(pair.R, R_gt) < 3.0, pair
     seeded = [m for m in messages if m.startswith("seeding with")]
     started = [m for m in messages if m.startswith("initial pair")]
     assert seeded == [f"seeding with {best.name1} {best.name2} ({seeding})"]
