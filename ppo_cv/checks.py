@@ -16,6 +16,7 @@ __all__ = [
     "as_distortion",
     "as_rotation",
     "as_essential",
+    "require_essential_spread",
     "as_mask",
     "as_positive",
     "as_nonnegative",
@@ -232,7 +233,7 @@ def _require_physical_distortion(coefficients: np.ndarray, name: str) -> None:
             )
 
 
-def as_essential(value: Any) -> np.ndarray:
+def as_essential(value: Any, check_spread: bool = True) -> np.ndarray:
     """A single finite, nonzero 3x3 essential matrix, rescaled to a largest entry of 1.
 
     A matrix far from every essential matrix (:data:`ESSENTIAL_SPREAD`), such as a fundamental
@@ -241,7 +242,8 @@ def as_essential(value: Any) -> np.ndarray:
     The pose does not depend on the scale of ``E``; the rescaling keeps any finite scale
     (1e-200, 1e300 or a subnormal 1e-310) clear of underflow and overflow in the
     decomposition. It divides by a power of two, exactly, so that a subnormal ``E``, whose
-    reciprocal overflows, is rescaled too.
+    reciprocal overflows, is rescaled too. ``check_spread=False`` leaves the spread to a
+    caller that decomposes ``E`` anyway (:func:`require_essential_spread` on its singular values).
     """
     E = _as_real_array(value, "E")
     if E.ndim == 2 and E.shape[1] == 3 and E.shape[0] % 3 == 0 and E.shape[0] > 3:
@@ -259,14 +261,15 @@ def as_essential(value: Any) -> np.ndarray:
         raise ValueError("E is all zeros: it defines no pose")
     if largest != 1.0:
         E = np.ldexp(E, -math.frexp(largest)[1]) * (1.0 / math.frexp(largest)[0])
-    _require_essential_spread(E)
+    if check_spread:
+        require_essential_spread(np.linalg.svd(E, compute_uv=False))
     return E
 
 
-def _require_essential_spread(E: np.ndarray) -> None:
-    """ValueError when ``E`` (largest entry near 1) is far from every essential matrix
-    (:data:`ESSENTIAL_SPREAD`)."""
-    s1, s2, s3 = np.linalg.svd(E, compute_uv=False).tolist()
+def require_essential_spread(singular_values: np.ndarray) -> None:
+    """ValueError when the singular values (3,) of an ``E`` are far from an essential
+    matrix's two equal and one zero (:data:`ESSENTIAL_SPREAD`)."""
+    s1, s2, s3 = np.ravel(singular_values).tolist()
     if ESSENTIAL_SPREAD * s2 >= s1 and ESSENTIAL_SPREAD * s3 <= s2:
         return
     if s2 <= 1e-9 * s1:

@@ -52,6 +52,7 @@ from .checks import (
     as_mask,
     as_point_pair,
     as_positive,
+    require_essential_spread,
 )
 from .pose import inverse_camera
 
@@ -237,7 +238,7 @@ def _essential(value: Any) -> np.ndarray:
         value = np.reshape(value, (3, 3))
     elif shape in ((1, 9), (9, 1)):
         value = np.reshape(value, (3, 3))
-    return as_essential(value)
+    return as_essential(value, check_spread=False)  # checked on the SVD of _identify
 
 
 def _recover_from_points(bound: dict) -> tuple:
@@ -283,7 +284,8 @@ def _identify(
     ``points`` (2, 3, N) holds the homogeneous pixels of both views by coordinate rows and
     ``K_inv`` (3, 3) their inverse intrinsics, folded into the maps of :func:`ppo.frame_scores`.
     """
-    _, U, Vt = cv2.SVDecomp(E)  # several times faster than numpy's for one 3x3 matrix
+    w, U, Vt = cv2.SVDecomp(E)  # several times faster than numpy's for one 3x3 matrix
+    require_essential_spread(w)
     maps = ppo.frame_maps(U, ppo._proper_svd(U, Vt))
     m1, m2 = ppo.frame_scores(maps @ K_inv, points)
     keep_R1, same_side, _, _ = ppo._vote(m1, used)
