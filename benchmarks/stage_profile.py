@@ -2,7 +2,8 @@
 OpenCV's pipeline on the same images.
 
 Run ``python benchmarks/stage_profile.py [--freiburg DIR] [--renders 4] [--detect-once]
-[--json FILE]`` from the repository root (``--detect-once``: ``PairOptions(detect_once=True)``).
+[--json FILE] [--sift-parts PAIRS]`` from the repository root (``--detect-once``:
+``PairOptions(detect_once=True)``).
 For every freiburg pair (``../shared/data/freiburg`` beside the repository) and ``--renders``
 pairs of each motion preset of ``ppo_cv.data_gen`` (640x480), one pair after the other in
 this process: ``estimate_pair`` with its default options, its
@@ -15,6 +16,11 @@ freiburg pairs (one consensus or a second on denser features, with or without th
 rotation choice aligns)
 and of the renders, with the median stages; each stage's share of the CPU summed over the
 freiburg pairs; the stages of the freiburg pair of median CPU. About 10 minutes on 2 cores.
+
+``--sift-parts PAIRS`` instead splits OpenCV's SIFT on the images of the first PAIRS freiburg
+pairs (detection with and without descriptors, at both thresholds; descriptors of given
+keypoints; a halved image, whose scale space lacks the upsampled first octave) and times the
+two threads of the pipeline's detection of each pair.
 """
 
 from __future__ import annotations
@@ -83,6 +89,84 @@ def profile_pair(image1, image2, K1, K2, options: PairOptions | None = None) -> 
         "cpu": with_matching + pose,
     }  # fmt: skip
     return row
+
+
+def _best_cpu_ms(fn, repeats: int = 3):
+    """Least CPU milliseconds of ``repeats`` calls of ``fn`` and its last value."""
+    times, value = [], None
+    for _ in range(repeats):
+        start = time.process_time()
+        value = fn()
+        times.append(time.process_time() - start)
+    return 1e3 * min(times), value
+
+
+def sift_parts(gray: np.ndarray) -> dict:
+    """CPU ms of the parts of OpenCV's SIFT on one grey image at the default contrast threshold
+    and at ``REDETECT_THRESHOLD_SCALE`` of it: detection with descriptors, detection alone,
+    descriptors of given keypoints (``compute``, which builds the Gaussian pyramid again), the
+    same image halved (its scale space lacks the full image's upsampled first octave) and the
+    share of keypoints found in that octave."""
+    from ppo_cv.pipeline import REDETECT_THRESHOLD_SCALE
+
+    default, lower = (
+        cv2.SIFT_create(8000, 3, 0.04 * scale) for scale in (1.0, REDETECT_THRESHOLD_SCALE)
+    )
+    row = {}
+    row["detect+describe"], (keys, _) = _best_cpu_ms(lambda: default.detectAndCompute(gray, None))
+    row["detect+describe lower"], _ = _best_cpu_ms(lambda: lower.detectAndCompute(gray, None))
+    row["detect"], _ = _best_cpu_ms(lambda: default.detect(gray, None))
+    row["detect lower"], found = _best_cpu_ms(lambda: lower.detect(gray, None))
+    new = [k for k in found if k.response * 3 < 0.04]
+    row["describe the lower's new"], _ = _best_cpu_ms(lambda: default.compute(gray, new))
+    row["describe default's"], _ = _best_cpu_ms(lambda: default.compute(gray, list(keys)))
+    half = cv2.resize(gray, (gray.shape[1] // 2, gray.shape[0] // 2), interpolation=cv2.INTER_AREA)
+    row["detect+describe halved"], _ = _best_cpu_ms(lambda: default.detectAndCompute(half, None))
+    row["keypoints"], row["keypoints lower"] = len(keys), len(found)
+    row["upsampled octave %"] = 100 * np.mean([(k.octave & 255) == 255 for k in keys])
+    return row
+
+
+def thread_overlap(image1, image2) -> dict:
+    """Wall and per-thread CPU ms of the default detection of two images on two threads, as
+    ``estimate_pair`` runs it."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from ppo_cv.features import detect_features
+
+    def timed(image):
+        start = time.thread_time()
+        detect_features(image)
+        return 1e3 * (time.thread_time() - start)
+
+    start = time.perf_counter()
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        cpu1, cpu2 = pool.map(timed, (image1, image2))
+    wall = 1e3 * (time.perf_counter() - start)
+    return {"wall": wall, "thread 1": cpu1, "thread 2": cpu2,
+            "idle %": 100 * (1 - (cpu1 + cpu2) / (2 * wall))}  # fmt: skip
+
+
+def parts_report(folder: Path, pairs: int) -> list[str]:
+    """Markdown: median SIFT parts over the images of the first ``pairs`` freiburg pairs and
+    the thread overlap of their detection."""
+    listed = anchors.read_pairs_file(folder / "pairs_with_gt.txt")[:pairs]
+    read = lambda name: cv2.imread(str(folder / "images" / name))  # noqa: E731
+    names = sorted({pair[key] for pair in listed for key in ("name1", "name2")})
+    parts = [sift_parts(cv2.cvtColor(read(name), cv2.COLOR_BGR2GRAY)) for name in names]
+    overlap = [thread_overlap(read(p["name1"]), read(p["name2"])) for p in listed]
+    lines = [f"OpenCV SIFT on {len(names)} freiburg images, one thread, median of the least "
+             "CPU of three runs:", "", "| part | median |", "|---|---:|"]  # fmt: skip
+    lines += [f"| {key} | {np.median([r[key] for r in parts]):.1f} |" for key in parts[0]]
+    lines += ["", f"The default detection of both images of {len(listed)} pairs on two threads "
+              "(ms; idle: the share of the two threads' wall time without CPU):", "",
+              "| | median | max |", "|---|---:|---:|"]  # fmt: skip
+    lines += [
+        f"| {key} | {np.median([r[key] for r in overlap]):.1f} | "
+        f"{np.max([r[key] for r in overlap]):.1f} |"
+        for key in overlap[0]
+    ]
+    return lines
 
 
 def _freiburg(folder: Path):
@@ -169,10 +253,23 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--detect-once", action="store_true", help="estimate_pair with detect_once=True"
     )
+    parser.add_argument(
+        "--sift-parts",
+        type=int,
+        metavar="PAIRS",
+        help="only the parts of SIFT on the images of the first PAIRS freiburg pairs",
+    )
     args = parser.parse_args(argv)
     options = PairOptions(detect_once=args.detect_once)
     cv2.setNumThreads(1)
     machine = compare._machine()
+    if args.sift_parts:
+        lines = parts_report(args.freiburg, args.sift_parts)
+        print(f"{machine['cpu']}, {machine['cores']} logical cores, 1-minute load average "
+              f"{machine['load']:.2f} at the start and {compare._machine()['load']:.2f} at the "
+              "end\n")  # fmt: skip
+        print("\n".join(lines))
+        return
     sources = []
     if (args.freiburg / "pairs_with_gt.txt").is_file():
         sources.append(("freiburg", _freiburg(args.freiburg)))

@@ -281,6 +281,21 @@ def test_sampson_error_of_exact_matches_is_zero():
     assert np.max(sampson_errors(essential_from_pose(R, t), x1, x2)) < 1e-12
 
 
+@pytest.mark.parametrize("shape", [(), (7,)])
+def test_sampson_residual_equals_its_formula_summed_along_the_last_axis(shape):
+    """Bit for bit: the refinements' answers do not move with the way the sums are written."""
+    from ppo_cv.robust import sampson_signed
+
+    rng = np.random.default_rng(5)
+    E = rng.normal(size=shape + (3, 3))
+    x1, x2 = (np.column_stack([rng.normal(size=(300, 2)), rng.uniform(0.5, 2, 300)]) for _ in "ab")
+    points1 = np.broadcast_to(x1, shape + x1.shape)
+    Ex1, Etx2 = points1 @ np.swapaxes(E, -1, -2), x2 @ E
+    norm = np.sqrt(np.sum(Ex1[..., :2] ** 2, axis=-1) + np.sum(Etx2[..., :2] ** 2, axis=-1))
+    expected = np.sum(x2 * Ex1, axis=-1) / norm
+    np.testing.assert_array_equal(sampson_signed(E, points1, x2), expected)
+
+
 def test_sampson_residual_is_the_first_order_distance_to_the_epipolar_line():
     from ppo_cv.robust import sampson_signed
 
