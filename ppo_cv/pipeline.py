@@ -109,6 +109,7 @@ from .pose import _recover_normalized
 from .refine import (
     T_SIGMA_CAP_DEG,
     RadialPose,
+    checked_inliers,
     huber_bound_px,
     pose_sigmas_deg,
     refine_pose,
@@ -960,7 +961,7 @@ def _finish_general(state: _Finishing) -> _ModelPart:
     if options.refine:
         bound = huber_bound_px(options.ransac_threshold, state.motion.noise_px)
         radial = refine_pose_radial(
-            R, t, x1, x2, inliers, scale=bound / state.focal,
+            R, t, x1, x2, checked_inliers(R, t, x1, x2, inliers), scale=bound / state.focal,
             principal_prior=state.priors.principal,
         )  # fmt: skip
         R, t, radial_k1 = radial.R, radial.t, radial.k1
