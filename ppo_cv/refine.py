@@ -580,12 +580,8 @@ def pose_sigmas_deg(
     ``noise^2``. The rotation's deviation is the root-mean-square angle of its (3, 3) block
     (:func:`ppo_cv.plane.rms_rotation_angle_deg`, as the rotation-only fit reports its own); the
     translation's the square root of the largest eigenvalue of its (2, 2) block (the worst
-    direction), at most the cap; both in degrees.
-
-    Only the matches the others can check enter (:func:`checked_matches`, leverage in the
-    pose at most :data:`LEVERAGE_MAX`): a match that sets a direction of the pose by itself,
-    such as a false match on which the refinement placed the epipole, adds information that
-    nothing confirms.
+    direction), at most the cap; both in degrees. Only matches the others can check enter
+    (:func:`checked_matches`): not a false match on which the epipole was placed.
 
     Parameters
     ----------
@@ -597,8 +593,7 @@ def pose_sigmas_deg(
     inliers : ndarray of bool, shape (N,)
         Matches of the cost; fewer than 6 gives the cap.
     noise : float, optional
-        Standard deviation of one Sampson residual (normalised units) when the fit's own
-        residuals understate it (a model that absorbed part of the noise).
+        Deviation of one Sampson residual (normalised) when the fit's own understate it.
     step : float
         Finite-difference step (normalised units and radians).
     focal_prior : float or None
@@ -624,18 +619,12 @@ def pose_sigmas_deg(
         an information that is not positive definite.
     """
     a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
-    if len(a) < 6:
-        return _UNDETERMINED
     a, b = a / a[:, 2:], b / b[:, 2:]
     t = np.asarray(t, float).reshape(3) / np.linalg.norm(t)
     residuals = _calibrated_residuals(R, t)
-    J, noise_info = _jacobian_and_noise(residuals, a, b, step)
-    checked = checked_matches(J[:, :_NPOSE])
-    if not checked.all():
-        a, b = a[checked], b[checked]
-        if len(a) < 6:
-            return _UNDETERMINED
-        J, noise_info = _jacobian_and_noise(residuals, a, b, step)
+    a, b, J, noise_info = _checked_jacobian_and_noise(residuals, a, b, step)
+    if len(a) < 6:
+        return _UNDETERMINED
     r0 = residuals(np.zeros((1, _NPARAMS)), a[None], b[None])[0]
     variance = float(r0 @ r0) / (len(a) - _NPOSE) if noise is None else float(noise) ** 2
     info = J.T @ J - variance * noise_info
@@ -667,9 +656,12 @@ deviation of 0.14-0.24 on ``tests/imperfect.py`` renders at baseline / depth 0.0
 
 def checked_matches(J: np.ndarray, leverage_max: float = LEVERAGE_MAX) -> np.ndarray:
     """Matches whose residual the others can check: a mask (N,) of the rows of the Jacobian
-    ``J`` (N, P) whose leverage stays at most ``leverage_max`` once the rows above it are left
-    out (removed in rounds, since one such match can mask another: their leverages add up to
-    at most the number of directions they hold).
+    ``J`` (N, P) whose leverage ``J_i (J^T J)^-1 J_i^T`` is at most ``leverage_max``.
+
+    One pass: with a row left out the leverages of the others rise, and where the pose has a
+    nearly flat direction (the bas-relief valley of a narrow field, or a few dozen matches) the
+    matches nearest the epipole take turns above the bound, so leaving out in rounds would empty
+    the set. The rows above it at the pose itself are those it rests on.
 
     Parameters
     ----------
@@ -683,14 +675,8 @@ def checked_matches(J: np.ndarray, leverage_max: float = LEVERAGE_MAX) -> np.nda
     ndarray of bool, shape (N,)
     """
     J = np.asarray(J, dtype=np.float64)
-    keep = np.ones(len(J), dtype=bool)
-    for _ in range(J.shape[1] + 1):
-        kept = J[keep]
-        leverage = np.einsum("ij,jk,ik->i", kept, np.linalg.pinv(kept.T @ kept), kept)
-        if not np.any(leverage > leverage_max):
-            break
-        keep[np.flatnonzero(keep)[leverage > leverage_max]] = False
-    return keep
+    leverage = np.einsum("ij,jk,ik->i", J, np.linalg.pinv(J.T @ J), J)
+    return leverage <= leverage_max
 
 
 def checked_inliers(
@@ -796,6 +782,19 @@ def _jacobian_and_noise(residuals, a: np.ndarray, b: np.ndarray, step: float):
 
 
 _NOISE_SAMPLE = 256
+
+
+def _checked_jacobian_and_noise(residuals, a: np.ndarray, b: np.ndarray, step: float) -> tuple:
+    """The points ``a``, ``b`` of the matches :func:`checked_matches` keeps, and their
+    :func:`_jacobian_and_noise` (None with fewer than 6 matches)."""
+    if len(a) < 6:
+        return a, b, None, None
+    J, noise_info = _jacobian_and_noise(residuals, a, b, step)
+    checked = checked_matches(J[:, :_NPOSE])
+    if checked.all():
+        return a, b, J, noise_info
+    a, b = a[checked], b[checked]
+    return a, b, *_jacobian_and_noise(residuals, a, b, step)
 
 
 def _steps(step: float) -> np.ndarray:
