@@ -6,11 +6,11 @@ direction of ``t`` and the rotation move together. A refinement that placed its 
 false matches (:func:`ppo_cv.refine.checked_inliers` leaves them out) can sit in that valley
 tens of degrees of ``t`` away from where the other matches put the pose, its covariance blind
 to the rest of the valley. :func:`valley_minima` walks the valley from the refined pose along
-the worst direction of ``t`` on both sides (the rotation re-fitted at each step), polishes each
-local minimum of that profile and returns the minima with their cost against the start's in
-units of the residuals' variance. :func:`valley_outcome` takes a minimum significantly lower
-than the start as the pose, and the farthest rotation among the minima not significantly worse
-than the pose as a spread of the rotation.
+the worst direction of ``t`` on both sides (the rotation re-fitted at each step), polishes the
+lowest step of each side when it is a local minimum and returns these minima with their cost
+against the start's in units of the residuals' variance. :func:`valley_outcome` takes a minimum
+significantly lower than the start as the pose, and the farthest rotation among the minima not
+significantly worse than the pose as a spread of the rotation.
 """
 
 from __future__ import annotations
@@ -118,7 +118,7 @@ def _profile(cost, R: np.ndarray, t: np.ndarray, u: np.ndarray) -> list[tuple]:
     for angle in np.radians(VALLEY_STEPS_DEG):
         ti = np.cos(angle) * t + np.sin(angle) * u
         w, _ = levenberg_marquardt(
-            lambda q, R=R, ti=ti: cost(rotation_increment(q) @ R, ti), np.zeros(3), 10
+            lambda q, R=R, ti=ti: cost(rotation_increment(q) @ R, ti), np.zeros(3), 4
         )
         R = rotation_increment(w) @ R
         r = cost(R, ti)
@@ -144,8 +144,8 @@ def valley_minima(
     Returns
     -------
     list of ValleyMinimum
-        The polished local minima of the profile on both sides, the start excluded; empty
-        with fewer than 12 matches.
+        On each side, the profile's lowest step polished when it is a local minimum away
+        from the start (at most two); empty with fewer than 12 matches.
     """
     R = np.asarray(R, dtype=np.float64)
     t = np.asarray(t, dtype=np.float64).reshape(3) / np.linalg.norm(t)
@@ -158,12 +158,12 @@ def valley_minima(
     minima = []
     for side in (u, -u):
         profile = [(start, R, t)] + _profile(cost, R, t, side)
-        values = np.array([value for value, _, _ in profile])
-        for k in range(1, len(profile)):
-            if values[k] <= values[k - 1] and (k == len(profile) - 1 or values[k] <= values[k + 1]):
-                Rm, tm = _polish(cost, *profile[k][1:])
-                r = cost(Rm, tm)
-                minima.append(ValleyMinimum(Rm, tm, (float(r @ r) - start) / variance))
+        lowest = 1 + int(np.argmin([value for value, _, _ in profile[1:]]))
+        if lowest < len(profile) - 1 and profile[lowest][0] > profile[lowest - 1][0]:
+            continue
+        Rm, tm = _polish(cost, *profile[lowest][1:])
+        r = cost(Rm, tm)
+        minima.append(ValleyMinimum(Rm, tm, (float(r @ r) - start) / variance))
     return minima
 
 
