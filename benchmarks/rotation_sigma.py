@@ -4,7 +4,9 @@
 rotation-only fit for a pure rotation or when the rule of :mod:`ppo_cv.rotation_choice` takes
 it (root-mean-square angle, its bias's deviation included), otherwise the root-mean-square
 angle of the covariance of the essential matrix's or the plane's final refinement
-(:func:`ppo_cv.refine.pose_sigmas_deg`, :func:`ppo_cv.plane.rms_rotation_angle_deg`). A
+(:func:`ppo_cv.refine.pose_sigmas_deg`, :func:`ppo_cv.plane.rms_rotation_angle_deg`), for the
+essential matrix over the matches the others can check and with the spread of the other
+minima of its bas-relief valley that are not significantly worse (:mod:`ppo_cv.valley`). A
 calibrated deviation has the root-mean-square error over many pairs close to the mean
 deviation: this script prints their ratio per model (and per source of the rotation), which
 should lie within 1/1.5 and 1.5.

@@ -109,6 +109,7 @@ from .pose import _recover_normalized
 from .refine import (
     T_SIGMA_CAP_DEG,
     RadialPose,
+    checked_inliers,
     huber_bound_px,
     pose_sigmas_deg,
     refine_pose,
@@ -156,6 +157,7 @@ from .significance import (
     distinctiveness,
     epipolar_significance,
 )
+from .valley import ValleyOutcome, valley_minima, valley_outcome
 
 __all__ = [
     "PairOptions",
@@ -960,12 +962,15 @@ def _finish_general(state: _Finishing) -> _ModelPart:
     if options.refine:
         bound = huber_bound_px(options.ransac_threshold, state.motion.noise_px)
         radial = refine_pose_radial(
-            R, t, x1, x2, inliers, scale=bound / state.focal,
+            R, t, x1, x2, checked_inliers(R, t, x1, x2, inliers), scale=bound / state.focal,
             principal_prior=state.priors.principal,
         )  # fmt: skip
         R, t, radial_k1 = radial.R, radial.t, radial.k1
     c1, c2 = undistort_division(x1, radial_k1), undistort_division(x2, radial_k1)
-    final = _recover_normalized(essential_from_pose(R, t), c1[:, :2], c2[:, :2], inliers, 0.0)
+    valley = _valley(state, R, t, c1, c2, inliers)
+    final = _recover_normalized(
+        essential_from_pose(valley.R, valley.t), c1[:, :2], c2[:, :2], inliers, 0.0
+    )
     keep = final.inliers & np.all(np.isfinite(final.points3d), axis=1)
     sigmas = pose_sigmas_deg(
         final.R, final.t, c1, c2, inliers, principal_prior=state.priors.principal,
@@ -979,9 +984,22 @@ def _finish_general(state: _Finishing) -> _ModelPart:
         points3d=np.where(keep[:, None], final.points3d, np.nan),
         point_matches=np.flatnonzero(keep),
         t_sigma_deg=sigmas.translation_deg,
-        rotation_sigma_deg=sigmas.rotation_deg,
+        rotation_sigma_deg=float(np.hypot(sigmas.rotation_deg, valley.spread_deg)),
         radial_k1=radial_k1,
     )
+
+
+def _valley(state: _Finishing, R, t, c1, c2, inliers: np.ndarray) -> ValleyOutcome:
+    """The refined general pose ``(R, t)`` (points ``c1``, ``c2`` undistorted by its radial
+    term) checked along its bas-relief valley (:func:`~ppo_cv.valley.valley_outcome` of
+    :func:`~ppo_cv.valley.valley_minima` on the checked inliers) when some of its inliers set
+    a direction of the pose by themselves (:func:`checked_inliers`): the sign of an epipole
+    placed on false matches. Otherwise, or without refinement, the pose with no spread."""
+    checked = checked_inliers(R, t, c1, c2, inliers)
+    if not state.options.refine or np.array_equal(checked, inliers):
+        return ValleyOutcome(R, t, 0.0)
+    scale = huber_bound_px(state.options.ransac_threshold, state.motion.noise_px) / state.focal
+    return valley_outcome(R, t, valley_minima(R, t, c1[checked], c2[checked], scale))
 
 
 def _radial_priors(radial: RadialPose | None) -> dict[str, float | None]:

@@ -27,6 +27,8 @@ MODULES = {
     "pipeline": None,
     "guessed_camera": None,
     "ppo": ("DEFAULT_PRI_THRESHOLD",),
+    "refine": ("LEVERAGE_MAX",),
+    "valley": None,
 }
 CONSTANT = re.compile(r"_?[A-Z][A-Z0-9_]*")
 ROW = re.compile(r"^\| `(\w+)\.(\w+)` \| (.*?) \|")
