@@ -315,7 +315,9 @@ def _radial_fit(
 
 K1_BIAS_REPLICATES = 16
 """Simulated match sets of :func:`k1_noise_bias`. The standard deviation of their mean, a
-quarter of the coefficient's spread, enters the test of :func:`refine_pose_radial`."""
+quarter of the coefficient's spread, enters the test of :func:`refine_pose_radial`. Where that
+test ran, the rotation choice refits as many for the noise's own part of
+:func:`released_lens_shift_deg`."""
 
 
 def k1_noise_bias(
