@@ -65,10 +65,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .lsq import (
-    gauss_newton_covariance,
-    rotation_increment,
-)
+from .lsq import gauss_newton_covariance, rotation_increment
 from .model_selection import robust_sigma
 from .motion_model import MAX_TRACK_PARALLAX, MotionDecision
 from .parallax import PlaneParallax, fit_plane_parallax
