@@ -107,7 +107,9 @@ from .photometric import (
 from .plane import held_k1_deviation, refine_planar_pose, undistort_division
 from .pose import _recover_normalized
 from .refine import (
+    K1_BIAS_REPLICATES,
     T_SIGMA_CAP_DEG,
+    PoseSigmas,
     RadialPose,
     checked_inliers,
     huber_bound_px,
@@ -759,6 +761,7 @@ class _ModelPart:
     rotation_sigma_deg: float = float("nan")
     radial_k1: float = float("nan")
     plane: PlaneGeometry | None = None
+    radial: RadialPose | None = None
 
 
 def _load_inputs(image1, image2, K1, K2, dist1, dist2, detect: bool, options) -> _Inputs:
@@ -972,10 +975,16 @@ def _finish_general(state: _Finishing) -> _ModelPart:
         essential_from_pose(valley.R, valley.t), c1[:, :2], c2[:, :2], inliers, 0.0
     )
     keep = final.inliers & np.all(np.isfinite(final.points3d), axis=1)
-    sigmas = pose_sigmas_deg(
-        final.R, final.t, c1, c2, inliers, principal_prior=state.priors.principal,
-        **_radial_priors(radial),
-    )  # fmt: skip
+
+    def sigmas(spread_only: bool) -> PoseSigmas:
+        return pose_sigmas_deg(
+            final.R, final.t, c1, c2, inliers, principal_prior=state.priors.principal,
+            **_radial_priors(radial, spread_only),
+        )  # fmt: skip
+
+    pose_sigmas = sigmas(False)
+    held = radial is not None and radial.k1 == 0.0 and np.isfinite(radial.k1_sigma)
+    rotation_deg = sigmas(True).rotation_deg if held else pose_sigmas.rotation_deg
     return _ModelPart(
         R=final.R,
         t=final.t,
@@ -983,9 +992,10 @@ def _finish_general(state: _Finishing) -> _ModelPart:
         inliers=inliers,
         points3d=np.where(keep[:, None], final.points3d, np.nan),
         point_matches=np.flatnonzero(keep),
-        t_sigma_deg=sigmas.translation_deg,
-        rotation_sigma_deg=float(np.hypot(sigmas.rotation_deg, valley.spread_deg)),
+        t_sigma_deg=pose_sigmas.translation_deg,
+        rotation_sigma_deg=float(np.hypot(rotation_deg, valley.spread_deg)),
         radial_k1=radial_k1,
+        radial=radial,
     )
 
 
@@ -1002,16 +1012,18 @@ def _valley(state: _Finishing, R, t, c1, c2, inliers: np.ndarray) -> ValleyOutco
     return valley_outcome(R, t, valley_minima(R, t, c1[checked], c2[checked], scale))
 
 
-def _radial_priors(radial: RadialPose | None) -> dict[str, float | None]:
+def _radial_priors(radial: RadialPose | None, spread_only: bool = False) -> dict[str, float | None]:
     """How :func:`pose_sigmas_deg` counts the radial term of a general pose: none without a
     refinement; estimated under :data:`K1_PRIOR` when the refinement kept it; when it held
     ``k1`` at 0, the held value's error a considered parameter (:func:`held_k1_deviation` of
     the coefficient the refinement reached less its noise bias) beside the focal length's and
-    the principal point's."""
+    the principal point's, or with ``spread_only`` that coefficient's deviation alone: the
+    rotation's, whose move to the value the matches want is the essential matrix's bias
+    (:func:`~ppo_cv.rotation_choice.released_lens_shift_deg`) and is not counted twice."""
     if radial is None:
         return {"k1_prior": None}
     if radial.k1 == 0.0 and np.isfinite(radial.k1_sigma):
-        held = radial.k1_fitted - radial.k1_noise_bias
+        held = 0.0 if spread_only else radial.k1_fitted - radial.k1_noise_bias
         return {"held_k1_prior": held_k1_deviation(held, radial.k1_sigma)}
     return {"k1_prior": K1_PRIOR}
 
@@ -1076,15 +1088,21 @@ def _tracks_could_win(moving: RotationEstimate, rotation_only: RotationEstimate)
 def _moving_estimate(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     """The moving model's rotation with the deviation it reports; the essential matrix's
     biased by the move of its rotation when its lens term is fitted anew
-    (:func:`~ppo_cv.rotation_choice.released_lens_shift_deg`)."""
+    (:func:`~ppo_cv.rotation_choice.released_lens_shift_deg`), less the move the matches'
+    noise makes where the refinement measured its coefficient's noise bias (that coefficient
+    passed its first test: :attr:`~ppo_cv.refine.RadialPose.noise_bias_measured`), on as many
+    replicates."""
     if state.motion.model == "plane":
         return RotationEstimate("plane", part.R, 0.0, part.rotation_sigma_deg)
     bound = huber_bound_px(state.options.ransac_threshold, state.motion.noise_px) / state.focal
     k1 = part.radial_k1 if np.isfinite(part.radial_k1) else 0.0
-    shift = released_lens_shift_deg(
-        part.R, part.t, k1, state.found.x1, state.found.x2, part.inliers, bound
-    )
-    return RotationEstimate("essential", part.R, shift, part.rotation_sigma_deg)
+    measured = part.radial is not None and part.radial.noise_bias_measured
+    shift, shift_sigma = released_lens_shift_deg(
+        part.R, part.t, k1, state.found.x1, state.found.x2, part.inliers, bound,
+        replicates=K1_BIAS_REPLICATES if measured else 0,
+    )  # fmt: skip
+    sigma = float(np.hypot(part.rotation_sigma_deg, shift_sigma))
+    return RotationEstimate("essential", part.R, shift, sigma, shift_sigma)
 
 
 def _lens_terms(motion: MotionDecision, focal: float, radial_k1: float) -> LensTerms:

@@ -14,8 +14,10 @@ smaller wins (:func:`choose_rotation`).
   the linearisation says: there the matches' error is the lens's misfit more than their noise,
   and where along the valley the minimum lies depends on how the lens term is weighed. The
   essential matrix's bias is that dependence, measured: the move of its rotation when ``k1``
-  is fitted anew with the pose under its prior in units of the matches' noise
-  (:func:`released_lens_shift_deg`). A plane's is 0.
+  is fitted anew with the pose under its prior in units of the matches' noise, less the move
+  the noise alone makes where that was measured (:func:`released_lens_shift_deg`, from
+  :mod:`ppo_cv.refine`). Counted there, the value a held ``k1`` was fitted to is not counted
+  again in the deviation, which keeps that coefficient's spread only. A plane's bias is 0.
 - The rotation-only fit has its own deviation (:attr:`ppo_cv.rotation.LensRotationFit.
   rotation_sigma_deg`, or :func:`rotation_fit_sigma_deg` when its lens was clipped to the box)
   and a bias: the translation it does not model (:func:`translation_bias`), measured on
@@ -63,20 +65,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .lsq import (
-    cross_matrix,
-    gauss_newton_covariance,
-    huber_weights,
-    levenberg_marquardt,
-    rotation_increment,
-    tangent_basis,
-)
+from .lsq import gauss_newton_covariance, rotation_increment
 from .model_selection import robust_sigma
 from .motion_model import MAX_TRACK_PARALLAX, MotionDecision
 from .parallax import PlaneParallax, fit_plane_parallax
 from .photometric import PhotometricRotation
-from .plane import undistort_division
-from .robust import sampson_signed
+from .refine import released_lens_shift_deg
 from .rotation import (
     FOCAL_PRIOR,
     K1_PRIOR,
@@ -439,53 +433,3 @@ def rotation_only_fit(
         principal_offset=motion.principal_offset,
         focal_ratio=motion.focal_ratio,
     )
-
-
-def released_lens_shift_deg(
-    R: np.ndarray,
-    t: np.ndarray,
-    k1: float,
-    x1: np.ndarray,
-    x2: np.ndarray,
-    inliers: np.ndarray,
-    scale: float,
-    iterations: int = 30,
-) -> float:
-    """How far (degrees) a general pose's rotation moves when its lens term is fitted anew: the
-    moving model's bias in :func:`choose_rotation`.
-
-    The pose ``(R, t)`` with division coefficient ``k1`` is refitted on the Huber cost (bound
-    ``scale``, normalised units) of the signed Sampson errors of the ``inliers`` (normalised
-    points (N, 3), lens not corrected) in units of their robust noise, ``k1`` free under its
-    prior :data:`ppo_cv.rotation.K1_PRIOR`. Where the field is wide and the baseline long,
-    ``t`` and ``k1`` hardly trade with the rotation, which moves by what the lens term as it
-    was held really cost it (0.007 degree on a translating render at a 32 degree field, 0.05
-    on the demo pair). In a narrow field with a tiny baseline it
-    slides with ``t`` and ``k1`` along the bas-relief valley, and the matches' error is
-    dominated by the lens's misfit, not their noise: the valley's floor is where that misfit
-    puts it, which the prior's weight (here against the noise, in
-    :func:`ppo_cv.refine.refine_pose_radial` against its Huber bound) or the choice to hold
-    ``k1`` at 0 moves by degrees. A linearisation at the estimate does not see this, nor does a
-    rise of the cost in units of the noise: at the rotation-only fit's rotation the cost of
-    the real tripod pairs of ``pano_dev`` rises by 30-7000 such units whether that rotation is
-    0.1 or 13 degrees from the essential matrix's, and is the right one. 0 with fewer than 12
-    inliers or no noise.
-    """
-    a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
-    if len(a) < 12:
-        return 0.0
-    t0 = np.asarray(t, float).reshape(3) / np.linalg.norm(t)
-    U = tangent_basis(t0)
-
-    def weighted(p: np.ndarray, noise: float) -> np.ndarray:
-        tp = t0 + p[:2] @ U
-        c1, c2 = (undistort_division(x, k1 + p[2]) for x in (a, b))
-        E = cross_matrix(tp / np.linalg.norm(tp)) @ rotation_increment(p[3:]) @ R
-        r = sampson_signed(E, c1, c2) / noise
-        return np.append(huber_weights(np.abs(r), scale / noise) * r, (k1 + p[2]) / K1_PRIOR)
-
-    noise = robust_sigma(weighted(np.zeros(6), 1.0)[:-1], 1)
-    if not noise > 0:
-        return 0.0
-    p = levenberg_marquardt(lambda q: weighted(q, noise), np.zeros(6), iterations)[0]
-    return float(np.degrees(np.linalg.norm(p[3:])))

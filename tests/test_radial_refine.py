@@ -115,18 +115,21 @@ def test_huber_bound_is_the_noise_scaled_up_to_the_threshold():
 
 
 @pytest.mark.parametrize("size", [0.0, 2e-4])
-def test_noise_replicates_lie_on_the_model_up_to_the_noise_they_were_given(size):
+@pytest.mark.parametrize("k1", [0.0, 0.1])
+def test_noise_replicates_lie_on_the_model_up_to_the_noise_they_were_given(size, k1):
     from ppo_cv.lsq import cross_matrices
     from ppo_cv.refine import noise_replicates
     from ppo_cv.robust import sampson_signed
 
-    x1, x2, R, t = _matches(k1=0.0, noise_px=0.5)
+    x1, x2, R, t = _matches(k1=k1, noise_px=0.5)
     E = cross_matrices(t[None])[0] @ R
     assert np.sqrt(np.mean(sampson_signed(E, x1, x2) ** 2)) > 2e-4
     sizes = np.full(len(x1), size)
-    replicates = list(noise_replicates(E, x1, x2, sizes, 3))
+    replicates = list(noise_replicates(E, x1, x2, sizes, 3, k1))
     assert len(replicates) == 3
     for a, b in replicates:
-        rms = np.sqrt(np.mean(sampson_signed(E, a, b) ** 2))
+        undistorted = (undistort_division(x, k1) for x in (a, b))
+        rms = np.sqrt(np.mean(sampson_signed(E, *undistorted) ** 2))
         assert rms == pytest.approx(size, rel=0.15, abs=1e-8)
-    np.testing.assert_array_equal(replicates[0][0], next(noise_replicates(E, x1, x2, sizes, 1))[0])
+    first = next(noise_replicates(E, x1, x2, sizes, 1, k1))[0]
+    np.testing.assert_array_equal(replicates[0][0], first)
