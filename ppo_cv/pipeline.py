@@ -983,7 +983,7 @@ def _finish_general(state: _Finishing) -> _ModelPart:
         )  # fmt: skip
 
     pose_sigmas = sigmas(False)
-    held = radial is not None and radial.k1 == 0.0 and np.isfinite(radial.k1_sigma)
+    held = radial is not None and radial.k1 == 0.0 and radial.noise_bias_measured
     rotation_deg = sigmas(True).rotation_deg if held else pose_sigmas.rotation_deg
     return _ModelPart(
         R=final.R,
@@ -1018,8 +1018,11 @@ def _radial_priors(radial: RadialPose | None, spread_only: bool = False) -> dict
     ``k1`` at 0, the held value's error a considered parameter (:func:`held_k1_deviation` of
     the coefficient the refinement reached less its noise bias) beside the focal length's and
     the principal point's, or with ``spread_only`` that coefficient's deviation alone: the
-    rotation's, whose move to the value the matches want is the essential matrix's bias
-    (:func:`~ppo_cv.rotation_choice.released_lens_shift_deg`) and is not counted twice."""
+    rotation's where the refinement measured the coefficient's noise bias, whose move to the
+    value the matches want is then the essential matrix's bias, measured with its own deviation
+    on the noise replicates (:func:`~ppo_cv.rotation_choice.released_lens_shift_deg`), and is
+    not counted twice. Without those replicates the shift is one reading, and the held value
+    stays in the deviation."""
     if radial is None:
         return {"k1_prior": None}
     if radial.k1 == 0.0 and np.isfinite(radial.k1_sigma):
