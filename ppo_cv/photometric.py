@@ -22,7 +22,8 @@ image 1 lands in image 2, and the intensities fix it far better:
    polish of the full objective from there: the gain and offset fitted in closed form, and
    damped Gauss-Newton steps of the shift and brightness together (Lucas-Kanade; the
    brightness terms as in Baker, Gross and Matthews, "Lucas-Kanade 20 years on", part 3,
-   CMU-RI-TR-03-35), the Jacobian of the start reused and taken again where it led. The
+   CMU-RI-TR-03-35), the Jacobian of the start reused and taken again where it led for the
+   windows it moved by more than a fiftieth of a pixel (:data:`_RETAKE`). The
    windows are solved together, a few tens at a time (arrays of windows x window pixels that
    stay in the cache, two such chunks at once on two threads), with exact bilinear
    interpolation: image 2 is read once per Jacobian as the polynomial of each pixel's cell,
@@ -37,9 +38,9 @@ image 1 lands in image 2, and the intensities fix it far better:
    windows' overlap (:func:`window_overlap`): overlapping windows are made of the same
    pixels, and their errors are not independent. Then the windows are searched again at full
    size in image 2 seen through the refitted model, and the fit repeated;
-4. steps 1-3 with each window side of :data:`WINDOWS`, keeping the refit whose rotation is
-   the least uncertain: large windows locate tracks better in noisy images, small ones are
-   more numerous in weak texture;
+4. steps 1-3 with each window side of :data:`WINDOWS` (the sides on two threads), keeping
+   the refit whose rotation is the least uncertain: large windows locate tracks better in
+   noisy images, small ones are more numerous in weak texture;
 5. the windows of that side polished through its fit, from where the search found them, and
    the fit repeated; the next side too while its searched bound is below the polished one,
    the least uncertain polished refit kept. The search is the cheap part (a few tens of
@@ -141,7 +142,7 @@ _MAX_LEVELS = 4
 _ITERATIONS = 12
 _CONVERGED = 1e-3  # pixels of shift update
 _CHUNK = 65536  # window pixels aligned at a time
-_THREADS = 2  # aligning chunks at once
+_THREADS = 2  # aligning chunks of windows, or searching window sides, at once
 _JACOBIANS = 2  # of the polish: at the start, and where its steps led
 _REGATHER = 0.01  # pixels a window moves from where image 2 was read for another read
 _RETAKE = 0.02  # pixels a window moves with the first Jacobian of the polish for a second
