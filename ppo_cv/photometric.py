@@ -22,7 +22,8 @@ image 1 lands in image 2, and the intensities fix it far better:
    polish of the full objective from there: the gain and offset fitted in closed form, and
    damped Gauss-Newton steps of the shift and brightness together (Lucas-Kanade; the
    brightness terms as in Baker, Gross and Matthews, "Lucas-Kanade 20 years on", part 3,
-   CMU-RI-TR-03-35), the Jacobian of the start reused and taken again where it led. The
+   CMU-RI-TR-03-35), the Jacobian of the start reused and taken again where it led for the
+   windows it moved by more than a fiftieth of a pixel (:data:`_RETAKE`). The
    windows are solved together, a few tens at a time (arrays of windows x window pixels that
    stay in the cache, two such chunks at once on two threads), with exact bilinear
    interpolation: image 2 is read once per Jacobian as the polynomial of each pixel's cell,
@@ -37,9 +38,9 @@ image 1 lands in image 2, and the intensities fix it far better:
    windows' overlap (:func:`window_overlap`): overlapping windows are made of the same
    pixels, and their errors are not independent. Then the windows are searched again at full
    size in image 2 seen through the refitted model, and the fit repeated;
-4. steps 1-3 with each window side of :data:`WINDOWS`, keeping the refit whose rotation is
-   the least uncertain: large windows locate tracks better in noisy images, small ones are
-   more numerous in weak texture;
+4. steps 1-3 with each window side of :data:`WINDOWS` (the sides on two threads), keeping
+   the refit whose rotation is the least uncertain: large windows locate tracks better in
+   noisy images, small ones are more numerous in weak texture;
 5. the windows of that side polished through its fit, from where the search found them, and
    the fit repeated; the next side too while its searched bound is below the polished one,
    the least uncertain polished refit kept. The search is the cheap part (a few tens of
@@ -141,9 +142,10 @@ _MAX_LEVELS = 4
 _ITERATIONS = 12
 _CONVERGED = 1e-3  # pixels of shift update
 _CHUNK = 65536  # window pixels aligned at a time
-_THREADS = 2  # aligning chunks at once
+_THREADS = 2  # aligning chunks of windows, or searching window sides, at once
 _JACOBIANS = 2  # of the polish: at the start, and where its steps led
 _REGATHER = 0.01  # pixels a window moves from where image 2 was read for another read
+_RETAKE = 0.02  # pixels a window moves with the first Jacobian of the polish for a second
 
 _DAMPING = 0.7  # of each Gauss-Newton step: the sampled gradients overshoot by about 1.4
 _OUTLIER_SIGMAS = 3.0
@@ -363,7 +365,10 @@ def _align_level(template, template_clear, positions, d, plane2, ramp, iteration
     update the shift and the brightness together (:class:`_GaussNewton`; the gain ramp and a
     shift trade against each other across a window with an intensity slope: alternating
     between them crawls), with the Jacobian of the start, then again with the Jacobian where
-    they led and the gain reached (:data:`_JACOBIANS` in all). Image 2 is read as the
+    they led and the gain reached (:data:`_JACOBIANS` in all) for the windows that moved more
+    than :data:`_RETAKE` pixels: for the others the Jacobian where they stopped is that of
+    their start to a fraction of their noise, and its steps would move them by less than a
+    thousandth of a pixel (median). Image 2 is read as the
     bilinear polynomial of each pixel's cell (:class:`_Cells`), which the steps move along; a
     window that moved more than :data:`_REGATHER` pixels from where it was last read is read
     again there. Pixels near one clipped at white in either image are left out
@@ -372,28 +377,44 @@ def _align_level(template, template_clear, positions, d, plane2, ramp, iteration
     x = np.ascontiguousarray(positions[..., 0], dtype=np.float32)
     y = np.ascontiguousarray(positions[..., 1], dtype=np.float32)
     ramp_columns = np.column_stack([np.ones(len(ramp)), ramp]).astype(np.float32)
-    brightness = None
 
-    def reread(cells: _Cells, windows: np.ndarray, shifts: np.ndarray) -> None:
-        shifts = shifts.astype(np.float32)
-        again = _cells(plane2, x[windows] + shifts[:, :1], y[windows] + shifts[:, 1:],
-                       range(4))  # fmt: skip
-        for row in range(4):
-            cells.coefficients[row][windows] = again.coefficients[row]
-        cells.fx[windows], cells.fy[windows] = again.fx, again.fy
+    def solve(windows, shifts, brightness) -> tuple:
+        """The ``windows`` (a slice or indices) stepped from ``shifts`` with the Jacobian
+        there: the shifts, brightness, image 2 there, its derivatives and weights."""
+        x_of, y_of = x[windows], y[windows]
 
-    for _ in range(_JACOBIANS):
-        d32 = d.astype(np.float32)
-        cells = _cells(plane2, x + d32[:, :1], y + d32[:, 1:], range(plane2.cells.shape[1]))
+        def reread(cells: _Cells, rows: np.ndarray, at: np.ndarray) -> None:
+            at = at.astype(np.float32)
+            again = _cells(plane2, x_of[rows] + at[:, :1], y_of[rows] + at[:, 1:], range(4))
+            for row in range(4):
+                cells.coefficients[row][rows] = again.coefficients[row]
+            cells.fx[rows], cells.fy[rows] = again.fx, again.fy
+
+        d32 = shifts.astype(np.float32)
+        cells = _cells(plane2, x_of + d32[:, :1], y_of + d32[:, 1:], range(plane2.cells.shape[1]))
         gradients = cells.gradients()
-        weight = cells.clear * template_clear
-        target = template * weight
+        weight = cells.clear * template_clear[windows]
+        target = template[windows] * weight
         jacobian_t, brightness = _jacobian_t(
             cells.values(), gradients, weight, target, ramp_columns, brightness
         )
         steps = _GaussNewton(target, weight, _normal_inverse(jacobian_t), jacobian_t,
                              ramp_columns, iterations)  # fmt: skip
-        intensity = steps.run(cells, reread, d, brightness)
+        intensity = steps.run(cells, reread, shifts, brightness)
+        return shifts, brightness, intensity, *gradients, weight
+
+    start = d.copy()
+    solved = solve(slice(None), d, None)
+    for _ in range(_JACOBIANS - 1):
+        moved = np.flatnonzero(np.abs(solved[0] - start).max(axis=1) > _RETAKE)
+        if not len(moved):
+            break
+        start[moved] = solved[0][moved]
+        again = solve(moved, solved[0][moved], solved[1][moved])
+        for whole, part in zip(solved, again, strict=True):
+            whole[moved] = part
+    d, _, intensity, gradient_x, gradient_y, weight = solved
+    gradients = (gradient_x, gradient_y)
     return _Aligned(d, intensity, gradients, weight)
 
 
@@ -687,10 +708,6 @@ def _align(images: _Images, points1, transfer, window, levels, iterations, start
     are aligned :data:`_CHUNK` pixels at a time, which keeps the arrays in the cache, on
     :data:`_THREADS` threads at most, no more than OpenCV may use (the chunks are independent,
     numpy and OpenCV release the GIL in their array work)."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    import cv2
-
     if start is None:
         seen = _seen_through(images, transfer)
         start = _shifts(_search(images, seen, points1, transfer, window, levels), transfer)
@@ -703,13 +720,25 @@ def _align(images: _Images, points1, transfer, window, levels, iterations, start
         positions = weights @ exact[rows]
         return _align_chunk(images, points1[rows], positions, start[rows], offsets, iterations)
 
-    threads = min(_THREADS, max(cv2.getNumThreads(), 1), len(chunks))
-    with ThreadPoolExecutor(max_workers=threads) as pool:
-        parts = list(pool.map(align, chunks))
+    parts = _threaded_map(align, chunks)
     d, ncc, usable = (np.concatenate(column) for column in zip(*parts, strict=True))
     valid = usable & np.all(np.isfinite(d), axis=1) & (ncc >= MIN_NCC)
     valid &= np.abs(d).max(axis=1) < _search_range(window, levels)
     return WindowTracks(points1=points1, points2=transfer(points1) + d, valid=valid, ncc=ncc)
+
+
+def _threaded_map(function: Callable, items: Sequence) -> list:
+    """``function`` of each of ``items``, on :data:`_THREADS` threads at most, no more than
+    OpenCV may use (numpy and OpenCV release the GIL in their array work)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    import cv2
+
+    threads = min(_THREADS, max(cv2.getNumThreads(), 1), len(items))
+    if threads <= 1:
+        return [function(item) for item in items]
+    with ThreadPoolExecutor(max_workers=threads) as pool:
+        return list(pool.map(function, items))
 
 
 def _align_chunk(images: _Images, points1, positions, start, offsets, iterations):
@@ -1038,11 +1067,11 @@ def _best_window_refit(
         refined is not None
         and rotation_error_deg(refined.fit.R, R) <= refit_reach_deg(rotation_sigma_deg)
     )
-    results = []
-    for side in windows:
+
+    def searched(side: int) -> PhotometricRotation | None:
         corners = _corners(gray1, count, side, transfer_with(start), gray2.shape)
         if len(corners) < MIN_TRACKS:
-            continue
+            return None
         y1 = pixels_to_normalized(corners, K1, dist1)
         refined = _search_side(
             (images, seen), corners, y1, side, levels[side], start, transfer_with, normalize2,
@@ -1050,8 +1079,9 @@ def _best_window_refit(
         )  # fmt: skip
         if refined is not None:
             refined = _search_again(images, refined, y1, transfer_with, normalize2, focal, priors)
-        if plausible(refined):
-            results.append(refined)
+        return refined if plausible(refined) else None
+
+    results = [found for found in _threaded_map(searched, windows) if found is not None]
     if not results:
         return None
     sigma = lambda refined: refined.fit.rotation_sigma_deg  # noqa: E731
