@@ -82,32 +82,56 @@ class ValleyOutcome:
 
 
 def _cost(x1: np.ndarray, x2: np.ndarray, scale: float):
-    def residuals(R: np.ndarray, t: np.ndarray) -> np.ndarray:
-        r = sampson_signed(cross_matrix(t) @ R, x1, x2)
+    """Huber-weighted Sampson residuals of the essential matrix ``E`` (3, 3)."""
+
+    def residuals(E: np.ndarray) -> np.ndarray:
+        r = sampson_signed(E, x1, x2)
         return huber_weights(np.abs(r), scale) * r
 
     return residuals
 
 
-def _pose(R: np.ndarray, t: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    tp = t + p[3:5] @ tangent_basis(t)
+def _pose(
+    R: np.ndarray, t: np.ndarray, p: np.ndarray, basis: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    tp = t + p[3:5] @ basis
     return rotation_increment(p[:3]) @ R, tp / np.linalg.norm(tp)
 
 
+def _pose_cost(cost, R: np.ndarray, t: np.ndarray, basis: np.ndarray):
+    """The residuals of the pose ``p`` (5,) about ``(R, t)``: rotation, then ``t`` in ``basis``."""
+
+    def residuals(p: np.ndarray) -> np.ndarray:
+        Rp, tp = _pose(R, t, p, basis)
+        return cost(cross_matrix(tp) @ Rp)
+
+    return residuals
+
+
+def _rotation_cost(cost, R: np.ndarray, cross_t: np.ndarray):
+    """The residuals of the rotation increment ``q`` (3,) of ``R``, ``t`` held (``cross_t``)."""
+
+    def residuals(q: np.ndarray) -> np.ndarray:
+        return cost(cross_t @ (rotation_increment(q) @ R))
+
+    return residuals
+
+
 def _polish(cost, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    p, _ = levenberg_marquardt(lambda q: cost(*_pose(R, t, q)), np.zeros(5), 20)
-    return _pose(R, t, p)
+    basis = tangent_basis(t)
+    p, _ = levenberg_marquardt(_pose_cost(cost, R, t, basis), np.zeros(5), 20)
+    return _pose(R, t, p, basis)
 
 
 def _worst_direction(cost, R: np.ndarray, t: np.ndarray, step: float = 1e-6) -> np.ndarray:
     """Unit tangent of the sphere at ``t`` along which ``t`` is least determined."""
-    r0 = cost(R, t)
-    J = np.column_stack(
-        [(cost(*_pose(R, t, step * e)) - r0) / step for e in np.eye(5)]
-    )
+    basis = tangent_basis(t)
+    residuals = _pose_cost(cost, R, t, basis)
+    r0 = residuals(np.zeros(5))
+    J = np.column_stack([(residuals(step * e) - r0) / step for e in np.eye(5)])
     covariance = np.linalg.pinv(J.T @ J)
     _, vectors = np.linalg.eigh(covariance[3:5, 3:5])
-    u = vectors[:, -1] @ tangent_basis(t)
+    u = vectors[:, -1] @ basis
     return u / np.linalg.norm(u)
 
 
@@ -117,11 +141,10 @@ def _profile(cost, R: np.ndarray, t: np.ndarray, u: np.ndarray) -> list[tuple]:
     steps = []
     for angle in np.radians(VALLEY_STEPS_DEG):
         ti = np.cos(angle) * t + np.sin(angle) * u
-        w, _ = levenberg_marquardt(
-            lambda q, R=R, ti=ti: cost(rotation_increment(q) @ R, ti), np.zeros(3), 4
-        )
+        cross_t = cross_matrix(ti)
+        w, _ = levenberg_marquardt(_rotation_cost(cost, R, cross_t), np.zeros(3), 4)
         R = rotation_increment(w) @ R
-        r = cost(R, ti)
+        r = cost(cross_t @ R)
         steps.append((float(r @ r), R, ti))
     return steps
 
@@ -152,7 +175,7 @@ def valley_minima(
     if len(x1) < 12:
         return []
     cost = _cost(np.asarray(x1, float), np.asarray(x2, float), scale)
-    r0 = cost(R, t)
+    r0 = cost(cross_matrix(t) @ R)
     start, variance = float(r0 @ r0), float(r0 @ r0) / max(len(r0) - 5, 1)
     u = _worst_direction(cost, R, t)
     minima = []
@@ -162,7 +185,7 @@ def valley_minima(
         if lowest < len(profile) - 1 and profile[lowest][0] > profile[lowest - 1][0]:
             continue
         Rm, tm = _polish(cost, *profile[lowest][1:])
-        r = cost(Rm, tm)
+        r = cost(cross_matrix(tm) @ Rm)
         minima.append(ValleyMinimum(Rm, tm, (float(r @ r) - start) / variance))
     return minima
 
