@@ -19,7 +19,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .lsq import cross_matrix, huber_weights, levenberg_marquardt, rotation_increment, tangent_basis
+from .lsq import (
+    cross_matrices,
+    cross_matrix,
+    huber_weights,
+    rotation_increment,
+    rotation_increments,
+    tangent_basis,
+)
 from .metrics import rotation_error_deg
 from .plane import K1_SIGNIFICANCE
 from .robust import sampson_signed
@@ -98,37 +105,69 @@ def _pose(
     return rotation_increment(p[:3]) @ R, tp / np.linalg.norm(tp)
 
 
-def _pose_cost(cost, R: np.ndarray, t: np.ndarray, basis: np.ndarray):
-    """The residuals of the pose ``p`` (5,) about ``(R, t)``: rotation, then ``t`` in ``basis``."""
+def _pose_costs(cost, R: np.ndarray, t: np.ndarray, basis: np.ndarray):
+    """The residuals (K, N) of the poses ``p`` (K, 5) about ``(R, t)``: rotation increment,
+    then ``t`` moved in ``basis``."""
 
     def residuals(p: np.ndarray) -> np.ndarray:
-        Rp, tp = _pose(R, t, p, basis)
-        return cost(cross_matrix(tp) @ Rp)
+        tp = t + p[:, 3:5] @ basis
+        tp = tp / np.linalg.norm(tp, axis=1, keepdims=True)
+        return cost(cross_matrices(tp) @ (rotation_increments(p[:, :3]) @ R))
 
     return residuals
 
 
-def _rotation_cost(cost, R: np.ndarray, cross_t: np.ndarray):
-    """The residuals of the rotation increment ``q`` (3,) of ``R``, ``t`` held (``cross_t``)."""
+def _rotation_costs(cost, R: np.ndarray, cross_t: np.ndarray):
+    """The residuals (K, N) of the rotation increments ``q`` (K, 3) of ``R``, ``t`` held
+    (``cross_t``)."""
 
     def residuals(q: np.ndarray) -> np.ndarray:
-        return cost(cross_t @ (rotation_increment(q) @ R))
+        return cost(cross_t @ (rotation_increments(q) @ R))
 
     return residuals
+
+
+def _jacobian(residuals, p: np.ndarray, r0: np.ndarray, step: float) -> np.ndarray:
+    """Forward-difference Jacobian (N, P) of the stacked ``residuals`` at ``p`` (P,), all
+    columns in one evaluation."""
+    return ((residuals(p + step * np.eye(len(p))) - r0) / step).T
+
+
+def _fit(residuals, p: np.ndarray, iterations: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`~ppo_cv.lsq.levenberg_marquardt` on the stacked ``residuals`` (its steps, its
+    damping, its stops), the Jacobian's columns evaluated together and none after the last
+    step. Returns the minimiser and its residuals."""
+    damping = 1e-3
+    r0 = residuals(p[None])[0]
+    J = _jacobian(residuals, p, r0, 1e-7)
+    for iteration in range(iterations):
+        A, g = J.T @ J, J.T @ r0
+        for _ in range(8):
+            delta = -np.linalg.solve(A + damping * np.diag(np.diag(A) + 1e-12), g)
+            trial = residuals((p + delta)[None])[0]
+            if trial @ trial < r0 @ r0:
+                p, r0, damping = p + delta, trial, max(damping / 10, 1e-9)
+                break
+            damping *= 10
+        else:
+            break
+        if np.linalg.norm(delta) < 1e-10 or iteration == iterations - 1:
+            break
+        J = _jacobian(residuals, p, r0, 1e-7)
+    return p, r0
 
 
 def _polish(cost, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     basis = tangent_basis(t)
-    p, _ = levenberg_marquardt(_pose_cost(cost, R, t, basis), np.zeros(5), 20)
+    p, _ = _fit(_pose_costs(cost, R, t, basis), np.zeros(5), 20)
     return _pose(R, t, p, basis)
 
 
 def _worst_direction(cost, R: np.ndarray, t: np.ndarray, step: float = 1e-6) -> np.ndarray:
     """Unit tangent of the sphere at ``t`` along which ``t`` is least determined."""
     basis = tangent_basis(t)
-    residuals = _pose_cost(cost, R, t, basis)
-    r0 = residuals(np.zeros(5))
-    J = np.column_stack([(residuals(step * e) - r0) / step for e in np.eye(5)])
+    residuals = _pose_costs(cost, R, t, basis)
+    J = _jacobian(residuals, np.zeros(5), residuals(np.zeros((1, 5)))[0], step)
     covariance = np.linalg.pinv(J.T @ J)
     _, vectors = np.linalg.eigh(covariance[3:5, 3:5])
     u = vectors[:, -1] @ basis
@@ -141,10 +180,8 @@ def _profile(cost, R: np.ndarray, t: np.ndarray, u: np.ndarray) -> list[tuple]:
     steps = []
     for angle in np.radians(VALLEY_STEPS_DEG):
         ti = np.cos(angle) * t + np.sin(angle) * u
-        cross_t = cross_matrix(ti)
-        w, _ = levenberg_marquardt(_rotation_cost(cost, R, cross_t), np.zeros(3), 4)
+        w, r = _fit(_rotation_costs(cost, R, cross_matrix(ti)), np.zeros(3), 4)
         R = rotation_increment(w) @ R
-        r = cost(cross_t @ R)
         steps.append((float(r @ r), R, ti))
     return steps
 
