@@ -127,33 +127,34 @@ def _rotation_costs(cost, R: np.ndarray, cross_t: np.ndarray):
     return residuals
 
 
-def _jacobian(residuals, p: np.ndarray, r0: np.ndarray, step: float) -> np.ndarray:
-    """Forward-difference Jacobian (N, P) of the stacked ``residuals`` at ``p`` (P,), all
-    columns in one evaluation."""
-    return ((residuals(p + step * np.eye(len(p))) - r0) / step).T
+def _residuals_and_jacobian(
+    residuals, p: np.ndarray, step: float = 1e-7
+) -> tuple[np.ndarray, np.ndarray]:
+    """The stacked ``residuals`` (N,) at ``p`` (P,) and their forward-difference Jacobian
+    (N, P), all in one evaluation."""
+    r = residuals(p + np.vstack([np.zeros(len(p)), step * np.eye(len(p))]))
+    return r[0], ((r[1:] - r[0]) / step).T
 
 
 def _fit(residuals, p: np.ndarray, iterations: int) -> tuple[np.ndarray, np.ndarray]:
     """:func:`~ppo_cv.lsq.levenberg_marquardt` on the stacked ``residuals`` (its steps, its
-    damping, its stops), the Jacobian's columns evaluated together and none after the last
-    step. Returns the minimiser and its residuals."""
+    damping, its stops), each trial evaluated with the Jacobian at it: one evaluation per
+    trial. Returns the minimiser and its residuals."""
     damping = 1e-3
-    r0 = residuals(p[None])[0]
-    J = _jacobian(residuals, p, r0, 1e-7)
-    for iteration in range(iterations):
+    r0, J = _residuals_and_jacobian(residuals, p)
+    for _ in range(iterations):
         A, g = J.T @ J, J.T @ r0
         for _ in range(8):
             delta = -np.linalg.solve(A + damping * np.diag(np.diag(A) + 1e-12), g)
-            trial = residuals((p + delta)[None])[0]
+            trial, trial_J = _residuals_and_jacobian(residuals, p + delta)
             if trial @ trial < r0 @ r0:
-                p, r0, damping = p + delta, trial, max(damping / 10, 1e-9)
+                p, r0, J, damping = p + delta, trial, trial_J, max(damping / 10, 1e-9)
                 break
             damping *= 10
         else:
             break
-        if np.linalg.norm(delta) < 1e-10 or iteration == iterations - 1:
+        if np.linalg.norm(delta) < 1e-10:
             break
-        J = _jacobian(residuals, p, r0, 1e-7)
     return p, r0
 
 
@@ -167,7 +168,7 @@ def _worst_direction(cost, R: np.ndarray, t: np.ndarray, step: float = 1e-6) -> 
     """Unit tangent of the sphere at ``t`` along which ``t`` is least determined."""
     basis = tangent_basis(t)
     residuals = _pose_costs(cost, R, t, basis)
-    J = _jacobian(residuals, np.zeros(5), residuals(np.zeros((1, 5)))[0], step)
+    _, J = _residuals_and_jacobian(residuals, np.zeros(5), step)
     covariance = np.linalg.pinv(J.T @ J)
     _, vectors = np.linalg.eigh(covariance[3:5, 3:5])
     u = vectors[:, -1] @ basis
