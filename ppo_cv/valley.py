@@ -19,7 +19,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .lsq import cross_matrix, huber_weights, levenberg_marquardt, rotation_increment, tangent_basis
+from .lsq import (
+    cross_matrices,
+    cross_matrix,
+    huber_weights,
+    rotation_increment,
+    rotation_increments,
+    tangent_basis,
+)
 from .metrics import rotation_error_deg
 from .plane import K1_SIGNIFICANCE
 from .robust import sampson_signed
@@ -82,32 +89,89 @@ class ValleyOutcome:
 
 
 def _cost(x1: np.ndarray, x2: np.ndarray, scale: float):
-    def residuals(R: np.ndarray, t: np.ndarray) -> np.ndarray:
-        r = sampson_signed(cross_matrix(t) @ R, x1, x2)
+    """Huber-weighted Sampson residuals of the essential matrix ``E`` (3, 3)."""
+
+    def residuals(E: np.ndarray) -> np.ndarray:
+        r = sampson_signed(E, x1, x2)
         return huber_weights(np.abs(r), scale) * r
 
     return residuals
 
 
-def _pose(R: np.ndarray, t: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    tp = t + p[3:5] @ tangent_basis(t)
+def _pose(
+    R: np.ndarray, t: np.ndarray, p: np.ndarray, basis: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    tp = t + p[3:5] @ basis
     return rotation_increment(p[:3]) @ R, tp / np.linalg.norm(tp)
 
 
+def _pose_costs(cost, R: np.ndarray, t: np.ndarray, basis: np.ndarray):
+    """The residuals (K, N) of the poses ``p`` (K, 5) about ``(R, t)``: rotation increment,
+    then ``t`` moved in ``basis``."""
+
+    def residuals(p: np.ndarray) -> np.ndarray:
+        tp = t + p[:, 3:5] @ basis
+        tp = tp / np.linalg.norm(tp, axis=1, keepdims=True)
+        return cost(cross_matrices(tp) @ (rotation_increments(p[:, :3]) @ R))
+
+    return residuals
+
+
+def _rotation_costs(cost, R: np.ndarray, cross_t: np.ndarray):
+    """The residuals (K, N) of the rotation increments ``q`` (K, 3) of ``R``, ``t`` held
+    (``cross_t``)."""
+
+    def residuals(q: np.ndarray) -> np.ndarray:
+        return cost(cross_t @ (rotation_increments(q) @ R))
+
+    return residuals
+
+
+def _residuals_and_jacobian(
+    residuals, p: np.ndarray, step: float = 1e-7
+) -> tuple[np.ndarray, np.ndarray]:
+    """The stacked ``residuals`` (N,) at ``p`` (P,) and their forward-difference Jacobian
+    (N, P), all in one evaluation."""
+    r = residuals(p + np.vstack([np.zeros(len(p)), step * np.eye(len(p))]))
+    return r[0], ((r[1:] - r[0]) / step).T
+
+
+def _fit(residuals, p: np.ndarray, iterations: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`~ppo_cv.lsq.levenberg_marquardt` on the stacked ``residuals`` (its steps, its
+    damping, its stops), each trial evaluated with the Jacobian at it: one evaluation per
+    trial. Returns the minimiser and its residuals."""
+    damping = 1e-3
+    r0, J = _residuals_and_jacobian(residuals, p)
+    for _ in range(iterations):
+        A, g = J.T @ J, J.T @ r0
+        for _ in range(8):
+            delta = -np.linalg.solve(A + damping * np.diag(np.diag(A) + 1e-12), g)
+            trial, trial_J = _residuals_and_jacobian(residuals, p + delta)
+            if trial @ trial < r0 @ r0:
+                p, r0, J, damping = p + delta, trial, trial_J, max(damping / 10, 1e-9)
+                break
+            damping *= 10
+        else:
+            break
+        if np.linalg.norm(delta) < 1e-10:
+            break
+    return p, r0
+
+
 def _polish(cost, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    p, _ = levenberg_marquardt(lambda q: cost(*_pose(R, t, q)), np.zeros(5), 20)
-    return _pose(R, t, p)
+    basis = tangent_basis(t)
+    p, _ = _fit(_pose_costs(cost, R, t, basis), np.zeros(5), 20)
+    return _pose(R, t, p, basis)
 
 
 def _worst_direction(cost, R: np.ndarray, t: np.ndarray, step: float = 1e-6) -> np.ndarray:
     """Unit tangent of the sphere at ``t`` along which ``t`` is least determined."""
-    r0 = cost(R, t)
-    J = np.column_stack(
-        [(cost(*_pose(R, t, step * e)) - r0) / step for e in np.eye(5)]
-    )
+    basis = tangent_basis(t)
+    residuals = _pose_costs(cost, R, t, basis)
+    _, J = _residuals_and_jacobian(residuals, np.zeros(5), step)
     covariance = np.linalg.pinv(J.T @ J)
     _, vectors = np.linalg.eigh(covariance[3:5, 3:5])
-    u = vectors[:, -1] @ tangent_basis(t)
+    u = vectors[:, -1] @ basis
     return u / np.linalg.norm(u)
 
 
@@ -117,11 +181,8 @@ def _profile(cost, R: np.ndarray, t: np.ndarray, u: np.ndarray) -> list[tuple]:
     steps = []
     for angle in np.radians(VALLEY_STEPS_DEG):
         ti = np.cos(angle) * t + np.sin(angle) * u
-        w, _ = levenberg_marquardt(
-            lambda q, R=R, ti=ti: cost(rotation_increment(q) @ R, ti), np.zeros(3), 4
-        )
+        w, r = _fit(_rotation_costs(cost, R, cross_matrix(ti)), np.zeros(3), 4)
         R = rotation_increment(w) @ R
-        r = cost(R, ti)
         steps.append((float(r @ r), R, ti))
     return steps
 
@@ -152,7 +213,7 @@ def valley_minima(
     if len(x1) < 12:
         return []
     cost = _cost(np.asarray(x1, float), np.asarray(x2, float), scale)
-    r0 = cost(R, t)
+    r0 = cost(cross_matrix(t) @ R)
     start, variance = float(r0 @ r0), float(r0 @ r0) / max(len(r0) - 5, 1)
     u = _worst_direction(cost, R, t)
     minima = []
@@ -162,7 +223,7 @@ def valley_minima(
         if lowest < len(profile) - 1 and profile[lowest][0] > profile[lowest - 1][0]:
             continue
         Rm, tm = _polish(cost, *profile[lowest][1:])
-        r = cost(Rm, tm)
+        r = cost(cross_matrix(tm) @ Rm)
         minima.append(ValleyMinimum(Rm, tm, (float(r @ r) - start) / variance))
     return minima
 

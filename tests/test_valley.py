@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from imperfect import imperfect_render
 
-from ppo_cv import estimate_pair
-from ppo_cv.lsq import rotation_increment
+from ppo_cv import estimate_pair, valley
+from ppo_cv.lsq import cross_matrix, levenberg_marquardt, rotation_increment, tangent_basis
 from ppo_cv.metrics import rotation_error_deg
 from ppo_cv.valley import VALLEY_SIGNIFICANCE, ValleyMinimum, valley_outcome
 
@@ -60,3 +60,35 @@ def test_a_pose_on_false_matches_is_covered_by_its_valley(seed, baseline, larges
     assert result.model == "general"
     assert error < largest_error_deg
     assert error < 2.0 * result.uncertainty.rotation_sigma_deg
+
+
+def _matches(count: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    X1 = np.column_stack([rng.uniform(-1, 1, (count, 2)), rng.uniform(3, 6, count)])
+    R, t = rotation_increment(np.radians([2.0, -3.0, 1.0])), np.array([0.3, 0.05, 0.02])
+    X2 = X1 @ R.T + t
+    noise = rng.normal(0.0, 1e-3, (2, count, 2))
+    x1 = np.column_stack([X1[:, :2] / X1[:, 2:] + noise[0], np.ones(count)])
+    x2 = np.column_stack([X2[:, :2] / X2[:, 2:] + noise[1], np.ones(count)])
+    return x1, x2, R, t / np.linalg.norm(t)
+
+
+@pytest.mark.parametrize(("parameters", "iterations"), [(3, 4), (5, 20)], ids=["rotation", "pose"])
+def test_the_stacked_fit_reaches_the_minimum_of_levenberg_marquardt(parameters, iterations):
+    x1, x2, R, t = _matches(40, 3)
+    cost = valley._cost(x1, x2, 2e-3)
+    start_R = rotation_increment(np.radians([1.0, 2.0, -1.5])) @ R
+    start_t = np.array([0.95, 0.3, 0.0]) / np.linalg.norm([0.95, 0.3, 0.0])
+    if parameters == 3:
+        stacked = valley._rotation_costs(cost, start_R, cross_matrix(start_t))
+    else:
+        stacked = valley._pose_costs(cost, start_R, start_t, tangent_basis(start_t))
+    def single(q: np.ndarray) -> np.ndarray:
+        return stacked(q[None])[0]
+
+    p, r = valley._fit(stacked, np.zeros(parameters), iterations)
+    expected, _ = levenberg_marquardt(single, np.zeros(parameters), iterations)
+    start = single(np.zeros(parameters))
+    assert r @ r < 0.5 * (start @ start)
+    np.testing.assert_allclose(p, expected, atol=1e-9)
+    np.testing.assert_allclose(r, single(p), atol=1e-15)
