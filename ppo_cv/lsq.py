@@ -21,8 +21,10 @@ __all__ = [
     "gauss_newton_covariance",
     "huber_weights",
     "levenberg_marquardt",
+    "levenberg_marquardt_stacked",
     "rotation_increment",
     "rotation_increments",
+    "stacked_jacobian",
     "tangent_basis",
 ]
 
@@ -88,6 +90,15 @@ def gauss_newton_covariance(J: np.ndarray, variance: float) -> np.ndarray | None
         return None
 
 
+def stacked_jacobian(
+    f: Callable[[np.ndarray], np.ndarray], p: np.ndarray, step: float = 1e-7
+) -> tuple[np.ndarray, np.ndarray]:
+    """Residuals (M,) at ``p`` (P,) and their forward-difference Jacobian (M, P) in one call of
+    ``f``, which maps a stack of parameter vectors (K, P) to a stack of residuals (K, M)."""
+    r = f(p + np.vstack([np.zeros(len(p)), step * np.eye(len(p))]))
+    return r[0], ((r[1:] - r[0]) / step).T
+
+
 def levenberg_marquardt(
     f: Callable[[np.ndarray], np.ndarray], p: np.ndarray, iterations: int
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -97,21 +108,43 @@ def levenberg_marquardt(
     (up to 8 increases of the damping per iteration); the loop stops when none does, when the
     step is below 1e-10 or after ``iterations`` steps.
     """
-    damping = 1e-3
     r0 = f(p)
-    J = forward_jacobian(f, p, r0)
+    p, _, J = _damped_steps(
+        lambda q: (f(q), None), lambda q, r: forward_jacobian(f, q, r),
+        p, r0, forward_jacobian(f, p, r0), iterations,
+    )  # fmt: skip
+    return p, J
+
+
+def levenberg_marquardt_stacked(
+    f: Callable[[np.ndarray], np.ndarray], p: np.ndarray, iterations: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`levenberg_marquardt` (its steps, damping and stops) of a stacked ``f``
+    (:func:`stacked_jacobian`): each trial is evaluated with the Jacobian at it, one call per
+    trial. Returns the minimiser and the residuals there."""
+    r0, J = stacked_jacobian(f, p)
+    p, r0, _ = _damped_steps(lambda q: stacked_jacobian(f, q), None, p, r0, J, iterations)
+    return p, r0
+
+
+def _damped_steps(trial_at, jacobian_at, p, r0, J, iterations: int) -> tuple:
+    """The damped Gauss-Newton loop of :func:`levenberg_marquardt`: ``trial_at(q)`` gives the
+    residuals at a trial and the Jacobian there or None, ``jacobian_at(q, r)`` the Jacobian
+    of an accepted trial that came without one. Returns ``(p, r0, J)``."""
+    damping = 1e-3
     for _ in range(iterations):
         A, g = J.T @ J, J.T @ r0
         for _ in range(8):
             delta = -np.linalg.solve(A + damping * np.diag(np.diag(A) + 1e-12), g)
-            trial = f(p + delta)
+            trial, trial_J = trial_at(p + delta)
             if trial @ trial < r0 @ r0:
-                p, r0, damping = p + delta, trial, max(damping / 10, 1e-9)
+                p, r0, J, damping = p + delta, trial, trial_J, max(damping / 10, 1e-9)
                 break
             damping *= 10
         else:
             break
-        J = forward_jacobian(f, p, r0)
+        if J is None:
+            J = jacobian_at(p, r0)
         if np.linalg.norm(delta) < 1e-10:
             break
-    return p, J
+    return p, r0, J

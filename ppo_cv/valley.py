@@ -23,8 +23,10 @@ from .lsq import (
     cross_matrices,
     cross_matrix,
     huber_weights,
+    levenberg_marquardt_stacked,
     rotation_increment,
     rotation_increments,
+    stacked_jacobian,
     tangent_basis,
 )
 from .metrics import rotation_error_deg
@@ -127,40 +129,9 @@ def _rotation_costs(cost, R: np.ndarray, cross_t: np.ndarray):
     return residuals
 
 
-def _residuals_and_jacobian(
-    residuals, p: np.ndarray, step: float = 1e-7
-) -> tuple[np.ndarray, np.ndarray]:
-    """The stacked ``residuals`` (N,) at ``p`` (P,) and their forward-difference Jacobian
-    (N, P), all in one evaluation."""
-    r = residuals(p + np.vstack([np.zeros(len(p)), step * np.eye(len(p))]))
-    return r[0], ((r[1:] - r[0]) / step).T
-
-
-def _fit(residuals, p: np.ndarray, iterations: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`~ppo_cv.lsq.levenberg_marquardt` on the stacked ``residuals`` (its steps, its
-    damping, its stops), each trial evaluated with the Jacobian at it: one evaluation per
-    trial. Returns the minimiser and its residuals."""
-    damping = 1e-3
-    r0, J = _residuals_and_jacobian(residuals, p)
-    for _ in range(iterations):
-        A, g = J.T @ J, J.T @ r0
-        for _ in range(8):
-            delta = -np.linalg.solve(A + damping * np.diag(np.diag(A) + 1e-12), g)
-            trial, trial_J = _residuals_and_jacobian(residuals, p + delta)
-            if trial @ trial < r0 @ r0:
-                p, r0, J, damping = p + delta, trial, trial_J, max(damping / 10, 1e-9)
-                break
-            damping *= 10
-        else:
-            break
-        if np.linalg.norm(delta) < 1e-10:
-            break
-    return p, r0
-
-
 def _polish(cost, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     basis = tangent_basis(t)
-    p, _ = _fit(_pose_costs(cost, R, t, basis), np.zeros(5), 20)
+    p, _ = levenberg_marquardt_stacked(_pose_costs(cost, R, t, basis), np.zeros(5), 20)
     return _pose(R, t, p, basis)
 
 
@@ -168,7 +139,7 @@ def _worst_direction(cost, R: np.ndarray, t: np.ndarray, step: float = 1e-6) -> 
     """Unit tangent of the sphere at ``t`` along which ``t`` is least determined."""
     basis = tangent_basis(t)
     residuals = _pose_costs(cost, R, t, basis)
-    _, J = _residuals_and_jacobian(residuals, np.zeros(5), step)
+    _, J = stacked_jacobian(residuals, np.zeros(5), step)
     covariance = np.linalg.pinv(J.T @ J)
     _, vectors = np.linalg.eigh(covariance[3:5, 3:5])
     u = vectors[:, -1] @ basis
@@ -181,7 +152,8 @@ def _profile(cost, R: np.ndarray, t: np.ndarray, u: np.ndarray) -> list[tuple]:
     steps = []
     for angle in np.radians(VALLEY_STEPS_DEG):
         ti = np.cos(angle) * t + np.sin(angle) * u
-        w, r = _fit(_rotation_costs(cost, R, cross_matrix(ti)), np.zeros(3), 4)
+        costs = _rotation_costs(cost, R, cross_matrix(ti))
+        w, r = levenberg_marquardt_stacked(costs, np.zeros(3), 4)
         R = rotation_increment(w) @ R
         steps.append((float(r @ r), R, ti))
     return steps
@@ -228,9 +200,7 @@ def valley_minima(
     return minima
 
 
-def valley_outcome(
-    R: np.ndarray, t: np.ndarray, minima: list[ValleyMinimum]
-) -> ValleyOutcome:
+def valley_outcome(R: np.ndarray, t: np.ndarray, minima: list[ValleyMinimum]) -> ValleyOutcome:
     """The pose: the lowest of ``minima`` when its cost is below the start's ``(R, t)``
     (excess 0) by more than :data:`VALLEY_SIGNIFICANCE`, else the start; and the spread of the
     rotations of the minima within :data:`VALLEY_SIGNIFICANCE` of the pose's cost."""

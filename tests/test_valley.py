@@ -9,7 +9,13 @@ import pytest
 from imperfect import imperfect_render
 
 from ppo_cv import estimate_pair, valley
-from ppo_cv.lsq import cross_matrix, levenberg_marquardt, rotation_increment, tangent_basis
+from ppo_cv.lsq import (
+    cross_matrix,
+    levenberg_marquardt,
+    levenberg_marquardt_stacked,
+    rotation_increment,
+    tangent_basis,
+)
 from ppo_cv.metrics import rotation_error_deg
 from ppo_cv.valley import VALLEY_SIGNIFICANCE, ValleyMinimum, valley_outcome
 
@@ -28,8 +34,11 @@ def _minimum(degrees: float, excess: float) -> ValleyMinimum:
         ([_minimum(30.0, 2 * VALLEY_SIGNIFICANCE)], None, 0.0),
         ([_minimum(30.0, -0.5 * VALLEY_SIGNIFICANCE)], None, 1.0),
         ([_minimum(30.0, -2 * VALLEY_SIGNIFICANCE)], 0, 0.0),
-        ([_minimum(30.0, -2 * VALLEY_SIGNIFICANCE), _minimum(60.0, -1.5 * VALLEY_SIGNIFICANCE)],
-         0, 1.0),
+        (
+            [_minimum(30.0, -2 * VALLEY_SIGNIFICANCE), _minimum(60.0, -1.5 * VALLEY_SIGNIFICANCE)],
+            0,
+            1.0,
+        ),
     ],
     ids=["none", "worse", "not-significantly-lower", "lower", "lower-and-a-near-one"],
 )
@@ -83,10 +92,11 @@ def test_the_stacked_fit_reaches_the_minimum_of_levenberg_marquardt(parameters, 
         stacked = valley._rotation_costs(cost, start_R, cross_matrix(start_t))
     else:
         stacked = valley._pose_costs(cost, start_R, start_t, tangent_basis(start_t))
+
     def single(q: np.ndarray) -> np.ndarray:
         return stacked(q[None])[0]
 
-    p, r = valley._fit(stacked, np.zeros(parameters), iterations)
+    p, r = levenberg_marquardt_stacked(stacked, np.zeros(parameters), iterations)
     expected, _ = levenberg_marquardt(single, np.zeros(parameters), iterations)
     start = single(np.zeros(parameters))
     assert r @ r < 0.5 * (start @ start)
