@@ -15,11 +15,13 @@ import time
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any, NoReturn
+from typing import TYPE_CHECKING, Annotated, Any, NoReturn
 
-import click
 import typer
 from typer.core import TyperCommand, TyperGroup
+
+if TYPE_CHECKING:  # typer brings click, or its own copy of it in recent releases
+    import click
 
 from ppo_cv.calib import implausible_intrinsics
 
