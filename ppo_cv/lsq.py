@@ -22,6 +22,7 @@ __all__ = [
     "huber_weights",
     "levenberg_marquardt",
     "levenberg_marquardt_stacked",
+    "pose_increment",
     "rotation_increment",
     "rotation_increments",
     "stacked_jacobian",
@@ -64,6 +65,17 @@ def rotation_increments(w: np.ndarray) -> np.ndarray:
     a = np.where(small, 1.0, np.sin(safe) / safe)
     b = np.where(small, 0.0, (1.0 - np.cos(safe)) / safe**2)
     return np.eye(3) + a * K + b * (K @ K)
+
+
+def pose_increment(
+    R: np.ndarray, t: np.ndarray, p: np.ndarray, basis: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """The pose ``(R, t)``, ``t`` a unit vector, moved by ``p`` (5,): the rotation increment
+    ``p[:3]`` applied on the left and ``t`` stepped by ``p[3:5]`` in ``basis`` (2, 3) of its
+    tangent plane (:func:`tangent_basis` of ``t`` when None), then normalised."""
+    basis = tangent_basis(t) if basis is None else basis
+    tp = t + p[3:5] @ basis
+    return rotation_increment(p[:3]) @ R, tp / np.linalg.norm(tp)
 
 
 def huber_weights(size: np.ndarray, scale: float) -> np.ndarray:

@@ -24,7 +24,7 @@ from .lsq import (
     gauss_newton_covariance,
     huber_weights,
     levenberg_marquardt,
-    rotation_increment,
+    pose_increment,
     rotation_increments,
     tangent_basis,
 )
@@ -287,12 +287,6 @@ class _RadialFit:
     pose: object
 
 
-def _radial_pose(R0: np.ndarray, t0: np.ndarray, p: np.ndarray) -> tuple:
-    """Pose ``(R, t)`` of the parameters ``p`` of :func:`refine_pose_radial`'s fit."""
-    tp = t0 + p[3:5] @ tangent_basis(t0)
-    return rotation_increment(p[:3]) @ R0, tp / np.linalg.norm(tp)
-
-
 def _radial_fit(
     R0, t0, a, b, scale, k1_prior, iterations, k1_start=0.0, prior_weight=None
 ) -> _RadialFit:
@@ -303,7 +297,7 @@ def _radial_fit(
     weight = scale if prior_weight is None else prior_weight
 
     def pose(p):
-        return _radial_pose(R0, t0, p)
+        return pose_increment(R0, t0, p)
 
     def stacked(p, focal_error=0.0, offset=(0.0, 0.0)):
         Rp, tp = pose(p)
@@ -365,7 +359,7 @@ def _k1_noise_bias(R, t, x1, x2, p, scale, k1_prior, iterations, replicates) -> 
     themselves (``t`` a unit vector), whose residuals size the simulated noise."""
     E = cross_matrix(t) @ R
     sizes = np.abs(
-        _sampson_signed(*_radial_pose(R, t, p), *(undistort_division(x, p[5]) for x in (x1, x2)))
+        _sampson_signed(*pose_increment(R, t, p), *(undistort_division(x, p[5]) for x in (x1, x2)))
     )
     fitted = [
         _radial_fit(R, t, a, b, scale, k1_prior, iterations).p[5]

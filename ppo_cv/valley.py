@@ -24,6 +24,7 @@ from .lsq import (
     cross_matrix,
     huber_weights,
     levenberg_marquardt_stacked,
+    pose_increment,
     rotation_increment,
     rotation_increments,
     stacked_jacobian,
@@ -100,13 +101,6 @@ def _cost(x1: np.ndarray, x2: np.ndarray, scale: float):
     return residuals
 
 
-def _pose(
-    R: np.ndarray, t: np.ndarray, p: np.ndarray, basis: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    tp = t + p[3:5] @ basis
-    return rotation_increment(p[:3]) @ R, tp / np.linalg.norm(tp)
-
-
 def _pose_costs(cost, R: np.ndarray, t: np.ndarray, basis: np.ndarray):
     """The residuals (K, N) of the poses ``p`` (K, 5) about ``(R, t)``: rotation increment,
     then ``t`` moved in ``basis``."""
@@ -132,7 +126,7 @@ def _rotation_costs(cost, R: np.ndarray, cross_t: np.ndarray):
 def _polish(cost, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     basis = tangent_basis(t)
     p, _ = levenberg_marquardt_stacked(_pose_costs(cost, R, t, basis), np.zeros(5), 20)
-    return _pose(R, t, p, basis)
+    return pose_increment(R, t, p, basis)
 
 
 def _worst_direction(cost, R: np.ndarray, t: np.ndarray, step: float = 1e-6) -> np.ndarray:
