@@ -312,8 +312,10 @@ def _read_json(path: str, text: str) -> list[Camera]:
         listed = data.get("cameras") if isinstance(data, dict) else data
         if isinstance(data, dict) and "cameras" in data and not isinstance(listed, list):
             raise ValueError(f"{path}: cameras must be a list of cameras")
-        if isinstance(data, dict) and "cameras" in data or (
-            isinstance(data, list) and data and all(isinstance(c, dict) for c in data)
+        if (
+            isinstance(data, dict)
+            and "cameras" in data
+            or (isinstance(data, list) and data and all(isinstance(c, dict) for c in data))
         ):
             cameras = [_json_camera(c, f"{path} camera {i + 1}") for i, c in enumerate(listed)]
         elif isinstance(data, dict) and "K1" in data:

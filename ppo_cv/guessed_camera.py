@@ -39,6 +39,7 @@ translating pairs under the 1.2 x image size guess, where the second run would o
 MIN_FOCAL_REFIT = 0.01
 """Relative change of the focal length below which a pair is not decided again."""
 
+
 def fitted_focal_scale(result: PairResult) -> float | None:
     """Scale of the guessed focal length with which ``result``'s pair is worth deciding again:
     the one that makes the homography of its inliers a rotation, when that homography is then

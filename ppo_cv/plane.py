@@ -723,6 +723,7 @@ def rms_rotation_angle_deg(covariance: np.ndarray) -> float:
     """
     return float(np.degrees(np.sqrt(max(float(np.trace(covariance)), 0.0))))
 
+
 def _rotation_sigmas_deg(
     model, p, scale, k1_prior, count: int, held_k1_sigma: float | None
 ) -> tuple[float, float]:
