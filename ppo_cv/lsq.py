@@ -18,6 +18,7 @@ __all__ = [
     "cross_matrix",
     "cross_matrices",
     "forward_jacobian",
+    "forward_jacobian_stacked",
     "gauss_newton_covariance",
     "huber_weights",
     "levenberg_marquardt",
@@ -33,9 +34,16 @@ __all__ = [
 def tangent_basis(n: np.ndarray) -> np.ndarray:
     """Two unit vectors orthogonal to the unit vector ``n`` and to each other, shape (2, 3)."""
     axis = np.eye(3)[int(np.argmin(np.abs(n)))]
-    a = np.cross(n, axis)
+    a = _cross(n, axis)
     a /= np.linalg.norm(a)
-    return np.array([a, np.cross(n, a)])
+    return np.array([a, _cross(n, a)])
+
+
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``u x v`` of two vectors (3,), as ``np.cross`` computes it without its axis handling."""
+    return np.array(
+        [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+    )
 
 
 def rotation_increment(w: np.ndarray) -> np.ndarray:
@@ -93,6 +101,15 @@ def forward_jacobian(
     return np.column_stack([(f(p + step * e) - r0) / step for e in np.eye(len(p))])
 
 
+def forward_jacobian_stacked(
+    many: Callable[[np.ndarray], np.ndarray], p: np.ndarray, r0: np.ndarray, step: float = 1e-7
+) -> np.ndarray:
+    """:func:`forward_jacobian` (M, P) of a stacked ``f`` (``many``: (K, P) -> (K, M)) in one
+    call of it, ``r0 = f(p)``; laid out in memory as :func:`forward_jacobian`'s, so that the
+    products of the steps that use it are the same to the bit."""
+    return np.ascontiguousarray(((many(p + step * np.eye(len(p))) - r0) / step).T)
+
+
 def gauss_newton_covariance(J: np.ndarray, variance: float) -> np.ndarray | None:
     """Covariance ``variance (J^T J)^-1`` (P, P) of the parameters of a least-squares fit with
     Jacobian ``J`` (M, P) at its minimum; None when ``J^T J`` is singular."""
@@ -112,19 +129,27 @@ def stacked_jacobian(
 
 
 def levenberg_marquardt(
-    f: Callable[[np.ndarray], np.ndarray], p: np.ndarray, iterations: int
+    f: Callable[[np.ndarray], np.ndarray],
+    p: np.ndarray,
+    iterations: int,
+    many: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Minimise ``f(p) @ f(p)`` by Levenberg-Marquardt with forward-difference Jacobians.
 
     Returns the minimiser and the Jacobian there. A step is taken only when it lowers the cost
     (up to 8 increases of the damping per iteration); the loop stops when none does, when the
-    step is below 1e-10 or after ``iterations`` steps.
+    step is below 1e-10 or after ``iterations`` steps. ``many``, when given, is ``f`` of a
+    stack of parameter vectors (K, P) -> (K, M): each Jacobian is then one call of it
+    (:func:`forward_jacobian_stacked`), the same figures when its rows are ``f``'s.
     """
+    if many is None:
+        jacobian = lambda q, r: forward_jacobian(f, q, r)  # noqa: E731
+    else:
+        jacobian = lambda q, r: forward_jacobian_stacked(many, q, r)  # noqa: E731
     r0 = f(p)
     p, _, J = _damped_steps(
-        lambda q: (f(q), None), lambda q, r: forward_jacobian(f, q, r),
-        p, r0, forward_jacobian(f, p, r0), iterations,
-    )  # fmt: skip
+        lambda q: (f(q), None), jacobian, p, r0, jacobian(p, r0), iterations
+    )
     return p, J
 
 

@@ -113,6 +113,7 @@ from .refine import (
     RadialPose,
     checked_inliers,
     huber_bound_px,
+    pose_information,
     pose_sigmas_deg,
     refine_pose,
     refine_pose_radial,
@@ -976,11 +977,12 @@ def _finish_general(state: _Finishing) -> _ModelPart:
     )
     keep = final.inliers & np.all(np.isfinite(final.points3d), axis=1)
 
+    information = pose_information(final.R, final.t, c1, c2, inliers)
+
     def sigmas(spread_only: bool) -> PoseSigmas:
-        return pose_sigmas_deg(
-            final.R, final.t, c1, c2, inliers, principal_prior=state.priors.principal,
-            **_radial_priors(radial, spread_only),
-        )  # fmt: skip
+        return information.sigmas_deg(
+            principal_prior=state.priors.principal, **_radial_priors(radial, spread_only)
+        )
 
     pose_sigmas = sigmas(False)
     held = radial is not None and radial.k1 == 0.0 and radial.noise_bias_measured

@@ -52,6 +52,8 @@ __all__ = [
     "k1_noise_bias",
     "noise_replicates",
     "rotation_residuals",
+    "PoseInformation",
+    "pose_information",
     "pose_sigmas_deg",
     "translation_sigma_deg",
 ]
@@ -295,19 +297,45 @@ def _radial_fit(
     ``prior_weight`` (the Huber bound ``scale`` when None) against the Huber-weighted signed
     Sampson errors of the matches ``a, b``."""
     weight = scale if prior_weight is None else prior_weight
+    basis = tangent_basis(t0)
+    given = [_RadialPoints(x) for x in (a, b)]
 
     def pose(p):
-        return pose_increment(R0, t0, p)
+        return pose_increment(R0, t0, p, basis)
+
+    def many(P, focal_error=0.0, offset=(0.0, 0.0)):
+        Rp = rotation_increments(P[:, :3]) @ R0
+        tp = t0 + P[:, 3:5] @ basis
+        tp = tp / np.linalg.norm(tp, axis=1, keepdims=True)
+        k1 = k1_start + P[:, 5]
+        moved = given
+        if not (focal_error == 0.0 and offset == (0.0, 0.0)):
+            moved = [_RadialPoints(_adjusted(x, focal_error, offset)) for x in (a, b)]
+        r = _sampson_signed(Rp, tp, *(points.undistorted(k1) for points in moved))
+        return np.column_stack([huber_weights(np.abs(r), scale) * r, weight * k1 / k1_prior])
 
     def stacked(p, focal_error=0.0, offset=(0.0, 0.0)):
-        Rp, tp = pose(p)
-        k1 = k1_start + p[5]
-        c1, c2 = (undistort_division(_adjusted(x, focal_error, offset), k1) for x in (a, b))
-        r = _sampson_signed(Rp, tp, c1, c2)
-        return np.append(huber_weights(np.abs(r), scale) * r, weight * k1 / k1_prior)
+        return many(p[None], focal_error, offset)[0]
 
-    p, J = levenberg_marquardt(stacked, np.zeros(6), iterations)
+    p, J = levenberg_marquardt(stacked, np.zeros(6), iterations, many=many)
     return _RadialFit(p, J, stacked, pose)
+
+
+class _RadialPoints:
+    """Normalised points (N, 2 or 3) as :func:`ppo_cv.plane.undistort_division` reads them,
+    their squared radii taken once for the several coefficients of a fit."""
+
+    def __init__(self, x: np.ndarray) -> None:
+        self.xy = np.asarray(x, dtype=np.float64)[:, :2]
+        self.r2 = np.sum(self.xy**2, axis=1)
+        self.ones = np.ones((1, len(self.xy), 1))
+
+    def undistorted(self, k1: np.ndarray) -> np.ndarray:
+        """:func:`~ppo_cv.plane.undistort_division` by each coefficient of ``k1`` (K,), shape
+        (K, N, 3): the same figures."""
+        scale = 1.0 + k1[:, None] * self.r2[None]
+        xy = self.xy[None] / scale[..., None]
+        return np.concatenate([xy, np.broadcast_to(self.ones, xy.shape[:2] + (1,))], axis=2)
 
 
 K1_BIAS_REPLICATES = 16
@@ -729,26 +757,78 @@ def pose_sigmas_deg(
         ``inf`` for the rotation and the cap for the translation with fewer than 6 inliers or
         an information that is not positive definite.
     """
+    return pose_information(R, t, x1, x2, inliers, noise, step).sigmas_deg(
+        focal_prior=focal_prior, k1_prior=k1_prior, principal_prior=principal_prior,
+        held_k1_prior=held_k1_prior,
+    )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class PoseInformation:
+    """The information of a refined pose in the parameters of :func:`pose_sigmas_deg`, the
+    image noise taken out, before any prior: what its deviations under several priors share
+    (:func:`pose_information`).
+
+    Attributes
+    ----------
+    info : ndarray, shape (9, 9), or None
+        ``J^T J - s^2 sum_i G_i G_i^T`` over the checked inliers, in the pose increment (5),
+        the focal scale, ``k1`` and the principal-point offset (2); None with fewer than 6
+        of them (the pose undetermined).
+    variance : float
+        ``s^2``, the noise variance of one Sampson residual.
+    """
+
+    info: np.ndarray | None
+    variance: float
+
+    def sigmas_deg(
+        self,
+        *,
+        focal_prior: float | None = FOCAL_PRIOR,
+        k1_prior: float | None = None,
+        principal_prior: np.ndarray | None = None,
+        held_k1_prior: float | None = None,
+    ) -> PoseSigmas:
+        """:func:`pose_sigmas_deg` of this information under the given priors (its keywords)."""
+        if self.info is None:
+            return _UNDETERMINED
+        info = self.info.copy()
+        estimated = [*range(_NPOSE), *([_K1] if k1_prior is not None else [])]
+        if k1_prior is not None:
+            info[_K1, _K1] += self.variance / k1_prior**2
+        considered, deviations = _considered_parameters(
+            focal_prior, principal_prior, None if k1_prior is not None else held_k1_prior
+        )
+        fixed = info[np.ix_(estimated, considered)]
+        return _pose_sigmas_deg(
+            info[np.ix_(estimated, estimated)], self.variance, fixed, np.asarray(deviations, float)
+        )
+
+
+def pose_information(
+    R: np.ndarray,
+    t: np.ndarray,
+    x1: np.ndarray,
+    x2: np.ndarray,
+    inliers: np.ndarray,
+    noise: float | None = None,
+    step: float = 1e-6,
+) -> PoseInformation:
+    """The :class:`PoseInformation` of the pose ``(R, t)`` on the ``inliers`` that
+    :func:`pose_sigmas_deg` takes (its parameters of the same names), whose
+    :meth:`PoseInformation.sigmas_deg` gives the deviations under each set of priors without
+    the Jacobians again."""
     a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
     a, b = a / a[:, 2:], b / b[:, 2:]
     t = np.asarray(t, float).reshape(3) / np.linalg.norm(t)
     residuals = _calibrated_residuals(R, t)
     a, b, J, noise_info = _checked_jacobian_and_noise(residuals, a, b, step)
     if len(a) < 6:
-        return _UNDETERMINED
+        return PoseInformation(None, float("nan"))
     r0 = residuals(np.zeros((1, _NPARAMS)), a[None], b[None])[0]
     variance = float(r0 @ r0) / (len(a) - _NPOSE) if noise is None else float(noise) ** 2
-    info = J.T @ J - variance * noise_info
-    estimated = [*range(_NPOSE), *([_K1] if k1_prior is not None else [])]
-    if k1_prior is not None:
-        info[_K1, _K1] += variance / k1_prior**2
-    considered, deviations = _considered_parameters(
-        focal_prior, principal_prior, None if k1_prior is not None else held_k1_prior
-    )
-    fixed = info[np.ix_(estimated, considered)]
-    return _pose_sigmas_deg(
-        info[np.ix_(estimated, estimated)], variance, fixed, np.asarray(deviations, float)
-    )
+    return PoseInformation(J.T @ J - variance * noise_info, variance)
 
 
 LEVERAGE_MAX = 0.5

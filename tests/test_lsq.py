@@ -9,6 +9,7 @@ from ppo_cv.lsq import (
     cross_matrices,
     cross_matrix,
     forward_jacobian,
+    forward_jacobian_stacked,
     gauss_newton_covariance,
     huber_weights,
     levenberg_marquardt,
@@ -41,6 +42,35 @@ def test_levenberg_marquardt_solves_a_nonlinear_fit():
     np.testing.assert_allclose(p, [2.0, 1.5], atol=1e-6)
     np.testing.assert_allclose(J, forward_jacobian(residuals, p, residuals(p)), atol=1e-12)
     assert J[:, 0] == pytest.approx(np.exp(-1.5 * x), abs=1e-5)
+
+
+def test_tangent_basis_is_the_cross_products_numpy_takes():
+    rng = np.random.default_rng(1)
+    for n in rng.normal(size=(200, 3)):
+        n = n / np.linalg.norm(n)
+        a = np.cross(n, np.eye(3)[int(np.argmin(np.abs(n)))])
+        a /= np.linalg.norm(a)
+        assert np.array_equal(tangent_basis(n), np.array([a, np.cross(n, a)]))
+
+
+def test_levenberg_marquardt_with_stacked_jacobians_takes_the_same_steps():
+    x = np.linspace(0.0, 2.0, 30)
+    y = 2.0 * np.exp(-1.5 * x) + 0.01 * np.sin(7 * x)
+
+    def many(P):
+        return P[:, :1] * np.exp(-P[:, 1:2] * x) - y
+
+    def one(p):
+        return many(p[None])[0]
+
+    start = np.array([1.0, 0.5])
+    stacked = forward_jacobian_stacked(many, start, one(start))
+    assert np.array_equal(stacked, forward_jacobian(one, start, one(start)))
+    assert stacked.flags["C_CONTIGUOUS"]
+    p, J = levenberg_marquardt(one, start, 50)
+    p_stacked, J_stacked = levenberg_marquardt(one, start, 50, many=many)
+    assert np.array_equal(p_stacked, p) and np.array_equal(J_stacked, J)
+    np.testing.assert_allclose(p, [2.0, 1.5], atol=0.02)
 
 
 def test_gauss_newton_covariance_of_a_line_fit():

@@ -12,7 +12,7 @@ from imperfect import imperfect_render
 from ppo_cv import estimate_pair
 from ppo_cv.lsq import rotation_increment
 from ppo_cv.metrics import rotation_error_deg
-from ppo_cv.refine import LEVERAGE_MAX, checked_matches, pose_sigmas_deg
+from ppo_cv.refine import LEVERAGE_MAX, checked_matches, pose_information, pose_sigmas_deg
 
 
 def _gaussian_rows(count: int, seed: int = 0) -> np.ndarray:
@@ -70,6 +70,29 @@ def test_a_false_match_at_the_epipole_leaves_the_deviations_of_the_others():
     assert np.isfinite(alone.rotation_deg) and alone.translation_deg < 5.0
     assert with_false.rotation_deg == pytest.approx(alone.rotation_deg, rel=1e-6)
     assert with_false.translation_deg == pytest.approx(alone.translation_deg, rel=1e-6)
+
+
+@pytest.mark.parametrize(
+    "priors",
+    [
+        {},
+        {"focal_prior": None},
+        {"k1_prior": 0.1, "principal_prior": np.array([0.01, 0.02])},
+        {"held_k1_prior": 0.05, "principal_prior": np.array([0.01, 0.02])},
+        {"held_k1_prior": 0.0},
+    ],
+    ids=["focal", "exact", "fitted-k1", "held-k1", "held-k1-spread-only"],
+)
+def test_one_pose_information_gives_the_deviations_under_each_prior(priors):
+    R, t, x1, x2 = _general_matches()
+    x1, x2 = np.vstack([x1, R.T @ t / (R.T @ t)[2]]), np.vstack([x2, t / t[2] + 1e-3])
+    used = np.ones(len(x1), bool)
+    information = pose_information(R, t, x1, x2, used)
+    assert information.sigmas_deg(**priors) == pose_sigmas_deg(R, t, x1, x2, used, **priors)
+    assert np.isfinite(information.sigmas_deg(**priors).rotation_deg)
+    few = pose_information(R, t, x1, x2, np.arange(len(x1)) < 5)
+    assert few.sigmas_deg(**priors) == pose_sigmas_deg(R, t, x1, x2, np.arange(len(x1)) < 5)
+    assert few.sigmas_deg(**priors).rotation_deg == np.inf
 
 
 def test_a_pose_held_by_false_matches_at_its_epipole_reports_its_error():
