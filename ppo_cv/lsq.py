@@ -22,6 +22,7 @@ __all__ = [
     "gauss_newton_covariance",
     "huber_weights",
     "levenberg_marquardt",
+    "levenberg_marquardt_batched",
     "levenberg_marquardt_stacked",
     "pose_increment",
     "rotation_increment",
@@ -99,6 +100,72 @@ def forward_jacobian(
 ) -> np.ndarray:
     """Jacobian (M, P) of ``f`` at ``p`` by forward differences, ``r0 = f(p)``."""
     return np.column_stack([(f(p + step * e) - r0) / step for e in np.eye(len(p))])
+
+
+def levenberg_marquardt_batched(
+    many: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    p: np.ndarray,
+    iterations: int,
+    step: float = 1e-7,
+) -> np.ndarray:
+    """:func:`levenberg_marquardt` of several independent problems of the same shape at once.
+
+    ``many(P, rows)`` gives the residuals (K, M) of the parameter vectors ``P`` (K, P), row
+    ``k`` one of problem ``rows[k]``; ``p`` (S, P) are the starts of the S problems. Each
+    problem takes the steps, damping and stops it would take alone, up to the rounding of
+    the stacked products. Returns the minimisers (S, P).
+    """
+    p = np.array(p, dtype=np.float64)
+    every = np.arange(len(p))
+    r0 = many(p, every)
+    J = _batched_jacobians(many, p, r0, every, step)
+    damping = np.full(len(p), 1e-3)
+    active = np.ones(len(p), dtype=bool)
+    for _ in range(iterations):
+        rows = np.flatnonzero(active)
+        if rows.size == 0:
+            break
+        moved, delta = _batched_damped_step(many, p, r0, J[rows], rows, damping)
+        active[rows[~moved]] = False
+        done = rows[moved]
+        if done.size:
+            J[done] = _batched_jacobians(many, p[done], r0[done], done, step)
+        active[done[np.linalg.norm(delta[moved], axis=1) < 1e-10]] = False
+    return p
+
+
+def _batched_damped_step(many, p, r0, J, rows, damping) -> tuple[np.ndarray, np.ndarray]:
+    """One iteration of :func:`_damped_steps` for the problems ``rows`` with Jacobians ``J``
+    (k, M, P), up to 8 increases of each one's damping; ``p``, ``r0`` and ``damping`` are
+    updated in place. Returns which problems moved and their steps (k, P)."""
+    A = np.swapaxes(J, 1, 2) @ J
+    g = np.einsum("kmp,km->kp", J, r0[rows])
+    ridge = (np.diagonal(A, axis1=1, axis2=2) + 1e-12)[:, :, None] * np.eye(A.shape[1])
+    pending = np.ones(len(rows), dtype=bool)
+    delta = np.zeros((len(rows), p.shape[1]))
+    for _ in range(8):
+        k = np.flatnonzero(pending)
+        if k.size == 0:
+            break
+        system = A[k] + damping[rows[k], None, None] * ridge[k]
+        delta[k] = -np.linalg.solve(system, g[k][:, :, None])[:, :, 0]
+        trial = many(p[rows[k]] + delta[k], rows[k])
+        better = np.sum(trial * trial, axis=1) < np.sum(r0[rows[k]] ** 2, axis=1)
+        kept, worse = rows[k[better]], rows[k[~better]]
+        p[kept] += delta[k[better]]
+        r0[kept] = trial[better]
+        damping[kept] = np.maximum(damping[kept] / 10, 1e-9)
+        damping[worse] *= 10
+        pending[k[better]] = False
+    return ~pending, delta
+
+
+def _batched_jacobians(many, p: np.ndarray, r0: np.ndarray, rows: np.ndarray, step: float):
+    """Forward-difference Jacobians (k, M, P) of the problems ``rows`` at ``p`` (k, P)."""
+    size = p.shape[1]
+    stepped = (p[:, None, :] + step * np.eye(size)).reshape(-1, size)
+    r = many(stepped, np.repeat(rows, size)).reshape(len(p), size, -1)
+    return np.swapaxes((r - r0[:, None, :]) / step, 1, 2)
 
 
 def forward_jacobian_stacked(

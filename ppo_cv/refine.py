@@ -24,6 +24,7 @@ from .lsq import (
     gauss_newton_covariance,
     huber_weights,
     levenberg_marquardt,
+    levenberg_marquardt_batched,
     pose_increment,
     rotation_increments,
     tangent_basis,
@@ -303,16 +304,13 @@ def _radial_fit(
     def pose(p):
         return pose_increment(R0, t0, p, basis)
 
+    residuals = _radial_residuals(R0, t0, basis, scale, k1_prior, k1_start)
+
     def many(P, focal_error=0.0, offset=(0.0, 0.0)):
-        Rp = rotation_increments(P[:, :3]) @ R0
-        tp = t0 + P[:, 3:5] @ basis
-        tp = tp / np.linalg.norm(tp, axis=1, keepdims=True)
-        k1 = k1_start + P[:, 5]
         moved = given
         if not (focal_error == 0.0 and offset == (0.0, 0.0)):
             moved = [_RadialPoints(_adjusted(x, focal_error, offset)) for x in (a, b)]
-        r = _sampson_signed(Rp, tp, *(points.undistorted(k1) for points in moved))
-        return np.column_stack([huber_weights(np.abs(r), scale) * r, weight * k1 / k1_prior])
+        return residuals(P, moved, weight)
 
     def stacked(p, focal_error=0.0, offset=(0.0, 0.0)):
         return many(p[None], focal_error, offset)[0]
@@ -321,21 +319,60 @@ def _radial_fit(
     return _RadialFit(p, J, stacked, pose)
 
 
+def _radial_fits(
+    R0, t0, A, B, scale, k1_prior, iterations, k1_start=0.0, prior_weights=None
+) -> np.ndarray:
+    """The parameters (S, 6) of :func:`_radial_fit` on S match sets of one size, ``A`` and
+    ``B`` (S, N, 3), fitted together (:func:`ppo_cv.lsq.levenberg_marquardt_batched`); the
+    prior row of set ``s`` weighted by ``prior_weights[s]`` (the Huber bound when None)."""
+    weights = np.full(len(A), scale) if prior_weights is None else np.asarray(prior_weights)
+    residuals = _radial_residuals(R0, t0, tangent_basis(t0), scale, k1_prior, k1_start)
+    given = [_RadialPoints(x) for x in (A, B)]
+
+    def many(P, rows):
+        return residuals(P, given, weights[rows], rows)
+
+    return levenberg_marquardt_batched(many, np.zeros((len(A), 6)), iterations)
+
+
+def _radial_residuals(R0, t0, basis, scale, k1_prior, k1_start):
+    """The residuals (K, N + 1) of :func:`_radial_fit`'s cost at the parameter rows ``P`` (K,
+    6) about ``(R0, t0)`` (``basis`` the tangent basis of ``t0``), on the ``points`` of the
+    two views (:class:`_RadialPoints`, of their sets ``rows`` when given), the prior row
+    weighted by ``weight`` (a float or (K,))."""
+
+    def residuals(P, points, weight, rows=None):
+        Rp = rotation_increments(P[:, :3]) @ R0
+        tp = t0 + P[:, 3:5] @ basis
+        tp = tp / np.linalg.norm(tp, axis=1, keepdims=True)
+        k1 = k1_start + P[:, 5]
+        r = _sampson_signed(Rp, tp, *(view.undistorted(k1, rows) for view in points))
+        return np.column_stack([huber_weights(np.abs(r), scale) * r, weight * k1 / k1_prior])
+
+    return residuals
+
+
+def _stacked_sets(sets) -> tuple[np.ndarray, np.ndarray]:
+    """Match sets ``(x1, x2)`` of one size (:func:`noise_replicates`) as two arrays (S, N, 3)."""
+    sets = list(sets)
+    return np.stack([a for a, _ in sets]), np.stack([b for _, b in sets])
+
+
 class _RadialPoints:
-    """Normalised points (N, 2 or 3) as :func:`ppo_cv.plane.undistort_division` reads them,
-    their squared radii taken once for the several coefficients of a fit."""
+    """Normalised points (N, 2 or 3), or S sets of them (S, N, 2 or 3), as
+    :func:`ppo_cv.plane.undistort_division` reads them, their squared radii taken once for
+    the several coefficients of a fit."""
 
     def __init__(self, x: np.ndarray) -> None:
-        self.xy = np.asarray(x, dtype=np.float64)[:, :2]
-        self.r2 = np.sum(self.xy**2, axis=1)
-        self.ones = np.ones((1, len(self.xy), 1))
+        self.xy = np.asarray(x, dtype=np.float64)[..., :2]
+        self.r2 = np.sum(self.xy**2, axis=-1)
 
-    def undistorted(self, k1: np.ndarray) -> np.ndarray:
-        """:func:`~ppo_cv.plane.undistort_division` by each coefficient of ``k1`` (K,), shape
-        (K, N, 3): the same figures."""
-        scale = 1.0 + k1[:, None] * self.r2[None]
-        xy = self.xy[None] / scale[..., None]
-        return np.concatenate([xy, np.broadcast_to(self.ones, xy.shape[:2] + (1,))], axis=2)
+    def undistorted(self, k1: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """:func:`~ppo_cv.plane.undistort_division` by each coefficient of ``k1`` (K,), of the
+        one set or of the sets ``rows`` (K,), shape (K, N, 3): the same figures."""
+        xy, r2 = (self.xy[None], self.r2[None]) if rows is None else (self.xy[rows], self.r2[rows])
+        xy = xy / (1.0 + k1[:, None] * r2)[..., None]
+        return np.concatenate([xy, np.ones(xy.shape[:2] + (1,))], axis=2)
 
 
 K1_BIAS_REPLICATES = 16
@@ -389,10 +426,8 @@ def _k1_noise_bias(R, t, x1, x2, p, scale, k1_prior, iterations, replicates) -> 
     sizes = np.abs(
         _sampson_signed(*pose_increment(R, t, p), *(undistort_division(x, p[5]) for x in (x1, x2)))
     )
-    fitted = [
-        _radial_fit(R, t, a, b, scale, k1_prior, iterations).p[5]
-        for a, b in noise_replicates(E, x1, x2, sizes, replicates)
-    ]
+    A, B = _stacked_sets(noise_replicates(E, x1, x2, sizes, replicates))
+    fitted = _radial_fits(R, t, A, B, scale, k1_prior, iterations)[:, 5]
     return float(np.mean(fitted)), float(np.std(fitted, ddof=1) / np.sqrt(replicates))
 
 
@@ -492,11 +527,8 @@ def released_lens_shift_deg(
     move, sizes = released
     if replicates < 2:
         return float(np.degrees(np.linalg.norm(move))), 0.0
-    replicated = (
-        _released_move(R, t, k1, ra, rb, scale, iterations)
-        for ra, rb in noise_replicates(cross_matrix(t) @ R, a, b, sizes, replicates, k1)
-    )
-    moves = np.array([found[0] for found in replicated if found is not None])
+    A, B = _stacked_sets(noise_replicates(cross_matrix(t) @ R, a, b, sizes, replicates, k1))
+    moves = _released_moves(R, t, k1, A, B, scale, iterations)
     if len(moves) < 2:
         return float(np.degrees(np.linalg.norm(move))), 0.0
     spread = np.sqrt(np.sum(np.var(moves, axis=0, ddof=1)) * (1.0 + 1.0 / len(moves)))
@@ -513,6 +545,20 @@ def _released_move(R, t, k1, a, b, scale, iterations) -> tuple | None:
     fit = _radial_fit(R, t, a, b, scale, K1_PRIOR, iterations, k1_start=k1, prior_weight=noise)
     fitted = (undistort_division(x, k1 + fit.p[5]) for x in (a, b))
     return fit.p[:3], np.abs(_sampson_signed(*fit.pose(fit.p), *fitted))
+
+
+def _released_moves(R, t, k1, A, B, scale, iterations) -> np.ndarray:
+    """The rotation increments (S', 3) of :func:`_released_move` on the match sets ``A``,
+    ``B`` (S, N, 3), fitted together, of the S' sets that have noise."""
+    noise = np.array([
+        robust_sigma(_sampson_signed(R, t, *(undistort_division(x, k1) for x in (a, b))), 1)
+        for a, b in zip(A, B, strict=True)
+    ])  # fmt: skip
+    has = noise > 0
+    if not has.any():
+        return np.empty((0, 3))
+    p = _radial_fits(R, t, A[has], B[has], scale, K1_PRIOR, iterations, k1, noise[has])
+    return p[:, :3]
 
 
 def _sampson_corrected(E: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> tuple:

@@ -13,6 +13,7 @@ from ppo_cv.lsq import (
     gauss_newton_covariance,
     huber_weights,
     levenberg_marquardt,
+    levenberg_marquardt_batched,
     tangent_basis,
 )
 
@@ -71,6 +72,23 @@ def test_levenberg_marquardt_with_stacked_jacobians_takes_the_same_steps():
     p_stacked, J_stacked = levenberg_marquardt(one, start, 50, many=many)
     assert np.array_equal(p_stacked, p) and np.array_equal(J_stacked, J)
     np.testing.assert_allclose(p, [2.0, 1.5], atol=0.02)
+
+
+def test_batched_levenberg_marquardt_takes_each_problem_to_its_own_minimum():
+    x = np.linspace(0.0, 2.0, 30)
+    truths = np.array([[2.0, 1.5], [0.5, 0.2], [3.0, 4.0], [1.0, 0.5]])
+    y = truths[:, :1] * np.exp(-truths[:, 1:] * x) + 0.01 * np.outer([0, 1, 2, 0], np.sin(7 * x))
+    starts = np.array([[1.0, 0.5], [1.0, 0.5], [1.0, 0.5], [1.0, 0.5]])
+
+    def many(P, rows):
+        return P[:, :1] * np.exp(-P[:, 1:2] * x) - y[rows]
+
+    found = levenberg_marquardt_batched(many, starts, 50)
+    for row in range(len(truths)):
+        alone, _ = levenberg_marquardt(lambda p, r=row: many(p[None], [r])[0], starts[row], 50)
+        np.testing.assert_allclose(found[row], alone, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(found[:1], truths[:1], atol=0.02)
+    np.testing.assert_array_equal(found[3], starts[3])  # already at its minimum: no step lowers it
 
 
 def test_gauss_newton_covariance_of_a_line_fit():
