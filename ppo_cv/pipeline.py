@@ -971,13 +971,14 @@ def _finish_general(state: _Finishing) -> _ModelPart:
         )  # fmt: skip
         R, t, radial_k1 = radial.R, radial.t, radial.k1
     c1, c2 = undistort_division(x1, radial_k1), undistort_division(x2, radial_k1)
-    valley = _valley(state, R, t, c1, c2, inliers)
+    information = pose_information(R, t, c1, c2, inliers)
+    valley = _valley(state, R, t, c1, c2, inliers, information.checked)
+    if not (np.array_equal(valley.R, R) and np.array_equal(valley.t, t)):
+        information = pose_information(valley.R, valley.t, c1, c2, inliers)
     final = _recover_normalized(
         essential_from_pose(valley.R, valley.t), c1[:, :2], c2[:, :2], inliers, 0.0
     )
     keep = final.inliers & np.all(np.isfinite(final.points3d), axis=1)
-
-    information = pose_information(final.R, final.t, c1, c2, inliers)
 
     def sigmas(spread_only: bool) -> PoseSigmas:
         return information.sigmas_deg(
@@ -1001,13 +1002,15 @@ def _finish_general(state: _Finishing) -> _ModelPart:
     )
 
 
-def _valley(state: _Finishing, R, t, c1, c2, inliers: np.ndarray) -> ValleyOutcome:
+def _valley(
+    state: _Finishing, R, t, c1, c2, inliers: np.ndarray, checked: np.ndarray
+) -> ValleyOutcome:  # fmt: skip
     """The refined general pose ``(R, t)`` (points ``c1``, ``c2`` undistorted by its radial
     term) checked along its bas-relief valley (:func:`~ppo_cv.valley.valley_outcome` of
-    :func:`~ppo_cv.valley.valley_minima` on the checked inliers) when some of its inliers set
-    a direction of the pose by themselves (:func:`checked_inliers`): the sign of an epipole
-    placed on false matches. Otherwise, or without refinement, the pose with no spread."""
-    checked = checked_inliers(R, t, c1, c2, inliers)
+    :func:`~ppo_cv.valley.valley_minima` on the ``checked`` inliers) when some of its inliers
+    set a direction of the pose by themselves (:func:`checked_inliers`, which
+    :class:`~ppo_cv.refine.PoseInformation` holds): the sign of an epipole placed on false
+    matches. Otherwise, or without refinement, the pose with no spread."""
     if not state.options.refine or np.array_equal(checked, inliers):
         return ValleyOutcome(R, t, 0.0)
     scale = huber_bound_px(state.options.ransac_threshold, state.motion.noise_px) / state.focal

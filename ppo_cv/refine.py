@@ -823,10 +823,13 @@ class PoseInformation:
         of them (the pose undetermined).
     variance : float
         ``s^2``, the noise variance of one Sampson residual.
+    checked : ndarray of bool, shape (N,)
+        The inliers behind it: :func:`checked_inliers` at the same pose.
     """
 
     info: np.ndarray | None
     variance: float
+    checked: np.ndarray
 
     def sigmas_deg(
         self,
@@ -869,12 +872,14 @@ def pose_information(
     a, b = a / a[:, 2:], b / b[:, 2:]
     t = np.asarray(t, float).reshape(3) / np.linalg.norm(t)
     residuals = _calibrated_residuals(R, t)
-    a, b, J, noise_info = _checked_jacobian_and_noise(residuals, a, b, step)
+    kept, a, b, J, noise_info = _checked_jacobian_and_noise(residuals, a, b, step)
+    checked = np.asarray(inliers, dtype=bool).copy()
+    checked[np.flatnonzero(checked)[~kept]] = False
     if len(a) < 6:
-        return PoseInformation(None, float("nan"))
+        return PoseInformation(None, float("nan"), checked)
     r0 = residuals(np.zeros((1, _NPARAMS)), a[None], b[None])[0]
     variance = float(r0 @ r0) / (len(a) - _NPOSE) if noise is None else float(noise) ** 2
-    return PoseInformation(J.T @ J - variance * noise_info, variance)
+    return PoseInformation(J.T @ J - variance * noise_info, variance, checked)
 
 
 LEVERAGE_MAX = 0.5
@@ -1022,16 +1027,18 @@ _NOISE_SAMPLE = 256
 
 
 def _checked_jacobian_and_noise(residuals, a: np.ndarray, b: np.ndarray, step: float) -> tuple:
-    """The points ``a``, ``b`` of the matches :func:`checked_matches` keeps, and their
-    :func:`_jacobian_and_noise` (None with fewer than 6 matches)."""
+    """The mask (N,) of the matches :func:`checked_matches` keeps (all with fewer than 6),
+    their points ``a``, ``b`` and their :func:`_jacobian_and_noise` (None with fewer than 6
+    matches)."""
+    checked = np.ones(len(a), dtype=bool)
     if len(a) < 6:
-        return a, b, None, None
+        return checked, a, b, None, None
     J, noise_info = _jacobian_and_noise(residuals, a, b, step)
     checked = checked_matches(J[:, :_NPOSE])
     if checked.all():
-        return a, b, J, noise_info
+        return checked, a, b, J, noise_info
     a, b = a[checked], b[checked]
-    return a, b, *_jacobian_and_noise(residuals, a, b, step)
+    return checked, a, b, *_jacobian_and_noise(residuals, a, b, step)
 
 
 def _steps(step: float) -> np.ndarray:

@@ -12,7 +12,13 @@ from imperfect import imperfect_render
 from ppo_cv import estimate_pair
 from ppo_cv.lsq import rotation_increment
 from ppo_cv.metrics import rotation_error_deg
-from ppo_cv.refine import LEVERAGE_MAX, checked_matches, pose_information, pose_sigmas_deg
+from ppo_cv.refine import (
+    LEVERAGE_MAX,
+    checked_inliers,
+    checked_matches,
+    pose_information,
+    pose_sigmas_deg,
+)
 
 
 def _gaussian_rows(count: int, seed: int = 0) -> np.ndarray:
@@ -89,6 +95,8 @@ def test_one_pose_information_gives_the_deviations_under_each_prior(priors):
     used = np.ones(len(x1), bool)
     information = pose_information(R, t, x1, x2, used)
     assert information.sigmas_deg(**priors) == pose_sigmas_deg(R, t, x1, x2, used, **priors)
+    np.testing.assert_array_equal(information.checked, checked_inliers(R, t, x1, x2, used))
+    assert not information.checked[-1] and information.checked[:-1].all()  # the false match
     assert np.isfinite(information.sigmas_deg(**priors).rotation_deg)
     few = pose_information(R, t, x1, x2, np.arange(len(x1)) < 5)
     assert few.sigmas_deg(**priors) == pose_sigmas_deg(R, t, x1, x2, np.arange(len(x1)) < 5)
