@@ -279,16 +279,39 @@ def _opencv_sift(image1, image2, K1, K2) -> anchors.AnchorResult:
 
 class StageCPU:
     """Process CPU seconds (all threads) of each stage of ``estimate_pair``, read as its
-    ``progress`` reports a stage's end; a stage that runs twice is summed."""
+    ``progress`` reports a stage's end; a stage that runs twice is summed and counted."""
 
     def __init__(self) -> None:
         self.seconds: dict[str, float] = {}
+        self.runs: dict[str, int] = {}
         self.clock = time.process_time()
 
     def __call__(self, stage: str) -> None:
         now = time.process_time()
         self.seconds[stage] = self.seconds.get(stage, 0.0) + now - self.clock
+        self.runs[stage] = self.runs.get(stage, 0) + 1
         self.clock = now
+
+
+def per_pair_table(wall: dict, cpu: dict, stage_cpu: list[dict], detections: list[int]) -> str:
+    """Markdown table of each pair: ``estimate_pair`` against OpenCV's pipeline (wall and CPU
+    seconds), its detections and its three costliest stages in CPU ms: which pairs sit above
+    OpenCV's time, and where."""
+    ours, opencv = "ppo_cv estimate_pair", "OpenCV pipeline"
+    rows = [
+        "| pair | estimate_pair wall / CPU s | OpenCV wall / CPU s | detections "
+        "| costliest stages, CPU ms |",
+        "|---:|---:|---:|---:|---|",
+    ]
+    for i, stages in enumerate(stage_cpu):
+        top = sorted(stages.items(), key=lambda item: -item[1])[:3]
+        rows.append(
+            f"| {i} | {wall[ours][i]:.3f} / {cpu[ours][i]:.3f} | "
+            f"{wall[opencv][i]:.3f} / {cpu[opencv][i]:.3f} | {detections[i]} | "
+            + ", ".join(f"{stage} {1000 * seconds:.0f}" for stage, seconds in top)
+            + " |"
+        )
+    return "\n".join(rows)
 
 
 def pipeline_speed(freiburg: Path | None, n_pairs: int, seed: int, ours_only: bool = False) -> dict:
@@ -310,6 +333,7 @@ def pipeline_speed(freiburg: Path | None, n_pairs: int, seed: int, ours_only: bo
     cpu = {label: [] for label in calls}
     stages: dict[str, list[float]] = {}
     stage_cpu: list[dict[str, float]] = []
+    detections: list[int] = []
     for image1, image2, K1, K2 in images:
         for label, call in calls.items():
             progress = StageCPU() if label == ours else None
@@ -322,6 +346,7 @@ def pipeline_speed(freiburg: Path | None, n_pairs: int, seed: int, ours_only: bo
                 stages.setdefault(stage, []).append(value)
             if progress is not None and progress.seconds:
                 stage_cpu.append(progress.seconds)
+                detections.append(progress.runs.get("features", 0))
     out = {label: float(np.median(v)) for label, v in wall.items()}
     out["cpu"] = {label: float(np.median(v)) for label, v in cpu.items()}
     out["stages"] = {stage: float(np.median(v)) for stage, v in stages.items()}
@@ -341,6 +366,8 @@ def pipeline_speed(freiburg: Path | None, n_pairs: int, seed: int, ours_only: bo
         + ", ".join(f"{k} {out[k]:.3f} s, {out['cpu'][k]:.3f} s" for k in calls),
         flush=True,
     )
+    if not ours_only and len(stage_cpu) == len(images):
+        print(per_pair_table(wall, cpu, stage_cpu, detections), flush=True)
     return out
 
 

@@ -214,9 +214,7 @@ def levenberg_marquardt(
     else:
         jacobian = lambda q, r: forward_jacobian_stacked(many, q, r)  # noqa: E731
     r0 = f(p)
-    p, _, J = _damped_steps(
-        lambda q: (f(q), None), jacobian, p, r0, jacobian(p, r0), iterations
-    )
+    p, _, J = _damped_steps(lambda q: (f(q), None), jacobian, p, r0, jacobian(p, r0), iterations)
     return p, J
 
 
