@@ -973,11 +973,11 @@ def _finish_general(state: _Finishing) -> _ModelPart:
     c1, c2 = undistort_division(x1, radial_k1), undistort_division(x2, radial_k1)
     information = pose_information(R, t, c1, c2, inliers)
     valley = _valley(state, R, t, c1, c2, inliers, information.checked)
-    if not (np.array_equal(valley.R, R) and np.array_equal(valley.t, t)):
-        information = pose_information(valley.R, valley.t, c1, c2, inliers)
     final = _recover_normalized(
         essential_from_pose(valley.R, valley.t), c1[:, :2], c2[:, :2], inliers, 0.0
     )
+    if not _same_pose(final.R, final.t, R, t):
+        information = pose_information(final.R, final.t, c1, c2, inliers)
     keep = final.inliers & np.all(np.isfinite(final.points3d), axis=1)
 
     def sigmas(spread_only: bool) -> PoseSigmas:
@@ -1000,6 +1000,12 @@ def _finish_general(state: _Finishing) -> _ModelPart:
         radial_k1=radial_k1,
         radial=radial,
     )
+
+
+def _same_pose(R, t, R_other, t_other) -> bool:
+    """Whether two poses (``t`` unit vectors) are one up to rounding (1e-9)."""
+    return bool(np.allclose(R, R_other, rtol=0.0, atol=1e-9)
+                and np.allclose(t, t_other, rtol=0.0, atol=1e-9))  # fmt: skip
 
 
 def _valley(
