@@ -112,3 +112,23 @@ def test_help_fits_80_columns_with_every_option_name_whole(command):
     assert _long_names(command) <= words, _long_names(command) - words
     if command in ("pair", "pairs"):
         assert "Pipeline:" in lines and lines.index("Pipeline:") > lines.index("Options:")
+
+
+@pytest.mark.parametrize(
+    "variable, value, warned",
+    [("OMP_NUM_THREADS", "abc", True), ("OMP_NUM_THREADS", "0", True),
+     ("OMP_NUM_THREADS", "", True), ("OMP_NUM_THREADS", "4,0", True),
+     ("OMP_THREAD_LIMIT", "4,2", True), ("OMP_NUM_THREADS", "2", False),
+     ("OMP_NUM_THREADS", "4,2", False), ("OMP_THREAD_LIMIT", " 3", False)],
+)  # fmt: skip
+def test_an_unreadable_openmp_thread_count_is_one_warning_line(variable, value, warned):
+    """The OpenMP runtime pycolmap loads prints two lines of its own for a value it cannot read
+    and ignores it; the command drops it first and says so in one line."""
+    env = {**os.environ, variable: value}
+    done = subprocess.run([sys.executable, "-m", "ppo_cv.cli.main", "pair", "--help"],
+                          capture_output=True, text=True, timeout=120, env=env)  # fmt: skip
+    assert done.returncode == 0
+    assert done.stdout.startswith("Usage: ppo-cv pair")
+    expected = [f"ppo-cv pair: warning: {variable}={value!r} is not a positive whole number; "
+                "ignored"] if warned else []  # fmt: skip
+    assert done.stderr.splitlines() == expected

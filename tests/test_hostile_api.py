@@ -565,3 +565,11 @@ def test_too_few_images_gives_the_first_reasons_and_counts_the_rest():
         "need at least 2 images in 'd', found 1 (5 skipped: not a readable image: d/0.png; "
         "not a readable image: d/1.png; not a readable image: d/2.png; 2 more)"
     )
+
+
+def test_images_are_read_in_a_process_without_standard_error(monkeypatch):
+    """``sys.stderr`` is None where Python starts without descriptor 2 (``2>&-``, some
+    services); reading an image held back the native libraries' messages by flushing it."""
+    monkeypatch.setattr("sys.stderr", None)
+    image = load_image(Path(ppo_cv.__file__).parent / "data" / "demo1.png")
+    assert image.shape == (480, 640, 3)
