@@ -170,6 +170,18 @@ CASES = {
     "recover_pose pri_threshold nan": (
         lambda: ppo_cv.recover_pose(E, P1, P2, K, pri_threshold=np.nan), ValueError,
         "pri_threshold"),
+    # True is no number: it read as 1 (every pair a pure rotation, a focal length of 1 px)
+    "recover_pose pri_threshold True": (
+        lambda: ppo_cv.recover_pose(E, P1, P2, K, pri_threshold=True), TypeError,
+        "pri_threshold must be a number, got True"),
+    "recoverPose focal True": (lambda: ppo_cv.recoverPose(E, P1, P2, focal=True), TypeError,
+                               "focal must be a number, got True"),
+    "recoverPose distanceThresh True": (
+        lambda: ppo_cv.recoverPose(E, P1, P2, K, distanceThresh=np.True_), TypeError,
+        "distanceThresh must be a number, got np.True_"),
+    "form 4 threshold True": (_form4(threshold=True), TypeError, "threshold must be a number"),
+    "run_sfm target_tri_angle True": (lambda: _sfm(target_tri_angle=True), TypeError,
+                                      "target_tri_angle must be a number, got True"),
     "recover_pose pri_threshold text": (
         lambda: ppo_cv.recover_pose(E, P1, P2, K, pri_threshold="x"), TypeError,
         "pri_threshold must be a number"),
