@@ -277,9 +277,10 @@ def list_images(image_dir: str | os.PathLike) -> list[str]:
 
 def screen_images(image_dir: str | os.PathLike) -> tuple[list[str], dict[str, str]]:
     """The image files of ``image_dir`` (:func:`list_images`) named in UTF-8 that pass
-    :func:`ppo_cv.images.check_decodes`, and the others with the reason, by name: an image
-    declaring more pixels than accepted would be decoded whole before pycolmap refused it, a
-    damaged one would have libpng print its own errors."""
+    :func:`ppo_cv.images.check_decodes` and are no copy of an earlier one, and the others with
+    the reason, by name: an image declaring more pixels than accepted would be decoded whole
+    before pycolmap refused it, a damaged one would have libpng print its own errors, and a
+    copy adds no view (two copies alone read as a pure rotation)."""
     kept, skipped = [], {}
     for name in list_images(image_dir):
         try:
@@ -289,7 +290,28 @@ def screen_images(image_dir: str | os.PathLike) -> tuple[list[str], dict[str, st
             skipped[name] = str(exc)
         else:
             kept.append(name)
-    return kept, skipped
+    copies = _copies(Path(image_dir), kept)
+    for name, original in copies.items():
+        skipped[name] = f"{Path(image_dir) / name} is a copy of {original}: the same bytes"
+    return [name for name in kept if name not in copies], dict(sorted(skipped.items()))
+
+
+def _copies(image_dir: Path, names: Sequence[str]) -> dict[str, str]:
+    """Each file of ``names`` whose bytes are those of an earlier one, with that one's name."""
+    import hashlib
+
+    by_size: dict[int, list[str]] = {}
+    for name in names:
+        by_size.setdefault((image_dir / name).stat().st_size, []).append(name)
+    copies = {}
+    for group in (g for g in by_size.values() if len(g) > 1):
+        first: dict[bytes, str] = {}
+        for name in group:
+            digest = hashlib.sha256((image_dir / name).read_bytes()).digest()
+            original = first.setdefault(digest, name)
+            if original != name:
+                copies[name] = original
+    return copies
 
 
 def _require_utf8_name(name: str) -> None:

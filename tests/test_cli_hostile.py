@@ -20,6 +20,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pycolmap
 import pytest
 from hostile_images import HEADERS
 
@@ -893,3 +894,26 @@ def test_a_failure_names_the_path_given_not_the_hidden_one_it_was_built_under(er
     from ppo_cv.cli.common import error_message
 
     assert error_message(error) == message
+
+
+@pytest.mark.parametrize("others", [[], [DEMO2]], ids=["copies alone", "with another view"])
+def test_sfm_skips_a_copy_of_an_image_naming_the_original(tmp_path, others):
+    """Two copies of one photo read as a pure rotation: the folder was called a panorama
+    holding no structure; beside another view, the copy was registered as a view of its own."""
+    (tmp_path / "images").mkdir()
+    for name, source in [("a.png", DEMO1), ("b.png", DEMO1), *(("c.png", o) for o in others)]:
+        shutil.copy(source, tmp_path / "images" / name)
+    out = subprocess.run([*COMMAND, "sfm", "images", "model", "--K", K_TEXT, "-q"], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=300)  # fmt: skip
+    reason = "images/b.png is a copy of a.png: the same bytes"
+    if not others:
+        assert out.returncode == 2
+        assert out.stderr == (
+            f"ppo-cv sfm: need at least 2 images in 'images', found 1 (1 skipped: {reason})\n"
+        )
+        return
+    assert out.returncode == 0, out.stderr
+    assert out.stderr == f"ppo-cv sfm: warning: skipping an image: {reason}\n"
+    assert out.stdout.startswith("registered 2/2 images")
+    model = pycolmap.Reconstruction(tmp_path / "model")
+    assert sorted(image.name for image in model.images.values()) == ["a.png", "c.png"]
