@@ -67,6 +67,8 @@ class Camera:
 
 
 def _numbers(text: str, name: str) -> np.ndarray:
+    if not isinstance(text, str):
+        raise TypeError(f"{name} must be a text of numbers, got {type(text).__name__} {text!r:.40}")
     parts = [p for p in re.split(r"[,\s;\[\]()]+", str(text)) if p]  # nested lists as printed
     try:
         values = np.array([float(p) for p in parts], dtype=np.float64)
@@ -308,6 +310,8 @@ def _read_json(path: str, text: str) -> list[Camera]:
         raise ValueError(f"{path} is not valid JSON: {exc.msg} (line {exc.lineno})") from None
     except RecursionError:
         raise ValueError(f"{path} is nested too deeply to be a calibration file") from None
+    except ValueError as exc:  # an integer of more digits than Python converts
+        raise ValueError(f"{path} is not a calibration file: {str(exc).split(';')[0]}") from None
     try:
         listed = data.get("cameras") if isinstance(data, dict) else data
         if isinstance(data, dict) and "cameras" in data and not isinstance(listed, list):

@@ -285,6 +285,10 @@ def test_json_two_cameras(tmp_path, data):
          "OpenCV distortion"),
         ('{"cameras": {"K": [500, 500, 320, 240]}}', "cameras must be a list of cameras"),
         ('{"cameras": []}', "no camera in"),
+        # the file named, not Python's limit on the digits of an integer alone
+        ('{"fx": ' + "9" * 5000 + ', "fy": 500, "cx": 320, "cy": 240}',
+         r"camera\.json is not a calibration file: Exceeds the limit \(4300 digits\) for "
+         "integer string conversion: value has 5000 digits$"),
     ],
 )
 def test_json_errors(tmp_path, text, message):
@@ -426,3 +430,11 @@ def test_a_camera_is_scaled_to_a_resized_image_about_the_pixel_centres():
     assert same is unsized and note is None
     with pytest.raises(ValueError, match="320x240 images but a.png is 640x400 pixels, another"):
         fit_to_image(camera, (640, 400), "c", "a.png")
+
+
+@pytest.mark.parametrize("value", [None, 535.4, b"535.4,539.2,320.1,247.6"], ids=repr)
+@pytest.mark.parametrize("parse", [parse_intrinsics, parse_distortion], ids=lambda f: f.__name__)
+def test_parsing_something_other_than_text_is_a_type_error(parse, value):
+    """None and a number were a ValueError about comma-separated numbers (None "got 1" number)."""
+    with pytest.raises(TypeError, match=f"must be a text of numbers, got {type(value).__name__}"):
+        parse(value)
