@@ -426,6 +426,7 @@ def prepare_database(
     database_path = _as_path(database_path, "database_path")
     if database_path.exists():
         raise ValueError(f"database {str(database_path)!r} already exists")
+    check_target(database_path, "file", inputs=[image_dir], name="database_path ")
     if K is not None:
         _check_one_size(image_dir, names)
     reader, extraction, matching, verification = _pycolmap_options(
@@ -586,6 +587,46 @@ def _require_database(path: Path) -> None:
         header = handle.read(len(_SQLITE_HEADER))
     if header != _SQLITE_HEADER:
         raise ValueError(f"database {str(path)!r} is not a COLMAP database (no SQLite header)")
+    missing = _missing_colmap_columns(path)
+    if missing:
+        raise ValueError(
+            f"database {str(path)!r} is an SQLite file but not a COLMAP database: it lacks "
+            f"{', '.join(missing)}"
+        )
+
+
+_COLMAP_COLUMNS = {
+    "cameras": ("camera_id", "model", "width", "height", "params"),
+    "images": ("image_id", "name", "camera_id"),
+    "keypoints": ("image_id", "rows", "cols", "data"),
+    "matches": ("pair_id", "rows", "cols", "data"),
+    "two_view_geometries": ("pair_id", "rows", "cols", "data", "config", "E"),
+}
+"""Tables and columns every COLMAP database has had (3.x and 4.x): pycolmap adds any table it
+misses to the file it opens, and refuses a table it reads without its columns with a
+RuntimeError."""
+
+
+def _missing_colmap_columns(path: Path) -> list[str]:
+    """The :data:`_COLMAP_COLUMNS` (``table`` or ``table.column``) the SQLite file ``path``
+    lacks, read without writing to it; ValueError for a file SQLite cannot read."""
+    import sqlite3
+
+    read_only = f"{path.resolve().as_uri()}?mode=ro"
+    try:
+        with contextlib.closing(sqlite3.connect(read_only, uri=True)) as db:
+            columns = {
+                table: {row[1] for row in db.execute(f"PRAGMA table_info({table})")}
+                for table in _COLMAP_COLUMNS
+            }
+    except sqlite3.DatabaseError as exc:
+        raise ValueError(f"database {str(path)!r} cannot be read: {exc}") from None
+    return [
+        table if not columns[table] else f"{table}.{column}"
+        for table, needed in _COLMAP_COLUMNS.items()
+        for column in (needed if columns[table] else needed[:1])
+        if column not in columns[table]
+    ]
 
 
 def score_pairs(

@@ -7,6 +7,7 @@ UMats, the positional call OpenCV reads as the first form, and images of any dep
 from __future__ import annotations
 
 import os
+import re
 import warnings
 from pathlib import Path
 
@@ -585,3 +586,61 @@ def test_images_are_read_in_a_process_without_standard_error(monkeypatch):
     monkeypatch.setattr("sys.stderr", None)
     image = load_image(Path(ppo_cv.__file__).parent / "data" / "demo1.png")
     assert image.shape == (480, 640, 3)
+
+
+def _sqlite_file(path: Path, *statements: str) -> None:
+    import sqlite3
+
+    with sqlite3.connect(path) as db:
+        for statement in statements:
+            db.execute(statement)
+    db.close()
+
+
+DATABASES = {
+    "no COLMAP table": (("CREATE TABLE notes (text)",),
+                        "is an SQLite file but not a COLMAP database: it lacks cameras, images, "
+                        "keypoints, matches, two_view_geometries"),
+    "tables without COLMAP's columns": (
+        ("CREATE TABLE cameras (a)", "CREATE TABLE images (a)", "CREATE TABLE keypoints (a)",
+         "CREATE TABLE matches (a)", "CREATE TABLE two_view_geometries (a)"),
+        "it lacks cameras.camera_id, cameras.model"),
+    "truncated": (None, "cannot be read: database disk image is malformed"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("call", ["score_pairs", "reconstruct"])
+@pytest.mark.parametrize("case", list(DATABASES))
+def test_an_sqlite_file_that_is_no_colmap_database_is_refused_untouched(tmp_path, case, call):
+    """pycolmap wrote its tables into such a file (score_pairs then returned no pairs), or
+    raised a RuntimeError after a log line of its own."""
+    statements, words = DATABASES[case]
+    path = tmp_path / "other.db"
+    if statements is None:
+        _sqlite_file(tmp_path / "whole.db", "CREATE TABLE notes (text)",
+                     *[f"INSERT INTO notes VALUES ('{'x' * 2000}')"] * 20)  # fmt: skip
+        path.write_bytes((tmp_path / "whole.db").read_bytes()[:5000])
+    else:
+        _sqlite_file(path, *statements)
+    before = path.read_bytes()
+    (tmp_path / "images").mkdir()
+    sfm = _sfm_module()
+    with pytest.raises(ValueError, match=re.escape(words)):
+        if call == "score_pairs":
+            sfm.score_pairs(path)
+        else:
+            sfm.reconstruct(path, tmp_path / "images")
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        ["other.db", "images", *(["whole.db"] if statements is None else [])]
+    )
+
+
+def test_prepare_database_names_a_missing_folder_before_any_work(tmp_path):
+    (tmp_path / "images").mkdir()
+    for image in ("demo1.png", "demo2.png"):
+        (tmp_path / "images" / image).write_bytes(
+            (Path(ppo_cv.__file__).parent / "data" / image).read_bytes()
+        )
+    with pytest.raises(ValueError, match="cannot write .*no/x.db: folder .*no does not exist"):
+        _sfm_module().prepare_database(tmp_path / "images", tmp_path / "no" / "x.db", K=K)
