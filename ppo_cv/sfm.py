@@ -1381,10 +1381,12 @@ def run_sfm(
     _check_scoring(scoring)
     _check_run_numbers(num_threads, seed, max_num_features)
     image_dir = _image_folder(image_dir)
-    if output_dir is not None:
-        check_target(_as_path(output_dir, "output_dir"), "folder", overwrite)
+    if output_dir is not None:  # never the image folder, nor one holding it, even replaced
+        output_dir = _as_path(output_dir, "output_dir")
+        check_target(output_dir, "folder", overwrite, [image_dir], "output_dir ")
     if database_path is not None:
-        check_target(_as_path(database_path, "database_path"), "file")
+        check_target(_as_path(database_path, "database_path"), "file", False, [image_dir],
+                     "database_path ")  # fmt: skip
     with contextlib.ExitStack() as stack:
         scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="ppo-cv-sfm-")))
         if exif_orientation:

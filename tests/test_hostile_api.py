@@ -644,3 +644,25 @@ def test_prepare_database_names_a_missing_folder_before_any_work(tmp_path):
         )
     with pytest.raises(ValueError, match="cannot write .*no/x.db: folder .*no does not exist"):
         _sfm_module().prepare_database(tmp_path / "images", tmp_path / "no" / "x.db", K=K)
+
+
+@pytest.mark.parametrize(
+    "output, database, words",
+    [("images", None, "the output output_dir {root}/images is the input {root}/images"),
+     (".", None, "the output output_dir {root} holds the input {root}/images"),
+     ("model", "images/demo1.png", "{root}/images/demo1.png already exists")],
+    ids=["the image folder", "a folder holding it", "an image as database"],
+)  # fmt: skip
+def test_run_sfm_never_replaces_its_images_even_with_overwrite(tmp_path, output, database, words):
+    """run_sfm(images, images, overwrite=True) replaced the photos by the model."""
+    (tmp_path / "images").mkdir()
+    for image in ("demo1.png", "demo2.png"):
+        (tmp_path / "images" / image).write_bytes(
+            (Path(ppo_cv.__file__).parent / "data" / image).read_bytes()
+        )
+    before = {p.name: p.read_bytes() for p in (tmp_path / "images").iterdir()}
+    target = tmp_path / output if output != "." else tmp_path
+    with pytest.raises(ValueError, match=re.escape(words.format(root=tmp_path))):
+        _sfm_module().run_sfm(tmp_path / "images", target, K=K, overwrite=True,
+                              database_path=database and tmp_path / database)  # fmt: skip
+    assert {p.name: p.read_bytes() for p in (tmp_path / "images").iterdir()} == before
