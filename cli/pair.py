@@ -39,6 +39,7 @@ from .common import (
     fail,
     given_cameras,
     implausible_intrinsics,
+    one_line,
     pipeline_options,
     print_result,
     warn,
@@ -338,7 +339,7 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
         return f"{text}  distortion {coefficients}"
 
     lines = [
-        f"{name1} -> {name2}",
+        f"{one_line(str(name1))} -> {one_line(str(name2))}",
         f"  verdict      {_verdict(result)}",
         f"  convention   {POSE_CONVENTION}; camera axes x right, y down, z forward",
         f"  rotation     {angle:.3f} deg about ({axis[0]:+.4f}, {axis[1]:+.4f}, {axis[2]:+.4f})",
