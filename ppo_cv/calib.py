@@ -460,11 +460,20 @@ def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> 
     from_exif : bool
         False when the image has no usable EXIF focal length: the focal length is then COLMAP's
         default guess, 1.2 times the larger image side.
+
+    Raises
+    ------
+    ValueError
+        Naming the file: missing, a folder or other non-regular file, above the pixel limit,
+        or not a readable image (:func:`ppo_cv.images.check_decodes`).
     """
     import pycolmap
 
-    from .images import decoded_transposed
+    from .images import check_decodes, decoded_transposed
 
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"path must be a path (str or os.PathLike), got {type(path).__name__}")
+    check_decodes(path)  # pycolmap guessed a camera for a damaged image, after libpng's errors
     camera = pycolmap.infer_camera_from_image(os.fspath(path))
     K = np.asarray(camera.calibration_matrix(), dtype=np.float64)
     if exif_orientation and decoded_transposed(path, int(camera.width), int(camera.height)):

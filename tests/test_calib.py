@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import doctest
 import json
+import os
+import re
 
 import cv2
 import numpy as np
@@ -438,3 +440,34 @@ def test_parsing_something_other_than_text_is_a_type_error(parse, value):
     """None and a number were a ValueError about comma-separated numbers (None "got 1" number)."""
     with pytest.raises(TypeError, match=f"must be a text of numbers, got {type(value).__name__}"):
         parse(value)
+
+
+def _exif_target(tmp_path, kind):
+    path = tmp_path / f"{kind}.png"
+    if kind == "folder":
+        path.mkdir()
+    elif kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "truncated":
+        cv2.imwrite(str(tmp_path / "whole.png"), np.full((480, 640, 3), 90, np.uint8))
+        path.write_bytes((tmp_path / "whole.png").read_bytes()[:300])
+    return path
+
+
+@pytest.mark.parametrize(
+    "kind, words",
+    [("missing", "image not found: "), ("folder", "expected an image file, got a directory: "),
+     ("fifo", "not a regular file: "), ("truncated", "not a readable image: ")],
+)  # fmt: skip
+def test_camera_from_exif_names_a_file_that_is_no_image(tmp_path, capfd, kind, words):
+    """pycolmap said an existing folder did not exist, and guessed a camera for a damaged image
+    after libpng's errors on stderr."""
+    path = _exif_target(tmp_path, kind)
+    with pytest.raises(ValueError, match=re.escape(f"{words}{path}")):
+        camera_from_exif(path)
+    assert capfd.readouterr().err == ""
+
+
+def test_camera_from_exif_of_something_other_than_a_path_is_a_type_error():
+    with pytest.raises(TypeError, match="path must be a path .*, got NoneType"):
+        camera_from_exif(None)
