@@ -807,9 +807,14 @@ def register(app: typer.Typer) -> None:
     def pairs(
         pairs_file: Annotated[
             Path,
-            typer.Argument(help="Lines 'name1 name2 [0 0 K1(9) K2(9) [T_1to2(16)]]' (see above)."),
+            typer.Argument(
+                metavar="PAIRS_FILE",
+                help="Lines 'name1 name2 [0 0 K1(9) K2(9) [T_1to2(16)]]' (see above).",
+            ),
         ],
-        image_dir: Annotated[Path, typer.Argument(help="Folder holding the images.")],
+        image_dir: Annotated[
+            Path, typer.Argument(metavar="IMAGE_DIR", help="Folder holding the images.")
+        ],
         K: KOption = None,
         K2: K2Option = None,
         calib: CalibOption = None,

@@ -183,6 +183,16 @@ class PanelledHelpCommand(TyperCommand):
     80 columns.
     """
 
+    def collect_usage_pieces(self, ctx: click.Context) -> list[str]:
+        """``[OPTIONS] PAIRS_FILE IMAGE_DIR``: each argument by its metavar, the upper-case
+        name the help text uses, in brackets when optional (typer writes ``{pairs_file}``)."""
+        pieces = [self.options_metavar] if self.options_metavar else []
+        for param in self.get_params(ctx):
+            if param.param_type_name == "argument":
+                name = param.metavar or (param.name or "").upper()
+                pieces.append(name if param.required else f"[{name}]")
+        return pieces
+
     def format_options(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         sections: dict[str, list[tuple[str, str]]] = {"Arguments": [], "Options": []}
         for param in self.get_params(ctx):

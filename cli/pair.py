@@ -502,9 +502,12 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def pair(
         image1: Annotated[
-            Path | None, typer.Argument(help="First image (none: the built-in demo pair).")
+            Path | None,
+            typer.Argument(metavar="IMAGE1", help="First image (none: the built-in demo pair)."),
         ] = None,
-        image2: Annotated[Path | None, typer.Argument(help="Second image.")] = None,
+        image2: Annotated[
+            Path | None, typer.Argument(metavar="IMAGE2", help="Second image.")
+        ] = None,
         K: KOption = None,
         K2: K2Option = None,
         dist: Annotated[
