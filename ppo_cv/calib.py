@@ -35,6 +35,7 @@ __all__ = [
     "parse_distortion",
     "load_calibration",
     "camera_from_exif",
+    "read_text_file",
     "fit_to_image",
     "implausible_intrinsics",
     "warn_implausible",
@@ -335,6 +336,23 @@ def _read_json(path: str, text: str) -> list[Camera]:
     return cameras
 
 
+def read_text_file(path: str | os.PathLike, what: str) -> str:
+    """The text of ``path`` as UTF-8, a byte-order mark dropped; ValueError naming ``what`` and
+    the file when it cannot be read or holds other bytes (Python's decoding error alone named
+    neither what was read nor that it was no text)."""
+    try:
+        with open(path, encoding="utf-8-sig") as handle:
+            return handle.read()
+    except UnicodeDecodeError as exc:
+        binary = b"\x00" in exc.object
+        hint = "a binary file, such as an image?" if binary else "save it as UTF-8"
+        raise ValueError(
+            f"{what} {path} is not UTF-8 text (byte 0x{exc.object[exc.start]:02x}): {hint}"
+        ) from None
+    except OSError as exc:
+        raise ValueError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+
+
 def load_calibration(path: str | os.PathLike) -> list[Camera]:
     """Cameras described by a calibration file: one (shared) or two (image 1, image 2).
 
@@ -349,11 +367,7 @@ def load_calibration(path: str | os.PathLike) -> list[Camera]:
     extension = os.path.splitext(path)[1].lower()
     if extension in (".yml", ".yaml", ".xml"):
         return _read_opencv(path)
-    try:
-        with open(path, encoding="utf-8-sig") as handle:
-            text = handle.read()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"cannot read calibration file {path}: {exc}") from None
+    text = read_text_file(path, "calibration file")
     if extension == ".json" or text.lstrip().startswith(("{", "[")):
         return _one_or_two(_read_json(path, text), path)
     return _one_or_two(_read_colmap(path, text), path)

@@ -471,3 +471,24 @@ def test_camera_from_exif_names_a_file_that_is_no_image(tmp_path, capfd, kind, w
 def test_camera_from_exif_of_something_other_than_a_path_is_a_type_error():
     with pytest.raises(TypeError, match="path must be a path .*, got NoneType"):
         camera_from_exif(None)
+
+
+PNG_BYTES = cv2.imencode(".png", np.zeros((8, 8), np.uint8))[1].tobytes()
+
+
+@pytest.mark.parametrize(
+    "data, words",
+    [(PNG_BYTES, "(byte 0x89): a binary file, such as an image?"),
+     ("1 PINHOLE 640 480 500 500 320 240 # café\n".encode("latin-1"),
+      "(byte 0xe9): save it as UTF-8")],
+    ids=["an image", "Latin-1 text"],
+)  # fmt: skip
+@pytest.mark.parametrize("what", ["calibration file", "pairs file"])
+def test_a_file_that_is_no_utf8_text_is_named_with_what_it_is(tmp_path, data, words, what):
+    """Python's decoding error alone ("'utf-8' codec can't decode byte 0x89 in position 0")."""
+    from ppo_cv.cli.batch import read_pairs
+
+    path = tmp_path / "given.txt"
+    path.write_bytes(data)
+    with pytest.raises(ValueError, match=re.escape(f"{what} {path} is not UTF-8 text {words}")):
+        load_calibration(path) if what == "calibration file" else read_pairs(path)
