@@ -129,7 +129,7 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
     """
     import numpy as np
 
-    from ppo_cv.calib import parse_intrinsics
+    from ppo_cv.calib import parse_intrinsics, read_text_file
     from ppo_cv.checks import as_camera_matrix
 
     _require_regular_file(pairs_file, "pairs file")
@@ -137,10 +137,7 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
         matrix = parse_intrinsics(K, "--K")
         cameras = Cameras(matrix, None, matrix, None)
     one_matrix = cameras is not None and np.array_equal(cameras.K1, cameras.K2)
-    try:
-        text = pairs_file.read_text(encoding="utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"cannot read pairs file {pairs_file}: {exc}") from None
+    text = read_text_file(pairs_file, "pairs file")
     rows, first_gt, seen = [], None, {}
     for number, line in enumerate(text.splitlines(), 1):
         where = f"{pairs_file}:{number}"
@@ -807,9 +804,14 @@ def register(app: typer.Typer) -> None:
     def pairs(
         pairs_file: Annotated[
             Path,
-            typer.Argument(help="Lines 'name1 name2 [0 0 K1(9) K2(9) [T_1to2(16)]]' (see above)."),
+            typer.Argument(
+                metavar="PAIRS_FILE",
+                help="Lines 'name1 name2 [0 0 K1(9) K2(9) [T_1to2(16)]]' (see above).",
+            ),
         ],
-        image_dir: Annotated[Path, typer.Argument(help="Folder holding the images.")],
+        image_dir: Annotated[
+            Path, typer.Argument(metavar="IMAGE_DIR", help="Folder holding the images.")
+        ],
         K: KOption = None,
         K2: K2Option = None,
         calib: CalibOption = None,

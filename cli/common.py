@@ -34,6 +34,7 @@ __all__ = [
     "ExifOrientation",
     "Cameras",
     "fail",
+    "one_line",
     "error_message",
     "warn",
     "stdout_failure",
@@ -182,6 +183,16 @@ class PanelledHelpCommand(TyperCommand):
     80 columns.
     """
 
+    def collect_usage_pieces(self, ctx: click.Context) -> list[str]:
+        """``[OPTIONS] PAIRS_FILE IMAGE_DIR``: each argument by its metavar, the upper-case
+        name the help text uses, in brackets when optional (typer writes ``{pairs_file}``)."""
+        pieces = [self.options_metavar] if self.options_metavar else []
+        for param in self.get_params(ctx):
+            if param.param_type_name == "argument":
+                name = param.metavar or (param.name or "").upper()
+                pieces.append(name if param.required else f"[{name}]")
+        return pieces
+
     def format_options(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         sections: dict[str, list[tuple[str, str]]] = {"Arguments": [], "Options": []}
         for param in self.get_params(ctx):
@@ -214,10 +225,16 @@ class WrappedHelpGroup(TyperGroup):
                 formatter.write_dl(records)
 
 
+def one_line(text: str) -> str:
+    """``text`` on one line, each line break in it shown as ``\\n``: a file name may hold one,
+    and a message cut at it would name another file."""
+    return "\\n".join(text.strip().splitlines())
+
+
 def fail(command: str, message: str, code: int = 2) -> NoReturn:
-    """Print ``ppo-cv <command>: <message>`` (its first line) on stderr and exit with ``code``."""
-    first = message.strip().splitlines()[0] if message.strip() else "failed"
-    typer.echo(f"ppo-cv {command}: {first}", err=True)
+    """Print ``ppo-cv <command>: <message>`` on one line (:func:`one_line`) on stderr and exit
+    with ``code``."""
+    typer.echo(f"ppo-cv {command}: {one_line(message) or 'failed'}", err=True)
     raise typer.Exit(code)
 
 
@@ -254,7 +271,7 @@ def print_result(command: str, text: str) -> None:
 
 def warn(command: str, message: str) -> None:
     """Print ``ppo-cv <command>: warning: <message>`` on stderr."""
-    typer.echo(f"ppo-cv {command}: warning: {message}", err=True)
+    typer.echo(f"ppo-cv {command}: warning: {one_line(message)}", err=True)
 
 
 def ignore_library_camera_warnings() -> None:

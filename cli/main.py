@@ -7,8 +7,10 @@ in the start-up is one line too.
 
 from __future__ import annotations
 
+import errno
 import functools
 import os
+import re
 import sys
 
 from ppo_cv.atomic import (
@@ -18,7 +20,7 @@ from ppo_cv.atomic import (
     stop_listening,
 )
 
-__all__ = ["BLAS_THREAD_VARIABLES", "main"]
+__all__ = ["BLAS_THREAD_VARIABLES", "OPENMP_THREAD_VARIABLES", "main"]
 
 _PYCOLMAP_COMMANDS = {"pair", "demo", "pairs", "sfm"}
 """Commands that import pycolmap: it is imported first, with the signals held back."""
@@ -28,6 +30,16 @@ BLAS_THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 a pair is on small matrices, where BLAS threads only wait for each other and contend with the
 detector's threads and the other workers (``ppo-cv pairs`` on freiburg, 2 workers: 20 % less
 CPU and wall time, docs/performance.md)."""
+
+_COUNT = r"[ \t]*\+?0*[1-9][0-9]{0,17}[ \t]*"
+OPENMP_THREAD_VARIABLES = {
+    "OMP_NUM_THREADS": re.compile(rf"{_COUNT}(?:,{_COUNT})*"),
+    "OMP_THREAD_LIMIT": re.compile(_COUNT),
+}
+"""Thread counts the OpenMP runtime of pycolmap and OpenCV reads when it loads, and the values
+it accepts (positive whole numbers; a comma-separated list of them for nested levels). A value
+it cannot read ("abc", "0", "") it ignores with two lines of its own on stderr; :func:`main`
+drops such a value before, with one warning line."""
 
 
 @functools.cache
@@ -116,6 +128,29 @@ def _drop_stdout() -> None:
         os.close(null)
 
 
+def _null_for_closed_stderr() -> None:
+    """Started with ``2>&-``: the null device as standard error. Else messages have nowhere to
+    go, and the next file opened takes descriptor 2, where native libraries write theirs."""
+    if sys.stderr is not None:
+        return
+    null = os.open(os.devnull, os.O_WRONLY)
+    if null != 2:
+        os.dup2(null, 2)
+        os.close(null)
+    sys.stderr = open(2, "w", closefd=False)  # noqa: SIM115 - the process's stderr
+
+
+def _drop_unreadable_thread_counts(argv: list[str] | None) -> None:
+    """Remove an :data:`OPENMP_THREAD_VARIABLES` value the OpenMP runtime cannot read, with a
+    warning; the runtime would ignore it too, after two lines of its own on stderr."""
+    for variable, accepted in OPENMP_THREAD_VARIABLES.items():
+        value = os.environ.get(variable)
+        if value is not None and not accepted.fullmatch(value):
+            del os.environ[variable]
+            print(f"{_command(argv)}: warning: {variable}={value!r} is not a positive whole "
+                  "number; ignored", file=sys.stderr)  # fmt: skip
+
+
 def _run(argv: list[str] | None) -> int:
     """The command's exit code; 130 when it was interrupted."""
     if _command(argv).split()[-1] in _PYCOLMAP_COMMANDS:
@@ -126,6 +161,15 @@ def _run(argv: list[str] | None) -> int:
     ignore_library_camera_warnings()
     try:
         return application(args=argv, prog_name="ppo-cv", standalone_mode=False)
+    except SystemExit as exc:  # click's exit on a broken pipe, silent and with code 1
+        broken = exc.__context__
+        if not (isinstance(broken, OSError) and broken.errno == errno.EPIPE):
+            raise
+        from ppo_cv.cli.common import stdout_failure
+
+        _drop_stdout()
+        print(f"{_command(argv)}: {stdout_failure(broken)}", file=sys.stderr)
+        return 2
     except Exception as exc:  # click's exceptions (typer vendors click in recent releases)
         if type(exc).__name__ == "Abort":  # click's form of a KeyboardInterrupt
             return 130
@@ -140,8 +184,10 @@ def main(argv: list[str] | None = None) -> None:
     SIGINT and SIGTERM stop the run: outputs in progress are removed, one line on stderr,
     exit code 130 (SIGINT) or 143 (SIGTERM).
     """
+    _null_for_closed_stderr()
     for variable in BLAS_THREAD_VARIABLES:
         os.environ.setdefault(variable, "1")
+    _drop_unreadable_thread_counts(argv)
     sigterm_as_interrupt()
     if sys.stdout is None:  # started with ">&-": every command prints its result there
         print(f"{_command(argv)}: standard output is closed; redirect it to a file or "

@@ -39,6 +39,7 @@ from .common import (
     fail,
     given_cameras,
     implausible_intrinsics,
+    one_line,
     pipeline_options,
     print_result,
     warn,
@@ -338,7 +339,7 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
         return f"{text}  distortion {coefficients}"
 
     lines = [
-        f"{name1} -> {name2}",
+        f"{one_line(str(name1))} -> {one_line(str(name2))}",
         f"  verdict      {_verdict(result)}",
         f"  convention   {POSE_CONVENTION}; camera axes x right, y down, z forward",
         f"  rotation     {angle:.3f} deg about ({axis[0]:+.4f}, {axis[1]:+.4f}, {axis[2]:+.4f})",
@@ -501,9 +502,12 @@ def register(app: typer.Typer) -> None:
     @app.command()
     def pair(
         image1: Annotated[
-            Path | None, typer.Argument(help="First image (none: the built-in demo pair).")
+            Path | None,
+            typer.Argument(metavar="IMAGE1", help="First image (none: the built-in demo pair)."),
         ] = None,
-        image2: Annotated[Path | None, typer.Argument(help="Second image.")] = None,
+        image2: Annotated[
+            Path | None, typer.Argument(metavar="IMAGE2", help="Second image.")
+        ] = None,
         K: KOption = None,
         K2: K2Option = None,
         dist: Annotated[

@@ -127,8 +127,10 @@ def register(app: typer.Typer) -> None:
         "when no model can be built from them (exit code 1).",
     )
     def sfm_command(
-        image_dir: Annotated[Path, typer.Argument(help="Folder of images.")],
-        out_dir: Annotated[Path, typer.Argument(help="New folder for the COLMAP model.")],
+        image_dir: Annotated[Path, typer.Argument(metavar="IMAGE_DIR", help="Folder of images.")],
+        out_dir: Annotated[
+            Path, typer.Argument(metavar="OUT_DIR", help="New folder for the COLMAP model.")
+        ],
         K: Annotated[
             str | None,
             typer.Option(

@@ -142,7 +142,9 @@ def register(app: typer.Typer) -> None:
 
     @app.command()
     def synth(
-        out_dir: Annotated[Path, typer.Argument(help="New (or empty) output directory.")],
+        out_dir: Annotated[
+            Path, typer.Argument(metavar="OUT_DIR", help="New (or empty) output directory.")
+        ],
         pairs: Annotated[int, typer.Option("--pairs", "-n", help="Number of image pairs.")] = 20,
         motion: Annotated[
             str | None, typer.Option(help=f"Motion preset: {', '.join(MOTIONS)} (default general).")

@@ -35,6 +35,7 @@ __all__ = [
     "parse_distortion",
     "load_calibration",
     "camera_from_exif",
+    "read_text_file",
     "fit_to_image",
     "implausible_intrinsics",
     "warn_implausible",
@@ -67,6 +68,8 @@ class Camera:
 
 
 def _numbers(text: str, name: str) -> np.ndarray:
+    if not isinstance(text, str):
+        raise TypeError(f"{name} must be a text of numbers, got {type(text).__name__} {text!r:.40}")
     parts = [p for p in re.split(r"[,\s;\[\]()]+", str(text)) if p]  # nested lists as printed
     try:
         values = np.array([float(p) for p in parts], dtype=np.float64)
@@ -308,6 +311,8 @@ def _read_json(path: str, text: str) -> list[Camera]:
         raise ValueError(f"{path} is not valid JSON: {exc.msg} (line {exc.lineno})") from None
     except RecursionError:
         raise ValueError(f"{path} is nested too deeply to be a calibration file") from None
+    except ValueError as exc:  # an integer of more digits than Python converts
+        raise ValueError(f"{path} is not a calibration file: {str(exc).split(';')[0]}") from None
     try:
         listed = data.get("cameras") if isinstance(data, dict) else data
         if isinstance(data, dict) and "cameras" in data and not isinstance(listed, list):
@@ -331,6 +336,23 @@ def _read_json(path: str, text: str) -> list[Camera]:
     return cameras
 
 
+def read_text_file(path: str | os.PathLike, what: str) -> str:
+    """The text of ``path`` as UTF-8, a byte-order mark dropped; ValueError naming ``what`` and
+    the file when it cannot be read or holds other bytes (Python's decoding error alone named
+    neither what was read nor that it was no text)."""
+    try:
+        with open(path, encoding="utf-8-sig") as handle:
+            return handle.read()
+    except UnicodeDecodeError as exc:
+        binary = b"\x00" in exc.object
+        hint = "a binary file, such as an image?" if binary else "save it as UTF-8"
+        raise ValueError(
+            f"{what} {path} is not UTF-8 text (byte 0x{exc.object[exc.start]:02x}): {hint}"
+        ) from None
+    except OSError as exc:
+        raise ValueError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+
+
 def load_calibration(path: str | os.PathLike) -> list[Camera]:
     """Cameras described by a calibration file: one (shared) or two (image 1, image 2).
 
@@ -345,11 +367,7 @@ def load_calibration(path: str | os.PathLike) -> list[Camera]:
     extension = os.path.splitext(path)[1].lower()
     if extension in (".yml", ".yaml", ".xml"):
         return _read_opencv(path)
-    try:
-        with open(path, encoding="utf-8-sig") as handle:
-            text = handle.read()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"cannot read calibration file {path}: {exc}") from None
+    text = read_text_file(path, "calibration file")
     if extension == ".json" or text.lstrip().startswith(("{", "[")):
         return _one_or_two(_read_json(path, text), path)
     return _one_or_two(_read_colmap(path, text), path)
@@ -456,11 +474,20 @@ def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> 
     from_exif : bool
         False when the image has no usable EXIF focal length: the focal length is then COLMAP's
         default guess, 1.2 times the larger image side.
+
+    Raises
+    ------
+    ValueError
+        Naming the file: missing, a folder or other non-regular file, above the pixel limit,
+        or not a readable image (:func:`ppo_cv.images.check_decodes`).
     """
     import pycolmap
 
-    from .images import decoded_transposed
+    from .images import check_decodes, decoded_transposed
 
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"path must be a path (str or os.PathLike), got {type(path).__name__}")
+    check_decodes(path)  # pycolmap guessed a camera for a damaged image, after libpng's errors
     camera = pycolmap.infer_camera_from_image(os.fspath(path))
     K = np.asarray(camera.calibration_matrix(), dtype=np.float64)
     if exif_orientation and decoded_transposed(path, int(camera.width), int(camera.height)):

@@ -352,6 +352,8 @@ def as_pri_threshold(value: Any, name: str = "pri_threshold") -> float:
 
 
 def _as_float(value: Any, name: str) -> float:
+    if isinstance(value, (bool, np.bool_)):  # True would read as 1.0
+        raise TypeError(f"{name} must be a number, got {value!r}")
     if isinstance(value, (str, bytes)):
         raise TypeError(f"{name} must be a number, got {type(value).__name__} {value!r}")
     try:

@@ -555,18 +555,25 @@ def write_outputs(
 ) -> Path:
     """Write ``result.json``, ``points.ply``, ``matches.png`` and ``colmap/`` into ``directory``.
 
-    ``extra`` entries are added to ``result.json``. Everything is written into a temporary
+    ``image1`` and ``image2`` are the images the result was computed on (arrays or paths),
+    ``names`` two distinct names for the COLMAP model. ``extra`` entries are added to
+    ``result.json``. Everything is written into a temporary
     sibling folder renamed to ``directory`` once complete (:func:`ppo_cv.atomic.atomic_directory`):
     a failure or an interrupt leaves no partial output. An existing non-empty ``directory`` is a
     ValueError unless ``overwrite``, which replaces it as a whole; so is a camera or an image name
     that the COLMAP model cannot hold (:func:`check_colmap_camera`, :func:`check_colmap_names`),
-    before anything is written.
+    and any argument that cannot make its files (an image of another size than the result's,
+    ``extra`` holding NaN, which JSON cannot), before anything is written.
     """
     import cv2
 
     from .atomic import atomic_directory
 
+    if not isinstance(directory, (str, os.PathLike)):
+        raise TypeError(f"directory must be a path, got {type(directory).__name__}")
+    image1, image2 = _checked_output_arguments(result, (image1, image2), names, extra)
     dists = (result.cameras.dist1, result.cameras.dist2) if dists is None else dists
+    dists = _checked_dists(dists)
     check_colmap_camera(result.cameras.K1, dists[0], "camera 1")
     check_colmap_camera(result.cameras.K2, dists[1], "camera 2")
     check_colmap_names(names)
@@ -580,3 +587,47 @@ def write_outputs(
             raise OSError("could not encode matches.png")
         write_colmap_model(staging / "colmap", result, names, dists)
     return Path(directory)
+
+
+def _checked_output_arguments(
+    result: Any, images: tuple[Any, Any], names: Any, extra: Any
+) -> tuple[np.ndarray, np.ndarray]:
+    """The two images of :func:`write_outputs` as 8-bit arrays (a path is read); TypeError or
+    ValueError naming the argument that cannot make its files: not a PairResult, an image not
+    of the size the result describes, names that are not two distinct, non-empty texts (COLMAP
+    names each image once), ``extra`` that JSON cannot hold (NaN and infinity are no JSON)."""
+    from .images import as_image
+
+    if not isinstance(result, PairResult):
+        raise TypeError(f"result must be a PairResult (estimate_pair), got {type(result).__name__}")
+    sizes = (result.cameras.image_size1, result.cameras.image_size2)
+    arrays = tuple(as_image(image, f"image{i}") for i, image in enumerate(images, 1))
+    for number, (image, size) in enumerate(zip(arrays, sizes, strict=True), 1):
+        shape = image.shape
+        if size is not None and (shape[1], shape[0]) != tuple(size):
+            raise ValueError(
+                f"image{number} is {shape[1]}x{shape[0]} pixels, but the result's image {number} "
+                f"is {size[0]}x{size[1]}"
+            )
+    if not (isinstance(names, (tuple, list)) and len(names) == 2):
+        raise TypeError(f"names must be two image names, got {names!r:.60}")
+    if not all(isinstance(name, str) and name.strip() for name in names):
+        raise TypeError(f"names must be two non-empty texts, got {names!r:.60}")
+    if names[0] == names[1]:
+        raise ValueError(f"names must differ: a COLMAP model names each image once, got {names!r}")
+    if extra is not None and not isinstance(extra, dict):
+        raise TypeError(f"extra must be a dict of JSON values, got {type(extra).__name__}")
+    try:
+        json.dumps(extra, allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise type(exc)(f"extra cannot be written as JSON: {exc}") from None
+    return arrays
+
+
+def _checked_dists(dists: Any) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The two distortions of :func:`write_outputs` checked as OpenCV coefficients."""
+    from .checks import as_distortion
+
+    if not (isinstance(dists, (tuple, list)) and len(dists) == 2):
+        raise TypeError(f"dists must be two distortions (None for none), got {dists!r:.60}")
+    return as_distortion(dists[0], "dists[0]"), as_distortion(dists[1], "dists[1]")

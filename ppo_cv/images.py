@@ -286,7 +286,8 @@ def native_messages_silenced() -> Iterator[None]:
     level = cv2.utils.logging.getLogLevel()
     cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
     with contextlib.suppress(ValueError, OSError):
-        sys.stderr.flush()
+        if sys.stderr is not None:  # None: a process started without standard error
+            sys.stderr.flush()
     try:
         saved = os.dup(2)
     except OSError:  # no stderr to protect

@@ -277,9 +277,10 @@ def list_images(image_dir: str | os.PathLike) -> list[str]:
 
 def screen_images(image_dir: str | os.PathLike) -> tuple[list[str], dict[str, str]]:
     """The image files of ``image_dir`` (:func:`list_images`) named in UTF-8 that pass
-    :func:`ppo_cv.images.check_decodes`, and the others with the reason, by name: an image
-    declaring more pixels than accepted would be decoded whole before pycolmap refused it, a
-    damaged one would have libpng print its own errors."""
+    :func:`ppo_cv.images.check_decodes` and are no copy of an earlier one, and the others with
+    the reason, by name: an image declaring more pixels than accepted would be decoded whole
+    before pycolmap refused it, a damaged one would have libpng print its own errors, and a
+    copy adds no view (two copies alone read as a pure rotation)."""
     kept, skipped = [], {}
     for name in list_images(image_dir):
         try:
@@ -289,7 +290,28 @@ def screen_images(image_dir: str | os.PathLike) -> tuple[list[str], dict[str, st
             skipped[name] = str(exc)
         else:
             kept.append(name)
-    return kept, skipped
+    copies = _copies(Path(image_dir), kept)
+    for name, original in copies.items():
+        skipped[name] = f"{Path(image_dir) / name} is a copy of {original}: the same bytes"
+    return [name for name in kept if name not in copies], dict(sorted(skipped.items()))
+
+
+def _copies(image_dir: Path, names: Sequence[str]) -> dict[str, str]:
+    """Each file of ``names`` whose bytes are those of an earlier one, with that one's name."""
+    import hashlib
+
+    by_size: dict[int, list[str]] = {}
+    for name in names:
+        by_size.setdefault((image_dir / name).stat().st_size, []).append(name)
+    copies = {}
+    for group in (g for g in by_size.values() if len(g) > 1):
+        first: dict[bytes, str] = {}
+        for name in group:
+            digest = hashlib.sha256((image_dir / name).read_bytes()).digest()
+            original = first.setdefault(digest, name)
+            if original != name:
+                copies[name] = original
+    return copies
 
 
 def _require_utf8_name(name: str) -> None:
@@ -404,6 +426,7 @@ def prepare_database(
     database_path = _as_path(database_path, "database_path")
     if database_path.exists():
         raise ValueError(f"database {str(database_path)!r} already exists")
+    check_target(database_path, "file", inputs=[image_dir], name="database_path ")
     if K is not None:
         _check_one_size(image_dir, names)
     reader, extraction, matching, verification = _pycolmap_options(
@@ -564,6 +587,46 @@ def _require_database(path: Path) -> None:
         header = handle.read(len(_SQLITE_HEADER))
     if header != _SQLITE_HEADER:
         raise ValueError(f"database {str(path)!r} is not a COLMAP database (no SQLite header)")
+    missing = _missing_colmap_columns(path)
+    if missing:
+        raise ValueError(
+            f"database {str(path)!r} is an SQLite file but not a COLMAP database: it lacks "
+            f"{', '.join(missing)}"
+        )
+
+
+_COLMAP_COLUMNS = {
+    "cameras": ("camera_id", "model", "width", "height", "params"),
+    "images": ("image_id", "name", "camera_id"),
+    "keypoints": ("image_id", "rows", "cols", "data"),
+    "matches": ("pair_id", "rows", "cols", "data"),
+    "two_view_geometries": ("pair_id", "rows", "cols", "data", "config", "E"),
+}
+"""Tables and columns every COLMAP database has had (3.x and 4.x): pycolmap adds any table it
+misses to the file it opens, and refuses a table it reads without its columns with a
+RuntimeError."""
+
+
+def _missing_colmap_columns(path: Path) -> list[str]:
+    """The :data:`_COLMAP_COLUMNS` (``table`` or ``table.column``) the SQLite file ``path``
+    lacks, read without writing to it; ValueError for a file SQLite cannot read."""
+    import sqlite3
+
+    read_only = f"{path.resolve().as_uri()}?mode=ro"
+    try:
+        with contextlib.closing(sqlite3.connect(read_only, uri=True)) as db:
+            columns = {
+                table: {row[1] for row in db.execute(f"PRAGMA table_info({table})")}
+                for table in _COLMAP_COLUMNS
+            }
+    except sqlite3.DatabaseError as exc:
+        raise ValueError(f"database {str(path)!r} cannot be read: {exc}") from None
+    return [
+        table if not columns[table] else f"{table}.{column}"
+        for table, needed in _COLMAP_COLUMNS.items()
+        for column in (needed if columns[table] else needed[:1])
+        if column not in columns[table]
+    ]
 
 
 def score_pairs(
@@ -1318,10 +1381,12 @@ def run_sfm(
     _check_scoring(scoring)
     _check_run_numbers(num_threads, seed, max_num_features)
     image_dir = _image_folder(image_dir)
-    if output_dir is not None:
-        check_target(_as_path(output_dir, "output_dir"), "folder", overwrite)
+    if output_dir is not None:  # never the image folder, nor one holding it, even replaced
+        output_dir = _as_path(output_dir, "output_dir")
+        check_target(output_dir, "folder", overwrite, [image_dir], "output_dir ")
     if database_path is not None:
-        check_target(_as_path(database_path, "database_path"), "file")
+        check_target(_as_path(database_path, "database_path"), "file", False, [image_dir],
+                     "database_path ")  # fmt: skip
     with contextlib.ExitStack() as stack:
         scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="ppo-cv-sfm-")))
         if exif_orientation:

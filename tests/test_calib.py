@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import doctest
 import json
+import os
+import re
 
 import cv2
 import numpy as np
@@ -285,6 +287,10 @@ def test_json_two_cameras(tmp_path, data):
          "OpenCV distortion"),
         ('{"cameras": {"K": [500, 500, 320, 240]}}', "cameras must be a list of cameras"),
         ('{"cameras": []}', "no camera in"),
+        # the file named, not Python's limit on the digits of an integer alone
+        ('{"fx": ' + "9" * 5000 + ', "fy": 500, "cx": 320, "cy": 240}',
+         r"camera\.json is not a calibration file: Exceeds the limit \(4300 digits\) for "
+         "integer string conversion: value has 5000 digits$"),
     ],
 )
 def test_json_errors(tmp_path, text, message):
@@ -426,3 +432,63 @@ def test_a_camera_is_scaled_to_a_resized_image_about_the_pixel_centres():
     assert same is unsized and note is None
     with pytest.raises(ValueError, match="320x240 images but a.png is 640x400 pixels, another"):
         fit_to_image(camera, (640, 400), "c", "a.png")
+
+
+@pytest.mark.parametrize("value", [None, 535.4, b"535.4,539.2,320.1,247.6"], ids=repr)
+@pytest.mark.parametrize("parse", [parse_intrinsics, parse_distortion], ids=lambda f: f.__name__)
+def test_parsing_something_other_than_text_is_a_type_error(parse, value):
+    """None and a number were a ValueError about comma-separated numbers (None "got 1" number)."""
+    with pytest.raises(TypeError, match=f"must be a text of numbers, got {type(value).__name__}"):
+        parse(value)
+
+
+def _exif_target(tmp_path, kind):
+    path = tmp_path / f"{kind}.png"
+    if kind == "folder":
+        path.mkdir()
+    elif kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "truncated":
+        cv2.imwrite(str(tmp_path / "whole.png"), np.full((480, 640, 3), 90, np.uint8))
+        path.write_bytes((tmp_path / "whole.png").read_bytes()[:300])
+    return path
+
+
+@pytest.mark.parametrize(
+    "kind, words",
+    [("missing", "image not found: "), ("folder", "expected an image file, got a directory: "),
+     ("fifo", "not a regular file: "), ("truncated", "not a readable image: ")],
+)  # fmt: skip
+def test_camera_from_exif_names_a_file_that_is_no_image(tmp_path, capfd, kind, words):
+    """pycolmap said an existing folder did not exist, and guessed a camera for a damaged image
+    after libpng's errors on stderr."""
+    path = _exif_target(tmp_path, kind)
+    with pytest.raises(ValueError, match=re.escape(f"{words}{path}")):
+        camera_from_exif(path)
+    assert capfd.readouterr().err == ""
+
+
+def test_camera_from_exif_of_something_other_than_a_path_is_a_type_error():
+    with pytest.raises(TypeError, match="path must be a path .*, got NoneType"):
+        camera_from_exif(None)
+
+
+PNG_BYTES = cv2.imencode(".png", np.zeros((8, 8), np.uint8))[1].tobytes()
+
+
+@pytest.mark.parametrize(
+    "data, words",
+    [(PNG_BYTES, "(byte 0x89): a binary file, such as an image?"),
+     ("1 PINHOLE 640 480 500 500 320 240 # café\n".encode("latin-1"),
+      "(byte 0xe9): save it as UTF-8")],
+    ids=["an image", "Latin-1 text"],
+)  # fmt: skip
+@pytest.mark.parametrize("what", ["calibration file", "pairs file"])
+def test_a_file_that_is_no_utf8_text_is_named_with_what_it_is(tmp_path, data, words, what):
+    """Python's decoding error alone ("'utf-8' codec can't decode byte 0x89 in position 0")."""
+    from ppo_cv.cli.batch import read_pairs
+
+    path = tmp_path / "given.txt"
+    path.write_bytes(data)
+    with pytest.raises(ValueError, match=re.escape(f"{what} {path} is not UTF-8 text {words}")):
+        load_calibration(path) if what == "calibration file" else read_pairs(path)

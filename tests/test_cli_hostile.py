@@ -20,6 +20,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pycolmap
 import pytest
 from hostile_images import HEADERS
 
@@ -450,6 +451,11 @@ CASES = [
     ([*PAIR[:2], NOT_UTF8, "--K", K_TEXT, "--out", "new"], "pair",
      r"--out: image name 'bad\\xff\.png' is not valid UTF-8, which a COLMAP model cannot hold; "
      r"run without --out$"),
+    # a name holding a line break, shown whole (the message named the file "no")
+    (["pair", "no\nsuch.png", DEMO2, "--K", K_TEXT], "pair", r"image not found: no\\nsuch\.png$"),
+    ([*PAIR[:3], "--calib", "no\nsuch.yml"], "pair",
+     r"calibration file not found: no\\nsuch\.yml$"),
+    (["pairs", "no\nsuch.txt", "images"], "pairs", r"pairs file not found: no\\nsuch\.txt$"),
     # '-' is standard output, which cannot hold a folder (no folder named '-' appears)
     ([*PAIR, "--out", "-"], "pair", r"--out takes a folder, not '-' \(standard output\)"),
 ]
@@ -893,3 +899,36 @@ def test_a_failure_names_the_path_given_not_the_hidden_one_it_was_built_under(er
     from ppo_cv.cli.common import error_message
 
     assert error_message(error) == message
+
+
+@pytest.mark.parametrize("others", [[], [DEMO2]], ids=["copies alone", "with another view"])
+def test_sfm_skips_a_copy_of_an_image_naming_the_original(tmp_path, others):
+    """Two copies of one photo read as a pure rotation: the folder was called a panorama
+    holding no structure; beside another view, the copy was registered as a view of its own."""
+    (tmp_path / "images").mkdir()
+    for name, source in [("a.png", DEMO1), ("b.png", DEMO1), *(("c.png", o) for o in others)]:
+        shutil.copy(source, tmp_path / "images" / name)
+    out = subprocess.run([*COMMAND, "sfm", "images", "model", "--K", K_TEXT, "-q"], cwd=tmp_path,
+                         capture_output=True, text=True, timeout=300)  # fmt: skip
+    reason = "images/b.png is a copy of a.png: the same bytes"
+    if not others:
+        assert out.returncode == 2
+        assert out.stderr == (
+            f"ppo-cv sfm: need at least 2 images in 'images', found 1 (1 skipped: {reason})\n"
+        )
+        return
+    assert out.returncode == 0, out.stderr
+    assert out.stderr == f"ppo-cv sfm: warning: skipping an image: {reason}\n"
+    assert out.stdout.startswith("registered 2/2 images")
+    model = pycolmap.Reconstruction(tmp_path / "model")
+    assert sorted(image.name for image in model.images.values()) == ["a.png", "c.png"]
+
+
+def test_the_summary_names_a_file_holding_a_line_break_on_its_first_line(tmp_path):
+    shutil.copy(DEMO1, tmp_path / "one\ntwo.png")
+    out = subprocess.run([*COMMAND, "pair", "one\ntwo.png", DEMO2, "--K", K_TEXT, "-q"],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[0] == f"one\\ntwo.png -> {DEMO2}"
+    assert lines[1].startswith("  verdict      general motion")

@@ -112,3 +112,46 @@ def test_help_fits_80_columns_with_every_option_name_whole(command):
     assert _long_names(command) <= words, _long_names(command) - words
     if command in ("pair", "pairs"):
         assert "Pipeline:" in lines and lines.index("Pipeline:") > lines.index("Options:")
+
+
+@pytest.mark.parametrize(
+    "variable, value, warned",
+    [("OMP_NUM_THREADS", "abc", True), ("OMP_NUM_THREADS", "0", True),
+     ("OMP_NUM_THREADS", "", True), ("OMP_NUM_THREADS", "4,0", True),
+     ("OMP_THREAD_LIMIT", "4,2", True), ("OMP_NUM_THREADS", "2", False),
+     ("OMP_NUM_THREADS", "4,2", False), ("OMP_THREAD_LIMIT", " 3", False)],
+)  # fmt: skip
+def test_an_unreadable_openmp_thread_count_is_one_warning_line(variable, value, warned):
+    """The OpenMP runtime pycolmap loads prints two lines of its own for a value it cannot read
+    and ignores it; the command drops it first and says so in one line."""
+    env = {**os.environ, variable: value}
+    done = subprocess.run([sys.executable, "-m", "ppo_cv.cli.main", "pair", "--help"],
+                          capture_output=True, text=True, timeout=120, env=env)  # fmt: skip
+    assert done.returncode == 0
+    assert done.stdout.startswith("Usage: ppo-cv pair")
+    expected = [f"ppo-cv pair: warning: {variable}={value!r} is not a positive whole number; "
+                "ignored"] if warned else []  # fmt: skip
+    assert done.stderr.splitlines() == expected
+
+
+USAGE = {
+    "pair": ("[IMAGE1] [IMAGE2]", ["IMAGE1", "IMAGE2"]),
+    "pairs": ("PAIRS_FILE IMAGE_DIR", ["PAIRS_FILE", "IMAGE_DIR"]),
+    "sfm": ("IMAGE_DIR OUT_DIR", ["IMAGE_DIR", "OUT_DIR"]),
+    "synth": ("OUT_DIR", ["OUT_DIR"]),
+}
+
+
+@pytest.mark.parametrize("command", list(USAGE))
+def test_usage_and_arguments_use_the_names_the_help_text_uses(command, capsys):
+    """The help text speaks of PAIRS_FILE, IMAGE_DIR and OUT_DIR; the usage line said
+    ``{pairs_file} {image_dir}`` and a missing argument was 'pairs_file'."""
+    usage, names = USAGE[command]
+    code, out, _ = _run([command, "--help"], capsys)
+    assert code == 0
+    assert out.splitlines()[0] == f"Usage: ppo-cv {command} [OPTIONS] {usage}"
+    arguments = out.split("Arguments:\n")[1].split("\n\n")[0]
+    assert [line.split()[0] for line in arguments.splitlines() if line[2:3] != " "] == names
+    if command != "pair":
+        code, _, err = _run([command], capsys)
+        assert (code, err) == (2, f"ppo-cv {command}: Missing argument '{names[0]}'.\n")

@@ -54,3 +54,42 @@ def test_a_full_or_closed_stdout_is_one_line_and_exit_2(tmp_path, name, stdout):
     ], done.stderr
     if stdout == "closed":  # refused before any work
         assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def _close_stderr() -> None:
+    os.close(2)
+
+
+@pytest.mark.parametrize("output", [[], ["--out", "result"]], ids=["summary", "--out"])
+def test_a_closed_stderr_does_not_stop_a_run_or_reach_its_files(tmp_path, output):
+    """``2>&-``: the run ends as with stderr open; nothing meant for stderr lands in a file the
+    command opened (the first file opened would take descriptor 2)."""
+    (tmp_path / "images").mkdir()
+    for image in NAMES:
+        shutil.copy(DATA / image, tmp_path / "images" / image)
+    done = subprocess.run([*COMMAND, *PAIR, *output], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=600, preexec_fn=_close_stderr)  # fmt: skip
+    assert done.returncode == 0
+    assert done.stdout.splitlines()[1].startswith("  verdict      general motion")
+    if output:
+        result = json.loads((tmp_path / "result" / "result.json").read_text())
+        assert result["model"] == "general"
+
+
+@pytest.mark.parametrize(
+    "argv, command",
+    [(["--version"], "ppo-cv"), (["--help"], "ppo-cv"), (["pair", "--help"], "ppo-cv pair"),
+     (["synth", "--help"], "ppo-cv synth")],
+)  # fmt: skip
+def test_help_and_version_into_a_closed_pipe_are_one_line_and_exit_2(argv, command):
+    """``ppo-cv --help | true`` when the reader left first: as every command's result, one line
+    and exit code 2 (it was a silent exit code 1)."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        done = subprocess.run([*COMMAND, *argv], stdout=write_end, stderr=subprocess.PIPE,
+                              text=True, timeout=120)  # fmt: skip
+    finally:
+        os.close(write_end)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.splitlines() == [f"{command}: cannot write to standard output: Broken pipe"]

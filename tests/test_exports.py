@@ -4,6 +4,7 @@ reprojection errors, a readable ``matches.png`` and one row convention for ``poi
 from __future__ import annotations
 
 import json
+import re
 from importlib import resources
 
 import numpy as np
@@ -259,3 +260,43 @@ def test_the_colmap_camera_is_the_camera_used(demo, demo_result, tmp_path, dist,
     K1 = demo_result.cameras.K1
     assert camera.model_name == model
     np.testing.assert_allclose(camera.params, [K1[0, 0], K1[1, 1], K1[0, 2], K1[1, 2], *params])
+
+
+WRITE_OUTPUTS_CASES = {
+    # a model with two images of one name, or of no name, which COLMAP cannot hold
+    "names alike": ({"names": ("a.png", "a.png")}, ValueError, "names must differ"),
+    "names empty": ({"names": ("", "b.png")}, TypeError, "names must be two non-empty texts"),
+    "three names": ({"names": ("a.png", "b.png", "c.png")}, TypeError,
+                    "names must be two image names"),
+    # an image of another size: matches.png drawn off the image, the model's size not its own
+    "image cut": ({"image1": lambda demo: demo[0][:100]}, ValueError,
+                  "image1 is 640x100 pixels, but the result's image 1 is 640x480"),
+    "image None": ({"image2": lambda demo: None}, TypeError, "image2 is required"),
+    # JSON has no NaN: result.json held the bare word NaN
+    "extra NaN": ({"extra": {"note": float("nan")}}, ValueError,
+                  "extra cannot be written as JSON: Out of range float values"),
+    "extra object": ({"extra": {"note": object()}}, TypeError, "extra cannot be written as JSON"),
+    "dists of 3": ({"dists": ([0.1, 0, 0], None)}, ValueError,
+                   "dists[0] must be OpenCV distortion coefficients"),
+    "result None": ({"result": None}, TypeError, "result must be a PairResult"),
+    "directory None": ({"directory": None}, TypeError, "directory must be a path"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", list(WRITE_OUTPUTS_CASES))
+def test_write_outputs_names_a_bad_argument_and_writes_nothing(demo, demo_result, tmp_path, case):
+    changes, error, words = WRITE_OUTPUTS_CASES[case]
+    arguments = {"directory": tmp_path / "out", "result": demo_result, "image1": demo[0],
+                 "image2": demo[1]}  # fmt: skip
+    for key, value in changes.items():
+        arguments[key] = value(demo) if callable(value) else value
+    with pytest.raises(error, match=re.escape(words)):
+        write_outputs(**arguments)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_write_outputs_reads_images_given_as_paths(demo_result, tmp_path):
+    data = resources.files("ppo_cv.data")
+    write_outputs(tmp_path / "out", demo_result, data / "demo1.png", data / "demo2.png")
+    drawn = load_image(str(tmp_path / "out" / "matches.png"))
+    assert drawn.shape[1] == 2 * 640 and drawn.std() > 10

@@ -7,6 +7,7 @@ UMats, the positional call OpenCV reads as the first form, and images of any dep
 from __future__ import annotations
 
 import os
+import re
 import warnings
 from pathlib import Path
 
@@ -170,6 +171,18 @@ CASES = {
     "recover_pose pri_threshold nan": (
         lambda: ppo_cv.recover_pose(E, P1, P2, K, pri_threshold=np.nan), ValueError,
         "pri_threshold"),
+    # True is no number: it read as 1 (every pair a pure rotation, a focal length of 1 px)
+    "recover_pose pri_threshold True": (
+        lambda: ppo_cv.recover_pose(E, P1, P2, K, pri_threshold=True), TypeError,
+        "pri_threshold must be a number, got True"),
+    "recoverPose focal True": (lambda: ppo_cv.recoverPose(E, P1, P2, focal=True), TypeError,
+                               "focal must be a number, got True"),
+    "recoverPose distanceThresh True": (
+        lambda: ppo_cv.recoverPose(E, P1, P2, K, distanceThresh=np.True_), TypeError,
+        "distanceThresh must be a number, got np.True_"),
+    "form 4 threshold True": (_form4(threshold=True), TypeError, "threshold must be a number"),
+    "run_sfm target_tri_angle True": (lambda: _sfm(target_tri_angle=True), TypeError,
+                                      "target_tri_angle must be a number, got True"),
     "recover_pose pri_threshold text": (
         lambda: ppo_cv.recover_pose(E, P1, P2, K, pri_threshold="x"), TypeError,
         "pri_threshold must be a number"),
@@ -565,3 +578,91 @@ def test_too_few_images_gives_the_first_reasons_and_counts_the_rest():
         "need at least 2 images in 'd', found 1 (5 skipped: not a readable image: d/0.png; "
         "not a readable image: d/1.png; not a readable image: d/2.png; 2 more)"
     )
+
+
+def test_images_are_read_in_a_process_without_standard_error(monkeypatch):
+    """``sys.stderr`` is None where Python starts without descriptor 2 (``2>&-``, some
+    services); reading an image held back the native libraries' messages by flushing it."""
+    monkeypatch.setattr("sys.stderr", None)
+    image = load_image(Path(ppo_cv.__file__).parent / "data" / "demo1.png")
+    assert image.shape == (480, 640, 3)
+
+
+def _sqlite_file(path: Path, *statements: str) -> None:
+    import sqlite3
+
+    with sqlite3.connect(path) as db:
+        for statement in statements:
+            db.execute(statement)
+    db.close()
+
+
+DATABASES = {
+    "no COLMAP table": (("CREATE TABLE notes (text)",),
+                        "is an SQLite file but not a COLMAP database: it lacks cameras, images, "
+                        "keypoints, matches, two_view_geometries"),
+    "tables without COLMAP's columns": (
+        ("CREATE TABLE cameras (a)", "CREATE TABLE images (a)", "CREATE TABLE keypoints (a)",
+         "CREATE TABLE matches (a)", "CREATE TABLE two_view_geometries (a)"),
+        "it lacks cameras.camera_id, cameras.model"),
+    "truncated": (None, "cannot be read: database disk image is malformed"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("call", ["score_pairs", "reconstruct"])
+@pytest.mark.parametrize("case", list(DATABASES))
+def test_an_sqlite_file_that_is_no_colmap_database_is_refused_untouched(tmp_path, case, call):
+    """pycolmap wrote its tables into such a file (score_pairs then returned no pairs), or
+    raised a RuntimeError after a log line of its own."""
+    statements, words = DATABASES[case]
+    path = tmp_path / "other.db"
+    if statements is None:
+        _sqlite_file(tmp_path / "whole.db", "CREATE TABLE notes (text)",
+                     *[f"INSERT INTO notes VALUES ('{'x' * 2000}')"] * 20)  # fmt: skip
+        path.write_bytes((tmp_path / "whole.db").read_bytes()[:5000])
+    else:
+        _sqlite_file(path, *statements)
+    before = path.read_bytes()
+    (tmp_path / "images").mkdir()
+    sfm = _sfm_module()
+    with pytest.raises(ValueError, match=re.escape(words)):
+        if call == "score_pairs":
+            sfm.score_pairs(path)
+        else:
+            sfm.reconstruct(path, tmp_path / "images")
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        ["other.db", "images", *(["whole.db"] if statements is None else [])]
+    )
+
+
+def test_prepare_database_names_a_missing_folder_before_any_work(tmp_path):
+    (tmp_path / "images").mkdir()
+    for image in ("demo1.png", "demo2.png"):
+        (tmp_path / "images" / image).write_bytes(
+            (Path(ppo_cv.__file__).parent / "data" / image).read_bytes()
+        )
+    with pytest.raises(ValueError, match="cannot write .*no/x.db: folder .*no does not exist"):
+        _sfm_module().prepare_database(tmp_path / "images", tmp_path / "no" / "x.db", K=K)
+
+
+@pytest.mark.parametrize(
+    "output, database, words",
+    [("images", None, "the output output_dir {root}/images is the input {root}/images"),
+     (".", None, "the output output_dir {root} holds the input {root}/images"),
+     ("model", "images/demo1.png", "{root}/images/demo1.png already exists")],
+    ids=["the image folder", "a folder holding it", "an image as database"],
+)  # fmt: skip
+def test_run_sfm_never_replaces_its_images_even_with_overwrite(tmp_path, output, database, words):
+    """run_sfm(images, images, overwrite=True) replaced the photos by the model."""
+    (tmp_path / "images").mkdir()
+    for image in ("demo1.png", "demo2.png"):
+        (tmp_path / "images" / image).write_bytes(
+            (Path(ppo_cv.__file__).parent / "data" / image).read_bytes()
+        )
+    before = {p.name: p.read_bytes() for p in (tmp_path / "images").iterdir()}
+    target = tmp_path / output if output != "." else tmp_path
+    with pytest.raises(ValueError, match=re.escape(words.format(root=tmp_path))):
+        _sfm_module().run_sfm(tmp_path / "images", target, K=K, overwrite=True,
+                              database_path=database and tmp_path / database)  # fmt: skip
+    assert {p.name: p.read_bytes() for p in (tmp_path / "images").iterdir()} == before
