@@ -97,10 +97,9 @@ def to_uint8(image: np.ndarray, name: str = "image") -> np.ndarray:
         return np.rint(image).astype(np.uint8)
     if high == low:
         return np.zeros(image.shape, dtype=np.uint8)
-    scale = 255.0 / (high - low)
-    return np.rint((image.astype(np.float32) - np.float32(low)) * np.float32(scale)).astype(
-        np.uint8
-    )
+    work = np.float64 if image.dtype.itemsize > 2 else np.float32
+    shifted = np.subtract(image, low, dtype=work)
+    return np.rint(shifted * work(255.0 / (high - low))).astype(np.uint8)
 
 
 def to_gray(image: np.ndarray) -> np.ndarray:

@@ -487,6 +487,23 @@ def test_deep_images_are_scaled_by_their_range(tmp_path):
     assert unit.max() == 255 and unit.min() == 0
 
 
+@pytest.mark.parametrize(
+    "deep",
+    [
+        lambda ramp: ramp.astype(np.float64) * 1e300,
+        lambda ramp: ramp.astype(np.float64) + 1e9,
+        lambda ramp: ramp.astype(np.int64) + 2**40,
+        lambda ramp: ramp.astype(np.uint64) * 2**50,
+    ],
+    ids=["float64 1e300", "float64 offset 1e9", "int64 offset 2^40", "uint64 2^50"],
+)
+def test_deep_images_of_extreme_values_keep_their_contrast(deep):
+    ramp = np.tile(np.arange(256, dtype=np.int64), (4, 1)) * 3
+    expected = np.arange(256).astype(np.uint8)  # [min, max] onto [0, 255]
+    gray = ppo_cv.features.to_uint8(deep(ramp))
+    np.testing.assert_array_equal(gray[0], expected)
+
+
 def test_a_single_channel_float_tiff_is_read(tmp_path):
     path = tmp_path / "float.tiff"
     assert cv2.imwrite(str(path), GREY.astype(np.float32) / 255.0)
