@@ -11,7 +11,10 @@ wall time of the whole command per pair with its ratio to the demo pair's, and t
 each pipeline stage as reported in the ``--json`` output. The pairs take turns within each
 run, so a change of load on the machine touches them alike. ``--floor`` adds each rotation
 pair once more with ``--no-photometric``: what the pair costs without its refit, the part of
-its time that the refit cannot explain.
+its time that the refit cannot explain. ``--refit N`` adds where the refit's time goes: the
+photometric refit of each rotation pair, its inputs taken from one run of ``estimate_pair``,
+replayed N times in this process with one BLAS thread (the command's) and its threads run one
+after the other, the process CPU time of each part (median over the calls).
 """
 
 from __future__ import annotations
@@ -128,13 +131,127 @@ def report(measured: dict[str, tuple[list, dict, list]], runs: int, notes: list[
     return "\n".join([*lines, *(["", *notes] if notes else [])])
 
 
+REFIT_PARTS = {
+    "_align": "polish: window alignment",
+    "_fit_windows": "refits of the tracks",
+    "_seen_through": "warps of image 2",
+    "_prepare": "preparing the images",
+    "_search": "Lucas-Kanade searches",
+    "_corners": "corners",
+    "_plane_parallax": "the tracks' parallax",
+}
+"""Functions of ``ppo_cv.photometric`` timed by ``--refit``, each without the others it calls."""
+
+
+def _refit_inputs(arguments: list[str]) -> tuple[tuple, dict]:
+    """The arguments of the first ``refine_rotation_photometric`` call of ``estimate_pair`` on
+    the pair of ``ppo-cv pair`` ``arguments`` (two images, ``--K``, ``--K2``)."""
+    import cv2
+
+    from ppo_cv import estimate_pair, pipeline
+
+    def camera(text: str) -> list[list[float]]:
+        fx, fy, cx, cy = (float(v) for v in text.split(","))
+        return [[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]]
+
+    images = [cv2.imread(path) for path in arguments[:2]]
+    K1, K2 = camera(arguments[3]), camera(arguments[5])
+    calls = []
+    refine = pipeline.refine_rotation_photometric
+
+    def recorded(*args, **kwargs):
+        calls.append((args, kwargs))
+        return refine(*args, **kwargs)
+
+    pipeline.refine_rotation_photometric = recorded
+    try:
+        estimate_pair(*images, K1, K2)
+    finally:
+        pipeline.refine_rotation_photometric = refine
+    if not calls:
+        raise SystemExit("the pair did not run the photometric refit")
+    return calls[0]
+
+
+def refit_profile(arguments: list[str], calls: int) -> dict[str, float]:
+    """Median process CPU time (s) of each part of the pair's photometric refit over ``calls``
+    replays, its threads one after the other; ``"lens fits"`` the lens rotation fits per call."""
+    from ppo_cv import photometric
+
+    args, kwargs = _refit_inputs(arguments)
+    spent, stack, fits = {}, [], [0]
+    originals = {name: getattr(photometric, name) for name in [*REFIT_PARTS, "_threaded_map"]}
+    originals["fit_rotation_lens"] = photometric.fit_rotation_lens
+
+    def timed(name, function):
+        def call(*a, **k):
+            stack.append(0.0)
+            start = time.process_time()
+            try:
+                return function(*a, **k)
+            finally:
+                elapsed = time.process_time() - start
+                spent[name] = spent.get(name, 0.0) + elapsed - stack.pop()
+                if stack:
+                    stack[-1] += elapsed
+
+        return call
+
+    def counted(*a, **k):
+        fits[0] += 1
+        return originals["fit_rotation_lens"](*a, **k)
+
+    for name in REFIT_PARTS:
+        setattr(photometric, name, timed(name, originals[name]))
+    photometric._threaded_map = lambda function, items: [function(item) for item in items]
+    photometric.fit_rotation_lens = counted
+    samples = []
+    try:
+        for _ in range(calls):
+            spent.clear()
+            fits[0] = 0
+            start = time.process_time()
+            photometric.refine_rotation_photometric(*args, **kwargs)
+            total = time.process_time() - start
+            samples.append({**spent, "rest": total - sum(spent.values()), "total": total,
+                            "lens fits": fits[0]})  # fmt: skip
+    finally:
+        for name, function in originals.items():
+            setattr(photometric, name, function)
+    return {key: statistics.median(s.get(key, 0.0) for s in samples) for key in samples[0]}
+
+
+def refit_report(profiles: dict[str, dict[str, float]], calls: int) -> str:
+    """Markdown table of :func:`refit_profile` per pair."""
+    labels = list(profiles)
+    lines = [
+        f"Photometric refit replayed in process, {calls} calls per pair, one BLAS thread, its"
+        " threads one after the other: median process CPU time (ms)",
+        "",
+        "| part | " + " | ".join(labels) + " |",
+        "|---|" + "---:|" * len(labels),
+    ]
+    for key, name in [*REFIT_PARTS.items(), ("rest", "the rest"), ("total", "total")]:
+        cells = [f"{profile.get(key, 0.0) * 1e3:.1f}" for profile in profiles.values()]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    counts = [f"{profile['lens fits']:.0f}" for profile in profiles.values()]
+    lines.append("| lens rotation fits (count) | " + " | ".join(counts) + " |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--runs", type=int, default=7)
     parser.add_argument(
         "--floor", action="store_true", help="the rotation pairs also with --no-photometric"
     )
+    parser.add_argument(
+        "--refit", type=int, default=0, metavar="N",
+        help="also replay each rotation pair's photometric refit N times and time its parts",
+    )  # fmt: skip
     args = parser.parse_args(argv)
+    if args.refit:
+        os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads, as the command
     notes = []
     with tempfile.TemporaryDirectory() as folder:
         pairs = {
@@ -152,7 +269,14 @@ def main(argv: list[str] | None = None) -> None:
                 for label, arguments in list(pairs.items())[1:]
             }
         measured = run(pairs, args.runs)
+        profiles = {
+            label: refit_profile(arguments, args.refit)
+            for label, arguments in list(pairs.items())[1:3]
+            if args.refit
+        }
     print(report(measured, args.runs, notes))
+    if profiles:
+        print("\n" + refit_report(profiles, args.refit))
 
 
 if __name__ == "__main__":

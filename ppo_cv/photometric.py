@@ -28,7 +28,8 @@ image 1 lands in image 2, and the intensities fix it far better:
    stay in the cache, two such chunks at once on two threads), with exact bilinear
    interpolation: image 2 is read once per Jacobian as the polynomial of each pixel's cell,
    which the steps then move along (a window is read again where it moved more than a
-   hundredth of a pixel). Each window's pixels are transferred
+   hundredth of a pixel); its Scharr derivatives, which only weigh the steps, are sampled by
+   ``cv2.remap``. Each window's pixels are transferred
    through the model by interpolating its exact transfer at 5 x 5 points;
 3. the lens rotation refitted on the tracks, outliers (moving objects, occlusions, windows that
    did not converge) dropped beyond ``3 sqrt(2)`` times the tracks' own noise per coordinate
@@ -219,22 +220,24 @@ class PhotometricRotation:
 @dataclass(frozen=True)
 class _Plane:
     """A grey image as the polish reads it, per pixel cell (the square between four pixels,
-    named by its top-left one): ``cells`` (H W, 5 or 13) float32, the coefficients of the
-    cell's exact bilinear interpolation ``base + fx slope_x + fy (slope_y + fx twist)`` of the
+    named by its top-left one): ``cells`` (H W, 5) float32, the coefficients of the cell's
+    exact bilinear interpolation ``base + fx slope_x + fy (slope_y + fx twist)`` of the
     intensity, then 1 where none of its corners lies within :data:`_CLIP_MARGIN` pixels of a
-    pixel clipped at white (:data:`SATURATED`), else 0, and optionally those of the Scharr
-    derivatives along x and y (:data:`_GRADIENT_X`, :data:`_GRADIENT_Y`) (no rows when only
-    whole pixels are read, from ``intensity``); ``clipped`` (H W) non-zero at the pixels
-    within the margin."""
+    pixel clipped at white (:data:`SATURATED`), else 0 (no rows when only whole pixels are
+    read, from ``intensity``); ``clipped`` (H W) non-zero at the pixels within the margin;
+    ``gradients`` optionally the Scharr derivatives (H, W) along x and y, which the polish
+    samples with ``cv2.remap``: they only weigh its steps, where a sampling position off by
+    1/64 pixel does not matter."""
 
     cells: np.ndarray
     width: int
     height: int
     clipped: np.ndarray
     intensity: np.ndarray
+    gradients: tuple[np.ndarray, ...] = ()
 
 
-_CLEAR, _GRADIENT_X, _GRADIENT_Y = 4, 5, 9  # rows of _Plane.cells
+_CLEAR = 4  # row of _Plane.cells
 
 
 def _plane(gray: np.ndarray, gradients: bool, cells: bool = True) -> _Plane:
@@ -244,18 +247,17 @@ def _plane(gray: np.ndarray, gradients: bool, cells: bool = True) -> _Plane:
     h, w = image.shape
     side = 2 * _CLIP_MARGIN + 1
     clipped = cv2.dilate((image >= SATURATED).astype(np.uint8), np.ones((side, side), np.uint8))
+    derivatives = (
+        tuple(cv2.Scharr(image, cv2.CV_32F, *d, scale=1.0 / 32.0) for d in ((1, 0), (0, 1)))
+        if gradients
+        else ()
+    )
     if not cells:
         return _Plane(np.zeros((0, 5), np.float32), w, h, clipped.ravel(), image.ravel())
-    channels = [image]
-    if gradients:
-        channels += [cv2.Scharr(image, cv2.CV_32F, *d, scale=1.0 / 32.0) for d in ((1, 0), (0, 1))]
     near = np.pad(clipped, ((0, 1), (0, 1)), mode="edge")
     clear = (near[:-1, :-1] | near[:-1, 1:] | near[1:, :-1] | near[1:, 1:]) == 0
-    rows = [*_bilinear_coefficients(image), clear.astype(np.float32)]
-    for channel in channels[1:]:
-        rows += _bilinear_coefficients(channel)
-    table = cv2.merge(rows)  # a cell's coefficients in a row
-    return _Plane(table.reshape(h * w, -1), w, h, clipped.ravel(), image.ravel())
+    table = cv2.merge([*_bilinear_coefficients(image), clear.astype(np.float32)])
+    return _Plane(table.reshape(h * w, -1), w, h, clipped.ravel(), image.ravel(), derivatives)
 
 
 def _bilinear_coefficients(image: np.ndarray) -> list[np.ndarray]:
@@ -298,10 +300,6 @@ class _Cells:
             shift = shift.astype(np.float32)
             fx, fy = fx + shift[:, :1], fy + shift[:, 1:]
         return base + fx * slope_x + fy * (slope_y + fx * twist)
-
-    def gradients(self) -> tuple[np.ndarray, np.ndarray]:
-        """Scharr derivatives along x and y interpolated at the points."""
-        return self.values(first=_GRADIENT_X), self.values(first=_GRADIENT_Y)
 
 
 def _cells(plane: _Plane, x: np.ndarray, y: np.ndarray, rows: Sequence[int]) -> _Cells:
@@ -374,6 +372,8 @@ def _align_level(template, template_clear, positions, d, plane2, ramp, iteration
     again there. Pixels near one clipped at white in either image are left out
     (:data:`SATURATED`).
     """
+    import cv2
+
     x = np.ascontiguousarray(positions[..., 0], dtype=np.float32)
     y = np.ascontiguousarray(positions[..., 1], dtype=np.float32)
     ramp_columns = np.column_stack([np.ones(len(ramp)), ramp]).astype(np.float32)
@@ -391,8 +391,12 @@ def _align_level(template, template_clear, positions, d, plane2, ramp, iteration
             cells.fx[rows], cells.fy[rows] = again.fx, again.fy
 
         d32 = shifts.astype(np.float32)
-        cells = _cells(plane2, x_of + d32[:, :1], y_of + d32[:, 1:], range(plane2.cells.shape[1]))
-        gradients = cells.gradients()
+        at_x, at_y = x_of + d32[:, :1], y_of + d32[:, 1:]
+        cells = _cells(plane2, at_x, at_y, range(_CLEAR + 1))
+        gradients = tuple(
+            cv2.remap(gradient, at_x, at_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            for gradient in plane2.gradients
+        )
         weight = cells.clear * template_clear[windows]
         target = template[windows] * weight
         jacobian_t, brightness = _jacobian_t(
