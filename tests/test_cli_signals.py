@@ -19,6 +19,7 @@ import sys
 import time
 from pathlib import Path
 
+import cv2
 import pytest
 
 DATA = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
@@ -144,8 +145,10 @@ def test_a_signal_inside_pycolmap_s_feature_extraction_is_one_line(tmp_path):
     # pycolmap logs "Stopping thread..." when an interrupt stops its threaded extraction
     before = _inputs(tmp_path)
     for copy in range(12):
-        for name in NAMES:
-            shutil.copy(DATA / name, tmp_path / "images" / f"{copy}_{name}")
+        for name in NAMES:  # one pixel changed: sfm skips byte-for-byte copies
+            image = cv2.imread(str(DATA / name))
+            image[0, 0, 0] ^= copy + 1
+            assert cv2.imwrite(str(tmp_path / "images" / f"{copy}_{name}"), image)
     printed = _printed("extracting SIFT features")
 
     def ready(process) -> None:
