@@ -88,7 +88,13 @@ import numpy as np
 from .lsq import gauss_newton_covariance, rotation_increment
 from .model_selection import robust_sigma
 from .motion_model import MAX_TRACK_PARALLAX, MotionDecision
-from .parallax import PlaneParallax, fit_plane_parallax, homography_parallax
+from .parallax import (
+    PlaneParallax,
+    fit_plane_parallax,
+    focal_conjugates,
+    homography_parallax,
+    rotation_spread,
+)
 from .photometric import PhotometricRotation
 from .refine import released_lens_shift_deg
 from .rotation import (
@@ -270,12 +276,12 @@ def focal_free_parallax(parallax: PlaneParallax) -> tuple[PlaneParallax, float]:
 
     H = np.asarray(parallax.H, dtype=np.float64)
     grid = np.linspace(*np.log(FOCAL_ERROR_RANGE), _FOCAL_GRID)
-    best = int(np.argmin(_spread(_conjugated(H, grid))))
+    best = int(np.argmin(rotation_spread(H, grid)))
     bracket = (grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)])
     found = minimize_scalar(
-        lambda v: _spread(_conjugated(H, np.array([v])))[0], bounds=bracket, method="bounded"
+        lambda v: rotation_spread(H, np.array([v]))[0], bounds=bracket, method="bounded"
     )
-    freed = _conjugated(H, np.array([found.x]))[0]
+    freed = focal_conjugates(H, np.array([found.x]))[0]
     c = float(np.exp(found.x))
     inside = 0 < best < grid.size - 1
     freed_parallax = replace(parallax, H=freed, parallax=homography_parallax(freed))
@@ -283,21 +289,6 @@ def focal_free_parallax(parallax: PlaneParallax) -> tuple[PlaneParallax, float]:
 
 
 _FOCAL_GRID = 61  # focal scales tried, evenly in log scale, before the bounded refinement
-
-
-def _conjugated(H: np.ndarray, log_scales: np.ndarray) -> np.ndarray:
-    """``S^-1 H S`` (K, 3, 3) for each ``S = diag(c, c, 1)``, ``c = exp(log_scales)`` (K,)."""
-    c = np.exp(np.asarray(log_scales, dtype=np.float64))[:, None]
-    ones = np.ones_like(c)
-    rows, columns = np.hstack([1.0 / c, 1.0 / c, ones]), np.hstack([c, c, ones])
-    return H[None] * rows[:, :, None] * columns[:, None, :]
-
-
-def _spread(matrices: np.ndarray) -> np.ndarray:
-    """``log(sigma_1 / sigma_3)`` of each matrix (K, 3, 3): 0 for a scaled rotation."""
-    singular = np.linalg.svd(matrices, compute_uv=False)
-    with np.errstate(divide="ignore"):
-        return np.log(singular[:, 0] / singular[:, 2])
 
 
 def unbiased_bias_deg(bias_deg: float, bias_sigma_deg: float) -> float:

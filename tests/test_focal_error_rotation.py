@@ -121,9 +121,7 @@ THE_SWING_IT_WOULD_COST = pytest.mark.xfail(
 
 @pytest.mark.slow
 @pytest.mark.parametrize(("scene_name", "seed"), [("backdrop", 0), ("clutter", 2)])
-def test_a_tripod_pan_with_the_focal_length_given_far_off_names_the_focal_length(
-    scene_name, seed
-):
+def test_a_tripod_pan_with_the_focal_length_given_far_off_names_the_focal_length(scene_name, seed):
     image1, image2, K, K_given, R = _render(scene_name, seed, 0.0, true_over_given=0.75)
     result = estimate_pair(image1, image2, K_given, K_given)
     assert result.lens.lens_excess > 0
