@@ -158,6 +158,7 @@ def _lens(lens: LensTerms) -> dict:
         "principal_bound": _finite_or_none(lens.principal_bound),
         "lens_excess": _finite_or_none(lens.lens_excess),
         "radial_k1": _finite_or_none(lens.radial_k1),
+        "wanted_focal_scale": _finite_or_none(lens.wanted_focal_scale),
     }
 
 

@@ -31,7 +31,13 @@ from .checks import as_positive
 from .lsq import forward_jacobian, gauss_newton_covariance, levenberg_marquardt
 from .model_selection import robust_sigma
 
-__all__ = ["PlaneParallax", "fit_plane_parallax", "homography_parallax"]
+__all__ = [
+    "PlaneParallax",
+    "focal_conjugates",
+    "fit_plane_parallax",
+    "homography_parallax",
+    "rotation_spread",
+]
 
 _MIN_POINTS = 8
 _ITERATIONS = 5
@@ -74,6 +80,32 @@ def homography_parallax(H: np.ndarray) -> float:
     if not s[2] > 0:
         return float("inf")
     return float(2.0 * min(np.log(s[0] / s[1]), np.log(s[1] / s[2])))
+
+
+def focal_conjugates(H: np.ndarray, log_scales: np.ndarray) -> np.ndarray:
+    """``S^-1 H S`` (K, 3, 3) of a homography ``H`` (3, 3) for each ``S = diag(s, s, 1)``,
+    ``s = exp(log_scales)`` (K,): ``H`` on points normalised with a focal length ``s`` times
+    the one that normalised them."""
+    s = np.exp(np.asarray(log_scales, dtype=np.float64))[:, None]
+    ones = np.ones_like(s)
+    rows = np.hstack([1.0 / s, 1.0 / s, ones])
+    columns = np.hstack([s, s, ones])
+    return np.asarray(H, dtype=np.float64)[None] * rows[:, :, None] * columns[:, None, :]
+
+
+def rotation_spread(H: np.ndarray, log_scales: np.ndarray) -> np.ndarray:
+    """``log(sigma_1 / sigma_3)`` of ``S^-1 H S`` for each ``S = diag(s, s, 1)``
+    (:func:`focal_conjugates`): 0 where it is a rotation times a scalar.
+
+    >>> c, s = np.cos(0.2), np.sin(0.2)
+    >>> S = np.diag([0.8, 0.8, 1.0])
+    >>> H = S @ np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]]) @ np.linalg.inv(S)
+    >>> np.round(rotation_spread(H, np.log([0.8, 1.0])), 4)
+    array([0.    , 0.0894])
+    """
+    singular = np.linalg.svd(focal_conjugates(H, log_scales), compute_uv=False)
+    with np.errstate(divide="ignore"):
+        return np.log(singular[:, 0] / singular[:, 2])
 
 
 def _conditioner(xy: np.ndarray) -> np.ndarray:

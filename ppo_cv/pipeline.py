@@ -152,6 +152,7 @@ from .rotation_choice import (
     rotation_only_fit,
     translation_bias,
     unbiased_bias_deg,
+    wanted_focal_scale,
 )
 from .significance import (
     CONFIDENT_LOG10_NFA,
@@ -1119,7 +1120,9 @@ def _moving_estimate(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     return RotationEstimate("essential", part.R, shift, sigma, shift_sigma)
 
 
-def _lens_terms(motion: MotionDecision, focal: float, radial_k1: float) -> LensTerms:
+def _lens_terms(
+    motion: MotionDecision, found: _Consensus, focal: float, radial_k1: float
+) -> LensTerms:
     return LensTerms(
         focal_scale=motion.focal_scale,
         focal_ratio=motion.focal_ratio,
@@ -1127,6 +1130,7 @@ def _lens_terms(motion: MotionDecision, focal: float, radial_k1: float) -> LensT
         principal_bound=motion.principal_bound,
         lens_excess=motion.lens_excess if motion.lens_excess > -np.inf else float("nan"),
         radial_k1=radial_k1,
+        wanted_focal_scale=wanted_focal_scale(motion, found.x1, found.x2),
     )
 
 
@@ -1186,7 +1190,7 @@ def _assemble(
         uncertainty=PoseUncertainty(
             part.t_sigma_deg, rotation.rms_error_deg, tracks, rotation.bias_deg
         ),
-        lens=_lens_terms(motion, inputs.focal, part.radial_k1),
+        lens=_lens_terms(motion, found, inputs.focal, part.radial_k1),
         evidence=_evidence(motion, found, state.options),
         plane=part.plane,
         timings=timings,

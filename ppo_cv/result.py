@@ -143,6 +143,13 @@ class LensTerms:
         (:func:`ppo_cv.refine.refine_pose_radial`; 0 when not kept); ``R``, ``t`` and the
         points are those of the points it undistorts. NaN otherwise (a plane's is
         ``plane.k1``).
+    wanted_focal_scale : float
+        When the rotation-only fit's lens was clipped to its box (``lens_excess > 0``): the
+        focal scale (given over true) of the rotation through the focal length its matches
+        want, ``1 / wanted_focal_scale`` times the given one
+        (:func:`ppo_cv.rotation_choice.wanted_focal_scale`). A translation before a plane makes
+        the same homography, so it says which focal length would make the pair a rotation, not
+        that it is one; ``R`` does not depend on it. NaN otherwise.
     """
 
     focal_scale: float
@@ -151,6 +158,7 @@ class LensTerms:
     principal_bound: float
     lens_excess: float
     radial_k1: float
+    wanted_focal_scale: float = float("nan")
 
 
 @dataclass(frozen=True)

@@ -56,19 +56,45 @@ refitted, and the essential matrix's rotation, 7.9-12.5 degrees off, was returne
 off, is. The windows are searched over the estimate's deviation
 (:func:`rotation_fit_sigma_deg` when the fit's lens was clipped), not over the search's cap:
 searched over 5 degrees, those of index 4 locked onto repeated texture 2.5-4.9 degrees off.
+
+A focal length given far off. A tripod pan whose focal length is given further off than the
+lens box (:data:`ppo_cv.rotation.MAX_FOCAL_CHANGE`) has matches that are a rotation through
+another focal length: the fit clips its lens, the decision calls the pair general, and the
+corrected matches' homography ``S R S^-1`` (``S = diag(s, s, 1)``) is no rotation, so its
+parallax reads the focal error as a translation (3.5-11 degrees on pano_dev's csie pairs, a
+19.5 degree field, whose matches want focal lengths about 0.74 times the given ones) and the
+essential matrix's rotation, 5-13 degrees off, is returned. Read with the focal length free
+(:func:`focal_free_parallax`) that parallax is 0.05-0.6 degrees, and the rotation with the
+given focal length held is within 0.7 degrees of the reference on all seven pairs. The choice
+does not read it so, because a homography cannot tell that focal error from a translation: a
+pan about a pivot off the centre before a vertical wall is exactly ``S R' S^-1`` on the wall's
+homography (the pan's axis in the wall's plane; a tilt about the other axis leaves a third of
+the parallax), and rendered 10 degree swings at pivots 0.4 of the wall's distance in a 20
+degree field, read so, returned the rotation-only fit 4.8 degrees off where the essential
+matrix is 0.2 off, even with the rotation a translation may hide in the focal scale
+(:func:`focal_bias_deg`) charged. Which is likelier, a focal length 25 % off or a swing, is a
+prior two views cannot settle. The result names the focal length the matches want
+(:func:`wanted_focal_scale`, ``PairResult.lens.wanted_focal_scale``), so that a user can
+check the calibration; the rotation is not changed by it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .lsq import gauss_newton_covariance, rotation_increment
 from .model_selection import robust_sigma
 from .motion_model import MAX_TRACK_PARALLAX, MotionDecision
-from .parallax import PlaneParallax, fit_plane_parallax
+from .parallax import (
+    PlaneParallax,
+    fit_plane_parallax,
+    focal_conjugates,
+    homography_parallax,
+    rotation_spread,
+)
 from .photometric import PhotometricRotation
 from .refine import released_lens_shift_deg
 from .rotation import (
@@ -81,11 +107,13 @@ from .rotation import (
 )
 
 __all__ = [
+    "FOCAL_ERROR_RANGE",
     "ROTATION_SOURCES",
     "RotationEstimate",
     "across_normal_parallax",
     "choose_rotation",
     "focal_bias_deg",
+    "focal_free_parallax",
     "matches_parallax",
     "released_lens_shift_deg",
     "rotation_only_estimate",
@@ -93,11 +121,20 @@ __all__ = [
     "rotation_fit_sigma_deg",
     "translation_bias",
     "unbiased_bias_deg",
+    "wanted_focal_scale",
 ]
 
 ROTATION_SOURCES = ("rotation", "essential", "plane")
 """Where a returned rotation comes from: the rotation-only fit, the essential matrix's refined
 pose or the plane's (homography) pose."""
+
+
+FOCAL_ERROR_RANGE = (0.5, 2.0)
+"""Scales of the focal length (true over given) within which :func:`focal_free_parallax` looks
+for the one that makes a homography a rotation: the errors of a calibration nobody checked,
+a focal length read for another crop or zoom (EXIF of a cropped sensor: 1.3-1.6 times; a
+digital zoom; a stitcher's estimate from a narrow overlap), not the few percent of
+:data:`ppo_cv.rotation.FOCAL_PRIOR`."""
 
 
 @dataclass(frozen=True)
@@ -213,6 +250,45 @@ def translation_bias(parallax: PlaneParallax | None) -> tuple[float, float]:
         return float("inf"), 0.0
     bias = max(across_normal_parallax(parallax.H), abs(parallax.parallax))
     return float(np.degrees(bias)), float(np.degrees(parallax.sigma))
+
+
+def focal_free_parallax(parallax: PlaneParallax) -> tuple[PlaneParallax, float]:
+    """The plane parallax of ``parallax.H`` once conjugated by the focal scale that makes it
+    nearest a rotation, and that scale (given over true focal length).
+
+    ``S^-1 H S`` with ``S = diag(c, c, 1)``, ``c`` the true focal length over the given one in
+    :data:`FOCAL_ERROR_RANGE`, chosen to minimise ``log(sigma_1 / sigma_3)`` as
+    :func:`ppo_cv.sfm.rotation_focal_scale` does (Hartley and Zisserman, 8.8): 0 for
+    ``H = S R S^-1``, a rotation seen through a focal length ``c`` times the given one. The
+    deviation is kept. The scale is NaN when the least spread lies on a bound of the range (no
+    focal length in it makes ``H`` a rotation); the parallax is then read at that bound.
+
+    >>> import numpy as np
+    >>> from ppo_cv.parallax import PlaneParallax
+    >>> c, s = np.cos(0.15), np.sin(0.15)
+    >>> S = np.diag([0.75, 0.75, 1.0])
+    >>> H = S @ np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]]) @ np.linalg.inv(S)
+    >>> freed, scale = focal_free_parallax(PlaneParallax(H, 0.1, 0.001, np.empty(0)))
+    >>> round(freed.parallax, 6), round(across_normal_parallax(freed.H), 6), round(scale, 3)
+    (0.0, 0.0, 1.333)
+    """
+    from scipy.optimize import minimize_scalar
+
+    H = np.asarray(parallax.H, dtype=np.float64)
+    grid = np.linspace(*np.log(FOCAL_ERROR_RANGE), _FOCAL_GRID)
+    best = int(np.argmin(rotation_spread(H, grid)))
+    bracket = (grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)])
+    found = minimize_scalar(
+        lambda v: rotation_spread(H, np.array([v]))[0], bounds=bracket, method="bounded"
+    )
+    freed = focal_conjugates(H, np.array([found.x]))[0]
+    c = float(np.exp(found.x))
+    inside = 0 < best < grid.size - 1
+    freed_parallax = replace(parallax, H=freed, parallax=homography_parallax(freed))
+    return freed_parallax, 1.0 / c if inside else float("nan")
+
+
+_FOCAL_GRID = 61  # focal scales tried, evenly in log scale, before the bounded refinement
 
 
 def unbiased_bias_deg(bias_deg: float, bias_sigma_deg: float) -> float:
@@ -399,6 +475,28 @@ def rotation_only_estimate(
     return RotationEstimate(
         "rotation", lens.R, bias, float(np.hypot(sigma, bias_sigma)), bias_sigma
     )
+
+
+def wanted_focal_scale(motion: MotionDecision, x1: np.ndarray, x2: np.ndarray) -> float:
+    """Focal scale (given over true) with which the matches of a pair are nearest a rotation,
+    when its rotation-only fit's lens was clipped to its box
+    (:attr:`ppo_cv.motion_model.MotionDecision.lens_clipped`); NaN otherwise, and when no focal
+    length in :data:`FOCAL_ERROR_RANGE` makes their homography a rotation.
+
+    The homography of the rotation's inliers (``x1``, ``x2``: normalised points of all
+    matches, lens not corrected) corrected by the fit's lens (:func:`matches_parallax`),
+    conjugated by the focal scale that makes it nearest a rotation
+    (:func:`focal_free_parallax`), that scale composed with the fit's. A translation before a
+    plane makes the same homography (see the module docstring): the scale says which focal
+    length would make the pair a rotation, not that it is one.
+    """
+    if not motion.lens_clipped:
+        return float("nan")
+    lens = rotation_only_fit(motion, None)
+    parallax = matches_parallax(lens, x1, x2, motion.rotation_inliers)
+    if parallax is None or not np.all(np.isfinite(parallax.H)):
+        return float("nan")
+    return float(lens.focal_scale * focal_free_parallax(parallax)[1])
 
 
 def matches_parallax(

@@ -57,6 +57,7 @@ from .homography import estimate_homography
 from .images import check_decodes
 from .metrics import direction_error_deg, rotation_error_deg
 from .motion_model import decide_motion, plane_ransac_trials
+from .parallax import rotation_spread
 from .pose import _recover_normalized
 from .robust import essential_from_pose
 from .rotation import focal_ratio_keywords, focal_ratio_prior
@@ -1129,7 +1130,7 @@ def homography_rotation_focal(
     scale = rotation_focal_scale(homography.H, focal, size)
     if scale is None:
         return None
-    return scale, float(_rotation_spread(homography.H, np.array([np.log(scale)]))[0])
+    return scale, float(rotation_spread(homography.H, np.array([np.log(scale)]))[0])
 
 
 FIELD_RANGE_DEG = (5.0, 150.0)
@@ -1179,27 +1180,15 @@ def rotation_focal_scale(H: Any, focal: float, size: float) -> float | None:
         for field in FIELD_RANGE_DEG[::-1]
     )
     log_scales = np.linspace(low, high, _SCALE_GRID)
-    spreads = _rotation_spread(H, log_scales)
+    spreads = rotation_spread(H, log_scales)
     best = int(np.argmin(spreads))
     if best in (0, _SCALE_GRID - 1) or not np.isfinite(spreads[best]):
         return None
     bracket = (log_scales[best - 1], log_scales[best + 1])
     found = minimize_scalar(
-        lambda v: _rotation_spread(H, np.array([v]))[0], bounds=bracket, method="bounded"
+        lambda v: rotation_spread(H, np.array([v]))[0], bounds=bracket, method="bounded"
     )
     return float(np.exp(found.x))
-
-
-def _rotation_spread(H: np.ndarray, log_scales: np.ndarray) -> np.ndarray:
-    """``log(sigma_1 / sigma_3)`` of ``S^-1 H S`` for each ``S = diag(s, s, 1)``."""
-    s = np.exp(log_scales)[:, None]
-    ones = np.ones_like(s)
-    rows = np.hstack([1.0 / s, 1.0 / s, ones])
-    columns = np.hstack([s, s, ones])
-    conjugated = H[None] * rows[:, :, None] * columns[:, None, :]
-    singular = np.linalg.svd(conjugated, compute_uv=False)
-    with np.errstate(divide="ignore"):
-        return np.log(singular[:, 0] / singular[:, 2])
 
 
 def _pipeline_camera(camera: pycolmap.Camera) -> tuple[np.ndarray, np.ndarray | None]:

@@ -1,0 +1,153 @@
+"""A pair whose matches are a rotation through a focal length outside the lens box.
+
+Tripod pans in a narrow field whose focal length is given far off (an EXIF value for another
+crop, a stitcher's estimate) have matches that are a rotation through another focal length:
+the rotation-only fit clips that lens to its box and the decision calls them general or a plane.
+The result names the focal length the matches want. The rotation stays the moving model's: a
+pan about a pivot off the centre before a vertical wall makes the same homography, and such
+swings keep their answer.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ppo_cv import estimate_pair
+from ppo_cv.metrics import rotation_error_deg
+from ppo_cv.parallax import PlaneParallax
+from ppo_cv.rotation_choice import FOCAL_ERROR_RANGE, across_normal_parallax, focal_free_parallax
+
+FIELD_DEG = 20.0
+SIZE = (720, 540)
+PAN_DEG = 10.0
+DEPTH = 4.0
+
+
+def _pan(degrees: float) -> np.ndarray:
+    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def _with_focal_scaled(K: np.ndarray, factor: float) -> np.ndarray:
+    scaled = K.copy()
+    scaled[0, 0] *= factor
+    scaled[1, 1] *= factor
+    return scaled
+
+
+@pytest.mark.parametrize("true_over_given", [0.75, 1.3, 1.0])
+def test_a_rotation_through_another_focal_length_reads_no_parallax(true_over_given):
+    S = np.diag([true_over_given, true_over_given, 1.0])
+    H = S @ _pan(PAN_DEG) @ np.linalg.inv(S)
+    measured = PlaneParallax(H, across_normal_parallax(H), 1e-3, np.empty(0))
+    freed, scale = focal_free_parallax(measured)
+    assert across_normal_parallax(freed.H) < 1e-5 and freed.parallax < 1e-5
+    assert freed.sigma == measured.sigma
+    assert scale == pytest.approx(1.0 / true_over_given, rel=1e-4)
+
+
+@pytest.mark.parametrize("pivot", [0.1, 0.4, -0.4])
+@pytest.mark.parametrize(("wall_turn_deg", "wall_tilt_deg", "left_at_least"), [
+    (0.0, 0.0, 0.0),  # a wall facing the camera
+    (30.0, 0.0, 0.0),  # a vertical wall at an angle: the pan's axis lies in it
+    (0.0, 20.0, 0.2),  # a wall leaning back: a part of the parallax is left
+])  # fmt: skip
+def test_a_swing_before_a_wall_is_a_rotation_through_another_focal_length_unless_it_leans(
+    pivot, wall_turn_deg, wall_tilt_deg, left_at_least
+):
+    """``R + t n^T / d`` of a pan about a pivot ``pivot`` wall distances in front of the camera
+    (``t = (I - R) P``): with the pan's axis in the wall's plane a focal scale takes all of its
+    parallax, which is why the rotation choice does not read the bias with the focal free."""
+    R = _pan(PAN_DEG)
+    P = np.array([0.0, 0.0, pivot])
+    a = np.radians(wall_tilt_deg)
+    lean = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(a), -np.sin(a)], [0.0, np.sin(a), np.cos(a)]])
+    normal = lean @ _pan(wall_turn_deg) @ np.array([0.0, 0.0, 1.0])
+    H = R + np.outer(P - R @ P, normal)
+    measured = PlaneParallax(H, across_normal_parallax(H), 1e-3, np.empty(0))
+    freed, scale = focal_free_parallax(measured)
+    assert across_normal_parallax(H) > 0.25 * abs(pivot) * np.radians(PAN_DEG)
+    left = across_normal_parallax(freed.H) / across_normal_parallax(H)
+    assert left > left_at_least if left_at_least else left < 1e-4
+    assert abs(np.log(scale)) > 0.02
+
+
+def test_a_focal_length_beyond_the_range_is_not_named():
+    S = np.diag([3.0, 3.0, 1.0])
+    H = S @ _pan(PAN_DEG) @ np.linalg.inv(S)
+    _, scale = focal_free_parallax(PlaneParallax(H, 0.0, 1e-3, np.empty(0)))
+    assert FOCAL_ERROR_RANGE[1] < 3.0 and np.isnan(scale)
+
+
+def _render(scene_name: str, seed: int, pivot: float, true_over_given: float = 1.0):
+    """A pan of :data:`PAN_DEG` in a :data:`FIELD_DEG` field about a pivot ``pivot`` times
+    :data:`DEPTH` in front of the camera (negative: behind), and the camera given with its
+    focal length ``1 / true_over_given`` times the true one."""
+    from ppo_cv.data_gen.motion import intrinsics
+    from ppo_cv.data_gen.render import render_pair
+    from ppo_cv.data_gen.scenes import make_scene
+
+    K = intrinsics(SIZE, FIELD_DEG)
+    R = _pan(PAN_DEG)
+    P = np.array([0.0, 0.0, pivot * DEPTH])
+    pair = render_pair(make_scene(scene_name, seed), K, K, R, P - R @ P, size=SIZE,
+                       noise_std=2.0, seed=seed)  # fmt: skip
+    return pair.image1, pair.image2, K, _with_focal_scaled(K, 1.0 / true_over_given), R
+
+
+def _given_calibration_rotation(K: np.ndarray, K_given: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """The rotation fitted, with ``K_given`` held, to the pixels a pure rotation ``R`` seen
+    through ``K`` maps (least squares on the rays): what a user with ``K_given`` stitches with."""
+    rng = np.random.default_rng(0)
+    pixels = np.column_stack([rng.uniform(0, SIZE[0], 400), rng.uniform(0, SIZE[1], 400),
+                              np.ones(400)])  # fmt: skip
+    seen = pixels @ np.linalg.inv(K).T @ R.T @ K.T
+    rays = [p @ np.linalg.inv(K_given).T for p in (pixels, seen)]
+    rays = [r / np.linalg.norm(r, axis=1, keepdims=True) for r in rays]
+    U, _, Vt = np.linalg.svd(rays[1].T @ rays[0])
+    return U @ np.diag([1.0, 1.0, np.linalg.det(U @ Vt)]) @ Vt
+
+
+THE_SWING_IT_WOULD_COST = pytest.mark.xfail(
+    strict=True,
+    reason="the essential matrix's or the plane's rotation is returned, 5.6 degrees off: read "
+    "with the focal length free, the rotation-only fit's bias is 0.01-0.03 degree and its "
+    "rotation 0.08 off, but a 10 degree swing about a pivot 0.4 of the wall's distance behind "
+    "the camera before a vertical wall ('plane' seed 20) reads the same and would be returned "
+    "4.8 degrees off instead of 0.2",
+)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("scene_name", "seed"), [("backdrop", 0), ("clutter", 2)])
+def test_a_tripod_pan_with_the_focal_length_given_far_off_names_the_focal_length(scene_name, seed):
+    image1, image2, K, K_given, R = _render(scene_name, seed, 0.0, true_over_given=0.75)
+    result = estimate_pair(image1, image2, K_given, K_given)
+    assert result.lens.lens_excess > 0
+    assert 1.0 / result.lens.wanted_focal_scale == pytest.approx(0.75, abs=0.05)
+
+
+@pytest.mark.slow
+@THE_SWING_IT_WOULD_COST
+@pytest.mark.parametrize(("scene_name", "seed"), [("backdrop", 0), ("clutter", 2)])
+def test_a_tripod_pan_with_the_focal_length_given_far_off_returns_the_given_calibrations_rotation(
+    scene_name, seed
+):
+    image1, image2, K, K_given, R = _render(scene_name, seed, 0.0, true_over_given=0.75)
+    result = estimate_pair(image1, image2, K_given, K_given)
+    reference = _given_calibration_rotation(K, K_given, R)
+    assert rotation_error_deg(reference, R) > 2.0  # the focal error moves the rotation
+    assert rotation_error_deg(result.R, reference) < 1.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("seed", "pivot", "within_deg"),
+    [(0, 0.4, 0.3), (0, -0.4, 1.5), (1, 0.1, 0.3), (2, -0.1, 0.3), (20, -0.4, 0.3)],
+)
+def test_a_swing_before_a_wall_in_a_narrow_field_keeps_its_answer(seed, pivot, within_deg):
+    image1, image2, K, _, R = _render("plane", seed, pivot)
+    result = estimate_pair(image1, image2, K, K)
+    assert result.rotation_source != "rotation"
+    assert rotation_error_deg(result.R, R) < within_deg
