@@ -1066,9 +1066,7 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
         return RotationEstimate("rotation", part.R, 0.0, part.rotation_sigma_deg)
     x1, x2, used = state.found.x1, state.found.x2, state.pose.inliers | motion.rotation_inliers
     moving = _moving_estimate(state, part)
-    rotation_only = rotation_only_estimate(
-        motion, state.tracks, x1, x2, used, _track_points(state.inputs, state.tracks)
-    )
+    rotation_only = rotation_only_estimate(motion, state.tracks, x1, x2, used)
     if (
         state.tracks is None
         and state.options.photometric
@@ -1079,22 +1077,8 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
             state.inputs, motion, state.priors, keep_clipped=True,
             sigma_deg=rotation_only.fit_sigma_deg,
         )  # fmt: skip
-        rotation_only = rotation_only_estimate(
-            motion, tracks, x1, x2, used, _track_points(state.inputs, tracks)
-        )
+        rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used)
     return choose_rotation([moving, rotation_only])
-
-
-def _track_points(
-    inputs: _Inputs, tracks: PhotometricRotation | None
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """Normalised points of the intensity-aligned ``tracks`` in images 1 and 2 (distortion
-    removed); None without tracks."""
-    if tracks is None:
-        return None
-    points = tracks.tracks.points1, tracks.tracks.points2
-    cameras = ((inputs.K1, inputs.dist1), (inputs.K2, inputs.dist2))
-    return tuple(pixels_to_normalized(p, K, d) for p, (K, d) in zip(points, cameras, strict=True))
 
 
 def _tracks_could_win(moving: RotationEstimate, rotation_only: RotationEstimate) -> bool:

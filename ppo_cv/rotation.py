@@ -560,7 +560,6 @@ def fit_rotation_lens(
     focal_ratio_mean: float = 1.0,
     principal_bound: float = PRINCIPAL_BOUND,
     lens_start: LensRotationFit | None = None,
-    hold_focal: bool = False,
 ) -> LensRotationFit:
     """Rotation, focal scale, radial coefficient (principal point, focal ratio) by Gauss-Newton.
 
@@ -612,9 +611,6 @@ def fit_rotation_lens(
     lens_start : LensRotationFit, optional
         A fit of nearly the same matches (e.g. before its outliers were dropped) whose lens
         terms the steps start from, not the priors' means: fewer steps to the same minimum.
-    hold_focal : bool
-        Keep the given focal length (``s = 1``): the rotation of the given calibration, ``k1``
-        still fitted.
 
     Returns
     -------
@@ -643,8 +639,6 @@ def fit_rotation_lens(
         noise, focal_prior, k1_prior, principal_prior, focal_ratio_prior, focal_ratio_mean,
         principal_bound, max_focal_change, max_k1,
     )  # fmt: skip
-    if hold_focal:
-        free = free & (np.arange(_NPARAMS) != 3)
     problem = (R0, xy1[used], xy2[used], prior, free, centre)
     start = _start_params(lens_start, free, centre, bounds)
     limits = bounds, offset_bound, noise, focal_ratio_prior

@@ -131,7 +131,6 @@ __all__ = [
     "choose_rotation",
     "focal_bias_deg",
     "focal_free_parallax",
-    "given_focal_fit",
     "matches_parallax",
     "released_lens_shift_deg",
     "rotation_only_estimate",
@@ -454,7 +453,6 @@ def rotation_only_estimate(
     x1: np.ndarray,
     x2: np.ndarray,
     used: np.ndarray,
-    track_points: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> RotationEstimate:
     """The rotation-only fit of a pair as a :class:`RotationEstimate`.
 
@@ -476,9 +474,6 @@ def rotation_only_estimate(
     used : ndarray of bool, shape (N,)
         Matches behind the fit's deviation when it must be recomputed: the union of the
         rotation's and the moving model's inliers.
-    track_points : tuple of ndarray, optional
-        Normalised points (M, 2) of the ``tracks`` in images 1 and 2 (given cameras,
-        distortion removed), for the refit of a clipped lens with the given focal length.
 
     Returns
     -------
@@ -487,18 +482,11 @@ def rotation_only_estimate(
         deviation of the fit (:func:`rotation_fit_sigma_deg` when the fit has none) combined
         with that of the bias (the fit's alone when the bias is unknown). When the decision's
         lens was clipped to its box (:attr:`ppo_cv.motion_model.MotionDecision.lens_clipped`)
-        the rotation is that of the given focal length (:func:`given_focal_fit`, on the tracks
-        when there are some and ``track_points`` gives them) and the bias is read with the
-        focal length free (:func:`focal_free_parallax`), plus the rotation a translation may
-        hide in the focal scale the matches want (:func:`focal_bias_deg` of
-        :func:`wanted_focal_fit`).
+        the bias is read with the focal length free (:func:`focal_free_parallax`), plus the
+        rotation a translation may hide in the focal scale the matches want
+        (:func:`focal_bias_deg` of :func:`wanted_focal_fit`).
     """
     lens = rotation_only_fit(motion, tracks)
-    if motion.lens_clipped:
-        if tracks is None:
-            lens = given_focal_fit(lens, x1, x2, motion.rotation_inliers)
-        elif track_points is not None:
-            lens = given_focal_fit(lens, *track_points, tracks.inliers)
     parallax = None if tracks is None else tracks.parallax
     if parallax is None:
         parallax = matches_parallax(lens, x1, x2, motion.rotation_inliers)
@@ -516,26 +504,6 @@ def rotation_only_estimate(
     bias, bias_sigma = translation_bias(parallax)
     return RotationEstimate(
         "rotation", lens.R, bias + hidden, float(np.hypot(sigma, bias_sigma)), bias_sigma
-    )
-
-
-def given_focal_fit(
-    lens: LensRotationFit, x1: np.ndarray, x2: np.ndarray, used: np.ndarray
-) -> LensRotationFit:
-    """The rotation of the given calibration: :func:`ppo_cv.rotation.fit_rotation_lens` of the
-    ``used`` matches (normalised, (N, 2) or (N, 3)) from ``lens``'s rotation with the focal
-    length held at the given one, ``k1`` fitted under its prior and box; ``lens`` itself with
-    fewer than :data:`ppo_cv.rotation.MIN_LENS_MATCHES` matches.
-
-    For a fit whose lens the matches asked beyond the box: the box's edge is neither the given
-    focal length nor the one the matches want, and the rotation a user with the given
-    calibration works with is the one through the given focal length. The noise of the prior
-    is the robust deviation of a coordinate of ``lens``'s transfer errors.
-    """
-    if np.count_nonzero(used) < MIN_LENS_MATCHES:
-        return lens
-    return fit_rotation_lens(
-        x1, x2, used, lens.R, noise=_transfer_noise(lens, x1, x2, used), hold_focal=True
     )
 
 
