@@ -1066,7 +1066,8 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
         return RotationEstimate("rotation", part.R, 0.0, part.rotation_sigma_deg)
     x1, x2, used = state.found.x1, state.found.x2, state.pose.inliers | motion.rotation_inliers
     moving = _moving_estimate(state, part)
-    rotation_only = rotation_only_estimate(motion, state.tracks, x1, x2, used)
+    to_beat = moving.expected_error_deg
+    rotation_only = rotation_only_estimate(motion, state.tracks, x1, x2, used, to_beat)
     if (
         state.tracks is None
         and state.options.photometric
@@ -1077,7 +1078,7 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
             state.inputs, motion, state.priors, keep_clipped=True,
             sigma_deg=rotation_only.fit_sigma_deg,
         )  # fmt: skip
-        rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used)
+        rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used, to_beat)
     return choose_rotation([moving, rotation_only])
 
 

@@ -451,6 +451,7 @@ def rotation_only_estimate(
     x1: np.ndarray,
     x2: np.ndarray,
     used: np.ndarray,
+    to_beat: float = float("inf"),
 ) -> RotationEstimate:
     """The rotation-only fit of a pair as a :class:`RotationEstimate`.
 
@@ -472,6 +473,9 @@ def rotation_only_estimate(
     used : ndarray of bool, shape (N,)
         Matches behind the fit's deviation when it must be recomputed: the union of the
         rotation's and the moving model's inliers.
+    to_beat : float, optional
+        Expected error (degrees) of the moving model's estimate: the focal-length reading
+        below, which can only lower the bias, is taken only where the deviation is below it.
 
     Returns
     -------
@@ -480,7 +484,8 @@ def rotation_only_estimate(
         deviation of the fit (:func:`rotation_fit_sigma_deg` when the fit has none) combined
         with that of the bias (the fit's alone when the bias is unknown). When the decision's
         lens was clipped to its box (:attr:`ppo_cv.motion_model.MotionDecision.lens_clipped`)
-        the bias is read with the focal length free (:func:`focal_free_parallax`), plus the
+        and a focal length within :data:`FOCAL_ERROR_RANGE` makes the homography a rotation,
+        the bias is read with that focal length (:func:`focal_free_parallax`), plus the
         rotation a translation may hide in the focal scale the matches want
         (:func:`focal_bias_deg` of :func:`wanted_focal_fit`).
     """
@@ -488,21 +493,30 @@ def rotation_only_estimate(
     parallax = None if tracks is None else tracks.parallax
     if parallax is None:
         parallax = matches_parallax(lens, x1, x2, motion.rotation_inliers)
-    hidden = 0.0
-    if motion.lens_clipped and parallax is not None and np.all(np.isfinite(parallax.H)):
-        measured_with = lens if tracks is None else tracks.fit
-        parallax, freed_scale = focal_free_parallax(parallax)
-        wanted = measured_with.focal_scale * freed_scale
-        if np.isfinite(wanted):
-            free = wanted_focal_fit(lens, x1, x2, motion.rotation_inliers, wanted)
-            hidden = focal_bias_deg(free, x1, x2, motion.rotation_inliers)
     sigma = float(lens.rotation_sigma_deg)
     if not np.isfinite(sigma):
         sigma = rotation_fit_sigma_deg(lens, x1, x2, used)
     bias, bias_sigma = translation_bias(parallax)
-    return RotationEstimate(
-        "rotation", lens.R, bias + hidden, float(np.hypot(sigma, bias_sigma)), bias_sigma
-    )
+    deviation = float(np.hypot(sigma, bias_sigma))
+    if motion.lens_clipped and deviation < to_beat:
+        focal_error_bias = _focal_error_bias(motion, tracks, lens, parallax, x1, x2)
+        bias = focal_error_bias if np.isfinite(focal_error_bias) else bias
+    return RotationEstimate("rotation", lens.R, bias, deviation, bias_sigma)
+
+
+def _focal_error_bias(motion, tracks, lens, parallax, x1, x2) -> float:
+    """Bias (degrees) of a rotation-only fit whose lens was clipped, read as a rotation through
+    a focal length given off (see :func:`rotation_only_estimate`); inf where no focal length in
+    :data:`FOCAL_ERROR_RANGE` makes the homography of ``parallax`` a rotation."""
+    if parallax is None or not np.all(np.isfinite(parallax.H)):
+        return float("inf")
+    measured_with = lens if tracks is None else tracks.fit
+    freed, freed_scale = focal_free_parallax(parallax)
+    wanted = measured_with.focal_scale * freed_scale
+    if not np.isfinite(wanted):
+        return float("inf")
+    free = wanted_focal_fit(lens, x1, x2, motion.rotation_inliers, wanted)
+    return translation_bias(freed)[0] + focal_bias_deg(free, x1, x2, motion.rotation_inliers)
 
 
 def wanted_focal_fit(
