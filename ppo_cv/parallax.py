@@ -36,6 +36,7 @@ __all__ = [
     "focal_conjugates",
     "fit_plane_parallax",
     "homography_parallax",
+    "nearest_rotation_log_scale",
     "rotation_spread",
 ]
 
@@ -106,6 +107,32 @@ def rotation_spread(H: np.ndarray, log_scales: np.ndarray) -> np.ndarray:
     singular = np.linalg.svd(focal_conjugates(H, log_scales), compute_uv=False)
     with np.errstate(divide="ignore"):
         return np.log(singular[:, 0] / singular[:, 2])
+
+
+def nearest_rotation_log_scale(H: np.ndarray, log_scales: np.ndarray) -> tuple[float, float, bool]:
+    """The log focal scale that makes ``S^-1 H S`` nearest a rotation (:func:`rotation_spread`):
+    the best of the sorted grid ``log_scales`` (K,), refined by a bounded scalar search between
+    its neighbours (Hartley and Zisserman, 8.8 and 19.3).
+
+    Returns
+    -------
+    log_scale : float
+    grid_spread : float
+        The spread at the grid's best.
+    interior : bool
+        Whether the grid's best lies inside the grid, not on one of its ends (where no scale in
+        the range makes ``H`` a rotation).
+    """
+    from scipy.optimize import minimize_scalar
+
+    spreads = rotation_spread(H, log_scales)
+    best = int(np.argmin(spreads))
+    last = len(log_scales) - 1
+    bracket = (log_scales[max(best - 1, 0)], log_scales[min(best + 1, last)])
+    found = minimize_scalar(
+        lambda v: rotation_spread(H, np.array([v]))[0], bounds=bracket, method="bounded"
+    )
+    return float(found.x), float(spreads[best]), 0 < best < last
 
 
 def _conditioner(xy: np.ndarray) -> np.ndarray:

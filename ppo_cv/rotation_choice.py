@@ -105,7 +105,7 @@ from .parallax import (
     fit_plane_parallax,
     focal_conjugates,
     homography_parallax,
-    rotation_spread,
+    nearest_rotation_log_scale,
 )
 from .photometric import PhotometricRotation
 from .refine import released_lens_shift_deg
@@ -288,18 +288,11 @@ def focal_free_parallax(parallax: PlaneParallax) -> tuple[PlaneParallax, float]:
     >>> round(freed.parallax, 6), round(across_normal_parallax(freed.H), 6), round(scale, 3)
     (0.0, 0.0, 1.333)
     """
-    from scipy.optimize import minimize_scalar
-
     H = np.asarray(parallax.H, dtype=np.float64)
     grid = np.linspace(*np.log(FOCAL_ERROR_RANGE), _FOCAL_GRID)
-    best = int(np.argmin(rotation_spread(H, grid)))
-    bracket = (grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)])
-    found = minimize_scalar(
-        lambda v: rotation_spread(H, np.array([v]))[0], bounds=bracket, method="bounded"
-    )
-    freed = focal_conjugates(H, np.array([found.x]))[0]
-    c = float(np.exp(found.x))
-    inside = 0 < best < grid.size - 1
+    log_scale, _, inside = nearest_rotation_log_scale(H, grid)
+    freed = focal_conjugates(H, np.array([log_scale]))[0]
+    c = float(np.exp(log_scale))
     freed_parallax = replace(parallax, H=freed, parallax=homography_parallax(freed))
     return freed_parallax, 1.0 / c if inside else float("nan")
 

@@ -57,7 +57,7 @@ from .homography import estimate_homography
 from .images import check_decodes
 from .metrics import direction_error_deg, rotation_error_deg
 from .motion_model import decide_motion, plane_ransac_trials
-from .parallax import rotation_spread
+from .parallax import nearest_rotation_log_scale, rotation_spread
 from .pose import _recover_normalized
 from .robust import essential_from_pose
 from .rotation import focal_ratio_keywords, focal_ratio_prior
@@ -1170,8 +1170,6 @@ def rotation_focal_scale(H: Any, focal: float, size: float) -> float | None:
         (no focal length inside it makes ``H`` a rotation, or the rotation is about the
         optical axis, which says nothing of the focal length).
     """
-    from scipy.optimize import minimize_scalar
-
     H = np.asarray(H, dtype=np.float64)
     if H.shape != (3, 3) or not np.all(np.isfinite(H)):
         return None
@@ -1180,15 +1178,10 @@ def rotation_focal_scale(H: Any, focal: float, size: float) -> float | None:
         for field in FIELD_RANGE_DEG[::-1]
     )
     log_scales = np.linspace(low, high, _SCALE_GRID)
-    spreads = rotation_spread(H, log_scales)
-    best = int(np.argmin(spreads))
-    if best in (0, _SCALE_GRID - 1) or not np.isfinite(spreads[best]):
+    log_scale, grid_spread, interior = nearest_rotation_log_scale(H, log_scales)
+    if not (interior and np.isfinite(grid_spread)):
         return None
-    bracket = (log_scales[best - 1], log_scales[best + 1])
-    found = minimize_scalar(
-        lambda v: rotation_spread(H, np.array([v]))[0], bounds=bracket, method="bounded"
-    )
-    return float(np.exp(found.x))
+    return float(np.exp(log_scale))
 
 
 def _pipeline_camera(camera: pycolmap.Camera) -> tuple[np.ndarray, np.ndarray | None]:
