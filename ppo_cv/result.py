@@ -149,7 +149,9 @@ class LensTerms:
         want, ``1 / wanted_focal_scale`` times the given one
         (:func:`ppo_cv.rotation_choice.wanted_focal_scale`). A translation before a plane makes
         the same homography, so it says which focal length would make the pair a rotation, not
-        that it is one; ``R`` does not depend on it. NaN otherwise.
+        that it is one; the rotation choice reads the rotation-only fit's bias through such a
+        focal length (``docs/decision.md``, after the table), but ``R`` is never refitted with
+        it. NaN otherwise.
     """
 
     focal_scale: float
