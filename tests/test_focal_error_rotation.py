@@ -16,8 +16,14 @@ import pytest
 
 from ppo_cv import estimate_pair
 from ppo_cv.metrics import rotation_error_deg
+from ppo_cv.motion_model import NEGLIGIBLE_PARALLAX
 from ppo_cv.parallax import PlaneParallax
-from ppo_cv.rotation_choice import FOCAL_ERROR_RANGE, across_normal_parallax, focal_free_parallax
+from ppo_cv.rotation_choice import (
+    FOCAL_ERROR_RANGE,
+    across_normal_parallax,
+    focal_free_parallax,
+    freed_parallax_refused,
+)
 
 FIELD_DEG = 20.0
 SIZE = (720, 540)
@@ -72,6 +78,28 @@ def test_a_swing_before_a_wall_is_a_rotation_through_another_focal_length_unless
     left = across_normal_parallax(freed.H) / across_normal_parallax(H)
     assert left > left_at_least if left_at_least else left < 1e-4
     assert abs(np.log(scale)) > 0.02
+
+
+@pytest.mark.parametrize(("sideways", "sigma", "refused"), [
+    (0.0, 1e-4, False),  # a focal length given off, nothing else
+    (0.01, 1e-4, False),  # a translation too small to tell
+    (0.05, 1e-4, True),  # one the focal scale cannot take
+    (0.05, 3e-3, False),  # the same measured too loosely to tell
+])  # fmt: skip
+def test_a_translation_the_focal_scale_cannot_take_refuses_the_focal_error_reading(
+    sideways, sigma, refused
+):
+    """A pan seen through a focal length 0.75 times the given one, the camera also moved
+    ``sideways`` of the distance of a wall facing it: conjugated by the focal scale the
+    homography keeps a part of the translation, tested as a rotation's tracks are."""
+    S = np.diag([0.75, 0.75, 1.0])
+    moved = np.eye(3) + np.outer([sideways, 0.0, 0.0], [0.0, 0.0, 1.0])
+    H = S @ _pan(PAN_DEG) @ moved @ np.linalg.inv(S)
+    freed, _ = focal_free_parallax(PlaneParallax(H, across_normal_parallax(H), sigma,
+                                                     np.empty(0)))  # fmt: skip
+    left = across_normal_parallax(freed.H)
+    assert 0.1 * sideways <= left <= 0.25 * sideways + 1e-6
+    assert freed_parallax_refused(freed, NEGLIGIBLE_PARALLAX) is refused
 
 
 def test_a_focal_length_beyond_the_range_is_not_named():

@@ -47,24 +47,13 @@ ROTATION_ONLY_CHOSEN = pytest.mark.xfail(
 )
 
 
-FOCAL_ERROR_READ = pytest.mark.xfail(
-    strict=True,
-    reason="the rotation-only fit clips its lens and its matches want a focal length 1.29 times "
-    "the given one, so its bias is read with the focal length free (ppo_cv.rotation_choice: "
-    "what tripod pans with a focal length given 25 % off need): 1.70 degree with the focal "
-    "scale's charge, deviation 0.17, below the essential matrix's 1.60 + 0.62 (its k1 slides "
-    "the rotation on this swing), and the rotation-only fit, 1.18 degree off, is returned "
-    "where the essential matrix is 0.01 off",
-)
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize(
     "scene_name, seed, pivot_m",
     [
         ("room", 0, 0.4),
         ("room", 1, 0.4),
-        pytest.param("backdrop", 0, 0.4, marks=FOCAL_ERROR_READ),
+        ("backdrop", 0, 0.4),
         pytest.param("room", 1, 1.2, marks=ROTATION_ONLY_CHOSEN),
         ("backdrop", 1, 0.4),
     ],
