@@ -150,6 +150,7 @@ from .rotation_choice import (
     released_lens_shift_deg,
     rotation_only_estimate,
     rotation_only_fit,
+    through_given_focal,
     translation_bias,
     unbiased_bias_deg,
     wanted_focal_scale,
@@ -1067,9 +1068,10 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     x1, x2, used = state.found.x1, state.found.x2, state.pose.inliers | motion.rotation_inliers
     moving = _moving_estimate(state, part)
     to_beat = moving.expected_error_deg
-    rotation_only = rotation_only_estimate(motion, state.tracks, x1, x2, used, to_beat)
+    tracks = state.tracks
+    rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used, to_beat)
     if (
-        state.tracks is None
+        tracks is None
         and state.options.photometric
         and rotation_only.fit_sigma_deg < moving.expected_error_deg
         and _tracks_could_win(moving, rotation_only)
@@ -1079,7 +1081,10 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
             sigma_deg=rotation_only.fit_sigma_deg,
         )  # fmt: skip
         rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used, to_beat)
-    return choose_rotation([moving, rotation_only])
+    chosen = choose_rotation([moving, rotation_only])
+    if chosen is rotation_only and tracks is None:
+        return through_given_focal(chosen, motion, x1, x2)
+    return chosen
 
 
 def _tracks_could_win(moving: RotationEstimate, rotation_only: RotationEstimate) -> bool:

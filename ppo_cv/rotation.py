@@ -597,7 +597,8 @@ def fit_rotation_lens(
         Standard deviation of one coordinate of the transfer error (normalised units); None
         fits without the priors.
     focal_prior, k1_prior : float
-        Standard deviations of the priors on ``s - 1`` and ``k1``.
+        Standard deviations of the priors on ``s - 1`` and ``k1``; a ``focal_prior`` of 0
+        holds ``s`` at 1, the given focal length.
     principal_prior : float or array_like of 2 floats, optional
         Standard deviation of each coordinate of ``p`` (normalised units: pixels over the focal
         length), one for both or ``(x, y)``; None keeps the given principal point (``p = 0``).
@@ -663,7 +664,7 @@ def _solve_rotation_lens(
     ``xy1``, ``xy2``."""
     R0, a, b, prior, free, centre = problem
     with_noise = noise is not None and noise > 0
-    enough = len(a) >= (MIN_LENS_MATCHES if prior[3] > 0 else 2 * int(np.count_nonzero(_LENS)))
+    enough = len(a) >= (MIN_LENS_MATCHES if with_noise else 2 * int(np.count_nonzero(_LENS)))
     params = (start if enough else centre).copy()
     sigma, rotation_sigma, excess = np.inf, np.inf, -np.inf
     if enough:
@@ -713,11 +714,12 @@ def _lens_terms_setup(
     offset_bound = principal_bound * principal_prior if fit_offset else None
     fit_ratio = focal_ratio_prior is not None and focal_ratio_prior > 0 and with_noise
     free = _LENS | (_OFFSET if fit_offset else False) | (_RATIO if fit_ratio else False)
+    free[3] = focal_prior != 0
     bounds = np.full(_NPARAMS, np.inf)
     bounds[[3, 4, 7]] = max_focal_change, max_k1, max_focal_change
     prior = np.zeros(_NPARAMS)
     if with_noise:
-        prior[3:5] = noise / np.array([focal_prior, k1_prior])
+        prior[3:5] = noise / np.array([focal_prior if free[3] else np.inf, k1_prior])
     if fit_offset:
         prior[5:7] = noise / principal_prior
     centre = np.zeros(_NPARAMS)
@@ -869,8 +871,10 @@ def _offset_beyond_bound(params, problem, bound, noise) -> bool:
 def _lens_excess(params, J, problem, bounds, noise) -> float:
     """Largest ``(|param| - bound) / deviation`` over the free focal scale, ``k1`` and focal
     ratio, the deviations those of :func:`_posterior_deviations` (inf beyond the box when the
-    covariance is singular)."""
+    covariance is singular; -inf when none is bounded)."""
     bounded = np.flatnonzero(problem[4] & np.isfinite(bounds))
+    if bounded.size == 0:
+        return float("-inf")
     excess = np.abs(params[bounded]) - bounds[bounded]
     deviation = _posterior_deviations(J, problem, noise)
     if deviation is None:

@@ -12,6 +12,7 @@ from ppo_cv.rotation_choice import (
     across_normal_parallax,
     choose_rotation,
     focal_bias_deg,
+    given_focal_fit,
     released_lens_shift_deg,
     rotation_fit_sigma_deg,
     translation_bias,
@@ -156,6 +157,25 @@ def test_fit_sigma_agrees_with_the_lens_fit_covariance():
     assert np.isfinite(fit.rotation_sigma_deg)
     assert sigma == pytest.approx(fit.rotation_sigma_deg, rel=0.3)
     assert rotation_fit_sigma_deg(fit, q1[:3], x2[:3], used[:3]) == float("inf")
+
+
+@pytest.mark.parametrize("true_k1", [0.3, 0.5])
+def test_the_given_focal_fit_frees_the_lens_term_the_box_clipped(true_k1):
+    # a 10 degree pan in a 20 degree field through a lens beyond the box MAX_K1, the focal
+    # length given right: the box clips k1 and the rotation pays for it
+    rng = np.random.default_rng(0)
+    R = _turn(10.0)
+    q1 = rng.uniform([-0.17, -0.13], [0.0, 0.13], (300, 2))
+    ray = np.column_stack([q1, np.ones(len(q1))]) @ R.T
+    q2 = ray[:, :2] / ray[:, 2:]
+    seen = [q * (1.0 + true_k1 * np.sum(q * q, axis=1, keepdims=True)) for q in (q1, q2)]
+    x1, x2 = (x + rng.normal(0.0, 1e-4, x.shape) for x in seen)
+    used = np.ones(len(q1), bool)
+    clipped = fit_rotation_lens(x1, x2, used, np.eye(3), noise=1e-4)
+    held = given_focal_fit(clipped, x1, x2, used)
+    assert true_k1 > MAX_K1 and clipped.lens_excess > 0
+    assert held.focal_scale == 1.0 and held.k1 == pytest.approx(true_k1, abs=0.02)
+    assert rotation_error_deg(held.R, R) < 0.01 < rotation_error_deg(clipped.R, R)
 
 
 @pytest.mark.parametrize(
@@ -320,6 +340,37 @@ def test_real_tripod_pair_called_general_returns_the_rotation_only_fit(pano_dev,
     error = rotation_error_deg(result.R, R_ref)
     assert error < 1.0 and error < rotation_error_deg(seen["essential"].R, R_ref)
     assert 0.0 < result.uncertainty.rotation_bias_deg < 1.0
+
+
+@pytest.mark.parametrize(
+    "names",
+    [
+        ("csie_IMG_8716.JPG", "csie_IMG_8717.JPG"),  # matches wanting a focal length 0.72x
+        ("book_DSC04232.JPG", "book_DSC04233.JPG"),  # and 1.05x the given one
+    ],
+)
+def test_a_tripod_pair_whose_lens_was_clipped_returns_its_rotation_through_the_given_focal(
+    names, pano_dev, monkeypatch
+):
+    """Called general, the lens of its rotation-only fit clipped to the box: the rotation
+    returned is fitted through the given focal length, as the reference's is, not through
+    the edge of the box."""
+    import ppo_cv.pipeline as pipeline
+    from ppo_cv import estimate_pair
+
+    K1, K2, R_ref = _pairs_file_line(pano_dev, names)
+    seen = {}
+
+    def recording(estimates):
+        seen.update({e.source: e for e in estimates})
+        return choose_rotation(estimates)
+
+    monkeypatch.setattr(pipeline, "choose_rotation", recording)
+    result = estimate_pair(*(str(pano_dev / "images" / name) for name in names), K1, K2)
+    assert not result.pure_rotation and result.rotation_source == "rotation"
+    assert np.isfinite(result.lens.wanted_focal_scale)  # the lens was clipped
+    error = rotation_error_deg(result.R, R_ref)
+    assert error < 0.15 and error + 0.2 < rotation_error_deg(seen["rotation"].R, R_ref)
 
 
 @pytest.mark.parametrize(
