@@ -597,8 +597,7 @@ def fit_rotation_lens(
         Standard deviation of one coordinate of the transfer error (normalised units); None
         fits without the priors.
     focal_prior, k1_prior : float
-        Standard deviations of the priors on ``s - 1`` and ``k1``; a ``focal_prior`` of 0
-        holds ``s`` at 1, the given focal length.
+        Deviations of the priors on ``s - 1`` and ``k1`` (a ``focal_prior`` of 0 holds ``s`` at 1).
     principal_prior : float or array_like of 2 floats, optional
         Standard deviation of each coordinate of ``p`` (normalised units: pixels over the focal
         length), one for both or ``(x, y)``; None keeps the given principal point (``p = 0``).
