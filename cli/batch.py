@@ -54,6 +54,7 @@ from .common import (
     given_cameras,
     ignore_library_camera_warnings,
     implausible_intrinsics,
+    one_line,
     pipeline_options,
     print_result,
     stdout_failure,
@@ -701,8 +702,9 @@ def run_pairs(
 
     Lines without intrinsics take ``K`` (and ``K2``) or the cameras of ``calib``, else those of
     the images' EXIF (with a warning). The output file is written completely or not at all (an
-    interrupt leaves nothing). Returns the exit code; ValueError for bad arguments, raised
-    before any image is decoded.
+    interrupt leaves nothing). Returns the exit code: 0 when some pair has a pose (a warning
+    counts the failed ones), 1 when none has (one line on stderr); ValueError for bad
+    arguments, raised before any image is decoded.
     """
     from ppo_cv.atomic import (
         atomic_file,
@@ -779,9 +781,22 @@ def run_pairs(
         typer.echo(auc_table(results), err=True)
     elif rows[0]["T"] is not None:
         print_result("pairs", auc_table(results))
-    elif failed:
+    elif 0 < failed < len(results):
         warn("pairs", f"{failed} of {len(results)} pairs failed")
-    return 0
+    if failed < len(results):
+        return 0
+    typer.echo(f"ppo-cv pairs: {_no_pose(results)}", err=True)
+    return 1
+
+
+def _no_pose(results: list[dict]) -> str:
+    """The one-line message of a run in which every pair failed, with the first one's error."""
+    first = results[0]
+    every = "the pair" if len(results) == 1 else f"all {len(results)} pairs"
+    return one_line(
+        f"no pose: {every} failed (each JSON line names its error); "
+        f"{first['image1']} {first['image2']}: {first['error']}"
+    )
 
 
 def register(app: typer.Typer) -> None:
@@ -795,7 +810,8 @@ def register(app: typer.Typer) -> None:
         "\n\nFeatures are computed once per image for the whole run (--no-cache: once per "
         "pair). Progress goes to stderr. With ground truth the AUC is that of the pose error "
         "max(rotation error, translation-direction error), the rotation error alone where the "
-        "true translation is zero. -o is written completely or not at all."
+        "true translation is zero. -o is written completely or not at all. Exit code 0 when "
+        "some pair has a pose, 1 when every pair failed (each JSON line names its error)."
         "\n\nPAIRS_FILE: " + PAIRS_FILE_FORMAT + " Lines without intrinsics take --K (and "
         "--K2) or --calib, else the EXIF focal length of each image, with a warning (and, as "
         "in 'ppo-cv pair', the focal length fitted to a pair's homography when that one makes "
