@@ -24,6 +24,7 @@ if TYPE_CHECKING:  # typer brings click, or its own copy of it in recent release
     import click
 
 from ppo_cv.calib import implausible_intrinsics
+from ppo_cv.checks import shown
 
 __all__ = [
     "SEED_MAX",
@@ -285,7 +286,9 @@ def ignore_library_camera_warnings() -> None:
 def check_range(name: str, value: float, low: float, high: float) -> None:
     """ValueError naming the option unless ``low <= value <= high`` (NaN fails)."""
     if not (isinstance(value, (int, float)) and low <= value <= high):
-        raise ValueError(f"{name} must be in {low:{_fmt(low)}}..{high:{_fmt(high)}}, got {value}")
+        raise ValueError(
+            f"{name} must be in {low:{_fmt(low)}}..{high:{_fmt(high)}}, got {shown(value)}"
+        )
 
 
 def _fmt(value: float) -> str:

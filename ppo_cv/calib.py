@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import as_camera_matrix, as_distortion
+from .checks import as_camera_matrix, as_distortion, cut, shown
 
 __all__ = [
     "Camera",
@@ -69,14 +69,16 @@ class Camera:
 
 def _numbers(text: str, name: str) -> np.ndarray:
     if not isinstance(text, str):
-        raise TypeError(f"{name} must be a text of numbers, got {type(text).__name__} {text!r:.40}")
+        raise TypeError(
+            f"{name} must be a text of numbers, got {type(text).__name__} {shown(text)}"
+        )
     parts = [p for p in re.split(r"[,\s;\[\]()]+", str(text)) if p]  # nested lists as printed
     try:
         values = np.array([float(p) for p in parts], dtype=np.float64)
     except ValueError:
-        raise ValueError(f"{name} must be comma-separated numbers, got {text!r}") from None
+        raise ValueError(f"{name} must be comma-separated numbers, got {shown(text)}") from None
     if not np.all(np.isfinite(values)):
-        raise ValueError(f"{name} has NaN or infinite values: {text!r}")
+        raise ValueError(f"{name} has NaN or infinite values: {shown(text)}")
     return values
 
 
@@ -272,9 +274,7 @@ def _json_numbers(value: Any, where: str, key: str) -> np.ndarray:
     try:
         return np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
-        shown = json.dumps(value)
-        shown = shown if len(shown) <= 40 else shown[:37] + "..."
-        raise ValueError(f"{where}: {key} must be numbers, got {shown}") from None
+        raise ValueError(f"{where}: {key} must be numbers, got {cut(json.dumps(value))}") from None
 
 
 def _json_camera(entry, where: str) -> Camera:

@@ -25,6 +25,8 @@ __all__ = [
     "as_whole_number",
     "as_flag",
     "require_finite",
+    "shown",
+    "cut",
     "MAX_COORDINATE",
     "MIN_FOCAL",
     "MAX_FOCAL",
@@ -47,6 +49,27 @@ pixels: about 190 for a 500 px focal length; a rank-1 matrix) or its smallest on
 middle one over this factor (rank 3, as the identity). A linear eight-point ``E`` of noisy points,
 never projected onto the essential matrices, stays within 1.13 and 0.004 (5 px of noise)."""
 MAX_RADIAL, MAX_RADIAL_RATIONAL, MAX_TANGENTIAL, MAX_PRISM, MAX_TILT = 10.0, 100.0, 1.0, 1.0, 1.0
+
+
+def shown(value: Any, width: int = 40) -> str:
+    """``value`` as an error message quotes it: a number as printed, anything else as its
+    ``repr``, cut to ``width`` characters (``...`` marks the cut); an integer too long to print
+    whole (Python prints at most 4300 digits) as ``<N-digit integer>``."""
+    if isinstance(value, (int, np.integer)) and int(value).bit_length() > 4 * width:
+        size = abs(int(value))
+        digits = int(math.log10(size)) + 1
+        digits -= size < 10 ** (digits - 1)  # log10 rounds up just below a power of ten
+        return f"<{'negative ' if value < 0 else ''}{digits}-digit integer>"
+    try:
+        text = str(value) if isinstance(value, (int, float, np.number)) else repr(value)
+    except Exception:  # a broken __repr__ must not replace the message it belongs to
+        text = f"<{type(value).__name__}>"
+    return cut(text, width)
+
+
+def cut(text: str, width: int = 40) -> str:
+    """``text`` cut to ``width`` characters, ``...`` marking the cut."""
+    return text if len(text) <= width else text[: width - 3] + "..."
 
 
 def _as_real_array(value: Any, name: str) -> np.ndarray:
@@ -355,9 +378,11 @@ def _as_float(value: Any, name: str) -> float:
     if isinstance(value, (bool, np.bool_)):  # True would read as 1.0
         raise TypeError(f"{name} must be a number, got {value!r}")
     if isinstance(value, (str, bytes)):
-        raise TypeError(f"{name} must be a number, got {type(value).__name__} {value!r}")
+        raise TypeError(f"{name} must be a number, got {type(value).__name__} {shown(value)}")
     try:
         return float(value)
+    except OverflowError:
+        raise ValueError(f"{name} is beyond the range of a float: {shown(value)}") from None
     except (TypeError, ValueError):
         raise TypeError(f"{name} must be a number, got {type(value).__name__}") from None
 
@@ -374,9 +399,12 @@ def as_whole_number(value: Any, name: str, low: int, high: int) -> int:
     if isinstance(value, (bool, np.bool_)) or not isinstance(
         value, (int, float, np.integer, np.floating)
     ):
-        raise TypeError(f"{name} must be a whole number, got {type(value).__name__} {value!r}")
-    if not (np.isfinite(value) and float(value).is_integer() and low <= value <= high):
-        raise ValueError(f"{name} must be a whole number in {low}..{high}, got {value}")
+        raise TypeError(f"{name} must be a whole number, got {type(value).__name__} {shown(value)}")
+    integral = isinstance(value, (int, np.integer)) or (
+        math.isfinite(value) and float(value).is_integer()
+    )
+    if not (integral and low <= value <= high):
+        raise ValueError(f"{name} must be a whole number in {low}..{high}, got {shown(value)}")
     return int(value)
 
 
@@ -384,5 +412,7 @@ def as_flag(value: Any, name: str) -> bool:
     """A bool (or numpy bool); TypeError naming ``name`` for anything else, such as the
     string ``"no"``, which would read as true."""
     if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
+        raise TypeError(
+            f"{name} must be True or False, got {type(value).__name__} {shown(value)}"
+        )
     return bool(value)

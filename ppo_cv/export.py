@@ -17,6 +17,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from .checks import shown
 from .result import (
     DecisionEvidence,
     LensTerms,
@@ -611,11 +612,13 @@ def _checked_output_arguments(
                 f"is {size[0]}x{size[1]}"
             )
     if not (isinstance(names, (tuple, list)) and len(names) == 2):
-        raise TypeError(f"names must be two image names, got {names!r:.60}")
+        raise TypeError(f"names must be two image names, got {shown(names, 60)}")
     if not all(isinstance(name, str) and name.strip() for name in names):
-        raise TypeError(f"names must be two non-empty texts, got {names!r:.60}")
+        raise TypeError(f"names must be two non-empty texts, got {shown(names, 60)}")
     if names[0] == names[1]:
-        raise ValueError(f"names must differ: a COLMAP model names each image once, got {names!r}")
+        raise ValueError(
+            f"names must differ: a COLMAP model names each image once, got {shown(names, 60)}"
+        )
     if extra is not None and not isinstance(extra, dict):
         raise TypeError(f"extra must be a dict of JSON values, got {type(extra).__name__}")
     try:
@@ -630,5 +633,5 @@ def _checked_dists(dists: Any) -> tuple[np.ndarray | None, np.ndarray | None]:
     from .checks import as_distortion
 
     if not (isinstance(dists, (tuple, list)) and len(dists) == 2):
-        raise TypeError(f"dists must be two distortions (None for none), got {dists!r:.60}")
+        raise TypeError(f"dists must be two distortions (None for none), got {shown(dists, 60)}")
     return as_distortion(dists[0], "dists[0]"), as_distortion(dists[1], "dists[1]")

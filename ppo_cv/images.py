@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from .checks import shown
 from .features import to_uint8
 
 __all__ = [
@@ -59,12 +60,14 @@ def _max_pixels(max_pixels: int | None) -> int:
         try:
             max_pixels = int(text)
         except ValueError:
-            raise ValueError(f"{MAX_PIXELS_ENV} must be a whole number, got {text!r}") from None
+            raise ValueError(
+                f"{MAX_PIXELS_ENV} must be a whole number, got {shown(text)}"
+            ) from None
         name = MAX_PIXELS_ENV
     else:
         name = "max_pixels"
     if isinstance(max_pixels, bool) or not isinstance(max_pixels, (int, np.integer)):
-        raise TypeError(f"{name} must be a whole number, got {max_pixels!r}")
+        raise TypeError(f"{name} must be a whole number, got {shown(max_pixels)}")
     if max_pixels < 1:
         raise ValueError(f"{name} must be >= 1, got {max_pixels}")
     return int(max_pixels)
@@ -321,7 +324,7 @@ def as_image(image: Any, name: str) -> np.ndarray:
     if array.ndim == 0:
         raise TypeError(
             f"{name} must be an image array or a path (str or os.PathLike), got "
-            f"{type(image).__name__} {image!r:.40}"
+            f"{type(image).__name__} {shown(image)}"
         )
     if (
         array.ndim not in (2, 3)

@@ -84,6 +84,7 @@ from .checks import (
     as_number,
     as_pri_threshold,
     as_whole_number,
+    shown,
 )
 from .features import (
     FEATURE_TYPES,
@@ -337,15 +338,18 @@ class PairOptions:
         ):
             if getattr(self, name) not in modes:
                 raise ValueError(
-                    f"unknown {name} {getattr(self, name)!r}; choose one of {', '.join(modes)}"
+                    f"unknown {name} {shown(getattr(self, name))}; choose one of "
+                    f"{', '.join(modes)}"
                 )
         if self.features not in FEATURE_TYPES:
             raise ValueError(
-                f"unknown features {self.features!r}; choose one of {', '.join(FEATURE_TYPES)}"
+                f"unknown features {shown(self.features)}; choose one of "
+                f"{', '.join(FEATURE_TYPES)}"
             )
         if self.backend not in ROBUST_BACKENDS:
             raise ValueError(
-                f"unknown backend {self.backend!r}; choose one of {', '.join(ROBUST_BACKENDS)}"
+                f"unknown backend {shown(self.backend)}; choose one of "
+                f"{', '.join(ROBUST_BACKENDS)}"
             )
         if not 0 < self.ratio <= 1:
             raise ValueError(f"ratio must be in (0, 1], got {self.ratio}")

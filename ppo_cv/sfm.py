@@ -52,6 +52,7 @@ from .checks import (
     as_positive,
     as_pri_threshold,
     as_whole_number,
+    shown,
 )
 from .homography import estimate_homography
 from .images import check_decodes
@@ -1213,7 +1214,8 @@ def _check_scoring(scoring: dict) -> None:
     for name, value in scoring.items():
         if name not in accepted:
             raise TypeError(
-                f"unexpected keyword argument {name!r}; the scoring takes {', '.join(accepted)}"
+                f"unexpected keyword argument {shown(name)}; the scoring takes "
+                f"{', '.join(accepted)}"
             )
         if name == "min_inliers":
             as_whole_number(value, name, 0, MAX_WHOLE_NUMBER)
@@ -1226,10 +1228,11 @@ def _check_scoring(scoring: dict) -> None:
 def _check_choices(initialization: str, seeding: str) -> None:
     if initialization not in INITIALIZATIONS:
         raise ValueError(
-            f"initialization must be one of {', '.join(INITIALIZATIONS)}, got {initialization!r}"
+            f"initialization must be one of {', '.join(INITIALIZATIONS)}, got "
+            f"{shown(initialization)}"
         )
     if seeding not in SEEDINGS:
-        raise ValueError(f"seeding must be one of {', '.join(SEEDINGS)}, got {seeding!r}")
+        raise ValueError(f"seeding must be one of {', '.join(SEEDINGS)}, got {shown(seeding)}")
 
 
 def _grew_from(models: list, pair: PairScore | None) -> bool:

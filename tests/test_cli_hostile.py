@@ -458,6 +458,18 @@ CASES = [
     (["pairs", "no\nsuch.txt", "images"], "pairs", r"pairs file not found: no\\nsuch\.txt$"),
     # '-' is standard output, which cannot hold a folder (no folder named '-' appears)
     ([*PAIR, "--out", "-"], "pair", r"--out takes a folder, not '-' \(standard output\)"),
+    # a number of thousands of digits, a text of thousands of characters: named by their start
+    ([*PAIR, "--max-features", "1" + "0" * 5000], "pair",
+     r"Invalid value for '--max-features': '10{76}\.\.\.' is not a valid int\.$"),
+    ([*PAIR, "--max-features", "1" + "0" * 4000], "pair",
+     r"--max-features must be in 8\.\.1000000, got <4001-digit integer>$"),
+    ([*PAIR, "--" + "x" * 300], "pair", r"No such option: --x{75}\.\.\.$"),
+    ([*PAIR[:3], "--K", "x" + "1," * 3000], "pair",
+     r"--K must be comma-separated numbers, got 'x(1,){17}1\.\.\.$"),
+    (["synth", "out", "--width", "1" + "0" * 4000], "synth",
+     r"--width must be in 16\.\.4096, got <4001-digit integer>$"),
+    (["sfm", "images", "model", "--init", "x" * 5000], "sfm",
+     r"--init must be one of ppo, colmap, got 'x{36}\.\.\.$"),
 ]
 
 

@@ -267,6 +267,60 @@ CASES = {
 }  # fmt: skip
 
 
+HUGE = 10**5000  # more digits than Python prints (4300)
+LONG_TEXT = "1," * 3000
+LONG_VALUE_CASES = {
+    "estimate_pair image1 huge int": (_pair(image1=HUGE), TypeError,
+                                      "image1 must be an image array or a path (str or "
+                                      "os.PathLike), got int <5001-digit integer>"),
+    "parse_intrinsics huge int": (lambda: ppo_cv.parse_intrinsics(HUGE, "K"), TypeError,
+                                  "K must be a text of numbers, got int <5001-digit integer>"),
+    "parse_intrinsics long text": (lambda: ppo_cv.parse_intrinsics("x" + LONG_TEXT, "K"),
+                                   ValueError, "K must be comma-separated numbers, got 'x1,1,1,"),
+    "parse_intrinsics long NaN text": (lambda: ppo_cv.parse_intrinsics("nan," + LONG_TEXT, "K"),
+                                       ValueError, "K has NaN or infinite values: 'nan,1,1,"),
+    "PairOptions ratio huge int": (lambda: PairOptions(ratio=HUGE), ValueError,
+                                   "ratio is beyond the range of a float: <5001-digit integer>"),
+    "PairOptions seed huge int": (lambda: PairOptions(seed=HUGE), ValueError,
+                                  "seed must be a whole number in 0..2147483647, got "
+                                  "<5001-digit integer>"),
+    "PairOptions seed long text": (lambda: PairOptions(seed=LONG_TEXT), TypeError,
+                                   "seed must be a whole number, got str '1,1,1,"),
+    "PairOptions plane huge int": (lambda: PairOptions(plane=HUGE), TypeError,
+                                   "plane must be True or False, got int <5001-digit integer>"),
+    "PairOptions pri_threshold long text": (lambda: PairOptions(pri_threshold=LONG_TEXT),
+                                            TypeError, "pri_threshold must be a number, got str"),
+    "PairOptions features long text": (lambda: PairOptions(features=LONG_TEXT), ValueError,
+                                       "unknown features '1,1,1,"),
+    "load_image max_pixels long text": (lambda: load_image(__file__, max_pixels=LONG_TEXT),
+                                        TypeError, "max_pixels must be a whole number, got '1,"),
+    "run_sfm min_inliers huge int": (lambda: _sfm(min_inliers=HUGE), ValueError,
+                                     "min_inliers must be a whole number in 0..2147483647"),
+    "run_sfm initialization long text": (lambda: _sfm(initialization=LONG_TEXT), ValueError,
+                                         "initialization must be one of ppo, colmap, got '1,1,"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", list(LONG_VALUE_CASES), ids=list(LONG_VALUE_CASES))
+def test_a_huge_or_long_value_is_quoted_short_in_its_error(case):
+    call, exception, words = LONG_VALUE_CASES[case]
+    with pytest.raises(exception) as info:
+        call()
+    assert words in str(info.value) and len(str(info.value)) < 120
+
+
+@pytest.mark.parametrize(
+    "value, quoted",
+    [(5, "5"), (1.5, "1.5"), ("ab", "'ab'"), ("a" * 50, "'" + "a" * 36 + "..."),
+     (HUGE, "<5001-digit integer>"), (np.int64(7), "7"), (2**150, str(2**150)[:37] + "...")],
+    ids=["int", "float", "text", "long text", "huge int", "numpy int", "long int"],
+)  # fmt: skip
+def test_shown_quotes_a_value_in_at_most_its_width(value, quoted):
+    from ppo_cv.checks import shown
+
+    assert shown(value) == quoted and len(shown(value)) <= 40
+
+
 @pytest.mark.filterwarnings("ignore::ppo_cv.calib.ImplausibleCameraWarning")  # 800 px on 64x48
 @pytest.mark.parametrize("case", list(CASES), ids=list(CASES))
 def test_hostile_input_is_an_error_naming_the_argument(case):
