@@ -60,11 +60,25 @@ class Camera:
         ``(k1, k2, p1, p2[, k3[, k4, k5, k6]])``; None for an undistorted camera.
     image_size : tuple of int or None
         ``(width, height)`` of the images the camera was calibrated on, when the file says.
+
+    Each field is checked as the pipeline checks its arguments (a ValueError or TypeError
+    naming it) and held as float64: a K of float16, float32 or integers is converted exactly,
+    all-zero distortion is None.
     """
 
     K: np.ndarray
     dist: np.ndarray | None = None
     image_size: tuple[int, int] | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "K", as_camera_matrix(self.K, "Camera.K"))
+        object.__setattr__(self, "dist", as_distortion(self.dist, "Camera.dist"))
+        size = self.image_size
+        if size is None:
+            return
+        if not (isinstance(size, (tuple, list)) and len(size) == 2):
+            raise TypeError(f"Camera.image_size must be (width, height) or None, got {shown(size)}")
+        object.__setattr__(self, "image_size", _image_size(*size, "Camera.image_size"))
 
 
 def _numbers(text: str, name: str) -> np.ndarray:
@@ -205,7 +219,7 @@ def _image_size(width, height, where: str) -> tuple[int, int]:
     if not all(math.isfinite(v) and v == round(v) and 1 <= v <= 1e6 for v in size):
         raise ValueError(
             f"{where}: image width and height must be whole numbers from 1 to 1e6, got "
-            f"{width} and {height}"
+            f"{shown(width)} and {shown(height)}"
         )
     return int(size[0]), int(size[1])
 

@@ -737,3 +737,41 @@ def test_run_sfm_never_replaces_its_images_even_with_overwrite(tmp_path, output,
         _sfm_module().run_sfm(tmp_path / "images", target, K=K, overwrite=True,
                               database_path=database and tmp_path / database)  # fmt: skip
     assert {p.name: p.read_bytes() for p in (tmp_path / "images").iterdir()} == before
+
+
+@pytest.mark.parametrize("dtype", [np.float16, np.float32, np.int64, np.longdouble])
+def test_a_camera_matrix_of_another_number_type_is_its_values_exactly(dtype):
+    # no float type is refused: each is converted to float64 exactly (float16 holds the camera
+    # it was given, 800 and 320 here), as OpenCV reads them
+    K_typed = K.astype(dtype)
+    camera = ppo_cv.Camera(K_typed, np.array([0.01, 0, 0, 0], dtype=np.float16), (640.0, 480))
+    assert camera.K.dtype == np.float64 and np.array_equal(camera.K, K)
+    assert camera.dist.dtype == np.float64 and camera.dist[0] == np.float16(0.01)
+    assert camera.image_size == (640, 480)
+    pose, expected = ppo_cv.recover_pose(E, P1, P2, K_typed), ppo_cv.recover_pose(E, P1, P2, K)
+    assert np.array_equal(pose.R, expected.R) and np.array_equal(pose.t, expected.t)
+
+
+@pytest.mark.parametrize(
+    "fields, exception, words",
+    [(("hello",), TypeError, "Camera.K must hold real numbers"),
+     ((K[:2],), ValueError, "Camera.K must be a 3x3 matrix"),
+     ((-K,), ValueError, "Camera.K must be upper triangular"),
+     ((K, [0.1, 0.2, 0.3]), ValueError, "Camera.dist must be OpenCV distortion coefficients"),
+     ((K, None, 640), TypeError, "Camera.image_size must be (width, height) or None, got 640"),
+     ((K, None, (640, -1)), ValueError, "Camera.image_size: image width and height must be")],
+    ids=["K text", "K 2x3", "K negative", "dist of 3", "size a number", "size negative"],
+)  # fmt: skip
+def test_a_camera_is_checked_when_made(fields, exception, words):
+    with pytest.raises(exception, match=re.escape(words)):
+        ppo_cv.Camera(*fields)
+
+
+@pytest.mark.skipif(
+    np.finfo(np.longdouble).max <= np.finfo(np.float64).max, reason="long double is float64 here"
+)
+def test_a_long_double_pixel_beyond_float64_is_named_so():
+    image = GREY.astype(np.longdouble)
+    image[3, 4] = np.longdouble("1e400")  # finite in long double, infinite in float64
+    with pytest.raises(ValueError, match=r"^image1 has 1 pixel value\(s\) beyond the range of "):
+        ppo_cv.estimate_pair(image, GREY, K)
