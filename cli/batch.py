@@ -220,8 +220,9 @@ def _warn_repeated_lines(rows: list[dict], pairs_file: Path) -> None:
 
 def _require_regular_file(path: Path, what: str) -> None:
     """ValueError naming what ``path`` is when it is not an existing regular file."""
-    if not path.exists():
-        raise ValueError(f"{what} not found: {path}")
+    from ppo_cv.images import file_mode
+
+    file_mode(path, what)
     if path.is_dir():
         raise ValueError(f"{what} {path} is a directory")
     if not path.is_file():
@@ -721,8 +722,9 @@ def run_pairs(
         check_target(output, "file", overwrite, [pairs_file, image_dir], "-o ")
     cameras = given_cameras(K, K2, None, None, calib)
     rows = read_pairs(Path(pairs_file), cameras=cameras)
-    if not Path(image_dir).exists():
-        raise ValueError(f"image folder not found: {image_dir}")
+    from ppo_cv.images import file_mode
+
+    file_mode(image_dir, "image folder")
     if not Path(image_dir).is_dir():
         raise ValueError(f"image folder {image_dir} is not a folder")
     _require_some_image(rows, Path(image_dir), Path(pairs_file))

@@ -21,13 +21,14 @@ import json
 import math
 import os
 import re
+import stat
 import warnings
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from .checks import as_camera_matrix, as_distortion, cut, shown
+from .checks import as_camera_matrix, as_distortion, as_path, cut, shown
 
 __all__ = [
     "Camera",
@@ -116,7 +117,7 @@ def _matrix_from_values(values: np.ndarray, name: str) -> np.ndarray:
     return K
 
 
-def parse_intrinsics(text: str, name: str = "--K") -> np.ndarray:
+def parse_intrinsics(text: str, name: str = "intrinsics") -> np.ndarray:
     """``"fx,fy,cx,cy"`` or 9 row-major numbers to a 3x3 ``K``.
 
     >>> parse_intrinsics("535.4,539.2,320.1,247.6")[0]
@@ -125,7 +126,7 @@ def parse_intrinsics(text: str, name: str = "--K") -> np.ndarray:
     return _matrix_from_values(_numbers(text, name), name)
 
 
-def parse_distortion(text: str, name: str = "--dist") -> np.ndarray | None:
+def parse_distortion(text: str, name: str = "distortion") -> np.ndarray | None:
     """``"k1,k2,p1,p2[,k3]"`` to OpenCV distortion coefficients; None when all are zero.
     ValueError for a text without numbers (an empty option is no way to say "none")."""
     values = _numbers(text, name)
@@ -373,10 +374,10 @@ def load_calibration(path: str | os.PathLike) -> list[Camera]:
     The format follows the extension: ``.yml``/``.yaml``/``.xml`` OpenCV FileStorage, ``.json``,
     anything else a COLMAP ``cameras.txt``.
     """
-    path = os.fspath(path)
-    if not os.path.exists(path):
-        raise ValueError(f"calibration file not found: {path}")
-    if not os.path.isfile(path):  # a folder, or a FIFO that would block the reader
+    from .images import file_mode
+
+    path = os.fspath(as_path(path, "path"))
+    if not stat.S_ISREG(file_mode(path, "calibration file")):  # a FIFO would block the reader
         raise ValueError(f"calibration file {path} is not a regular file")
     extension = os.path.splitext(path)[1].lower()
     if extension in (".yml", ".yaml", ".xml"):
@@ -499,8 +500,7 @@ def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> 
 
     from .images import check_decodes, decoded_transposed
 
-    if not isinstance(path, (str, os.PathLike)):
-        raise TypeError(f"path must be a path (str or os.PathLike), got {type(path).__name__}")
+    as_path(path, "path")
     check_decodes(path)  # pycolmap guessed a camera for a damaged image, after libpng's errors
     camera = pycolmap.infer_camera_from_image(os.fspath(path))
     K = np.asarray(camera.calibration_matrix(), dtype=np.float64)

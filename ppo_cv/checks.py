@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import os
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -24,6 +26,7 @@ __all__ = [
     "as_number",
     "as_whole_number",
     "as_flag",
+    "as_path",
     "require_finite",
     "shown",
     "cut",
@@ -416,3 +419,10 @@ def as_flag(value: Any, name: str) -> bool:
             f"{name} must be True or False, got {type(value).__name__} {shown(value)}"
         )
     return bool(value)
+
+
+def as_path(value: Any, name: str) -> Path:
+    """``value`` as a Path; TypeError naming ``name`` for anything but a str or PathLike."""
+    if not isinstance(value, (str, os.PathLike)):
+        raise TypeError(f"{name} must be a path (str or os.PathLike), got {type(value).__name__}")
+    return Path(value)

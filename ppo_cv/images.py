@@ -40,6 +40,7 @@ __all__ = [
     "check_decodes",
     "check_header",
     "check_regular_file",
+    "file_mode",
     "decoded_transposed",
     "exif_layout",
     "image_size",
@@ -73,15 +74,21 @@ def _max_pixels(max_pixels: int | None) -> int:
     return int(max_pixels)
 
 
+def file_mode(path: str | os.PathLike, what: str) -> int:
+    """``st_mode`` of ``path`` (symbolic links followed); ValueError naming ``what`` the path
+    is when it does not exist or cannot be reached (a loop of symbolic links, no permission)."""
+    try:
+        return os.stat(path).st_mode
+    except FileNotFoundError:
+        raise ValueError(f"{what} not found: {os.fspath(path)}") from None
+    except OSError as exc:
+        raise ValueError(f"cannot read {what} {os.fspath(path)}: {exc.strerror or exc}") from None
+
+
 def check_regular_file(path: str | os.PathLike) -> None:
     """ValueError unless ``path`` is an existing regular file; never opens it (a FIFO would
     block a reader)."""
-    try:
-        mode = os.stat(path).st_mode
-    except FileNotFoundError:
-        raise ValueError(f"image not found: {path}") from None
-    except OSError as exc:
-        raise ValueError(f"cannot read image {path}: {exc.strerror or exc}") from None
+    mode = file_mode(path, "image")
     if stat.S_ISDIR(mode):
         raise ValueError(f"expected an image file, got a directory: {path}")
     if not stat.S_ISREG(mode):

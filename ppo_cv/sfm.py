@@ -49,6 +49,7 @@ from .checks import (
     MAX_WHOLE_NUMBER,
     as_camera_matrix,
     as_nonnegative,
+    as_path,
     as_positive,
     as_pri_threshold,
     as_whole_number,
@@ -252,16 +253,9 @@ def _say(progress: Progress | None, message: str) -> None:
         progress(message)
 
 
-def _as_path(value: Any, name: str) -> Path:
-    """``value`` as a Path; TypeError naming ``name`` for anything but a str or PathLike."""
-    if not isinstance(value, (str, os.PathLike)):
-        raise TypeError(f"{name} must be a path (str or os.PathLike), got {type(value).__name__}")
-    return Path(value)
-
-
 def _image_folder(value: Any) -> Path:
     """``value`` as the Path of an existing folder; TypeError or ValueError naming it."""
-    image_dir = _as_path(value, "image_dir")
+    image_dir = as_path(value, "image_dir")
     if not image_dir.exists():
         raise ValueError(f"image folder {str(image_dir)!r} does not exist")
     if not image_dir.is_dir():
@@ -425,7 +419,7 @@ def prepare_database(
             raise ValueError(f"K has skew {K[0, 1]}, which pycolmap's PINHOLE camera cannot hold")
     names, skipped = screen_images(image_dir)
     require_two_images(image_dir, names, skipped)
-    database_path = _as_path(database_path, "database_path")
+    database_path = as_path(database_path, "database_path")
     if database_path.exists():
         raise ValueError(f"database {str(database_path)!r} already exists")
     check_target(database_path, "file", inputs=[image_dir], name="database_path ")
@@ -663,7 +657,7 @@ def score_pairs(
          "min_tri_angle": min_tri_angle, "target_tri_angle": target_tri_angle,
          "max_forward_motion": max_forward_motion}
     )  # fmt: skip
-    database_path = _as_path(database_path, "database_path")
+    database_path = as_path(database_path, "database_path")
     _require_database(database_path)
     scores = []
     with pycolmap.Database.open(database_path) as database:
@@ -895,7 +889,7 @@ def reconstruct(
     _check_choices(initialization, seeding)
     _check_scoring(scoring)
     _check_run_numbers(num_threads, seed)
-    database_path, image_dir = _as_path(database_path, "database_path"), _image_folder(image_dir)
+    database_path, image_dir = as_path(database_path, "database_path"), _image_folder(image_dir)
     _require_database(database_path)
     start = time.perf_counter()
     pairs: tuple[PairScore, ...] = ()
@@ -1367,10 +1361,10 @@ def run_sfm(
     _check_run_numbers(num_threads, seed, max_num_features)
     image_dir = _image_folder(image_dir)
     if output_dir is not None:  # never the image folder, nor one holding it, even replaced
-        output_dir = _as_path(output_dir, "output_dir")
+        output_dir = as_path(output_dir, "output_dir")
         check_target(output_dir, "folder", overwrite, [image_dir], "output_dir ")
     if database_path is not None:
-        check_target(_as_path(database_path, "database_path"), "file", False, [image_dir],
+        check_target(as_path(database_path, "database_path"), "file", False, [image_dir],
                      "database_path ")  # fmt: skip
     with contextlib.ExitStack() as stack:
         scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="ppo-cv-sfm-")))

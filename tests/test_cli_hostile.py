@@ -86,6 +86,8 @@ def _workspace(root: Path) -> None:
     for image in (DEMO1, DEMO2):
         shutil.copy(image, root / "images")
     os.mkfifo(root / "fifo.png")
+    os.symlink("loop2", root / "loop1")  # a loop of symbolic links
+    os.symlink("loop1", root / "loop2")
     (root / "t").mkdir()  # issue 11, section 2: an old file beside where a result would go
     (root / "t" / "points.ply").write_text("OLD\n")
     (root / "t" / "colmap").write_text("x\n")
@@ -113,7 +115,9 @@ def _snapshot(root: Path) -> dict:
     entries = {}
     for path in sorted(root.rglob("*")):
         key = str(path.relative_to(root))
-        if path.is_fifo():
+        if path.is_symlink():
+            entries[key] = f"link to {os.readlink(path)}"
+        elif path.is_fifo():
             entries[key] = "fifo"
         elif path.is_dir():
             entries[key] = "dir"
@@ -458,6 +462,12 @@ CASES = [
     (["pairs", "no\nsuch.txt", "images"], "pairs", r"pairs file not found: no\\nsuch\.txt$"),
     # '-' is standard output, which cannot hold a folder (no folder named '-' appears)
     ([*PAIR, "--out", "-"], "pair", r"--out takes a folder, not '-' \(standard output\)"),
+    # a loop of symbolic links is named so (it was "not found"), as for an image
+    ([*PAIR[:3], "--calib", "loop1"], "pair",
+     r"cannot read calibration file loop1: Too many levels of symbolic links$"),
+    (["pairs", "loop1", "images"], "pairs", r"cannot read pairs file loop1: Too many levels"),
+    (["pairs", "pairs_demo.txt", "loop1", "--K", K_TEXT], "pairs",
+     r"cannot read image folder loop1: Too many levels"),
     # a number of thousands of digits, a text of thousands of characters: named by their start
     ([*PAIR, "--max-features", "1" + "0" * 5000], "pair",
      r"Invalid value for '--max-features': '10{76}\.\.\.' is not a valid int\.$"),

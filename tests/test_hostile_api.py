@@ -262,6 +262,12 @@ CASES = {
                              "output_dir must be a path"),
     "score_pairs None": (lambda: _sfm_module().score_pairs(None), TypeError,
                          "database_path must be a path"),
+    "load_calibration None": (lambda: ppo_cv.load_calibration(None), TypeError,
+                              "path must be a path (str or os.PathLike), got NoneType"),
+    "parse_intrinsics names no option": (lambda: ppo_cv.parse_intrinsics("a,b"), ValueError,
+                                         "intrinsics must be comma-separated numbers"),
+    "parse_distortion names no option": (lambda: ppo_cv.calib.parse_distortion("1"), ValueError,
+                                         "distortion must be OpenCV distortion coefficients"),
     "reconstruct no image folder": (lambda: _sfm_module().reconstruct(__file__, "no such folder"),
                                     ValueError, "image folder 'no such folder' does not exist"),
 }  # fmt: skip
