@@ -468,6 +468,12 @@ CASES = [
     (["pairs", "loop1", "images"], "pairs", r"cannot read pairs file loop1: Too many levels"),
     (["pairs", "pairs_demo.txt", "loop1", "--K", K_TEXT], "pairs",
      r"cannot read image folder loop1: Too many levels"),
+    # the working folder, or one holding it, as an output folder: refused before any work (it
+    # was found busy once the pair was done, or the rendering of synth)
+    ([*PAIR, "--out", ".", "--overwrite"], "pair",
+     r"cannot write \.: it is or holds the current folder, which a new output folder cannot "
+     r"replace; give another folder$"),
+    (["synth", ".", "-n", "1"], "synth", r"cannot write \.: it is or holds the current folder"),
     # a number of thousands of digits, a text of thousands of characters: named by their start
     ([*PAIR, "--max-features", "1" + "0" * 5000], "pair",
      r"Invalid value for '--max-features': '10{76}\.\.\.' is not a valid int\.$"),
