@@ -85,8 +85,23 @@ def _as_real_array(value: Any, name: str) -> np.ndarray:
     if array.dtype == np.float64:
         return array
     if array.dtype.kind not in "iuf":
-        raise TypeError(f"{name} must hold real numbers, got dtype {array.dtype}")
+        raise TypeError(_not_numbers(value, array, name))
     return array.astype(np.float64)
+
+
+def _not_numbers(value: Any, array: np.ndarray, name: str) -> str:
+    """The message for an argument that holds no real numbers: its dtype, or for a single
+    object (a text, a record) its type and how to pass what it stands for."""
+    if array.ndim or isinstance(value, np.ndarray):
+        return f"{name} must hold real numbers, got dtype {array.dtype}"
+    hint = (
+        ": parse a text with ppo_cv.parse_intrinsics (a distortion: ppo_cv.calib.parse_distortion)"
+        if isinstance(value, str)
+        else ": pass its .K (and its .dist as the distortion)"
+        if hasattr(value, "K")
+        else ""
+    )
+    return f"{name} must be an array of real numbers, got {type(value).__name__}{hint}"
 
 
 def require_finite(array: np.ndarray, name: str) -> None:

@@ -262,6 +262,12 @@ CASES = {
                              "output_dir must be a path"),
     "score_pairs None": (lambda: _sfm_module().score_pairs(None), TypeError,
                          "database_path must be a path"),
+    "estimate_pair K text": (_pair(K1="535.4,539.2,320.1,247.6"), TypeError,
+                             "K1 must be an array of real numbers, got str: parse a text with "
+                             "ppo_cv.parse_intrinsics"),
+    "estimate_pair K a Camera": (_pair(K1=ppo_cv.Camera(K)), TypeError,
+                                 "K1 must be an array of real numbers, got Camera: pass its .K "
+                                 "(and its .dist as the distortion)"),
     "load_calibration None": (lambda: ppo_cv.load_calibration(None), TypeError,
                               "path must be a path (str or os.PathLike), got NoneType"),
     "parse_intrinsics names no option": (lambda: ppo_cv.parse_intrinsics("a,b"), ValueError,
@@ -760,7 +766,7 @@ def test_a_camera_matrix_of_another_number_type_is_its_values_exactly(dtype):
 
 @pytest.mark.parametrize(
     "fields, exception, words",
-    [(("hello",), TypeError, "Camera.K must hold real numbers"),
+    [(("hello",), TypeError, "Camera.K must be an array of real numbers, got str: parse a text"),
      ((K[:2],), ValueError, "Camera.K must be a 3x3 matrix"),
      ((-K,), ValueError, "Camera.K must be upper triangular"),
      ((K, [0.1, 0.2, 0.3]), ValueError, "Camera.dist must be OpenCV distortion coefficients"),
