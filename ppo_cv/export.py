@@ -565,15 +565,19 @@ def write_outputs(
     ValueError unless ``overwrite``, which replaces it as a whole; so is a camera or an image name
     that the COLMAP model cannot hold (:func:`check_colmap_camera`, :func:`check_colmap_names`),
     and any argument that cannot make its files (an image of another size than the result's,
-    ``extra`` holding NaN, which JSON cannot), before anything is written.
+    ``extra`` holding NaN, which JSON cannot), before anything is written. Images given as
+    paths are inputs: a ``directory`` that is one or holds one is a ValueError even with
+    ``overwrite`` (:func:`ppo_cv.atomic.check_apart`).
     """
     import cv2
 
-    from .atomic import atomic_directory
+    from .atomic import atomic_directory, check_apart
 
     if not isinstance(directory, (str, os.PathLike)):
         raise TypeError(f"directory must be a path, got {type(directory).__name__}")
+    paths = [image for image in (image1, image2) if isinstance(image, (str, os.PathLike))]
     image1, image2 = _checked_output_arguments(result, (image1, image2), names, extra)
+    check_apart(directory, paths, "directory ")
     dists = (result.cameras.dist1, result.cameras.dist2) if dists is None else dists
     dists = _checked_dists(dists)
     check_colmap_camera(result.cameras.K1, dists[0], "camera 1")

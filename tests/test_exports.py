@@ -300,3 +300,23 @@ def test_write_outputs_reads_images_given_as_paths(demo_result, tmp_path):
     write_outputs(tmp_path / "out", demo_result, data / "demo1.png", data / "demo2.png")
     drawn = load_image(str(tmp_path / "out" / "matches.png"))
     assert drawn.shape[1] == 2 * 640 and drawn.std() > 10
+
+
+@pytest.mark.parametrize("directory", ["images", ".", "images/demo1.png"])
+def test_write_outputs_never_replaces_the_images_it_was_given_as_paths(
+    demo, demo_result, tmp_path, monkeypatch, directory
+):
+    # with overwrite=True it replaced the folder holding them (the images were deleted)
+    import cv2
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "images").mkdir()
+    paths = [f"images/demo{i}.png" for i in (1, 2)]
+    for path, image in zip(paths, demo[:2], strict=True):
+        cv2.imwrite(path, image)
+    before = {path: (tmp_path / path).read_bytes() for path in paths}
+    refused = rf"^the output directory {re.escape(directory)} (is|holds) the input"
+    with pytest.raises(ValueError, match=refused):
+        ppo_cv.write_outputs(directory, demo_result, *paths, overwrite=True)
+    assert sorted(p.name for p in (tmp_path / "images").iterdir()) == ["demo1.png", "demo2.png"]
+    assert {path: (tmp_path / path).read_bytes() for path in paths} == before
