@@ -57,6 +57,7 @@ from .common import (
     one_line,
     pipeline_options,
     print_result,
+    short_words,
     stdout_failure,
     warn,
 )
@@ -795,9 +796,11 @@ def _no_pose(results: list[dict]) -> str:
     """The one-line message of a run in which every pair failed, with the first one's error."""
     first = results[0]
     every = "the pair" if len(results) == 1 else f"all {len(results)} pairs"
-    return one_line(
-        f"no pose: {every} failed (each JSON line names its error); "
-        f"{first['image1']} {first['image2']}: {first['error']}"
+    return short_words(
+        one_line(
+            f"no pose: {every} failed (each JSON line names its error); "
+            f"{first['image1']} {first['image2']}: {first['error']}"
+        )
     )
 
 

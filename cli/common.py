@@ -232,10 +232,26 @@ def one_line(text: str) -> str:
     return "\\n".join(text.strip().splitlines())
 
 
+MESSAGE_WORD_MAX = 300
+"""Longest word or quoted value an error or warning line shows whole (longer ones are cut,
+:func:`short_words`): a path beyond the system's limits, a value of thousands of digits."""
+
+
+def short_words(text: str, width: int = MESSAGE_WORD_MAX) -> str:
+    """``text`` with each quoted value (``'...'``) or word longer than ``width`` characters cut
+    to ``width`` (:func:`ppo_cv.checks.cut`)."""
+    from ppo_cv.checks import cut
+
+    def short(word: re.Match) -> str:
+        return f"'{cut(word[1], width)}'" if word[1] is not None else cut(word[2], width)
+
+    return re.sub(rf"'([^']{{{width + 1},}})'|([^\s']{{{width + 1},}})", short, text)
+
+
 def fail(command: str, message: str, code: int = 2) -> NoReturn:
-    """Print ``ppo-cv <command>: <message>`` on one line (:func:`one_line`) on stderr and exit
-    with ``code``."""
-    typer.echo(f"ppo-cv {command}: {one_line(message) or 'failed'}", err=True)
+    """Print ``ppo-cv <command>: <message>`` on one line (:func:`one_line`, long words cut by
+    :func:`short_words`) on stderr and exit with ``code``."""
+    typer.echo(f"ppo-cv {command}: {short_words(one_line(message)) or 'failed'}", err=True)
     raise typer.Exit(code)
 
 
@@ -272,7 +288,7 @@ def print_result(command: str, text: str) -> None:
 
 def warn(command: str, message: str) -> None:
     """Print ``ppo-cv <command>: warning: <message>`` on stderr."""
-    typer.echo(f"ppo-cv {command}: warning: {one_line(message)}", err=True)
+    typer.echo(f"ppo-cv {command}: warning: {short_words(one_line(message))}", err=True)
 
 
 def ignore_library_camera_warnings() -> None:

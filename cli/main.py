@@ -100,22 +100,10 @@ def _usage_error(exc: Exception, argv: list[str] | None) -> int:
         typer.echo(ctx.get_help(), err=True)
         return 2
     command = ctx.command_path if ctx is not None else _command(argv)
-    typer.echo(f"{command}: {_short_quotes(exc.format_message())}", err=True)
+    from .common import short_words
+
+    typer.echo(f"{command}: {short_words(exc.format_message(), 80)}", err=True)
     return getattr(exc, "exit_code", 2)
-
-
-_LONG_WORD = re.compile(r"'([^']{81,})'|([^\s']{81,})")
-
-
-def _short_quotes(message: str) -> str:
-    """``message`` with each value it names cut to 80 characters: a 5000-digit number or a
-    long option name is named by its start."""
-    from ppo_cv.checks import cut
-
-    def short(word: re.Match) -> str:
-        return f"'{cut(word[1], 80)}'" if word[1] is not None else cut(word[2], 80)
-
-    return _LONG_WORD.sub(short, message)
 
 
 def _command(argv: list[str] | None) -> str:

@@ -354,10 +354,11 @@ def _read_json(path: str, text: str) -> list[Camera]:
 def read_text_file(path: str | os.PathLike, what: str) -> str:
     """The text of ``path`` as UTF-8, a byte-order mark dropped; ValueError naming ``what`` and
     the file when it cannot be read or holds other bytes (Python's decoding error alone named
-    neither what was read nor that it was no text)."""
+    neither what was read nor that it was no text); a NUL byte, which no text holds, is named
+    with its line (a name holding it reached the file system as 'embedded null byte')."""
     try:
         with open(path, encoding="utf-8-sig") as handle:
-            return handle.read()
+            text = handle.read()
     except UnicodeDecodeError as exc:
         binary = b"\x00" in exc.object
         hint = "a binary file, such as an image?" if binary else "save it as UTF-8"
@@ -366,6 +367,10 @@ def read_text_file(path: str | os.PathLike, what: str) -> str:
         ) from None
     except OSError as exc:
         raise ValueError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+    if "\x00" in text:
+        line = text.count("\n", 0, text.index("\x00")) + 1
+        raise ValueError(f"{what} {path} is not text: line {line} holds a NUL byte")
+    return text
 
 
 def load_calibration(path: str | os.PathLike) -> list[Camera]:

@@ -86,6 +86,8 @@ def _workspace(root: Path) -> None:
     for image in (DEMO1, DEMO2):
         shutil.copy(image, root / "images")
     os.mkfifo(root / "fifo.png")
+    (root / "nul.txt").write_bytes(b"demo1.png demo2.png\nde\x00mo1.png demo2.png\n")
+    (root / "nul_cameras.txt").write_bytes(b"1 PINHOLE 640 480 500 500 320 240\x00\n")
     os.symlink("loop2", root / "loop1")  # a loop of symbolic links
     os.symlink("loop1", root / "loop2")
     (root / "t").mkdir()  # issue 11, section 2: an old file beside where a result would go
@@ -474,6 +476,14 @@ CASES = [
      r"cannot write \.: it is or holds the current folder, which a new output folder cannot "
      r"replace; give another folder$"),
     (["synth", ".", "-n", "1"], "synth", r"cannot write \.: it is or holds the current folder"),
+    # a NUL byte in a text file: named with its line (it was 'embedded null byte' alone)
+    (["pairs", "nul.txt", "images"], "pairs", r"pairs file nul\.txt is not text: line 2 holds a "
+     r"NUL byte$"),
+    ([*PAIR[:3], "--calib", "nul_cameras.txt"], "pair",
+     r"calibration file nul_cameras\.txt is not text: line 1 holds a NUL byte$"),
+    # a name of 100,000 characters: cut to its first 300 (the line was 100,000 characters)
+    (["pair", DEMO1, "x" * 100_000 + ".png", "--K", K_TEXT], "pair",
+     r"^ppo-cv pair: cannot read image x{297}\.\.\. File name too long$"),
     # a number of thousands of digits, a text of thousands of characters: named by their start
     ([*PAIR, "--max-features", "1" + "0" * 5000], "pair",
      r"Invalid value for '--max-features': '10{76}\.\.\.' is not a valid int\.$"),
