@@ -308,6 +308,10 @@ LONG_VALUE_CASES = {
                                         TypeError, "max_pixels must be a whole number, got '1,"),
     "run_sfm min_inliers huge int": (lambda: _sfm(min_inliers=HUGE), ValueError,
                                      "min_inliers must be a whole number in 0..2147483647"),
+    "recoverPose pp huge int": (lambda: ppo_cv.recoverPose(E, P1, P2, focal=800.0, pp=(HUGE, 0)),
+                                ValueError, "pp must be two finite numbers within 1e+08"),
+    "recoverPose long keyword": (lambda: ppo_cv.recoverPose(E, P1, P2, K, **{"x" * 5000: 1}),
+                                 TypeError, "recoverPose got an unexpected keyword argument 'xxx"),
     "run_sfm initialization long text": (lambda: _sfm(initialization=LONG_TEXT), ValueError,
                                          "initialization must be one of ppo, colmap, got '1,1,"),
 }  # fmt: skip
