@@ -12,6 +12,7 @@ import numpy as np
 __all__ = [
     "MIN_POINTS",
     "as_points",
+    "as_finite_rows",
     "as_point_pair",
     "as_homogeneous_pair",
     "as_camera_matrix",
@@ -135,6 +136,16 @@ def _point_rows(value: Any, name: str) -> np.ndarray:
         return array.reshape(-1, 2)
     if not (array.ndim == 2 and shape[1] == 2):
         raise ValueError(f"{name} must have shape (N, 2), (N, 1, 2) or (1, N, 2), got {shape}")
+    return array
+
+
+def as_finite_rows(value: Any, name: str, width: int) -> np.ndarray:
+    """Real numbers as float64 (N, ``width``), all finite; ValueError or TypeError naming
+    ``name`` otherwise."""
+    array = _as_real_array(value, name)
+    if array.ndim != 2 or array.shape[1] != width:
+        raise ValueError(f"{name} must have shape (N, {width}), got {array.shape}")
+    require_finite(array, name)
     return array
 
 
