@@ -792,6 +792,20 @@ def _load_inputs(image1, image2, K1, K2, dist1, dist2, detect: bool, options) ->
     return _Inputs(img1, img2, K1, K2, dist1, dist2, focal)
 
 
+def _check_hooks(features1: Any, features2: Any, progress: Any) -> None:
+    """Given features come as a pair of :class:`Features` (one alone was ignored), and
+    ``progress`` is a callable (an int failed at the first stage as 'not callable')."""
+    for name, f in (("features1", features1), ("features2", features2)):
+        if f is not None and not isinstance(f, Features):
+            raise TypeError(f"{name} must be ppo_cv.features.Features, got {type(f).__name__}")
+    if (features1 is None) != (features2 is None):
+        raise ValueError("give both features1 and features2, or neither (one is not used alone)")
+    if progress is not None and not callable(progress):
+        raise TypeError(
+            f"progress must be a callable taking a stage name, got {type(progress).__name__}"
+        )
+
+
 def _features(
     inputs: _Inputs, features1, features2, options: PairOptions, watch: _Stopwatch
 ) -> tuple[Features, Features]:
@@ -1236,6 +1250,7 @@ def estimate_pair(
     options = PairOptions() if options is None else options
     if not isinstance(options, PairOptions):
         raise TypeError(f"options must be a PairOptions, got {type(options).__name__}")
+    _check_hooks(features1, features2, progress)
     watch = _Stopwatch(progress)
     detect = features1 is None or features2 is None
     inputs = _load_inputs(image1, image2, K1, K2, dist1, dist2, detect, options)

@@ -268,6 +268,15 @@ CASES = {
     "estimate_pair K a Camera": (_pair(K1=ppo_cv.Camera(K)), TypeError,
                                  "K1 must be an array of real numbers, got Camera: pass its .K "
                                  "(and its .dist as the distortion)"),
+    # hooks: given features that were ignored, a progress that failed as 'not callable'
+    "estimate_pair features1 text": (_pair(features1="x", features2="y"), TypeError,
+                                     "features1 must be ppo_cv.features.Features, got str"),
+    "estimate_pair features2 alone": (
+        lambda: ppo_cv.estimate_pair(GREY, GREY[::-1].copy(), K,
+                                     features2=ppo_cv.features.detect_features(GREY)),
+        ValueError, "give both features1 and features2, or neither"),
+    "estimate_pair progress 5": (_pair(progress=5), TypeError,
+                                 "progress must be a callable taking a stage name, got int"),
     "load_calibration None": (lambda: ppo_cv.load_calibration(None), TypeError,
                               "path must be a path (str or os.PathLike), got NoneType"),
     "parse_intrinsics names no option": (lambda: ppo_cv.parse_intrinsics("a,b"), ValueError,
