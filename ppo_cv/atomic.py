@@ -66,6 +66,8 @@ def check_target(
     pathlib.Path
         ``path``, its parent folder existing and writable.
     """
+    if type(overwrite).__name__ not in ("bool", "bool_"):  # numpy not loaded for the CLI's start
+        raise TypeError(f"overwrite must be True or False, got {type(overwrite).__name__}")
     target = Path(path)
     _require_short_names(target)
     parent = target.parent

@@ -48,6 +48,7 @@ from .atomic import atomic_directory, check_target, signals_deferred, staging_fo
 from .checks import (
     MAX_WHOLE_NUMBER,
     as_camera_matrix,
+    as_flag,
     as_nonnegative,
     as_path,
     as_positive,
@@ -359,6 +360,17 @@ def _pycolmap_options(K: np.ndarray | None, max_num_features: int, num_threads: 
     return reader, extraction, matching, verification
 
 
+def _check_hooks(progress: Any, **flags: Any) -> None:
+    """TypeError naming a flag that is not a bool (the text ``"no"`` read as true) or a
+    ``progress`` that is not callable (an int failed at the first message)."""
+    for name, value in flags.items():
+        as_flag(value, name)
+    if progress is not None and not callable(progress):
+        raise TypeError(
+            f"progress must be a callable taking a message, got {type(progress).__name__}"
+        )
+
+
 def _check_run_numbers(num_threads: Any, seed: Any, max_num_features: Any = 1) -> None:
     """ValueError or TypeError naming the first of pycolmap's numbers that is out of range."""
     as_whole_number(num_threads, "num_threads", 1, MAX_THREADS)
@@ -412,6 +424,7 @@ def prepare_database(
         Fewer than two images, images of several sizes with ``K``, a ``K`` with skew, or images
         pycolmap could not read (named).
     """
+    _check_hooks(progress, verbose=verbose)
     _check_run_numbers(num_threads, seed, max_num_features)
     if K is not None:
         K = as_camera_matrix(K, "K")
@@ -889,6 +902,7 @@ def reconstruct(
     _check_choices(initialization, seeding)
     _check_scoring(scoring)
     _check_run_numbers(num_threads, seed)
+    _check_hooks(progress, fix_intrinsics=fix_intrinsics, verbose=verbose)
     database_path, image_dir = as_path(database_path, "database_path"), _image_folder(image_dir)
     _require_database(database_path)
     start = time.perf_counter()
@@ -1359,6 +1373,7 @@ def run_sfm(
     _check_choices(initialization, seeding)
     _check_scoring(scoring)
     _check_run_numbers(num_threads, seed, max_num_features)
+    _check_hooks(progress, verbose=verbose, overwrite=overwrite, exif_orientation=exif_orientation)
     image_dir = _image_folder(image_dir)
     if output_dir is not None:  # never the image folder, nor one holding it, even replaced
         output_dir = as_path(output_dir, "output_dir")
