@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import as_camera_matrix, as_distortion, as_path, cut, shown
+from .checks import as_camera_matrix, as_distortion, as_flag, as_path, cut, shown
 
 __all__ = [
     "Camera",
@@ -506,6 +506,7 @@ def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> 
     from .images import check_decodes, decoded_transposed
 
     as_path(path, "path")
+    as_flag(exif_orientation, "exif_orientation")
     check_decodes(path)  # pycolmap guessed a camera for a damaged image, after libpng's errors
     camera = pycolmap.infer_camera_from_image(os.fspath(path))
     K = np.asarray(camera.calibration_matrix(), dtype=np.float64)

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import shown
+from .checks import as_flag, as_path, shown
 from .features import to_uint8
 
 __all__ = [
@@ -252,7 +252,8 @@ def load_image(
     """
     import cv2
 
-    path = os.fspath(path)
+    path = os.fspath(as_path(path, "path"))
+    as_flag(exif_orientation, "exif_orientation")
     limit = _max_pixels(max_pixels)
     check_header(path, limit)
     data = np.fromfile(path, dtype=np.uint8)

@@ -288,6 +288,14 @@ CASES = {
     "an output's overwrite 'no'": (
         lambda: __import__("ppo_cv.atomic").atomic.check_target("out", "folder", "no"),
         TypeError, "overwrite must be True or False, got str"),
+    "camera_from_exif exif_orientation 'no'": (
+        lambda: ppo_cv.camera_from_exif(__file__, exif_orientation="no"), TypeError,
+        "exif_orientation must be True or False, got str 'no'"),
+    "load_image exif_orientation 'no'": (
+        lambda: load_image(__file__, exif_orientation="no"), TypeError,
+        "exif_orientation must be True or False, got str 'no'"),
+    "load_image None": (lambda: load_image(None), TypeError,
+                        "path must be a path (str or os.PathLike), got NoneType"),
     "load_calibration None": (lambda: ppo_cv.load_calibration(None), TypeError,
                               "path must be a path (str or os.PathLike), got NoneType"),
     "parse_intrinsics names no option": (lambda: ppo_cv.parse_intrinsics("a,b"), ValueError,
