@@ -899,8 +899,7 @@ def reconstruct(
         its images is refused; the message counts the reasons and, when rotations explain
         them, says the images look like a panorama.
     """
-    _check_choices(initialization, seeding)
-    _check_scoring(scoring)
+    _check_choices(initialization, seeding, scoring)
     _check_run_numbers(num_threads, seed)
     _check_hooks(progress, fix_intrinsics=fix_intrinsics, verbose=verbose)
     database_path, image_dir = as_path(database_path, "database_path"), _image_folder(image_dir)
@@ -1233,7 +1232,9 @@ def _check_scoring(scoring: dict) -> None:
             as_nonnegative(value, name)
 
 
-def _check_choices(initialization: str, seeding: str) -> None:
+def _check_choices(initialization: str, seeding: str, scoring: dict) -> None:
+    """ValueError naming an unknown initialization or seeding; the scoring keywords checked
+    by :func:`_check_scoring`."""
     if initialization not in INITIALIZATIONS:
         raise ValueError(
             f"initialization must be one of {', '.join(INITIALIZATIONS)}, got "
@@ -1241,6 +1242,7 @@ def _check_choices(initialization: str, seeding: str) -> None:
         )
     if seeding not in SEEDINGS:
         raise ValueError(f"seeding must be one of {', '.join(SEEDINGS)}, got {shown(seeding)}")
+    _check_scoring(scoring)
 
 
 def _grew_from(models: list, pair: PairScore | None) -> bool:
@@ -1370,8 +1372,7 @@ def run_sfm(
     ValueError
         For bad arguments or unreadable images, before anything is written.
     """
-    _check_choices(initialization, seeding)
-    _check_scoring(scoring)
+    _check_choices(initialization, seeding, scoring)
     _check_run_numbers(num_threads, seed, max_num_features)
     _check_hooks(progress, verbose=verbose, overwrite=overwrite, exif_orientation=exif_orientation)
     image_dir = _image_folder(image_dir)
