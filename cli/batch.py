@@ -54,8 +54,10 @@ from .common import (
     given_cameras,
     ignore_library_camera_warnings,
     implausible_intrinsics,
+    one_line,
     pipeline_options,
     print_result,
+    short_words,
     stdout_failure,
     warn,
 )
@@ -219,8 +221,9 @@ def _warn_repeated_lines(rows: list[dict], pairs_file: Path) -> None:
 
 def _require_regular_file(path: Path, what: str) -> None:
     """ValueError naming what ``path`` is when it is not an existing regular file."""
-    if not path.exists():
-        raise ValueError(f"{what} not found: {path}")
+    from ppo_cv.images import file_mode
+
+    file_mode(path, what)
     if path.is_dir():
         raise ValueError(f"{what} {path} is a directory")
     if not path.is_file():
@@ -701,8 +704,9 @@ def run_pairs(
 
     Lines without intrinsics take ``K`` (and ``K2``) or the cameras of ``calib``, else those of
     the images' EXIF (with a warning). The output file is written completely or not at all (an
-    interrupt leaves nothing). Returns the exit code; ValueError for bad arguments, raised
-    before any image is decoded.
+    interrupt leaves nothing). Returns the exit code: 0 when some pair has a pose (a warning
+    counts the failed ones), 1 when none has (one line on stderr); ValueError for bad
+    arguments, raised before any image is decoded.
     """
     from ppo_cv.atomic import (
         atomic_file,
@@ -719,8 +723,9 @@ def run_pairs(
         check_target(output, "file", overwrite, [pairs_file, image_dir], "-o ")
     cameras = given_cameras(K, K2, None, None, calib)
     rows = read_pairs(Path(pairs_file), cameras=cameras)
-    if not Path(image_dir).exists():
-        raise ValueError(f"image folder not found: {image_dir}")
+    from ppo_cv.images import file_mode
+
+    file_mode(image_dir, "image folder")
     if not Path(image_dir).is_dir():
         raise ValueError(f"image folder {image_dir} is not a folder")
     _require_some_image(rows, Path(image_dir), Path(pairs_file))
@@ -779,9 +784,24 @@ def run_pairs(
         typer.echo(auc_table(results), err=True)
     elif rows[0]["T"] is not None:
         print_result("pairs", auc_table(results))
-    elif failed:
+    elif 0 < failed < len(results):
         warn("pairs", f"{failed} of {len(results)} pairs failed")
-    return 0
+    if failed < len(results):
+        return 0
+    typer.echo(f"ppo-cv pairs: {_no_pose(results)}", err=True)
+    return 1
+
+
+def _no_pose(results: list[dict]) -> str:
+    """The one-line message of a run in which every pair failed, with the first one's error."""
+    first = results[0]
+    every = "the pair" if len(results) == 1 else f"all {len(results)} pairs"
+    return short_words(
+        one_line(
+            f"no pose: {every} failed (each JSON line names its error); "
+            f"{first['image1']} {first['image2']}: {first['error']}"
+        )
+    )
 
 
 def register(app: typer.Typer) -> None:
@@ -795,7 +815,8 @@ def register(app: typer.Typer) -> None:
         "\n\nFeatures are computed once per image for the whole run (--no-cache: once per "
         "pair). Progress goes to stderr. With ground truth the AUC is that of the pose error "
         "max(rotation error, translation-direction error), the rotation error alone where the "
-        "true translation is zero. -o is written completely or not at all."
+        "true translation is zero. -o is written completely or not at all. Exit code 0 when "
+        "some pair has a pose, 1 when every pair failed (each JSON line names its error)."
         "\n\nPAIRS_FILE: " + PAIRS_FILE_FORMAT + " Lines without intrinsics take --K (and "
         "--K2) or --calib, else the EXIF focal length of each image, with a warning (and, as "
         "in 'ppo-cv pair', the focal length fitted to a pair's homography when that one makes "

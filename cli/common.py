@@ -24,6 +24,7 @@ if TYPE_CHECKING:  # typer brings click, or its own copy of it in recent release
     import click
 
 from ppo_cv.calib import implausible_intrinsics
+from ppo_cv.checks import shown
 
 __all__ = [
     "SEED_MAX",
@@ -231,10 +232,26 @@ def one_line(text: str) -> str:
     return "\\n".join(text.strip().splitlines())
 
 
+MESSAGE_WORD_MAX = 300
+"""Longest word or quoted value an error or warning line shows whole (longer ones are cut,
+:func:`short_words`): a path beyond the system's limits, a value of thousands of digits."""
+
+
+def short_words(text: str, width: int = MESSAGE_WORD_MAX) -> str:
+    """``text`` with each quoted value (``'...'``) or word longer than ``width`` characters cut
+    to ``width`` (:func:`ppo_cv.checks.cut`)."""
+    from ppo_cv.checks import cut
+
+    def short(word: re.Match) -> str:
+        return f"'{cut(word[1], width)}'" if word[1] is not None else cut(word[2], width)
+
+    return re.sub(rf"'([^']{{{width + 1},}})'|([^\s']{{{width + 1},}})", short, text)
+
+
 def fail(command: str, message: str, code: int = 2) -> NoReturn:
-    """Print ``ppo-cv <command>: <message>`` on one line (:func:`one_line`) on stderr and exit
-    with ``code``."""
-    typer.echo(f"ppo-cv {command}: {one_line(message) or 'failed'}", err=True)
+    """Print ``ppo-cv <command>: <message>`` on one line (:func:`one_line`, long words cut by
+    :func:`short_words`) on stderr and exit with ``code``."""
+    typer.echo(f"ppo-cv {command}: {short_words(one_line(message)) or 'failed'}", err=True)
     raise typer.Exit(code)
 
 
@@ -271,7 +288,7 @@ def print_result(command: str, text: str) -> None:
 
 def warn(command: str, message: str) -> None:
     """Print ``ppo-cv <command>: warning: <message>`` on stderr."""
-    typer.echo(f"ppo-cv {command}: warning: {one_line(message)}", err=True)
+    typer.echo(f"ppo-cv {command}: warning: {short_words(one_line(message))}", err=True)
 
 
 def ignore_library_camera_warnings() -> None:
@@ -285,7 +302,9 @@ def ignore_library_camera_warnings() -> None:
 def check_range(name: str, value: float, low: float, high: float) -> None:
     """ValueError naming the option unless ``low <= value <= high`` (NaN fails)."""
     if not (isinstance(value, (int, float)) and low <= value <= high):
-        raise ValueError(f"{name} must be in {low:{_fmt(low)}}..{high:{_fmt(high)}}, got {value}")
+        raise ValueError(
+            f"{name} must be in {low:{_fmt(low)}}..{high:{_fmt(high)}}, got {shown(value)}"
+        )
 
 
 def _fmt(value: float) -> str:

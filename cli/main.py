@@ -100,7 +100,9 @@ def _usage_error(exc: Exception, argv: list[str] | None) -> int:
         typer.echo(ctx.get_help(), err=True)
         return 2
     command = ctx.command_path if ctx is not None else _command(argv)
-    typer.echo(f"{command}: {exc.format_message()}", err=True)
+    from .common import short_words
+
+    typer.echo(f"{command}: {short_words(exc.format_message(), 80)}", err=True)
     return getattr(exc, "exit_code", 2)
 
 

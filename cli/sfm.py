@@ -10,6 +10,8 @@ from typing import Annotated
 import numpy as np
 import typer
 
+from ppo_cv.checks import shown
+
 from .common import (
     SEED_MAX,
     ExifOrientation,
@@ -77,9 +79,13 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
     from ppo_cv.atomic import check_apart, check_target
 
     if init not in sfm.INITIALIZATIONS:
-        raise ValueError(f"--init must be one of {', '.join(sfm.INITIALIZATIONS)}, got {init!r}")
+        raise ValueError(
+            f"--init must be one of {', '.join(sfm.INITIALIZATIONS)}, got {shown(init)}"
+        )
     if seeding not in sfm.SEEDINGS:
-        raise ValueError(f"--seeding must be one of {', '.join(sfm.SEEDINGS)}, got {seeding!r}")
+        raise ValueError(
+            f"--seeding must be one of {', '.join(sfm.SEEDINGS)}, got {shown(seeding)}"
+        )
     check_range("--max-features", max_features, 1, MAX_FEATURES)
     check_range("--threads", threads, 1, sfm.MAX_THREADS)
     check_range("--seed", seed, 0, SEED_MAX)

@@ -9,6 +9,7 @@ from typing import Annotated
 
 import typer
 
+from ppo_cv.checks import shown
 from ppo_cv.data_gen.names import (
     BASELINE_MOTIONS,
     MAX_BASELINE_RATIO,
@@ -42,44 +43,44 @@ def _check(out_dir: Path, pairs: int, seed: int, motion: str | None, scene: str 
            baseline_ratio: float | None, warp: bool, overwrite: bool,
            pivot_offset: float = 0.0) -> None:  # fmt: skip
     if motion is not None and motion not in MOTIONS:
-        _fail(f"unknown motion {motion!r}; choose one of {', '.join(MOTIONS)}")
+        _fail(f"unknown motion {shown(motion)}; choose one of {', '.join(MOTIONS)}")
     if scene is not None and scene not in SCENES:
-        _fail(f"unknown scene {scene!r}; choose one of {', '.join(SCENES)}")
+        _fail(f"unknown scene {shown(scene)}; choose one of {', '.join(SCENES)}")
     if not 0 <= seed <= 2**32 - 1:
-        _fail(f"--seed must be in 0..{2**32 - 1}, got {seed}")
+        _fail(f"--seed must be in 0..{2**32 - 1}, got {shown(seed)}")
     if not 1 <= pairs <= MAX_PAIRS:
-        _fail(f"--pairs must be in 1..{MAX_PAIRS}, got {pairs}")
+        _fail(f"--pairs must be in 1..{MAX_PAIRS}, got {shown(pairs)}")
     for name, value in (("--width", width), ("--height", height)):
         if value is not None and not MIN_SIDE <= value <= MAX_SIDE:
-            _fail(f"{name} must be in {MIN_SIDE}..{MAX_SIDE}, got {value}")
+            _fail(f"{name} must be in {MIN_SIDE}..{MAX_SIDE}, got {shown(value)}")
     sides = [v for v in (width, height) if v is not None]
     if not 1 <= supersample <= 8:
-        _fail(f"--supersample must be in 1..8, got {supersample}")
+        _fail(f"--supersample must be in 1..8, got {shown(supersample)}")
     samples = (width or 640) * (height or 480) * supersample**2
     if not warp and samples > MAX_SAMPLES:
         _fail(f"--width x --height x --supersample^2 must be at most {MAX_SAMPLES:,} samples, "
               f"got {samples:,}")  # fmt: skip
     if alpha is not None and not 0.0 < alpha <= 1.0:
-        _fail(f"--alpha must be in (0, 1], got {alpha}")
+        _fail(f"--alpha must be in (0, 1], got {shown(alpha)}")
     if alpha is not None and motion != "small-parallax" and not warp:
         _fail("--alpha applies to --motion small-parallax only")
     if baseline_ratio is not None and not 0.0 <= baseline_ratio <= MAX_BASELINE_RATIO:
-        _fail(f"--baseline-ratio must be in [0, {MAX_BASELINE_RATIO}], got {baseline_ratio}")
+        _fail(f"--baseline-ratio must be in [0, {MAX_BASELINE_RATIO}], got {shown(baseline_ratio)}")
     if baseline_ratio is not None and (motion not in BASELINE_MOTIONS or warp):
         _fail(f"--baseline-ratio applies to --motion {' and '.join(BASELINE_MOTIONS)} only")
     if not 0.0 <= pivot_offset <= MAX_PIVOT_OFFSET:
-        _fail(f"--pivot-offset must be in [0, {MAX_PIVOT_OFFSET:g}] m, got {pivot_offset}")
+        _fail(f"--pivot-offset must be in [0, {MAX_PIVOT_OFFSET:g}] m, got {shown(pivot_offset)}")
     if pivot_offset and (motion != "panorama" or warp):
         _fail("--pivot-offset applies to rendered --motion panorama only")
     if noise is not None and not 0.0 <= noise <= MAX_NOISE:
-        _fail(f"--noise must be in [0, {MAX_NOISE:g}], got {noise}")
+        _fail(f"--noise must be in [0, {MAX_NOISE:g}], got {shown(noise)}")
     if blur is not None and not 0.0 <= blur <= MAX_BLUR:
-        _fail(f"--blur must be in [0, {MAX_BLUR:g}], got {blur}")
+        _fail(f"--blur must be in [0, {MAX_BLUR:g}], got {shown(blur)}")
     if workers is not None and not 0 <= workers <= 256:
-        _fail(f"--workers must be in 0..256, got {workers}")
+        _fail(f"--workers must be in 0..256, got {shown(workers)}")
     if warp:
         if motion not in (None, "panorama"):
-            _fail(f"--warp makes tripod pans (--motion panorama), not {motion!r}")
+            _fail(f"--warp makes tripod pans (--motion panorama), not {shown(motion)}")
         if scene is not None or alpha is not None:
             _fail("--scene and --alpha do not apply to --warp")
         if len(sides) == 1:

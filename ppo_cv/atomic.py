@@ -66,6 +66,8 @@ def check_target(
     pathlib.Path
         ``path``, its parent folder existing and writable.
     """
+    if type(overwrite).__name__ not in ("bool", "bool_"):  # numpy not loaded for the CLI's start
+        raise TypeError(f"overwrite must be True or False, got {type(overwrite).__name__}")
     target = Path(path)
     _require_short_names(target)
     parent = target.parent
@@ -88,6 +90,11 @@ def check_target(
         check_apart(target, inputs, name)
         if target.exists() and not target.is_dir():
             raise ValueError(f"{target} is a file, not a folder")
+        if target.is_dir() and _holds_current_folder(target):
+            raise ValueError(
+                f"cannot write {target}: it is or holds the current folder, which a new output "
+                "folder cannot replace; give another folder"
+            )
         if target.is_dir() and any(target.iterdir()) and not overwrite:
             raise ValueError(
                 f"{target} exists and is not an empty directory; pass --overwrite to replace it"
@@ -100,6 +107,17 @@ def check_target(
     if not os.access(existing, os.W_OK | os.X_OK):
         raise ValueError(f"cannot write {target}: {existing} is not writable")
     return target
+
+
+def _holds_current_folder(folder: Path) -> bool:
+    """Whether the working folder is ``folder`` or inside it (``.``, ``..``): a finished output
+    moved onto it would find it busy, or leave the process in a deleted folder."""
+    try:
+        here = Path.cwd().resolve()
+    except OSError:  # the working folder was deleted
+        return False
+    resolved = folder.resolve()
+    return here == resolved or resolved in here.parents
 
 
 STAGING_NAME_EXTRA = 20

@@ -21,13 +21,14 @@ import json
 import math
 import os
 import re
+import stat
 import warnings
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from .checks import as_camera_matrix, as_distortion
+from .checks import as_camera_matrix, as_distortion, as_flag, as_path, cut, shown
 
 __all__ = [
     "Camera",
@@ -60,23 +61,39 @@ class Camera:
         ``(k1, k2, p1, p2[, k3[, k4, k5, k6]])``; None for an undistorted camera.
     image_size : tuple of int or None
         ``(width, height)`` of the images the camera was calibrated on, when the file says.
+
+    Each field is checked as the pipeline checks its arguments (a ValueError or TypeError
+    naming it) and held as float64: a K of float16, float32 or integers is converted exactly,
+    all-zero distortion is None.
     """
 
     K: np.ndarray
     dist: np.ndarray | None = None
     image_size: tuple[int, int] | None = None
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "K", as_camera_matrix(self.K, "Camera.K"))
+        object.__setattr__(self, "dist", as_distortion(self.dist, "Camera.dist"))
+        size = self.image_size
+        if size is None:
+            return
+        if not (isinstance(size, (tuple, list)) and len(size) == 2):
+            raise TypeError(f"Camera.image_size must be (width, height) or None, got {shown(size)}")
+        object.__setattr__(self, "image_size", _image_size(*size, "Camera.image_size"))
+
 
 def _numbers(text: str, name: str) -> np.ndarray:
     if not isinstance(text, str):
-        raise TypeError(f"{name} must be a text of numbers, got {type(text).__name__} {text!r:.40}")
+        raise TypeError(
+            f"{name} must be a text of numbers, got {type(text).__name__} {shown(text)}"
+        )
     parts = [p for p in re.split(r"[,\s;\[\]()]+", str(text)) if p]  # nested lists as printed
     try:
         values = np.array([float(p) for p in parts], dtype=np.float64)
     except ValueError:
-        raise ValueError(f"{name} must be comma-separated numbers, got {text!r}") from None
+        raise ValueError(f"{name} must be comma-separated numbers, got {shown(text)}") from None
     if not np.all(np.isfinite(values)):
-        raise ValueError(f"{name} has NaN or infinite values: {text!r}")
+        raise ValueError(f"{name} has NaN or infinite values: {shown(text)}")
     return values
 
 
@@ -100,7 +117,7 @@ def _matrix_from_values(values: np.ndarray, name: str) -> np.ndarray:
     return K
 
 
-def parse_intrinsics(text: str, name: str = "--K") -> np.ndarray:
+def parse_intrinsics(text: str, name: str = "intrinsics") -> np.ndarray:
     """``"fx,fy,cx,cy"`` or 9 row-major numbers to a 3x3 ``K``.
 
     >>> parse_intrinsics("535.4,539.2,320.1,247.6")[0]
@@ -109,7 +126,7 @@ def parse_intrinsics(text: str, name: str = "--K") -> np.ndarray:
     return _matrix_from_values(_numbers(text, name), name)
 
 
-def parse_distortion(text: str, name: str = "--dist") -> np.ndarray | None:
+def parse_distortion(text: str, name: str = "distortion") -> np.ndarray | None:
     """``"k1,k2,p1,p2[,k3]"`` to OpenCV distortion coefficients; None when all are zero.
     ValueError for a text without numbers (an empty option is no way to say "none")."""
     values = _numbers(text, name)
@@ -203,7 +220,7 @@ def _image_size(width, height, where: str) -> tuple[int, int]:
     if not all(math.isfinite(v) and v == round(v) and 1 <= v <= 1e6 for v in size):
         raise ValueError(
             f"{where}: image width and height must be whole numbers from 1 to 1e6, got "
-            f"{width} and {height}"
+            f"{shown(width)} and {shown(height)}"
         )
     return int(size[0]), int(size[1])
 
@@ -272,9 +289,7 @@ def _json_numbers(value: Any, where: str, key: str) -> np.ndarray:
     try:
         return np.asarray(value, dtype=np.float64)
     except (TypeError, ValueError):
-        shown = json.dumps(value)
-        shown = shown if len(shown) <= 40 else shown[:37] + "..."
-        raise ValueError(f"{where}: {key} must be numbers, got {shown}") from None
+        raise ValueError(f"{where}: {key} must be numbers, got {cut(json.dumps(value))}") from None
 
 
 def _json_camera(entry, where: str) -> Camera:
@@ -339,10 +354,11 @@ def _read_json(path: str, text: str) -> list[Camera]:
 def read_text_file(path: str | os.PathLike, what: str) -> str:
     """The text of ``path`` as UTF-8, a byte-order mark dropped; ValueError naming ``what`` and
     the file when it cannot be read or holds other bytes (Python's decoding error alone named
-    neither what was read nor that it was no text)."""
+    neither what was read nor that it was no text); a NUL byte, which no text holds, is named
+    with its line (a name holding it reached the file system as 'embedded null byte')."""
     try:
         with open(path, encoding="utf-8-sig") as handle:
-            return handle.read()
+            text = handle.read()
     except UnicodeDecodeError as exc:
         binary = b"\x00" in exc.object
         hint = "a binary file, such as an image?" if binary else "save it as UTF-8"
@@ -351,6 +367,10 @@ def read_text_file(path: str | os.PathLike, what: str) -> str:
         ) from None
     except OSError as exc:
         raise ValueError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
+    if "\x00" in text:
+        line = text.count("\n", 0, text.index("\x00")) + 1
+        raise ValueError(f"{what} {path} is not text: line {line} holds a NUL byte")
+    return text
 
 
 def load_calibration(path: str | os.PathLike) -> list[Camera]:
@@ -359,10 +379,10 @@ def load_calibration(path: str | os.PathLike) -> list[Camera]:
     The format follows the extension: ``.yml``/``.yaml``/``.xml`` OpenCV FileStorage, ``.json``,
     anything else a COLMAP ``cameras.txt``.
     """
-    path = os.fspath(path)
-    if not os.path.exists(path):
-        raise ValueError(f"calibration file not found: {path}")
-    if not os.path.isfile(path):  # a folder, or a FIFO that would block the reader
+    from .images import file_mode
+
+    path = os.fspath(as_path(path, "path"))
+    if not stat.S_ISREG(file_mode(path, "calibration file")):  # a FIFO would block the reader
         raise ValueError(f"calibration file {path} is not a regular file")
     extension = os.path.splitext(path)[1].lower()
     if extension in (".yml", ".yaml", ".xml"):
@@ -485,8 +505,8 @@ def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> 
 
     from .images import check_decodes, decoded_transposed
 
-    if not isinstance(path, (str, os.PathLike)):
-        raise TypeError(f"path must be a path (str or os.PathLike), got {type(path).__name__}")
+    as_path(path, "path")
+    as_flag(exif_orientation, "exif_orientation")
     check_decodes(path)  # pycolmap guessed a camera for a damaged image, after libpng's errors
     camera = pycolmap.infer_camera_from_image(os.fspath(path))
     K = np.asarray(camera.calibration_matrix(), dtype=np.float64)

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import os
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -10,6 +12,7 @@ import numpy as np
 __all__ = [
     "MIN_POINTS",
     "as_points",
+    "as_finite_rows",
     "as_point_pair",
     "as_homogeneous_pair",
     "as_camera_matrix",
@@ -24,7 +27,10 @@ __all__ = [
     "as_number",
     "as_whole_number",
     "as_flag",
+    "as_path",
     "require_finite",
+    "shown",
+    "cut",
     "MAX_COORDINATE",
     "MIN_FOCAL",
     "MAX_FOCAL",
@@ -49,6 +55,27 @@ never projected onto the essential matrices, stays within 1.13 and 0.004 (5 px o
 MAX_RADIAL, MAX_RADIAL_RATIONAL, MAX_TANGENTIAL, MAX_PRISM, MAX_TILT = 10.0, 100.0, 1.0, 1.0, 1.0
 
 
+def shown(value: Any, width: int = 40) -> str:
+    """``value`` as an error message quotes it: a number as printed, anything else as its
+    ``repr``, cut to ``width`` characters (``...`` marks the cut); an integer too long to print
+    whole (Python prints at most 4300 digits) as ``<N-digit integer>``."""
+    if isinstance(value, (int, np.integer)) and int(value).bit_length() > 4 * width:
+        size = abs(int(value))
+        digits = int(math.log10(size)) + 1
+        digits -= size < 10 ** (digits - 1)  # log10 rounds up just below a power of ten
+        return f"<{'negative ' if value < 0 else ''}{digits}-digit integer>"
+    try:
+        text = str(value) if isinstance(value, (int, float, np.number)) else repr(value)
+    except Exception:  # a broken __repr__ must not replace the message it belongs to
+        text = f"<{type(value).__name__}>"
+    return cut(text, width)
+
+
+def cut(text: str, width: int = 40) -> str:
+    """``text`` cut to ``width`` characters, ``...`` marking the cut."""
+    return text if len(text) <= width else text[: width - 3] + "..."
+
+
 def _as_real_array(value: Any, name: str) -> np.ndarray:
     if value is None:
         raise TypeError(f"{name} is required, got None")
@@ -59,8 +86,23 @@ def _as_real_array(value: Any, name: str) -> np.ndarray:
     if array.dtype == np.float64:
         return array
     if array.dtype.kind not in "iuf":
-        raise TypeError(f"{name} must hold real numbers, got dtype {array.dtype}")
+        raise TypeError(_not_numbers(value, array, name))
     return array.astype(np.float64)
+
+
+def _not_numbers(value: Any, array: np.ndarray, name: str) -> str:
+    """The message for an argument that holds no real numbers: its dtype, or for a single
+    object (a text, a record) its type and how to pass what it stands for."""
+    if array.ndim or isinstance(value, np.ndarray):
+        return f"{name} must hold real numbers, got dtype {array.dtype}"
+    hint = (
+        ": parse a text with ppo_cv.parse_intrinsics (a distortion: ppo_cv.calib.parse_distortion)"
+        if isinstance(value, str)
+        else ": pass its .K (and its .dist as the distortion)"
+        if hasattr(value, "K")
+        else ""
+    )
+    return f"{name} must be an array of real numbers, got {type(value).__name__}{hint}"
 
 
 def require_finite(array: np.ndarray, name: str) -> None:
@@ -94,6 +136,16 @@ def _point_rows(value: Any, name: str) -> np.ndarray:
         return array.reshape(-1, 2)
     if not (array.ndim == 2 and shape[1] == 2):
         raise ValueError(f"{name} must have shape (N, 2), (N, 1, 2) or (1, N, 2), got {shape}")
+    return array
+
+
+def as_finite_rows(value: Any, name: str, width: int) -> np.ndarray:
+    """Real numbers as float64 (N, ``width``), all finite; ValueError or TypeError naming
+    ``name`` otherwise."""
+    array = _as_real_array(value, name)
+    if array.ndim != 2 or array.shape[1] != width:
+        raise ValueError(f"{name} must have shape (N, {width}), got {array.shape}")
+    require_finite(array, name)
     return array
 
 
@@ -355,9 +407,11 @@ def _as_float(value: Any, name: str) -> float:
     if isinstance(value, (bool, np.bool_)):  # True would read as 1.0
         raise TypeError(f"{name} must be a number, got {value!r}")
     if isinstance(value, (str, bytes)):
-        raise TypeError(f"{name} must be a number, got {type(value).__name__} {value!r}")
+        raise TypeError(f"{name} must be a number, got {type(value).__name__} {shown(value)}")
     try:
         return float(value)
+    except OverflowError:
+        raise ValueError(f"{name} is beyond the range of a float: {shown(value)}") from None
     except (TypeError, ValueError):
         raise TypeError(f"{name} must be a number, got {type(value).__name__}") from None
 
@@ -374,9 +428,12 @@ def as_whole_number(value: Any, name: str, low: int, high: int) -> int:
     if isinstance(value, (bool, np.bool_)) or not isinstance(
         value, (int, float, np.integer, np.floating)
     ):
-        raise TypeError(f"{name} must be a whole number, got {type(value).__name__} {value!r}")
-    if not (np.isfinite(value) and float(value).is_integer() and low <= value <= high):
-        raise ValueError(f"{name} must be a whole number in {low}..{high}, got {value}")
+        raise TypeError(f"{name} must be a whole number, got {type(value).__name__} {shown(value)}")
+    integral = isinstance(value, (int, np.integer)) or (
+        math.isfinite(value) and float(value).is_integer()
+    )
+    if not (integral and low <= value <= high):
+        raise ValueError(f"{name} must be a whole number in {low}..{high}, got {shown(value)}")
     return int(value)
 
 
@@ -384,5 +441,14 @@ def as_flag(value: Any, name: str) -> bool:
     """A bool (or numpy bool); TypeError naming ``name`` for anything else, such as the
     string ``"no"``, which would read as true."""
     if not isinstance(value, (bool, np.bool_)):
-        raise TypeError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
+        raise TypeError(
+            f"{name} must be True or False, got {type(value).__name__} {shown(value)}"
+        )
     return bool(value)
+
+
+def as_path(value: Any, name: str) -> Path:
+    """``value`` as a Path; TypeError naming ``name`` for anything but a str or PathLike."""
+    if not isinstance(value, (str, os.PathLike)):
+        raise TypeError(f"{name} must be a path (str or os.PathLike), got {type(value).__name__}")
+    return Path(value)

@@ -32,6 +32,7 @@ from .checks import (
     as_rotation,
     as_whole_number,
     require_finite,
+    shown,
 )
 from .lsq import cross_matrix
 from .metrics import direction_error_deg
@@ -141,8 +142,8 @@ def rigid3d_from_pose(R: Any, t: Any) -> pycolmap.Rigid3d:
     R = as_rotation(R, "R")
     try:
         t = np.asarray(t, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
-        raise TypeError(f"t must be three numbers, got {type(t).__name__} {t!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise TypeError(f"t must be three numbers, got {type(t).__name__} {shown(t)}") from None
     if t.shape != (3,):
         raise ValueError(f"t must be of length 3, got shape {t.shape}")
     require_finite(t, "t")

@@ -17,6 +17,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from .checks import as_rotation, shown
 from .result import (
     DecisionEvidence,
     LensTerms,
@@ -43,6 +44,7 @@ __all__ = [
     "check_colmap_names",
     "write_colmap_model",
     "write_outputs",
+    "require_result",
 ]
 
 POSE_CONVENTION = "X2 = R X1 + t: camera-1 coordinates to camera-2 coordinates, |t| = 1"
@@ -91,7 +93,7 @@ def camera_euler_degrees(R: np.ndarray) -> CameraEuler:
     >>> [round(a, 6) for a in camera_euler_degrees(cv2.Rodrigues(np.radians([0, 10, 0]))[0])]
     [10.0, 0.0, 0.0]
     """
-    R = np.asarray(R, dtype=np.float64)
+    R = as_rotation(R, "R")
     pitch = np.arcsin(np.clip(-R[1, 2], -1.0, 1.0))
     if np.hypot(R[1, 0], R[1, 1]) < 1e-9:
         yaw, roll = np.arctan2(-R[2, 0], R[0, 0]), 0.0
@@ -101,7 +103,9 @@ def camera_euler_degrees(R: np.ndarray) -> CameraEuler:
 
 
 def rotation_angle_axis(R: np.ndarray) -> tuple[float, np.ndarray]:
-    """Angle (degrees) and unit axis (3,) of a rotation matrix; axis (0, 0, 1) for no rotation."""
+    """Angle (degrees) and unit axis (3,) of a rotation matrix; axis (0, 0, 1) for no rotation.
+    ValueError for a matrix that is no rotation (:func:`ppo_cv.checks.as_rotation`)."""
+    R = as_rotation(R, "R")
     angle = np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))
     axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
     norm = np.linalg.norm(axis)
@@ -120,10 +124,17 @@ def euler_zyx_degrees(R: np.ndarray) -> tuple[float, float, float]:
     Kept for existing callers. Its names yaw/pitch/roll fit a body with z up, not a camera
     (z forward, y down); the exports label angles with :func:`camera_euler_degrees`.
     """
+    R = as_rotation(R, "R")
     pitch = np.arcsin(np.clip(-R[2, 0], -1.0, 1.0))
     yaw = np.arctan2(R[1, 0], R[0, 0])
     roll = np.arctan2(R[2, 1], R[2, 2])
     return float(np.degrees(yaw)), float(np.degrees(pitch)), float(np.degrees(roll))
+
+
+def require_result(result: Any) -> None:
+    """TypeError unless ``result`` is a :class:`PairResult`, the answer of ``estimate_pair``."""
+    if not isinstance(result, PairResult):
+        raise TypeError(f"result must be a PairResult (estimate_pair), got {type(result).__name__}")
 
 
 def _listed(array: Any) -> list | None:
@@ -222,6 +233,7 @@ def result_to_dict(result: PairResult, **extra: Any) -> dict:
     and its radial ``k1``; None unless the model is a plane) and ``timings``. A value that is
     not finite where the model does not define it is None.
     """
+    require_result(result)
     angle, axis = rotation_angle_axis(result.R)
     t = np.asarray(result.t, dtype=np.float64).tolist()
     data = {
@@ -255,9 +267,16 @@ def result_to_dict(result: PairResult, **extra: Any) -> dict:
 
 
 def write_ply(path: str | os.PathLike, points: np.ndarray, colours: np.ndarray) -> None:
-    """Binary little-endian PLY of points (N, 3) float with uint8 RGB colours (N, 3)."""
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    colours = np.asarray(colours, dtype=np.uint8).reshape(-1, 3)
+    """Binary little-endian PLY of points (N, 3) float with uint8 RGB colours (N, 3).
+
+    The file is written whole or not at all, replacing an existing one
+    (:func:`ppo_cv.atomic.atomic_file`). ValueError for points that are not finite rows of
+    three within float32, or colours that are not one row of three 0..255 whole numbers per
+    point.
+    """
+    from .atomic import atomic_file
+
+    points, colours = _ply_rows(points, colours)
     vertex = np.empty(
         len(points),
         dtype=[
@@ -277,9 +296,27 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, colours: np.ndarray) 
         "property float x\nproperty float y\nproperty float z\n"
         "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
     )
-    with open(path, "wb") as handle:
+    with atomic_file(path, overwrite=True, mode="wb") as handle:
         handle.write(header.encode("ascii"))
         handle.write(vertex.tobytes())
+
+
+def _ply_rows(points: Any, colours: Any) -> tuple[np.ndarray, np.ndarray]:
+    """The points (N, 3) and colours (N, 3) of :func:`write_ply`, checked."""
+    from .checks import as_finite_rows
+
+    points = as_finite_rows(points, "points", 3)
+    if points.size and np.abs(points).max() > np.finfo(np.float32).max:
+        raise ValueError("points must lie within float32's range, which PLY stores")
+    colours = np.asarray(colours)
+    if colours.shape != points.shape:
+        raise ValueError(
+            f"colours must have the shape of points {points.shape}, got {colours.shape}"
+        )
+    bytes_only = not colours.size or 0 <= colours.min() <= colours.max() <= 255
+    if colours.dtype.kind not in "bui" or not bytes_only:
+        raise ValueError(f"colours must be 0..255 whole numbers, got dtype {colours.dtype}")
+    return points, colours.astype(np.uint8)
 
 
 def matches_to_draw(
@@ -378,6 +415,7 @@ def draw_matches(
     """
     import cv2
 
+    require_result(result)
     a, b = _as_bgr(image1), _as_bgr(image2)
     width = a.shape[1] + b.shape[1]
     scale = max(0.6, width / 1280.0)  # text readable on the canvas, whatever its width
@@ -490,6 +528,7 @@ def write_colmap_model(
     """
     import pycolmap
 
+    require_result(result)
     cameras = result.cameras
     dists = (cameras.dist1, cameras.dist2) if dists is None else dists
     check_colmap_camera(cameras.K1, dists[0], "camera 1")
@@ -564,15 +603,19 @@ def write_outputs(
     ValueError unless ``overwrite``, which replaces it as a whole; so is a camera or an image name
     that the COLMAP model cannot hold (:func:`check_colmap_camera`, :func:`check_colmap_names`),
     and any argument that cannot make its files (an image of another size than the result's,
-    ``extra`` holding NaN, which JSON cannot), before anything is written.
+    ``extra`` holding NaN, which JSON cannot), before anything is written. Images given as
+    paths are inputs: a ``directory`` that is one or holds one is a ValueError even with
+    ``overwrite`` (:func:`ppo_cv.atomic.check_apart`).
     """
     import cv2
 
-    from .atomic import atomic_directory
+    from .atomic import atomic_directory, check_apart
 
     if not isinstance(directory, (str, os.PathLike)):
         raise TypeError(f"directory must be a path, got {type(directory).__name__}")
+    paths = [image for image in (image1, image2) if isinstance(image, (str, os.PathLike))]
     image1, image2 = _checked_output_arguments(result, (image1, image2), names, extra)
+    check_apart(directory, paths, "directory ")
     dists = (result.cameras.dist1, result.cameras.dist2) if dists is None else dists
     dists = _checked_dists(dists)
     check_colmap_camera(result.cameras.K1, dists[0], "camera 1")
@@ -599,8 +642,7 @@ def _checked_output_arguments(
     names each image once), ``extra`` that JSON cannot hold (NaN and infinity are no JSON)."""
     from .images import as_image
 
-    if not isinstance(result, PairResult):
-        raise TypeError(f"result must be a PairResult (estimate_pair), got {type(result).__name__}")
+    require_result(result)
     sizes = (result.cameras.image_size1, result.cameras.image_size2)
     arrays = tuple(as_image(image, f"image{i}") for i, image in enumerate(images, 1))
     for number, (image, size) in enumerate(zip(arrays, sizes, strict=True), 1):
@@ -611,11 +653,13 @@ def _checked_output_arguments(
                 f"is {size[0]}x{size[1]}"
             )
     if not (isinstance(names, (tuple, list)) and len(names) == 2):
-        raise TypeError(f"names must be two image names, got {names!r:.60}")
+        raise TypeError(f"names must be two image names, got {shown(names, 60)}")
     if not all(isinstance(name, str) and name.strip() for name in names):
-        raise TypeError(f"names must be two non-empty texts, got {names!r:.60}")
+        raise TypeError(f"names must be two non-empty texts, got {shown(names, 60)}")
     if names[0] == names[1]:
-        raise ValueError(f"names must differ: a COLMAP model names each image once, got {names!r}")
+        raise ValueError(
+            f"names must differ: a COLMAP model names each image once, got {shown(names, 60)}"
+        )
     if extra is not None and not isinstance(extra, dict):
         raise TypeError(f"extra must be a dict of JSON values, got {type(extra).__name__}")
     try:
@@ -630,5 +674,5 @@ def _checked_dists(dists: Any) -> tuple[np.ndarray | None, np.ndarray | None]:
     from .checks import as_distortion
 
     if not (isinstance(dists, (tuple, list)) and len(dists) == 2):
-        raise TypeError(f"dists must be two distortions (None for none), got {dists!r:.60}")
+        raise TypeError(f"dists must be two distortions (None for none), got {shown(dists, 60)}")
     return as_distortion(dists[0], "dists[0]"), as_distortion(dists[1], "dists[1]")

@@ -90,7 +90,10 @@ def to_uint8(image: np.ndarray, name: str = "image") -> np.ndarray:
     low, high = (float(image.min()), float(image.max())) if image.size else (0.0, 0.0)
     if not (np.isfinite(low) and np.isfinite(high)):
         bad = int(np.count_nonzero(~np.isfinite(image)))
-        raise ValueError(f"{name} has {bad} NaN or infinite pixel value(s)")
+        if bad:
+            raise ValueError(f"{name} has {bad} NaN or infinite pixel value(s)")
+        beyond = int(np.count_nonzero(np.abs(image) > np.finfo(np.float64).max))
+        raise ValueError(f"{name} has {beyond} pixel value(s) beyond the range of float64")
     if image.dtype.kind == "f" and low >= 0.0 and high <= 1.0:
         return np.rint(image * 255.0).astype(np.uint8)
     if low >= 0.0 and high <= 255.0:

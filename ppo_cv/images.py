@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from .checks import as_flag, as_path, shown
 from .features import to_uint8
 
 __all__ = [
@@ -39,6 +40,7 @@ __all__ = [
     "check_decodes",
     "check_header",
     "check_regular_file",
+    "file_mode",
     "decoded_transposed",
     "exif_layout",
     "image_size",
@@ -59,26 +61,34 @@ def _max_pixels(max_pixels: int | None) -> int:
         try:
             max_pixels = int(text)
         except ValueError:
-            raise ValueError(f"{MAX_PIXELS_ENV} must be a whole number, got {text!r}") from None
+            raise ValueError(
+                f"{MAX_PIXELS_ENV} must be a whole number, got {shown(text)}"
+            ) from None
         name = MAX_PIXELS_ENV
     else:
         name = "max_pixels"
     if isinstance(max_pixels, bool) or not isinstance(max_pixels, (int, np.integer)):
-        raise TypeError(f"{name} must be a whole number, got {max_pixels!r}")
+        raise TypeError(f"{name} must be a whole number, got {shown(max_pixels)}")
     if max_pixels < 1:
         raise ValueError(f"{name} must be >= 1, got {max_pixels}")
     return int(max_pixels)
 
 
+def file_mode(path: str | os.PathLike, what: str) -> int:
+    """``st_mode`` of ``path`` (symbolic links followed); ValueError naming ``what`` the path
+    is when it does not exist or cannot be reached (a loop of symbolic links, no permission)."""
+    try:
+        return os.stat(path).st_mode
+    except FileNotFoundError:
+        raise ValueError(f"{what} not found: {os.fspath(path)}") from None
+    except OSError as exc:
+        raise ValueError(f"cannot read {what} {os.fspath(path)}: {exc.strerror or exc}") from None
+
+
 def check_regular_file(path: str | os.PathLike) -> None:
     """ValueError unless ``path`` is an existing regular file; never opens it (a FIFO would
     block a reader)."""
-    try:
-        mode = os.stat(path).st_mode
-    except FileNotFoundError:
-        raise ValueError(f"image not found: {path}") from None
-    except OSError as exc:
-        raise ValueError(f"cannot read image {path}: {exc.strerror or exc}") from None
+    mode = file_mode(path, "image")
     if stat.S_ISDIR(mode):
         raise ValueError(f"expected an image file, got a directory: {path}")
     if not stat.S_ISREG(mode):
@@ -242,7 +252,8 @@ def load_image(
     """
     import cv2
 
-    path = os.fspath(path)
+    path = os.fspath(as_path(path, "path"))
+    as_flag(exif_orientation, "exif_orientation")
     limit = _max_pixels(max_pixels)
     check_header(path, limit)
     data = np.fromfile(path, dtype=np.uint8)
@@ -321,7 +332,7 @@ def as_image(image: Any, name: str) -> np.ndarray:
     if array.ndim == 0:
         raise TypeError(
             f"{name} must be an image array or a path (str or os.PathLike), got "
-            f"{type(image).__name__} {image!r:.40}"
+            f"{type(image).__name__} {shown(image)}"
         )
     if (
         array.ndim not in (2, 3)

@@ -172,9 +172,10 @@ def forward_jacobian_stacked(
     many: Callable[[np.ndarray], np.ndarray], p: np.ndarray, r0: np.ndarray, step: float = 1e-7
 ) -> np.ndarray:
     """:func:`forward_jacobian` (M, P) of a stacked ``f`` (``many``: (K, P) -> (K, M)) in one
-    call of it, ``r0 = f(p)``; laid out in memory as :func:`forward_jacobian`'s, so that the
-    products of the steps that use it are the same to the bit."""
-    return np.ascontiguousarray(((many(p + step * np.eye(len(p))) - r0) / step).T)
+    call of it, ``r0 = f(p)``: :func:`stacked_jacobian` with the residuals at ``p`` known,
+    laid out in memory as :func:`forward_jacobian`'s, so that the products of the steps that
+    use it are the same to the bit."""
+    return np.ascontiguousarray(stacked_jacobian(many, p, step, r0)[1])
 
 
 def gauss_newton_covariance(J: np.ndarray, variance: float) -> np.ndarray | None:
@@ -187,12 +188,24 @@ def gauss_newton_covariance(J: np.ndarray, variance: float) -> np.ndarray | None
 
 
 def stacked_jacobian(
-    f: Callable[[np.ndarray], np.ndarray], p: np.ndarray, step: float = 1e-7
+    f: Callable[[np.ndarray], np.ndarray],
+    p: np.ndarray,
+    step: float = 1e-7,
+    r0: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Residuals (M,) at ``p`` (P,) and their forward-difference Jacobian (M, P) in one call of
-    ``f``, which maps a stack of parameter vectors (K, P) to a stack of residuals (K, M)."""
-    r = f(p + np.vstack([np.zeros(len(p)), step * np.eye(len(p))]))
-    return r[0], ((r[1:] - r[0]) / step).T
+    ``f``, which maps a stack of parameter vectors (K, P) to a stack of residuals (K, M).
+
+    ``r0``, the residuals at ``p`` when already known, leaves ``p`` out of the call. The
+    Jacobian is the transposed view of the differences (Fortran order).
+    """
+    steps = step * np.eye(len(p))
+    if r0 is None:
+        r = f(p + np.vstack([np.zeros(len(p)), steps]))
+        r0, stepped = r[0], r[1:]
+    else:
+        stepped = f(p + steps)
+    return r0, ((stepped - r0) / step).T
 
 
 def levenberg_marquardt(

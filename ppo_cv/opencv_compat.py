@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import math
 from collections.abc import Iterator
 from typing import Any
 
@@ -53,6 +54,7 @@ from .checks import (
     as_point_pair,
     as_positive,
     require_essential_spread,
+    shown,
 )
 from .pose import inverse_camera
 
@@ -134,9 +136,9 @@ def _bind(names: tuple[str, ...], args: tuple, kwargs: dict) -> dict[str, Any]:
     bound = dict(zip(names, args, strict=False))
     for key, value in kwargs.items():
         if key not in names:
-            raise TypeError(f"recoverPose got an unexpected keyword argument {key!r}")
+            raise TypeError(f"recoverPose got an unexpected keyword argument {shown(key)}")
         if key in bound:
-            raise TypeError(f"recoverPose got multiple values for argument {key!r}")
+            raise TypeError(f"recoverPose got multiple values for argument {shown(key)}")
         bound[key] = value
     return bound
 
@@ -203,17 +205,23 @@ def _camera_from_focal(focal: Any, pp: Any) -> np.ndarray:
     try:
         cx, cy = (0.0, 0.0) if pp is None else np.asarray(pp, dtype=np.float64).reshape(2)
     except (TypeError, ValueError):
-        raise TypeError(f"pp must be two numbers (cx, cy), got {pp!r}") from None
+        raise TypeError(f"pp must be two numbers (cx, cy), got {shown(pp)}") from None
+    except OverflowError:  # an integer beyond float64
+        cx = cy = math.inf
     if not (abs(cx) <= MAX_COORDINATE and abs(cy) <= MAX_COORDINATE):
-        raise ValueError(f"pp must be two finite numbers within {MAX_COORDINATE:.0e}, got {pp}")
+        raise ValueError(
+            f"pp must be two finite numbers within {MAX_COORDINATE:.0e}, got {shown(pp)}"
+        )
     return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
 
 
 def _method(value: Any) -> int:
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"method must be an int flag such as cv2.RANSAC, got {value!r}")
+        raise TypeError(f"method must be an int flag such as cv2.RANSAC, got {shown(value)}")
     if int(value) not in _METHODS.values():
-        raise ValueError(f"method must be one of cv2.{', cv2.'.join(_METHODS)}, got {value}")
+        raise ValueError(
+            f"method must be one of cv2.{', cv2.'.join(_METHODS)}, got {shown(value)}"
+        )
     return int(value)
 
 

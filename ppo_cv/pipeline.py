@@ -84,6 +84,7 @@ from .checks import (
     as_number,
     as_pri_threshold,
     as_whole_number,
+    shown,
 )
 from .features import (
     FEATURE_TYPES,
@@ -338,15 +339,18 @@ class PairOptions:
         ):
             if getattr(self, name) not in modes:
                 raise ValueError(
-                    f"unknown {name} {getattr(self, name)!r}; choose one of {', '.join(modes)}"
+                    f"unknown {name} {shown(getattr(self, name))}; choose one of "
+                    f"{', '.join(modes)}"
                 )
         if self.features not in FEATURE_TYPES:
             raise ValueError(
-                f"unknown features {self.features!r}; choose one of {', '.join(FEATURE_TYPES)}"
+                f"unknown features {shown(self.features)}; choose one of "
+                f"{', '.join(FEATURE_TYPES)}"
             )
         if self.backend not in ROBUST_BACKENDS:
             raise ValueError(
-                f"unknown backend {self.backend!r}; choose one of {', '.join(ROBUST_BACKENDS)}"
+                f"unknown backend {shown(self.backend)}; choose one of "
+                f"{', '.join(ROBUST_BACKENDS)}"
             )
         if not 0 < self.ratio <= 1:
             raise ValueError(f"ratio must be in (0, 1], got {self.ratio}")
@@ -787,6 +791,20 @@ def _load_inputs(image1, image2, K1, K2, dist1, dist2, detect: bool, options) ->
         warn_implausible(K2, img2.shape, "K2", stacklevel=3)
     focal = float(np.mean([K1[0, 0], K1[1, 1], K2[0, 0], K2[1, 1]]))
     return _Inputs(img1, img2, K1, K2, dist1, dist2, focal)
+
+
+def _check_hooks(features1: Any, features2: Any, progress: Any) -> None:
+    """Given features come as a pair of :class:`Features` (one alone was ignored), and
+    ``progress`` is a callable (an int failed at the first stage as 'not callable')."""
+    for name, f in (("features1", features1), ("features2", features2)):
+        if f is not None and not isinstance(f, Features):
+            raise TypeError(f"{name} must be ppo_cv.features.Features, got {type(f).__name__}")
+    if (features1 is None) != (features2 is None):
+        raise ValueError("give both features1 and features2, or neither (one is not used alone)")
+    if progress is not None and not callable(progress):
+        raise TypeError(
+            f"progress must be a callable taking a stage name, got {type(progress).__name__}"
+        )
 
 
 def _features(
@@ -1237,6 +1255,7 @@ def estimate_pair(
     options = PairOptions() if options is None else options
     if not isinstance(options, PairOptions):
         raise TypeError(f"options must be a PairOptions, got {type(options).__name__}")
+    _check_hooks(features1, features2, progress)
     watch = _Stopwatch(progress)
     detect = features1 is None or features2 is None
     inputs = _load_inputs(image1, image2, K1, K2, dist1, dist2, detect, options)

@@ -48,10 +48,13 @@ from .atomic import atomic_directory, check_target, signals_deferred, staging_fo
 from .checks import (
     MAX_WHOLE_NUMBER,
     as_camera_matrix,
+    as_flag,
     as_nonnegative,
+    as_path,
     as_positive,
     as_pri_threshold,
     as_whole_number,
+    shown,
 )
 from .homography import estimate_homography
 from .images import check_decodes
@@ -251,16 +254,9 @@ def _say(progress: Progress | None, message: str) -> None:
         progress(message)
 
 
-def _as_path(value: Any, name: str) -> Path:
-    """``value`` as a Path; TypeError naming ``name`` for anything but a str or PathLike."""
-    if not isinstance(value, (str, os.PathLike)):
-        raise TypeError(f"{name} must be a path (str or os.PathLike), got {type(value).__name__}")
-    return Path(value)
-
-
 def _image_folder(value: Any) -> Path:
     """``value`` as the Path of an existing folder; TypeError or ValueError naming it."""
-    image_dir = _as_path(value, "image_dir")
+    image_dir = as_path(value, "image_dir")
     if not image_dir.exists():
         raise ValueError(f"image folder {str(image_dir)!r} does not exist")
     if not image_dir.is_dir():
@@ -364,6 +360,17 @@ def _pycolmap_options(K: np.ndarray | None, max_num_features: int, num_threads: 
     return reader, extraction, matching, verification
 
 
+def _check_hooks(progress: Any, **flags: Any) -> None:
+    """TypeError naming a flag that is not a bool (the text ``"no"`` read as true) or a
+    ``progress`` that is not callable (an int failed at the first message)."""
+    for name, value in flags.items():
+        as_flag(value, name)
+    if progress is not None and not callable(progress):
+        raise TypeError(
+            f"progress must be a callable taking a message, got {type(progress).__name__}"
+        )
+
+
 def _check_run_numbers(num_threads: Any, seed: Any, max_num_features: Any = 1) -> None:
     """ValueError or TypeError naming the first of pycolmap's numbers that is out of range."""
     as_whole_number(num_threads, "num_threads", 1, MAX_THREADS)
@@ -417,6 +424,7 @@ def prepare_database(
         Fewer than two images, images of several sizes with ``K``, a ``K`` with skew, or images
         pycolmap could not read (named).
     """
+    _check_hooks(progress, verbose=verbose)
     _check_run_numbers(num_threads, seed, max_num_features)
     if K is not None:
         K = as_camera_matrix(K, "K")
@@ -424,7 +432,7 @@ def prepare_database(
             raise ValueError(f"K has skew {K[0, 1]}, which pycolmap's PINHOLE camera cannot hold")
     names, skipped = screen_images(image_dir)
     require_two_images(image_dir, names, skipped)
-    database_path = _as_path(database_path, "database_path")
+    database_path = as_path(database_path, "database_path")
     if database_path.exists():
         raise ValueError(f"database {str(database_path)!r} already exists")
     check_target(database_path, "file", inputs=[image_dir], name="database_path ")
@@ -662,7 +670,7 @@ def score_pairs(
          "min_tri_angle": min_tri_angle, "target_tri_angle": target_tri_angle,
          "max_forward_motion": max_forward_motion}
     )  # fmt: skip
-    database_path = _as_path(database_path, "database_path")
+    database_path = as_path(database_path, "database_path")
     _require_database(database_path)
     scores = []
     with pycolmap.Database.open(database_path) as database:
@@ -891,10 +899,10 @@ def reconstruct(
         its images is refused; the message counts the reasons and, when rotations explain
         them, says the images look like a panorama.
     """
-    _check_choices(initialization, seeding)
-    _check_scoring(scoring)
+    _check_choices(initialization, seeding, scoring)
     _check_run_numbers(num_threads, seed)
-    database_path, image_dir = _as_path(database_path, "database_path"), _image_folder(image_dir)
+    _check_hooks(progress, fix_intrinsics=fix_intrinsics, verbose=verbose)
+    database_path, image_dir = as_path(database_path, "database_path"), _image_folder(image_dir)
     _require_database(database_path)
     start = time.perf_counter()
     pairs: tuple[PairScore, ...] = ()
@@ -1213,7 +1221,8 @@ def _check_scoring(scoring: dict) -> None:
     for name, value in scoring.items():
         if name not in accepted:
             raise TypeError(
-                f"unexpected keyword argument {name!r}; the scoring takes {', '.join(accepted)}"
+                f"unexpected keyword argument {shown(name)}; the scoring takes "
+                f"{', '.join(accepted)}"
             )
         if name == "min_inliers":
             as_whole_number(value, name, 0, MAX_WHOLE_NUMBER)
@@ -1223,13 +1232,17 @@ def _check_scoring(scoring: dict) -> None:
             as_nonnegative(value, name)
 
 
-def _check_choices(initialization: str, seeding: str) -> None:
+def _check_choices(initialization: str, seeding: str, scoring: dict) -> None:
+    """ValueError naming an unknown initialization or seeding; the scoring keywords checked
+    by :func:`_check_scoring`."""
     if initialization not in INITIALIZATIONS:
         raise ValueError(
-            f"initialization must be one of {', '.join(INITIALIZATIONS)}, got {initialization!r}"
+            f"initialization must be one of {', '.join(INITIALIZATIONS)}, got "
+            f"{shown(initialization)}"
         )
     if seeding not in SEEDINGS:
-        raise ValueError(f"seeding must be one of {', '.join(SEEDINGS)}, got {seeding!r}")
+        raise ValueError(f"seeding must be one of {', '.join(SEEDINGS)}, got {shown(seeding)}")
+    _check_scoring(scoring)
 
 
 def _grew_from(models: list, pair: PairScore | None) -> bool:
@@ -1359,15 +1372,15 @@ def run_sfm(
     ValueError
         For bad arguments or unreadable images, before anything is written.
     """
-    _check_choices(initialization, seeding)
-    _check_scoring(scoring)
+    _check_choices(initialization, seeding, scoring)
     _check_run_numbers(num_threads, seed, max_num_features)
+    _check_hooks(progress, verbose=verbose, overwrite=overwrite, exif_orientation=exif_orientation)
     image_dir = _image_folder(image_dir)
     if output_dir is not None:  # never the image folder, nor one holding it, even replaced
-        output_dir = _as_path(output_dir, "output_dir")
+        output_dir = as_path(output_dir, "output_dir")
         check_target(output_dir, "folder", overwrite, [image_dir], "output_dir ")
     if database_path is not None:
-        check_target(_as_path(database_path, "database_path"), "file", False, [image_dir],
+        check_target(as_path(database_path, "database_path"), "file", False, [image_dir],
                      "database_path ")  # fmt: skip
     with contextlib.ExitStack() as stack:
         scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="ppo-cv-sfm-")))

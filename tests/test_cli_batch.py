@@ -376,10 +376,57 @@ def test_output_dash_is_standard_output(tmp_path):
     (tmp_path / "images" / NAME1).write_bytes((DATA / NAME1).read_bytes())
     args = [*COMMAND, "pairs", "pairs.txt", "images", "--K", K_TEXT, "-o", "-", "--quiet"]
     out = subprocess.run(args, capture_output=True, text=True, timeout=120, cwd=tmp_path)
-    assert out.returncode == 0, out.stderr
+    assert out.returncode == 1, out.stderr
     (line,) = [json.loads(text) for text in out.stdout.splitlines()]
     assert line["image2"] == "absent2.png" and "image not found" in line["error"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["images", "pairs.txt"]
+
+
+K_FIELDS = " ".join(str(v) for v in K.ravel())
+TRUTH = " ".join(str(v) for v in np.eye(4).ravel())
+
+
+@pytest.mark.parametrize(
+    "truth, output, first_stderr",
+    [
+        ("", [], None),
+        ("", ["-o", "out.jsonl"], None),
+        (f" 0 0 {K_FIELDS} {K_FIELDS} {TRUTH}", [], "pose error = max("),
+        (f" 0 0 {K_FIELDS} {K_FIELDS} {TRUTH}", ["-o", "out.jsonl"], None),
+    ],
+    ids=["stdout", "file", "truth-stdout", "truth-file"],
+)
+def test_a_batch_in_which_every_pair_fails_exits_1_after_its_lines(
+    tmp_path, truth, output, first_stderr
+):
+    (tmp_path / "images").mkdir()
+    (tmp_path / "images" / NAME1).write_bytes((DATA / NAME1).read_bytes())
+    lines = [f"{NAME1} absent2.png{truth}", f"absent3.png {NAME1}{truth}"]
+    (tmp_path / "pairs.txt").write_text("\n".join(lines) + "\n")
+    args = [*COMMAND, "pairs", "pairs.txt", "images", "--K", K_TEXT, "--quiet", *output]
+    out = subprocess.run(args, capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert out.returncode == 1, out.stderr
+    stderr = out.stderr.splitlines()
+    assert stderr[-1].startswith(
+        f"ppo-cv pairs: no pose: all 2 pairs failed (each JSON line names its error); "
+        f"{NAME1} absent2.png: image not found"
+    )
+    assert (stderr[0].startswith(first_stderr) if first_stderr else len(stderr) == 1), stderr
+    text = (tmp_path / "out.jsonl").read_text() if output else out.stdout
+    rows = [json.loads(line) for line in text.splitlines() if line.startswith("{")]
+    assert [row["image2"] for row in rows] == ["absent2.png", NAME1]
+    assert all("image not found" in row["error"] for row in rows)
+
+
+def test_a_batch_with_one_pose_exits_0_and_counts_the_failures(tmp_path):
+    (tmp_path / "pairs.txt").write_text(f"{NAME1} {NAME2}\n{NAME1} absent2.png\n")
+    args = [*COMMAND, "pairs", str(tmp_path / "pairs.txt"), str(DATA), "--K", K_TEXT,
+            "--workers", "1", "--quiet", "--max-features", "1000"]  # fmt: skip
+    out = subprocess.run(args, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stderr.splitlines() == ["ppo-cv pairs: warning: 1 of 2 pairs failed"]
+    rows = [json.loads(line) for line in out.stdout.splitlines()]
+    assert "error" not in rows[0] and "image not found" in rows[1]["error"]
 
 
 def test_repeated_pairs_file_lines_run_again_under_one_warning(tmp_path):

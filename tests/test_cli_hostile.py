@@ -86,6 +86,10 @@ def _workspace(root: Path) -> None:
     for image in (DEMO1, DEMO2):
         shutil.copy(image, root / "images")
     os.mkfifo(root / "fifo.png")
+    (root / "nul.txt").write_bytes(b"demo1.png demo2.png\nde\x00mo1.png demo2.png\n")
+    (root / "nul_cameras.txt").write_bytes(b"1 PINHOLE 640 480 500 500 320 240\x00\n")
+    os.symlink("loop2", root / "loop1")  # a loop of symbolic links
+    os.symlink("loop1", root / "loop2")
     (root / "t").mkdir()  # issue 11, section 2: an old file beside where a result would go
     (root / "t" / "points.ply").write_text("OLD\n")
     (root / "t" / "colmap").write_text("x\n")
@@ -113,7 +117,9 @@ def _snapshot(root: Path) -> dict:
     entries = {}
     for path in sorted(root.rglob("*")):
         key = str(path.relative_to(root))
-        if path.is_fifo():
+        if path.is_symlink():
+            entries[key] = f"link to {os.readlink(path)}"
+        elif path.is_fifo():
             entries[key] = "fifo"
         elif path.is_dir():
             entries[key] = "dir"
@@ -458,6 +464,38 @@ CASES = [
     (["pairs", "no\nsuch.txt", "images"], "pairs", r"pairs file not found: no\\nsuch\.txt$"),
     # '-' is standard output, which cannot hold a folder (no folder named '-' appears)
     ([*PAIR, "--out", "-"], "pair", r"--out takes a folder, not '-' \(standard output\)"),
+    # a loop of symbolic links is named so (it was "not found"), as for an image
+    ([*PAIR[:3], "--calib", "loop1"], "pair",
+     r"cannot read calibration file loop1: Too many levels of symbolic links$"),
+    (["pairs", "loop1", "images"], "pairs", r"cannot read pairs file loop1: Too many levels"),
+    (["pairs", "pairs_demo.txt", "loop1", "--K", K_TEXT], "pairs",
+     r"cannot read image folder loop1: Too many levels"),
+    # the working folder, or one holding it, as an output folder: refused before any work (it
+    # was found busy once the pair was done, or the rendering of synth)
+    ([*PAIR, "--out", ".", "--overwrite"], "pair",
+     r"cannot write \.: it is or holds the current folder, which a new output folder cannot "
+     r"replace; give another folder$"),
+    (["synth", ".", "-n", "1"], "synth", r"cannot write \.: it is or holds the current folder"),
+    # a NUL byte in a text file: named with its line (it was 'embedded null byte' alone)
+    (["pairs", "nul.txt", "images"], "pairs", r"pairs file nul\.txt is not text: line 2 holds a "
+     r"NUL byte$"),
+    ([*PAIR[:3], "--calib", "nul_cameras.txt"], "pair",
+     r"calibration file nul_cameras\.txt is not text: line 1 holds a NUL byte$"),
+    # a name of 100,000 characters: cut to its first 300 (the line was 100,000 characters)
+    (["pair", DEMO1, "x" * 100_000 + ".png", "--K", K_TEXT], "pair",
+     r"^ppo-cv pair: cannot read image x{297}\.\.\. File name too long$"),
+    # a number of thousands of digits, a text of thousands of characters: named by their start
+    ([*PAIR, "--max-features", "1" + "0" * 5000], "pair",
+     r"Invalid value for '--max-features': '10{76}\.\.\.' is not a valid int\.$"),
+    ([*PAIR, "--max-features", "1" + "0" * 4000], "pair",
+     r"--max-features must be in 8\.\.1000000, got <4001-digit integer>$"),
+    ([*PAIR, "--" + "x" * 300], "pair", r"No such option: --x{75}\.\.\.$"),
+    ([*PAIR[:3], "--K", "x" + "1," * 3000], "pair",
+     r"--K must be comma-separated numbers, got 'x(1,){17}1\.\.\.$"),
+    (["synth", "out", "--width", "1" + "0" * 4000], "synth",
+     r"--width must be in 16\.\.4096, got <4001-digit integer>$"),
+    (["sfm", "images", "model", "--init", "x" * 5000], "sfm",
+     r"--init must be one of ppo, colmap, got 'x{36}\.\.\.$"),
 ]
 
 

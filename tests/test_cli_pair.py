@@ -349,7 +349,7 @@ def test_pairs_reports_failures_per_line(tmp_path):
     result = runner.invoke(
         app, ["pairs", str(pairs_file), str(DATA), "--K", K_TEXT, "--workers", "1"]
     )
-    assert result.exit_code == 0
+    assert result.exit_code == 1  # no pair has a pose
     (row,) = [json.loads(line) for line in result.stdout.splitlines()]
     assert "image not found" in row["error"]
 

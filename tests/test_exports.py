@@ -20,6 +20,7 @@ from ppo_cv.export import (
     draw_matches,
     matches_to_draw,
     write_outputs,
+    write_ply,
 )
 from ppo_cv.features import Features, detect_features, match_features, unique_pixel_pairs
 from ppo_cv.pipeline import estimate_pair, load_image
@@ -300,3 +301,70 @@ def test_write_outputs_reads_images_given_as_paths(demo_result, tmp_path):
     write_outputs(tmp_path / "out", demo_result, data / "demo1.png", data / "demo2.png")
     drawn = load_image(str(tmp_path / "out" / "matches.png"))
     assert drawn.shape[1] == 2 * 640 and drawn.std() > 10
+
+
+@pytest.mark.parametrize("directory", ["images", ".", "images/demo1.png"])
+def test_write_outputs_never_replaces_the_images_it_was_given_as_paths(
+    demo, demo_result, tmp_path, monkeypatch, directory
+):
+    # with overwrite=True it replaced the folder holding them (the images were deleted)
+    import cv2
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "images").mkdir()
+    paths = [f"images/demo{i}.png" for i in (1, 2)]
+    for path, image in zip(paths, demo[:2], strict=True):
+        cv2.imwrite(path, image)
+    before = {path: (tmp_path / path).read_bytes() for path in paths}
+    refused = rf"^the output directory {re.escape(directory)} (is|holds) the input"
+    with pytest.raises(ValueError, match=refused):
+        ppo_cv.write_outputs(directory, demo_result, *paths, overwrite=True)
+    assert sorted(p.name for p in (tmp_path / "images").iterdir()) == ["demo1.png", "demo2.png"]
+    assert {path: (tmp_path / path).read_bytes() for path in paths} == before
+
+
+ROWS = np.zeros((3, 3))
+COLOURS = np.zeros((3, 3), np.uint8)
+
+
+@pytest.mark.parametrize(
+    "call, exception, words",
+    [(lambda p: write_ply(p, np.full((3, 3), np.nan), COLOURS), ValueError,
+      "points has 9 NaN or infinite value(s)"),
+     (lambda p: write_ply(p, ROWS, COLOURS[:2]), ValueError,
+      "colours must have the shape of points (3, 3), got (2, 3)"),
+     (lambda p: write_ply(p, ROWS[:, :2], COLOURS), ValueError,
+      "points must have shape (N, 3), got (3, 2)"),
+     (lambda p: write_ply(p, ROWS, np.full((3, 3), 300)), ValueError,
+      "colours must be 0..255 whole numbers"),
+     (lambda p: write_ply(p, ROWS + 1e39, COLOURS), ValueError,
+      "points must lie within float32's range"),
+     (lambda p: write_ply(p.parent, ROWS, COLOURS), ValueError, "is a folder; give a file name"),
+     (lambda p: ppo_cv.export.camera_euler_degrees(np.full((3, 3), np.nan)), ValueError,
+      "R has 9 NaN or infinite value(s)"),
+     (lambda p: ppo_cv.export.rotation_angle_axis(np.zeros((3, 3))), ValueError,
+      "R is not a rotation matrix"),
+     (lambda p: ppo_cv.export.euler_zyx_degrees(np.diag([1.0, 1.0, -1.0])), ValueError,
+      "R is not a rotation matrix"),
+     (lambda p: ppo_cv.export.result_to_dict(None), TypeError,
+      "result must be a PairResult (estimate_pair), got NoneType"),
+     (lambda p: ppo_cv.export.draw_matches(None, None, {}), TypeError,
+      "result must be a PairResult (estimate_pair), got dict")],
+    ids=["NaN points", "colours fewer", "points of two", "colour 300", "beyond float32",
+         "folder", "euler NaN", "angle-axis zeros", "zyx mirror", "dict None", "draw dict"],
+)  # fmt: skip
+def test_the_export_helpers_refuse_what_they_cannot_write(tmp_path, call, exception, words):
+    # they wrote NaN vertices, wrapped colour 300 to 44, broke on a numpy broadcast, read a
+    # mirror or zeros as some rotation, or failed on an attribute of None
+    with pytest.raises(exception, match=re.escape(words)):
+        call(tmp_path / "points.ply")
+    assert not (tmp_path / "points.ply").exists()
+
+
+def test_write_ply_replaces_a_file_whole(tmp_path):
+    path = tmp_path / "points.ply"
+    path.write_bytes(b"old")
+    write_ply(path, ROWS + 1.0, COLOURS + 7)
+    data = path.read_bytes()
+    assert data.startswith(b"ply\n") and data.endswith(b"\x07\x07\x07") and b"vertex 3" in data
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["points.ply"]

@@ -262,9 +262,107 @@ CASES = {
                              "output_dir must be a path"),
     "score_pairs None": (lambda: _sfm_module().score_pairs(None), TypeError,
                          "database_path must be a path"),
+    "estimate_pair K text": (_pair(K1="535.4,539.2,320.1,247.6"), TypeError,
+                             "K1 must be an array of real numbers, got str: parse a text with "
+                             "ppo_cv.parse_intrinsics"),
+    "estimate_pair K a Camera": (_pair(K1=ppo_cv.Camera(K)), TypeError,
+                                 "K1 must be an array of real numbers, got Camera: pass its .K "
+                                 "(and its .dist as the distortion)"),
+    # hooks: given features that were ignored, a progress that failed as 'not callable'
+    "estimate_pair features1 text": (_pair(features1="x", features2="y"), TypeError,
+                                     "features1 must be ppo_cv.features.Features, got str"),
+    "estimate_pair features2 alone": (
+        lambda: ppo_cv.estimate_pair(GREY, GREY[::-1].copy(), K,
+                                     features2=ppo_cv.features.detect_features(GREY)),
+        ValueError, "give both features1 and features2, or neither"),
+    "estimate_pair progress 5": (_pair(progress=5), TypeError,
+                                 "progress must be a callable taking a stage name, got int"),
+    "run_sfm verbose 'no'": (lambda: _sfm(verbose="no"), TypeError,
+                             "verbose must be True or False, got str 'no'"),
+    "run_sfm exif_orientation 'no'": (lambda: _sfm(exif_orientation="no"), TypeError,
+                                      "exif_orientation must be True or False, got str 'no'"),
+    "run_sfm overwrite 'yes'": (lambda: _sfm(overwrite="yes"), TypeError,
+                                "overwrite must be True or False, got str 'yes'"),
+    "run_sfm progress 5": (lambda: _sfm(progress=5), TypeError,
+                           "progress must be a callable taking a message, got int"),
+    "an output's overwrite 'no'": (
+        lambda: __import__("ppo_cv.atomic").atomic.check_target("out", "folder", "no"),
+        TypeError, "overwrite must be True or False, got str"),
+    "camera_from_exif exif_orientation 'no'": (
+        lambda: ppo_cv.camera_from_exif(__file__, exif_orientation="no"), TypeError,
+        "exif_orientation must be True or False, got str 'no'"),
+    "load_image exif_orientation 'no'": (
+        lambda: load_image(__file__, exif_orientation="no"), TypeError,
+        "exif_orientation must be True or False, got str 'no'"),
+    "load_image None": (lambda: load_image(None), TypeError,
+                        "path must be a path (str or os.PathLike), got NoneType"),
+    "load_calibration None": (lambda: ppo_cv.load_calibration(None), TypeError,
+                              "path must be a path (str or os.PathLike), got NoneType"),
+    "parse_intrinsics names no option": (lambda: ppo_cv.parse_intrinsics("a,b"), ValueError,
+                                         "intrinsics must be comma-separated numbers"),
+    "parse_distortion names no option": (lambda: ppo_cv.calib.parse_distortion("1"), ValueError,
+                                         "distortion must be OpenCV distortion coefficients"),
     "reconstruct no image folder": (lambda: _sfm_module().reconstruct(__file__, "no such folder"),
                                     ValueError, "image folder 'no such folder' does not exist"),
 }  # fmt: skip
+
+
+HUGE = 10**5000  # more digits than Python prints (4300)
+LONG_TEXT = "1," * 3000
+LONG_VALUE_CASES = {
+    "estimate_pair image1 huge int": (_pair(image1=HUGE), TypeError,
+                                      "image1 must be an image array or a path (str or "
+                                      "os.PathLike), got int <5001-digit integer>"),
+    "parse_intrinsics huge int": (lambda: ppo_cv.parse_intrinsics(HUGE, "K"), TypeError,
+                                  "K must be a text of numbers, got int <5001-digit integer>"),
+    "parse_intrinsics long text": (lambda: ppo_cv.parse_intrinsics("x" + LONG_TEXT, "K"),
+                                   ValueError, "K must be comma-separated numbers, got 'x1,1,1,"),
+    "parse_intrinsics long NaN text": (lambda: ppo_cv.parse_intrinsics("nan," + LONG_TEXT, "K"),
+                                       ValueError, "K has NaN or infinite values: 'nan,1,1,"),
+    "PairOptions ratio huge int": (lambda: PairOptions(ratio=HUGE), ValueError,
+                                   "ratio is beyond the range of a float: <5001-digit integer>"),
+    "PairOptions seed huge int": (lambda: PairOptions(seed=HUGE), ValueError,
+                                  "seed must be a whole number in 0..2147483647, got "
+                                  "<5001-digit integer>"),
+    "PairOptions seed long text": (lambda: PairOptions(seed=LONG_TEXT), TypeError,
+                                   "seed must be a whole number, got str '1,1,1,"),
+    "PairOptions plane huge int": (lambda: PairOptions(plane=HUGE), TypeError,
+                                   "plane must be True or False, got int <5001-digit integer>"),
+    "PairOptions pri_threshold long text": (lambda: PairOptions(pri_threshold=LONG_TEXT),
+                                            TypeError, "pri_threshold must be a number, got str"),
+    "PairOptions features long text": (lambda: PairOptions(features=LONG_TEXT), ValueError,
+                                       "unknown features '1,1,1,"),
+    "load_image max_pixels long text": (lambda: load_image(__file__, max_pixels=LONG_TEXT),
+                                        TypeError, "max_pixels must be a whole number, got '1,"),
+    "run_sfm min_inliers huge int": (lambda: _sfm(min_inliers=HUGE), ValueError,
+                                     "min_inliers must be a whole number in 0..2147483647"),
+    "recoverPose pp huge int": (lambda: ppo_cv.recoverPose(E, P1, P2, focal=800.0, pp=(HUGE, 0)),
+                                ValueError, "pp must be two finite numbers within 1e+08"),
+    "recoverPose long keyword": (lambda: ppo_cv.recoverPose(E, P1, P2, K, **{"x" * 5000: 1}),
+                                 TypeError, "recoverPose got an unexpected keyword argument 'xxx"),
+    "run_sfm initialization long text": (lambda: _sfm(initialization=LONG_TEXT), ValueError,
+                                         "initialization must be one of ppo, colmap, got '1,1,"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", list(LONG_VALUE_CASES), ids=list(LONG_VALUE_CASES))
+def test_a_huge_or_long_value_is_quoted_short_in_its_error(case):
+    call, exception, words = LONG_VALUE_CASES[case]
+    with pytest.raises(exception) as info:
+        call()
+    assert words in str(info.value) and len(str(info.value)) < 120
+
+
+@pytest.mark.parametrize(
+    "value, quoted",
+    [(5, "5"), (1.5, "1.5"), ("ab", "'ab'"), ("a" * 50, "'" + "a" * 36 + "..."),
+     (HUGE, "<5001-digit integer>"), (np.int64(7), "7"), (2**150, str(2**150)[:37] + "...")],
+    ids=["int", "float", "text", "long text", "huge int", "numpy int", "long int"],
+)  # fmt: skip
+def test_shown_quotes_a_value_in_at_most_its_width(value, quoted):
+    from ppo_cv.checks import shown
+
+    assert shown(value) == quoted and len(shown(value)) <= 40
 
 
 @pytest.mark.filterwarnings("ignore::ppo_cv.calib.ImplausibleCameraWarning")  # 800 px on 64x48
@@ -683,3 +781,41 @@ def test_run_sfm_never_replaces_its_images_even_with_overwrite(tmp_path, output,
         _sfm_module().run_sfm(tmp_path / "images", target, K=K, overwrite=True,
                               database_path=database and tmp_path / database)  # fmt: skip
     assert {p.name: p.read_bytes() for p in (tmp_path / "images").iterdir()} == before
+
+
+@pytest.mark.parametrize("dtype", [np.float16, np.float32, np.int64, np.longdouble])
+def test_a_camera_matrix_of_another_number_type_is_its_values_exactly(dtype):
+    # no float type is refused: each is converted to float64 exactly (float16 holds the camera
+    # it was given, 800 and 320 here), as OpenCV reads them
+    K_typed = K.astype(dtype)
+    camera = ppo_cv.Camera(K_typed, np.array([0.01, 0, 0, 0], dtype=np.float16), (640.0, 480))
+    assert camera.K.dtype == np.float64 and np.array_equal(camera.K, K)
+    assert camera.dist.dtype == np.float64 and camera.dist[0] == np.float16(0.01)
+    assert camera.image_size == (640, 480)
+    pose, expected = ppo_cv.recover_pose(E, P1, P2, K_typed), ppo_cv.recover_pose(E, P1, P2, K)
+    assert np.array_equal(pose.R, expected.R) and np.array_equal(pose.t, expected.t)
+
+
+@pytest.mark.parametrize(
+    "fields, exception, words",
+    [(("hello",), TypeError, "Camera.K must be an array of real numbers, got str: parse a text"),
+     ((K[:2],), ValueError, "Camera.K must be a 3x3 matrix"),
+     ((-K,), ValueError, "Camera.K must be upper triangular"),
+     ((K, [0.1, 0.2, 0.3]), ValueError, "Camera.dist must be OpenCV distortion coefficients"),
+     ((K, None, 640), TypeError, "Camera.image_size must be (width, height) or None, got 640"),
+     ((K, None, (640, -1)), ValueError, "Camera.image_size: image width and height must be")],
+    ids=["K text", "K 2x3", "K negative", "dist of 3", "size a number", "size negative"],
+)  # fmt: skip
+def test_a_camera_is_checked_when_made(fields, exception, words):
+    with pytest.raises(exception, match=re.escape(words)):
+        ppo_cv.Camera(*fields)
+
+
+@pytest.mark.skipif(
+    np.finfo(np.longdouble).max <= np.finfo(np.float64).max, reason="long double is float64 here"
+)
+def test_a_long_double_pixel_beyond_float64_is_named_so():
+    image = GREY.astype(np.longdouble)
+    image[3, 4] = np.longdouble("1e400")  # finite in long double, infinite in float64
+    with pytest.raises(ValueError, match=r"^image1 has 1 pixel value\(s\) beyond the range of "):
+        ppo_cv.estimate_pair(image, GREY, K)

@@ -14,6 +14,7 @@ from ppo_cv.lsq import (
     huber_weights,
     levenberg_marquardt,
     levenberg_marquardt_batched,
+    stacked_jacobian,
     tangent_basis,
 )
 
@@ -72,6 +73,24 @@ def test_levenberg_marquardt_with_stacked_jacobians_takes_the_same_steps():
     p_stacked, J_stacked = levenberg_marquardt(one, start, 50, many=many)
     assert np.array_equal(p_stacked, p) and np.array_equal(J_stacked, J)
     np.testing.assert_allclose(p, [2.0, 1.5], atol=0.02)
+
+
+def test_the_two_stacked_jacobians_are_one_computation():
+    x = np.linspace(0.0, 2.0, 30)
+    calls = []
+
+    def many(P):
+        calls.append(len(P))
+        return P[:, :1] * np.exp(-P[:, 1:2] * x) - 2.0 * np.exp(-1.5 * x)
+
+    start = np.array([1.0, 0.5])
+    r0, J = stacked_jacobian(many, start)
+    known_r0, known_J = stacked_jacobian(many, start, r0=r0)
+    given = forward_jacobian_stacked(many, start, r0)
+    assert calls == [3, 2, 2]
+    assert np.array_equal(r0, many(start[None])[0]) and known_r0 is r0
+    assert np.array_equal(known_J, J) and np.array_equal(given, J)
+    assert J.flags["F_CONTIGUOUS"] and given.flags["C_CONTIGUOUS"]
 
 
 def test_batched_levenberg_marquardt_takes_each_problem_to_its_own_minimum():
