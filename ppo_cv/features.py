@@ -224,8 +224,8 @@ def detect_features(
         order = np.argsort([-k.response for k in keypoints])[: int(max_features)]
         keypoints = [keypoints[i] for i in order]
         descriptors = descriptors[order]
-    uv = np.array([k.pt for k in keypoints], dtype=np.float64).reshape(-1, 2)
-    responses = np.array([k.response for k in keypoints], dtype=np.float32)
+    uv = cv2.KeyPoint_convert(keypoints).astype(np.float64).reshape(-1, 2)
+    responses = np.fromiter((k.response for k in keypoints), np.float32, len(keypoints))
     if scale != 1.0:
         uv = (uv + 0.5) * scale - 0.5
     if kind == "sift":
@@ -245,10 +245,12 @@ def _cut_sift(keypoints, uv, descriptors, responses, threshold_scale: float) -> 
     it. The keypoints kept are all those whose response reaches the weakest one's (ties
     included), so they are those of a detection at the threshold scale of that response.
     """
+    import cv2
+
     octaves = np.array([k.octave for k in keypoints], dtype=np.int64)
     sizes = np.array([k.size for k in keypoints], dtype=np.float32)
     angles = np.array([k.angle for k in keypoints], dtype=np.float32)
-    points = np.array([k.pt for k in keypoints], dtype=np.float32).reshape(-1, 2)
+    points = cv2.KeyPoint_convert(keypoints).reshape(-1, 2)
     order = np.lexsort((-octaves, -responses, angles, -sizes, points[:, 1], points[:, 0]))
     weakest = float(responses.min()) * _SIFT_LAYERS / _SIFT_CONTRAST
     return Features(

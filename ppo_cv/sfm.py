@@ -1145,7 +1145,7 @@ FIELD_RANGE_DEG = (5.0, 150.0)
 """Fields of view, across the larger image side, within which :func:`rotation_focal_scale`
 looks for a focal length: a long telephoto to a wide lens short of a fisheye."""
 
-_SCALE_GRID = 401  # focal lengths tried, evenly in log scale, before the bounded refinement
+_SCALE_GRID = 401  # focal lengths tried, evenly in log scale, before the finer grids
 
 
 def rotation_focal_scale(H: Any, focal: float, size: float) -> float | None:
@@ -1157,7 +1157,7 @@ def rotation_focal_scale(H: Any, focal: float, size: float) -> float | None:
     length ``s * focal`` makes it ``S R S^-1`` with ``S = diag(s, s, 1)``: the scale ``s`` is
     the one for which ``S^-1 H S`` is a rotation times a scalar, its three singular values
     equal. It is found by minimising ``log(sigma_1 / sigma_3)`` of ``S^-1 H S`` over ``s``,
-    first on a grid, then by a bounded scalar search around the grid's best (Hartley and
+    first on a grid, then by finer grids around the grid's best (Hartley and
     Zisserman, *Multiple View Geometry*, 2nd ed., sec. 8.8 and 19.3: the homography of a
     rotating camera is ``K R K^-1``, and its constraints on ``K``).
 

@@ -78,6 +78,26 @@ def test_whole_pair_section_lists_wall_and_cpu_time_and_the_baseline(compare_rep
     assert any("Some CPU, 2 logical cores" in line and "1.50" in line for line in lines)
 
 
+def test_whole_pair_section_counts_the_pairs_at_or_below_opencv(compare_report):
+    per_pair = [
+        {"wall": 0.15, "cpu": 0.25, "opencv_wall": 0.2, "opencv_cpu": 0.19, "detections": 1},
+        {"wall": 0.3, "cpu": 0.18, "opencv_wall": 0.2, "opencv_cpu": 0.19, "detections": 2},
+        {"wall": 0.2, "cpu": 0.3, "opencv_wall": 0.2, "opencv_cpu": 0.19, "detections": 2},
+    ]
+    pipe = {"ppo_cv estimate_pair": 0.2, "OpenCV pipeline": 0.2, "pairs": 3,
+            "source": "freiburg", "per_pair": per_pair}  # fmt: skip
+    lines = compare_report.pipeline_lines(pipe, "figs")
+    assert any("2 of 3 by wall time, 1 of 3 by CPU time" in line for line in lines)
+    head = lines.index(
+        "| pair | estimate_pair wall / CPU s | OpenCV pipeline wall / CPU s | detections |"
+    )
+    assert lines[head + 2 : head + 5] == [
+        "| 0 | 0.150 / 0.250 | 0.200 / 0.190 | 1 |",
+        "| 1 | 0.300 / 0.180 | 0.200 / 0.190 | 2 |",
+        "| 2 | 0.200 / 0.300 | 0.200 / 0.190 | 2 |",
+    ]
+
+
 def test_stage_cpu_covers_every_stage_of_estimate_pair_within_its_total():
     sys.path.insert(0, str(ROOT / "benchmarks"))
     try:
