@@ -324,7 +324,7 @@ def focal_free_parallax(parallax: PlaneParallax) -> tuple[PlaneParallax, float]:
     return freed_parallax, 1.0 / c if inside else float("nan")
 
 
-_FOCAL_GRID = 61  # focal scales tried, evenly in log scale, before the bounded refinement
+_FOCAL_GRID = 61  # focal scales tried, evenly in log scale, before the zooming grids
 
 
 def unbiased_bias_deg(bias_deg: float, bias_sigma_deg: float) -> float:
