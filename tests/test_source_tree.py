@@ -182,3 +182,10 @@ def test_tests_skip_when_ppo_cv_shared_has_no_data(tmp_path):
     )
     assert done.returncode == 0, done.stdout + done.stderr
     assert "1 skipped" in done.stdout and str(tmp_path / "data" / "freiburg") in done.stdout
+
+
+@pytest.mark.parametrize("module", ["ppo_cv", "ppo_cv.cli"])
+def test_both_module_entries_run_the_command_line(module):
+    done = run(["-m", module, "--version"], ROOT)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("ppo-cv ")
