@@ -227,9 +227,15 @@ class WrappedHelpGroup(TyperGroup):
 
 
 def one_line(text: str) -> str:
-    """``text`` on one line, each line break in it shown as ``\\n``: a file name may hold one,
-    and a message cut at it would name another file."""
-    return "\\n".join(text.strip().splitlines())
+    """``text`` on one line, each line break in it shown as ``\\n`` and every other control
+    character but a tab by its code (``\\x1b``): a file name may hold them, and a message cut at
+    a line break would name another file, one holding a terminal escape would restyle the
+    terminal."""
+    joined = "\\n".join(text.strip().splitlines())
+    return _CONTROL.sub(lambda found: f"\\x{ord(found[0]):02x}", joined)
+
+
+_CONTROL = re.compile("[\x00-\x08\x0a-\x1f\x7f-\x9f]")
 
 
 MESSAGE_WORD_MAX = 300

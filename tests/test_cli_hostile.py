@@ -462,6 +462,9 @@ CASES = [
     ([*PAIR[:3], "--calib", "no\nsuch.yml"], "pair",
      r"calibration file not found: no\\nsuch\.yml$"),
     (["pairs", "no\nsuch.txt", "images"], "pairs", r"pairs file not found: no\\nsuch\.txt$"),
+    # a name holding a terminal escape is shown by its code (it restyled the terminal)
+    (["pair", "no\x1b[31msuch.png", DEMO2, "--K", K_TEXT], "pair",
+     r"image not found: no\\x1b\[31msuch\.png$"),
     # '-' is standard output, which cannot hold a folder (no folder named '-' appears)
     ([*PAIR, "--out", "-"], "pair", r"--out takes a folder, not '-' \(standard output\)"),
     # a loop of symbolic links is named so (it was "not found"), as for an image
