@@ -411,7 +411,7 @@ def _align_level(template, template_clear, positions, d, plane2, ramp, iteration
         jacobian_t, brightness = _jacobian_t(
             cells.values(), gradients, weight, target, ramp_columns, brightness
         )
-        steps = _GaussNewton(target, weight, _normal_inverse(jacobian_t), jacobian_t,
+        steps = _GaussNewton(template[windows], _normal_inverse(jacobian_t), jacobian_t,
                              ramp_columns, iterations)  # fmt: skip
         intensity = steps.run(cells, reread, shifts, brightness)
         return shifts, brightness, intensity, *gradients, weight
@@ -476,11 +476,14 @@ def _regularised(normal: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class _GaussNewton:
     """Damped Gauss-Newton steps of windows' shifts and brightness with a fixed Jacobian:
-    ``target`` (n, k) image 1 weighted, ``weight`` (n, k), the inverse normal matrices and the
-    transposed Jacobians of :func:`_normal_inverse`."""
+    ``template`` (n, k) image 1, the inverse normal matrices and the transposed Jacobians of
+    :func:`_normal_inverse`.
 
-    target: np.ndarray
-    weight: np.ndarray
+    Every row of the Jacobian carries the pixels' weights (0 or 1), so its product with the
+    residual ``w (g I2 + b - I1)`` is its product with ``g I2 - I1`` plus ``b`` times its
+    row sums: the weights and the offset are not applied pixel by pixel."""
+
+    template: np.ndarray
     inverse: np.ndarray
     jacobian_t: np.ndarray
     ramp_columns: np.ndarray
@@ -494,6 +497,7 @@ class _GaussNewton:
         (``reread(cells, windows, shifts)``). Image 2 at the last shifts (n, k)."""
         d, level, read_at = shifts, brightness, shifts.copy()
         intensity, active = cells.values(), np.ones(len(d), dtype=bool)
+        row_sums = self.jacobian_t.sum(axis=2, dtype=np.float64)
         for iteration in range(self.iterations):
             if not active.any():
                 break
@@ -506,10 +510,11 @@ class _GaussNewton:
                     read_at[far] = d[far]
                 intensity[part] = cells.values(d[part] - read_at[part], part)
             gain = level[part, :3].astype(np.float32) @ self.ramp_columns.T
-            modelled = gain * intensity[part] + level[part, 3:].astype(np.float32)
-            residual = modelled * self.weight[part] - self.target[part]
-            gradient = (self.jacobian_t[part] @ residual[..., None]).astype(np.float64)
-            step = -_DAMPING * (self.inverse[part] @ gradient)[..., 0]
+            difference = np.multiply(gain, intensity[part], out=gain)
+            difference -= self.template[part]
+            gradient = (self.jacobian_t[part] @ difference[..., None])[..., 0]
+            gradient = gradient + level[part, 3:] * row_sums[part]
+            step = -_DAMPING * (self.inverse[part] @ gradient[..., None])[..., 0]
             shift = np.clip(step[:, :2], -2.0, 2.0)
             d[part] += shift
             level[part] += step[:, 2:]
