@@ -439,14 +439,16 @@ def _jacobian_t(
     (:func:`_brightness_of`); and that brightness."""
     n, k = intensity.shape
     jacobian_t = np.empty((n, 6, k), dtype=np.float32)
-    for i in range(3):
-        np.multiply(intensity, ramp_columns[:, i] * weight, out=jacobian_t[:, 2 + i])
+    np.multiply(intensity, weight, out=jacobian_t[:, 2])
+    for i in (1, 2):
+        np.multiply(jacobian_t[:, 2], ramp_columns[:, i], out=jacobian_t[:, 2 + i])
     jacobian_t[:, 5] = weight
     if brightness is None:
         brightness = _brightness_of(jacobian_t, target)
-    gain = ramp_columns @ brightness[:, :3].astype(np.float32).T
+    gain = brightness[:, :3].astype(np.float32) @ ramp_columns.T
+    gain *= weight
     for i in range(2):
-        np.multiply(gain.T * gradients[i], weight, out=jacobian_t[:, i])
+        np.multiply(gain, gradients[i], out=jacobian_t[:, i])
     return jacobian_t, brightness
 
 
@@ -773,8 +775,10 @@ def _align_chunk(images: _Images, points1, positions, start, offsets, iterations
     d, weight = aligned.shifts, aligned.weight
     inside = _within(points1, plane1.width, plane1.height, _side(offsets) // 2)
     inside &= _spans_inside(x, y, d, plane2.width, plane2.height)
-    gx, gy = aligned.gradients[0] * weight, aligned.gradients[1] * weight
-    structure = np.stack([np.sum(gx * gx, 1), np.sum(gx * gy, 1), np.sum(gy * gy, 1)], axis=1)
+    gx, gy = aligned.gradients
+    gxw, gyw = gx * weight, gy * weight
+    products = ("nk,nk->n", gxw, gx), ("nk,nk->n", gxw, gy), ("nk,nk->n", gyw, gy)
+    structure = np.stack([np.einsum(*product) for product in products], axis=1)
     smallest = 0.5 * (structure[:, 0] + structure[:, 2]) - np.sqrt(
         0.25 * (structure[:, 0] - structure[:, 2]) ** 2 + structure[:, 1] ** 2
     )
