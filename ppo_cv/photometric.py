@@ -1134,15 +1134,14 @@ def _best_window_refit(
     if not results:
         return None
     sigma = _sigma_upper
-    polished, raised = [], False
+    polished = []
     for searched in sorted(results, key=sigma):
-        if polished and not raised and min(map(sigma, polished)) <= sigma(searched):
+        if polished and min(map(sigma, polished)) <= sigma(searched):
             break
         y1 = pixels_to_normalized(searched.tracks.points1, K1, dist1)
         refined = _polish(images, searched, y1, transfer_with, normalize2, focal, priors)
         if plausible(refined):
             polished.append(refined)
-            raised = refined.fit.rotation_sigma_deg > sigma(searched)  # the polish did harm
     if not polished:
         return None
     best = min(polished, key=sigma)
