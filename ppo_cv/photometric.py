@@ -41,11 +41,7 @@ image 1 lands in image 2, and the intensities fix it far better:
    size in image 2 seen through the refitted model, and the fit repeated;
 4. steps 1-3 with each window side of :data:`WINDOWS` (the sides on two threads), keeping
    the refit whose rotation is the least uncertain: large windows locate tracks better in
-   noisy images, small ones are more numerous in weak texture. The first search and its fit
-   are made with the smallest side only: they only steer the second search, whose windows of
-   every side then look through that one fit (a model within a fraction of a pixel, where a
-   31-pixel window recovers 8.75 pixels at full size); a side steered to no plausible refit
-   searches from the start model on its own;
+   noisy images, small ones are more numerous in weak texture;
 5. the windows of that side polished through its fit, from where the search found them, and
    the fit repeated; the next side too while its searched bound is below the polished one,
    the least uncertain polished refit kept. The search is the cheap part (a few tens of
@@ -154,7 +150,6 @@ _RETAKE = 0.02  # pixels a window moves with the first Jacobian of the polish fo
 
 _DAMPING = 0.7  # of each Gauss-Newton step: the sampled gradients overshoot by about 1.4
 _OUTLIER_SIGMAS = 3.0
-_MEDIAN_ERROR = 0.72  # relative standard error of a Rayleigh median, times sqrt(samples)
 _CONTRAST_BOX = 31  # pixels
 _DENSE_STEP = 8  # pixels between exact transfers of the search's warp
 _NODES = 5  # per side of a window, where _window_transfer transfers exactly
@@ -1133,7 +1128,7 @@ def _best_window_refit(
     results = [found for found in _threaded_map(searched, windows) if found is not None]
     if not results:
         return None
-    sigma = _sigma_upper
+    sigma = lambda refined: refined.fit.rotation_sigma_deg  # noqa: E731
     polished = []
     for searched in sorted(results, key=sigma):
         if polished and min(map(sigma, polished)) <= sigma(searched):
@@ -1146,16 +1141,6 @@ def _best_window_refit(
         return None
     best = min(polished, key=sigma)
     return replace(best, parallax=_plane_parallax(best, K1, K2, dist1, dist2))
-
-
-def _sigma_upper(refined: PhotometricRotation) -> float:
-    """``rotation_sigma_deg`` of ``refined`` one standard error of its own estimate above it,
-    by which the window sides are compared: the bound scales with the tracks' noise, the
-    median of their n residuals (:func:`ppo_cv.model_selection.robust_sigma`), whose relative
-    standard error is :data:`_MEDIAN_ERROR` / sqrt(n); of two bounds within that of each
-    other the one of fewer tracks is the likelier to have come out small by chance."""
-    fit = refined.fit
-    return fit.rotation_sigma_deg * (1.0 + _MEDIAN_ERROR / np.sqrt(refined.num_tracks))
 
 
 def _search_side(
