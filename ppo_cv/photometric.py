@@ -1098,31 +1098,17 @@ def _best_window_refit(
         and rotation_error_deg(refined.fit.R, R) <= refit_reach_deg(rotation_sigma_deg)
     )
 
-    def corners_of(side: int) -> tuple[np.ndarray, np.ndarray] | None:
+    def searched(side: int) -> PhotometricRotation | None:
         corners = _corners(gray1, count, side, transfer_with(start), gray2.shape)
         if len(corners) < MIN_TRACKS:
             return None
-        return corners, pixels_to_normalized(corners, K1, dist1)
-
-    corners = dict(zip(windows, _threaded_map(corners_of, windows), strict=True))
-    search = lambda side: None if corners[side] is None else _search_side(  # noqa: E731
-        (images, seen), *corners[side], side, levels[side], start, transfer_with, normalize2,
-        focal, priors,
-    )  # fmt: skip
-    steering = search(windows[0])
-    steered = None if steering is None else _seen_along(images, steering.fit, transfer_with)
-
-    def searched(side: int) -> PhotometricRotation | None:
-        if corners[side] is None:
-            return None
-        again = lambda first, along: _search_again(  # noqa: E731
-            images, first, along, *corners[side], side, normalize2, focal, priors
-        )
-        refined = None if steering is None else again(steering, steered)
-        if not plausible(refined) and side != windows[0]:  # not steered: its own first search
-            first = search(side)
-            if first is not None:
-                refined = again(first, _seen_along(images, first.fit, transfer_with))
+        y1 = pixels_to_normalized(corners, K1, dist1)
+        refined = _search_side(
+            (images, seen), corners, y1, side, levels[side], start, transfer_with, normalize2,
+            focal, priors,
+        )  # fmt: skip
+        if refined is not None:
+            refined = _search_again(images, refined, y1, transfer_with, normalize2, focal, priors)
         return refined if plausible(refined) else None
 
     results = [found for found in _threaded_map(searched, windows) if found is not None]
@@ -1160,25 +1146,16 @@ def _search_side(
     return found
 
 
-def _seen_along(images: _Images, fit: LensRotationFit, transfer_with) -> tuple:
-    """Image 2 seen through the model of ``fit`` (:func:`_seen_through`) and that transfer."""
-    transfer = transfer_with(_model(fit))
-    return _seen_through(images, transfer), transfer
-
-
 def _search_again(
-    images, first, along, corners, y1, window, normalize2, focal, priors
-) -> PhotometricRotation | None:
-    """The windows of side ``window`` around ``corners`` (normalised ``y1``) searched at full
-    size in image 2 seen through the fit of ``first``, a searched refit (``along``: that view
-    and its transfer, :func:`_seen_along`), and the fit again; ``first`` itself when too few
-    tracks agree and it is of the same windows, else None."""
-    seen, transfer = along
-    tracks = _search(images, seen, corners, transfer, window, 0)
-    again = _fit_windows(tracks, y1, window, first.fit.R, normalize2, focal, priors)
-    if again is None and first.window == window and np.array_equal(first.tracks.points1, corners):
-        return first
-    return again
+    images, refined, y1, transfer_with, normalize2, focal, priors
+) -> PhotometricRotation:
+    """The windows of ``refined`` searched again at full size in image 2 seen through its fit,
+    and the fit again; ``refined`` when too few tracks agree."""
+    transfer = transfer_with(_model(refined.fit))
+    corners, window = refined.tracks.points1, refined.window
+    tracks = _search(images, _seen_through(images, transfer), corners, transfer, window, 0)
+    again = _fit_windows(tracks, y1, window, refined.fit.R, normalize2, focal, priors)
+    return refined if again is None else again
 
 
 def _polish(
