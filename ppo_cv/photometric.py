@@ -308,35 +308,44 @@ def _cells(plane: _Plane, x: np.ndarray, y: np.ndarray, rows: Sequence[int]) -> 
 
     Exact bilinear weights (``cv2.remap`` rounds them to 1/32 pixel, a bias that matters at the
     hundredths of a pixel sought here)."""
-    import cv2
 
     x0, y0 = np.floor(x), np.floor(y)
     first = y0.astype(np.intp) * plane.width + x0.astype(np.intp)
     block = np.take(plane.cells, first.ravel(), axis=0, mode="clip")
-    columns = cv2.split(block.reshape(len(block), 1, -1))
+    columns = np.ascontiguousarray(block.T)
     coefficients = {row: columns[row].reshape(first.shape) for row in rows}
     return _Cells(coefficients, x - x0, y - y0)
 
 
-def _template(plane: _Plane, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``plane``'s intensities (n, k) at the points ``grid`` (n, k, 2) float32 and 1 where they
-    are not near a clipped pixel, else 0; read directly at whole pixels (the corners), the
-    image's edge repeated beyond it."""
+def _template(plane: _Plane, points, offsets) -> tuple[np.ndarray, np.ndarray]:
+    """``plane``'s intensities (n, k) at the pixels ``offsets`` (k, 2) of :func:`_offsets`
+    about ``points`` (n, 2) and 1 where they are not near a clipped pixel, else 0; read
+    directly at whole pixels (the corners), the image's edge repeated beyond it."""
     w, h = plane.width, plane.height
-    x, y = grid[..., 0], grid[..., 1]
-    if not (np.array_equal(x, np.floor(x)) and np.array_equal(y, np.floor(y))):
-        cells = _cells(plane, x, y, (0, 1, 2, 3, _CLEAR))
+    if not np.array_equal(points, np.round(points)):
+        grid = (points[:, None, :] + offsets[None, :, :]).astype(np.float32)
+        cells = _cells(plane, grid[..., 0], grid[..., 1], (0, 1, 2, 3, _CLEAR))
         return cells.values(), cells.clear
-    pixels = np.clip(y, 0, h - 1).astype(np.intp) * w + np.clip(x, 0, w - 1).astype(np.intp)
+    side = _side(offsets)
+    o = offsets[:side, 0].astype(np.intp)
+    x = np.clip(points[:, :1].astype(np.intp) + o, 0, w - 1)
+    y = np.clip(points[:, 1:].astype(np.intp) + o, 0, h - 1) * w
+    pixels = (y[:, :, None] + x[:, None, :]).reshape(len(points), -1)
     clear = (np.take(plane.clipped, pixels) == 0).astype(np.float32)
     return np.take(plane.intensity, pixels), clear
 
 
 def _offsets(window: int) -> np.ndarray:
+    """Pixels (k, 2) of a ``window`` x ``window`` square about its centre, row by row."""
     half = window // 2
     o = np.arange(-half, half + 1, dtype=np.float64)
     u, v = np.meshgrid(o, o)
     return np.column_stack([u.ravel(), v.ravel()])
+
+
+def _side(offsets: np.ndarray) -> int:
+    """Side of the square window of :func:`_offsets` ``offsets``."""
+    return int(round(np.sqrt(len(offsets))))
 
 
 @dataclass(frozen=True)
@@ -355,7 +364,8 @@ def _align_level(template, template_clear, positions, d, plane2, ramp, iteration
     """Shift (n, 2) of each window in image 2 from the start ``d``, and image 2 there.
 
     ``template`` (n, k) holds image 1 at the windows' pixels, ``template_clear`` 1 where none
-    is near a clipped pixel, ``positions`` (n, k, 2) their transfer to image 2; ``ramp``
+    is near a clipped pixel, ``positions`` their transfer to image 2 (x and y, (n, k) float32);
+    ``ramp``
     (k, 2) is the window's offsets scaled to [-1, 1].
 
     The brightness model (a gain varying linearly across the window, as vignetting does, and
@@ -374,8 +384,7 @@ def _align_level(template, template_clear, positions, d, plane2, ramp, iteration
     """
     import cv2
 
-    x = np.ascontiguousarray(positions[..., 0], dtype=np.float32)
-    y = np.ascontiguousarray(positions[..., 1], dtype=np.float32)
+    x, y = positions
     ramp_columns = np.column_stack([np.ones(len(ramp)), ramp]).astype(np.float32)
 
     def solve(windows, shifts, brightness) -> tuple:
@@ -402,7 +411,7 @@ def _align_level(template, template_clear, positions, d, plane2, ramp, iteration
         jacobian_t, brightness = _jacobian_t(
             cells.values(), gradients, weight, target, ramp_columns, brightness
         )
-        steps = _GaussNewton(target, weight, _normal_inverse(jacobian_t), jacobian_t,
+        steps = _GaussNewton(template[windows], _normal_inverse(jacobian_t), jacobian_t,
                              ramp_columns, iterations)  # fmt: skip
         intensity = steps.run(cells, reread, shifts, brightness)
         return shifts, brightness, intensity, *gradients, weight
@@ -430,14 +439,16 @@ def _jacobian_t(
     (:func:`_brightness_of`); and that brightness."""
     n, k = intensity.shape
     jacobian_t = np.empty((n, 6, k), dtype=np.float32)
-    for i in range(3):
-        np.multiply(intensity, ramp_columns[:, i] * weight, out=jacobian_t[:, 2 + i])
+    np.multiply(intensity, weight, out=jacobian_t[:, 2])
+    for i in (1, 2):
+        np.multiply(jacobian_t[:, 2], ramp_columns[:, i], out=jacobian_t[:, 2 + i])
     jacobian_t[:, 5] = weight
     if brightness is None:
         brightness = _brightness_of(jacobian_t, target)
-    gain = ramp_columns @ brightness[:, :3].astype(np.float32).T
+    gain = brightness[:, :3].astype(np.float32) @ ramp_columns.T
+    gain *= weight
     for i in range(2):
-        np.multiply(gain.T * gradients[i], weight, out=jacobian_t[:, i])
+        np.multiply(gain, gradients[i], out=jacobian_t[:, i])
     return jacobian_t, brightness
 
 
@@ -452,8 +463,8 @@ def _brightness_of(jacobian_t, target) -> np.ndarray:
 def _normal_inverse(jacobian_t: np.ndarray) -> np.ndarray:
     """Inverse normal matrices (n, m, m) float64 of transposed Jacobians (n, m, k), slightly
     regularised."""
-    jacobian = np.ascontiguousarray(jacobian_t.transpose(0, 2, 1))
-    return np.linalg.inv(_regularised((jacobian_t @ jacobian).astype(np.float64)))
+    normal = np.einsum("nik,njk->nij", jacobian_t, jacobian_t)
+    return np.linalg.inv(_regularised(normal.astype(np.float64)))
 
 
 def _regularised(normal: np.ndarray) -> np.ndarray:
@@ -467,11 +478,14 @@ def _regularised(normal: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class _GaussNewton:
     """Damped Gauss-Newton steps of windows' shifts and brightness with a fixed Jacobian:
-    ``target`` (n, k) image 1 weighted, ``weight`` (n, k), the inverse normal matrices and the
-    transposed Jacobians of :func:`_normal_inverse`."""
+    ``template`` (n, k) image 1, the inverse normal matrices and the transposed Jacobians of
+    :func:`_normal_inverse`.
 
-    target: np.ndarray
-    weight: np.ndarray
+    Every row of the Jacobian carries the pixels' weights (0 or 1), so its product with the
+    residual ``w (g I2 + b - I1)`` is its product with ``g I2 - I1`` plus ``b`` times its
+    row sums: the weights and the offset are not applied pixel by pixel."""
+
+    template: np.ndarray
     inverse: np.ndarray
     jacobian_t: np.ndarray
     ramp_columns: np.ndarray
@@ -485,6 +499,7 @@ class _GaussNewton:
         (``reread(cells, windows, shifts)``). Image 2 at the last shifts (n, k)."""
         d, level, read_at = shifts, brightness, shifts.copy()
         intensity, active = cells.values(), np.ones(len(d), dtype=bool)
+        row_sums = self.jacobian_t.sum(axis=2, dtype=np.float64)
         for iteration in range(self.iterations):
             if not active.any():
                 break
@@ -497,10 +512,11 @@ class _GaussNewton:
                     read_at[far] = d[far]
                 intensity[part] = cells.values(d[part] - read_at[part], part)
             gain = level[part, :3].astype(np.float32) @ self.ramp_columns.T
-            modelled = gain * intensity[part] + level[part, 3:].astype(np.float32)
-            residual = modelled * self.weight[part] - self.target[part]
-            gradient = (self.jacobian_t[part] @ residual[..., None]).astype(np.float64)
-            step = -_DAMPING * (self.inverse[part] @ gradient)[..., 0]
+            difference = np.multiply(gain, intensity[part], out=gain)
+            difference -= self.template[part]
+            gradient = (self.jacobian_t[part] @ difference[..., None])[..., 0]
+            gradient = gradient + level[part, 3:] * row_sums[part]
+            step = -_DAMPING * (self.inverse[part] @ gradient[..., None])[..., 0]
             shift = np.clip(step[:, :2], -2.0, 2.0)
             d[part] += shift
             level[part] += step[:, 2:]
@@ -751,16 +767,18 @@ def _align_chunk(images: _Images, points1, positions, start, offsets, iterations
     the normalised cross-correlations and whether each window lies inside both images, has
     enough pixels away from clipped ones and enough texture."""
     plane1, plane2 = images.plane1, images.plane2
-    grid = (points1[:, None, :] + offsets[None, :, :]).astype(np.float32)
-    template, template_clear = _template(plane1, grid)
+    template, template_clear = _template(plane1, points1, offsets)
     ramp = offsets / np.abs(offsets).max()
-    aligned = _align_level(template, template_clear, positions, start.copy(), plane2, ramp,
+    x, y = (np.ascontiguousarray(positions[..., i], dtype=np.float32) for i in range(2))
+    aligned = _align_level(template, template_clear, (x, y), start.copy(), plane2, ramp,
                            iterations)  # fmt: skip
     d, weight = aligned.shifts, aligned.weight
-    inside = _inside(grid, plane1.width, plane1.height)
-    inside &= _inside(positions + d[:, None, :], plane2.width, plane2.height)
-    gx, gy = aligned.gradients[0] * weight, aligned.gradients[1] * weight
-    structure = np.stack([np.sum(gx * gx, 1), np.sum(gx * gy, 1), np.sum(gy * gy, 1)], axis=1)
+    inside = _within(points1, plane1.width, plane1.height, _side(offsets) // 2)
+    inside &= _spans_inside(x, y, d, plane2.width, plane2.height)
+    gx, gy = aligned.gradients
+    gxw, gyw = gx * weight, gy * weight
+    products = ("nk,nk->n", gxw, gx), ("nk,nk->n", gxw, gy), ("nk,nk->n", gyw, gy)
+    structure = np.stack([np.einsum(*product) for product in products], axis=1)
     smallest = 0.5 * (structure[:, 0] + structure[:, 2]) - np.sqrt(
         0.25 * (structure[:, 0] - structure[:, 2]) ** 2 + structure[:, 1] ** 2
     )
@@ -788,6 +806,14 @@ def _require_window(window) -> None:
         raise TypeError(f"window must be an integer, got {type(window).__name__}")
     if window < 5 or window % 2 == 0:
         raise ValueError(f"window must be an odd number of pixels >= 5, got {window}")
+
+
+def _spans_inside(x: np.ndarray, y: np.ndarray, d: np.ndarray, width: int, height: int):
+    """Whether every point ``(x, y)`` (n, k) of each window moved by ``d`` (n, 2) lies inside
+    an image of ``width`` x ``height``."""
+    low = np.column_stack([x.min(axis=1), y.min(axis=1)]) + d
+    high = np.column_stack([x.max(axis=1), y.max(axis=1)]) + d
+    return np.all(low >= 0, axis=1) & np.all(high <= [width - 1, height - 1], axis=1)
 
 
 def _inside(xy: np.ndarray, width: int, height: int) -> np.ndarray:
