@@ -164,6 +164,7 @@ __all__ = [
     "PARALLAX_SIGNIFICANCE",
     "MotionDecision",
     "decide_motion",
+    "parallax_refuses_rotation",
     "plane_ransac_trials",
     "translation_for_rotation",
     "with_rotation",
@@ -884,6 +885,14 @@ def with_rotation(
     )
 
 
+def parallax_refuses_rotation(parallax: float, sigma: float, bound: float) -> bool:
+    """Whether a ``parallax`` (radians) with deviation ``sigma`` exceeds the ``bound`` of a
+    rotation's (:attr:`MotionDecision.track_parallax_bound`) by more than
+    :data:`PARALLAX_SIGNIFICANCE` deviations, refusing the pure rotation it was measured for
+    (False for NaN)."""
+    return bool(parallax - PARALLAX_SIGNIFICANCE * sigma > bound)
+
+
 def with_tracks(
     motion: MotionDecision,
     lens: LensRotationFit,
@@ -933,7 +942,7 @@ def with_tracks(
     sigma = float("nan") if parallax is None else parallax.sigma
     motion = replace(motion, track_parallax=value, track_parallax_sigma=sigma)
     if motion.pure_rotation:
-        if value - PARALLAX_SIGNIFICANCE * sigma > motion.track_parallax_bound:
+        if parallax_refuses_rotation(value, sigma, motion.track_parallax_bound):
             model = _plane_or_general(
                 motion.plane_selection, motion.plane, motion.plane_epipolar_ratio,
                 motion.plane_off_share,

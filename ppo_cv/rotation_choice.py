@@ -123,7 +123,7 @@ import numpy as np
 
 from .lsq import gauss_newton_covariance, rotation_increment
 from .model_selection import robust_sigma
-from .motion_model import MAX_TRACK_PARALLAX, PARALLAX_SIGNIFICANCE, MotionDecision
+from .motion_model import MAX_TRACK_PARALLAX, MotionDecision, parallax_refuses_rotation
 from .parallax import (
     PlaneParallax,
     fit_plane_parallax,
@@ -620,7 +620,7 @@ def freed_parallax_refused(freed: PlaneParallax, bound: float) -> bool:
     False
     """
     bias = max(across_normal_parallax(freed.H), abs(freed.parallax))
-    return bool(bias - PARALLAX_SIGNIFICANCE * freed.sigma > bound)
+    return parallax_refuses_rotation(bias, freed.sigma, bound)
 
 
 def wanted_focal_fit(
