@@ -74,18 +74,18 @@ rotation 0.29-0.60 degree from the reference, the fit's with its lens at the edg
 (two before); pano_dev 100 % within 1 degree (88 %); freiburg unchanged.
 
 The rotation returned, where the rotation-only estimate of the feature matches wins with its
-focal scale clipped to the edge of the box, is not that fit's: that focal scale is neither
-the given focal length nor the one the matches want, and its ``k1`` was fitted beside it. A
-focal length beyond the box is not what two views of a narrow field measure (a focal scale
-and ``k1`` trade there), so it is dropped as a principal point beyond its bound is: the
-rotation is fitted again through the given focal length, ``k1`` held by its prior alone
+focal scale clipped to the edge of the box, is not that fit's: that focal scale is neither the
+given focal length nor the one the matches want, and its ``k1`` was fitted beside it. A focal
+length beyond the box is not what two views of a narrow field measure (a focal scale and ``k1``
+trade there), so it is dropped as a principal point beyond its bound is: the rotation is fitted
+again through the given focal length, ``k1`` held by its prior alone
 (:func:`through_given_focal`, :func:`given_focal_fit`), the rotation a user of the given
-calibration stitches with. Its bias and deviation are the model's and stay. On pano_dev's csie pairs without tracks (the given
-focal lengths from a bundle adjustment of the whole turn) the rotation comes 0.02-0.22
-degree from the reference instead of 0.29-0.60 (``k1`` -0.07 to 0.55 on normalised points,
-at most 2.5 % at the corners of a 19.5 degree field), on ``book`` DSC04232 0.02 instead of
-0.66; pano_dev's median 0.29 degree (0.36). Where only ``k1`` was clipped the fitted focal
-scale is what the matches measure and the fit's rotation stays.
+calibration stitches with. Its bias and deviation are the model's and stay. On pano_dev's csie
+pairs without tracks (the given focal lengths from a bundle adjustment of the whole turn) the
+rotation comes 0.02-0.22 degree from the reference instead of 0.29-0.60 (``k1`` -0.07 to 0.55
+on normalised points, at most 2.5 % at the corners of a 19.5 degree field), on ``book``
+DSC04232 0.02 instead of 0.66; pano_dev's median 0.29 degree (0.36). Where only ``k1`` was
+clipped the fitted focal scale is what the matches measure and the fit's rotation stays.
 
 The reading holds only where the homography so conjugated is a rotation's
 (:func:`freed_parallax_refused`): the parallax left there, read as :func:`translation_bias`
