@@ -37,18 +37,19 @@ image 1 lands in image 2, and the intensities fix it far better:
    tracks are too rough for it (a narrow strip of overlap, shots a stop apart), they are
    polished through the start model first. The fit's variances are multiplied by the
    windows' overlap (:func:`window_overlap`): overlapping windows are made of the same
-   pixels, and their errors are not independent. Then the windows are searched again at full
-   size in image 2 seen through the refitted model, and the fit repeated;
-4. steps 1-3 with each window side of :data:`WINDOWS` (the sides on two threads), keeping
-   the refit whose rotation is the least uncertain: large windows locate tracks better in
-   noisy images, small ones are more numerous in weak texture;
-5. the windows of that side polished through its fit, from where the search found them, and
-   the fit repeated; the next side too while its searched bound is below the polished one,
-   the least uncertain polished refit kept. The search is the cheap part (a few tens of
-   milliseconds for both sides), the polish the accurate one (on the demo frame warped by a
-   rotation the rotation error of the search alone was 0.02-0.05 degrees, 0.001-0.04
-   polished); on the sets of ``benchmarks/pure_rotation.py`` checked (56 pairs) one side was
-   polished every time.
+   pixels, and their errors are not independent;
+4. steps 1-3 with each window side of :data:`WINDOWS` (the sides on two threads), ranked by
+   how uncertain their rotation is: large windows locate tracks better in noisy images,
+   small ones are more numerous in weak texture;
+5. the windows of the first side searched again at full size in image 2 seen through its
+   refitted model, the fit repeated (from its inliers), then polished through that fit from
+   where the search found them, and the fit repeated; the next side too while its searched
+   bound is below the polished one, the least uncertain polished refit kept. Only a side
+   that is polished is searched again: for the others it would only have ranked them. The
+   search is the cheap part (a few tens of milliseconds for both sides), the polish the
+   accurate one (on the demo frame warped by a rotation the rotation error of the search
+   alone was 0.02-0.05 degrees, 0.001-0.04 polished); on the sets of
+   ``benchmarks/pure_rotation.py`` checked (56 pairs) one side was polished every time.
 
 On renders and warped photos with the imperfections of real ones (distortion, focal 3 % off,
 JPEG) this brings the median rotation error of each set of exact pure rotations in full overlap
@@ -97,10 +98,10 @@ WINDOW = 21
 """Side (pixels) of the square window aligned around each corner by :func:`align_windows`."""
 
 WINDOWS = (WINDOW, 31)
-"""Window sides :func:`refine_rotation_photometric` searches; it polishes the side whose
-searched fit has the least uncertain rotation (``rotation_sigma_deg``, the Cramer-Rao bound of
-the tracks' fit with their overlap counted), another only when the polish left it more
-uncertain than that side's search, and keeps the least uncertain polished refit.
+"""Window sides :func:`refine_rotation_photometric` searches; it searches again and polishes
+the side whose searched fit has the least uncertain rotation (``rotation_sigma_deg``, the
+Cramer-Rao bound of the tracks' fit with their overlap counted), another only when the polish
+left it more uncertain than that side's search, and keeps the least uncertain polished refit.
 
 Larger windows gather more gradient and locate a track better in a noisy image, smaller ones
 are more numerous in a weakly textured one (the corners are spaced by a quarter window). On
@@ -902,16 +903,23 @@ def _as_prior(value) -> np.ndarray:
     return prior
 
 
-def _fit_tracks(y1, y2, valid, R, focal, priors):
+def _fit_tracks(y1, y2, valid, R, focal, priors, warm=None):
     """Lens rotation over the tracks, outliers beyond ``3 sqrt(2)`` noise deviations dropped;
     ``(fit, used, noise_px)`` or None when too few tracks remain, or when the lens was clipped
     to its box (no deviation) unless ``priors["keep_clipped"]``, which also frees ``k1`` of
-    its box (its prior alone holds it)."""
+    its box (its prior alone holds it).
+
+    ``warm``, a :class:`PhotometricRotation` of the same windows aligned before, starts the
+    outlier loop from its inliers, noise and lens instead of every valid track with a noise of
+    0.1 pixel: a track moves by a fraction of its noise between alignments, so few enter or
+    leave, and the loop settles in one to three fits instead of four or five."""
     priors = dict(priors)
     keep_clipped = priors.pop("keep_clipped", False)
     if keep_clipped:
         priors["max_k1"] = np.inf
     used, noise, fit = valid.copy(), 0.1 / focal, None
+    if warm is not None and np.count_nonzero(valid & warm.inliers) >= MIN_TRACKS:
+        used, noise, fit = valid & warm.inliers, warm.noise_px / focal, warm.fit
     for _ in range(5):
         if np.count_nonzero(used) < MIN_TRACKS:
             return None
@@ -1103,24 +1111,22 @@ def _best_window_refit(
         if len(corners) < MIN_TRACKS:
             return None
         y1 = pixels_to_normalized(corners, K1, dist1)
-        refined = _search_side(
+        return _search_side(
             (images, seen), corners, y1, side, levels[side], start, transfer_with, normalize2,
             focal, priors,
         )  # fmt: skip
-        if refined is not None:
-            refined = _search_again(images, refined, y1, transfer_with, normalize2, focal, priors)
-        return refined if plausible(refined) else None
 
     results = [found for found in _threaded_map(searched, windows) if found is not None]
-    if not results:
-        return None
     sigma = lambda refined: refined.fit.rotation_sigma_deg  # noqa: E731
     polished = []
     for searched in sorted(results, key=sigma):
         if polished and min(map(sigma, polished)) <= sigma(searched):
             break
         y1 = pixels_to_normalized(searched.tracks.points1, K1, dist1)
-        refined = _polish(images, searched, y1, transfer_with, normalize2, focal, priors)
+        again = _search_again(images, searched, y1, transfer_with, normalize2, focal, priors)
+        if not plausible(again):
+            continue
+        refined = _polish(images, again, y1, transfer_with, normalize2, focal, priors)
         if plausible(refined):
             polished.append(refined)
     if not polished:
@@ -1154,7 +1160,7 @@ def _search_again(
     transfer = transfer_with(_model(refined.fit))
     corners, window = refined.tracks.points1, refined.window
     tracks = _search(images, _seen_through(images, transfer), corners, transfer, window, 0)
-    again = _fit_windows(tracks, y1, window, refined.fit.R, normalize2, focal, priors)
+    again = _fit_windows(tracks, y1, window, refined.fit.R, normalize2, focal, priors, refined)
     return refined if again is None else again
 
 
@@ -1167,7 +1173,9 @@ def _polish(
     transfer = transfer_with(_model(refined.fit))
     tracks = _align(images, refined.tracks.points1, transfer, refined.window, 0, _ITERATIONS,
                     start=_shifts(refined.tracks, transfer))  # fmt: skip
-    return _fit_windows(tracks, y1, refined.window, refined.fit.R, normalize2, focal, priors)
+    return _fit_windows(
+        tracks, y1, refined.window, refined.fit.R, normalize2, focal, priors, refined
+    )
 
 
 def _model(fit: LensRotationFit) -> tuple:
@@ -1175,11 +1183,14 @@ def _model(fit: LensRotationFit) -> tuple:
     return (fit.R, fit.focal_scale, fit.k1, fit.principal_offset, fit.focal_ratio)
 
 
-def _fit_windows(tracks, y1, window, R, normalize2, focal, priors) -> PhotometricRotation | None:
+def _fit_windows(
+    tracks, y1, window, R, normalize2, focal, priors, warm=None
+) -> PhotometricRotation | None:
     """The lens rotation refitted on ``tracks`` of windows of side ``window`` around points of
-    normalised ``y1`` (:func:`_fit_tracks`, from ``R``), its deviations multiplied by the square
-    root of the windows' overlap; None when too few tracks agree."""
-    fitted = _fit_tracks(y1, normalize2(tracks.points2), tracks.valid, R, focal, priors)
+    normalised ``y1`` (:func:`_fit_tracks`, from ``R``, or from ``warm``, a refit of the same
+    windows), its deviations multiplied by the square root of the windows' overlap; None when
+    too few tracks agree."""
+    fitted = _fit_tracks(y1, normalize2(tracks.points2), tracks.valid, R, focal, priors, warm)
     if fitted is None:
         return None
     fit, used, noise_px = fitted
