@@ -37,19 +37,18 @@ image 1 lands in image 2, and the intensities fix it far better:
    tracks are too rough for it (a narrow strip of overlap, shots a stop apart), they are
    polished through the start model first. The fit's variances are multiplied by the
    windows' overlap (:func:`window_overlap`): overlapping windows are made of the same
-   pixels, and their errors are not independent;
-4. steps 1-3 with each window side of :data:`WINDOWS` (the sides on two threads), ranked by
-   how uncertain their rotation is: large windows locate tracks better in noisy images,
-   small ones are more numerous in weak texture;
-5. the windows of the first side searched again at full size in image 2 seen through its
-   refitted model, the fit repeated (from its inliers), then polished through that fit from
-   where the search found them, and the fit repeated; the next side too while its searched
-   bound is below the polished one, the least uncertain polished refit kept. Only a side
-   that is polished is searched again: for the others it would only have ranked them. The
-   search is the cheap part (a few tens of milliseconds for both sides), the polish the
-   accurate one (on the demo frame warped by a rotation the rotation error of the search
-   alone was 0.02-0.05 degrees, 0.001-0.04 polished); on the sets of
-   ``benchmarks/pure_rotation.py`` checked (56 pairs) one side was polished every time.
+   pixels, and their errors are not independent. Then the windows are searched again at full
+   size in image 2 seen through the refitted model, and the fit repeated;
+4. steps 1-3 with each window side of :data:`WINDOWS` (the sides on two threads), keeping
+   the refit whose rotation is the least uncertain: large windows locate tracks better in
+   noisy images, small ones are more numerous in weak texture;
+5. the windows of that side polished through its fit, from where the search found them, and
+   the fit repeated; the next side too while its searched bound is below the polished one,
+   the least uncertain polished refit kept. The search is the cheap part (a few tens of
+   milliseconds for both sides), the polish the accurate one (on the demo frame warped by a
+   rotation the rotation error of the search alone was 0.02-0.05 degrees, 0.001-0.04
+   polished); on the sets of ``benchmarks/pure_rotation.py`` checked (56 pairs) one side was
+   polished every time.
 
 On renders and warped photos with the imperfections of real ones (distortion, focal 3 % off,
 JPEG) this brings the median rotation error of each set of exact pure rotations in full overlap
@@ -98,10 +97,10 @@ WINDOW = 21
 """Side (pixels) of the square window aligned around each corner by :func:`align_windows`."""
 
 WINDOWS = (WINDOW, 31)
-"""Window sides :func:`refine_rotation_photometric` searches; it searches again and polishes
-the side whose searched fit has the least uncertain rotation (``rotation_sigma_deg``, the
-Cramer-Rao bound of the tracks' fit with their overlap counted), another only when the polish
-left it more uncertain than that side's search, and keeps the least uncertain polished refit.
+"""Window sides :func:`refine_rotation_photometric` searches; it polishes the side whose
+searched fit has the least uncertain rotation (``rotation_sigma_deg``, the Cramer-Rao bound of
+the tracks' fit with their overlap counted), another only when the polish left it more
+uncertain than that side's search, and keeps the least uncertain polished refit.
 
 Larger windows gather more gradient and locate a track better in a noisy image, smaller ones
 are more numerous in a weakly textured one (the corners are spaced by a quarter window). On
@@ -497,9 +496,9 @@ class _GaussNewton:
         """Steps from ``shifts`` (updating them and ``brightness`` in place) along the
         polynomials of ``cells``, read at ``shifts`` (``intensity``, their values there, is
         overwritten): the shift at most 2 pixels and damped by :data:`_DAMPING`, until it
-        moves less than :data:`_CONVERGED`. A window that moved
-        more than :data:`_REGATHER` pixels from where it was read is read again where it is
-        (``reread(cells, windows, shifts)``). Image 2 at the last shifts (n, k)."""
+        moves less than :data:`_CONVERGED`. A window that moved more than :data:`_REGATHER`
+        pixels from where it was read is read again where it is (``reread(cells, windows,
+        shifts)``). Image 2 at the last shifts (n, k)."""
         d, level, read_at = shifts, brightness, shifts.copy()
         active = np.ones(len(d), dtype=bool)
         row_sums = self.jacobian_t.sum(axis=2, dtype=np.float64)
@@ -1113,22 +1112,24 @@ def _best_window_refit(
         if len(corners) < MIN_TRACKS:
             return None
         y1 = pixels_to_normalized(corners, K1, dist1)
-        return _search_side(
+        refined = _search_side(
             (images, seen), corners, y1, side, levels[side], start, transfer_with, normalize2,
             focal, priors,
         )  # fmt: skip
+        if refined is not None:
+            refined = _search_again(images, refined, y1, transfer_with, normalize2, focal, priors)
+        return refined if plausible(refined) else None
 
     results = [found for found in _threaded_map(searched, windows) if found is not None]
+    if not results:
+        return None
     sigma = lambda refined: refined.fit.rotation_sigma_deg  # noqa: E731
     polished = []
     for searched in sorted(results, key=sigma):
         if polished and min(map(sigma, polished)) <= sigma(searched):
             break
         y1 = pixels_to_normalized(searched.tracks.points1, K1, dist1)
-        again = _search_again(images, searched, y1, transfer_with, normalize2, focal, priors)
-        if not plausible(again):
-            continue
-        refined = _polish(images, again, y1, transfer_with, normalize2, focal, priors)
+        refined = _polish(images, searched, y1, transfer_with, normalize2, focal, priors)
         if plausible(refined):
             polished.append(refined)
     if not polished:
