@@ -904,23 +904,16 @@ def _as_prior(value) -> np.ndarray:
     return prior
 
 
-def _fit_tracks(y1, y2, valid, R, focal, priors, warm=None):
+def _fit_tracks(y1, y2, valid, R, focal, priors):
     """Lens rotation over the tracks, outliers beyond ``3 sqrt(2)`` noise deviations dropped;
     ``(fit, used, noise_px)`` or None when too few tracks remain, or when the lens was clipped
     to its box (no deviation) unless ``priors["keep_clipped"]``, which also frees ``k1`` of
-    its box (its prior alone holds it).
-
-    ``warm``, a :class:`PhotometricRotation` of the same windows aligned before, starts the
-    outlier loop from its inliers, noise and lens instead of every valid track with a noise of
-    0.1 pixel: a track moves by a fraction of its noise between alignments, so few enter or
-    leave, and the loop settles in one to three fits instead of four or five."""
+    its box (its prior alone holds it)."""
     priors = dict(priors)
     keep_clipped = priors.pop("keep_clipped", False)
     if keep_clipped:
         priors["max_k1"] = np.inf
     used, noise, fit = valid.copy(), 0.1 / focal, None
-    if warm is not None and np.count_nonzero(valid & warm.inliers) >= MIN_TRACKS:
-        used, noise, fit = valid & warm.inliers, warm.noise_px / focal, warm.fit
     for _ in range(5):
         if np.count_nonzero(used) < MIN_TRACKS:
             return None
@@ -1163,7 +1156,7 @@ def _search_again(
     transfer = transfer_with(_model(refined.fit))
     corners, window = refined.tracks.points1, refined.window
     tracks = _search(images, _seen_through(images, transfer), corners, transfer, window, 0)
-    again = _fit_windows(tracks, y1, window, refined.fit.R, normalize2, focal, priors, refined)
+    again = _fit_windows(tracks, y1, window, refined.fit.R, normalize2, focal, priors)
     return refined if again is None else again
 
 
@@ -1176,9 +1169,7 @@ def _polish(
     transfer = transfer_with(_model(refined.fit))
     tracks = _align(images, refined.tracks.points1, transfer, refined.window, 0, _ITERATIONS,
                     start=_shifts(refined.tracks, transfer))  # fmt: skip
-    return _fit_windows(
-        tracks, y1, refined.window, refined.fit.R, normalize2, focal, priors, refined
-    )
+    return _fit_windows(tracks, y1, refined.window, refined.fit.R, normalize2, focal, priors)
 
 
 def _model(fit: LensRotationFit) -> tuple:
@@ -1186,14 +1177,11 @@ def _model(fit: LensRotationFit) -> tuple:
     return (fit.R, fit.focal_scale, fit.k1, fit.principal_offset, fit.focal_ratio)
 
 
-def _fit_windows(
-    tracks, y1, window, R, normalize2, focal, priors, warm=None
-) -> PhotometricRotation | None:
+def _fit_windows(tracks, y1, window, R, normalize2, focal, priors) -> PhotometricRotation | None:
     """The lens rotation refitted on ``tracks`` of windows of side ``window`` around points of
-    normalised ``y1`` (:func:`_fit_tracks`, from ``R``, or from ``warm``, a refit of the same
-    windows), its deviations multiplied by the square root of the windows' overlap; None when
-    too few tracks agree."""
-    fitted = _fit_tracks(y1, normalize2(tracks.points2), tracks.valid, R, focal, priors, warm)
+    normalised ``y1`` (:func:`_fit_tracks`, from ``R``), its deviations multiplied by the square
+    root of the windows' overlap; None when too few tracks agree."""
+    fitted = _fit_tracks(y1, normalize2(tracks.points2), tracks.valid, R, focal, priors)
     if fitted is None:
         return None
     fit, used, noise_px = fitted
