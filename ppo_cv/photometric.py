@@ -408,12 +408,13 @@ def _align_level(template, template_clear, positions, d, plane2, ramp, iteration
         )
         weight = cells.clear * template_clear[windows]
         target = template[windows] * weight
+        intensity = cells.values()
         jacobian_t, brightness = _jacobian_t(
-            cells.values(), gradients, weight, target, ramp_columns, brightness
+            intensity, gradients, weight, target, ramp_columns, brightness
         )
         steps = _GaussNewton(template[windows], _normal_inverse(jacobian_t), jacobian_t,
                              ramp_columns, iterations)  # fmt: skip
-        intensity = steps.run(cells, reread, shifts, brightness)
+        intensity = steps.run(cells, reread, shifts, brightness, intensity)
         return shifts, brightness, intensity, *gradients, weight
 
     start = d.copy()
@@ -456,7 +457,7 @@ def _brightness_of(jacobian_t, target) -> np.ndarray:
     """Gain ramp and offset (n, 4) float64 fitted in closed form to image 2 as it was read
     (rows 2-5 of ``jacobian_t``)."""
     columns = jacobian_t[:, 2:]
-    normal = _regularised((columns @ columns.transpose(0, 2, 1)).astype(np.float64))
+    normal = _regularised(np.einsum("nik,njk->nij", columns, columns).astype(np.float64))
     return np.linalg.solve(normal, (columns @ target[..., None]).astype(np.float64))[..., 0]
 
 
@@ -491,14 +492,15 @@ class _GaussNewton:
     ramp_columns: np.ndarray
     iterations: int
 
-    def run(self, cells: _Cells, reread, shifts, brightness) -> np.ndarray:
+    def run(self, cells: _Cells, reread, shifts, brightness, intensity) -> np.ndarray:
         """Steps from ``shifts`` (updating them and ``brightness`` in place) along the
-        polynomials of ``cells``, read at ``shifts``: the shift at most 2 pixels and damped by
-        :data:`_DAMPING`, until it moves less than :data:`_CONVERGED`. A window that moved
-        more than :data:`_REGATHER` pixels from where it was read is read again where it is
-        (``reread(cells, windows, shifts)``). Image 2 at the last shifts (n, k)."""
+        polynomials of ``cells``, read at ``shifts`` (``intensity``, their values there, is
+        overwritten): the shift at most 2 pixels and damped by :data:`_DAMPING`, until it
+        moves less than :data:`_CONVERGED`. A window that moved more than :data:`_REGATHER`
+        pixels from where it was read is read again where it is (``reread(cells, windows,
+        shifts)``). Image 2 at the last shifts (n, k)."""
         d, level, read_at = shifts, brightness, shifts.copy()
-        intensity, active = cells.values(), np.ones(len(d), dtype=bool)
+        active = np.ones(len(d), dtype=bool)
         row_sums = self.jacobian_t.sum(axis=2, dtype=np.float64)
         for iteration in range(self.iterations):
             if not active.any():
