@@ -4,17 +4,20 @@
 - a 640x480 render of a pure rotation (``ppo_cv.data_gen`` ``pure-rotation``, seed 0, index 0),
   which runs the photometric refit;
 - a real tripod pair of ``../shared/data/pano_dev`` (its first pair, a pure rotation that runs
-  the refit), skipped with a note when the shared data is absent.
+  the refit, 611x918: 1.83 times the demo pair's pixels), skipped with a note when the shared
+  data is absent; with ``--every-sequence`` the first pair of each of its three sequences
+  (``book`` 611x918, ``bookshelf`` 382x574, ``csie`` 720x540), each labelled with its pixels
+  against the demo pair's, since detection and the refit's windows grow with them.
 
-Run ``python benchmarks/cli_time.py [--runs 7] [--floor]``: prints the machine, the median
-wall time of the whole command per pair with its ratio to the demo pair's, and the median of
-each pipeline stage as reported in the ``--json`` output. The pairs take turns within each
-run, so a change of load on the machine touches them alike. ``--floor`` adds each rotation
-pair once more with ``--no-photometric``: what the pair costs without its refit, the part of
-its time that the refit cannot explain. ``--refit N`` adds where the refit's time goes: the
-photometric refit of each rotation pair, its inputs taken from one run of ``estimate_pair``,
-replayed N times in this process with one BLAS thread (the command's) and its threads run one
-after the other, the process CPU time of each part (median over the calls).
+Run ``python benchmarks/cli_time.py [--runs 7] [--floor] [--every-sequence]``: prints the
+machine, the median wall time of the whole command per pair with its ratio to the demo pair's,
+and the median of each pipeline stage as reported in the ``--json`` output. The pairs take
+turns within each run, so a change of load on the machine touches them alike. ``--floor`` adds
+each rotation pair once more with ``--no-photometric``: what the pair costs without its refit,
+the part of its time that the refit cannot explain. ``--refit N`` adds where the refit's time
+goes: the photometric refit of each rotation pair, its inputs taken from one run of
+``estimate_pair``, replayed N times in this process with one BLAS thread (the command's) and
+its threads run one after the other, the process CPU time of each part (median over the calls).
 """
 
 from __future__ import annotations
@@ -65,19 +68,30 @@ def _rendered_rotation(folder: Path) -> list[str]:
     return [str(paths[0]), str(paths[1]), *cameras]
 
 
-def _tripod_pair() -> tuple[str, list[str]] | None:
-    """Label and arguments of ``ppo-cv pair`` for the first pano_dev pair; None without it."""
-    import cv2
-
+def _tripod_pairs(every_sequence: bool) -> list[tuple[str, list[str]]]:
+    """Labels and arguments of ``ppo-cv pair`` for the first pano_dev pair, or with
+    ``every_sequence`` for the first pair of each of its sequences (the image names' prefix
+    before ``_``); none without the data."""
     pairs = PANO_DEV / "pairs_with_gt.txt"
     if not pairs.is_file():
-        return None
-    fields = pairs.read_text().split("\n", 1)[0].split()
+        return []
+    lines = [line.split() for line in pairs.read_text().splitlines() if line.strip()]
+    firsts = {fields[0].split("_", 1)[0]: fields for fields in reversed(lines)}
+    chosen = list(reversed(firsts.values())) if every_sequence else lines[:1]
+    return [_tripod_arguments(fields) for fields in chosen]
+
+
+def _tripod_arguments(fields: list[str]) -> tuple[str, list[str]]:
+    """Label (name, size, pixels against the demo pair's) and ``ppo-cv pair`` arguments of
+    one line of the pano_dev pairs file."""
+    import cv2
+
     K1 = [[float(v) for v in fields[4 + 3 * r : 7 + 3 * r]] for r in range(3)]
     K2 = [[float(v) for v in fields[13 + 3 * r : 16 + 3 * r]] for r in range(3)]
     images = [str(PANO_DEV / "images" / name) for name in fields[:2]]
     height, width = cv2.imread(images[0], cv2.IMREAD_GRAYSCALE).shape
-    label = f"real tripod pair, pano_dev {fields[0]} ({width}x{height})"
+    pixels = width * height / (640 * 480)
+    label = f"real tripod pair, pano_dev {fields[0]} ({width}x{height}, {pixels:.2f}x the pixels)"
     return label, [*images, "--K", _intrinsics(K1), "--K2", _intrinsics(K2)]
 
 
@@ -249,6 +263,10 @@ def main(argv: list[str] | None = None) -> None:
         "--refit", type=int, default=0, metavar="N",
         help="also replay each rotation pair's photometric refit N times and time its parts",
     )  # fmt: skip
+    parser.add_argument(
+        "--every-sequence", action="store_true",
+        help="the first pair of each pano_dev sequence, not only of the first",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     if args.refit:
         os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads, as the command
@@ -258,20 +276,20 @@ def main(argv: list[str] | None = None) -> None:
             "demo pair (640x480)": [],
             "pure-rotation render (640x480)": _rendered_rotation(Path(folder)),
         }
-        tripod = _tripod_pair()
-        if tripod is None:
+        tripods = _tripod_pairs(args.every_sequence)
+        if not tripods:
             notes.append(f"Note: no real tripod pair measured ({PANO_DEV} is absent).")
-        else:
-            pairs[tripod[0]] = tripod[1]
+        pairs |= dict(tripods)
+        rotations = list(pairs.items())[1:]
         if args.floor:
             pairs |= {
                 f"{label}, --no-photometric": [*arguments, "--no-photometric"]
-                for label, arguments in list(pairs.items())[1:]
+                for label, arguments in rotations
             }
         measured = run(pairs, args.runs)
         profiles = {
             label: refit_profile(arguments, args.refit)
-            for label, arguments in list(pairs.items())[1:3]
+            for label, arguments in rotations
             if args.refit
         }
     print(report(measured, args.runs, notes))
