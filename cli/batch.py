@@ -23,6 +23,7 @@ from typing import Annotated
 import typer
 
 from .common import (
+    NO_RESULT,
     WORKERS_MAX,
     Backend,
     CalibOption,
@@ -789,7 +790,7 @@ def run_pairs(
     if failed < len(results):
         return 0
     typer.echo(f"ppo-cv pairs: {_no_pose(results)}", err=True)
-    return 1
+    return NO_RESULT
 
 
 def _no_pose(results: list[dict]) -> str:

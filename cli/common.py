@@ -1,7 +1,8 @@
 """What every ``ppo-cv`` command shares: the error format, bounds on numbers, the pipeline and
 camera options with their checks, the cameras from EXIF, progress on stderr.
 
-Errors are one line ``ppo-cv <command>: <message>`` on stderr with exit code 2; warnings are
+Errors are one line ``ppo-cv <command>: <message>`` on stderr with exit code 2 for bad input and
+:data:`NO_RESULT` when the input was accepted but no pose or model was found; warnings are
 ``ppo-cv <command>: warning: <message>``.
 """
 
@@ -27,6 +28,7 @@ from ppo_cv.calib import implausible_intrinsics
 from ppo_cv.checks import shown
 
 __all__ = [
+    "NO_RESULT",
     "SEED_MAX",
     "MAX_FEATURES_MAX",
     "MIN_EXIF_FIELD_DEG",
@@ -56,6 +58,9 @@ __all__ = [
     "WrappedHelpGroup",
 ]
 
+NO_RESULT = 1
+"""Exit code of a run whose input was accepted but gave no pose (``pair``, every pair of
+``pairs``) or no model (``sfm``); bad input is 2, an interrupt 130 (SIGINT) or 143 (SIGTERM)."""
 SEED_MAX = 2**31 - 1  # pycolmap and OpenCV take the seed as a 32-bit signed integer
 MAX_FEATURES_MAX = 1_000_000
 WORKERS_MAX = 256
@@ -558,11 +563,13 @@ class StageReport:
     rich line (a spinner, the last stage done, the time elapsed); elsewhere nothing, since
     scripts read stderr for warnings and errors. ``quiet`` prints nothing.
 
-    Pass :meth:`stage` as the ``progress`` of :func:`ppo_cv.pipeline.estimate_pair`.
+    Pass :meth:`stage` as the ``progress`` of :func:`ppo_cv.pipeline.estimate_pair`; ``done``
+    lists the stages ended so far (after ``load`` the pipeline has accepted its input).
     """
 
     def __init__(self, command: str, quiet: bool = False) -> None:
         self.command, self.quiet = command, quiet
+        self.done: list[str] = []
         self._rich = None
         self._task = None
 
@@ -588,5 +595,6 @@ class StageReport:
 
     def stage(self, name: str) -> None:
         """Show that stage ``name`` has ended."""
+        self.done.append(name)
         if self._rich is not None:
             self._rich.update(self._task, description=f"ppo-cv {self.command}: {name} done")

@@ -13,6 +13,7 @@ import typer
 from ppo_cv.checks import shown
 
 from .common import (
+    NO_RESULT,
     SEED_MAX,
     ExifOrientation,
     Overwrite,
@@ -194,11 +195,11 @@ def register(app: typer.Typer) -> None:
             )  # fmt: skip
         except sfm.ReconstructionFailed as exc:
             kept = f"; the matched features are in {database}" if database is not None else ""
-            _fail(f"{exc}{kept}", code=1)
+            _fail(f"{exc}{kept}", code=NO_RESULT)
         except (ValueError, OSError) as exc:
             _fail(error_message(exc))
         except RuntimeError as exc:
-            _fail(f"pycolmap failed: {exc}", code=1)
+            _fail(f"pycolmap failed: {exc}", code=NO_RESULT)
         print_result("sfm", _summary(result, out_dir, as_json))
 
 
