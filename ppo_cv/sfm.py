@@ -33,6 +33,7 @@ import inspect
 import itertools
 import os
 import shutil
+import stat
 import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -57,7 +58,7 @@ from .checks import (
     shown,
 )
 from .homography import estimate_homography
-from .images import check_decodes
+from .images import check_decodes, file_mode
 from .metrics import direction_error_deg, rotation_error_deg
 from .motion_model import decide_motion, plane_ransac_trials
 from .parallax import nearest_rotation_log_scale, rotation_spread
@@ -255,11 +256,12 @@ def _say(progress: Progress | None, message: str) -> None:
 
 
 def _image_folder(value: Any) -> Path:
-    """``value`` as the Path of an existing folder; TypeError or ValueError naming it."""
+    """``value`` as the Path of an existing folder; TypeError or ValueError naming it (and
+    why it cannot be reached: a loop of symbolic links, no permission)."""
     image_dir = as_path(value, "image_dir")
-    if not image_dir.exists():
+    if not os.path.lexists(image_dir):
         raise ValueError(f"image folder {str(image_dir)!r} does not exist")
-    if not image_dir.is_dir():
+    if not stat.S_ISDIR(file_mode(image_dir, "image folder")):
         raise ValueError(f"image folder {str(image_dir)!r} is not a folder")
     return image_dir
 

@@ -455,6 +455,8 @@ CASES = [
     (["pairs", "loop1", "images"], "pairs", r"cannot read pairs file loop1: Too many levels"),
     (["pairs", "pairs_demo.txt", "loop1", "--K", K_TEXT], "pairs",
      r"cannot read image folder loop1: Too many levels"),
+    (["sfm", "loop1", "out", "--K", K_TEXT], "sfm",
+     r"cannot read image folder loop1: Too many levels of symbolic links$"),
     # the working folder, or one holding it, as an output folder: refused before any work (it
     # was found busy once the pair was done, or the rendering of synth)
     ([*PAIR, "--out", ".", "--overwrite"], "pair",

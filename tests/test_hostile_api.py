@@ -563,6 +563,24 @@ def test_a_fifo_is_refused_without_blocking(tmp_path):
         load_image(fifo)
 
 
+SFM_FOLDER_ENTRIES = {
+    "list_images": lambda folder, root: _sfm_module().list_images(folder),
+    "screen_images": lambda folder, root: _sfm_module().screen_images(folder),
+    "prepare_database": lambda folder, root: _sfm_module().prepare_database(folder, root / "d.db"),
+    "run_sfm": lambda folder, root: _sfm_module().run_sfm(folder, root / "model", K=K),
+}
+
+
+@pytest.mark.parametrize("entry", list(SFM_FOLDER_ENTRIES))
+def test_an_image_folder_in_a_loop_of_symbolic_links_is_named_so(tmp_path, entry):
+    os.symlink("loop2", tmp_path / "loop1")
+    os.symlink("loop1", tmp_path / "loop2")
+    with pytest.raises(ValueError, match="^cannot read image folder .*loop1: Too many levels of "
+                       "symbolic links$"):  # fmt: skip
+        SFM_FOLDER_ENTRIES[entry](tmp_path / "loop1", tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["loop1", "loop2"]
+
+
 def test_missing_file_and_directory(tmp_path):
     with pytest.raises(ValueError, match="image not found"):
         load_image(tmp_path / "none.png")
