@@ -55,12 +55,13 @@ from .checks import (
     as_positive,
     as_pri_threshold,
     as_whole_number,
+    require_instance,
     shown,
 )
 from .homography import estimate_homography
 from .images import check_decodes, file_mode
 from .metrics import direction_error_deg, rotation_error_deg
-from .motion_model import decide_motion, plane_ransac_trials
+from .motion_model import MotionDecision, decide_motion, plane_ransac_trials
 from .parallax import nearest_rotation_log_scale, rotation_spread
 from .pose import _recover_normalized
 from .robust import essential_from_pose
@@ -562,6 +563,11 @@ def score_pose(
         Empty when accepted, else the reason.
     """
     target_tri_angle = as_positive(target_tri_angle, "target_tri_angle")
+    min_inliers = as_whole_number(min_inliers, "min_inliers", 0, MAX_WHOLE_NUMBER)
+    min_tri_angle = as_nonnegative(min_tri_angle, "min_tri_angle")
+    max_forward_motion = as_nonnegative(max_forward_motion, "max_forward_motion")
+    if motion is not None:
+        require_instance(motion, MotionDecision, "motion", " (ppo_cv.motion_model.decide_motion)")
     tri_angle = float(np.degrees(colmap.median_tri_angle(pose)))
     if pose.pure_rotation:
         rejection = f"pure rotation (PRI {pose.pri:.4f} < {pose.pri_threshold})"
@@ -1180,6 +1186,7 @@ def rotation_focal_scale(H: Any, focal: float, size: float) -> float | None:
         (no focal length inside it makes ``H`` a rotation, or the rotation is about the
         optical axis, which says nothing of the focal length).
     """
+    focal, size = as_positive(focal, "focal"), as_positive(size, "size")
     H = np.asarray(H, dtype=np.float64)
     if H.shape != (3, 3) or not np.all(np.isfinite(H)):
         return None
@@ -1463,6 +1470,7 @@ def format_pairs(pairs: Sequence[PairScore]) -> str:
     name holding whitespace in double quotes, as in a pairs file."""
     lines = ["# name1 name2 score num_inliers num_matches pri tri_angle_deg verdict"]
     for p in pairs:
+        require_instance(p, PairScore, "each pair", " (sfm.score_pairs)")
         verdict = "ok" if p.accepted else p.rejection.replace(" ", "_")
         name1, name2 = (f'"{n}"' if n.split() != [n] else n for n in (p.name1, p.name2))
         lines.append(
@@ -1476,8 +1484,10 @@ def write_model(result: SfmResult, output_dir: str | os.PathLike, overwrite: boo
     """Write the reconstruction (COLMAP binary) and the pair ranking into a new folder.
 
     The folder is built beside its target and renamed when complete; an existing non-empty
-    ``output_dir`` is a ValueError unless ``overwrite``.
+    ``output_dir`` is a ValueError unless ``overwrite``; ``result`` not an :class:`SfmResult`
+    a TypeError, before anything is written.
     """
+    require_instance(result, SfmResult, "result", " (sfm.run_sfm or sfm.reconstruct)")
     with atomic_directory(output_dir, overwrite=overwrite) as staging:
         result.reconstruction.write(staging)
         if result.pairs:
@@ -1488,7 +1498,10 @@ def pose_errors(reconstruction, gt) -> tuple[list[float], list[float]]:
     """Relative rotation errors and translation-direction errors (degrees) of registered pairs.
 
     Translation errors are skipped for ground-truth pairs without translation (pure rotation).
+    ``gt`` maps a pair of image names to its ``(R, t)``.
     """
+    require_instance(reconstruction, pycolmap.Reconstruction, "reconstruction")
+    require_instance(gt, dict, "gt", ": {(name1, name2): (R, t)}")
     ids = {reconstruction.image(i).name: i for i in reconstruction.reg_image_ids()}
     rotation_errors, translation_errors = [], []
     for (name1, name2), (R_gt, t_gt) in gt.items():

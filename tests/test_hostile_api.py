@@ -304,6 +304,28 @@ CASES = {
                                          "distortion must be OpenCV distortion coefficients"),
     "reconstruct no image folder": (lambda: _sfm_module().reconstruct(__file__, "no such folder"),
                                     ValueError, "image folder 'no such folder' does not exist"),
+    # the sfm helpers: an AttributeError of None, a NaN bound that passed, a log's warning
+    "score_pose None": (lambda: _sfm_module().score_pose(None), TypeError,
+                        "pose must be a ppo_cv.pose.PoseResult or ppo_cv.result.PairResult, "
+                        "got NoneType"),
+    "score_pose min_inliers NaN": (
+        lambda: _sfm_module().score_pose(ppo_cv.recover_pose(E, P1, P2, K), min_inliers=np.nan),
+        ValueError, "min_inliers must be a whole number in 0..2147483647, got nan"),
+    "score_pose motion text": (
+        lambda: _sfm_module().score_pose(ppo_cv.recover_pose(E, P1, P2, K), motion="rotation"),
+        TypeError, "motion must be a ppo_cv.motion_model.MotionDecision, got str"),
+    "rotation_focal_scale negative focal": (
+        lambda: _sfm_module().rotation_focal_scale(np.eye(3), -500.0, 640), ValueError,
+        "focal must be a finite number > 0, got -500.0"),
+    "format_pairs ints": (lambda: _sfm_module().format_pairs([1, 2]), TypeError,
+                          "each pair must be a ppo_cv.sfm.PairScore, got int"),
+    "pose_errors None": (lambda: _sfm_module().pose_errors(None, {}), TypeError,
+                         "reconstruction must be a pycolmap.Reconstruction, got NoneType"),
+    "write_model None": (lambda: _sfm_module().write_model(None, "never written"), TypeError,
+                         "result must be a ppo_cv.sfm.SfmResult, got NoneType"),
+    # a text where points belong: no advice to parse it as intrinsics
+    "recoverPose points text": (lambda: ppo_cv.recoverPose(E, "1,2", P2, K), TypeError,
+                                "points1 must be an array of real numbers, got str"),
 }  # fmt: skip
 
 
@@ -372,6 +394,7 @@ def test_hostile_input_is_an_error_naming_the_argument(case):
     with pytest.raises(exception) as info:
         call()
     assert words in str(info.value)
+    assert "parse a text" not in str(info.value) or "K" in words or "dist" in words
 
 
 DROPIN_CASES = [case for case in CASES if case.startswith(("recoverPose", "form 4"))]
