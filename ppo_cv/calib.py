@@ -28,7 +28,17 @@ from typing import Any
 
 import numpy as np
 
-from .checks import as_camera_matrix, as_distortion, as_flag, as_path, cut, shown
+from .checks import (
+    MAX_WHOLE_NUMBER,
+    as_camera_matrix,
+    as_distortion,
+    as_flag,
+    as_path,
+    as_whole_number,
+    cut,
+    require_instance,
+    shown,
+)
 
 __all__ = [
     "Camera",
@@ -223,6 +233,16 @@ def _image_size(width, height, where: str) -> tuple[int, int]:
             f"{shown(width)} and {shown(height)}"
         )
     return int(size[0]), int(size[1])
+
+
+def _size_argument(size: Any, name: str) -> tuple[int, int]:
+    """An image size argument ``(width, height)``: two whole numbers >= 1; TypeError for
+    anything but two values."""
+    if isinstance(size, (str, bytes)) or not hasattr(size, "__len__") or len(size) != 2:
+        raise TypeError(f"{name} must be (width, height), got {shown(size)}")
+    width, height = (as_whole_number(v, f"{name} {side}", 1, MAX_WHOLE_NUMBER)
+                     for v, side in zip(size, ("width", "height"), strict=True))  # fmt: skip
+    return width, height
 
 
 def _colmap_camera(model: str, params: np.ndarray, where: str, size=None) -> Camera:
@@ -435,11 +455,13 @@ def implausible_intrinsics(
     point inside the image, and not at the centre of the image turned a quarter, within
     :data:`TURNED_CENTRE_TOLERANCE` of the larger side and closer to it than to the centre.
     ``exif_turned``: the image was turned upright by its EXIF orientation, and the warning
-    then names that likely cause (a camera matrix of the stored pixels).
+    then names that likely cause (a camera matrix of the stored pixels). A ``K`` that is no
+    camera matrix or a ``size`` that is no image size is a ValueError or TypeError.
     """
+    K = as_camera_matrix(K, name)
     if size is None:
         return None
-    width, height = size
+    width, height = _size_argument(size, "size")
     fx, fy, cx, cy = float(K[0][0]), float(K[1][1]), float(K[0][2]), float(K[1][2])
     side = max(width, height)
     problems = []
@@ -544,8 +566,11 @@ def fit_to_image(
     ------
     ValueError
         Naming ``name`` and both sizes, when the aspect ratios differ: a cropped or rotated
-        image, for which no scaling of ``K`` is right.
+        image, for which no scaling of ``K`` is right; or a ``size`` that is not two whole
+        numbers >= 1 (TypeError for no pair, or ``camera`` not a :class:`Camera`).
     """
+    require_instance(camera, Camera, "camera")
+    size = _size_argument(size, "size")
     if camera.image_size is None or tuple(camera.image_size) == tuple(size):
         return camera, None
     (width, height), (calibrated_width, calibrated_height) = size, camera.image_size

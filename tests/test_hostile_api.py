@@ -323,6 +323,21 @@ CASES = {
                          "reconstruction must be a pycolmap.Reconstruction, got NoneType"),
     "write_model None": (lambda: _sfm_module().write_model(None, "never written"), TypeError,
                          "result must be a ppo_cv.sfm.SfmResult, got NoneType"),
+    # calibration helpers: an AttributeError of None, a 0x0 image read as one, a text as a size
+    "fit_to_image None": (lambda: ppo_cv.calib.fit_to_image(None, (640, 480), "cal"), TypeError,
+                          "camera must be a ppo_cv.calib.Camera, got NoneType"),
+    "fit_to_image size text": (
+        lambda: ppo_cv.calib.fit_to_image(ppo_cv.Camera(K, None, (640, 480)), "ab", "cal"),
+        TypeError, "size must be (width, height), got 'ab'"),
+    "fit_to_image negative size": (
+        lambda: ppo_cv.calib.fit_to_image(ppo_cv.Camera(K, None, (640, 480)), (-640, 480), "cal"),
+        ValueError, "size width must be a whole number in 1..2147483647, got -640"),
+    "implausible_intrinsics None": (
+        lambda: ppo_cv.calib.implausible_intrinsics(None, (640, 480), "K1"), TypeError,
+        "K1 is required, got None"),
+    "implausible_intrinsics 0x0": (
+        lambda: ppo_cv.calib.implausible_intrinsics(K, (0, 0), "K1"), ValueError,
+        "size width must be a whole number in 1..2147483647, got 0"),
     # a text where points belong: no advice to parse it as intrinsics
     "recoverPose points text": (lambda: ppo_cv.recoverPose(E, "1,2", P2, K), TypeError,
                                 "points1 must be an array of real numbers, got str"),
