@@ -272,7 +272,10 @@ def _colmap_camera(model: str, params: np.ndarray, where: str, size=None) -> Cam
 
 
 def _read_colmap(path: str, text: str) -> list[Camera]:
-    cameras = []
+    """The cameras of a COLMAP ``cameras.txt`` in the order of their ``CAMERA_ID`` (COLMAP
+    writes them in any order); ValueError for an id that names two different cameras or is
+    no whole number."""
+    cameras, lines = {}, {}
     for number, line in enumerate(text.splitlines(), 1):
         line = line.strip()
         if not line or line.startswith("#"):
@@ -283,10 +286,24 @@ def _read_colmap(path: str, text: str) -> list[Camera]:
         where = f"{path}:{number}"
         params = _numbers(" ".join(parts[4:]), where)
         size = _image_size(parts[2], parts[3], where)
-        cameras.append(_colmap_camera(parts[1].upper(), params, where, size))
+        camera_id = _camera_id(parts[0], where)
+        camera = _colmap_camera(parts[1].upper(), params, where, size)
+        if camera_id in cameras and not _same_camera(camera, cameras[camera_id]):
+            raise ValueError(
+                f"{where}: camera {camera_id} is described otherwise on line "
+                f"{lines[camera_id]}; each CAMERA_ID names one camera"
+            )
+        cameras[camera_id], lines[camera_id] = camera, lines.get(camera_id, number)
     if not cameras:
         raise ValueError(f"no camera in {path}")
-    return cameras
+    return [cameras[camera_id] for camera_id in sorted(cameras)]
+
+
+def _camera_id(text: str, where: str) -> int:
+    """A COLMAP ``CAMERA_ID``: a whole number >= 0 (COLMAP's are unsigned 32-bit)."""
+    if not text.isascii() or not text.isdigit() or int(text) > 2**32 - 1:
+        raise ValueError(f"{where}: CAMERA_ID must be a whole number >= 0, got {shown(text)}")
+    return int(text)
 
 
 _JSON_NUMBER_KEYS = ("K", "camera_matrix", "fx", "fy", "cx", "cy", "f", "dist", "distortion",
@@ -339,9 +356,19 @@ def _json_camera(entry, where: str) -> Camera:
     return Camera(K, dist, _image_size(width, height, where))
 
 
+def _object_of_unique_keys(pairs: list[tuple[str, Any]]) -> dict:
+    """A JSON object as a dict; ValueError for a key given twice (JSON readers keep the last
+    one, each its own way: the file says two things)."""
+    data = dict(pairs)
+    if len(data) < len(pairs):
+        repeated = next(key for key, _ in pairs if sum(k == key for k, _ in pairs) > 1)
+        raise ValueError(f"the key {shown(repeated)} is given twice in one object")
+    return data
+
+
 def _read_json(path: str, text: str) -> list[Camera]:
     try:
-        data = json.loads(text)
+        data = json.loads(text, object_pairs_hook=_object_of_unique_keys)
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path} is not valid JSON: {exc.msg} (line {exc.lineno})") from None
     except RecursionError:
@@ -380,10 +407,12 @@ def read_text_file(path: str | os.PathLike, what: str) -> str:
         with open(path, encoding="utf-8-sig") as handle:
             text = handle.read()
     except UnicodeDecodeError as exc:
-        binary = b"\x00" in exc.object
+        utf16 = exc.object.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE))
+        binary = b"\x00" in exc.object and not utf16
         hint = "a binary file, such as an image?" if binary else "save it as UTF-8"
+        kind = "UTF-16 text, not UTF-8" if utf16 else "not UTF-8 text"
         raise ValueError(
-            f"{what} {path} is not UTF-8 text (byte 0x{exc.object[exc.start]:02x}): {hint}"
+            f"{what} {path} is {kind} (byte 0x{exc.object[exc.start]:02x}): {hint}"
         ) from None
     except OSError as exc:
         raise ValueError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
