@@ -624,7 +624,7 @@ def write_outputs(
     """
     import cv2
 
-    from .atomic import atomic_directory, check_apart
+    from .atomic import API_REPLACE_HINT, atomic_directory, check_apart
 
     if not isinstance(directory, (str, os.PathLike)):
         raise TypeError(f"directory must be a path, got {type(directory).__name__}")
@@ -636,7 +636,7 @@ def write_outputs(
     check_colmap_camera(result.cameras.K1, dists[0], "camera 1")
     check_colmap_camera(result.cameras.K2, dists[1], "camera 2")
     check_colmap_names(names)
-    with atomic_directory(directory, overwrite=overwrite) as staging:
+    with atomic_directory(directory, overwrite, API_REPLACE_HINT) as staging:
         (staging / "result.json").write_text(
             json.dumps(result_to_dict(result, **(extra or {})), indent=2) + "\n", encoding="utf-8"
         )

@@ -45,7 +45,13 @@ import numpy as np
 import pycolmap
 
 from . import colmap, ppo
-from .atomic import atomic_directory, check_target, signals_deferred, staging_folder
+from .atomic import (
+    API_REPLACE_HINT,
+    atomic_directory,
+    check_target,
+    signals_deferred,
+    staging_folder,
+)
 from .checks import (
     MAX_WHOLE_NUMBER,
     as_camera_matrix,
@@ -267,6 +273,17 @@ def _image_folder(value: Any) -> Path:
     return image_dir
 
 
+def _check_new_database(database_path: Path, image_dir: Path) -> None:
+    """ValueError unless ``database_path`` can receive a new database: a database is built
+    anew, never replaced or added to."""
+    if database_path.exists():
+        raise ValueError(
+            f"database {str(database_path)!r} already exists; give a new file name (a database "
+            "is never replaced)"
+        )
+    check_target(database_path, "file", inputs=[image_dir], name="database_path ")
+
+
 def list_images(image_dir: str | os.PathLike) -> list[str]:
     """Names of the image files directly in ``image_dir``, sorted."""
     image_dir = _image_folder(image_dir)
@@ -435,10 +452,7 @@ def prepare_database(
             raise ValueError(f"K has skew {K[0, 1]}, which pycolmap's PINHOLE camera cannot hold")
     names, skipped = screen_images(image_dir)
     require_two_images(image_dir, names, skipped)
-    database_path = as_path(database_path, "database_path")
-    if database_path.exists():
-        raise ValueError(f"database {str(database_path)!r} already exists")
-    check_target(database_path, "file", inputs=[image_dir], name="database_path ")
+    _check_new_database(as_path(database_path, "database_path"), image_dir)
     if K is not None:
         _check_one_size(image_dir, names)
     reader, extraction, matching, verification = _pycolmap_options(
@@ -1387,10 +1401,9 @@ def run_sfm(
     image_dir = _image_folder(image_dir)
     if output_dir is not None:  # never the image folder, nor one holding it, even replaced
         output_dir = as_path(output_dir, "output_dir")
-        check_target(output_dir, "folder", overwrite, [image_dir], "output_dir ")
+        check_target(output_dir, "folder", overwrite, [image_dir], "output_dir ", API_REPLACE_HINT)
     if database_path is not None:
-        check_target(as_path(database_path, "database_path"), "file", False, [image_dir],
-                     "database_path ")  # fmt: skip
+        _check_new_database(as_path(database_path, "database_path"), image_dir)
     with contextlib.ExitStack() as stack:
         scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="ppo-cv-sfm-")))
         if exif_orientation:
@@ -1488,7 +1501,7 @@ def write_model(result: SfmResult, output_dir: str | os.PathLike, overwrite: boo
     a TypeError, before anything is written.
     """
     require_instance(result, SfmResult, "result", " (sfm.run_sfm or sfm.reconstruct)")
-    with atomic_directory(output_dir, overwrite=overwrite) as staging:
+    with atomic_directory(output_dir, overwrite, API_REPLACE_HINT) as staging:
         result.reconstruction.write(staging)
         if result.pairs:
             (staging / "initial_pairs.txt").write_text(format_pairs(result.pairs), "utf-8")

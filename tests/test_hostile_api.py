@@ -821,7 +821,8 @@ def test_prepare_database_names_a_missing_folder_before_any_work(tmp_path):
     "output, database, words",
     [("images", None, "the output output_dir {root}/images is the input {root}/images"),
      (".", None, "the output output_dir {root} holds the input {root}/images"),
-     ("model", "images/demo1.png", "{root}/images/demo1.png already exists")],
+     ("model", "images/demo1.png", "database '{root}/images/demo1.png' already exists; give a "
+      "new file name (a database is never replaced)")],
     ids=["the image folder", "a folder holding it", "an image as database"],
 )  # fmt: skip
 def test_run_sfm_never_replaces_its_images_even_with_overwrite(tmp_path, output, database, words):
@@ -837,6 +838,36 @@ def test_run_sfm_never_replaces_its_images_even_with_overwrite(tmp_path, output,
         _sfm_module().run_sfm(tmp_path / "images", target, K=K, overwrite=True,
                               database_path=database and tmp_path / database)  # fmt: skip
     assert {p.name: p.read_bytes() for p in (tmp_path / "images").iterdir()} == before
+
+
+def _demo_result_and_images():
+    """(result, image1, image2) of the demo pair, the images as paths."""
+    folder = Path(ppo_cv.__file__).parent / "data"
+    images = [str(folder / name) for name in ("demo1.png", "demo2.png")]
+    K_demo = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
+    return ppo_cv.estimate_pair(*images, K_demo), *images
+
+
+@pytest.mark.parametrize(
+    "call, words",
+    [(lambda out: ppo_cv.write_outputs(out, *_demo_result_and_images()),
+      "exists and is not an empty directory; pass overwrite=True to replace it"),
+     (lambda out: _sfm_module().run_sfm(Path(ppo_cv.__file__).parent / "data", out, K=K),
+      "exists and is not an empty directory; pass overwrite=True to replace it"),
+     (lambda out: _sfm_module().run_sfm(Path(ppo_cv.__file__).parent / "data", out.parent / "m",
+                                        K=K, database_path=out / "kept", overwrite=True),
+      "already exists; give a new file name (a database is never replaced)")],
+    ids=["write_outputs", "run_sfm output_dir", "run_sfm database with overwrite"],
+)  # fmt: skip
+def test_an_existing_output_of_the_api_names_the_api_s_way(tmp_path, call, words):
+    # the API's messages said 'pass --overwrite', an option of the command line; for a
+    # database, which overwrite=True never replaces, they said it even with overwrite=True
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "kept").write_text("kept")
+    with pytest.raises(ValueError, match=re.escape(words)):
+        call(out)
+    assert [p.name for p in tmp_path.iterdir()] == ["out"] and (out / "kept").read_text() == "kept"
 
 
 @pytest.mark.parametrize("dtype", [np.float16, np.float32, np.int64, np.longdouble])
