@@ -14,6 +14,7 @@ from ppo_cv.checks import shown
 
 from .common import (
     NO_RESULT,
+    PRI_THRESHOLD_RANGE,
     SEED_MAX,
     ExifOrientation,
     Overwrite,
@@ -90,7 +91,7 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
     check_range("--max-features", max_features, 1, MAX_FEATURES)
     check_range("--threads", threads, 1, sfm.MAX_THREADS)
     check_range("--seed", seed, 0, SEED_MAX)
-    check_range("--pri-threshold", pri_threshold, 0.0, 1.0)
+    check_range("--pri-threshold", pri_threshold, *PRI_THRESHOLD_RANGE)
     check_target(out_dir, "folder", overwrite, [image_dir], "OUT_DIR ")
     if database is not None:
         check_apart(database, [image_dir], "--database ")

@@ -1,6 +1,7 @@
 """Exit codes of ``ppo-cv``: 0 with a result, 1 when the input was accepted but gave no pose
 (``pair``, every pair of ``pairs``), 2 for bad input; each failure one line on
-stderr and no output written. Run as subprocesses."""
+stderr and no output written; a number beyond the range ``pair --help`` states is bad input.
+Run as subprocesses."""
 
 from __future__ import annotations
 
@@ -91,3 +92,30 @@ def test_pairs_exits_1_when_no_pair_has_a_pose(images):
         "noise.png: image1 has too few features (0): blank or textureless image"
     ]
     assert "too few features" in json.loads(out.stdout)["error"]
+
+
+@pytest.mark.parametrize(
+    "option, stated, beyond",
+    [
+        ("--ratio", "(1e-06..1)", "1.5"),
+        ("--threshold", "(1e-06..100)", "101"),
+        ("--pri-threshold", "(0..1;", "1.1"),
+        ("--max-log10-nfa", "(-1e+06..1e+06;", "2e6"),
+        ("--redetect-below", "(0..1000000;", "1000001"),
+        ("--max-features", "(8..1000000)", "7"),
+        ("--seed", "(0..2147483647)", "-1"),
+    ],
+)
+def test_pair_help_states_each_range_it_enforces(option, stated, beyond):
+    # --ratio, --threshold, --pri-threshold, --max-log10-nfa and --redetect-below said no range
+    from typer.testing import CliRunner
+
+    from ppo_cv.cli.main import app
+
+    text = " ".join(CliRunner().invoke(app, ["pair", "--help"], terminal_width=400).stdout.split())
+    described = text[text.index(f"{option} <"):][:400]
+    assert stated in described.split(" --")[0], described
+    out = _run(["pair", DEMO1, DEMO2, "--K", K_TEXT, option, beyond], Path.cwd())
+    assert out.returncode == 2 and f"{option}" in out.stderr
+    low, high = stated.strip("(;)").split("..")
+    assert f"must be in {low}..{high}" in out.stderr, out.stderr
