@@ -957,3 +957,19 @@ def test_the_summary_names_a_file_holding_a_line_break_on_its_first_line(tmp_pat
     lines = out.stdout.splitlines()
     assert lines[0] == f"one\\ntwo.png -> {DEMO2}"
     assert lines[1].startswith("  verdict      general motion")
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+def test_pairs_with_a_calibration_and_a_fifo_among_the_images_does_not_hang(tmp_path):
+    # fitting the calibration to each image's size opened the FIFO and waited for a writer
+    shutil.copy(DEMO1, tmp_path / "a.png")
+    shutil.copy(DEMO2, tmp_path / "b.png")
+    os.mkfifo(tmp_path / "fifo.png")
+    (tmp_path / "pairs.txt").write_text("a.png b.png\na.png fifo.png\n")
+    (tmp_path / "cameras.txt").write_text("1 PINHOLE 640 480 " + K_TEXT.replace(",", " ") + "\n")
+    out = subprocess.run([*COMMAND, "pairs", "-q", "pairs.txt", ".", "--calib", "cameras.txt"],
+                         cwd=tmp_path, capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert out.stderr.strip().splitlines() == ["ppo-cv pairs: warning: 1 of 2 pairs failed"]
+    rows = [json.loads(line) for line in out.stdout.splitlines()]
+    assert "R" in rows[0] and "not a regular file" in rows[1]["error"]

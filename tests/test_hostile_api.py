@@ -8,7 +8,10 @@ from __future__ import annotations
 
 import os
 import re
+import time
 import warnings
+from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import TimeoutError as FutureTimeout
 from pathlib import Path
 
 import cv2
@@ -617,6 +620,38 @@ def test_an_image_folder_in_a_loop_of_symbolic_links_is_named_so(tmp_path, entry
                        "symbolic links$"):  # fmt: skip
         SFM_FOLDER_ENTRIES[entry](tmp_path / "loop1", tmp_path)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["loop1", "loop2"]
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+@pytest.mark.parametrize(
+    "call, expected",
+    [(lambda path: ppo_cv.images.image_size(path), None),
+     (lambda path: ppo_cv.images.exif_layout(path), ppo_cv.images.ExifLayout()),
+     (lambda path: ppo_cv.images.decoded_transposed(path, 640, 480), False)],
+    ids=["image_size", "exif_layout", "decoded_transposed"],
+)  # fmt: skip
+def test_the_header_readers_never_open_a_fifo(tmp_path, call, expected):
+    # each opened it and waited for a writer: ppo-cv pairs --calib hung on a FIFO in the folder
+    fifo = tmp_path / "pipe.png"
+    os.mkfifo(fifo)
+    with ThreadPoolExecutor(1) as pool:
+        answer = pool.submit(call, fifo)
+        try:
+            result = answer.result(timeout=20)
+        except FutureTimeout:
+            _release_readers(fifo, answer)
+            pytest.fail("it opened the FIFO and waited for a writer")
+    assert result == expected
+
+
+def _release_readers(fifo: Path, answer) -> None:
+    """Open and close ``fifo`` for writing until ``answer`` is done, so that each reader it
+    waits in sees an end of file (never blocking: without a reader the open fails)."""
+    while not answer.done():
+        try:
+            os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+        except OSError:
+            time.sleep(0.01)
 
 
 def test_missing_file_and_directory(tmp_path):
