@@ -76,7 +76,9 @@ def _max_pixels(max_pixels: int | None) -> int:
 
 def file_mode(path: str | os.PathLike, what: str) -> int:
     """``st_mode`` of ``path`` (symbolic links followed); ValueError naming ``what`` the path
-    is when it does not exist or cannot be reached (a loop of symbolic links, no permission)."""
+    is when it does not exist or cannot be reached (a loop of symbolic links, no permission);
+    TypeError for a ``path`` that is no path."""
+    as_path(path, "path")
     try:
         return os.stat(path).st_mode
     except FileNotFoundError:
@@ -112,7 +114,7 @@ def image_size(path: str | os.PathLike) -> tuple[int, int] | None:
     PNG is parsed directly (signature, then the IHDR chunk); other formats go through Pillow,
     which reads only the header on open.
     """
-    path = os.fspath(path)
+    path = os.fspath(as_path(path, "path"))
     if not _is_regular_file(path):
         return None
     with open(path, "rb") as file:

@@ -341,6 +341,13 @@ CASES = {
     "implausible_intrinsics 0x0": (
         lambda: ppo_cv.calib.implausible_intrinsics(K, (0, 0), "K1"), ValueError,
         "size width must be a whole number in 1..2147483647, got 0"),
+    # the image checks: os.stat's own words ('stat: path should be string, bytes, ...')
+    "check_decodes None": (lambda: ppo_cv.images.check_decodes(None), TypeError,
+                           "path must be a path (str or os.PathLike), got NoneType"),
+    "check_header 5": (lambda: ppo_cv.images.check_header(5), TypeError,
+                       "path must be a path (str or os.PathLike), got int"),
+    "image_size None": (lambda: ppo_cv.images.image_size(None), TypeError,
+                        "path must be a path (str or os.PathLike), got NoneType"),
     # a text where points belong: no advice to parse it as intrinsics
     "recoverPose points text": (lambda: ppo_cv.recoverPose(E, "1,2", P2, K), TypeError,
                                 "points1 must be an array of real numbers, got str"),
