@@ -23,6 +23,7 @@ from typing import Annotated
 import typer
 
 from .common import (
+    NO_RESULT,
     WORKERS_MAX,
     Backend,
     CalibOption,
@@ -678,7 +679,7 @@ def _exif_intrinsics(rows: list[dict], image_dir: Path, exif_orientation: bool) 
         except (ValueError, RuntimeError, OSError):  # unreadable: the pair reports it
             continue
         cameras[name] = (K, found)
-        doubts += warnings
+        doubts += [(name, message) for message in warnings]
     for row in missing:
         row["K1"], row["K2"] = (cameras.get(row[k], (None,))[0] for k in ("image1", "image2"))
         row["guessed_cameras"] = True
@@ -692,8 +693,25 @@ def _exif_intrinsics(rows: list[dict], image_dir: Path, exif_orientation: bool) 
         f"lengths of {found} of {len(cameras)} images (centred principal point{guessed}); pass "
         "--K or --calib for accurate results",
     )
-    for message in doubts:
+    for message in _grouped_doubts(doubts, image_dir):
         warn("pairs", message)
+
+
+def _grouped_doubts(doubts: list[tuple[str, str]], image_dir: Path) -> list[str]:
+    """The doubts about images' EXIF cameras, one line for the images a doubt says alike of
+    (a folder of one camera's photos gave one line per photo)."""
+    names_by_text: dict[str, list[str]] = {}
+    for name, message in doubts:
+        text = message.removeprefix(f"{image_dir / name}: ")
+        names_by_text.setdefault(text, []).append(name)
+    lines = []
+    for text, names in names_by_text.items():
+        listed = ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
+        where = f"{image_dir / names[0]}" if len(names) == 1 else (
+            f"{len(names)} images in {image_dir} ({listed})"
+        )
+        lines.append(f"{where}: {text}")
+    return lines
 
 
 def run_pairs(
@@ -789,7 +807,7 @@ def run_pairs(
     if failed < len(results):
         return 0
     typer.echo(f"ppo-cv pairs: {_no_pose(results)}", err=True)
-    return 1
+    return NO_RESULT
 
 
 def _no_pose(results: list[dict]) -> str:

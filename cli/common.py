@@ -1,7 +1,8 @@
 """What every ``ppo-cv`` command shares: the error format, bounds on numbers, the pipeline and
 camera options with their checks, the cameras from EXIF, progress on stderr.
 
-Errors are one line ``ppo-cv <command>: <message>`` on stderr with exit code 2; warnings are
+Errors are one line ``ppo-cv <command>: <message>`` on stderr with exit code 2 for bad input and
+:data:`NO_RESULT` when the input was accepted but no pose or model was found; warnings are
 ``ppo-cv <command>: warning: <message>``.
 """
 
@@ -27,6 +28,7 @@ from ppo_cv.calib import implausible_intrinsics
 from ppo_cv.checks import shown
 
 __all__ = [
+    "NO_RESULT",
     "SEED_MAX",
     "MAX_FEATURES_MAX",
     "MIN_EXIF_FIELD_DEG",
@@ -56,10 +58,17 @@ __all__ = [
     "WrappedHelpGroup",
 ]
 
+NO_RESULT = 1
+"""Exit code of a run whose input was accepted but gave no pose (``pair``, every pair of
+``pairs``) or no model (``sfm``); bad input is 2, an interrupt 130 (SIGINT) or 143 (SIGTERM)."""
 SEED_MAX = 2**31 - 1  # pycolmap and OpenCV take the seed as a 32-bit signed integer
 MAX_FEATURES_MAX = 1_000_000
 WORKERS_MAX = 256
 MAX_SIZE_MAX = 100_000
+RATIO_RANGE = (1e-6, 1.0)
+THRESHOLD_RANGE_PX = (1e-6, 100.0)
+PRI_THRESHOLD_RANGE = (0.0, 1.0)
+MAX_LOG10_NFA_RANGE = (-1e6, 1e6)
 _PANEL = "Pipeline"
 
 Features = Annotated[str, typer.Option(help="sift, orb or akaze.", rich_help_panel=_PANEL)]
@@ -74,20 +83,34 @@ MaxSize = Annotated[
         rich_help_panel=_PANEL,
     ),
 ]
-Ratio = Annotated[float, typer.Option(help="Lowe's ratio test.", rich_help_panel=_PANEL)]
+Ratio = Annotated[
+    float,
+    typer.Option(
+        help="Lowe's ratio test: a match when its descriptor distance is at most this times "
+        f"the second nearest's ({RATIO_RANGE[0]:g}..{RATIO_RANGE[1]:g}).",
+        rich_help_panel=_PANEL,
+    ),
+]
 Backend = Annotated[
     str,
     typer.Option(
         help="Robust E: pycolmap (LO-RANSAC) or opencv (USAC MAGSAC++).", rich_help_panel=_PANEL
     ),
 ]
-Threshold = Annotated[float, typer.Option(help="RANSAC threshold, pixels.", rich_help_panel=_PANEL)]
+Threshold = Annotated[
+    float,
+    typer.Option(
+        help=f"RANSAC threshold, pixels ({THRESHOLD_RANGE_PX[0]:g}..{THRESHOLD_RANGE_PX[1]:g}).",
+        rich_help_panel=_PANEL,
+    ),
+]
 Seed = Annotated[int, typer.Option(help=f"RANSAC seed (0..{SEED_MAX}).", rich_help_panel=_PANEL)]
 PriThreshold = Annotated[
     float,
     typer.Option(
         "--pri-threshold",
-        help="Pure rotation when PRI (mean |M2|, eq. 84) is below this (paper: 0.015).",
+        help="Pure rotation when PRI (mean |M2|, eq. 84) is below this "
+        f"({PRI_THRESHOLD_RANGE[0]:g}..{PRI_THRESHOLD_RANGE[1]:g}; paper: 0.015).",
         rich_help_panel=_PANEL,
     ),
 ]
@@ -96,7 +119,8 @@ MaxLog10Nfa = Annotated[
     typer.Option(
         "--max-log10-nfa",
         help="Significance bar: a pose only when log10 of the number of false alarms of its "
-        "consensus is at most this (lower is stricter; inf disables the test).",
+        f"consensus is at most this ({MAX_LOG10_NFA_RANGE[0]:g}..{MAX_LOG10_NFA_RANGE[1]:g}; "
+        "lower is stricter; inf disables the test).",
         rich_help_panel=_PANEL,
     ),
 ]
@@ -142,7 +166,8 @@ RedetectBelow = Annotated[
     typer.Option(
         "--redetect-below",
         help="When E finds fewer inliers than this, detect again at a quarter of the detector's "
-        "threshold and keep the consensus chance explains less (0: never).",
+        f"threshold and keep the consensus chance explains less (0..{MAX_FEATURES_MAX}; 0: "
+        "never).",
         rich_help_panel=_PANEL,
     ),
 ]
@@ -150,8 +175,8 @@ KOption = Annotated[
     str | None,
     typer.Option(
         "--K",
-        help="Intrinsics fx,fy,cx,cy or the 9 numbers of K (none: --calib, else the EXIF focal "
-        "length, with a warning).",
+        help="Intrinsics in pixels, fx,fy,cx,cy or the 9 numbers of K (none: --calib, else the "
+        "EXIF focal length, with a warning).",
     ),
 ]
 K2Option = Annotated[
@@ -342,14 +367,14 @@ def pipeline_options(
     check_range("--max-features", max_features, 8, MAX_FEATURES_MAX)
     if max_size != 0:
         check_range("--max-size (0: full size)", max_size, 32, MAX_SIZE_MAX)
-    check_range("--ratio", ratio, 1e-6, 1.0)
+    check_range("--ratio", ratio, *RATIO_RANGE)
     check_range("--redetect-below", redetect_below, 0, MAX_FEATURES_MAX)
-    check_range("--threshold (pixels)", threshold, 1e-6, 100.0)
+    check_range("--threshold (pixels)", threshold, *THRESHOLD_RANGE_PX)
     pri_threshold = DEFAULT_PRI_THRESHOLD if pri_threshold is None else pri_threshold
-    check_range("--pri-threshold", pri_threshold, 0.0, 1.0)
+    check_range("--pri-threshold", pri_threshold, *PRI_THRESHOLD_RANGE)
     max_log10_nfa = DEFAULT_MAX_LOG10_NFA if max_log10_nfa is None else max_log10_nfa
     if max_log10_nfa != float("inf"):
-        check_range("--max-log10-nfa", max_log10_nfa, -1e6, 1e6)
+        check_range("--max-log10-nfa", max_log10_nfa, *MAX_LOG10_NFA_RANGE)
     return PairOptions(
         features=features.lower(),
         max_features=max_features,
@@ -558,11 +583,13 @@ class StageReport:
     rich line (a spinner, the last stage done, the time elapsed); elsewhere nothing, since
     scripts read stderr for warnings and errors. ``quiet`` prints nothing.
 
-    Pass :meth:`stage` as the ``progress`` of :func:`ppo_cv.pipeline.estimate_pair`.
+    Pass :meth:`stage` as the ``progress`` of :func:`ppo_cv.pipeline.estimate_pair`; ``done``
+    lists the stages ended so far (after ``load`` the pipeline has accepted its input).
     """
 
     def __init__(self, command: str, quiet: bool = False) -> None:
         self.command, self.quiet = command, quiet
+        self.done: list[str] = []
         self._rich = None
         self._task = None
 
@@ -588,5 +615,6 @@ class StageReport:
 
     def stage(self, name: str) -> None:
         """Show that stage ``name`` has ended."""
+        self.done.append(name)
         if self._rich is not None:
             self._rich.update(self._task, description=f"ppo-cv {self.command}: {name} done")

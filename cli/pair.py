@@ -9,6 +9,7 @@ from typing import Annotated, NoReturn
 import typer
 
 from .common import (
+    NO_RESULT,
     Backend,
     CalibOption,
     Cameras,
@@ -449,10 +450,15 @@ def _run_pair(
         if out is not None:
             _check_colmap_cameras(cameras)
         with StageReport(command, quiet) as report:
-            result = estimate_pair(
-                img1, img2, cameras.K1, cameras.K2, d1, d2, options=options,
-                progress=report.stage,
-            )  # fmt: skip
+            try:
+                result = estimate_pair(
+                    img1, img2, cameras.K1, cameras.K2, d1, d2, options=options,
+                    progress=report.stage,
+                )  # fmt: skip
+            except ValueError as exc:
+                if "load" not in report.done:  # the pipeline refused its input
+                    raise
+                fail(command, f"no pose: {error_message(exc)}", NO_RESULT)
             if exif_text:
                 from ppo_cv.guessed_camera import decide_with_fitted_focal
 
@@ -555,6 +561,10 @@ def register(app: typer.Typer) -> None:
         turned upright as their EXIF orientation says unless
         --no-exif-orientation. Without images it runs on the built-in demo
         pair. On a terminal, stderr shows the stage reached while it runs.
+
+        Exit code 0 with a pose, 1 when the images gave none (too few
+        features, matches or inliers: one line on stderr, --out not
+        written), 2 for bad input.
         """
         try:
             options = pipeline_options(

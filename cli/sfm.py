@@ -13,6 +13,8 @@ import typer
 from ppo_cv.checks import shown
 
 from .common import (
+    NO_RESULT,
+    PRI_THRESHOLD_RANGE,
     SEED_MAX,
     ExifOrientation,
     Overwrite,
@@ -89,7 +91,7 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
     check_range("--max-features", max_features, 1, MAX_FEATURES)
     check_range("--threads", threads, 1, sfm.MAX_THREADS)
     check_range("--seed", seed, 0, SEED_MAX)
-    check_range("--pri-threshold", pri_threshold, 0.0, 1.0)
+    check_range("--pri-threshold", pri_threshold, *PRI_THRESHOLD_RANGE)
     check_target(out_dir, "folder", overwrite, [image_dir], "OUT_DIR ")
     if database is not None:
         check_apart(database, [image_dir], "--database ")
@@ -194,11 +196,11 @@ def register(app: typer.Typer) -> None:
             )  # fmt: skip
         except sfm.ReconstructionFailed as exc:
             kept = f"; the matched features are in {database}" if database is not None else ""
-            _fail(f"{exc}{kept}", code=1)
+            _fail(f"{exc}{kept}", code=NO_RESULT)
         except (ValueError, OSError) as exc:
             _fail(error_message(exc))
         except RuntimeError as exc:
-            _fail(f"pycolmap failed: {exc}", code=1)
+            _fail(f"pycolmap failed: {exc}", code=NO_RESULT)
         print_result("sfm", _summary(result, out_dir, as_json))
 
 

@@ -316,7 +316,7 @@ def register(app: typer.Typer) -> None:
 
         print_result(
             "synth",
-            f"wrote {pairs} pairs to {out_dir} ({out_dir / PAIRS_FILE}, images in "
-            f"{out_dir / 'images'}); run them with: ppo-cv pairs {out_dir / PAIRS_FILE} "
+            f"wrote {pairs} pair{'s' * (pairs != 1)} to {out_dir} ({out_dir / PAIRS_FILE}, "
+            f"images in {out_dir / 'images'}); run them with: ppo-cv pairs {out_dir / PAIRS_FILE} "
             f"{out_dir / 'images'}",
         )

@@ -20,6 +20,8 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 __all__ = [
+    "CLI_REPLACE_HINT",
+    "API_REPLACE_HINT",
     "check_target",
     "check_apart",
     "staging_folder",
@@ -38,12 +40,17 @@ __all__ = [
 ]
 
 
+CLI_REPLACE_HINT = "pass --overwrite to replace it"
+API_REPLACE_HINT = "pass overwrite=True to replace it"
+
+
 def check_target(
     path: str | os.PathLike,
     kind: str,
     overwrite: bool = False,
     inputs: Iterable[str | os.PathLike] = (),
     name: str = "",
+    replace_hint: str = CLI_REPLACE_HINT,
 ) -> Path:
     """Check that ``path`` can receive a new file or folder; raise ValueError naming the problem.
 
@@ -60,6 +67,9 @@ def check_target(
         (:func:`check_apart`), even with ``overwrite``.
     name : str
         How messages about ``inputs`` call the output, e.g. ``"--out "``.
+    replace_hint : str
+        How the message for an existing output says to replace it: the command line's
+        ``--overwrite`` (:data:`CLI_REPLACE_HINT`) or the API's (:data:`API_REPLACE_HINT`).
 
     Returns
     -------
@@ -83,7 +93,7 @@ def check_target(
         if not parent.is_dir():
             raise ValueError(f"cannot write {target}: folder {parent} does not exist")
         if target.exists() and not overwrite:
-            raise ValueError(f"{target} already exists; pass --overwrite to replace it")
+            raise ValueError(f"{target} already exists; {replace_hint}")
         if target.exists() and not target.is_file():
             raise ValueError(f"{target} is not a regular file")
     else:
@@ -96,9 +106,7 @@ def check_target(
                 "folder cannot replace; give another folder"
             )
         if target.is_dir() and any(target.iterdir()) and not overwrite:
-            raise ValueError(
-                f"{target} exists and is not an empty directory; pass --overwrite to replace it"
-            )
+            raise ValueError(f"{target} exists and is not an empty directory; {replace_hint}")
         if target.is_dir() and not os.access(target, os.W_OK | os.X_OK):
             # it is moved aside at the end, which needs the folder writable (root too, when
             # the folder is immutable or on a read-only file system)
@@ -522,14 +530,17 @@ def atomic_file(
 
 
 @contextlib.contextmanager
-def atomic_directory(path: str | os.PathLike, overwrite: bool = False) -> Iterator[Path]:
+def atomic_directory(
+    path: str | os.PathLike, overwrite: bool = False, replace_hint: str = CLI_REPLACE_HINT
+) -> Iterator[Path]:
     """A temporary sibling folder of ``path``, renamed to ``path`` when the block succeeds.
 
-    An empty existing folder is replaced; a non-empty one or a file only with ``overwrite``.
+    An empty existing folder is replaced; a non-empty one or a file only with ``overwrite``
+    (:func:`check_target` with ``replace_hint``).
     On any exception the temporary folder is removed and ``path`` is left untouched; one that
     a killed run left is removed by the next run for the same ``path`` (:func:`staging_folder`).
     """
-    target = check_target(path, "folder", overwrite)
+    target = check_target(path, "folder", overwrite, replace_hint=replace_hint)
     target.parent.mkdir(parents=True, exist_ok=True)
     staging = None
     try:

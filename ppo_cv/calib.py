@@ -28,7 +28,17 @@ from typing import Any
 
 import numpy as np
 
-from .checks import as_camera_matrix, as_distortion, as_flag, as_path, cut, shown
+from .checks import (
+    MAX_WHOLE_NUMBER,
+    as_camera_matrix,
+    as_distortion,
+    as_flag,
+    as_path,
+    as_whole_number,
+    cut,
+    require_instance,
+    shown,
+)
 
 __all__ = [
     "Camera",
@@ -225,6 +235,16 @@ def _image_size(width, height, where: str) -> tuple[int, int]:
     return int(size[0]), int(size[1])
 
 
+def _size_argument(size: Any, name: str) -> tuple[int, int]:
+    """An image size argument ``(width, height)``: two whole numbers >= 1; TypeError for
+    anything but two values."""
+    if isinstance(size, (str, bytes)) or not hasattr(size, "__len__") or len(size) != 2:
+        raise TypeError(f"{name} must be (width, height), got {shown(size)}")
+    width, height = (as_whole_number(v, f"{name} {side}", 1, MAX_WHOLE_NUMBER)
+                     for v, side in zip(size, ("width", "height"), strict=True))  # fmt: skip
+    return width, height
+
+
 def _colmap_camera(model: str, params: np.ndarray, where: str, size=None) -> Camera:
     counts = {
         "SIMPLE_PINHOLE": 3,
@@ -252,7 +272,10 @@ def _colmap_camera(model: str, params: np.ndarray, where: str, size=None) -> Cam
 
 
 def _read_colmap(path: str, text: str) -> list[Camera]:
-    cameras = []
+    """The cameras of a COLMAP ``cameras.txt`` in the order of their ``CAMERA_ID`` (COLMAP
+    writes them in any order); ValueError for an id that names two different cameras or is
+    no whole number."""
+    cameras, lines = {}, {}
     for number, line in enumerate(text.splitlines(), 1):
         line = line.strip()
         if not line or line.startswith("#"):
@@ -263,10 +286,24 @@ def _read_colmap(path: str, text: str) -> list[Camera]:
         where = f"{path}:{number}"
         params = _numbers(" ".join(parts[4:]), where)
         size = _image_size(parts[2], parts[3], where)
-        cameras.append(_colmap_camera(parts[1].upper(), params, where, size))
+        camera_id = _camera_id(parts[0], where)
+        camera = _colmap_camera(parts[1].upper(), params, where, size)
+        if camera_id in cameras and not _same_camera(camera, cameras[camera_id]):
+            raise ValueError(
+                f"{where}: camera {camera_id} is described otherwise on line "
+                f"{lines[camera_id]}; each CAMERA_ID names one camera"
+            )
+        cameras[camera_id], lines[camera_id] = camera, lines.get(camera_id, number)
     if not cameras:
         raise ValueError(f"no camera in {path}")
-    return cameras
+    return [cameras[camera_id] for camera_id in sorted(cameras)]
+
+
+def _camera_id(text: str, where: str) -> int:
+    """A COLMAP ``CAMERA_ID``: a whole number >= 0 (COLMAP's are unsigned 32-bit)."""
+    if not text.isascii() or not text.isdigit() or int(text) > 2**32 - 1:
+        raise ValueError(f"{where}: CAMERA_ID must be a whole number >= 0, got {shown(text)}")
+    return int(text)
 
 
 _JSON_NUMBER_KEYS = ("K", "camera_matrix", "fx", "fy", "cx", "cy", "f", "dist", "distortion",
@@ -319,9 +356,19 @@ def _json_camera(entry, where: str) -> Camera:
     return Camera(K, dist, _image_size(width, height, where))
 
 
+def _object_of_unique_keys(pairs: list[tuple[str, Any]]) -> dict:
+    """A JSON object as a dict; ValueError for a key given twice (JSON readers keep the last
+    one, each its own way: the file says two things)."""
+    data = dict(pairs)
+    if len(data) < len(pairs):
+        repeated = next(key for key, _ in pairs if sum(k == key for k, _ in pairs) > 1)
+        raise ValueError(f"the key {shown(repeated)} is given twice in one object")
+    return data
+
+
 def _read_json(path: str, text: str) -> list[Camera]:
     try:
-        data = json.loads(text)
+        data = json.loads(text, object_pairs_hook=_object_of_unique_keys)
     except json.JSONDecodeError as exc:
         raise ValueError(f"{path} is not valid JSON: {exc.msg} (line {exc.lineno})") from None
     except RecursionError:
@@ -360,10 +407,12 @@ def read_text_file(path: str | os.PathLike, what: str) -> str:
         with open(path, encoding="utf-8-sig") as handle:
             text = handle.read()
     except UnicodeDecodeError as exc:
-        binary = b"\x00" in exc.object
+        utf16 = exc.object.startswith((codecs.BOM_UTF16_LE, codecs.BOM_UTF16_BE))
+        binary = b"\x00" in exc.object and not utf16
         hint = "a binary file, such as an image?" if binary else "save it as UTF-8"
+        kind = "UTF-16 text, not UTF-8" if utf16 else "not UTF-8 text"
         raise ValueError(
-            f"{what} {path} is not UTF-8 text (byte 0x{exc.object[exc.start]:02x}): {hint}"
+            f"{what} {path} is {kind} (byte 0x{exc.object[exc.start]:02x}): {hint}"
         ) from None
     except OSError as exc:
         raise ValueError(f"cannot read {what} {path}: {exc.strerror or exc}") from None
@@ -435,11 +484,13 @@ def implausible_intrinsics(
     point inside the image, and not at the centre of the image turned a quarter, within
     :data:`TURNED_CENTRE_TOLERANCE` of the larger side and closer to it than to the centre.
     ``exif_turned``: the image was turned upright by its EXIF orientation, and the warning
-    then names that likely cause (a camera matrix of the stored pixels).
+    then names that likely cause (a camera matrix of the stored pixels). A ``K`` that is no
+    camera matrix or a ``size`` that is no image size is a ValueError or TypeError.
     """
+    K = as_camera_matrix(K, name)
     if size is None:
         return None
-    width, height = size
+    width, height = _size_argument(size, "size")
     fx, fy, cx, cy = float(K[0][0]), float(K[1][1]), float(K[0][2]), float(K[1][2])
     side = max(width, height)
     problems = []
@@ -544,8 +595,11 @@ def fit_to_image(
     ------
     ValueError
         Naming ``name`` and both sizes, when the aspect ratios differ: a cropped or rotated
-        image, for which no scaling of ``K`` is right.
+        image, for which no scaling of ``K`` is right; or a ``size`` that is not two whole
+        numbers >= 1 (TypeError for no pair, or ``camera`` not a :class:`Camera`).
     """
+    require_instance(camera, Camera, "camera")
+    size = _size_argument(size, "size")
     if camera.image_size is None or tuple(camera.image_size) == tuple(size):
         return camera, None
     (width, height), (calibrated_width, calibrated_height) = size, camera.image_size

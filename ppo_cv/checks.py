@@ -28,6 +28,7 @@ __all__ = [
     "as_whole_number",
     "as_flag",
     "as_path",
+    "require_instance",
     "require_finite",
     "shown",
     "cut",
@@ -76,7 +77,11 @@ def cut(text: str, width: int = 40) -> str:
     return text if len(text) <= width else text[: width - 3] + "..."
 
 
-def _as_real_array(value: Any, name: str) -> np.ndarray:
+_PARSE_INTRINSICS = "parse a text with ppo_cv.parse_intrinsics"
+_PARSE_DISTORTION = "parse a text with ppo_cv.calib.parse_distortion"
+
+
+def _as_real_array(value: Any, name: str, text_hint: str = "") -> np.ndarray:
     if value is None:
         raise TypeError(f"{name} is required, got None")
     try:
@@ -86,18 +91,19 @@ def _as_real_array(value: Any, name: str) -> np.ndarray:
     if array.dtype == np.float64:
         return array
     if array.dtype.kind not in "iuf":
-        raise TypeError(_not_numbers(value, array, name))
+        raise TypeError(_not_numbers(value, array, name, text_hint))
     return array.astype(np.float64)
 
 
-def _not_numbers(value: Any, array: np.ndarray, name: str) -> str:
+def _not_numbers(value: Any, array: np.ndarray, name: str, text_hint: str = "") -> str:
     """The message for an argument that holds no real numbers: its dtype, or for a single
-    object (a text, a record) its type and how to pass what it stands for."""
+    object (a text, a record) its type and how to pass what it stands for (``text_hint`` for a
+    text: how to parse it, for the arguments a text can describe)."""
     if array.ndim or isinstance(value, np.ndarray):
         return f"{name} must hold real numbers, got dtype {array.dtype}"
     hint = (
-        ": parse a text with ppo_cv.parse_intrinsics (a distortion: ppo_cv.calib.parse_distortion)"
-        if isinstance(value, str)
+        f": {text_hint}"
+        if isinstance(value, str) and text_hint
         else ": pass its .K (and its .dist as the distortion)"
         if hasattr(value, "K")
         else ""
@@ -205,7 +211,7 @@ def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
     focal length near zero or a principal point beyond ``MAX_COORDINATE`` overflows: all are
     errors naming ``name``.
     """
-    K = _as_real_array(value, name)
+    K = _as_real_array(value, name, _PARSE_INTRINSICS)
     if K.shape != (3, 3):
         raise ValueError(f"{name} must be a 3x3 matrix, got shape {K.shape}")
     rows = K.tolist()
@@ -251,7 +257,7 @@ def as_distortion(value: Any, name: str) -> np.ndarray | None:
     """OpenCV distortion coefficients as float64 (n,), or None for none or all zeros."""
     if value is None or np.size(value) == 0:
         return None
-    coefficients = _as_real_array(value, name).reshape(-1)
+    coefficients = _as_real_array(value, name, _PARSE_DISTORTION).reshape(-1)
     if coefficients.size not in (4, 5, 8, 12, 14):
         raise ValueError(
             f"{name} must be OpenCV distortion coefficients k1,k2,p1,p2[,k3] (4 or 5 numbers; "
@@ -452,3 +458,18 @@ def as_path(value: Any, name: str) -> Path:
     if not isinstance(value, (str, os.PathLike)):
         raise TypeError(f"{name} must be a path (str or os.PathLike), got {type(value).__name__}")
     return Path(value)
+
+
+def require_instance(value: Any, kinds: type | tuple[type, ...], name: str, hint: str = "") -> None:
+    """TypeError unless ``value`` is one of ``kinds``, naming ``name``, the types wanted (by
+    module and name, private modules left out: ``pycolmap.Camera``, ``ppo_cv.sfm.PairScore``)
+    and the type got, then ``hint`` (how to make one)."""
+    kinds = kinds if isinstance(kinds, tuple) else (kinds,)
+    if not isinstance(value, kinds):
+        wanted = " or ".join(_public_name(kind) for kind in kinds)
+        raise TypeError(f"{name} must be a {wanted}, got {type(value).__name__}{hint}")
+
+
+def _public_name(kind: type) -> str:
+    modules = [part for part in kind.__module__.split(".") if not part.startswith("_")]
+    return ".".join([*modules, kind.__qualname__])

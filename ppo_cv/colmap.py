@@ -28,15 +28,19 @@ from . import ppo
 from .checks import (
     MAX_WHOLE_NUMBER,
     as_camera_matrix,
+    as_finite_rows,
     as_point_pair,
+    as_pri_threshold,
     as_rotation,
     as_whole_number,
     require_finite,
+    require_instance,
     shown,
 )
 from .lsq import cross_matrix
 from .metrics import direction_error_deg
 from .pose import PoseResult, recover_pose
+from .result import PairResult
 
 __all__ = [
     "TwoViewEstimate",
@@ -66,6 +70,15 @@ _POSED_CONFIGS = frozenset(
     )
 )
 _PINHOLE_MODELS = ("SIMPLE_PINHOLE", "PINHOLE")
+_MAKE_CAMERA = ": make one with ppo_cv.colmap.camera_from_K(K, width, height)"
+
+
+def _require_camera(camera: Any, name: str) -> None:
+    require_instance(camera, pycolmap.Camera, name, _MAKE_CAMERA)
+
+
+def _require_pose(pose: Any) -> None:
+    require_instance(pose, (PoseResult, PairResult), "pose", " (ppo_cv.recover_pose)")
 
 
 @dataclass(frozen=True)
@@ -123,8 +136,9 @@ def K_from_camera(camera: pycolmap.Camera) -> np.ndarray:
     ------
     ValueError
         For models with distortion, which no 3x3 matrix describes; use
-        :func:`rays_from_camera` for those.
+        :func:`rays_from_camera` for those. TypeError for anything but a ``pycolmap.Camera``.
     """
+    _require_camera(camera, "camera")
     if camera.model_name not in _PINHOLE_MODELS:
         raise ValueError(
             f"camera model {camera.model_name} has distortion; K alone cannot describe it"
@@ -133,13 +147,19 @@ def K_from_camera(camera: pycolmap.Camera) -> np.ndarray:
 
 
 def rays_from_camera(camera: pycolmap.Camera, points: np.ndarray) -> np.ndarray:
-    """Normalized image points (N, 2) of pixel points (N, 2), undistorted by the camera model."""
-    return np.asarray(camera.cam_from_img(np.ascontiguousarray(points, dtype=np.float64)))
+    """Normalized image points (N, 2) of finite pixel points (N, 2), undistorted by the camera
+    model."""
+    _require_camera(camera, "camera")
+    return np.asarray(camera.cam_from_img(as_finite_rows(points, "points", 2)))
 
 
 def rigid3d_from_pose(R: Any, t: Any) -> pycolmap.Rigid3d:
     """``cam2_from_cam1`` as a pycolmap ``Rigid3d`` from ``X2 = R X1 + t``."""
-    R = as_rotation(R, "R")
+    return pycolmap.Rigid3d(pycolmap.Rotation3d(as_rotation(R, "R")), _as_translation(t))
+
+
+def _as_translation(t: Any) -> np.ndarray:
+    """Three finite numbers as float64 (3,); TypeError or ValueError naming ``t``."""
     try:
         t = np.asarray(t, dtype=np.float64).reshape(-1)
     except (TypeError, ValueError, OverflowError):
@@ -147,11 +167,25 @@ def rigid3d_from_pose(R: Any, t: Any) -> pycolmap.Rigid3d:
     if t.shape != (3,):
         raise ValueError(f"t must be of length 3, got shape {t.shape}")
     require_finite(t, "t")
-    return pycolmap.Rigid3d(pycolmap.Rotation3d(R), t)
+    return t
+
+
+def _as_real_rows(value: Any, name: str, width: int, shape: str = "") -> np.ndarray:
+    """Real numbers as float64 (N, ``width``), or (N, ``width`` or more) where ``shape`` says
+    so (``"(M, >=2)"``); NaN allowed (a point the pose does not define)."""
+    try:
+        array = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise TypeError(f"{name} must be an array of real numbers, got {shown(value)}") from None
+    wide = array.ndim == 2 and (array.shape[1] >= width if shape else array.shape[1] == width)
+    if not wide:
+        raise ValueError(f"{name} must have shape {shape or f'(N, {width})'}, got {array.shape}")
+    return array
 
 
 def pose_from_rigid3d(rigid: pycolmap.Rigid3d) -> tuple[np.ndarray, np.ndarray]:
     """``(R, t)`` of a pycolmap ``Rigid3d``: ``target = R source + t``."""
+    require_instance(rigid, pycolmap.Rigid3d, "rigid")
     return np.array(rigid.rotation.matrix(), dtype=np.float64), np.array(
         rigid.translation, dtype=np.float64
     ).reshape(3)
@@ -162,11 +196,23 @@ def relative_pose(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``cam2_from_cam1`` of two registered images: ``cam2_from_world * inverse(cam1_from_world)``.
 
-    The translation carries the reconstruction's scale.
+    The translation carries the reconstruction's scale. An id of no registered image is a
+    ValueError.
     """
-    cam1 = reconstruction.image(image_id1).cam_from_world()
-    cam2 = reconstruction.image(image_id2).cam_from_world()
+    require_instance(reconstruction, pycolmap.Reconstruction, "reconstruction")
+    cam1, cam2 = (_registered_pose(reconstruction, i) for i in (image_id1, image_id2))
     return pose_from_rigid3d(cam2 * cam1.inverse())
+
+
+def _registered_pose(reconstruction: pycolmap.Reconstruction, image_id: Any) -> pycolmap.Rigid3d:
+    """``cam_from_world`` of a registered image; ValueError naming an id of none."""
+    image_id = as_whole_number(image_id, "image id", 0, MAX_WHOLE_NUMBER)
+    if not reconstruction.exists_image(image_id):
+        raise ValueError(f"the reconstruction has no image of id {image_id}")
+    image = reconstruction.image(image_id)
+    if not image.has_pose:
+        raise ValueError(f"image {image_id} ({image.name}) is not registered: it has no pose")
+    return image.cam_from_world()
 
 
 def triangulation_angles(points3d: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -175,7 +221,8 @@ def triangulation_angles(points3d: np.ndarray, R: np.ndarray, t: np.ndarray) -> 
     ``points3d`` (N, 3) are in camera-1 coordinates; camera 2 sits at ``-R^T t``. NaN points
     give NaN.
     """
-    center2 = -np.asarray(R).T @ np.asarray(t)
+    points3d = _as_real_rows(points3d, "points3d", 3)
+    center2 = -as_rotation(R, "R").T @ _as_translation(t)
     return np.radians(direction_error_deg(points3d, points3d - center2))
 
 
@@ -184,6 +231,7 @@ def median_tri_angle(pose: PoseResult) -> float:
 
     0 for a pure rotation or without inliers, as COLMAP's ``tri_angle`` of a panoramic pair.
     """
+    _require_pose(pose)
     if pose.pure_rotation or not pose.inliers.any():
         return 0.0
     angles = triangulation_angles(pose.points3d[pose.inliers], pose.R, pose.t)
@@ -208,15 +256,16 @@ def two_view_geometry_from_pose(
         Keypoint indices of the N correspondences given to ``recover_pose``; the rows of the
         PPO inliers become ``inlier_matches``.
     """
+    _require_pose(pose)
     geometry = pycolmap.TwoViewGeometry()
     geometry.config = Config.PANORAMIC if pose.pure_rotation else Config.CALIBRATED
     t = np.zeros(3) if pose.pure_rotation else pose.t
     geometry.cam2_from_cam1 = rigid3d_from_pose(pose.R, t)
     geometry.tri_angle = median_tri_angle(pose)
     if E is not None:
-        geometry.E = np.asarray(E, dtype=np.float64)
+        geometry.E = as_finite_rows(E, "E", 3).reshape(3, 3)
     if matches is not None:
-        matches = np.asarray(matches)
+        matches = _as_index_pairs(matches)
         if matches.shape != (pose.inliers.shape[0], 2):
             raise ValueError(
                 f"matches must have shape ({pose.inliers.shape[0]}, 2), got {matches.shape}"
@@ -257,7 +306,12 @@ def recover_pose_from_geometry(
     ------
     ValueError
         If the geometry has fewer than 5 inlier matches or no essential matrix can be found.
+    TypeError
+        If ``geometry`` or a camera is not pycolmap's.
     """
+    require_instance(geometry, pycolmap.TwoViewGeometry, "geometry")
+    _require_camera(camera1, "camera1")
+    _require_camera(camera2, "camera2")
     matches = np.asarray(geometry.inlier_matches, dtype=np.int64).reshape(-1, 2)
     points1, points2 = as_point_pair(
         _matched_keypoints(keypoints1, matches[:, 0], 1),
@@ -270,11 +324,16 @@ def recover_pose_from_geometry(
     return recover_pose(E, x1, x2, np.eye(3), pri_threshold=pri_threshold)
 
 
+def _keypoint_rows(keypoints: Any, image: int) -> np.ndarray:
+    """COLMAP keypoint rows (M, >=2) of image 1 or 2 as float64, ``x, y`` finite."""
+    keypoints = _as_real_rows(keypoints, f"keypoints{image}", 2, "(M, >=2)")
+    require_finite(keypoints[:, :2], f"keypoints{image}")
+    return keypoints
+
+
 def _matched_keypoints(keypoints: Any, indices: np.ndarray, image: int) -> np.ndarray:
     """The ``x, y`` of the keypoints of image 1 or 2 that the matches index."""
-    keypoints = np.asarray(keypoints, dtype=np.float64)
-    if keypoints.ndim != 2 or keypoints.shape[1] < 2:
-        raise ValueError(f"keypoints{image} must have shape (M, >=2), got {keypoints.shape}")
+    keypoints = _keypoint_rows(keypoints, image)
     if indices.size and indices.max() >= len(keypoints):
         raise ValueError(
             f"inlier_matches index keypoint {indices.max()} of image {image}, which has "
@@ -328,8 +387,10 @@ def estimate_two_view_geometry(
     -------
     TwoViewEstimate
     """
-    points1 = np.ascontiguousarray(points1, dtype=np.float64)
-    points2 = np.ascontiguousarray(points2, dtype=np.float64)
+    _require_camera(camera1, "camera1")
+    _require_camera(camera2, "camera2")
+    pri_threshold = as_pri_threshold(pri_threshold)
+    points1, points2 = as_finite_rows(points1, "points1", 2), as_finite_rows(points2, "points2", 2)
     if matches is None:
         if points1.shape != points2.shape:
             raise ValueError(
@@ -337,12 +398,14 @@ def estimate_two_view_geometry(
                 f"got {points1.shape} and {points2.shape}"
             )
         matches = np.repeat(np.arange(points1.shape[0], dtype=np.uint32)[:, None], 2, axis=1)
-    matches = np.ascontiguousarray(matches, dtype=np.uint32)
+    matches = _as_index_pairs(matches, (len(points1), len(points2)))
+    if options is not None:
+        require_instance(options, pycolmap.TwoViewGeometryOptions, "options")
     if options is None:
         options = pycolmap.TwoViewGeometryOptions()
         options.ransac.random_seed = 0
     geometry = pycolmap.estimate_calibrated_two_view_geometry(
-        camera1, points1, camera2, points2, matches, options
+        camera1, points1, camera2, points2, np.ascontiguousarray(matches, np.uint32), options
     )
     if int(geometry.config) not in _POSED_CONFIGS or len(geometry.inlier_matches) < 5:
         return TwoViewEstimate(geometry=geometry, pose=None)
@@ -360,6 +423,28 @@ def estimate_two_view_geometry(
     )
     geometry.tri_angle = median_tri_angle(pose)
     return TwoViewEstimate(geometry=geometry, pose=pose)
+
+
+def _as_index_pairs(value: Any, sizes: tuple[int, int] | None = None) -> np.ndarray:
+    """Whole numbers as int64 (K, 2), each below its column's ``sizes`` entry; TypeError or
+    ValueError naming ``matches``."""
+    matches = np.asarray(value)
+    if matches.size == 0:
+        matches = matches.reshape(0, 2)
+    if matches.dtype == bool or not np.issubdtype(matches.dtype, np.integer):
+        raise TypeError(f"matches must be whole numbers (keypoint indices), got {matches.dtype}")
+    if matches.ndim != 2 or matches.shape[1] != 2:
+        raise ValueError(f"matches must have shape (K, 2), got {matches.shape}")
+    matches = matches.astype(np.int64)
+    if matches.size and matches.min() < 0:
+        raise ValueError(f"matches must be keypoint indices >= 0, got {matches.min()}")
+    for column, size in enumerate(sizes or ()):
+        if matches.size and matches[:, column].max() >= size:
+            raise ValueError(
+                f"matches index keypoint {matches[:, column].max()} of image {column + 1}, "
+                f"which has {size} keypoints"
+            )
+    return matches
 
 
 def two_view_reconstruction(
@@ -401,9 +486,15 @@ def two_view_reconstruction(
     ValueError
         For a pure rotation (no structure to build) or mismatched ``matches``.
     """
+    _require_pose(pose)
+    _require_camera(camera1, "camera1")
+    _require_camera(camera2, "camera2")
+    require_instance(image1, pycolmap.Image, "image1")
+    require_instance(image2, pycolmap.Image, "image2")
     if pose.pure_rotation:
         raise ValueError("a pure rotation has no two-view structure")
-    matches = np.asarray(matches, dtype=np.int64).reshape(-1, 2)
+    keypoints1, keypoints2 = _keypoint_rows(keypoints1, 1), _keypoint_rows(keypoints2, 2)
+    matches = _as_index_pairs(matches, (len(keypoints1), len(keypoints2)))
     if matches.shape[0] != pose.inliers.shape[0]:
         raise ValueError(
             f"matches has {matches.shape[0]} rows but the pose has {pose.inliers.shape[0]} points"
@@ -415,7 +506,7 @@ def two_view_reconstruction(
     for image, keypoints, cam_from_world in zip(
         (image1, image2), (keypoints1, keypoints2), poses, strict=True
     ):
-        xy = np.ascontiguousarray(np.asarray(keypoints, dtype=np.float64)[:, :2])
+        xy = np.ascontiguousarray(keypoints[:, :2])
         reconstruction.add_image_with_trivial_frame(
             pycolmap.Image(
                 name=image.name, keypoints=xy, camera_id=image.camera_id, image_id=image.image_id

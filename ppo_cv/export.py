@@ -17,7 +17,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .checks import as_rotation, shown
+from .checks import MAX_WHOLE_NUMBER, as_rotation, as_whole_number, shown
 from .result import (
     DecisionEvidence,
     LensTerms,
@@ -231,7 +231,8 @@ def result_to_dict(result: PairResult, **extra: Any) -> dict:
     ``PairOptions.redetect_below``), ``plane`` (the plane's unit ``normal`` in camera 1, its
     ``distance`` in baselines, whether the homography's two-fold ambiguity had to be broken
     and its radial ``k1``; None unless the model is a plane) and ``timings``. A value that is
-    not finite where the model does not define it is None.
+    not finite where the model does not define it is None. An ``extra`` key that is one of
+    these top-level keys is a ValueError.
     """
     require_result(result)
     angle, axis = rotation_angle_axis(result.R)
@@ -262,6 +263,12 @@ def result_to_dict(result: PairResult, **extra: Any) -> dict:
         "plane": _plane(result.plane),
         "timings": {k: round(float(v), 6) for k, v in result.timings.items()},
     }
+    replaced = sorted(set(extra) & set(data))
+    if replaced:
+        raise ValueError(
+            f"extra would replace the result's own field(s) {', '.join(map(repr, replaced))}; "
+            "give them other names"
+        )
     data.update(extra)
     return data
 
@@ -338,7 +345,13 @@ def matches_to_draw(
     ndarray of int, shape (D,)
         Sorted rows, ``D = min(M, max_lines)``.
     """
-    inliers = np.asarray(inliers, dtype=bool).reshape(-1)
+    inliers = np.asarray(inliers)
+    if inliers.ndim != 1 or inliers.dtype != bool:
+        raise TypeError(
+            f"inliers must be a one-dimensional array of bool, got {inliers.dtype} of shape "
+            f"{inliers.shape}"
+        )
+    seed = as_whole_number(seed, "seed", 0, MAX_WHOLE_NUMBER)
     if max_lines is None or inliers.size <= max_lines:
         return np.arange(inliers.size)
     if max_lines < 0:
@@ -402,8 +415,9 @@ def draw_matches(
 
     Parameters
     ----------
-    image1, image2 : ndarray, shape (H, W) or (H, W, 3)
-        The two images, grey or BGR.
+    image1, image2 : ndarray, shape (H, W) or (H, W, 3), or path
+        The two images the result was computed on, grey or BGR (a path is read); another size
+        than the result's, NaN pixels or no image is a ValueError or TypeError.
     result : PairResult
         The estimate whose matches are drawn.
     max_lines : int or None
@@ -415,8 +429,7 @@ def draw_matches(
     """
     import cv2
 
-    require_result(result)
-    a, b = _as_bgr(image1), _as_bgr(image2)
+    a, b = (_as_bgr(image) for image in _checked_images(result, (image1, image2)))
     width = a.shape[1] + b.shape[1]
     scale = max(0.6, width / 1280.0)  # text readable on the canvas, whatever its width
     line_height = round(24 * scale)
@@ -524,13 +537,15 @@ def write_colmap_model(
     the unit is the baseline. Each point's error is its mean reprojection error over the two
     views in pixels, through the camera models (distortion included), as COLMAP defines it.
     ``dists`` defaults to the distortion the result was computed with. A camera no COLMAP
-    model holds (:func:`check_colmap_camera`) is a ValueError.
+    model holds (:func:`check_colmap_camera`), ``names`` that are not two distinct non-empty
+    texts or ``dists`` that are not two distortions is a ValueError or TypeError.
     """
     import pycolmap
 
     require_result(result)
     cameras = result.cameras
-    dists = (cameras.dist1, cameras.dist2) if dists is None else dists
+    dists = _checked_dists((cameras.dist1, cameras.dist2) if dists is None else dists)
+    _check_names(names)
     check_colmap_camera(cameras.K1, dists[0], "camera 1")
     check_colmap_camera(cameras.K2, dists[1], "camera 2")
     check_colmap_names(names)
@@ -609,7 +624,7 @@ def write_outputs(
     """
     import cv2
 
-    from .atomic import atomic_directory, check_apart
+    from .atomic import API_REPLACE_HINT, atomic_directory, check_apart
 
     if not isinstance(directory, (str, os.PathLike)):
         raise TypeError(f"directory must be a path, got {type(directory).__name__}")
@@ -621,7 +636,7 @@ def write_outputs(
     check_colmap_camera(result.cameras.K1, dists[0], "camera 1")
     check_colmap_camera(result.cameras.K2, dists[1], "camera 2")
     check_colmap_names(names)
-    with atomic_directory(directory, overwrite=overwrite) as staging:
+    with atomic_directory(directory, overwrite, API_REPLACE_HINT) as staging:
         (staging / "result.json").write_text(
             json.dumps(result_to_dict(result, **(extra or {})), indent=2) + "\n", encoding="utf-8"
         )
@@ -639,7 +654,23 @@ def _checked_output_arguments(
     """The two images of :func:`write_outputs` as 8-bit arrays (a path is read); TypeError or
     ValueError naming the argument that cannot make its files: not a PairResult, an image not
     of the size the result describes, names that are not two distinct, non-empty texts (COLMAP
-    names each image once), ``extra`` that JSON cannot hold (NaN and infinity are no JSON)."""
+    names each image once), ``extra`` that JSON cannot hold (NaN and infinity are no JSON) or
+    whose keys would replace the result's own fields."""
+    arrays = _checked_images(result, images)
+    _check_names(names)
+    if extra is not None and not isinstance(extra, dict):
+        raise TypeError(f"extra must be a dict of JSON values, got {type(extra).__name__}")
+    try:
+        json.dumps(extra, allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise type(exc)(f"extra cannot be written as JSON: {exc}") from None
+    result_to_dict(result, **(extra or {}))
+    return arrays
+
+
+def _checked_images(result: Any, images: tuple[Any, Any]) -> tuple[np.ndarray, np.ndarray]:
+    """The two images a result was computed on as 8-bit arrays (a path is read); TypeError or
+    ValueError for no PairResult, no image, NaN pixels or another size than the result's."""
     from .images import as_image
 
     require_result(result)
@@ -652,6 +683,12 @@ def _checked_output_arguments(
                 f"image{number} is {shape[1]}x{shape[0]} pixels, but the result's image {number} "
                 f"is {size[0]}x{size[1]}"
             )
+    return arrays
+
+
+def _check_names(names: Any) -> None:
+    """TypeError or ValueError unless ``names`` are two distinct non-empty texts (a COLMAP
+    model names each image once)."""
     if not (isinstance(names, (tuple, list)) and len(names) == 2):
         raise TypeError(f"names must be two image names, got {shown(names, 60)}")
     if not all(isinstance(name, str) and name.strip() for name in names):
@@ -660,13 +697,6 @@ def _checked_output_arguments(
         raise ValueError(
             f"names must differ: a COLMAP model names each image once, got {shown(names, 60)}"
         )
-    if extra is not None and not isinstance(extra, dict):
-        raise TypeError(f"extra must be a dict of JSON values, got {type(extra).__name__}")
-    try:
-        json.dumps(extra, allow_nan=False)
-    except (TypeError, ValueError) as exc:
-        raise type(exc)(f"extra cannot be written as JSON: {exc}") from None
-    return arrays
 
 
 def _checked_dists(dists: Any) -> tuple[np.ndarray | None, np.ndarray | None]:

@@ -76,7 +76,9 @@ def _max_pixels(max_pixels: int | None) -> int:
 
 def file_mode(path: str | os.PathLike, what: str) -> int:
     """``st_mode`` of ``path`` (symbolic links followed); ValueError naming ``what`` the path
-    is when it does not exist or cannot be reached (a loop of symbolic links, no permission)."""
+    is when it does not exist or cannot be reached (a loop of symbolic links, no permission);
+    TypeError for a ``path`` that is no path."""
+    as_path(path, "path")
     try:
         return os.stat(path).st_mode
     except FileNotFoundError:
@@ -95,13 +97,26 @@ def check_regular_file(path: str | os.PathLike) -> None:
         raise ValueError(f"not a regular file: {path} (a pipe, socket or device?)")
 
 
+def _is_regular_file(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is an existing regular file (symbolic links followed), without opening
+    it."""
+    try:
+        return stat.S_ISREG(os.stat(path).st_mode)
+    except (OSError, ValueError):  # missing, unreachable, or a name holding a NUL byte
+        return False
+
+
 def image_size(path: str | os.PathLike) -> tuple[int, int] | None:
-    """``(width, height)`` from the file header without decoding, or None when unknown.
+    """``(width, height)`` from the file header without decoding, or None when unknown: a
+    path that is no regular file (missing, a folder, or a FIFO, which is never opened: a reader
+    would wait for a writer) or a header Pillow does not know.
 
     PNG is parsed directly (signature, then the IHDR chunk); other formats go through Pillow,
     which reads only the header on open.
     """
-    path = os.fspath(path)
+    path = os.fspath(as_path(path, "path"))
+    if not _is_regular_file(path):
+        return None
     with open(path, "rb") as file:
         head = file.read(24)
     if head[:8] == _PNG_SIGNATURE and head[12:16] == b"IHDR":
@@ -188,8 +203,10 @@ _ORIENTATION_TAG, _EXIF_IFD, _PIXEL_X_TAG, _PIXEL_Y_TAG = 0x0112, 0x8769, 0xA002
 
 
 def exif_layout(path: str | os.PathLike) -> ExifLayout:
-    """The EXIF orientation and pixel dimensions of an image file (empty when it has none or
-    Pillow cannot read it)."""
+    """The EXIF orientation and pixel dimensions of an image file (empty when it has none,
+    Pillow cannot read it or it is no regular file: a FIFO is never opened)."""
+    if not _is_regular_file(path):
+        return ExifLayout()
     try:
         from PIL import Image
 
@@ -209,11 +226,11 @@ def decoded_transposed(path: str | os.PathLike, width: int, height: int) -> bool
     """Whether :func:`load_image` shows a file stored as ``width x height`` pixels turned by a
     quarter (EXIF orientation 5-8: a camera held upright stores its pixels sideways, and
     OpenCV decodes them upright). Decides by the aspect of a decode at 1/8 scale; False for
-    square images, unreadable files and files above the pixel limit.
+    square images, unreadable files, files above the pixel limit and what is no regular file.
     """
     import cv2
 
-    if width == height or width * height > _max_pixels(None):
+    if width == height or width * height > _max_pixels(None) or not _is_regular_file(path):
         return False
     data = np.fromfile(os.fspath(path), dtype=np.uint8)
     shown = cv2.imdecode(data, cv2.IMREAD_REDUCED_GRAYSCALE_8) if data.size else None

@@ -33,6 +33,7 @@ import inspect
 import itertools
 import os
 import shutil
+import stat
 import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -44,7 +45,13 @@ import numpy as np
 import pycolmap
 
 from . import colmap, ppo
-from .atomic import atomic_directory, check_target, signals_deferred, staging_folder
+from .atomic import (
+    API_REPLACE_HINT,
+    atomic_directory,
+    check_target,
+    signals_deferred,
+    staging_folder,
+)
 from .checks import (
     MAX_WHOLE_NUMBER,
     as_camera_matrix,
@@ -54,12 +61,13 @@ from .checks import (
     as_positive,
     as_pri_threshold,
     as_whole_number,
+    require_instance,
     shown,
 )
 from .homography import estimate_homography
-from .images import check_decodes
+from .images import check_decodes, file_mode
 from .metrics import direction_error_deg, rotation_error_deg
-from .motion_model import decide_motion, plane_ransac_trials
+from .motion_model import MotionDecision, decide_motion, plane_ransac_trials
 from .parallax import nearest_rotation_log_scale, rotation_spread
 from .pose import _recover_normalized
 from .robust import essential_from_pose
@@ -255,13 +263,25 @@ def _say(progress: Progress | None, message: str) -> None:
 
 
 def _image_folder(value: Any) -> Path:
-    """``value`` as the Path of an existing folder; TypeError or ValueError naming it."""
+    """``value`` as the Path of an existing folder; TypeError or ValueError naming it (and
+    why it cannot be reached: a loop of symbolic links, no permission)."""
     image_dir = as_path(value, "image_dir")
-    if not image_dir.exists():
+    if not os.path.lexists(image_dir):
         raise ValueError(f"image folder {str(image_dir)!r} does not exist")
-    if not image_dir.is_dir():
+    if not stat.S_ISDIR(file_mode(image_dir, "image folder")):
         raise ValueError(f"image folder {str(image_dir)!r} is not a folder")
     return image_dir
+
+
+def _check_new_database(database_path: Path, image_dir: Path) -> None:
+    """ValueError unless ``database_path`` can receive a new database: a database is built
+    anew, never replaced or added to."""
+    if database_path.exists():
+        raise ValueError(
+            f"database {str(database_path)!r} already exists; give a new file name (a database "
+            "is never replaced)"
+        )
+    check_target(database_path, "file", inputs=[image_dir], name="database_path ")
 
 
 def list_images(image_dir: str | os.PathLike) -> list[str]:
@@ -432,10 +452,7 @@ def prepare_database(
             raise ValueError(f"K has skew {K[0, 1]}, which pycolmap's PINHOLE camera cannot hold")
     names, skipped = screen_images(image_dir)
     require_two_images(image_dir, names, skipped)
-    database_path = as_path(database_path, "database_path")
-    if database_path.exists():
-        raise ValueError(f"database {str(database_path)!r} already exists")
-    check_target(database_path, "file", inputs=[image_dir], name="database_path ")
+    _check_new_database(as_path(database_path, "database_path"), image_dir)
     if K is not None:
         _check_one_size(image_dir, names)
     reader, extraction, matching, verification = _pycolmap_options(
@@ -560,6 +577,11 @@ def score_pose(
         Empty when accepted, else the reason.
     """
     target_tri_angle = as_positive(target_tri_angle, "target_tri_angle")
+    min_inliers = as_whole_number(min_inliers, "min_inliers", 0, MAX_WHOLE_NUMBER)
+    min_tri_angle = as_nonnegative(min_tri_angle, "min_tri_angle")
+    max_forward_motion = as_nonnegative(max_forward_motion, "max_forward_motion")
+    if motion is not None:
+        require_instance(motion, MotionDecision, "motion", " (ppo_cv.motion_model.decide_motion)")
     tri_angle = float(np.degrees(colmap.median_tri_angle(pose)))
     if pose.pure_rotation:
         rejection = f"pure rotation (PRI {pose.pri:.4f} < {pose.pri_threshold})"
@@ -1178,6 +1200,7 @@ def rotation_focal_scale(H: Any, focal: float, size: float) -> float | None:
         (no focal length inside it makes ``H`` a rotation, or the rotation is about the
         optical axis, which says nothing of the focal length).
     """
+    focal, size = as_positive(focal, "focal"), as_positive(size, "size")
     H = np.asarray(H, dtype=np.float64)
     if H.shape != (3, 3) or not np.all(np.isfinite(H)):
         return None
@@ -1378,10 +1401,9 @@ def run_sfm(
     image_dir = _image_folder(image_dir)
     if output_dir is not None:  # never the image folder, nor one holding it, even replaced
         output_dir = as_path(output_dir, "output_dir")
-        check_target(output_dir, "folder", overwrite, [image_dir], "output_dir ")
+        check_target(output_dir, "folder", overwrite, [image_dir], "output_dir ", API_REPLACE_HINT)
     if database_path is not None:
-        check_target(as_path(database_path, "database_path"), "file", False, [image_dir],
-                     "database_path ")  # fmt: skip
+        _check_new_database(as_path(database_path, "database_path"), image_dir)
     with contextlib.ExitStack() as stack:
         scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="ppo-cv-sfm-")))
         if exif_orientation:
@@ -1461,6 +1483,7 @@ def format_pairs(pairs: Sequence[PairScore]) -> str:
     name holding whitespace in double quotes, as in a pairs file."""
     lines = ["# name1 name2 score num_inliers num_matches pri tri_angle_deg verdict"]
     for p in pairs:
+        require_instance(p, PairScore, "each pair", " (sfm.score_pairs)")
         verdict = "ok" if p.accepted else p.rejection.replace(" ", "_")
         name1, name2 = (f'"{n}"' if n.split() != [n] else n for n in (p.name1, p.name2))
         lines.append(
@@ -1474,9 +1497,11 @@ def write_model(result: SfmResult, output_dir: str | os.PathLike, overwrite: boo
     """Write the reconstruction (COLMAP binary) and the pair ranking into a new folder.
 
     The folder is built beside its target and renamed when complete; an existing non-empty
-    ``output_dir`` is a ValueError unless ``overwrite``.
+    ``output_dir`` is a ValueError unless ``overwrite``; ``result`` not an :class:`SfmResult`
+    a TypeError, before anything is written.
     """
-    with atomic_directory(output_dir, overwrite=overwrite) as staging:
+    require_instance(result, SfmResult, "result", " (sfm.run_sfm or sfm.reconstruct)")
+    with atomic_directory(output_dir, overwrite, API_REPLACE_HINT) as staging:
         result.reconstruction.write(staging)
         if result.pairs:
             (staging / "initial_pairs.txt").write_text(format_pairs(result.pairs), "utf-8")
@@ -1486,7 +1511,10 @@ def pose_errors(reconstruction, gt) -> tuple[list[float], list[float]]:
     """Relative rotation errors and translation-direction errors (degrees) of registered pairs.
 
     Translation errors are skipped for ground-truth pairs without translation (pure rotation).
+    ``gt`` maps a pair of image names to its ``(R, t)``.
     """
+    require_instance(reconstruction, pycolmap.Reconstruction, "reconstruction")
+    require_instance(gt, dict, "gt", ": {(name1, name2): (R, t)}")
     ids = {reconstruction.image(i).name: i for i in reconstruction.reg_image_ids()}
     rotation_errors, translation_errors = [], []
     for (name1, name2), (R_gt, t_gt) in gt.items():

@@ -198,6 +198,10 @@ def test_colmap_camera_models(tmp_path, line, K, dist):
         ("1 PINHOLE 640 480 535.4 539.2\n", "takes 4 parameters"),
         ("1 PINHOLE\n", "expected CAMERA_ID"),
         ("# only comments\n", "no camera"),
+        # one id naming two cameras: the second line was taken as image 2's camera
+        ("1 PINHOLE 640 480 500 500 320 240\n1 PINHOLE 640 480 510 500 320 240\n",
+         r"cameras.txt:2: camera 1 is described otherwise on line 1; each CAMERA_ID names one"),
+        ("x PINHOLE 640 480 500 500 320 240\n", r"CAMERA_ID must be a whole number >= 0, got 'x'"),
     ],
 )
 def test_colmap_errors(tmp_path, text, message):
@@ -218,6 +222,38 @@ def test_a_colmap_file_of_cameras_all_alike_is_one_camera(tmp_path, lines, camer
     path = tmp_path / "cameras.txt"
     path.write_text("\n".join(lines) + "\n")
     assert len(load_calibration(path)) == cameras
+
+
+def test_a_colmap_file_gives_its_cameras_in_the_order_of_their_ids(tmp_path):
+    # COLMAP writes cameras.txt in any order; the second line's camera 1 was image 2's camera
+    path = tmp_path / "cameras.txt"
+    path.write_text("2 PINHOLE 640 480 510 500 320 240\n1 PINHOLE 640 480 500 500 320 240\n")
+    assert [camera.K[0, 0] for camera in load_calibration(path)] == [500.0, 510.0]
+
+
+@pytest.mark.parametrize(
+    "name, text, message",
+    [
+        ("dup.json", '{"K": [500, 500, 320, 240], "K": [900, 900, 320, 240]}',
+         r"dup.json is not a calibration file: the key 'K' is given twice in one object"),
+        ("dup2.json", '{"cameras": [{"fx": 5, "fx": 500, "fy": 500, "cx": 320, "cy": 240}]}',
+         r"the key 'fx' is given twice"),
+    ],
+)  # fmt: skip
+def test_a_json_key_given_twice_is_refused(tmp_path, name, text, message):
+    # JSON readers keep the last value: the file said two things and one was dropped silently
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(ValueError, match=message):
+        load_calibration(path)
+
+
+def test_utf16_text_is_named_so(tmp_path):
+    path = tmp_path / "camera.json"
+    path.write_text('{"K": [500, 500, 320, 240]}', encoding="utf-16")
+    with pytest.raises(ValueError, match=r"camera.json is UTF-16 text, not UTF-8 .*: save it as "
+                       r"UTF-8$"):  # fmt: skip  (it said 'a binary file, such as an image?')
+        load_calibration(path)
 
 
 @pytest.mark.parametrize(

@@ -221,6 +221,20 @@ def test_exif_of_a_resized_photo_and_an_implausible_field_warn(tmp_path):
     assert not any("a.jpg" in w and "field of view" in w for w in warnings)
 
 
+def test_pairs_gives_one_line_for_photos_whose_exif_is_doubtful_alike(tmp_path):
+    # a folder of one camera's photos gave one warning line per photo (10 on pano_dev's csie)
+    for name in ("a.jpg", "b.jpg", "c.jpg", "d.jpg"):
+        photo(DEMO1 if name != "b.jpg" else DEMO2, tmp_path / name, focal_35mm=400)
+    photo(DEMO2, tmp_path / "e.jpg", focal_35mm=800)
+    (tmp_path / "pairs.txt").write_text("a.jpg b.jpg\nb.jpg c.jpg\nc.jpg d.jpg\nd.jpg e.jpg\n")
+    done = ppo_cv("pairs", tmp_path / "pairs.txt", tmp_path, "--workers", "1", "-q")
+    fields = [w for w in warnings_of(done) if "field of view" in w]
+    assert len(fields) == 2, done.stderr
+    assert fields[0].startswith(f"ppo-cv pairs: warning: 4 images in {tmp_path} (a.jpg, b.jpg, "
+                                "c.jpg, ...): the EXIF focal length f=")  # fmt: skip
+    assert fields[1].startswith(f"ppo-cv pairs: warning: {tmp_path / 'e.jpg'}: the EXIF focal")
+
+
 def test_without_exif_the_wording_is_either_and_no_orientation_is_suggested(tmp_path):
     for source, name in ((DEMO1, "a.jpg"), (DEMO2, "b.jpg")):
         photo(source, tmp_path / name, exif=False)

@@ -259,6 +259,16 @@ def test_two_view_reconstruction_rejects_pure_rotation(camera):
         colmap.two_view_reconstruction(camera, camera, image1, image2, p1, p2, matches, result)
 
 
+def _exact_pose_inputs():
+    """(E, x1, x2, K) of 30 exact matches of a translating camera, pixels."""
+    rng = np.random.default_rng(1)
+    X = np.column_stack([rng.uniform(-1, 1, (30, 2)), rng.uniform(4, 8, 30)])
+    R, t = np.eye(3), np.array([1.0, 0.0, 0.0])
+    E = np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]]) @ R
+    project = lambda P: (P @ K.T)[:, :2] / P[:, 2:]  # noqa: E731
+    return E, project(X), project(X @ R.T + t), K
+
+
 def _geometry(matches) -> pycolmap.TwoViewGeometry:
     geometry = pycolmap.TwoViewGeometry()
     geometry.inlier_matches = np.asarray(matches, dtype=np.uint32)
@@ -288,9 +298,58 @@ _SIX = [[i, i] for i in range(6)]
         (lambda cam: colmap.recover_pose_from_geometry(
             _geometry(_SIX), cam, _KEYPOINTS[:, 0], cam, _KEYPOINTS), ValueError,
          r"keypoints1 must have shape \(M, >=2\), got \(10,\)"),
+        # not pycolmap's objects, or none: named (they were AttributeErrors, or pycolmap's
+        # list of overloads)
+        (lambda cam: colmap.K_from_camera(K), TypeError,
+         r"^camera must be a pycolmap.Camera, got ndarray: make one with "
+         r"ppo_cv.colmap.camera_from_K\(K, width, height\)$"),
+        (lambda cam: colmap.rays_from_camera(None, _KEYPOINTS), TypeError,
+         r"^camera must be a pycolmap.Camera, got NoneType"),
+        (lambda cam: colmap.estimate_two_view_geometry(K, _KEYPOINTS, cam, _KEYPOINTS), TypeError,
+         r"^camera1 must be a pycolmap.Camera, got ndarray"),
+        (lambda cam: colmap.pose_from_rigid3d(None), TypeError,
+         r"^rigid must be a pycolmap.Rigid3d, got NoneType$"),
+        (lambda cam: colmap.relative_pose(None, 1, 2), TypeError,
+         r"^reconstruction must be a pycolmap.Reconstruction, got NoneType$"),
+        (lambda cam: colmap.relative_pose(pycolmap.Reconstruction(), 1, 2), ValueError,
+         r"^the reconstruction has no image of id 1$"),
+        (lambda cam: colmap.median_tri_angle(None), TypeError,
+         r"^pose must be a ppo_cv.pose.PoseResult or ppo_cv.result.PairResult, got NoneType"),
+        (lambda cam: colmap.two_view_geometry_from_pose(None), TypeError, r"^pose must be a"),
+        (lambda cam: colmap.recover_pose_from_geometry(None, cam, _KEYPOINTS, cam, _KEYPOINTS),
+         TypeError, r"^geometry must be a pycolmap.TwoViewGeometry, got NoneType$"),
+        # points and matches pycolmap took: NaN gave a geometry of uninitialised memory, a
+        # match beyond the keypoints was read, a NaN pri_threshold passed
+        (lambda cam: colmap.rays_from_camera(cam, np.full((3, 2), np.nan)), ValueError,
+         r"^points has 6 NaN or infinite value\(s\)$"),
+        (lambda cam: colmap.estimate_two_view_geometry(
+            cam, np.full((20, 2), np.nan), cam, _KEYPOINTS), ValueError,
+         r"^points1 has 40 NaN or infinite value\(s\)$"),
+        (lambda cam: colmap.estimate_two_view_geometry(
+            cam, _KEYPOINTS, cam, _KEYPOINTS, matches=[*_SIX, [0, 99]]), ValueError,
+         r"^matches index keypoint 99 of image 2, which has 10 keypoints$"),
+        (lambda cam: colmap.estimate_two_view_geometry(
+            cam, _KEYPOINTS, cam, _KEYPOINTS, matches=[*_SIX, [-1, 0]]), ValueError,
+         r"^matches must be keypoint indices >= 0, got -1$"),
+        (lambda cam: colmap.estimate_two_view_geometry(
+            cam, _KEYPOINTS, cam, _KEYPOINTS, matches=np.ones((6, 2))), TypeError,
+         r"^matches must be whole numbers \(keypoint indices\), got float64$"),
+        (lambda cam: colmap.estimate_two_view_geometry(
+            cam, _KEYPOINTS, cam, _KEYPOINTS, pri_threshold=np.nan), ValueError,
+         r"^pri_threshold must be a number in \[0, 1\]"),
+        (lambda cam: colmap.triangulation_angles(np.zeros((3, 2)), np.eye(3), [1, 0, 0]),
+         ValueError, r"^points3d must have shape \(N, 3\), got \(3, 2\)$"),
+        (lambda cam: colmap.two_view_geometry_from_pose(
+            ppo_cv.recover_pose(*_exact_pose_inputs()), E=np.full((3, 3), np.nan)), ValueError,
+         r"^E has 9 NaN or infinite value\(s\)$"),
     ],
     ids=["width text", "width fraction", "height NaN", "t NaN", "t text",
-         "match beyond keypoints 2", "match beyond keypoints 1", "keypoints of one column"],
+         "match beyond keypoints 2", "match beyond keypoints 1", "keypoints of one column",
+         "K_from_camera K", "rays no camera", "estimate K as camera", "rigid None",
+         "relative_pose None", "relative_pose no image", "tri angle None", "geometry None pose",
+         "geometry None", "rays NaN", "estimate NaN points", "estimate match beyond",
+         "estimate negative match", "estimate float matches", "estimate NaN pri",
+         "tri angles shape", "E NaN"],
 )
 def test_hostile_arguments_are_errors_naming_them(camera, call, error, words):
     with pytest.raises(error, match=words):

@@ -170,6 +170,7 @@ def test_cli_imperfect_and_warp(tmp_path):
                                  "--baseline-ratio", "0.03", "--imperfect", "--width", "64",
                                  "--height", "48", "--noise", "2", "--workers", "1"])  # fmt: skip
     assert result.exit_code == 0, result.output
+    assert result.stdout.startswith(f"wrote 1 pair to {out} (")  # not '1 pairs'
     gt = json.loads((out / "gt" / "pair_000.json").read_text())
     assert gt["params"]["baseline_ratio"] == 0.03 and gt["params"]["noise_std"] == 2.0
     assert gt["params"]["blur_sigma"] == 0.5 and gt["K1"] != gt["K1_given"]

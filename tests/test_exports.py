@@ -19,6 +19,7 @@ from ppo_cv.export import (
     check_colmap_camera,
     draw_matches,
     matches_to_draw,
+    write_colmap_model,
     write_outputs,
     write_ply,
 )
@@ -368,3 +369,44 @@ def test_write_ply_replaces_a_file_whole(tmp_path):
     data = path.read_bytes()
     assert data.startswith(b"ply\n") and data.endswith(b"\x07\x07\x07") and b"vertex 3" in data
     assert sorted(p.name for p in tmp_path.iterdir()) == ["points.ply"]
+
+
+@pytest.mark.parametrize(
+    "call, exception, words",
+    [(lambda r, i, p: write_colmap_model(p, r, names=("a.png", "a.png")), ValueError,
+      "names must differ: a COLMAP model names each image once"),
+     (lambda r, i, p: write_colmap_model(p, r, names="ab"), TypeError,
+      "names must be two image names, got 'ab'"),
+     (lambda r, i, p: write_colmap_model(p, r, names=("a.png",)), TypeError,
+      "names must be two image names"),
+     (lambda r, i, p: write_colmap_model(p, r, dists=(np.full(4, np.nan), None)), ValueError,
+      "dists[0] has 4 NaN or infinite value(s)"),
+     (lambda r, i, p: write_colmap_model(p, r, dists="ab"), TypeError,
+      "dists must be two distortions (None for none), got 'ab'"),
+     (lambda r, i, p: draw_matches(np.full(i[0].shape, np.nan), i[1], r), ValueError,
+      "image1 has 921600 NaN or infinite pixel value(s)"),
+     (lambda r, i, p: draw_matches(i[0][:100], i[1], r), ValueError,
+      "image1 is 640x100 pixels, but the result's image 1 is 640x480"),
+     (lambda r, i, p: draw_matches(i[0], None, r), TypeError, "image2"),
+     (lambda r, i, p: matches_to_draw(None), TypeError,
+      "inliers must be a one-dimensional array of bool, got object of shape ()"),
+     (lambda r, i, p: matches_to_draw(np.ones((3, 3), bool)), TypeError,
+      "inliers must be a one-dimensional array of bool, got bool of shape (3, 3)"),
+     (lambda r, i, p: matches_to_draw(np.ones(9, bool), seed="x"), TypeError,
+      "seed must be a whole number, got str 'x'"),
+     (lambda r, i, p: ppo_cv.export.result_to_dict(r, R=1), ValueError,
+      "extra would replace the result's own field(s) 'R'"),
+     (lambda r, i, p: write_outputs(p, r, *i, extra={"t": [0, 0, 1], "model": "x"}), ValueError,
+      "extra would replace the result's own field(s) 'model', 't'")],
+    ids=["same names", "names text", "one name", "NaN dist", "dists text", "draw NaN",
+         "draw other size", "draw None", "inliers None", "inliers 2-D", "seed text",
+         "extra R", "write extra t"],
+)  # fmt: skip
+def test_the_writers_check_what_write_outputs_checks(demo_result, demo, tmp_path, call,
+                                                     exception, words):  # fmt: skip
+    # a COLMAP model of two images of one name, or with NaN parameters, was written; 'ab' was
+    # read as the names 'a' and 'b'; a NaN image was drawn as black, another size's drawn over;
+    # None drew one match; an extra 'R' replaced the result's rotation in result.json
+    with pytest.raises(exception, match=re.escape(words)):
+        call(demo_result, demo[:2], tmp_path / "out")
+    assert list(tmp_path.iterdir()) == []

@@ -8,7 +8,10 @@ from __future__ import annotations
 
 import os
 import re
+import time
 import warnings
+from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import TimeoutError as FutureTimeout
 from pathlib import Path
 
 import cv2
@@ -304,6 +307,50 @@ CASES = {
                                          "distortion must be OpenCV distortion coefficients"),
     "reconstruct no image folder": (lambda: _sfm_module().reconstruct(__file__, "no such folder"),
                                     ValueError, "image folder 'no such folder' does not exist"),
+    # the sfm helpers: an AttributeError of None, a NaN bound that passed, a log's warning
+    "score_pose None": (lambda: _sfm_module().score_pose(None), TypeError,
+                        "pose must be a ppo_cv.pose.PoseResult or ppo_cv.result.PairResult, "
+                        "got NoneType"),
+    "score_pose min_inliers NaN": (
+        lambda: _sfm_module().score_pose(ppo_cv.recover_pose(E, P1, P2, K), min_inliers=np.nan),
+        ValueError, "min_inliers must be a whole number in 0..2147483647, got nan"),
+    "score_pose motion text": (
+        lambda: _sfm_module().score_pose(ppo_cv.recover_pose(E, P1, P2, K), motion="rotation"),
+        TypeError, "motion must be a ppo_cv.motion_model.MotionDecision, got str"),
+    "rotation_focal_scale negative focal": (
+        lambda: _sfm_module().rotation_focal_scale(np.eye(3), -500.0, 640), ValueError,
+        "focal must be a finite number > 0, got -500.0"),
+    "format_pairs ints": (lambda: _sfm_module().format_pairs([1, 2]), TypeError,
+                          "each pair must be a ppo_cv.sfm.PairScore, got int"),
+    "pose_errors None": (lambda: _sfm_module().pose_errors(None, {}), TypeError,
+                         "reconstruction must be a pycolmap.Reconstruction, got NoneType"),
+    "write_model None": (lambda: _sfm_module().write_model(None, "never written"), TypeError,
+                         "result must be a ppo_cv.sfm.SfmResult, got NoneType"),
+    # calibration helpers: an AttributeError of None, a 0x0 image read as one, a text as a size
+    "fit_to_image None": (lambda: ppo_cv.calib.fit_to_image(None, (640, 480), "cal"), TypeError,
+                          "camera must be a ppo_cv.calib.Camera, got NoneType"),
+    "fit_to_image size text": (
+        lambda: ppo_cv.calib.fit_to_image(ppo_cv.Camera(K, None, (640, 480)), "ab", "cal"),
+        TypeError, "size must be (width, height), got 'ab'"),
+    "fit_to_image negative size": (
+        lambda: ppo_cv.calib.fit_to_image(ppo_cv.Camera(K, None, (640, 480)), (-640, 480), "cal"),
+        ValueError, "size width must be a whole number in 1..2147483647, got -640"),
+    "implausible_intrinsics None": (
+        lambda: ppo_cv.calib.implausible_intrinsics(None, (640, 480), "K1"), TypeError,
+        "K1 is required, got None"),
+    "implausible_intrinsics 0x0": (
+        lambda: ppo_cv.calib.implausible_intrinsics(K, (0, 0), "K1"), ValueError,
+        "size width must be a whole number in 1..2147483647, got 0"),
+    # the image checks: os.stat's own words ('stat: path should be string, bytes, ...')
+    "check_decodes None": (lambda: ppo_cv.images.check_decodes(None), TypeError,
+                           "path must be a path (str or os.PathLike), got NoneType"),
+    "check_header 5": (lambda: ppo_cv.images.check_header(5), TypeError,
+                       "path must be a path (str or os.PathLike), got int"),
+    "image_size None": (lambda: ppo_cv.images.image_size(None), TypeError,
+                        "path must be a path (str or os.PathLike), got NoneType"),
+    # a text where points belong: no advice to parse it as intrinsics
+    "recoverPose points text": (lambda: ppo_cv.recoverPose(E, "1,2", P2, K), TypeError,
+                                "points1 must be an array of real numbers, got str"),
 }  # fmt: skip
 
 
@@ -372,6 +419,7 @@ def test_hostile_input_is_an_error_naming_the_argument(case):
     with pytest.raises(exception) as info:
         call()
     assert words in str(info.value)
+    assert "parse a text" not in str(info.value) or "K" in words or "dist" in words
 
 
 DROPIN_CASES = [case for case in CASES if case.startswith(("recoverPose", "form 4"))]
@@ -561,6 +609,56 @@ def test_a_fifo_is_refused_without_blocking(tmp_path):
     os.mkfifo(fifo)
     with pytest.raises(ValueError, match="not a regular file"):
         load_image(fifo)
+
+
+SFM_FOLDER_ENTRIES = {
+    "list_images": lambda folder, root: _sfm_module().list_images(folder),
+    "screen_images": lambda folder, root: _sfm_module().screen_images(folder),
+    "prepare_database": lambda folder, root: _sfm_module().prepare_database(folder, root / "d.db"),
+    "run_sfm": lambda folder, root: _sfm_module().run_sfm(folder, root / "model", K=K),
+}
+
+
+@pytest.mark.parametrize("entry", list(SFM_FOLDER_ENTRIES))
+def test_an_image_folder_in_a_loop_of_symbolic_links_is_named_so(tmp_path, entry):
+    os.symlink("loop2", tmp_path / "loop1")
+    os.symlink("loop1", tmp_path / "loop2")
+    with pytest.raises(ValueError, match="^cannot read image folder .*loop1: Too many levels of "
+                       "symbolic links$"):  # fmt: skip
+        SFM_FOLDER_ENTRIES[entry](tmp_path / "loop1", tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["loop1", "loop2"]
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+@pytest.mark.parametrize(
+    "call, expected",
+    [(lambda path: ppo_cv.images.image_size(path), None),
+     (lambda path: ppo_cv.images.exif_layout(path), ppo_cv.images.ExifLayout()),
+     (lambda path: ppo_cv.images.decoded_transposed(path, 640, 480), False)],
+    ids=["image_size", "exif_layout", "decoded_transposed"],
+)  # fmt: skip
+def test_the_header_readers_never_open_a_fifo(tmp_path, call, expected):
+    # each opened it and waited for a writer: ppo-cv pairs --calib hung on a FIFO in the folder
+    fifo = tmp_path / "pipe.png"
+    os.mkfifo(fifo)
+    with ThreadPoolExecutor(1) as pool:
+        answer = pool.submit(call, fifo)
+        try:
+            result = answer.result(timeout=20)
+        except FutureTimeout:
+            _release_readers(fifo, answer)
+            pytest.fail("it opened the FIFO and waited for a writer")
+    assert result == expected
+
+
+def _release_readers(fifo: Path, answer) -> None:
+    """Open and close ``fifo`` for writing until ``answer`` is done, so that each reader it
+    waits in sees an end of file (never blocking: without a reader the open fails)."""
+    while not answer.done():
+        try:
+            os.close(os.open(fifo, os.O_WRONLY | os.O_NONBLOCK))
+        except OSError:
+            time.sleep(0.01)
 
 
 def test_missing_file_and_directory(tmp_path):
@@ -765,7 +863,8 @@ def test_prepare_database_names_a_missing_folder_before_any_work(tmp_path):
     "output, database, words",
     [("images", None, "the output output_dir {root}/images is the input {root}/images"),
      (".", None, "the output output_dir {root} holds the input {root}/images"),
-     ("model", "images/demo1.png", "{root}/images/demo1.png already exists")],
+     ("model", "images/demo1.png", "database '{root}/images/demo1.png' already exists; give a "
+      "new file name (a database is never replaced)")],
     ids=["the image folder", "a folder holding it", "an image as database"],
 )  # fmt: skip
 def test_run_sfm_never_replaces_its_images_even_with_overwrite(tmp_path, output, database, words):
@@ -781,6 +880,36 @@ def test_run_sfm_never_replaces_its_images_even_with_overwrite(tmp_path, output,
         _sfm_module().run_sfm(tmp_path / "images", target, K=K, overwrite=True,
                               database_path=database and tmp_path / database)  # fmt: skip
     assert {p.name: p.read_bytes() for p in (tmp_path / "images").iterdir()} == before
+
+
+def _demo_result_and_images():
+    """(result, image1, image2) of the demo pair, the images as paths."""
+    folder = Path(ppo_cv.__file__).parent / "data"
+    images = [str(folder / name) for name in ("demo1.png", "demo2.png")]
+    K_demo = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
+    return ppo_cv.estimate_pair(*images, K_demo), *images
+
+
+@pytest.mark.parametrize(
+    "call, words",
+    [(lambda out: ppo_cv.write_outputs(out, *_demo_result_and_images()),
+      "exists and is not an empty directory; pass overwrite=True to replace it"),
+     (lambda out: _sfm_module().run_sfm(Path(ppo_cv.__file__).parent / "data", out, K=K),
+      "exists and is not an empty directory; pass overwrite=True to replace it"),
+     (lambda out: _sfm_module().run_sfm(Path(ppo_cv.__file__).parent / "data", out.parent / "m",
+                                        K=K, database_path=out / "kept", overwrite=True),
+      "already exists; give a new file name (a database is never replaced)")],
+    ids=["write_outputs", "run_sfm output_dir", "run_sfm database with overwrite"],
+)  # fmt: skip
+def test_an_existing_output_of_the_api_names_the_api_s_way(tmp_path, call, words):
+    # the API's messages said 'pass --overwrite', an option of the command line; for a
+    # database, which overwrite=True never replaces, they said it even with overwrite=True
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "kept").write_text("kept")
+    with pytest.raises(ValueError, match=re.escape(words)):
+        call(out)
+    assert [p.name for p in tmp_path.iterdir()] == ["out"] and (out / "kept").read_text() == "kept"
 
 
 @pytest.mark.parametrize("dtype", [np.float16, np.float32, np.int64, np.longdouble])
