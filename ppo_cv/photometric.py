@@ -952,10 +952,8 @@ def refine_rotation_photometric(
     rotation_sigma_deg: float = 1.0,
     dist1: np.ndarray | None = None,
     dist2: np.ndarray | None = None,
-    window: int | Sequence[int] = WINDOWS,
-    max_corners: int | None = None,
-    keep_clipped: bool = False,
-    on_clipped: Callable[[], None] | None = None,
+    window: int | Sequence[int] = WINDOWS, max_corners: int | None = None,
+    keep_clipped: bool = False, on_clipped: Callable[[], None] | None = None,
 ) -> PhotometricRotation | None:
     """Refit a pure rotation's lens rotation on windows aligned by intensity.
 
@@ -994,13 +992,9 @@ def refine_rotation_photometric(
     max_corners : int, optional
         Windows aligned at most (default :data:`MAX_CORNERS`).
     keep_clipped : bool
-        A rotation-only estimate's refit (:mod:`ppo_cv.rotation_choice`): ``k1`` held by its
-        prior alone, and a focal scale clipped to its box returned too (no deviation).
+        ``k1`` held by its prior alone, a clipped focal scale returned (rotation-only refits).
     on_clipped : callable, optional
-        Called (no arguments) for each lens fit of the refit whose lens terms were clipped to
-        their box. Only those fits depend on ``keep_clipped``: a refit that never calls it
-        returns the same with either value (``k1``'s box and a clipped fit's missing deviation
-        are all ``keep_clipped`` changes).
+        Called per lens fit clipped to its box: only those fits depend on ``keep_clipped``.
 
     Returns
     -------
@@ -1033,14 +1027,19 @@ def refine_rotation_photometric(
         K1, K2, dist1, dist2, R, rotation_sigma_deg, principal_prior, focal_ratio,
         focal_ratio_prior, focal_ratio_mean, principal_bound, max_focal_change,
     )  # fmt: skip
-    if on_clipped is not None and not callable(on_clipped):
-        raise TypeError(f"on_clipped must be callable, got {type(on_clipped).__name__}")
-    priors["keep_clipped"], priors["on_clipped"] = bool(keep_clipped), on_clipped
+    priors["keep_clipped"], priors["on_clipped"] = bool(keep_clipped), _as_callback(on_clipped)
     start = (R, float(focal_scale), float(k1), _as_offset(principal_offset), focal_ratio)
     return _best_window_refit(
         image1, image2, cameras, start, priors, rotation_sigma_deg, _as_windows(window),
         max_corners,
     )  # fmt: skip
+
+
+def _as_callback(value):
+    """``value`` checked: None or a callable."""
+    if value is not None and not callable(value):
+        raise TypeError(f"on_clipped must be callable, got {type(value).__name__}")
+    return value
 
 
 def _checked_inputs(
