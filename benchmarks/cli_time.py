@@ -157,9 +157,10 @@ REFIT_PARTS = {
 """Functions of ``ppo_cv.photometric`` timed by ``--refit``, each without the others it calls."""
 
 
-def _refit_inputs(arguments: list[str]) -> tuple[tuple, dict]:
+def _refit_inputs(arguments: list[str]) -> tuple[tuple, dict] | None:
     """The arguments of the first ``refine_rotation_photometric`` call of ``estimate_pair`` on
-    the pair of ``ppo-cv pair`` ``arguments`` (two images, ``--K``, ``--K2``)."""
+    the pair of ``ppo-cv pair`` ``arguments`` (two images, ``--K``, ``--K2``); None when the
+    pair runs no refit."""
     import cv2
 
     from ppo_cv import estimate_pair, pipeline
@@ -182,17 +183,19 @@ def _refit_inputs(arguments: list[str]) -> tuple[tuple, dict]:
         estimate_pair(*images, K1, K2)
     finally:
         pipeline.refine_rotation_photometric = refine
-    if not calls:
-        raise SystemExit("the pair did not run the photometric refit")
-    return calls[0]
+    return calls[0] if calls else None
 
 
-def refit_profile(arguments: list[str], calls: int) -> dict[str, float]:
+def refit_profile(arguments: list[str], calls: int) -> dict[str, float] | None:
     """Median process CPU time (s) of each part of the pair's photometric refit over ``calls``
-    replays, its threads one after the other; ``"lens fits"`` the lens rotation fits per call."""
+    replays, its threads one after the other; ``"lens fits"`` the lens rotation fits per call.
+    None when the pair runs no refit."""
     from ppo_cv import photometric
 
-    args, kwargs = _refit_inputs(arguments)
+    recorded = _refit_inputs(arguments)
+    if recorded is None:
+        return None
+    args, kwargs = recorded
     spent, stack, fits = {}, [], [0]
     originals = {name: getattr(photometric, name) for name in [*REFIT_PARTS, "_threaded_map"]}
     originals["fit_rotation_lens"] = photometric.fit_rotation_lens
@@ -292,6 +295,9 @@ def main(argv: list[str] | None = None) -> None:
             for label, arguments in rotations
             if args.refit
         }
+    skipped = [label for label, profile in profiles.items() if profile is None]
+    notes += [f"Note: the {label} runs no photometric refit." for label in skipped]
+    profiles = {label: profile for label, profile in profiles.items() if profile is not None}
     print(report(measured, args.runs, notes))
     if profiles:
         print("\n" + refit_report(profiles, args.refit))

@@ -908,9 +908,11 @@ def _fit_tracks(y1, y2, valid, R, focal, priors):
     """Lens rotation over the tracks, outliers beyond ``3 sqrt(2)`` noise deviations dropped;
     ``(fit, used, noise_px)`` or None when too few tracks remain, or when the lens was clipped
     to its box (no deviation) unless ``priors["keep_clipped"]``, which also frees ``k1`` of
-    its box (its prior alone holds it)."""
+    its box (its prior alone holds it); ``priors["on_clipped"]`` is called for each lens fit
+    clipped to its box."""
     priors = dict(priors)
     keep_clipped = priors.pop("keep_clipped", False)
+    on_clipped = priors.pop("on_clipped", None)
     if keep_clipped:
         priors["max_k1"] = np.inf
     used, noise, fit = valid.copy(), 0.1 / focal, None
@@ -919,6 +921,8 @@ def _fit_tracks(y1, y2, valid, R, focal, priors):
             return None
         start = R if fit is None else fit.R
         fit = fit_rotation_lens(y1, y2, used, start, noise=noise, lens_start=fit, **priors)
+        if on_clipped is not None and not np.isfinite(fit.rotation_sigma_deg):
+            on_clipped()
         noise = robust_sigma(fit.residuals[used], 2)
         within = valid & (fit.residuals < _OUTLIER_SIGMAS * np.sqrt(2.0) * noise)
         if np.array_equal(within, used):
@@ -948,9 +952,8 @@ def refine_rotation_photometric(
     rotation_sigma_deg: float = 1.0,
     dist1: np.ndarray | None = None,
     dist2: np.ndarray | None = None,
-    window: int | Sequence[int] = WINDOWS,
-    max_corners: int | None = None,
-    keep_clipped: bool = False,
+    window: int | Sequence[int] = WINDOWS, max_corners: int | None = None,
+    keep_clipped: bool = False, on_clipped: Callable[[], None] | None = None,
 ) -> PhotometricRotation | None:
     """Refit a pure rotation's lens rotation on windows aligned by intensity.
 
@@ -989,8 +992,9 @@ def refine_rotation_photometric(
     max_corners : int, optional
         Windows aligned at most (default :data:`MAX_CORNERS`).
     keep_clipped : bool
-        A rotation-only estimate's refit (:mod:`ppo_cv.rotation_choice`): ``k1`` held by its
-        prior alone, and a focal scale clipped to its box returned too (no deviation).
+        ``k1`` held by its prior alone, a clipped focal scale returned (rotation-only refits).
+    on_clipped : callable, optional
+        Called per lens fit clipped to its box: only those fits depend on ``keep_clipped``.
 
     Returns
     -------
@@ -1023,12 +1027,19 @@ def refine_rotation_photometric(
         K1, K2, dist1, dist2, R, rotation_sigma_deg, principal_prior, focal_ratio,
         focal_ratio_prior, focal_ratio_mean, principal_bound, max_focal_change,
     )  # fmt: skip
-    priors["keep_clipped"] = bool(keep_clipped)
+    priors["keep_clipped"], priors["on_clipped"] = bool(keep_clipped), _as_callback(on_clipped)
     start = (R, float(focal_scale), float(k1), _as_offset(principal_offset), focal_ratio)
     return _best_window_refit(
         image1, image2, cameras, start, priors, rotation_sigma_deg, _as_windows(window),
         max_corners,
     )  # fmt: skip
+
+
+def _as_callback(value):
+    """``value`` checked: None or a callable."""
+    if value is not None and not callable(value):
+        raise TypeError(f"on_clipped must be callable, got {type(value).__name__}")
+    return value
 
 
 def _checked_inputs(

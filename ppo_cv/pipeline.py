@@ -65,6 +65,7 @@ and is not caught).
 from __future__ import annotations
 
 import importlib
+import math
 import sys
 import time
 from collections.abc import Callable
@@ -747,6 +748,9 @@ class _Finishing:
     priors: _LensPriors
     tracks: PhotometricRotation | None
     options: PairOptions
+    unclipped_miss_deg: float | None = None
+    """Search deviation (capped) of a refit that aligned no tracks without clipping a lens fit
+    to its box: with ``keep_clipped`` it would align none either (:func:`_misses_again`)."""
 
     @property
     def focal(self) -> float:
@@ -890,11 +894,12 @@ def _decide(
 
 def _align_tracks(
     inputs: _Inputs, motion: MotionDecision, priors: _LensPriors, keep_clipped: bool = False,
-    sigma_deg: float | None = None,
+    sigma_deg: float | None = None, on_clipped: Callable[[], None] | None = None,
 ) -> PhotometricRotation | None:  # fmt: skip
     """The rotation-only fit refitted on intensity-aligned windows around ``motion.R``
-    (:func:`refine_rotation_photometric`), None when too few windows align; searched over
-    ``sigma_deg``, by default the fit's own deviation (both capped)."""
+    (:func:`refine_rotation_photometric`, ``on_clipped`` called for each lens fit clipped to
+    its box), None when too few windows align; searched over ``sigma_deg``, by default the
+    fit's own deviation (both capped)."""
     sigma_deg = motion.rotation_sigma_deg if sigma_deg is None else sigma_deg
     return refine_rotation_photometric(
         inputs.img1, inputs.img2, inputs.K1, inputs.K2, motion.R,
@@ -904,27 +909,31 @@ def _align_tracks(
         principal_bound=motion.principal_bound,
         max_focal_change=motion.track_focal_change, keep_clipped=keep_clipped,
         rotation_sigma_deg=min(sigma_deg, MAX_SEARCH_SIGMA_DEG),
-        dist1=inputs.dist1, dist2=inputs.dist2,
+        dist1=inputs.dist1, dist2=inputs.dist2, on_clipped=on_clipped,
     )  # fmt: skip
 
 
 def _revisit_with_tracks(
     inputs: _Inputs, found: _Consensus, motion: MotionDecision, priors: _LensPriors,
     options: PairOptions,
-) -> tuple[MotionDecision, PhotometricRotation | None, int]:  # fmt: skip
+) -> tuple[MotionDecision, PhotometricRotation | None, int, float | None]:  # fmt: skip
     """For a pure rotation or a rotation candidate: the rotation refitted on intensity-aligned
     windows and the decision revisited on their parallax (:func:`with_tracks`); with the
-    tracks (None when none were aligned) and the number behind a pure rotation's ``R``."""
+    tracks (None when none were aligned), the number behind a pure rotation's ``R`` and the
+    search deviation of a refit that aligned none without clipping a lens fit
+    (:attr:`_Finishing.unclipped_miss_deg`)."""
     if not options.photometric or not (motion.pure_rotation or motion.rotation_candidate):
-        return motion, None, 0
-    tracks = _align_tracks(inputs, motion, priors)
+        return motion, None, 0, None
+    clipped = []
+    tracks = _align_tracks(inputs, motion, priors, on_clipped=lambda: clipped.append(True))
     if tracks is None:
-        return motion, None, 0
+        missed = None if clipped else min(motion.rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG)
+        return motion, None, 0, missed
     motion = with_tracks(
         motion, tracks.fit, tracks.parallax, found.x1, found.x2, inputs.focal,
         threshold_px=options.ransac_threshold,
     )  # fmt: skip
-    return motion, tracks, tracks.num_tracks if motion.pure_rotation else 0
+    return motion, tracks, tracks.num_tracks if motion.pure_rotation else 0, None
 
 
 def _finish_rotation(state: _Finishing) -> _ModelPart:
@@ -1093,6 +1102,7 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
         and state.options.photometric
         and rotation_only.fit_sigma_deg < moving.expected_error_deg
         and _tracks_could_win(moving, rotation_only)
+        and not _misses_again(state, rotation_only.fit_sigma_deg)
     ):
         tracks = _align_tracks(
             state.inputs, motion, state.priors, keep_clipped=True,
@@ -1122,6 +1132,17 @@ def _tracks_could_win(moving: RotationEstimate, rotation_only: RotationEstimate)
     apart = float(rotation_error_deg(rotation_only.R, moving.R))
     reach = refit_reach_deg(min(rotation_only.fit_sigma_deg, MAX_SEARCH_SIGMA_DEG))
     return apart - reach < 2.0 * moving.expected_error_deg
+
+
+def _misses_again(state: _Finishing, sigma_deg: float) -> bool:
+    """Whether the refit of :func:`_revisit_with_tracks` already aligned no tracks from the
+    same start over the same search deviation (``sigma_deg``, capped; equal to within float
+    rounding) without clipping a lens fit: ``keep_clipped`` changes only clipped fits
+    (:func:`~ppo_cv.photometric.refine_rotation_photometric`), so the refit again would
+    repeat the same searches, fits and answer."""
+    missed = state.unclipped_miss_deg
+    searched = min(sigma_deg, MAX_SEARCH_SIGMA_DEG)
+    return missed is not None and math.isclose(searched, missed, rel_tol=1e-12)
 
 
 def _moving_estimate(state: _Finishing, part: _ModelPart) -> RotationEstimate:
@@ -1268,9 +1289,11 @@ def estimate_pair(
     priors = _lens_priors(inputs, options)
     motion = _decide(found, pose, homography, priors, inputs.focal, options)
     watch.lap("model")
-    motion, tracks, num_tracks = _revisit_with_tracks(inputs, found, motion, priors, options)
+    motion, tracks, num_tracks, missed = _revisit_with_tracks(
+        inputs, found, motion, priors, options
+    )
     watch.lap("photometric")
-    state = _Finishing(inputs, found, pose, motion, priors, tracks, options)
+    state = _Finishing(inputs, found, pose, motion, priors, tracks, options, missed)
     part = FINISHERS[motion.model](state)
     rotation = _choose_rotation(state, part)
     watch.lap("decision")
