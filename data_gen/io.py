@@ -33,7 +33,7 @@ from ppo_cv.atomic import staging_folder, worker_count, worker_pool
 from .imperfect import Imperfections
 from .motion import DEFAULT_SCENE, MAX_BASELINE_RATIO, MOTIONS, check_pivot_offset, sample_motion
 from .names import BASELINE_MOTIONS
-from .render import RenderedPair, render_pair
+from .render import RenderedPair, _check_size, render_pair
 from .scenes import SCENES, make_scene
 from .textures import texture_pool
 from .warp import make_warped_pair, source_photos
@@ -57,12 +57,7 @@ def _check_args(motion, scene, seed, index, size, alpha, supersample, noise_std,
             raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
     if not 1 <= supersample <= 8:
         raise ValueError(f"supersample must be in 1..8, got {supersample}")
-    try:
-        width, height = (int(v) for v in size)
-    except (TypeError, ValueError):
-        raise TypeError(f"size must be (width, height), got {size!r}") from None
-    if not (8 <= width <= 8192 and 8 <= height <= 8192):
-        raise ValueError(f"size must be between 8 and 8192 pixels per side, got {size!r}")
+    _check_size(size)
     if alpha is not None and not (np.isfinite(alpha) and 0.0 < alpha <= 1.0):
         raise ValueError(f"alpha must be in (0, 1], got {alpha}")
     if baseline_ratio is not None:

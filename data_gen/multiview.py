@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
 
 import cv2
 import numpy as np
+
+from ppo_cv.checks import as_number, as_whole_number
 
 from .render import render_view
 from .scenes import make_scene
@@ -28,6 +31,11 @@ def tripod_then_move_poses(
     moves the centre by ``step`` metres along x (and a little backwards), turning to keep the
     room's middle in view. World coordinates are those of the first pan view's tripod at yaw 0.
     """
+    n_pan = as_whole_number(n_pan, "n_pan", 0, 1000)
+    n_move = as_whole_number(n_move, "n_move", 0, 1000)
+    for name, value in (("pan_step", pan_step), ("step", step)):
+        if not math.isfinite(as_number(value, name)):
+            raise ValueError(f"{name} must be finite, got {value}")
     poses = []
     for k in range(n_pan):
         yaw = (k - (n_pan - 1) / 2) * pan_step
