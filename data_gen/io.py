@@ -29,6 +29,7 @@ import cv2
 import numpy as np
 
 from ppo_cv.atomic import staging_folder, worker_count, worker_pool
+from ppo_cv.checks import as_path, require_instance, shown
 
 from .imperfect import Imperfections
 from .motion import DEFAULT_SCENE, MAX_BASELINE_RATIO, MOTIONS, check_pivot_offset, sample_motion
@@ -183,7 +184,12 @@ def read_pairs(path: str | os.PathLike) -> list[dict]:
             continue
         if len(fields) != 38:
             raise ValueError(f"{path}:{number}: expected 38 fields, got {len(fields)}")
-        values = np.array(fields[4:], dtype=np.float64)
+        try:
+            values = np.array(fields[4:], dtype=np.float64)
+        except ValueError:
+            raise ValueError(f"{path}:{number}: fields 5 to 38 must be numbers") from None
+        if not np.all(np.isfinite(values)):
+            raise ValueError(f"{path}:{number}: K1, K2 and T_1to2 must be finite numbers")
         T = values[18:].reshape(4, 4)
         records.append({
             "name1": fields[0], "name2": fields[1],
@@ -200,7 +206,10 @@ def _write_png(path: Path, image: np.ndarray) -> None:
 
 def write_pair(pair: RenderedPair, root: str | os.PathLike, name: str) -> str:
     """Write one pair under ``root`` (see the module layout); returns its pairs-file line."""
-    root = Path(root)
+    require_instance(pair, RenderedPair, "pair")
+    root = as_path(root, "root")
+    if not isinstance(name, str) or not name or name != Path(name).name:
+        raise ValueError(f"name must be a file name without folders, got {shown(name)}")
     (root / "images").mkdir(parents=True, exist_ok=True)
     (root / "gt").mkdir(parents=True, exist_ok=True)
     image1, image2 = f"{name}_1.png", f"{name}_2.png"
@@ -323,7 +332,9 @@ imperfections, pivot_offset
     pathlib.Path
         ``out_dir``; its pairs file is ``out_dir / PAIRS_FILE``.
     """
-    out = Path(out_dir)
+    out = as_path(out_dir, "out_dir")
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"{out} is a file, not a folder")
     if isinstance(pairs, bool) or not isinstance(pairs, (int, np.integer)) or pairs < 1:
         raise ValueError(f"pairs must be a positive integer, got {pairs!r}")
     if out.exists() and (not out.is_dir() or any(out.iterdir())):

@@ -65,6 +65,55 @@ CASES = {  # name: (call, error type, words of its message)
 }  # fmt: skip
 
 
+def _pairs_file(tmp_path, field: str):
+    path = tmp_path / "pairs.txt"
+    path.write_text("a.png b.png 0 0 " + " ".join([field] + ["1"] * 33) + "\n")
+    return path
+
+
+def _file(tmp_path):
+    (tmp_path / "taken").write_text("")
+    return tmp_path / "taken"
+
+
+def _full_folder(tmp_path):
+    (tmp_path / "old").mkdir()
+    (tmp_path / "old" / "keep.png").write_text("")
+    return tmp_path / "old"
+
+
+OUTPUT_CASES = {  # name: (call on tmp_path, error type, words of its message)
+    "make_dataset_none": (lambda d: dg.make_dataset(None, pairs=1), TypeError, "out_dir"),
+    "make_dataset_file": (
+        lambda d: dg.make_dataset(_file(d), pairs=1), FileExistsError, "is a file, not a folder",
+    ),
+    "read_pairs_nan": (lambda d: dg.read_pairs(_pairs_file(d, "nan")), ValueError, "finite"),
+    "read_pairs_word": (lambda d: dg.read_pairs(_pairs_file(d, "one")), ValueError, "numbers"),
+    "write_pair_none": (lambda d: dg.write_pair(None, d, "p"), TypeError, "RenderedPair"),
+    "write_pair_name_with_folder": (
+        lambda d: dg.write_pair(dg.make_pair(size=(16, 16), supersample=1), d, "../p"),
+        ValueError, "file name",
+    ),
+    "tripod_into_full_folder": (
+        lambda d: dg.render_tripod_then_move(_full_folder(d), size=(16, 16)),
+        FileExistsError, "holding files",
+    ),
+    "tripod_fractional_size": (
+        lambda d: dg.render_tripod_then_move(d / "new", size=(16.5, 16)), ValueError, "width",
+    ),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", list(OUTPUT_CASES), ids=list(OUTPUT_CASES))
+def test_a_bad_output_or_input_file_is_an_error_that_writes_nothing(case, tmp_path):
+    call, error, words = OUTPUT_CASES[case]
+    with pytest.raises(error, match=words):
+        call(tmp_path)
+    assert not (tmp_path / "new").exists() and not (tmp_path / "p_1.png").exists()
+    if (tmp_path / "old").exists():
+        assert [p.name for p in (tmp_path / "old").iterdir()] == ["keep.png"]
+
+
 @pytest.mark.parametrize("case", list(CASES), ids=list(CASES))
 def test_a_bad_argument_is_an_error_naming_it(case):
     call, error, words = CASES[case]
