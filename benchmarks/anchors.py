@@ -254,3 +254,10 @@ def m3_of(
     n2 = cv2.undistortPoints(points2.reshape(-1, 1, 2).astype(np.float64), K2, None).reshape(-1, 2)
     ones = np.ones((len(n1), 1))
     return ppo.m3_indicator(np.hstack([n1, ones]), np.hstack([n2, ones]), R)
+
+
+if __name__ == "__main__":
+    raise SystemExit(
+        "anchors.py is a module of compare.py, model_choice.py, planar_pairs.py and "
+        "guided_matching.py, not a script; run python benchmarks/compare.py --help"
+    )

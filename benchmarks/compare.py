@@ -59,7 +59,7 @@ from identification import identification_problem, time_call  # noqa: E402
 import ppo_cv  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-FREIBURG = ROOT.parent / "shared" / "data" / "freiburg"
+FREIBURG = Path(os.environ.get("PPO_CV_SHARED", ROOT.parent / "shared")) / "data" / "freiburg"
 MOTIONS = ("general", "pure-rotation", "small-parallax", "forward", "planar")
 DETECTION_MOTIONS = ("pure-rotation", "small-parallax", "planar", "general")
 SPEED_SIZES = (10, 100, 1000, 10_000, 100_000)

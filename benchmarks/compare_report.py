@@ -807,3 +807,10 @@ def kept_sections(report: Path) -> str:
     text = report.read_text()
     start = text.find("\n" + KEPT_FROM)
     return "" if start < 0 else "\n" + text[start + 1 :].rstrip("\n") + "\n"
+
+
+if __name__ == "__main__":
+    raise SystemExit(
+        "compare_report.py is a module of compare.py, not a script; run "
+        "python benchmarks/compare.py --help"
+    )

@@ -199,6 +199,15 @@ def _plain(row: dict) -> dict:
     return {k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in row.items()}
 
 
+def _variant(parser: argparse.ArgumentParser, text: str) -> Variant:
+    """A ``BAND:RATIO`` of ``--variants``; the parser's error (exit 2) for any other text."""
+    try:
+        band, ratio = (float(value) for value in text.split(":"))
+    except ValueError:
+        parser.error(f"--variants takes BAND:RATIO pairs such as 3:0.9, got {text!r}")
+    return Variant(band, ratio)
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--freiburg", type=Path, default=compare.FREIBURG)
@@ -207,7 +216,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--limit", type=int, default=None, help="first N pairs only")
     parser.add_argument("--json", type=Path, help="also write the per-pair rows here")
     args = parser.parse_args(argv)
-    variants = [Variant(*map(float, text.split(":"))) for text in args.variants]
+    variants = [_variant(parser, text) for text in args.variants]
+    if args.limit is not None and args.limit < 1:
+        parser.error(f"--limit must be at least 1, got {args.limit}")
+    if not (args.freiburg / "pairs_with_gt.txt").is_file():
+        parser.error(f"no freiburg pairs in {args.freiburg} (pairs_with_gt.txt and images/): "
+                     "give --freiburg DIR or set PPO_CV_SHARED")  # fmt: skip
     pairs = anchors.read_pairs_file(args.freiburg / "pairs_with_gt.txt")[: args.limit]
     load = lambda name: cv2.imread(str(args.freiburg / "images" / name))  # noqa: E731
     original = pipeline._consensus

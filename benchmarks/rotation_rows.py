@@ -33,3 +33,10 @@ def flag_counts(results: dict, key: str) -> tuple[int, int, int]:
                 flagged += bool(row[key])
                 positives += bool(data["label"])
     return true, flagged, positives
+
+
+if __name__ == "__main__":
+    raise SystemExit(
+        "rotation_rows.py is a module of pure_rotation.py and compare_report.py, not a script; run "
+        "python benchmarks/pure_rotation.py --help"
+    )

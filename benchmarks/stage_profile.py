@@ -263,6 +263,9 @@ def main(argv: list[str] | None = None) -> None:
     options = PairOptions(detect_once=args.detect_once)
     cv2.setNumThreads(1)
     machine = compare._machine()
+    if args.sift_parts and not (args.freiburg / "pairs_with_gt.txt").is_file():
+        parser.error(f"--sift-parts needs the freiburg pairs; none in {args.freiburg} (give "
+                     "--freiburg DIR or set PPO_CV_SHARED)")  # fmt: skip
     if args.sift_parts:
         lines = parts_report(args.freiburg, args.sift_parts)
         print(f"{machine['cpu']}, {machine['cores']} logical cores, 1-minute load average "

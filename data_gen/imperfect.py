@@ -29,6 +29,10 @@ from dataclasses import asdict, dataclass, replace
 import cv2
 import numpy as np
 
+from ppo_cv.checks import as_camera_matrix, as_number, as_positive, as_whole_number
+
+from .render import _check_size
+
 __all__ = [
     "LONG_ZOOM",
     "NARROW_LENS",
@@ -63,7 +67,9 @@ def division_dist(k1: float) -> np.ndarray:
     >>> division_dist(-0.1).round(6).tolist()
     [-0.1, 0.02, 0.0, 0.0, -0.005]
     """
-    k = float(k1)
+    k = as_number(k1, "k1")
+    if not math.isfinite(k):
+        raise ValueError(f"k1 must be finite, got {k}")
     first, second, third = (c * k ** (i + 1) for i, c in enumerate(DIVISION_SERIES))
     return np.array([first, second, 0.0, 0.0, third])
 
@@ -323,10 +329,11 @@ def given_intrinsics(
     With ``centre_of = (width, height)`` the principal point is that image's centre
     ``((width - 1) / 2, (height - 1) / 2)`` instead of ``K``'s.
     """
-    K_given = np.array(K, dtype=np.float64)
-    K_given[:2, :2] *= focal_factor
+    K_given = as_camera_matrix(K, "K").copy()
+    K_given[:2, :2] *= as_positive(focal_factor, "focal_factor")
     if centre_of is not None:
-        K_given[:2, 2] = (centre_of[0] - 1) / 2.0, (centre_of[1] - 1) / 2.0
+        width, height = _check_size(centre_of)
+        K_given[:2, 2] = (width - 1) / 2.0, (height - 1) / 2.0
     return K_given
 
 
@@ -370,6 +377,11 @@ def jpeg_roundtrip(image: np.ndarray, quality: int | None) -> np.ndarray:
     """Encode an RGB uint8 image (H, W, 3) as JPEG at ``quality`` and decode it (None: as is)."""
     if quality is None:
         return image
+    quality = as_whole_number(quality, "quality", 0, 100)
+    image = np.asarray(image)
+    if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
+        raise ValueError(f"image must be RGB uint8 of shape (H, W, 3), got {image.dtype} "
+                         f"{image.shape}")  # fmt: skip
     ok, data = cv2.imencode(".jpg", cv2.cvtColor(image, cv2.COLOR_RGB2BGR),
                             [cv2.IMWRITE_JPEG_QUALITY, int(quality)])  # fmt: skip
     if not ok:

@@ -29,11 +29,12 @@ import cv2
 import numpy as np
 
 from ppo_cv.atomic import staging_folder, worker_count, worker_pool
+from ppo_cv.checks import as_path, require_instance, shown
 
 from .imperfect import Imperfections
 from .motion import DEFAULT_SCENE, MAX_BASELINE_RATIO, MOTIONS, check_pivot_offset, sample_motion
 from .names import BASELINE_MOTIONS
-from .render import RenderedPair, render_pair
+from .render import RenderedPair, _check_size, render_pair
 from .scenes import SCENES, make_scene
 from .textures import texture_pool
 from .warp import make_warped_pair, source_photos
@@ -57,12 +58,7 @@ def _check_args(motion, scene, seed, index, size, alpha, supersample, noise_std,
             raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
     if not 1 <= supersample <= 8:
         raise ValueError(f"supersample must be in 1..8, got {supersample}")
-    try:
-        width, height = (int(v) for v in size)
-    except (TypeError, ValueError):
-        raise TypeError(f"size must be (width, height), got {size!r}") from None
-    if not (8 <= width <= 8192 and 8 <= height <= 8192):
-        raise ValueError(f"size must be between 8 and 8192 pixels per side, got {size!r}")
+    _check_size(size)
     if alpha is not None and not (np.isfinite(alpha) and 0.0 < alpha <= 1.0):
         raise ValueError(f"alpha must be in (0, 1], got {alpha}")
     if baseline_ratio is not None:
@@ -188,7 +184,12 @@ def read_pairs(path: str | os.PathLike) -> list[dict]:
             continue
         if len(fields) != 38:
             raise ValueError(f"{path}:{number}: expected 38 fields, got {len(fields)}")
-        values = np.array(fields[4:], dtype=np.float64)
+        try:
+            values = np.array(fields[4:], dtype=np.float64)
+        except ValueError:
+            raise ValueError(f"{path}:{number}: fields 5 to 38 must be numbers") from None
+        if not np.all(np.isfinite(values)):
+            raise ValueError(f"{path}:{number}: K1, K2 and T_1to2 must be finite numbers")
         T = values[18:].reshape(4, 4)
         records.append({
             "name1": fields[0], "name2": fields[1],
@@ -205,7 +206,10 @@ def _write_png(path: Path, image: np.ndarray) -> None:
 
 def write_pair(pair: RenderedPair, root: str | os.PathLike, name: str) -> str:
     """Write one pair under ``root`` (see the module layout); returns its pairs-file line."""
-    root = Path(root)
+    require_instance(pair, RenderedPair, "pair")
+    root = as_path(root, "root")
+    if not isinstance(name, str) or not name or name != Path(name).name:
+        raise ValueError(f"name must be a file name without folders, got {shown(name)}")
     (root / "images").mkdir(parents=True, exist_ok=True)
     (root / "gt").mkdir(parents=True, exist_ok=True)
     image1, image2 = f"{name}_1.png", f"{name}_2.png"
@@ -328,7 +332,9 @@ imperfections, pivot_offset
     pathlib.Path
         ``out_dir``; its pairs file is ``out_dir / PAIRS_FILE``.
     """
-    out = Path(out_dir)
+    out = as_path(out_dir, "out_dir")
+    if out.exists() and not out.is_dir():
+        raise FileExistsError(f"{out} is a file, not a folder")
     if isinstance(pairs, bool) or not isinstance(pairs, (int, np.integer)) or pairs < 1:
         raise ValueError(f"pairs must be a positive integer, got {pairs!r}")
     if out.exists() and (not out.is_dir() or any(out.iterdir())):

@@ -55,6 +55,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ppo_cv.checks import as_finite_rows, as_number
+
 from .names import MAX_BASELINE_RATIO, MAX_PIVOT_OFFSET, MOTIONS
 from .protocol import euler_to_matrix
 from .scenes import Scene
@@ -126,18 +128,31 @@ def intrinsics(size: tuple[int, int], hfov_deg: float, principal_offset=(0.0, 0.
     return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
 
 
+def _point(value, name: str) -> np.ndarray:
+    """A 3D point of three finite numbers; ValueError or TypeError naming ``name``."""
+    rows = as_finite_rows(np.atleast_2d(value), name, 3)
+    if rows.shape[0] != 1:
+        raise ValueError(f"{name} must be one point (x, y, z), got shape {np.shape(value)}")
+    return rows[0]
+
+
 def look_at(centre: np.ndarray, target: np.ndarray, roll_deg: float = 0.0) -> np.ndarray:
     """World-to-camera rotation of a camera at ``centre`` looking at ``target``.
 
     The camera's Y axis points as close to world +Y (down) as possible; ``roll_deg`` then
     rotates about the viewing axis. Returns shape (3, 3).
     """
-    forward = np.asarray(target, float) - np.asarray(centre, float)
+    forward = _point(target, "target") - _point(centre, "centre")
+    roll_deg = as_number(roll_deg, "roll_deg")
     norm = np.linalg.norm(forward)
+    if not np.isfinite(roll_deg):
+        raise ValueError(f"roll_deg must be finite, got {roll_deg}")
     if norm == 0:
         raise ValueError("target must differ from centre")
     forward /= norm
     right = np.cross([0.0, 1.0, 0.0], forward)
+    if np.linalg.norm(right) < 1e-12:
+        raise ValueError("cannot look straight along world Y (up or down): no roll is defined")
     right /= np.linalg.norm(right)
     down = np.cross(forward, right)
     return euler_to_matrix([0.0, 0.0, roll_deg]) @ np.stack([right, down, forward])

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import math
 import os
-from pathlib import Path
 
 import cv2
 import numpy as np
 
-from .render import render_view
+from ppo_cv.checks import MAX_WHOLE_NUMBER, as_number, as_path, as_whole_number
+
+from .render import _check_size, render_view
 from .scenes import make_scene
 
 __all__ = ["relative_gt_from_poses", "render_tripod_then_move", "tripod_then_move_poses"]
@@ -28,6 +30,11 @@ def tripod_then_move_poses(
     moves the centre by ``step`` metres along x (and a little backwards), turning to keep the
     room's middle in view. World coordinates are those of the first pan view's tripod at yaw 0.
     """
+    n_pan = as_whole_number(n_pan, "n_pan", 0, 1000)
+    n_move = as_whole_number(n_move, "n_move", 0, 1000)
+    for name, value in (("pan_step", pan_step), ("step", step)):
+        if not math.isfinite(as_number(value, name)):
+            raise ValueError(f"{name} must be finite, got {value}")
     poses = []
     for k in range(n_pan):
         yaw = (k - (n_pan - 1) / 2) * pan_step
@@ -59,13 +66,19 @@ def render_tripod_then_move(
     poses : list of (R, t)
         ``cam_from_world`` of each view.
     """
-    out_dir = Path(out_dir)
+    out_dir = as_path(out_dir, "out_dir")
+    if out_dir.exists() and (not out_dir.is_dir() or any(out_dir.iterdir())):
+        raise FileExistsError(
+            f"out_dir {out_dir} is a file or a folder holding files; give a new or empty folder "
+            "(the views would mix with what is there)"
+        )
+    width, height = _check_size(size)
+    poses = tripod_then_move_poses(n_pan, n_move, step=step)
+    seed = as_whole_number(seed, "seed", 0, MAX_WHOLE_NUMBER)
     out_dir.mkdir(parents=True, exist_ok=True)
-    width, height = size
     focal = 0.85 * width
     K = np.array([[focal, 0.0, (width - 1) / 2], [0.0, focal, (height - 1) / 2], [0.0, 0.0, 1.0]])
     scene = make_scene("clutter", seed)
-    poses = tripod_then_move_poses(n_pan, n_move, step=step)
     rng = np.random.default_rng(seed)
     names = []
     for index, (R, t) in enumerate(poses):

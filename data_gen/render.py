@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from ppo_cv.checks import as_whole_number, shown
+
 from .scenes import Quad, Scene
 
 __all__ = ["RenderedPair", "median_depth", "project_points", "render_pair", "render_view"]
@@ -110,14 +112,25 @@ def _check_dist(name: str, dist) -> np.ndarray:
     return dist
 
 
+MIN_SIDE, MAX_SIDE = 8, 8192
+"""Smallest and largest image side a render takes (pixels)."""
+
+
 def _check_size(size) -> tuple[int, int]:
+    """``(width, height)``, whole numbers of pixels in ``MIN_SIDE..MAX_SIDE``."""
     try:
-        width, height = (int(v) for v in size)
+        width, height = size
     except (TypeError, ValueError):
-        raise TypeError(f"size must be (width, height), got {size!r}") from None
-    if width < 8 or height < 8 or width > 8192 or height > 8192:
-        raise ValueError(f"size must be between 8 and 8192 pixels per side, got {size!r}")
-    return width, height
+        width = height = None
+    if isinstance(size, (str, bytes)) or width is None:
+        raise TypeError(f"size must be (width, height), got {shown(size)}") from None
+    try:
+        return (
+            as_whole_number(width, "size's width", MIN_SIDE, MAX_SIDE),
+            as_whole_number(height, "size's height", MIN_SIDE, MAX_SIDE),
+        )
+    except ValueError as error:
+        raise ValueError(f"{error} pixels") from None
 
 
 class _Grid:

@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ppo_cv.checks import as_positive, as_whole_number, shown
+
 from .names import SCENES
 from .textures import Texture, checker_texture, texture_pool, texture_set_photos
 
@@ -55,6 +57,7 @@ def texture_set(index: int | None) -> contextlib.AbstractContextManager[None]:
     content, so two renders of them are unrelated images; ``None`` restores the shared pool.
     This also applies to :func:`~.io.make_pair`, which builds its scene with :func:`make_scene`.
     """
+    texture_set_photos(index)
     return _textures_from(index)
 
 
@@ -222,12 +225,22 @@ def checker_plane(
 
     Its inner corners are the 3D points ``origin + i * u / nx + j * v / ny``.
     """
-    nx, ny = squares
+    distance, square_m = as_positive(distance, "distance"), as_positive(square_m, "square_m")
+    nx, ny = (as_whole_number(n, "squares", 1, 1000) for n in _two(squares, "squares"))
     u, v = _vec(nx * square_m, 0, 0), _vec(0, ny * square_m, 0)
     origin = _vec(0, 0, distance) - (u + v) / 2
     tex = Texture.from_image(checker_texture(squares, texels_per_square=16))
     quad = Quad(origin, u, v, tex)
     return Scene("checker", (quad,), origin + (u + v) / 2, distance, {"squares": list(squares)})
+
+
+def _two(value, name: str) -> tuple:
+    """``value`` unpacked as a pair; TypeError naming ``name`` otherwise."""
+    try:
+        first, second = value
+    except (TypeError, ValueError):
+        raise TypeError(f"{name} must be a pair (x, y), got {shown(value)}") from None
+    return first, second
 
 
 def make_scene(

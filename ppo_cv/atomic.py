@@ -24,6 +24,7 @@ __all__ = [
     "API_REPLACE_HINT",
     "check_target",
     "check_apart",
+    "settled",
     "staging_folder",
     "remove_stale",
     "atomic_file",
@@ -74,7 +75,8 @@ def check_target(
     Returns
     -------
     pathlib.Path
-        ``path``, its parent folder existing and writable.
+        ``path`` with the ``..`` and symbolic links of its folder resolved (:func:`settled`), its
+        parent folder existing and writable.
     """
     if type(overwrite).__name__ not in ("bool", "bool_"):  # numpy not loaded for the CLI's start
         raise TypeError(f"overwrite must be True or False, got {type(overwrite).__name__}")
@@ -114,7 +116,19 @@ def check_target(
     existing = next((p for p in (parent, *parent.parents) if p.exists()), Path("."))
     if not os.access(existing, os.W_OK | os.X_OK):
         raise ValueError(f"cannot write {target}: {existing} is not writable")
-    return target
+    return settled(target)
+
+
+def settled(path: str | os.PathLike) -> Path:
+    """``path`` with the ``..`` and symbolic links of its folder resolved, its own name kept.
+
+    An output is built beside its target and renamed onto it; a target spelled through itself
+    (``out/sub/../../out``) would lose its folder when set aside, and the new output with it.
+    """
+    target = Path(path)
+    if target.name in ("", ".."):
+        return Path(os.path.realpath(target))
+    return Path(os.path.realpath(target.parent)) / target.name
 
 
 def _holds_current_folder(folder: Path) -> bool:

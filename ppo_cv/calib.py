@@ -29,12 +29,11 @@ from typing import Any
 import numpy as np
 
 from .checks import (
-    MAX_WHOLE_NUMBER,
     as_camera_matrix,
     as_distortion,
     as_flag,
+    as_image_size,
     as_path,
-    as_whole_number,
     cut,
     require_instance,
     shown,
@@ -233,16 +232,6 @@ def _image_size(width, height, where: str) -> tuple[int, int]:
             f"{shown(width)} and {shown(height)}"
         )
     return int(size[0]), int(size[1])
-
-
-def _size_argument(size: Any, name: str) -> tuple[int, int]:
-    """An image size argument ``(width, height)``: two whole numbers >= 1; TypeError for
-    anything but two values."""
-    if isinstance(size, (str, bytes)) or not hasattr(size, "__len__") or len(size) != 2:
-        raise TypeError(f"{name} must be (width, height), got {shown(size)}")
-    width, height = (as_whole_number(v, f"{name} {side}", 1, MAX_WHOLE_NUMBER)
-                     for v, side in zip(size, ("width", "height"), strict=True))  # fmt: skip
-    return width, height
 
 
 def _colmap_camera(model: str, params: np.ndarray, where: str, size=None) -> Camera:
@@ -490,7 +479,7 @@ def implausible_intrinsics(
     K = as_camera_matrix(K, name)
     if size is None:
         return None
-    width, height = _size_argument(size, "size")
+    width, height = as_image_size(size, "size")
     fx, fy, cx, cy = float(K[0][0]), float(K[1][1]), float(K[0][2]), float(K[1][2])
     side = max(width, height)
     problems = []
@@ -599,7 +588,7 @@ def fit_to_image(
         numbers >= 1 (TypeError for no pair, or ``camera`` not a :class:`Camera`).
     """
     require_instance(camera, Camera, "camera")
-    size = _size_argument(size, "size")
+    size = as_image_size(size, "size")
     if camera.image_size is None or tuple(camera.image_size) == tuple(size):
         return camera, None
     (width, height), (calibrated_width, calibrated_height) = size, camera.image_size

@@ -4,6 +4,11 @@
 OpenCV distortion coefficients ``dist`` the pixels are undistorted first
 (``cv2.undistortPoints``) and normalised points are distorted on their way back
 (``cv2.projectPoints``), the model every OpenCV calibration writes.
+
+:func:`pixels_to_normalized` and :func:`normalized_to_pixels` are inner helpers: they take ``K``
+and ``dist`` as the API has checked them (:func:`ppo_cv.checks.as_camera_matrix`,
+:func:`ppo_cv.checks.as_distortion`) and check nothing themselves, since the photometric polish
+calls them for every window it moves.
 """
 
 from __future__ import annotations
@@ -11,8 +16,9 @@ from __future__ import annotations
 import numpy as np
 
 from . import ppo
+from .checks import as_camera_matrix, as_image_size
 
-__all__ = ["pixels_to_normalized", "normalized_to_pixels", "principal_point_is_centre"]
+__all__ = ["principal_point_is_centre"]
 
 CENTRE_TOLERANCE_PX = 0.5
 """How far from ``(w - 1) / 2`` or ``w / 2`` (likewise ``h``) a principal point may lie and still
@@ -22,8 +28,9 @@ be the image centre; the two conventions are half a pixel apart."""
 def pixels_to_normalized(points: np.ndarray, K: np.ndarray, dist: np.ndarray | None) -> np.ndarray:
     """Pixel points (N, 2) to normalised points (N, 2), distortion ``dist`` removed.
 
-    ``K`` and ``dist`` as checked by :func:`ppo_cv.checks.as_camera_matrix` and
-    :func:`ppo_cv.checks.as_distortion` (None: no distortion).
+    An inner helper that checks nothing: ``K`` and ``dist`` as checked by
+    :func:`ppo_cv.checks.as_camera_matrix` and :func:`ppo_cv.checks.as_distortion` (None: no
+    distortion), ``points`` finite.
     """
     points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if dist is None:
@@ -35,6 +42,8 @@ def pixels_to_normalized(points: np.ndarray, K: np.ndarray, dist: np.ndarray | N
 
 def normalized_to_pixels(xy: np.ndarray, K: np.ndarray, dist: np.ndarray | None) -> np.ndarray:
     """Normalised points (N, 2) to pixel points (N, 2) through the distortion ``dist``.
+
+    An inner helper that checks nothing, as :func:`pixels_to_normalized`.
 
     Examples
     --------
@@ -70,7 +79,7 @@ def principal_point_is_centre(K: np.ndarray, image_size: tuple[int, int]) -> boo
     ...                           (640, 480))
     False
     """
-    width, height = image_size
+    width, height = as_image_size(image_size, "image_size")
     centre = np.array([(width - 1) / 2.0, (height - 1) / 2.0])
-    offset = np.abs(np.asarray(K, dtype=np.float64)[:2, 2] - centre)
+    offset = np.abs(as_camera_matrix(K, "K")[:2, 2] - centre)
     return bool(np.all(offset <= CENTRE_TOLERANCE_PX + 1e-9))

@@ -26,6 +26,7 @@ __all__ = [
     "as_pri_threshold",
     "as_number",
     "as_whole_number",
+    "as_image_size",
     "as_flag",
     "as_path",
     "require_instance",
@@ -441,6 +442,16 @@ def as_whole_number(value: Any, name: str, low: int, high: int) -> int:
     if not (integral and low <= value <= high):
         raise ValueError(f"{name} must be a whole number in {low}..{high}, got {shown(value)}")
     return int(value)
+
+
+def as_image_size(size: Any, name: str) -> tuple[int, int]:
+    """An image size ``(width, height)``: two whole numbers >= 1; TypeError for anything but
+    two values."""
+    if isinstance(size, (str, bytes)) or not hasattr(size, "__len__") or len(size) != 2:
+        raise TypeError(f"{name} must be (width, height), got {shown(size)}")
+    width, height = (as_whole_number(v, f"{name} {side}", 1, MAX_WHOLE_NUMBER)
+                     for v, side in zip(size, ("width", "height"), strict=True))  # fmt: skip
+    return width, height
 
 
 def as_flag(value: Any, name: str) -> bool:

@@ -1,0 +1,132 @@
+"""Public helpers of ppo_cv.data_gen refuse bad arguments with an error naming them (they
+returned NaN rotations, silently truncated sizes or failed deep inside OpenCV)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import ppo_cv.data_gen as dg
+
+NAN, INF = float("nan"), float("inf")
+K = dg.intrinsics((64, 48), 60.0)
+RGB = np.zeros((16, 16, 3), np.uint8)
+
+CASES = {  # name: (call, error type, words of its message)
+    "make_pair_fractional_width": (lambda: dg.make_pair(size=(64.5, 48)), ValueError, "width"),
+    "make_pair_nan_height": (lambda: dg.make_pair(size=(64, NAN)), ValueError, "height"),
+    "make_pair_true_width": (lambda: dg.make_pair(size=(True, 48)), TypeError, "width"),
+    "make_pair_three_sides": (lambda: dg.make_pair(size=(64, 48, 3)), TypeError, "size"),
+    "render_view_fractional_size": (
+        lambda: dg.render_view(dg.checker_plane(), K, np.eye(3), np.zeros(3), (64, 47.5)),
+        ValueError, "height",
+    ),
+    "look_at_nan_centre": (lambda: dg.look_at([NAN, 0, 0], [0, 0, 1]), ValueError, "centre"),
+    "look_at_two_numbers": (lambda: dg.look_at([0, 0], [0, 0, 1]), ValueError, "centre"),
+    "look_at_nan_roll": (lambda: dg.look_at([0, 0, 0], [0, 0, 1], NAN), ValueError, "roll_deg"),
+    "look_at_straight_down": (lambda: dg.look_at([0, 0, 0], [0, 2, 0]), ValueError, "world Y"),
+    "division_dist_nan": (lambda: dg.division_dist(NAN), ValueError, "k1"),
+    "division_dist_text": (lambda: dg.division_dist("0.1"), TypeError, "k1"),
+    "given_intrinsics_none": (lambda: dg.given_intrinsics(None, 1.0), TypeError, "K"),
+    "given_intrinsics_nan_K": (
+        lambda: dg.given_intrinsics(np.full((3, 3), NAN), 1.0), ValueError, "K",
+    ),
+    "given_intrinsics_nan_factor": (
+        lambda: dg.given_intrinsics(K, NAN), ValueError, "focal_factor",
+    ),
+    "given_intrinsics_negative_factor": (
+        lambda: dg.given_intrinsics(K, -1.03), ValueError, "focal_factor",
+    ),
+    "given_intrinsics_fractional_centre": (
+        lambda: dg.given_intrinsics(K, 1.0, (64.5, 48)), ValueError, "width",
+    ),
+    "jpeg_quality_200": (lambda: dg.jpeg_roundtrip(RGB, 200), ValueError, "quality"),
+    "jpeg_float_image": (
+        lambda: dg.jpeg_roundtrip(np.full((16, 16, 3), NAN), 90), ValueError, "uint8",
+    ),
+    "jpeg_grey_image": (
+        lambda: dg.jpeg_roundtrip(np.zeros((16, 16), np.uint8), 90), ValueError, "(H, W, 3)",
+    ),
+    "texture_set_unknown": (lambda: dg.texture_set(7), ValueError, "texture_set"),
+    "checker_plane_nan_distance": (lambda: dg.checker_plane(NAN), ValueError, "distance"),
+    "checker_plane_no_squares": (
+        lambda: dg.checker_plane(squares=(0, 8)), ValueError, "squares",
+    ),
+    "checker_plane_negative_square": (
+        lambda: dg.checker_plane(square_m=-0.25), ValueError, "square_m",
+    ),
+    "tripod_poses_fractional_views": (
+        lambda: dg.tripod_then_move_poses(n_pan=2.5), ValueError, "n_pan",
+    ),
+    "tripod_poses_nan_step": (lambda: dg.tripod_then_move_poses(step=NAN), ValueError, "step"),
+    "tripod_poses_inf_pan": (
+        lambda: dg.tripod_then_move_poses(pan_step=INF), ValueError, "pan_step",
+    ),
+}  # fmt: skip
+
+
+def _pairs_file(tmp_path, field: str):
+    path = tmp_path / "pairs.txt"
+    path.write_text("a.png b.png 0 0 " + " ".join([field] + ["1"] * 33) + "\n")
+    return path
+
+
+def _file(tmp_path):
+    (tmp_path / "taken").write_text("")
+    return tmp_path / "taken"
+
+
+def _full_folder(tmp_path):
+    (tmp_path / "old").mkdir()
+    (tmp_path / "old" / "keep.png").write_text("")
+    return tmp_path / "old"
+
+
+OUTPUT_CASES = {  # name: (call on tmp_path, error type, words of its message)
+    "make_dataset_none": (lambda d: dg.make_dataset(None, pairs=1), TypeError, "out_dir"),
+    "make_dataset_file": (
+        lambda d: dg.make_dataset(_file(d), pairs=1), FileExistsError, "is a file, not a folder",
+    ),
+    "read_pairs_nan": (lambda d: dg.read_pairs(_pairs_file(d, "nan")), ValueError, "finite"),
+    "read_pairs_word": (lambda d: dg.read_pairs(_pairs_file(d, "one")), ValueError, "numbers"),
+    "write_pair_none": (lambda d: dg.write_pair(None, d, "p"), TypeError, "RenderedPair"),
+    "write_pair_name_with_folder": (
+        lambda d: dg.write_pair(dg.make_pair(size=(16, 16), supersample=1), d, "../p"),
+        ValueError, "file name",
+    ),
+    "tripod_into_full_folder": (
+        lambda d: dg.render_tripod_then_move(_full_folder(d), size=(16, 16)),
+        FileExistsError, "holding files",
+    ),
+    "tripod_fractional_size": (
+        lambda d: dg.render_tripod_then_move(d / "new", size=(16.5, 16)), ValueError, "width",
+    ),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", list(OUTPUT_CASES), ids=list(OUTPUT_CASES))
+def test_a_bad_output_or_input_file_is_an_error_that_writes_nothing(case, tmp_path):
+    call, error, words = OUTPUT_CASES[case]
+    with pytest.raises(error, match=words):
+        call(tmp_path)
+    assert not (tmp_path / "new").exists() and not (tmp_path / "p_1.png").exists()
+    if (tmp_path / "old").exists():
+        assert [p.name for p in (tmp_path / "old").iterdir()] == ["keep.png"]
+
+
+@pytest.mark.parametrize("case", list(CASES), ids=list(CASES))
+def test_a_bad_argument_is_an_error_naming_it(case):
+    call, error, words = CASES[case]
+    with pytest.raises(error, match=words.replace("(", r"\(").replace(")", r"\)")):
+        call()
+
+
+def test_good_arguments_still_give_what_they_gave():
+    assert dg.make_pair(size=(64.0, 48), seed=3).image1.shape[:2] == (48, 64)
+    given = dg.given_intrinsics(K, 1.03, (64, 48))
+    np.testing.assert_allclose(given[:2, :2], K[:2, :2] * 1.03)
+    np.testing.assert_allclose(given[:2, 2], [31.5, 23.5])
+    R = dg.look_at([0, 0, 0], [0, 0, 5])
+    np.testing.assert_allclose(R, np.eye(3), atol=1e-12)
+    assert dg.jpeg_roundtrip(RGB, 90).shape == RGB.shape
+    assert len(dg.tripod_then_move_poses(2, 3)) == 5

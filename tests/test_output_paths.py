@@ -1,0 +1,58 @@
+"""Output folders named through ``..`` or a symbolic link: replaced as a whole, or refused
+before any work, never set aside and lost."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from ppo_cv.atomic import atomic_directory
+
+COMMAND = [sys.executable, "-m", "ppo_cv.cli.main"]
+SMALL_SYNTH = ["-n", "1", "--width", "32", "--height", "32", "--supersample", "1", "-q"]
+
+THROUGH_ITSELF = {  # the spelling of folder out that passes through out itself
+    "down_and_up": "out/sub/../../out",
+    "into_itself": "out/sub/../",
+    "twice": "out/sub/../../out/sub/..",
+}
+
+
+def _old_output(root: Path) -> Path:
+    (root / "out" / "sub").mkdir(parents=True)
+    (root / "out" / "old.txt").write_text("old")
+    return root / "out"
+
+
+@pytest.mark.parametrize("spelling", list(THROUGH_ITSELF.values()), ids=list(THROUGH_ITSELF))
+def test_a_folder_named_through_itself_is_replaced_as_a_whole(tmp_path, spelling):
+    out = _old_output(tmp_path)
+    with atomic_directory(tmp_path / spelling, overwrite=True) as staging:
+        (staging / "new.txt").write_text("new")
+    assert sorted(p.name for p in out.iterdir()) == ["new.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_a_folder_named_through_a_symbolic_link_is_replaced_as_a_whole(tmp_path):
+    out = _old_output(tmp_path)
+    (tmp_path / "link").symlink_to(out / "sub")
+    with atomic_directory(tmp_path / "link" / ".." / ".." / "out", overwrite=True) as staging:
+        (staging / "new.txt").write_text("new")
+    assert sorted(p.name for p in out.iterdir()) == ["new.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link", "out"]
+
+
+def test_synth_replaces_an_output_named_through_itself(tmp_path):
+    out = _old_output(tmp_path)
+    done = subprocess.run(
+        [*COMMAND, "synth", "out/sub/../../out", "--overwrite", *SMALL_SYNTH],
+        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+        env={**os.environ, "PPO_CV_SHARED": str(tmp_path / "none")},
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["gt", "images", "pairs_with_gt.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
