@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ppo_cv.checks import as_whole_number, shown
+from ppo_cv.checks import as_image_size
 
 from .scenes import Quad, Scene
 
@@ -119,16 +119,7 @@ MIN_SIDE, MAX_SIDE = 8, 8192
 def _check_size(size) -> tuple[int, int]:
     """``(width, height)``, whole numbers of pixels in ``MIN_SIDE..MAX_SIDE``."""
     try:
-        width, height = size
-    except (TypeError, ValueError):
-        width = height = None
-    if isinstance(size, (str, bytes)) or width is None:
-        raise TypeError(f"size must be (width, height), got {shown(size)}") from None
-    try:
-        return (
-            as_whole_number(width, "size's width", MIN_SIDE, MAX_SIDE),
-            as_whole_number(height, "size's height", MIN_SIDE, MAX_SIDE),
-        )
+        return as_image_size(size, "size", MIN_SIDE, MAX_SIDE)
     except ValueError as error:
         raise ValueError(f"{error} pixels") from None
 

@@ -30,6 +30,7 @@ __all__ = [
     "as_flag",
     "as_path",
     "require_instance",
+    "as_callback",
     "require_finite",
     "shown",
     "cut",
@@ -444,12 +445,14 @@ def as_whole_number(value: Any, name: str, low: int, high: int) -> int:
     return int(value)
 
 
-def as_image_size(size: Any, name: str) -> tuple[int, int]:
-    """An image size ``(width, height)``: two whole numbers >= 1; TypeError for anything but
-    two values."""
+def as_image_size(
+    size: Any, name: str, low: int = 1, high: int = MAX_WHOLE_NUMBER
+) -> tuple[int, int]:
+    """An image size ``(width, height)``: two whole numbers in ``low..high``; TypeError for
+    anything but two values."""
     if isinstance(size, (str, bytes)) or not hasattr(size, "__len__") or len(size) != 2:
         raise TypeError(f"{name} must be (width, height), got {shown(size)}")
-    width, height = (as_whole_number(v, f"{name} {side}", 1, MAX_WHOLE_NUMBER)
+    width, height = (as_whole_number(v, f"{name} {side}", low, high)
                      for v, side in zip(size, ("width", "height"), strict=True))  # fmt: skip
     return width, height
 
@@ -479,6 +482,14 @@ def require_instance(value: Any, kinds: type | tuple[type, ...], name: str, hint
     if not isinstance(value, kinds):
         wanted = " or ".join(_public_name(kind) for kind in kinds)
         raise TypeError(f"{name} must be a {wanted}, got {type(value).__name__}{hint}")
+
+
+def as_callback(value: Any, name: str, wanted: str = "callable") -> Any:
+    """``value``, an optional hook: None or a callable; TypeError otherwise, naming ``name``,
+    what it must be (``wanted``, e.g. ``"a callable taking a stage name"``) and the type got."""
+    if value is not None and not callable(value):
+        raise TypeError(f"{name} must be {wanted}, got {type(value).__name__}")
+    return value
 
 
 def _public_name(kind: type) -> str:

@@ -65,7 +65,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .camera import normalized_to_pixels, pixels_to_normalized
-from .checks import as_camera_matrix, as_distortion, as_points, as_positive, as_rotation
+from .checks import (
+    as_callback,
+    as_camera_matrix,
+    as_distortion,
+    as_points,
+    as_positive,
+    as_rotation,
+)
 from .features import to_gray
 from .metrics import rotation_error_deg
 from .model_selection import robust_sigma
@@ -1027,19 +1034,12 @@ def refine_rotation_photometric(
         K1, K2, dist1, dist2, R, rotation_sigma_deg, principal_prior, focal_ratio,
         focal_ratio_prior, focal_ratio_mean, principal_bound, max_focal_change,
     )  # fmt: skip
-    priors["keep_clipped"], priors["on_clipped"] = bool(keep_clipped), _as_callback(on_clipped)
+    priors.update(keep_clipped=bool(keep_clipped), on_clipped=as_callback(on_clipped, "on_clipped"))
     start = (R, float(focal_scale), float(k1), _as_offset(principal_offset), focal_ratio)
     return _best_window_refit(
         image1, image2, cameras, start, priors, rotation_sigma_deg, _as_windows(window),
         max_corners,
     )  # fmt: skip
-
-
-def _as_callback(value):
-    """``value`` checked: None or a callable."""
-    if value is not None and not callable(value):
-        raise TypeError(f"on_clipped must be callable, got {type(value).__name__}")
-    return value
 
 
 def _checked_inputs(

@@ -79,6 +79,7 @@ from .calib import warn_implausible
 from .camera import pixels_to_normalized, principal_point_is_centre
 from .checks import (
     MAX_WHOLE_NUMBER,
+    as_callback,
     as_camera_matrix,
     as_distortion,
     as_flag,
@@ -748,9 +749,9 @@ class _Finishing:
     priors: _LensPriors
     tracks: PhotometricRotation | None
     options: PairOptions
-    unclipped_miss_deg: float | None = None
-    """Search deviation (capped) of a refit that aligned no tracks without clipping a lens fit
-    to its box: with ``keep_clipped`` it would align none either (:func:`_misses_again`)."""
+    unclipped_miss: bool = False
+    """Whether the refit of ``motion`` aligned no tracks without clipping a lens fit to its box:
+    with ``keep_clipped`` it would align none either (:func:`_misses_again`)."""
 
     @property
     def focal(self) -> float:
@@ -805,10 +806,7 @@ def _check_hooks(features1: Any, features2: Any, progress: Any) -> None:
             raise TypeError(f"{name} must be ppo_cv.features.Features, got {type(f).__name__}")
     if (features1 is None) != (features2 is None):
         raise ValueError("give both features1 and features2, or neither (one is not used alone)")
-    if progress is not None and not callable(progress):
-        raise TypeError(
-            f"progress must be a callable taking a stage name, got {type(progress).__name__}"
-        )
+    as_callback(progress, "progress", "a callable taking a stage name")
 
 
 def _features(
@@ -916,24 +914,23 @@ def _align_tracks(
 def _revisit_with_tracks(
     inputs: _Inputs, found: _Consensus, motion: MotionDecision, priors: _LensPriors,
     options: PairOptions,
-) -> tuple[MotionDecision, PhotometricRotation | None, int, float | None]:  # fmt: skip
+) -> tuple[MotionDecision, PhotometricRotation | None, int, bool]:  # fmt: skip
     """For a pure rotation or a rotation candidate: the rotation refitted on intensity-aligned
     windows and the decision revisited on their parallax (:func:`with_tracks`); with the
-    tracks (None when none were aligned), the number behind a pure rotation's ``R`` and the
-    search deviation of a refit that aligned none without clipping a lens fit
-    (:attr:`_Finishing.unclipped_miss_deg`)."""
+    tracks (None when none were aligned), the number behind a pure rotation's ``R`` and
+    whether a refit aligned none without clipping a lens fit
+    (:attr:`_Finishing.unclipped_miss`)."""
     if not options.photometric or not (motion.pure_rotation or motion.rotation_candidate):
-        return motion, None, 0, None
+        return motion, None, 0, False
     clipped = []
     tracks = _align_tracks(inputs, motion, priors, on_clipped=lambda: clipped.append(True))
     if tracks is None:
-        missed = None if clipped else min(motion.rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG)
-        return motion, None, 0, missed
+        return motion, None, 0, not clipped
     motion = with_tracks(
         motion, tracks.fit, tracks.parallax, found.x1, found.x2, inputs.focal,
         threshold_px=options.ransac_threshold,
     )  # fmt: skip
-    return motion, tracks, tracks.num_tracks if motion.pure_rotation else 0, None
+    return motion, tracks, tracks.num_tracks if motion.pure_rotation else 0, False
 
 
 def _finish_rotation(state: _Finishing) -> _ModelPart:
@@ -1136,13 +1133,14 @@ def _tracks_could_win(moving: RotationEstimate, rotation_only: RotationEstimate)
 
 def _misses_again(state: _Finishing, sigma_deg: float) -> bool:
     """Whether the refit of :func:`_revisit_with_tracks` already aligned no tracks from the
-    same start over the same search deviation (``sigma_deg``, capped; equal to within float
-    rounding) without clipping a lens fit: ``keep_clipped`` changes only clipped fits
+    same start over the same search deviation (``sigma_deg`` against the decision's
+    ``rotation_sigma_deg``, both capped; equal to within float rounding) without clipping a
+    lens fit: ``keep_clipped`` changes only clipped fits
     (:func:`~ppo_cv.photometric.refine_rotation_photometric`), so the refit again would
     repeat the same searches, fits and answer."""
-    missed = state.unclipped_miss_deg
-    searched = min(sigma_deg, MAX_SEARCH_SIGMA_DEG)
-    return missed is not None and math.isclose(searched, missed, rel_tol=1e-12)
+    searched, missed = (min(sigma, MAX_SEARCH_SIGMA_DEG)
+                        for sigma in (sigma_deg, state.motion.rotation_sigma_deg))  # fmt: skip
+    return state.unclipped_miss and math.isclose(searched, missed, rel_tol=1e-12)
 
 
 def _moving_estimate(state: _Finishing, part: _ModelPart) -> RotationEstimate:

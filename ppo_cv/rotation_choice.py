@@ -316,8 +316,13 @@ def translation_bias(parallax: PlaneParallax | None) -> tuple[float, float]:
     deviation of its parallax; ``(inf, 0)`` when it was not measured."""
     if parallax is None or not np.isfinite(parallax.parallax):
         return float("inf"), 0.0
-    bias = max(across_normal_parallax(parallax.H), abs(parallax.parallax))
-    return float(np.degrees(bias)), float(np.degrees(parallax.sigma))
+    return float(np.degrees(_parallax_bias(parallax))), float(np.degrees(parallax.sigma))
+
+
+def _parallax_bias(parallax: PlaneParallax) -> float:
+    """The bias (radians) a ``parallax`` gives a rotation-only fit: :func:`across_normal_parallax`
+    of its ``H``, at least its own ``parallax``."""
+    return max(across_normal_parallax(parallax.H), abs(parallax.parallax))
 
 
 def focal_free_parallax(parallax: PlaneParallax) -> tuple[PlaneParallax, float]:
@@ -650,8 +655,7 @@ def freed_parallax_refused(freed: PlaneParallax, bound: float) -> bool:
     >>> freed_parallax_refused(PlaneParallax(np.eye(3), 0.0, 0.001, np.empty(0)), 0.003)
     False
     """
-    bias = max(across_normal_parallax(freed.H), abs(freed.parallax))
-    return parallax_refuses_rotation(bias, freed.sigma, bound)
+    return parallax_refuses_rotation(_parallax_bias(freed), freed.sigma, bound)
 
 
 def wanted_focal_fit(

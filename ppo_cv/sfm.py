@@ -54,6 +54,7 @@ from .atomic import (
 )
 from .checks import (
     MAX_WHOLE_NUMBER,
+    as_callback,
     as_camera_matrix,
     as_flag,
     as_nonnegative,
@@ -385,10 +386,7 @@ def _check_hooks(progress: Any, **flags: Any) -> None:
     ``progress`` that is not callable (an int failed at the first message)."""
     for name, value in flags.items():
         as_flag(value, name)
-    if progress is not None and not callable(progress):
-        raise TypeError(
-            f"progress must be a callable taking a message, got {type(progress).__name__}"
-        )
+    as_callback(progress, "progress", "a callable taking a message")
 
 
 def _check_run_numbers(num_threads: Any, seed: Any, max_num_features: Any = 1) -> None:
