@@ -29,7 +29,7 @@ import cv2
 import numpy as np
 
 from ppo_cv.atomic import staging_folder, worker_count, worker_pool
-from ppo_cv.checks import as_path, require_instance, shown
+from ppo_cv.checks import as_number, as_path, require_instance, shown
 
 from .imperfect import Imperfections
 from .motion import DEFAULT_SCENE, MAX_BASELINE_RATIO, MOTIONS, check_pivot_offset, sample_motion
@@ -54,15 +54,18 @@ def _check_args(motion, scene, seed, index, size, alpha, supersample, noise_std,
     if scene not in SCENES:
         raise ValueError(f"unknown scene {scene!r}; choose one of {', '.join(SCENES)}")
     for name, value in (("seed", seed), ("index", index), ("supersample", supersample)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+            raise TypeError(f"{name} must be an integer, got {type(value).__name__} {shown(value)}")
+        if value < 0:
             raise ValueError(f"{name} must be a non-negative integer, got {value!r}")
     if not 1 <= supersample <= 8:
         raise ValueError(f"supersample must be in 1..8, got {supersample}")
     _check_size(size)
-    if alpha is not None and not (np.isfinite(alpha) and 0.0 < alpha <= 1.0):
+    if alpha is not None and not (np.isfinite(as_number(alpha, "alpha")) and 0.0 < alpha <= 1.0):
         raise ValueError(f"alpha must be in (0, 1], got {alpha}")
     if baseline_ratio is not None:
-        if not (np.isfinite(baseline_ratio) and 0.0 <= baseline_ratio <= MAX_BASELINE_RATIO):
+        ratio = as_number(baseline_ratio, "baseline_ratio")
+        if not (np.isfinite(ratio) and 0.0 <= ratio <= MAX_BASELINE_RATIO):
             raise ValueError(
                 f"baseline_ratio must be in [0, {MAX_BASELINE_RATIO}], got {baseline_ratio}"
             )
@@ -71,7 +74,7 @@ def _check_args(motion, scene, seed, index, size, alpha, supersample, noise_std,
                 f"baseline_ratio applies to {' and '.join(BASELINE_MOTIONS)} only, not {motion!r}"
             )
     for name, value in (("noise_std", noise_std), ("blur_sigma", blur_sigma)):
-        if not np.isfinite(value) or value < 0:
+        if not np.isfinite(as_number(value, name)) or value < 0:
             raise ValueError(f"{name} must be finite and >= 0, got {value}")
     if imperfections is not None:
         if not isinstance(imperfections, Imperfections):

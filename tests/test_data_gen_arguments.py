@@ -17,6 +17,14 @@ CASES = {  # name: (call, error type, words of its message)
     "make_pair_nan_height": (lambda: dg.make_pair(size=(64, NAN)), ValueError, "height"),
     "make_pair_true_width": (lambda: dg.make_pair(size=(True, 48)), TypeError, "width"),
     "make_pair_three_sides": (lambda: dg.make_pair(size=(64, 48, 3)), TypeError, "size"),
+    "make_pair_text_seed": (lambda: dg.make_pair(seed="a"), TypeError, "seed"),
+    "make_pair_fractional_index": (lambda: dg.make_pair(index=1.5), TypeError, "index"),
+    "make_pair_negative_seed": (lambda: dg.make_pair(seed=-1), ValueError, "seed"),
+    "make_pair_text_alpha": (lambda: dg.make_pair(alpha="a"), TypeError, "alpha"),
+    "make_pair_no_blur": (lambda: dg.make_pair(blur_sigma=None), TypeError, "blur_sigma"),
+    "make_pair_text_baseline": (
+        lambda: dg.make_pair("tiny-baseline", baseline_ratio="0.1"), TypeError, "baseline_ratio",
+    ),
     "render_view_fractional_size": (
         lambda: dg.render_view(dg.checker_plane(), K, np.eye(3), np.zeros(3), (64, 47.5)),
         ValueError, "height",
