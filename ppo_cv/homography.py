@@ -29,13 +29,19 @@ from .robust import ransac_options
 __all__ = [
     "HOMOGRAPHY_BACKENDS",
     "HomographyEstimate",
+    "MIRROR_MIN_INLIERS",
     "estimate_homography",
     "homography_sampson_errors",
+    "require_unmirrored",
     "symmetric_transfer_errors",
     "transfer_errors",
 ]
 
 HOMOGRAPHY_BACKENDS = ("pycolmap", "opencv")
+MIRROR_MIN_INLIERS = 8
+"""Inliers a homography that reverses orientation needs before :func:`require_unmirrored` calls
+the pair mirrored: a few more than its minimal sample of 4 may fit matches of either sign (one
+of the 85 freiburg pairs has a reversing homography of 5 inliers, none of more)."""
 
 
 @dataclass(frozen=True)
@@ -238,3 +244,37 @@ def estimate_homography(
     H = normalize_homography(H, x1[inliers], x2[inliers])
     residuals = focal * homography_sampson_errors(H, x1, x2)
     return HomographyEstimate(H=H, inliers=inliers, residuals=residuals, backend=backend)
+
+
+def require_unmirrored(
+    homography: HomographyEstimate | None, min_inliers: int = MIRROR_MIN_INLIERS
+) -> None:
+    """ValueError when the homography of the matches (:func:`ppo_cv.homography.
+    estimate_homography`, scaled to positive depths) reverses orientation with at least
+    ``min_inliers`` inliers (:data:`MIRROR_MIN_INLIERS`): one image is a mirror image of the other.
+
+    A plane seen by two cameras maps between the images by ``H = R + t n^T / d``, with
+    ``det H = 1 - n^T c2 / d`` for camera 2's centre ``c2``: positive while both centres lie on
+    the plane's visible side, as they must to see it; a pure rotation's ``H = R`` has
+    determinant 1. A reflection (``image[:, ::-1]``) has determinant -1 and still fits an
+    essential matrix, so without this test it reads as a confident general motion of 80-84 deg.
+
+    Measured on the 85 freiburg pairs: none of the pairs as they are is refused (83 poses, 2
+    refused as chance consensus, as before); every first frame against its own mirror image is
+    refused (85 of 85, 73 to 136 inliers). Not caught: a mirrored image of another viewpoint
+    whose few matches hold no such homography (the descriptors do not match mirrored patches):
+    of the 85 pairs with image 2 mirrored, 13 are refused as mirrored and 26 as chance
+    consensus, but 46 still return a (wrong) pose; both images mirrored (a mirrored world is a
+    rigid scene: the pose returned is the mirror image of the true one); a mirror inside the
+    scene.
+    """
+    if homography is None or homography.num_inliers < min_inliers:
+        return
+    determinant = float(np.linalg.det(homography.H))
+    if determinant < 0:
+        raise ValueError(
+            "the images are mirror images of each other: the homography of "
+            f"{homography.num_inliers} matches reverses the orientation of the image "
+            f"(determinant {determinant:.2f} < 0), which no camera motion does; flip one image "
+            "back (left-right: image[:, ::-1])"
+        )

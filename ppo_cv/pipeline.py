@@ -58,8 +58,8 @@ Errors. ``estimate_pair`` raises ValueError for an unreadable or oversized image
 on (a side below :data:`~ppo_cv.features.MIN_IMAGE_SIDE` pixels), images of different sizes
 without ``K2``, identical images, too few features, matches or inliers, a consensus that chance
 could explain (``PairOptions.max_log10_nfa``: "no reliable two-view geometry" with the
-figures), and one image a mirror image of the other (:func:`_require_unmirrored` says what is
-and is not caught).
+figures), and one image a mirror image of the other
+(:func:`~ppo_cv.homography.require_unmirrored` says what is and is not caught).
 """
 
 from __future__ import annotations
@@ -96,16 +96,19 @@ from .features import (
     match_features_scored,
     require_detectable,
 )
-from .homography import HomographyEstimate, estimate_homography
+from .homography import (
+    MIRROR_MIN_INLIERS,
+    HomographyEstimate,
+    estimate_homography,
+    require_unmirrored,
+)
 from .images import as_image as _as_image
 from .images import load_image
-from .metrics import rotation_error_deg
 from .motion_model import MotionDecision, decide_motion, plane_ransac_trials, with_tracks
 from .photometric import (
     MAX_SEARCH_SIGMA_DEG,
     PhotometricRotation,
     refine_rotation_photometric,
-    refit_reach_deg,
 )
 from .plane import held_k1_deviation, refine_planar_pose, undistort_division
 from .pose import _recover_normalized
@@ -154,17 +157,12 @@ from .rotation_choice import (
     rotation_only_estimate,
     rotation_only_fit,
     through_given_focal,
+    tracks_could_win,
     translation_bias,
     unbiased_bias_deg,
     wanted_focal_scale,
 )
-from .significance import (
-    CONFIDENT_LOG10_NFA,
-    DEFAULT_MAX_LOG10_NFA,
-    Significance,
-    distinctiveness,
-    epipolar_significance,
-)
+from .significance import DEFAULT_MAX_LOG10_NFA, Significance, require_significance
 from .valley import ValleyOutcome, valley_minima, valley_outcome
 
 __all__ = [
@@ -180,10 +178,6 @@ __all__ = [
 ]
 
 MIN_MATCHES = 8
-MIRROR_MIN_INLIERS = 8
-"""Inliers a homography that reverses orientation needs before :func:`estimate_pair` calls the
-pair mirrored: a few more than its minimal sample of 4 may fit matches of either sign (one of
-the 85 freiburg pairs has a reversing homography of 5 inliers, none of more)."""
 MAX_RANSAC_THRESHOLD = 100.0
 PRINCIPAL_POINT_MODES = ("auto", "fit", "given")
 FOCAL_RATIO_MODES = ("auto", "given")
@@ -503,62 +497,6 @@ def _require_same_size(image1: np.ndarray, image2: np.ndarray) -> None:
         )
 
 
-def _require_significance(E, x1, x2, K2, shape2, options: PairOptions, ratios):
-    """The a-contrario test of the fit over all matches, and for a weak consensus the
-    distinctiveness test of its matches by their Lowe ``ratios`` (:mod:`ppo_cv.significance`);
-    ValueError when the consensus may be chance."""
-    significance = epipolar_significance(E, x1, x2, K2, (int(shape2[1]), int(shape2[0])))
-    refused = not significance.log10_nfa <= options.max_log10_nfa
-    detail = f"log10 NFA {significance.log10_nfa:.1f} > {options.max_log10_nfa:g}"
-    if not refused and CONFIDENT_LOG10_NFA < significance.log10_nfa < np.inf:
-        p_value = distinctiveness(ratios, significance.consistent)
-        joint = significance.log10_nfa + np.log10(max(p_value, 1e-300))
-        refused = not joint <= CONFIDENT_LOG10_NFA
-        detail = (
-            f"log10 NFA {significance.log10_nfa:.1f} and distinctiveness p = {p_value:.2f} of its "
-            f"matches: {joint:.1f} > {CONFIDENT_LOG10_NFA:g}"
-        )
-    if refused:
-        raise ValueError(
-            f"no reliable two-view geometry: the consensus may be chance ({detail}; best "
-            f"{significance.num_consistent} of {significance.num_matches} matches within "
-            f"{significance.threshold:.2f} px)"
-        )
-    return significance
-
-
-def _require_unmirrored(homography) -> None:
-    """ValueError when the homography of the matches (:func:`ppo_cv.homography.
-    estimate_homography`, scaled to positive depths) reverses orientation with at least
-    :data:`MIRROR_MIN_INLIERS` inliers: one image is a mirror image of the other.
-
-    A plane seen by two cameras maps between the images by ``H = R + t n^T / d``, with
-    ``det H = 1 - n^T c2 / d`` for camera 2's centre ``c2``: positive while both centres lie on
-    the plane's visible side, as they must to see it; a pure rotation's ``H = R`` has
-    determinant 1. A reflection (``image[:, ::-1]``) has determinant -1 and still fits an
-    essential matrix, so without this test it reads as a confident general motion of 80-84 deg.
-
-    Measured on the 85 freiburg pairs: none of the pairs as they are is refused (83 poses, 2
-    refused as chance consensus, as before); every first frame against its own mirror image is
-    refused (85 of 85, 73 to 136 inliers). Not caught: a mirrored image of another viewpoint
-    whose few matches hold no such homography (the descriptors do not match mirrored patches):
-    of the 85 pairs with image 2 mirrored, 13 are refused as mirrored and 26 as chance
-    consensus, but 46 still return a (wrong) pose; both images mirrored (a mirrored world is a
-    rigid scene: the pose returned is the mirror image of the true one); a mirror inside the
-    scene.
-    """
-    if homography is None or homography.num_inliers < MIRROR_MIN_INLIERS:
-        return
-    determinant = float(np.linalg.det(homography.H))
-    if determinant < 0:
-        raise ValueError(
-            "the images are mirror images of each other: the homography of "
-            f"{homography.num_inliers} matches reverses the orientation of the image "
-            f"(determinant {determinant:.2f} < 0), which no camera motion does; flip one image "
-            "back (left-right: image[:, ::-1])"
-        )
-
-
 def _ransac_keywords(options: PairOptions) -> dict:
     return {
         "backend": options.backend,
@@ -612,7 +550,10 @@ def _consensus(
         fit = _robust_essential(x1, x2, focal, scores, K2, shape2, options, settle)
         if fit is None:
             return None
-        significance = _require_significance(fit.E, x1, x2, K2, shape2, options, scores)
+        size2 = (int(shape2[1]), int(shape2[0]))
+        significance = require_significance(
+            fit.E, x1, x2, K2, size2, options.max_log10_nfa, scores
+        )
     finally:
         lap("ransac")
     return _Consensus(f1, f2, threshold_scale, matches, x1, x2, fit, significance)
@@ -857,7 +798,7 @@ def _homography(
         plane_ransac["max_trials"] = min(options.max_trials, bound)
     fit_on = pose.inliers if ranked else None
     homography = estimate_homography(found.x1, found.x2, focal, **plane_ransac, fit_on=fit_on)
-    _require_unmirrored(homography)
+    require_unmirrored(homography)
     return homography if options.plane else None
 
 
@@ -1084,8 +1025,8 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     bias (:func:`_moving_estimate`), or the rotation-only fit's, whose bias is then measured
     on intensity-aligned tracks, searched over the fit's own deviation, when that deviation is
     below the moving model's expected error and the two rotations are near enough for the
-    refit to win (:func:`_tracks_could_win`), and on the feature matches when no tracks were
-    aligned."""
+    refit to win (:func:`~ppo_cv.rotation_choice.tracks_could_win`), and on the feature matches
+    when no tracks were aligned."""
     motion = state.motion
     if motion.pure_rotation:
         return RotationEstimate("rotation", part.R, 0.0, part.rotation_sigma_deg)
@@ -1098,7 +1039,7 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
         tracks is None
         and state.options.photometric
         and rotation_only.fit_sigma_deg < moving.expected_error_deg
-        and _tracks_could_win(moving, rotation_only)
+        and tracks_could_win(moving, rotation_only)
         and not _misses_again(state, rotation_only.fit_sigma_deg)
     ):
         tracks = _align_tracks(
@@ -1110,25 +1051,6 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     if chosen is rotation_only and tracks is None:
         return through_given_focal(chosen, motion, x1, x2)
     return chosen
-
-
-def _tracks_could_win(moving: RotationEstimate, rotation_only: RotationEstimate) -> bool:
-    """Whether the rotation-only fit, refitted on tracks, could have the smaller expected error
-    while both estimates keep within their expected errors of the truth.
-
-    The two rotations are ``apart`` degrees; the refit moves the rotation-only one by at most
-    its reach (:func:`~ppo_cv.photometric.refit_reach_deg` of its deviation, capped at
-    :data:`~ppo_cv.photometric.MAX_SEARCH_SIGMA_DEG` as the search is), so refitted they are
-    at least ``apart - reach`` apart. Both within their expected errors of the truth, that
-    distance is at most the sum of the two, which is below twice the moving model's when the
-    refit wins: a rotation-only fit farther than ``2 expected + reach`` from the moving
-    model's took a bias the tracks would have to read (or else the moving model is off by
-    more than its own budget) and cannot win; its windows are not aligned. A moving model of
-    infinite expected error keeps them aligned.
-    """
-    apart = float(rotation_error_deg(rotation_only.R, moving.R))
-    reach = refit_reach_deg(min(rotation_only.fit_sigma_deg, MAX_SEARCH_SIGMA_DEG))
-    return apart - reach < 2.0 * moving.expected_error_deg
 
 
 def _misses_again(state: _Finishing, sigma_deg: float) -> bool:

@@ -141,6 +141,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .lsq import gauss_newton_covariance, rotation_increment
+from .metrics import rotation_error_deg
 from .model_selection import robust_sigma
 from .motion_model import MAX_TRACK_PARALLAX, MotionDecision, parallax_refuses_rotation
 from .parallax import (
@@ -150,7 +151,7 @@ from .parallax import (
     homography_parallax,
     nearest_rotation_log_scale,
 )
-from .photometric import PhotometricRotation
+from .photometric import MAX_SEARCH_SIGMA_DEG, PhotometricRotation, refit_reach_deg
 from .refine import released_lens_shift_deg
 from .rotation import (
     FOCAL_PRIOR,
@@ -180,6 +181,7 @@ __all__ = [
     "rotation_only_estimate",
     "rotation_only_fit",
     "through_given_focal",
+    "tracks_could_win",
     "rotation_fit_sigma_deg",
     "translation_bias",
     "unbiased_bias_deg",
@@ -744,3 +746,22 @@ def rotation_only_fit(
         principal_offset=motion.principal_offset,
         focal_ratio=motion.focal_ratio,
     )
+
+
+def tracks_could_win(moving: RotationEstimate, rotation_only: RotationEstimate) -> bool:
+    """Whether the rotation-only fit, refitted on tracks, could have the smaller expected error
+    while both estimates keep within their expected errors of the truth.
+
+    The two rotations are ``apart`` degrees; the refit moves the rotation-only one by at most
+    its reach (:func:`~ppo_cv.photometric.refit_reach_deg` of its deviation, capped at
+    :data:`~ppo_cv.photometric.MAX_SEARCH_SIGMA_DEG` as the search is), so refitted they are
+    at least ``apart - reach`` apart. Both within their expected errors of the truth, that
+    distance is at most the sum of the two, which is below twice the moving model's when the
+    refit wins: a rotation-only fit farther than ``2 expected + reach`` from the moving
+    model's took a bias the tracks would have to read (or else the moving model is off by
+    more than its own budget) and cannot win; its windows are not aligned. A moving model of
+    infinite expected error keeps them aligned.
+    """
+    apart = float(rotation_error_deg(rotation_only.R, moving.R))
+    reach = refit_reach_deg(min(rotation_only.fit_sigma_deg, MAX_SEARCH_SIGMA_DEG))
+    return apart - reach < 2.0 * moving.expected_error_deg

@@ -71,6 +71,7 @@ __all__ = [
     "Significance",
     "chord_lengths",
     "distinctiveness",
+    "require_significance",
     "epipolar_lines",
     "log10_binomial",
     "epipolar_significance",
@@ -328,3 +329,34 @@ def smallest_significant_consensus(
     log10_nfa = _log10_nfa(n, k, log_p, sample_size, models_per_sample)
     passing = k[log10_nfa <= max_log10_nfa]
     return int(passing[0]) if passing.size else n + 1
+
+
+def require_significance(
+    E: np.ndarray, x1: np.ndarray, x2: np.ndarray, K2: np.ndarray, size2: tuple[int, int],
+    max_log10_nfa: float, ratios: np.ndarray,
+) -> Significance:  # fmt: skip
+    """The a-contrario test of an essential matrix ``E`` over all matches ``x1``, ``x2`` (N, 3)
+    (:func:`epipolar_significance`, image 2 of ``size2`` = (width, height) pixels seen by
+    ``K2``), and for a weak consensus (``log10 NFA`` above :data:`CONFIDENT_LOG10_NFA`) the
+    distinctiveness of its matches by their Lowe ``ratios`` (N,) (:func:`distinctiveness`):
+    ``log10 NFA + log10 p <= CONFIDENT_LOG10_NFA``. Returns the :class:`Significance`;
+    ValueError "no reliable two-view geometry" with the figures when the consensus may be
+    chance (``log10 NFA`` above ``max_log10_nfa``, or not distinctive enough)."""
+    significance = epipolar_significance(E, x1, x2, K2, size2)
+    refused = not significance.log10_nfa <= max_log10_nfa
+    detail = f"log10 NFA {significance.log10_nfa:.1f} > {max_log10_nfa:g}"
+    if not refused and CONFIDENT_LOG10_NFA < significance.log10_nfa < np.inf:
+        p_value = distinctiveness(ratios, significance.consistent)
+        joint = significance.log10_nfa + np.log10(max(p_value, 1e-300))
+        refused = not joint <= CONFIDENT_LOG10_NFA
+        detail = (
+            f"log10 NFA {significance.log10_nfa:.1f} and distinctiveness p = {p_value:.2f} of its "
+            f"matches: {joint:.1f} > {CONFIDENT_LOG10_NFA:g}"
+        )
+    if refused:
+        raise ValueError(
+            f"no reliable two-view geometry: the consensus may be chance ({detail}; best "
+            f"{significance.num_consistent} of {significance.num_matches} matches within "
+            f"{significance.threshold:.2f} px)"
+        )
+    return significance

@@ -28,6 +28,7 @@ MODULES = {
     "guessed_camera": None,
     "ppo": ("DEFAULT_PRI_THRESHOLD",),
     "refine": ("LEVERAGE_MAX",),
+    "homography": ("MIRROR_MIN_INLIERS",),
     "valley": None,
 }
 CONSTANT = re.compile(r"_?[A-Z][A-Z0-9_]*")

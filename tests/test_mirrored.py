@@ -1,7 +1,7 @@
 """A mirrored image against an unmirrored one is refused (issue 44, defect 10).
 
 No camera motion mirrors an image, but a reflection still fits an essential matrix: without the
-orientation test of the homography (``pipeline._require_unmirrored``) an image against its own
+orientation test of the homography (``homography.require_unmirrored``) an image against its own
 mirror image read as a confident general motion of 80-84 deg.
 """
 

@@ -425,9 +425,9 @@ def test_decision_aligns_windows_only_where_the_rotation_only_fit_could_win(
 def test_tracks_are_aligned_while_the_refit_could_come_within_both_budgets(
     apart_deg, moving, fit_sigma_deg, could_win
 ):
-    from ppo_cv.pipeline import _tracks_could_win
+    from ppo_cv.rotation_choice import tracks_could_win
 
     essential = RotationEstimate("essential", np.eye(3), *moving)
     rotation = RotationEstimate("rotation", _turn(apart_deg), 5.0, fit_sigma_deg)
     assert rotation_error_deg(rotation.R, essential.R) == pytest.approx(apart_deg)
-    assert _tracks_could_win(essential, rotation) is could_win
+    assert tracks_could_win(essential, rotation) is could_win
