@@ -20,6 +20,7 @@ NEEDS_FREIBURG = {
     "guided_matching_variant": (["guided_matching.py", "--variants", "3"], "BAND:RATIO"),
     "guided_matching_limit": (["guided_matching.py", "--limit", "0"], "--limit must be"),
     "stage_profile_sift_parts": (["stage_profile.py", "--sift-parts", "1"], "needs the freiburg"),
+    "settings": (["settings.py"], "no pairs file in"),
 }
 
 
