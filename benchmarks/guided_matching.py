@@ -4,7 +4,7 @@ Run ``python benchmarks/guided_matching.py [--freiburg DIR] [--variants 3:0.9 1:
 [--json FILE]`` from the repository root. About 8 minutes on 2 cores.
 
 A pair is weak when its first consensus has fewer than ``PairOptions.redetect_below`` inliers;
-``estimate_pair`` then detects SIFT again at ``pipeline.REDETECT_THRESHOLD_SCALE`` (about
+``estimate_pair`` then detects SIFT again at ``consensus.REDETECT_THRESHOLD_SCALE`` (about
 2 x 90 ms of CPU on a freiburg pair). The variant measured here matches the first features
 again, guided by the weak consensus's essential matrix ``E``: each keypoint of image 1 may
 match only the keypoints of image 2 within ``BAND`` RANSAC thresholds (Sampson distance) of its
@@ -46,7 +46,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import anchors  # noqa: E402
 import compare  # noqa: E402
 
-from ppo_cv import pipeline  # noqa: E402
+from ppo_cv import consensus, pipeline  # noqa: E402
 from ppo_cv.features import Features, unique_pixel_pairs  # noqa: E402
 from ppo_cv.significance import CONFIDENT_LOG10_NFA, epipolar_significance  # noqa: E402
 
@@ -104,7 +104,7 @@ def guided_matches(f1: Features, f2: Features, allowed: np.ndarray, ratio: float
 
 
 class GuidedConsensus:
-    """``pipeline._consensus`` that, for a weak first consensus of features a second
+    """``consensus._consensus`` that, for a weak first consensus of features a second
     detection would follow, tries the guided matching of ``variant`` first (module
     docstring); ``record`` says what it found for the last pair."""
 
@@ -114,13 +114,13 @@ class GuidedConsensus:
     def __call__(self, f1, f2, scale, K1, K2, dist1, dist2, focal, shape2, options, lap, *settle):
         camera = (K1, K2, dist1, dist2, focal, shape2, options, lap)
         found = self.original(f1, f2, scale, *camera, *settle)
-        low = pipeline.REDETECT_THRESHOLD_SCALE
+        low = consensus.REDETECT_THRESHOLD_SCALE
         if (
             found is None
             or settle != (False,)
             or found.fit.num_inliers >= options.redetect_below
             or f1.kind != "sift"
-            or all(pipeline._thins_to(f, low) for f in (f1, f2))
+            or all(consensus._thins_to(f, low) for f in (f1, f2))
         ):
             return found
         self.record.update(first_inliers=found.fit.num_inliers, first_matches=len(found.matches))
@@ -131,8 +131,8 @@ class GuidedConsensus:
 
     def _guided(self, found, K1, K2, dist1, dist2, focal, shape2, options, lap):
         f1, f2 = found.features1, found.features2
-        points1 = pipeline._normalize(f1.keypoints, K1, dist1)
-        points2 = pipeline._normalize(f2.keypoints, K2, dist2)
+        points1 = consensus._normalize(f1.keypoints, K1, dist1)
+        points2 = consensus._normalize(f2.keypoints, K2, dist2)
         band = self.variant.band * options.ransac_threshold / focal
         allowed = epipolar_band(found.fit.E, points1, points2, band)
         matches, ratios = guided_matches(f1, f2, allowed, self.variant.ratio)
@@ -142,7 +142,7 @@ class GuidedConsensus:
             return None
         x1, x2 = points1[matches[:, 0]], points2[matches[:, 1]]
         try:
-            fit = pipeline._robust_essential(x1, x2, focal, ratios, K2, shape2, options)
+            fit = consensus._robust_essential(x1, x2, focal, ratios, K2, shape2, options)
         except ValueError:
             return None
         finally:
@@ -224,9 +224,9 @@ def main(argv: list[str] | None = None) -> None:
                      "give --freiburg DIR or set PPO_CV_SHARED")  # fmt: skip
     pairs = anchors.read_pairs_file(args.freiburg / "pairs_with_gt.txt")[: args.limit]
     load = lambda name: cv2.imread(str(args.freiburg / "images" / name))  # noqa: E731
-    original = pipeline._consensus
+    original = consensus._consensus
     hook = GuidedConsensus(original, None)
-    pipeline._consensus = hook
+    consensus._consensus = hook
     try:
         base = [run_pair(p, [load(p["name1"]), load(p["name2"])], hook) for p in pairs]
         weak = [i for i, row in enumerate(base) if "first_inliers" in row]
@@ -239,7 +239,7 @@ def main(argv: list[str] | None = None) -> None:
                 rows[i] = run_pair(pair, [load(pair["name1"]), load(pair["name2"])], hook)
             results[variant.label] = rows
     finally:
-        pipeline._consensus = original
+        consensus._consensus = original
     print(f"{len(pairs)} freiburg pairs, {len(weak)} weak ones detected again;", compare._machine())
     print("| second detection of a weak pair | pairs that skip it | AUC@5/10/20 | refused | "
           "poses changed | worse (deg) | CPU summed s | median CPU per pair s |")  # fmt: skip

@@ -41,7 +41,7 @@ Stages (each timed in ``PairResult.timings``, seconds):
     reported pose in both moving cases.
 
 :func:`estimate_pair` calls one function per stage (``_load_inputs``, ``_features``,
-``_best_consensus``, ``_essential_pose``, ``_homography``, ``_decide``,
+``best_consensus`` (:mod:`ppo_cv.consensus`), ``_essential_pose``, ``_homography``, ``_decide``,
 ``_revisit_with_tracks``), then the finisher of the chosen model (:data:`FINISHERS`), the
 choice of the rotation with the smallest expected error (``_choose_rotation``,
 :mod:`ppo_cv.rotation_choice`), and ``_assemble`` builds the :class:`~ppo_cv.result.PairResult`.
@@ -64,9 +64,7 @@ figures), and one image a mirror image of the other
 
 from __future__ import annotations
 
-import importlib
 import math
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -76,24 +74,24 @@ import numpy as np
 
 from . import ppo
 from .calib import warn_implausible
-from .camera import pixels_to_normalized, principal_point_is_centre
+from .camera import principal_point_is_centre
 from .checks import (
-    MAX_WHOLE_NUMBER,
     as_callback,
     as_camera_matrix,
     as_distortion,
-    as_flag,
-    as_number,
-    as_pri_threshold,
-    as_whole_number,
-    shown,
+)
+from .consensus import (
+    FIRST_DETECTION_PER_MEGAPIXEL,
+    MIN_MATCHES,
+    REDETECT_THRESHOLD_SCALE,
+    Consensus,
+    PairInputs,
+    best_consensus,
+    detect_both,
+    ransac_keywords,
 )
 from .features import (
-    FEATURE_TYPES,
     Features,
-    at_threshold,
-    detect_features,
-    match_features_scored,
     require_detectable,
 )
 from .homography import (
@@ -105,6 +103,12 @@ from .homography import (
 from .images import as_image as _as_image
 from .images import load_image
 from .motion_model import MotionDecision, decide_motion, plane_ransac_trials, with_tracks
+from .options import (
+    FOCAL_RATIO_MODES,
+    MAX_RANSAC_THRESHOLD,
+    PRINCIPAL_POINT_MODES,
+    PairOptions,
+)
 from .photometric import (
     MAX_SEARCH_SIGMA_DEG,
     PhotometricRotation,
@@ -136,11 +140,7 @@ from .result import (
     TrackParallax,
 )
 from .robust import (
-    ROBUST_BACKENDS,
-    RobustEstimate,
     essential_from_pose,
-    estimate_essential,
-    estimate_essential_ordered,
     sampson_errors,
 )
 from .rotation import (
@@ -162,7 +162,7 @@ from .rotation_choice import (
     unbiased_bias_deg,
     wanted_focal_scale,
 )
-from .significance import DEFAULT_MAX_LOG10_NFA, Significance, require_significance
+from .significance import DEFAULT_MAX_LOG10_NFA
 from .valley import ValleyOutcome, valley_minima, valley_outcome
 
 __all__ = [
@@ -173,205 +173,13 @@ __all__ = [
     "load_image",
     "MIN_MATCHES",
     "MIRROR_MIN_INLIERS",
+    "REDETECT_THRESHOLD_SCALE",
+    "FIRST_DETECTION_PER_MEGAPIXEL",
     "MAX_RANSAC_THRESHOLD",
+    "PRINCIPAL_POINT_MODES",
+    "FOCAL_RATIO_MODES",
     "DEFAULT_MAX_LOG10_NFA",
 ]
-
-MIN_MATCHES = 8
-MAX_RANSAC_THRESHOLD = 100.0
-PRINCIPAL_POINT_MODES = ("auto", "fit", "given")
-FOCAL_RATIO_MODES = ("auto", "given")
-REDETECT_THRESHOLD_SCALE = 0.25
-"""Detector threshold scale of the second detection, for pairs whose first consensus is weak.
-A few dozen matches can neither tell a rotation from a general motion nor pin a pose. On the
-narrow overlaps with sensor noise of ``benchmarks/pure_rotation.py`` (24-78 matches at
-OpenCV's SIFT contrast threshold 0.04) 9 of 14 pure rotations were flagged, 14 of 14 at 0.01;
-on freiburg the AUC@5/10/20 rises from 62.4 / 74.7 / 82.7 to 65.2 / 77.6 / 85.3 (46 of 85
-pairs detected again, 37 keeping the denser features; at 0.02 the gain at AUC@5 and @10 was
-about half). Detecting at a lower
-threshold on every pair costs the pairs with many inliers accuracy, weak keypoints being
-located worse: at 0.02 throughout, freiburg's AUC@5 fell to 60.6."""
-FIRST_DETECTION_PER_MEGAPIXEL = 13_000
-"""Keypoints per megapixel of the detected image that the first SIFT detection of
-``PairOptions.detect_once``, run at :data:`REDETECT_THRESHOLD_SCALE`, keeps at most (never
-more than ``PairOptions.max_features``): enough for every keypoint of the default
-threshold, which it is thinned to, on the images measured (freiburg 2,800-4,800 per
-megapixel, pano_dev 2,700-4,500, renders of every preset 4,500-11,700), while a textured
-image does not pay the descriptors of all its weak keypoints (a 640x480 render: 5,000-6,500
-at the lower threshold, cut to 3,994). An image that holds more at the default threshold is
-detected there again (:func:`_first_detection`)."""
-
-
-@dataclass(frozen=True)
-class PairOptions:
-    """Settings of :func:`estimate_pair`.
-
-    Attributes
-    ----------
-    features : {"sift", "orb", "akaze"}
-        Detector and descriptor.
-    max_features : int
-        Keypoints kept per image, strongest first.
-    max_image_size : int or None
-        Detect on a copy whose longer side is at most this (pixels); None keeps full size, at
-        a cost growing with the pixel count (a 6000x4000 pair: 4.7 s and 1.1 GB with the
-        default, reported at 41 s and 11.3 GB with None).
-    ratio : float
-        Lowe's ratio test bound.
-    mutual : bool
-        Keep only mutual nearest neighbours.
-    backend : {"pycolmap", "opencv"}
-        Robust estimator of ``E``: COLMAP LO-RANSAC or OpenCV USAC MAGSAC++.
-    ransac_threshold : float
-        Inlier threshold on the epipolar error, pixels.
-    confidence : float
-        RANSAC confidence.
-    min_trials, max_trials : int
-        Bounds on the number of RANSAC hypotheses.
-    redetect_below : int
-        When the essential matrix has fewer inliers than this (or none could be fitted), detect
-        again with the detector threshold scaled by :data:`REDETECT_THRESHOLD_SCALE` and keep
-        the fit whose consensus has the lower ``log10`` NFA; 0 never does. Given ``features1``
-        and ``features2``, the second detection runs on the images.
-    detect_once : bool
-        Detect SIFT once, at :data:`REDETECT_THRESHOLD_SCALE` (at most
-        :data:`FIRST_DETECTION_PER_MEGAPIXEL` keypoints), thinned to the default threshold for
-        the first consensus, so that a weak pair's second consensus needs no second detection
-        (:func:`_first_detection`); the same features, so the same answers. It costs a pair
-        that is not weak the descriptors of its weaker keypoints: on the 85 freiburg pairs
-        (47 weak) the detection's CPU time summed 25 % lower (a weak pair's median 398 -> 226
-        ms, a strong one's 172 -> 230 ms), on 20 renders (none weak) 30 % higher, on the
-        pano_dev tripod pair of ``benchmarks/cli_time.py`` the whole pair 43 % longer
-        (``docs/performance.md``). False detects at the default threshold and again only for
-        a weak pair.
-    ordered_sampling : bool
-        Fit ``E`` on the best-ranked matches (ratio test) first and over all of them only when
-        that is not significant (:func:`ppo_cv.robust.estimate_essential_ordered`), and sample
-        the homography on the essential matrix's inliers; False runs each fit over all
-        matches, up to ``max_trials`` hypotheses.
-    refine : bool
-        Refine ``(R, t)`` over the inliers.
-    pri_threshold : float
-        Pure rotation when PRI is below it (paper: 0.015).
-    min_inliers : int
-        Fewer inliers than this is an error, not a pose.
-    seed : int
-        RANSAC seed.
-    max_log10_nfa : float
-        Significance bar: the robust fit is a pose only when ``log10`` of its number of false
-        alarms (:mod:`ppo_cv.significance`) is at most this; lower is stricter, ``inf`` turns
-        the test off.
-    plane : bool
-        Fit a homography too and let the model decision call the pair a plane (on by default:
-        with it no rendered preset and no freiburg AUC drops, ``docs/benchmarks.md`` section
-        6); False decides between rotation and general only.
-    photometric : bool
-        For a pair judged a pure rotation, refit the rotation on windows of the images aligned
-        by intensity through the rotation of the matches (:mod:`ppo_cv.photometric`): on
-        imperfect renders and warped photos in full overlap the median rotation error of each
-        set drops from 0.02-0.18 to 0.00-0.04 degrees, and from 0.12 to 0.07 against the
-        given-focal rotation
-        (``benchmarks/pure_rotation.py``). The same tracks veto a rotation whose plane moved
-        and call a rotation candidate whose parallax is negligible a pure rotation
-        (:func:`ppo_cv.motion_model.with_tracks`). False keeps the rotation and the decision of
-        the feature matches.
-    principal_point : {"auto", "fit", "given"}
-        Whether the rotation-only model may move the principal point
-        (:func:`ppo_cv.rotation.fit_rotation_lens`, prior :data:`ppo_cv.rotation.PRINCIPAL_PRIOR`
-        of the image width across and of its height down). ``"auto"`` fits it when both
-        cameras are given theirs at the image centre (within half a pixel of ``(w - 1) / 2`` or
-        ``w / 2``, likewise ``h``): a guess, as from an EXIF or panorama-stitcher focal
-        length, where an offset of 1 % of the image leaves residuals that turn a narrow-field
-        pure rotation into a general motion; a calibrated principal point is kept. ``"fit"``
-        always, ``"given"`` never.
-    focal_ratio : {"auto", "given"}
-        Whether the rotation-only model may scale image 2's focal length against image 1's.
-        ``"auto"`` does when the two given focal lengths differ by at most
-        :data:`ppo_cv.rotation.FOCAL_RATIO_GAP` (two estimates of one lens, as a panorama
-        stitcher gives them, whose difference is a zoom no rotation explains), under the prior
-        of :func:`ppo_cv.rotation.focal_ratio_prior`; ``"given"`` keeps the given ratio (two
-        calibrated cameras).
-    """
-
-    features: str = "sift"
-    max_features: int = 8000
-    max_image_size: int | None = 2000
-    ratio: float = 0.9
-    mutual: bool = True
-    backend: str = "pycolmap"
-    ransac_threshold: float = 1.0
-    confidence: float = 0.9999
-    min_trials: int = 100
-    # Kept at 100_000 for the uniform fit: on the freiburg pairs a cap of 50_000, 30_000 or
-    # 10_000 lowered the mean AUC@5 over seeds 0-2, as did ratio 0.8 or 0.85; ordered sampling
-    # (docs/cli.md, batch runs) is what makes the hard pairs (10-20 % inliers) cheap.
-    max_trials: int = 100_000
-    ordered_sampling: bool = True
-    redetect_below: int = 100
-    detect_once: bool = False
-    refine: bool = True
-    pri_threshold: float = ppo.DEFAULT_PRI_THRESHOLD
-    min_inliers: int = 8
-    seed: int = 0
-    max_log10_nfa: float = DEFAULT_MAX_LOG10_NFA
-    plane: bool = True
-    photometric: bool = True
-    principal_point: str = "auto"
-    focal_ratio: str = "auto"
-
-    def __post_init__(self) -> None:
-        for name in ("ratio", "ransac_threshold", "confidence", "pri_threshold", "max_log10_nfa"):
-            as_number(getattr(self, name), name)
-        for name in ("mutual", "detect_once", "ordered_sampling", "refine", "plane", "photometric"):
-            as_flag(getattr(self, name), name)
-        for name, low in (("max_features", 8), ("min_trials", 1), ("max_trials", 1),
-                          ("redetect_below", 0), ("min_inliers", 5), ("seed", 0)):  # fmt: skip
-            as_whole_number(getattr(self, name), name, low, MAX_WHOLE_NUMBER)
-        if self.max_image_size is not None:
-            as_whole_number(self.max_image_size, "max_image_size", 32, MAX_WHOLE_NUMBER)
-        for name, modes in (
-            ("principal_point", PRINCIPAL_POINT_MODES),
-            ("focal_ratio", FOCAL_RATIO_MODES),
-        ):
-            if getattr(self, name) not in modes:
-                raise ValueError(
-                    f"unknown {name} {shown(getattr(self, name))}; choose one of "
-                    f"{', '.join(modes)}"
-                )
-        if self.features not in FEATURE_TYPES:
-            raise ValueError(
-                f"unknown features {shown(self.features)}; choose one of "
-                f"{', '.join(FEATURE_TYPES)}"
-            )
-        if self.backend not in ROBUST_BACKENDS:
-            raise ValueError(
-                f"unknown backend {shown(self.backend)}; choose one of "
-                f"{', '.join(ROBUST_BACKENDS)}"
-            )
-        if not 0 < self.ratio <= 1:
-            raise ValueError(f"ratio must be in (0, 1], got {self.ratio}")
-        if not 0 < self.ransac_threshold <= MAX_RANSAC_THRESHOLD:
-            raise ValueError(
-                f"ransac_threshold must be in (0, {MAX_RANSAC_THRESHOLD:g}] pixels, "
-                f"got {self.ransac_threshold}"
-            )
-        as_pri_threshold(self.pri_threshold)
-        if self.max_log10_nfa != self.max_log10_nfa:
-            raise ValueError("max_log10_nfa must be a number (inf disables the test), got nan")
-        if not 0 < self.confidence < 1:
-            raise ValueError(f"confidence must be in (0, 1), got {self.confidence}")
-        if (
-            self.max_features < 8
-            or not 1 <= self.min_trials <= self.max_trials
-            or self.min_inliers < 5
-        ):
-            raise ValueError(
-                "need max_features >= 8, 1 <= min_trials <= max_trials and min_inliers >= 5"
-            )
-        if self.redetect_below < 0:
-            raise ValueError(f"redetect_below must be >= 0, got {self.redetect_below}")
-        if self.max_image_size is not None and self.max_image_size < 32:
-            raise ValueError(f"max_image_size must be >= 32, got {self.max_image_size}")
 
 
 def _principal_prior(mode: str, K1, K2, shape1, shape2, focal: float) -> np.ndarray | None:
@@ -386,12 +194,6 @@ def _principal_prior(mode: str, K1, K2, shape1, shape2, focal: float) -> np.ndar
     return PRINCIPAL_PRIOR * np.max(np.array(sizes, dtype=float), axis=0) / focal
 
 
-def _normalize(points: np.ndarray, K: np.ndarray, dist: np.ndarray | None) -> np.ndarray:
-    """Pixels (N, 2) to homogeneous normalized coordinates (N, 3), distortion removed."""
-    xy = pixels_to_normalized(points, K, dist)
-    return np.column_stack([xy, np.ones(len(xy))])
-
-
 def _colours(image: np.ndarray, points: np.ndarray) -> np.ndarray:
     h, w = image.shape[:2]
     u = np.clip(np.rint(points[:, 0]).astype(int), 0, w - 1)
@@ -402,76 +204,6 @@ def _colours(image: np.ndarray, points: np.ndarray) -> np.ndarray:
     else:
         pixels = pixels[:, 2::-1]  # BGR(A) -> RGB
     return np.clip(pixels, 0, 255).astype(np.uint8)
-
-
-def _first_detection(image: np.ndarray, options: PairOptions) -> Features:
-    """The features of the first consensus. With ``options.detect_once``, SIFT detected once at
-    :data:`REDETECT_THRESHOLD_SCALE`, at most :func:`_first_detection_cap` keypoints, which
-    thinned to threshold 1 (:func:`ppo_cv.features.at_threshold`) are those of a detection
-    there and, unless the cap cut them, serve a weak pair's second consensus without a second
-    detection; detected at threshold 1 when the cap cut into those. Otherwise (also for other
-    detectors, or without a second consensus) at threshold 1."""
-    detect = (image, options.features, options.max_features, options.max_image_size)
-    if not options.detect_once or options.features != "sift" or options.redetect_below == 0:
-        return detect_features(*detect)
-    cap = _first_detection_cap(image.shape, options)
-    found = detect_features(image, "sift", cap, options.max_image_size, REDETECT_THRESHOLD_SCALE)
-    if found.threshold_scale > 1.0 and len(found) < options.max_features:
-        return detect_features(*detect)
-    return found
-
-
-def _first_detection_cap(shape: tuple, options: PairOptions) -> int:
-    """Keypoints the first detection keeps (:data:`FIRST_DETECTION_PER_MEGAPIXEL`)."""
-    height, width = int(shape[0]), int(shape[1])
-    scale = 1.0
-    if options.max_image_size is not None and max(height, width) > options.max_image_size:
-        scale = options.max_image_size / max(height, width)
-    megapixels = height * width * scale**2 / 1e6
-    return min(options.max_features, int(np.ceil(FIRST_DETECTION_PER_MEGAPIXEL * megapixels)))
-
-
-def _detect_both(
-    image1, image2, options: PairOptions, threshold_scale: float | None = None
-) -> tuple[Features, Features, float]:
-    """Features of both images on two threads (OpenCV releases the GIL), and when both were done:
-    at ``threshold_scale``, by default those of the first consensus (:func:`_first_detection`).
-
-    The first use of pycolmap in a process pays its import; it is overlapped with detection.
-    The returned ``time.perf_counter()`` of the end of detection separates the two.
-    """
-    from concurrent.futures import ThreadPoolExecutor
-
-    def run(image):
-        if threshold_scale is None:
-            return _first_detection(image, options), time.perf_counter()
-        features = detect_features(
-            image, options.features, options.max_features, options.max_image_size, threshold_scale
-        )
-        return features, time.perf_counter()
-
-    with ThreadPoolExecutor(max_workers=3) as pool:
-        if options.backend == "pycolmap" and "pycolmap" not in sys.modules:
-            pool.submit(importlib.import_module, "pycolmap")
-        (f1, done1), (f2, done2) = pool.map(run, (image1, image2))
-    return f1, f2, max(done1, done2)
-
-
-def _thins_to(features: Features, threshold_scale: float) -> bool:
-    """Whether ``features`` hold those of a detection at ``threshold_scale``
-    (:func:`ppo_cv.features.at_threshold`)."""
-    return (
-        features.kind == "sift"
-        and features.responses is not None
-        and features.threshold_scale <= threshold_scale
-    )
-
-
-def _thinned(features: Features, threshold_scale: float) -> Features:
-    """``features`` at ``threshold_scale`` when they were detected lower; else as they are."""
-    if _thins_to(features, threshold_scale) and features.threshold_scale < threshold_scale:
-        return at_threshold(features, threshold_scale)
-    return features
 
 
 def _refine(R, t, x1, x2, inliers, focal, options: PairOptions, rounds: int = 3):
@@ -497,139 +229,6 @@ def _require_same_size(image1: np.ndarray, image2: np.ndarray) -> None:
         )
 
 
-def _ransac_keywords(options: PairOptions) -> dict:
-    return {
-        "backend": options.backend,
-        "threshold": options.ransac_threshold,
-        "confidence": options.confidence,
-        "min_trials": options.min_trials,
-        "max_trials": options.max_trials,
-        "seed": options.seed,
-    }
-
-
-@dataclass(frozen=True)
-class _Consensus:
-    """The matches of two feature sets and the robust essential matrix over them."""
-
-    features1: Features
-    features2: Features
-    threshold_scale: float
-    matches: np.ndarray
-    x1: np.ndarray
-    x2: np.ndarray
-    fit: RobustEstimate
-    significance: Significance
-
-
-def _consensus(
-    f1, f2, threshold_scale, K1, K2, dist1, dist2, focal, shape2, options, lap, settle=True
-) -> _Consensus | None:
-    """Match, normalise and fit ``E`` robustly (stages 2-4) on the features at
-    ``threshold_scale`` (SIFT features detected lower thinned to it); ValueError names what is
-    missing. None when ordered sampling does not settle the matches and ``settle`` is False:
-    the uniform fit that would settle them is left to the caller (:func:`_robust_essential`)."""
-    f1, f2 = _thinned(f1, threshold_scale), _thinned(f2, threshold_scale)
-    for name, f in (("image1", f1), ("image2", f2)):
-        if len(f) < MIN_MATCHES:
-            raise ValueError(f"{name} has too few features ({len(f)}): blank or textureless image")
-    try:  # a stage that fails still ends, so that its time is not the next stage's
-        matches, scores = match_features_scored(f1, f2, options.ratio, options.mutual)
-        if len(matches) < MIN_MATCHES:
-            raise ValueError(
-                f"too few matches between the images ({len(matches)}, need {MIN_MATCHES})"
-            )
-    finally:
-        lap("matching")
-
-    x1 = _normalize(f1.keypoints[matches[:, 0]], K1, dist1)
-    x2 = _normalize(f2.keypoints[matches[:, 1]], K2, dist2)
-    lap("undistort")
-
-    try:
-        fit = _robust_essential(x1, x2, focal, scores, K2, shape2, options, settle)
-        if fit is None:
-            return None
-        size2 = (int(shape2[1]), int(shape2[0]))
-        significance = require_significance(
-            fit.E, x1, x2, K2, size2, options.max_log10_nfa, scores
-        )
-    finally:
-        lap("ransac")
-    return _Consensus(f1, f2, threshold_scale, matches, x1, x2, fit, significance)
-
-
-def _robust_essential(
-    x1, x2, focal, scores, K2, shape2, options: PairOptions, uniform_when_weak: bool = True
-) -> RobustEstimate | None:
-    """The robust essential matrix of the matches (stage ``ransac``); ValueError when it has
-    fewer than ``options.min_inliers`` inliers. None when ordered sampling is weak and
-    ``uniform_when_weak`` is False: the uniform fit it would need is left to the caller."""
-    ransac = _ransac_keywords(options)
-    if options.ordered_sampling:
-        size2 = (int(shape2[1]), int(shape2[0]))
-        fit = estimate_essential_ordered(
-            x1, x2, focal, scores, size2, max_log10_nfa=options.max_log10_nfa, K2=K2,
-            uniform_when_weak=uniform_when_weak, **ransac,
-        )  # fmt: skip
-        if fit is None and not uniform_when_weak:
-            return None
-    else:
-        fit = estimate_essential(x1, x2, focal, **ransac)
-    if fit is None or fit.num_inliers < options.min_inliers:
-        found = 0 if fit is None else fit.num_inliers
-        raise ValueError(
-            f"no reliable two-view geometry: {found} inliers among {len(x1)} matches "
-            f"(need {options.min_inliers})"
-        )
-    return fit
-
-
-def _best_consensus(
-    f1: Features, f2: Features, inputs: _Inputs, options: PairOptions, lap: Callable
-) -> _Consensus:
-    """The consensus of the given features, or of features detected at
-    :data:`REDETECT_THRESHOLD_SCALE` when that one is weak (``PairOptions.redetect_below``)
-    and chance explains the denser one less (lower ``log10`` NFA, which counts the matches
-    each was drawn from); the first failure's ValueError when neither holds.
-
-    The denser features are ``f1`` and ``f2`` themselves when they hold those of
-    :data:`REDETECT_THRESHOLD_SCALE` (:func:`_first_detection`), else detected on the images.
-    One uniform fit settles a weak pair: when ordered sampling cannot settle the given
-    features, the denser ones are fitted first (they hold the given ones: thinned to threshold
-    1 they are the given set), and the given features are fitted uniformly only when the
-    denser ones give no significant consensus."""
-    img1, img2 = inputs.img1, inputs.img2
-    camera = (
-        inputs.K1, inputs.K2, inputs.dist1, inputs.dist2, inputs.focal, img2.shape, options, lap
-    )  # fmt: skip
-
-    def attempt(features1, features2, scale, settle=True):
-        try:
-            return _consensus(features1, features2, scale, *camera, settle), None
-        except ValueError as exc:
-            return None, exc
-
-    redetect = options.redetect_below > 0
-    found, failure = attempt(f1, f2, 1.0, settle=not redetect)
-    unsettled = found is None and failure is None
-    if redetect and (found is None or found.fit.num_inliers < options.redetect_below):
-        d1, d2 = f1, f2
-        if not all(_thins_to(f, REDETECT_THRESHOLD_SCALE) for f in (f1, f2)):
-            d1, d2, _ = _detect_both(img1, img2, options, REDETECT_THRESHOLD_SCALE)
-        lap("features")
-        denser, _ = attempt(d1, d2, REDETECT_THRESHOLD_SCALE)
-        if unsettled and denser is None:
-            found, failure = attempt(f1, f2, 1.0)
-        if denser is not None and (
-            found is None or denser.significance.log10_nfa < found.significance.log10_nfa
-        ):
-            found = denser
-    if found is None:
-        raise failure
-    return found
-
-
 class _Stopwatch:
     """Seconds per stage, summed when a stage runs again, each reported to ``progress`` as it
     ends."""
@@ -646,19 +245,6 @@ class _Stopwatch:
         self.clock = now
         if self.progress is not None:
             self.progress(stage)
-
-
-@dataclass(frozen=True)
-class _Inputs:
-    """The two images and their cameras, checked; ``focal`` is the mean focal length."""
-
-    img1: np.ndarray
-    img2: np.ndarray
-    K1: np.ndarray
-    K2: np.ndarray
-    dist1: np.ndarray | None
-    dist2: np.ndarray | None
-    focal: float
 
 
 @dataclass(frozen=True)
@@ -683,8 +269,8 @@ class _Finishing:
     """What a model's finisher starts from: the consensus, the essential matrix's pose and the
     decision."""
 
-    inputs: _Inputs
-    found: _Consensus
+    inputs: PairInputs
+    found: Consensus
     pose: _EssentialPose
     motion: MotionDecision
     priors: _LensPriors
@@ -717,7 +303,7 @@ class _ModelPart:
     radial: RadialPose | None = None
 
 
-def _load_inputs(image1, image2, K1, K2, dist1, dist2, detect: bool, options) -> _Inputs:
+def _load_inputs(image1, image2, K1, K2, dist1, dist2, detect: bool, options) -> PairInputs:
     """Images and cameras checked (stage ``load``); ``detect`` when features are to be found."""
     img1, img2 = _as_image(image1, "image1"), _as_image(image2, "image2")
     if detect:
@@ -736,7 +322,7 @@ def _load_inputs(image1, image2, K1, K2, dist1, dist2, detect: bool, options) ->
     if K2 is not K1:
         warn_implausible(K2, img2.shape, "K2", stacklevel=3)
     focal = float(np.mean([K1[0, 0], K1[1, 1], K2[0, 0], K2[1, 1]]))
-    return _Inputs(img1, img2, K1, K2, dist1, dist2, focal)
+    return PairInputs(img1, img2, K1, K2, dist1, dist2, focal)
 
 
 def _check_hooks(features1: Any, features2: Any, progress: Any) -> None:
@@ -751,12 +337,12 @@ def _check_hooks(features1: Any, features2: Any, progress: Any) -> None:
 
 
 def _features(
-    inputs: _Inputs, features1, features2, options: PairOptions, watch: _Stopwatch
+    inputs: PairInputs, features1, features2, options: PairOptions, watch: _Stopwatch
 ) -> tuple[Features, Features]:
     """Features of both images (stage ``features``, and ``pycolmap_import``), or the given ones
     checked against ``options``."""
     if features1 is None or features2 is None:
-        f1, f2, detected = _detect_both(inputs.img1, inputs.img2, options)
+        f1, f2, detected = detect_both(inputs.img1, inputs.img2, options)
         watch.lap("features", detected)
         watch.lap("pycolmap_import")
         return f1, f2
@@ -772,7 +358,7 @@ def _features(
 
 
 def _essential_pose(
-    found: _Consensus, focal: float, options: PairOptions, watch: _Stopwatch
+    found: Consensus, focal: float, options: PairOptions, watch: _Stopwatch
 ) -> _EssentialPose:
     """The PPO choice among the four poses of ``E`` (stage ``ppo``), refined over its inliers
     (stage ``refine``)."""
@@ -787,12 +373,12 @@ def _essential_pose(
 
 
 def _homography(
-    found: _Consensus, pose: _EssentialPose, focal: float, options: PairOptions
+    found: Consensus, pose: _EssentialPose, focal: float, options: PairOptions
 ) -> HomographyEstimate | None:
     """The robust homography of the matches, ValueError when it mirrors the image; None when
     ``options.plane`` is off."""
     ranked = options.ordered_sampling and np.count_nonzero(pose.inliers) >= MIN_MATCHES
-    plane_ransac = _ransac_keywords(options)
+    plane_ransac = ransac_keywords(options)
     if ranked:  # on the essential matrix's inliers a plane is the bulk of them
         bound = plane_ransac_trials(options.confidence)
         plane_ransac["max_trials"] = min(options.max_trials, bound)
@@ -802,7 +388,7 @@ def _homography(
     return homography if options.plane else None
 
 
-def _lens_priors(inputs: _Inputs, options: PairOptions) -> _LensPriors:
+def _lens_priors(inputs: PairInputs, options: PairOptions) -> _LensPriors:
     """Priors of the principal point and focal ratio the rotation-only fit may move."""
     principal = _principal_prior(
         options.principal_point, inputs.K1, inputs.K2, inputs.img1.shape, inputs.img2.shape,
@@ -816,7 +402,7 @@ def _lens_priors(inputs: _Inputs, options: PairOptions) -> _LensPriors:
 
 
 def _decide(
-    found: _Consensus, pose: _EssentialPose, homography, priors: _LensPriors, focal: float,
+    found: Consensus, pose: _EssentialPose, homography, priors: _LensPriors, focal: float,
     options: PairOptions,
 ) -> MotionDecision:  # fmt: skip
     """Rotation, plane or general motion on the feature matches (:func:`decide_motion`)."""
@@ -832,7 +418,7 @@ def _decide(
 
 
 def _align_tracks(
-    inputs: _Inputs, motion: MotionDecision, priors: _LensPriors, keep_clipped: bool = False,
+    inputs: PairInputs, motion: MotionDecision, priors: _LensPriors, keep_clipped: bool = False,
     sigma_deg: float | None = None, on_clipped: Callable[[], None] | None = None,
 ) -> PhotometricRotation | None:  # fmt: skip
     """The rotation-only fit refitted on intensity-aligned windows around ``motion.R``
@@ -853,7 +439,7 @@ def _align_tracks(
 
 
 def _revisit_with_tracks(
-    inputs: _Inputs, found: _Consensus, motion: MotionDecision, priors: _LensPriors,
+    inputs: PairInputs, found: Consensus, motion: MotionDecision, priors: _LensPriors,
     options: PairOptions,
 ) -> tuple[MotionDecision, PhotometricRotation | None, int, bool]:  # fmt: skip
     """For a pure rotation or a rotation candidate: the rotation refitted on intensity-aligned
@@ -1086,7 +672,7 @@ def _moving_estimate(state: _Finishing, part: _ModelPart) -> RotationEstimate:
 
 
 def _lens_terms(
-    motion: MotionDecision, found: _Consensus, focal: float, radial_k1: float
+    motion: MotionDecision, found: Consensus, focal: float, radial_k1: float
 ) -> LensTerms:
     return LensTerms(
         focal_scale=motion.focal_scale,
@@ -1099,7 +685,7 @@ def _lens_terms(
     )
 
 
-def _evidence(motion: MotionDecision, found: _Consensus, options: PairOptions) -> DecisionEvidence:
+def _evidence(motion: MotionDecision, found: Consensus, options: PairOptions) -> DecisionEvidence:
     residual_px = motion.selection.median_residual_px
     plane_px = (
         float("nan")
@@ -1202,7 +788,7 @@ def estimate_pair(
     inputs = _load_inputs(image1, image2, K1, K2, dist1, dist2, detect, options)
     watch.lap("load")
     f1, f2 = _features(inputs, features1, features2, options, watch)
-    found = _best_consensus(f1, f2, inputs, options, watch.lap)
+    found = best_consensus(f1, f2, inputs, options, watch.lap)
     pose = _essential_pose(found, inputs.focal, options, watch)
     homography = _homography(found, pose, inputs.focal, options)
     watch.lap("homography")

@@ -249,7 +249,7 @@ class ConsensusSignificance:
         ``PairOptions.max_log10_nfa``.
     threshold_scale : float
         Detector threshold scale of the features behind the result: 1, or
-        :data:`ppo_cv.pipeline.REDETECT_THRESHOLD_SCALE` when the second detection
+        :data:`ppo_cv.consensus.REDETECT_THRESHOLD_SCALE` when the second detection
         (``PairOptions.redetect_below``) gave a fit that chance explains less.
     """
 

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+import ppo_cv.consensus
 import ppo_cv.features
 import ppo_cv.pipeline
 from ppo_cv.cli import batch
@@ -38,7 +39,7 @@ def _counting(monkeypatch) -> list:
         return original(image, *args, **kwargs)
 
     monkeypatch.setattr(ppo_cv.features, "detect_features", counted)
-    monkeypatch.setattr(ppo_cv.pipeline, "detect_features", counted)
+    monkeypatch.setattr(ppo_cv.consensus, "detect_features", counted)
     return calls
 
 

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
-from ppo_cv import pipeline
+from ppo_cv import consensus, pipeline
 from ppo_cv.data_gen import make_pair
 from ppo_cv.export import (
     CAMERA_AXES,
@@ -187,8 +187,8 @@ def test_features_time_excludes_the_overlapped_pycolmap_import(monkeypatch):
         time.sleep(1.5)  # an import far slower than detection on a 240x180 image
         return importlib.import_module(name)
 
-    monkeypatch.setattr(pipeline, "sys", types.SimpleNamespace(modules={}))
-    monkeypatch.setattr(pipeline, "importlib", types.SimpleNamespace(import_module=slow_import))
+    monkeypatch.setattr(consensus, "sys", types.SimpleNamespace(modules={}))
+    monkeypatch.setattr(consensus, "importlib", types.SimpleNamespace(import_module=slow_import))
     result = pipeline.estimate_pair(pair.image1[..., ::-1], pair.image2[..., ::-1], pair.K1)
     stages = list(result.timings)
     assert stages[stages.index("features") + 1] == "pycolmap_import"

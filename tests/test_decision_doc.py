@@ -28,6 +28,8 @@ MODULES = {
     "guessed_camera": None,
     "ppo": ("DEFAULT_PRI_THRESHOLD",),
     "refine": ("LEVERAGE_MAX",),
+    "consensus": None,
+    "options": None,
     "homography": ("MIRROR_MIN_INLIERS",),
     "valley": None,
 }

@@ -8,10 +8,11 @@ import pytest
 
 from ppo_cv import ppo
 from ppo_cv import robust as robust_module
+from ppo_cv.consensus import _normalize
 from ppo_cv.data_gen import make_pair
 from ppo_cv.features import detect_features, match_features, match_features_scored
 from ppo_cv.metrics import direction_error_deg, rotation_error_deg
-from ppo_cv.pipeline import PairOptions, _normalize, estimate_pair
+from ppo_cv.pipeline import PairOptions, estimate_pair
 from ppo_cv.robust import estimate_essential_ordered, sampson_errors
 
 FOCAL = 500.0
@@ -309,7 +310,7 @@ def test_a_weak_freiburg_pair_pays_one_uniform_fit(freiburg, monkeypatch):
         return real_uniform(x1, *args)
 
     monkeypatch.setattr(robust_module, "_uniform_fit_to_evidence", uniform_spy)
-    monkeypatch.setattr("ppo_cv.pipeline.estimate_essential_ordered", ordered_spy)
+    monkeypatch.setattr("ppo_cv.consensus.estimate_essential_ordered", ordered_spy)
     record = read_pairs(freiburg / "pairs_with_gt.txt")[37]
     images = [cv2.imread(str(freiburg / "images" / record[n])) for n in ("name1", "name2")]
     result = estimate_pair(*images, record["K1"], record["K2"])

@@ -78,7 +78,7 @@ def test_progress_names_every_stage_as_it_ends(general, general_result):
 def test_a_consensus_that_fails_ends_its_stages_before_raising():
     """Matches with no common geometry: the time of the failed fit is the ``ransac`` stage's,
     not the next stage's."""
-    from ppo_cv.pipeline import _consensus
+    from ppo_cv.consensus import _consensus
 
     rng = np.random.default_rng(5)
     descriptors = rng.random((300, 128)).astype(np.float32)

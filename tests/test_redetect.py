@@ -103,7 +103,7 @@ def _counted_detections(monkeypatch) -> list[float]:
         scales.append(kwargs.get("threshold_scale", args[3] if len(args) > 3 else 1.0))
         return found
 
-    monkeypatch.setattr("ppo_cv.pipeline.detect_features", counted)
+    monkeypatch.setattr("ppo_cv.consensus.detect_features", counted)
     return scales
 
 
@@ -125,7 +125,7 @@ def test_one_detection_serves_a_weak_pair_unless_cut(
         image1, image2, narrow_pair.K1_given, narrow_pair.K2_given, **given
     )
     if per_megapixel is not None:
-        monkeypatch.setattr("ppo_cv.pipeline.FIRST_DETECTION_PER_MEGAPIXEL", per_megapixel)
+        monkeypatch.setattr("ppo_cv.consensus.FIRST_DETECTION_PER_MEGAPIXEL", per_megapixel)
     scales = _counted_detections(monkeypatch)
     result = estimate_pair(
         image1, image2, narrow_pair.K1_given, narrow_pair.K2_given,
@@ -160,7 +160,7 @@ def test_given_denser_features_serve_both_consensuses(narrow_pair, monkeypatch):
         return detect_features(image, *args, **kwargs)
 
     monkeypatch.setattr(features_module, "detect_features", counted)
-    monkeypatch.setattr("ppo_cv.pipeline.detect_features", counted)
+    monkeypatch.setattr("ppo_cv.consensus.detect_features", counted)
     result = estimate_pair(image1, image2, narrow_pair.K1_given, narrow_pair.K2_given, **denser)
     assert not calls  # thinned for the first consensus, as they are for the second
     assert result.evidence.significance.threshold_scale == REDETECT_THRESHOLD_SCALE
