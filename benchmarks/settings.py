@@ -115,18 +115,20 @@ def summary(outcomes: list[Outcome]) -> dict[str, float]:
     }
 
 
+def _cells(s: dict[str, float], rotations: bool) -> str:
+    """The accuracy cells of one row: rotation error and flags, or AUC and pairs without a pose."""
+    if rotations:
+        return f"{s['median_R']:.2f} deg | {s['within_1deg']:.0f} % | {s['flagged']:.0f} %"
+    return f"{s['auc5']:.1f} / {s['auc10']:.1f} / {s['auc20']:.1f} | {s['no_pose']}"
+
+
 def table(label: str, summaries: dict[str, dict], rotations: bool) -> str:
     """Markdown table of one set: a row per setting and the OpenCV pipeline."""
-    if rotations:
-        head = "| setting | wall, median | CPU, median | R error, median | within 1 deg | flagged |"
-        cells = lambda s: (f"{s['median_R']:.2f} deg | {s['within_1deg']:.0f} % | "  # noqa: E731
-                           f"{s['flagged']:.0f} %")  # fmt: skip
-    else:
-        head = "| setting | wall, median | CPU, median | AUC@5/10/20 | no pose |"
-        cells = lambda s: (f"{s['auc5']:.1f} / {s['auc10']:.1f} / {s['auc20']:.1f} | "  # noqa: E731
-                           f"{s['no_pose']}")  # fmt: skip
+    accuracy = ("R error, median | within 1 deg | flagged" if rotations
+                else "AUC@5/10/20 | no pose")  # fmt: skip
+    head = f"| setting | wall, median | CPU, median | {accuracy} |"
     rule = "|---|" + "---:|" * (head.count("|") - 2)
-    rows = [f"| {name} | {s['wall']:.3f} s | {s['cpu']:.3f} s | {cells(s)} |"
+    rows = [f"| {name} | {s['wall']:.3f} s | {s['cpu']:.3f} s | {_cells(s, rotations)} |"
             for name, s in summaries.items()]  # fmt: skip
     return "\n".join([f"{label}:", "", head, rule, *rows])
 
