@@ -39,6 +39,9 @@ focal length given off by up to 3 %, a 25-35 degree field of view, JPEG):
   flagged), and ``tiny-baseline`` at 0.02 (translating); and tripod pans at 720 x 540 through
   :data:`ppo_cv.data_gen.LONG_ZOOM` (a 19-20 degree field, a pincushion of ``k1`` 0.3-0.5,
   beyond the rotation model's box), as real panoramas through a long zoom (``long zoom``);
+- ``... wide lens``: exact and tripod pans (baseline / depth 0 and 0.002-0.01) through the
+  lenses of :data:`ppo_cv.data_gen.REAL_PHOTO` in a 60-75 degree field
+  (:data:`WIDE_LENS_FIELD`), as a phone's main camera takes a panorama;
 - ``sweep``: ``tiny-baseline`` from 0.001 to 0.05, to see where the flag switches;
 - ``pano_dev``: 56 pairs of three real tripod panorama sequences (``../shared/data/pano_dev``,
   reference rotations fitted with the given focal length; skipped with a note without it);
@@ -94,6 +97,8 @@ __all__ = ["run", "main"]
 PANO_DEV_SET = "pano_dev"
 
 ROWS = ROOT / "benchmarks" / "pure_rotation.json"
+WIDE_LENS_FIELD = (60.0, 75.0)
+"""Horizontal field of view (degrees) of the ``wide lens`` sets."""
 SHARED_DATA = Path(os.environ.get("PPO_CV_SHARED", ROOT.parent / "shared")) / "data"
 FREIBURG = SHARED_DATA / "freiburg"
 PANO_DEV = SHARED_DATA / "pano_dev"
@@ -733,7 +738,8 @@ def _sets(counts: dict, have_photos: bool):
 
 def _narrow_lens_sets(official, n):
     """Tripod pans and a translation through :data:`ppo_cv.data_gen.NARROW_LENS`, tripod pans
-    through :data:`ppo_cv.data_gen.LONG_ZOOM`."""
+    through :data:`ppo_cv.data_gen.LONG_ZOOM`, exact and tripod pans in a wide field
+    (:data:`WIDE_LENS_FIELD`)."""
     from ppo_cv import data_gen
 
     lens, told = data_gen.NARROW_LENS, "narrow lens"
@@ -745,6 +751,11 @@ def _narrow_lens_sets(official, n):
     yield f"data_gen tiny-baseline 0.02, {told}", 0, pairs, True, None
     pairs = official("tripod", n, size=(720, 540), imperfections=data_gen.LONG_ZOOM)
     yield "data_gen tripod pan, long zoom, 720x540, baseline 0.002-0.01", 1, pairs, True, None
+    wide = dataclasses.replace(data_gen.REAL_PHOTO, hfov_range=WIDE_LENS_FIELD)
+    pairs = official("tripod", n, 0.0, imperfections=wide)
+    yield "data_gen pan, wide lens, baseline 0", 1, pairs, True, None
+    pairs = official("tripod", n, imperfections=wide)
+    yield "data_gen tripod pan, wide lens, baseline 0.002-0.01", 1, pairs, True, None
 
 
 def _noisy_sets(official, official_warped, narrow, stitched, n, n_large):
