@@ -25,13 +25,16 @@ __all__ = [
 ]
 
 MAX_RANSAC_THRESHOLD = 100.0
+"""Largest ``PairOptions.ransac_threshold`` accepted, pixels: a bound on nonsense input."""
 PRINCIPAL_POINT_MODES = ("auto", "fit", "given")
+"""Choices of ``PairOptions.principal_point``."""
 FOCAL_RATIO_MODES = ("auto", "given")
+"""Choices of ``PairOptions.focal_ratio``."""
 
 
 @dataclass(frozen=True)
 class PairOptions:
-    """Settings of :func:`estimate_pair`.
+    """Settings of :func:`ppo_cv.pipeline.estimate_pair`.
 
     Attributes
     ----------
