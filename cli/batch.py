@@ -731,12 +731,15 @@ def run_pairs(
         check_apart,
         check_target,
         import_pycolmap,
+        names_a_stream,
         worker_count,
     )
 
     check_range("--workers", workers, 0, WORKERS_MAX)
     if output is not None and str(output) == "-":
         output = None
+    if output is not None and names_a_stream(output):
+        raise ValueError(f"-o {output} is a device or a stream; -o - writes to standard output")
     if output is not None:
         check_target(output, "file", overwrite, [pairs_file, image_dir], "-o ")
     cameras = given_cameras(K, K2, None, None, calib)
