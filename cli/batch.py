@@ -896,7 +896,8 @@ def register(app: typer.Typer) -> None:
         max_trials: Annotated[
             int,
             typer.Option(
-                help="Cap on the RANSAC hypotheses per pair (it stops earlier once confident).",
+                help=f"Cap on the RANSAC hypotheses per pair (1..{MAX_TRIALS_MAX}; it stops "
+                "earlier once confident).",
                 rich_help_panel="Pipeline",
             ),
         ] = PairOptions.max_trials,
