@@ -351,6 +351,13 @@ CASES = {
     # a text where points belong: no advice to parse it as intrinsics
     "recoverPose points text": (lambda: ppo_cv.recoverPose(E, "1,2", P2, K), TypeError,
                                 "points1 must be an array of real numbers, got str"),
+    # ragged lists: numpy's 'setting an array element with a sequence' named no argument
+    "recoverPose ragged mask": (lambda: ppo_cv.recoverPose(E, P1, P2, K, mask=[[1, 1], [1]]),
+                                TypeError, "mask must be a numeric array: setting an array"),
+    "form 4 ragged distortion": (_form4(distCoeffs1=[[0.1], [0, 0]]), TypeError,
+                                 "distCoeffs1 must be a numeric array: setting an array"),
+    "Camera ragged dist": (lambda: ppo_cv.Camera(K, [[0.1], [0, 0]]), TypeError,
+                           "Camera.dist must be a numeric array: setting an array"),
 }  # fmt: skip
 
 
