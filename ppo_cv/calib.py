@@ -2,7 +2,8 @@
 
 - Strings: ``"fx,fy,cx,cy"`` or the 9 entries of ``K`` row-major; distortion ``"k1,k2,p1,p2[,k3]"``.
 - OpenCV FileStorage YAML/XML as written after ``cv2.calibrateCamera`` (``camera_matrix`` /
-  ``cameraMatrix`` / ``K`` / ``M1``, ``distortion_coefficients`` / ``dist_coeffs`` / ``D1``, ...).
+  ``cameraMatrix`` / ``K`` / ``M1``, ``distortion_coefficients`` / ``dist_coeffs`` / ``D1``, ...),
+  and ROS ``camera_info`` YAML (``distortion_model`` plumb_bob or rational_polynomial).
 - COLMAP ``cameras.txt`` (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV).
 - JSON: ``{"K": ..., "dist": ...}``, ``{"fx", "fy", "cx", "cy"}``, ``{"K1", "K2", "dist1",
   "dist2"}`` or ``{"cameras": [camera, camera]}``.
@@ -187,7 +188,14 @@ _OPENCV_DISTORTION_KEYS = ("distortion_coefficients", "dist_coeffs", "distCoeffs
 def _require_known_distortion(storage, path: str) -> None:
     """ValueError for numbers under a key that names a distortion but is none of
     :data:`_OPENCV_DISTORTION_KEYS` (``distortion``, ``dist``): they would be dropped, and the
-    camera read without its distortion."""
+    camera read without its distortion; and for a ROS ``distortion_model`` other than OpenCV's
+    (``equidistant``, a fisheye)."""
+    model = storage.getNode("distortion_model")  # ROS camera_info
+    if model.isString() and model.string() not in ("plumb_bob", "rational_polynomial"):
+        raise ValueError(
+            f"distortion_model {shown(model.string())} in {path} is not OpenCV's pinhole "
+            "distortion (plumb_bob or rational_polynomial), which this reader takes"
+        )
     for key in storage.root().keys():
         if key.lower().startswith("dist") and key not in _OPENCV_DISTORTION_KEYS:
             if not storage.getNode(key).isString():
@@ -213,6 +221,10 @@ def _opencv_matrices(path: str) -> tuple:
                 if not node.empty():
                     if not (node.isMap() or node.isSeq()):
                         raise ValueError(f"{key} in {path} is a scalar, not a matrix")
+                    if node.isMap() and node.getNode("dt").empty():  # ROS: rows, cols, data
+                        node = node.getNode("data")
+                        if not node.isSeq():
+                            raise ValueError(f"{key} in {path} has no dt and no list of data")
                     if node.isSeq():
                         items = [node.at(i) for i in range(node.size())]
                         if not all(item.isReal() or item.isInt() for item in items):

@@ -388,6 +388,42 @@ def test_an_opencv_distortion_under_a_name_not_read_is_refused(tmp_path, extensi
         load_calibration(path)
 
 
+ROS_CAMERA_INFO = """image_width: 640
+image_height: 480
+camera_name: narrow_stereo
+camera_matrix:
+  rows: 3
+  cols: 3
+  data: [535.4, 0, 320.1, 0, 539.2, 247.6, 0, 0, 1]
+distortion_model: plumb_bob
+distortion_coefficients:
+  rows: 1
+  cols: 5
+  data: [-0.2, 0.05, 0.001, -0.002, 0.01]
+rectification_matrix:
+  rows: 3
+  cols: 3
+  data: [1, 0, 0, 0, 1, 0, 0, 0, 1]
+"""
+
+
+def test_a_ros_camera_info_file_is_read(tmp_path):
+    # its matrices, maps without OpenCV's dt, were "malformed ...: !dt.empty() in function 'read'"
+    path = tmp_path / "camera.yaml"
+    path.write_text(ROS_CAMERA_INFO)
+    (camera,) = load_calibration(path)
+    np.testing.assert_allclose(camera.K, K_FREIBURG)
+    np.testing.assert_allclose(camera.dist, DIST)
+    assert camera.image_size == (640, 480)
+
+
+def test_a_ros_fisheye_is_refused(tmp_path):
+    path = tmp_path / "camera.yaml"
+    path.write_text(ROS_CAMERA_INFO.replace("plumb_bob", "equidistant"))
+    with pytest.raises(ValueError, match="distortion_model 'equidistant' in .* is not OpenCV's"):
+        load_calibration(path)
+
+
 def test_missing_calibration_file(tmp_path):
     with pytest.raises(ValueError, match="not found"):
         load_calibration(tmp_path / "absent.yml")
