@@ -226,6 +226,10 @@ CASES = {
                                     ValueError, "image1 is 60000x1 pixels: too small or too thin"),
     "estimate_pair 40x12 image": (_pair(image2=GREY[:12, :40], K2=K), ValueError,
                                   "image2 is 40x12 pixels"),
+    # thin only once reduced to max_image_size: the message did not say how to keep it
+    "estimate_pair 4000x30 image": (
+        _pair(image1=np.zeros((30, 4000), np.uint8), K2=K), ValueError,
+        "reduced to 2000: a larger max_image_size (--max-size), or 0 for the full size, keeps it"),
     # options that reached pycolmap or numpy unchecked, or read "no" as true
     "PairOptions seed -1": (lambda: PairOptions(seed=-1), ValueError,
                             "seed must be a whole number in 0..2147483647, got -1"),
