@@ -754,6 +754,20 @@ def test_a_camera_of_another_image_size_is_warned_about(scale):
     assert doubt.filename == __file__  # points at the caller's line
 
 
+def test_options_of_other_number_types_are_held_as_python_numbers():
+    # seed=3.0 passed the check and reached numpy's SeedSequence mid-run: "SeedSequence expects
+    # int or sequence of ints for entropy not 3.0", naming no option
+    options = PairOptions(seed=3.0, max_features=np.int32(600), ratio=np.float32(0.75),
+                          max_image_size=640.0, plane=np.bool_(True))  # fmt: skip
+    held = [getattr(options, name)
+            for name in ("seed", "max_features", "ratio", "max_image_size", "plane")]  # fmt: skip
+    assert [type(value) for value in held] == [int, int, float, int, bool]
+    result = ppo_cv.estimate_pair(*DEMO_IMAGES, K_DEMO, options=options)
+    same = PairOptions(seed=3, max_features=600, ratio=0.75, max_image_size=640)
+    expected = ppo_cv.estimate_pair(*DEMO_IMAGES, K_DEMO, options=same)
+    np.testing.assert_array_equal(result.R, expected.R)
+
+
 def test_run_sfm_refuses_a_skewed_K_before_any_work(tmp_path):
     images = tmp_path / "images"
     images.mkdir()
