@@ -781,6 +781,19 @@ def test_run_sfm_refuses_a_skewed_K_before_any_work(tmp_path):
     assert sorted(path.name for path in tmp_path.iterdir()) == ["images"]
 
 
+@pytest.mark.parametrize(
+    "numbers", [{"seed": 3.0}, {"num_threads": 2.0}], ids=str
+)
+def test_sfm_numbers_of_other_types_reach_pycolmap_as_ints(tmp_path, numbers):
+    # they passed the check and failed in pycolmap's option setters: "incompatible function
+    # arguments ... Invoked with: RANSACOptions(...)"
+    images = tmp_path / "images"
+    images.mkdir()
+    for image in DEMO_IMAGES:
+        (images / Path(image).name).write_bytes(Path(image).read_bytes())
+    assert _sfm_module().prepare_database(images, tmp_path / "db.db", **numbers) == 2
+
+
 @pytest.mark.parametrize("shape", [(0, 0), (1, 48, 64, 3), (48, 64, 2), (48, 64, 5), (48,)])
 def test_an_image_array_of_another_shape_is_refused_naming_every_accepted_shape(shape):
     with pytest.raises(ValueError) as error:
