@@ -87,6 +87,8 @@ class Camera:
         size = self.image_size
         if size is None:
             return
+        if isinstance(size, np.ndarray) and size.shape == (2,):  # as numpy gives it
+            size = tuple(size.tolist())
         if not (isinstance(size, (tuple, list)) and len(size) == 2):
             raise TypeError(f"Camera.image_size must be (width, height) or None, got {shown(size)}")
         object.__setattr__(self, "image_size", _image_size(*size, "Camera.image_size"))
@@ -252,8 +254,10 @@ def _opencv_matrices(path: str) -> tuple:
 
 
 def _image_size(width, height, where: str) -> tuple[int, int]:
-    """A calibration's stated ``(width, height)``: whole numbers from 1 to 1e6."""
+    """A calibration's stated ``(width, height)``: whole numbers from 1 to 1e6 (True is none)."""
     try:
+        if isinstance(width, (bool, np.bool_)) or isinstance(height, (bool, np.bool_)):
+            raise TypeError("a flag is no size")
         size = float(width), float(height)
     except (TypeError, ValueError):
         raise ValueError(f"{where}: image width and height must be numbers") from None

@@ -970,12 +970,20 @@ def test_a_camera_matrix_of_another_number_type_is_its_values_exactly(dtype):
      ((-K,), ValueError, "Camera.K must be upper triangular"),
      ((K, [0.1, 0.2, 0.3]), ValueError, "Camera.dist must be OpenCV distortion coefficients"),
      ((K, None, 640), TypeError, "Camera.image_size must be (width, height) or None, got 640"),
-     ((K, None, (640, -1)), ValueError, "Camera.image_size: image width and height must be")],
-    ids=["K text", "K 2x3", "K negative", "dist of 3", "size a number", "size negative"],
+     ((K, None, (640, -1)), ValueError, "Camera.image_size: image width and height must be"),
+     # (True, True) was a 1x1 image
+     ((K, None, (True, True)), ValueError, "Camera.image_size: image width and height must be")],
+    ids=["K text", "K 2x3", "K negative", "dist of 3", "size a number", "size negative",
+         "size of flags"],
 )  # fmt: skip
 def test_a_camera_is_checked_when_made(fields, exception, words):
     with pytest.raises(exception, match=re.escape(words)):
         ppo_cv.Camera(*fields)
+
+
+def test_a_camera_takes_its_image_size_as_a_numpy_pair():
+    # np.array([640, 480]) was "Camera.image_size must be (width, height) or None"
+    assert ppo_cv.Camera(K, None, np.array([640, 480])).image_size == (640, 480)
 
 
 @pytest.mark.skipif(
