@@ -346,6 +346,14 @@ MAX_NAMED_SKIPS = 3
 """Skipped images whose reason the error for too few images gives."""
 
 
+def _subfolders(folder: Path) -> list[str]:
+    """The names of the folders in ``folder``, sorted; none when it cannot be listed."""
+    try:
+        return sorted(entry.name for entry in folder.iterdir() if entry.is_dir())
+    except OSError:
+        return []
+
+
 def require_two_images(
     image_dir: str | os.PathLike, names: Sequence[str], skipped: dict[str, str]
 ) -> None:
@@ -355,8 +363,11 @@ def require_two_images(
         reasons = list(skipped.values())[:MAX_NAMED_SKIPS]
         more = f"; {len(skipped) - len(reasons)} more" if len(skipped) > len(reasons) else ""
         refused = f" ({len(skipped)} skipped: {'; '.join(reasons)}{more})" if skipped else ""
+        folders = _subfolders(Path(image_dir))
+        nested = (f"; its subfolders are not read ({', '.join(map(repr, folders[:3]))}"
+                  f"{', ...' * (len(folders) > 3)})" if folders else "")  # fmt: skip
         raise ValueError(
-            f"need at least 2 images in {str(image_dir)!r}, found {len(names)}{refused}"
+            f"need at least 2 images in {str(image_dir)!r}, found {len(names)}{refused}{nested}"
         )
 
 

@@ -794,6 +794,16 @@ def test_sfm_numbers_of_other_types_reach_pycolmap_as_ints(tmp_path, numbers):
     assert _sfm_module().prepare_database(images, tmp_path / "db.db", **numbers) == 2
 
 
+def test_sfm_of_images_in_subfolders_says_that_subfolders_are_not_read(tmp_path):
+    # "need at least 2 images in 'images', found 0" left a newcomer to guess why
+    (tmp_path / "images" / "cam0").mkdir(parents=True)
+    for image in DEMO_IMAGES:
+        (tmp_path / "images" / "cam0" / Path(image).name).write_bytes(Path(image).read_bytes())
+    with pytest.raises(ValueError, match=r"found 0; its subfolders are not read \('cam0'\)$"):
+        _sfm_module().run_sfm(tmp_path / "images", tmp_path / "model")
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["images"]
+
+
 @pytest.mark.parametrize("shape", [(0, 0), (1, 48, 64, 3), (48, 64, 2), (48, 64, 5), (48,)])
 def test_an_image_array_of_another_shape_is_refused_naming_every_accepted_shape(shape):
     with pytest.raises(ValueError) as error:
