@@ -220,6 +220,15 @@ def _warn_repeated_lines(rows: list[dict], pairs_file: Path) -> None:
         )
 
 
+def _warn_unused_cameras(rows: list[dict], pairs_file: Path, given: str) -> None:
+    """One warning when the cameras of the command line (``given``) serve no line: each line
+    carries its own, which stand."""
+    if not any(row["given_cameras"] for row in rows):
+        verb = "are" if " and " in given else "is"
+        warn("pairs", f"{given} {verb} not used: every line of {pairs_file} carries its own "
+                      "camera matrices, which stand")  # fmt: skip
+
+
 def _require_regular_file(path: Path, what: str) -> None:
     """ValueError naming what ``path`` is when it is not an existing regular file."""
     from ppo_cv.images import file_mode
@@ -731,12 +740,15 @@ def run_pairs(
         check_apart,
         check_target,
         import_pycolmap,
+        names_a_stream,
         worker_count,
     )
 
     check_range("--workers", workers, 0, WORKERS_MAX)
     if output is not None and str(output) == "-":
         output = None
+    if output is not None and names_a_stream(output):
+        raise ValueError(f"-o {output} is a device or a stream; -o - writes to standard output")
     if output is not None:
         check_target(output, "file", overwrite, [pairs_file, image_dir], "-o ")
     cameras = given_cameras(K, K2, None, None, calib)
@@ -755,6 +767,8 @@ def run_pairs(
         _fit_calibration(rows, Path(image_dir), calib, K2)
     _warn_repeated_lines(rows, Path(pairs_file))
     given = "--K" if calib is None else f"--calib {calib}"
+    if cameras is not None:
+        _warn_unused_cameras(rows, Path(pairs_file), given + " and --K2" * (K2 is not None))
     _warn_implausible_cameras(rows, Path(image_dir), Path(pairs_file), exif_orientation, given)
     _exif_intrinsics(rows, Path(image_dir), exif_orientation)
     workers = worker_count(workers, len(rows))
@@ -893,7 +907,8 @@ def register(app: typer.Typer) -> None:
         max_trials: Annotated[
             int,
             typer.Option(
-                help="Cap on the RANSAC hypotheses per pair (it stops earlier once confident).",
+                help=f"Cap on the RANSAC hypotheses per pair (1..{MAX_TRIALS_MAX}; it stops "
+                "earlier once confident).",
                 rich_help_panel="Pipeline",
             ),
         ] = PairOptions.max_trials,

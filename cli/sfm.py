@@ -164,7 +164,9 @@ def register(app: typer.Typer) -> None:
             int,
             typer.Option("--max-features", help=f"SIFT features per image (1..{MAX_FEATURES})."),
         ] = 8192,
-        threads: Annotated[int, typer.Option("--threads", help="Threads for pycolmap.")] = 2,
+        threads: Annotated[
+            int, typer.Option("--threads", help="Threads for pycolmap (1..256).")
+        ] = 2,
         seed: Annotated[int, typer.Option(help=f"RANSAC seed (0..{SEED_MAX}).")] = 0,
         pri_threshold: PriThreshold = DEFAULT_PRI_THRESHOLD,
         as_json: Annotated[bool, typer.Option("--json", help="Print the summary as JSON.")] = False,

@@ -146,20 +146,28 @@ def register(app: typer.Typer) -> None:
         out_dir: Annotated[
             Path, typer.Argument(metavar="OUT_DIR", help="New (or empty) output directory.")
         ],
-        pairs: Annotated[int, typer.Option("--pairs", "-n", help="Number of image pairs.")] = 20,
+        pairs: Annotated[
+            int, typer.Option("--pairs", "-n", help=f"Number of image pairs (1..{MAX_PAIRS}).")
+        ] = 20,
         motion: Annotated[
             str | None, typer.Option(help=f"Motion preset: {', '.join(MOTIONS)} (default general).")
         ] = None,
-        seed: Annotated[int, typer.Option(help="Seed (>= 0): same seed, same bytes.")] = 0,
+        seed: Annotated[
+            int, typer.Option(help=f"Seed (0..{2**32 - 1}): same seed, same bytes.")
+        ] = 0,
         scene: Annotated[
             str | None,
             typer.Option(help=f"Scene: {', '.join(SCENES)}; the default depends on the motion."),
         ] = None,
         width: Annotated[
-            int | None, typer.Option(help="Image width (pixels); 640, or 0.65 of the photo.")
+            int | None,
+            typer.Option(help=f"Image width (pixels, {MIN_SIDE}..{MAX_SIDE}); 640, or 0.65 of the "
+                         "photo."),  # fmt: skip
         ] = None,
         height: Annotated[
-            int | None, typer.Option(help="Image height (pixels); 480, or 0.65 of the photo.")
+            int | None,
+            typer.Option(help=f"Image height (pixels, {MIN_SIDE}..{MAX_SIDE}); 480, or 0.65 of "
+                         "the photo."),  # fmt: skip
         ] = None,
         alpha: Annotated[
             float | None,
@@ -207,14 +215,15 @@ def register(app: typer.Typer) -> None:
             float | None,
             typer.Option(
                 help="With --imperfect: each view's focal length written off by a further "
-                "factor of its own, up to this fraction (focal lengths estimated per photo)."
+                "factor of its own, up to this fraction (0..0.5; focal lengths estimated per "
+                "photo)."
             ),
         ] = None,
         exposure_ev: Annotated[
             float | None,
             typer.Option(
-                help="With --imperfect: view 2 exposed up to this many stops brighter or darker "
-                "than view 1 (automatic exposure), clipped at white."
+                help="With --imperfect: view 2 exposed up to this many stops (0..3) brighter or "
+                "darker than view 1 (automatic exposure), clipped at white."
             ),
         ] = None,
         vignetting: Annotated[
@@ -236,15 +245,17 @@ def register(app: typer.Typer) -> None:
             typer.Option(help="Photo or folder of photos for --warp (default: freiburg frames)."),
         ] = None,
         supersample: Annotated[
-            int, typer.Option(help="Anti-aliasing samples per pixel and axis.")
+            int, typer.Option(help="Anti-aliasing samples per pixel and axis (1..8).")
         ] = 2,
         noise: Annotated[
             float | None,
-            typer.Option(help="Gaussian image noise (grey levels); 0, or 1 with --imperfect."),
+            typer.Option(help=f"Gaussian image noise (grey levels, 0..{MAX_NOISE:g}); 0, or 1 "
+                         "with --imperfect."),  # fmt: skip
         ] = None,
         blur: Annotated[
             float | None,
-            typer.Option(help="Gaussian blur sigma (pixels); 0, or 0.5 with --imperfect."),
+            typer.Option(help=f"Gaussian blur sigma (pixels, 0..{MAX_BLUR:g}); 0, or 0.5 with "
+                         "--imperfect."),  # fmt: skip
         ] = None,
         different_k: Annotated[
             bool, typer.Option("--different-k", help="Draw K2 independently of K1.")
@@ -252,8 +263,8 @@ def register(app: typer.Typer) -> None:
         workers: Annotated[
             int | None,
             typer.Option(
-                help="Worker processes (0 or none: one per CPU); never more than the CPUs this "
-                "process may use or --pairs."
+                help="Worker processes (0..256; 0 or none: one per CPU); never more than the CPUs "
+                "this process may use or --pairs."
             ),
         ] = None,
         overwrite: Annotated[

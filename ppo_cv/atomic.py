@@ -25,6 +25,7 @@ __all__ = [
     "check_target",
     "check_apart",
     "settled",
+    "names_a_stream",
     "staging_folder",
     "remove_stale",
     "atomic_file",
@@ -82,6 +83,11 @@ def check_target(
         raise TypeError(f"overwrite must be True or False, got {type(overwrite).__name__}")
     target = Path(path)
     _require_short_names(target)
+    if names_a_stream(target):
+        raise ValueError(
+            f"cannot write {target}: {settled(target).parent} holds devices and streams (such "
+            "as /dev/stdout), which an output renamed into place would replace; give another path"
+        )
     parent = target.parent
     for ancestor in (parent, *parent.parents):
         if ancestor.exists() and not ancestor.is_dir():
@@ -94,10 +100,13 @@ def check_target(
         check_apart(target, inputs, name)
         if not parent.is_dir():
             raise ValueError(f"cannot write {target}: folder {parent} does not exist")
+        if target.exists() and not target.is_file():  # before the hint to replace it
+            raise ValueError(
+                f"{target} is not a regular file (a device, a pipe or a socket), which no "
+                "output file replaces; give a file name"
+            )
         if target.exists() and not overwrite:
             raise ValueError(f"{target} already exists; {replace_hint}")
-        if target.exists() and not target.is_file():
-            raise ValueError(f"{target} is not a regular file")
     else:
         check_apart(target, inputs, name)
         if target.exists() and not target.is_dir():
@@ -117,6 +126,14 @@ def check_target(
     if not os.access(existing, os.W_OK | os.X_OK):
         raise ValueError(f"cannot write {target}: {existing} is not writable")
     return settled(target)
+
+
+def names_a_stream(path: str | os.PathLike) -> bool:
+    """Whether ``path`` lies in ``/dev`` or ``/proc`` (``/dev/stdout``, ``/dev/fd/1``,
+    ``/dev/null``), where a file renamed into place would replace a device or a stream of the
+    process, even when the stream is redirected to a regular file."""
+    folder = settled(path).parent
+    return folder == Path("/dev") or Path("/proc") in (folder, *folder.parents)
 
 
 def settled(path: str | os.PathLike) -> Path:

@@ -2,7 +2,8 @@
 
 - Strings: ``"fx,fy,cx,cy"`` or the 9 entries of ``K`` row-major; distortion ``"k1,k2,p1,p2[,k3]"``.
 - OpenCV FileStorage YAML/XML as written after ``cv2.calibrateCamera`` (``camera_matrix`` /
-  ``cameraMatrix`` / ``K`` / ``M1``, ``distortion_coefficients`` / ``dist_coeffs`` / ``D1``, ...).
+  ``cameraMatrix`` / ``K`` / ``M1``, ``distortion_coefficients`` / ``dist_coeffs`` / ``D1``, ...),
+  and ROS ``camera_info`` YAML (``distortion_model`` plumb_bob or rational_polynomial).
 - COLMAP ``cameras.txt`` (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV).
 - JSON: ``{"K": ..., "dist": ...}``, ``{"fx", "fy", "cx", "cy"}``, ``{"K1", "K2", "dist1",
   "dist2"}`` or ``{"cameras": [camera, camera]}``.
@@ -86,6 +87,8 @@ class Camera:
         size = self.image_size
         if size is None:
             return
+        if isinstance(size, np.ndarray) and size.shape == (2,):  # as numpy gives it
+            size = tuple(size.tolist())
         if not (isinstance(size, (tuple, list)) and len(size) == 2):
             raise TypeError(f"Camera.image_size must be (width, height) or None, got {shown(size)}")
         object.__setattr__(self, "image_size", _image_size(*size, "Camera.image_size"))
@@ -180,6 +183,31 @@ def _open_storage(path: str):
     return cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
 
 
+_OPENCV_DISTORTION_KEYS = ("distortion_coefficients", "dist_coeffs", "distCoeffs", "D", "D1",
+                           "dist1", "D2", "dist2", "distortion_coefficients_2")  # fmt: skip
+
+
+def _require_known_distortion(storage, path: str) -> None:
+    """ValueError for numbers under a key that names a distortion but is none of
+    :data:`_OPENCV_DISTORTION_KEYS` (``distortion``, ``dist``): they would be dropped, and the
+    camera read without its distortion; and for a ROS ``distortion_model`` other than OpenCV's
+    (``equidistant``, a fisheye)."""
+    model = storage.getNode("distortion_model")  # ROS camera_info
+    if model.isString() and model.string() not in ("plumb_bob", "rational_polynomial"):
+        raise ValueError(
+            f"distortion_model {shown(model.string())} in {path} is not OpenCV's pinhole "
+            "distortion (plumb_bob or rational_polynomial), which this reader takes"
+        )
+    for key in storage.root().keys():
+        if key.lower().startswith("dist") and key not in _OPENCV_DISTORTION_KEYS:
+            if not storage.getNode(key).isString():
+                raise ValueError(
+                    f"{key} in {path} is no distortion key this reader knows, and would be "
+                    f"ignored; name the coefficients {', '.join(_OPENCV_DISTORTION_KEYS[:6])} "
+                    "(a second camera's D2, dist2)"
+                )
+
+
 def _opencv_matrices(path: str) -> tuple:
     storage = _open_storage(path)
     if not storage.isOpened():
@@ -195,6 +223,10 @@ def _opencv_matrices(path: str) -> tuple:
                 if not node.empty():
                     if not (node.isMap() or node.isSeq()):
                         raise ValueError(f"{key} in {path} is a scalar, not a matrix")
+                    if node.isMap() and node.getNode("dt").empty():  # ROS: rows, cols, data
+                        node = node.getNode("data")
+                        if not node.isSeq():
+                            raise ValueError(f"{key} in {path} has no dt and no list of data")
                     if node.isSeq():
                         items = [node.at(i) for i in range(node.size())]
                         if not all(item.isReal() or item.isInt() for item in items):
@@ -206,9 +238,10 @@ def _opencv_matrices(path: str) -> tuple:
             return None
 
         K1 = matrix("camera_matrix", "cameraMatrix", "K", "M1", "K1", "camera_matrix_1")
-        D1 = matrix("distortion_coefficients", "dist_coeffs", "distCoeffs", "D", "D1", "dist1")
+        D1 = matrix(*_OPENCV_DISTORTION_KEYS[:6])
         K2 = matrix("M2", "K2", "camera_matrix_2")
-        D2 = matrix("D2", "dist2", "distortion_coefficients_2")
+        D2 = matrix(*_OPENCV_DISTORTION_KEYS[6:])
+        _require_known_distortion(storage, path)
         width, height = (storage.getNode(key) for key in ("image_width", "image_height"))
         size = None
         if not (width.empty() or height.empty()):
@@ -221,8 +254,10 @@ def _opencv_matrices(path: str) -> tuple:
 
 
 def _image_size(width, height, where: str) -> tuple[int, int]:
-    """A calibration's stated ``(width, height)``: whole numbers from 1 to 1e6."""
+    """A calibration's stated ``(width, height)``: whole numbers from 1 to 1e6 (True is none)."""
     try:
+        if isinstance(width, (bool, np.bool_)) or isinstance(height, (bool, np.bool_)):
+            raise TypeError("a flag is no size")
         size = float(width), float(height)
     except (TypeError, ValueError):
         raise ValueError(f"{where}: image width and height must be numbers") from None
@@ -297,6 +332,20 @@ def _camera_id(text: str, where: str) -> int:
 
 _JSON_NUMBER_KEYS = ("K", "camera_matrix", "fx", "fy", "cx", "cy", "f", "dist", "distortion",
                      "dist_coeffs", "width", "height")  # fmt: skip
+_JSON_RIG_KEYS = ("K1", "K2", "dist1", "dist2", "width", "height")
+
+
+def _require_known_keys(entry: dict, known: tuple[str, ...], where: str) -> None:
+    """ValueError naming a key of ``entry`` outside ``known`` whose value is not text: the
+    reader would drop it, and with it a distortion (``D``, ``k1``) or an image size
+    (``image_size``) the file gives. Text (a name, a note) is left to the reader."""
+    unknown = [key for key, value in entry.items()
+               if key not in known and not isinstance(value, (str, type(None)))]  # fmt: skip
+    if unknown:
+        raise ValueError(
+            f"{where}: unknown key {shown(unknown[0])}, which would be ignored; the keys read "
+            f"are {', '.join(known)}"
+        )
 
 
 def _require_no_booleans(value: Any, where: str, key: str = "") -> None:
@@ -336,6 +385,7 @@ def _json_camera(entry, where: str) -> Camera:
         K = _matrix_from_values(values, where)
     else:
         raise ValueError(f"{where}: expected K or fx, fy, cx, cy")
+    _require_known_keys(entry, _JSON_NUMBER_KEYS, where)
     key = next((k for k in ("dist", "distortion", "dist_coeffs") if k in entry), None)
     dist = None if key is None or entry[key] is None else _json_numbers(entry[key], where, key)
     dist = as_distortion(dist, f"{where}: {key}")
@@ -368,6 +418,8 @@ def _read_json(path: str, text: str) -> list[Camera]:
         listed = data.get("cameras") if isinstance(data, dict) else data
         if isinstance(data, dict) and "cameras" in data and not isinstance(listed, list):
             raise ValueError(f"{path}: cameras must be a list of cameras")
+        if isinstance(data, dict) and "cameras" in data:
+            _require_known_keys(data, ("cameras",), path)
         if (
             isinstance(data, dict)
             and "cameras" in data
@@ -375,9 +427,12 @@ def _read_json(path: str, text: str) -> list[Camera]:
         ):
             cameras = [_json_camera(c, f"{path} camera {i + 1}") for i, c in enumerate(listed)]
         elif isinstance(data, dict) and "K1" in data:
-            cameras = [_json_camera({"K": data["K1"], "dist": data.get("dist1")}, path)]
+            _require_known_keys(data, _JSON_RIG_KEYS, path)
+            size = {"width": data.get("width"), "height": data.get("height")}
+            cameras = [_json_camera({"K": data["K1"], "dist": data.get("dist1"), **size}, path)]
             if "K2" in data:
-                cameras.append(_json_camera({"K": data["K2"], "dist": data.get("dist2")}, path))
+                second = {"K": data["K2"], "dist": data.get("dist2"), **size}
+                cameras.append(_json_camera(second, path))
         else:
             cameras = [_json_camera(data, path)]
     except (TypeError, ValueError, RecursionError) as exc:
@@ -414,8 +469,9 @@ def read_text_file(path: str | os.PathLike, what: str) -> str:
 def load_calibration(path: str | os.PathLike) -> list[Camera]:
     """Cameras described by a calibration file: one (shared) or two (image 1, image 2).
 
-    The format follows the extension: ``.yml``/``.yaml``/``.xml`` OpenCV FileStorage, ``.json``,
-    anything else a COLMAP ``cameras.txt``.
+    The format follows the extension: ``.yml``/``.yaml``/``.xml`` OpenCV FileStorage, ``.json``
+    (OpenCV FileStorage too when its matrices are ``opencv-matrix`` objects), anything else a
+    COLMAP ``cameras.txt``. A JSON key the reader does not know is refused unless it holds text.
     """
     from .images import file_mode
 
@@ -426,6 +482,8 @@ def load_calibration(path: str | os.PathLike) -> list[Camera]:
     if extension in (".yml", ".yaml", ".xml"):
         return _read_opencv(path)
     text = read_text_file(path, "calibration file")
+    if '"opencv-matrix"' in text:  # cv2.FileStorage's JSON, as calibrateCamera's YAML
+        return _read_opencv(path)
     if extension == ".json" or text.lstrip().startswith(("{", "[")):
         return _one_or_two(_read_json(path, text), path)
     return _one_or_two(_read_colmap(path, text), path)

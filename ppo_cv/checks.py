@@ -83,13 +83,19 @@ _PARSE_INTRINSICS = "parse a text with ppo_cv.parse_intrinsics"
 _PARSE_DISTORTION = "parse a text with ppo_cv.calib.parse_distortion"
 
 
+def _as_array(value: Any, name: str) -> np.ndarray:
+    """``np.asarray(value)``; TypeError naming ``name`` for what numpy cannot make one array
+    of (a ragged list)."""
+    try:
+        return np.asarray(value)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name} must be a numeric array: {exc}") from None
+
+
 def _as_real_array(value: Any, name: str, text_hint: str = "") -> np.ndarray:
     if value is None:
         raise TypeError(f"{name} is required, got None")
-    try:
-        array = np.asarray(value)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be a numeric array: {exc}") from None
+    array = _as_array(value, name)
     if array.dtype == np.float64:
         return array
     if array.dtype.kind not in "iuf":
@@ -257,7 +263,7 @@ def as_rotation(value: Any, name: str = "R") -> np.ndarray:
 
 def as_distortion(value: Any, name: str) -> np.ndarray | None:
     """OpenCV distortion coefficients as float64 (n,), or None for none or all zeros."""
-    if value is None or np.size(value) == 0:
+    if value is None or _as_array(value, name).size == 0:
         return None
     coefficients = _as_real_array(value, name, _PARSE_DISTORTION).reshape(-1)
     if coefficients.size not in (4, 5, 8, 12, 14):
@@ -356,7 +362,7 @@ def as_mask(value: Any, n: int, min_selected: int = MIN_POINTS) -> np.ndarray | 
     """
     if value is None:
         return None
-    mask = np.asarray(value)
+    mask = _as_array(value, "mask")
     if mask.size == 0:
         return None
     if mask.dtype.kind not in "biuf":

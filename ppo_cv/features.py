@@ -131,7 +131,8 @@ def require_detectable(shape: tuple, name: str, max_image_size: int | None = Non
         shorter = shorter * max_image_size / max(height, width)
     if shorter < MIN_IMAGE_SIDE:
         reduced = (
-            f", also once its longer side is reduced to {max_image_size}"
+            f", also once its longer side is reduced to {max_image_size}: a larger "
+            "max_image_size (--max-size), or 0 for the full size, keeps it"
             if max_image_size is not None and max(height, width) > max_image_size
             else ""
         )

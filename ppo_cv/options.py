@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 from .checks import (
@@ -151,15 +152,17 @@ class PairOptions:
     focal_ratio: str = "auto"
 
     def __post_init__(self) -> None:
+        put = functools.partial(object.__setattr__, self)  # held as float, bool and int
         for name in ("ratio", "ransac_threshold", "confidence", "pri_threshold", "max_log10_nfa"):
-            as_number(getattr(self, name), name)
+            put(name, as_number(getattr(self, name), name))
         for name in ("mutual", "detect_once", "ordered_sampling", "refine", "plane", "photometric"):
-            as_flag(getattr(self, name), name)
+            put(name, as_flag(getattr(self, name), name))
         for name, low in (("max_features", 8), ("min_trials", 1), ("max_trials", 1),
                           ("redetect_below", 0), ("min_inliers", 5), ("seed", 0)):  # fmt: skip
-            as_whole_number(getattr(self, name), name, low, MAX_WHOLE_NUMBER)
-        if self.max_image_size is not None:
-            as_whole_number(self.max_image_size, "max_image_size", 32, MAX_WHOLE_NUMBER)
+            put(name, as_whole_number(getattr(self, name), name, low, MAX_WHOLE_NUMBER))
+        size = self.max_image_size
+        if size is not None:
+            put("max_image_size", as_whole_number(size, "max_image_size", 32, MAX_WHOLE_NUMBER))
         for name, modes in (
             ("principal_point", PRINCIPAL_POINT_MODES),
             ("focal_ratio", FOCAL_RATIO_MODES),

@@ -346,6 +346,14 @@ MAX_NAMED_SKIPS = 3
 """Skipped images whose reason the error for too few images gives."""
 
 
+def _subfolders(folder: Path) -> list[str]:
+    """The names of the folders in ``folder``, sorted; none when it cannot be listed."""
+    try:
+        return sorted(entry.name for entry in folder.iterdir() if entry.is_dir())
+    except OSError:
+        return []
+
+
 def require_two_images(
     image_dir: str | os.PathLike, names: Sequence[str], skipped: dict[str, str]
 ) -> None:
@@ -355,8 +363,11 @@ def require_two_images(
         reasons = list(skipped.values())[:MAX_NAMED_SKIPS]
         more = f"; {len(skipped) - len(reasons)} more" if len(skipped) > len(reasons) else ""
         refused = f" ({len(skipped)} skipped: {'; '.join(reasons)}{more})" if skipped else ""
+        folders = _subfolders(Path(image_dir))
+        nested = (f"; its subfolders are not read ({', '.join(map(repr, folders[:3]))}"
+                  f"{', ...' * (len(folders) > 3)})" if folders else "")  # fmt: skip
         raise ValueError(
-            f"need at least 2 images in {str(image_dir)!r}, found {len(names)}{refused}"
+            f"need at least 2 images in {str(image_dir)!r}, found {len(names)}{refused}{nested}"
         )
 
 
@@ -389,11 +400,16 @@ def _check_hooks(progress: Any, **flags: Any) -> None:
     as_callback(progress, "progress", "a callable taking a message")
 
 
-def _check_run_numbers(num_threads: Any, seed: Any, max_num_features: Any = 1) -> None:
-    """ValueError or TypeError naming the first of pycolmap's numbers that is out of range."""
-    as_whole_number(num_threads, "num_threads", 1, MAX_THREADS)
-    as_whole_number(seed, "seed", 0, MAX_WHOLE_NUMBER)
-    as_whole_number(max_num_features, "max_num_features", 1, MAX_FEATURES)
+def _check_run_numbers(
+    num_threads: Any, seed: Any, max_num_features: Any = 1
+) -> tuple[int, int, int]:
+    """The three as Python ints, which pycolmap's options take (``seed=3.0`` failed there in
+    pybind's words); ValueError or TypeError naming the first one out of range."""
+    return (
+        as_whole_number(num_threads, "num_threads", 1, MAX_THREADS),
+        as_whole_number(seed, "seed", 0, MAX_WHOLE_NUMBER),
+        as_whole_number(max_num_features, "max_num_features", 1, MAX_FEATURES),
+    )
 
 
 def prepare_database(
@@ -443,7 +459,7 @@ def prepare_database(
         pycolmap could not read (named).
     """
     _check_hooks(progress, verbose=verbose)
-    _check_run_numbers(num_threads, seed, max_num_features)
+    num_threads, seed, max_num_features = _check_run_numbers(num_threads, seed, max_num_features)
     if K is not None:
         K = as_camera_matrix(K, "K")
         if K[0, 1] != 0:
@@ -920,7 +936,7 @@ def reconstruct(
         them, says the images look like a panorama.
     """
     _check_choices(initialization, seeding, scoring)
-    _check_run_numbers(num_threads, seed)
+    num_threads, seed, _ = _check_run_numbers(num_threads, seed)
     _check_hooks(progress, fix_intrinsics=fix_intrinsics, verbose=verbose)
     database_path, image_dir = as_path(database_path, "database_path"), _image_folder(image_dir)
     _require_database(database_path)
@@ -1394,7 +1410,7 @@ def run_sfm(
         For bad arguments or unreadable images, before anything is written.
     """
     _check_choices(initialization, seeding, scoring)
-    _check_run_numbers(num_threads, seed, max_num_features)
+    num_threads, seed, max_num_features = _check_run_numbers(num_threads, seed, max_num_features)
     _check_hooks(progress, verbose=verbose, overwrite=overwrite, exif_orientation=exif_orientation)
     image_dir = _image_folder(image_dir)
     if output_dir is not None:  # never the image folder, nor one holding it, even replaced

@@ -74,8 +74,10 @@ def test_parse_distortion():
         parse_distortion("k1")
 
 
-@pytest.mark.parametrize("extension", ["yml", "yaml", "xml"])
+@pytest.mark.parametrize("extension", ["yml", "yaml", "xml", "json"])
 def test_opencv_file_storage(tmp_path, extension):
+    # json: cv2.FileStorage's JSON was read as a JSON camera and refused ("camera_matrix must be
+    # numbers, got {"type_id": "opencv-matrix", ...")
     path = tmp_path / f"camera.{extension}"
     storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
     storage.write("image_width", 640)
@@ -333,6 +335,92 @@ def test_json_errors(tmp_path, text, message):
     path = tmp_path / "camera.json"
     path.write_text(text)
     with pytest.raises(ValueError, match=message):
+        load_calibration(path)
+
+
+@pytest.mark.parametrize(
+    "data, key",
+    [
+        ({"K": [535.4, 539.2, 320.1, 247.6], "distortion_coefficients": DIST.tolist()},
+         "distortion_coefficients"),
+        ({"fx": 535.4, "fy": 539.2, "cx": 320.1, "cy": 247.6, "k1": -0.2, "k2": 0.05}, "k1"),
+        ({"K": [535.4, 539.2, 320.1, 247.6], "image_size": [640, 480]}, "image_size"),
+        ({"K": [535.4, 539.2, 320.1, 247.6], "K2": [600, 600, 300, 200]}, "K2"),
+        ({"K1": [535.4, 539.2, 320.1, 247.6], "D1": DIST.tolist()}, "D1"),
+        ({"cameras": [{"K": [535.4, 539.2, 320.1, 247.6]}], "dist": DIST.tolist()}, "dist"),
+    ],
+    ids=["OpenCV's name", "k1 k2", "image_size", "K with K2", "D1", "dist beside cameras"],
+)  # fmt: skip
+def test_a_json_key_that_would_be_ignored_is_refused_by_name(tmp_path, data, key):
+    # each was dropped without a word: a camera read without its distortion, size or second K
+    path = tmp_path / "camera.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(ValueError, match=f"camera.json: unknown key '{key}', which would be "):
+        load_calibration(path)
+
+
+def test_a_json_camera_may_carry_text_beside_its_numbers(tmp_path):
+    path = tmp_path / "camera.json"
+    path.write_text(json.dumps({"name": "cam0", "model": "pinhole", "K": K_FREIBURG.tolist()}))
+    np.testing.assert_array_equal(load_calibration(path)[0].K, K_FREIBURG)
+
+
+def test_the_image_size_of_a_json_rig_is_read(tmp_path):
+    # {"K1", "K2", "width", "height"} dropped the size: a calibration of larger images was not
+    # scaled to the photos
+    path = tmp_path / "rig.json"
+    path.write_text(json.dumps({"K1": [535.4, 539.2, 320.1, 247.6], "K2": [600, 600, 300, 200],
+                                "width": 640, "height": 480}))  # fmt: skip
+    assert [camera.image_size for camera in load_calibration(path)] == [(640, 480)] * 2
+
+
+@pytest.mark.parametrize("key", ["distortion", "dist", "Distortion_Coeffs"])
+@pytest.mark.parametrize("extension", ["yml", "xml"])
+def test_an_opencv_distortion_under_a_name_not_read_is_refused(tmp_path, extension, key):
+    # its coefficients were dropped: the camera was read without distortion
+    path = tmp_path / f"camera.{extension}"
+    storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    storage.write("camera_matrix", K_FREIBURG)
+    storage.write(key, DIST.reshape(1, 5))
+    storage.write("distortion_model", "plumb_bob")  # text: read past
+    storage.release()
+    with pytest.raises(ValueError, match=f"^{key} in .*camera.{extension} is no distortion key"):
+        load_calibration(path)
+
+
+ROS_CAMERA_INFO = """image_width: 640
+image_height: 480
+camera_name: narrow_stereo
+camera_matrix:
+  rows: 3
+  cols: 3
+  data: [535.4, 0, 320.1, 0, 539.2, 247.6, 0, 0, 1]
+distortion_model: plumb_bob
+distortion_coefficients:
+  rows: 1
+  cols: 5
+  data: [-0.2, 0.05, 0.001, -0.002, 0.01]
+rectification_matrix:
+  rows: 3
+  cols: 3
+  data: [1, 0, 0, 0, 1, 0, 0, 0, 1]
+"""
+
+
+def test_a_ros_camera_info_file_is_read(tmp_path):
+    # its matrices, maps without OpenCV's dt, were "malformed ...: !dt.empty() in function 'read'"
+    path = tmp_path / "camera.yaml"
+    path.write_text(ROS_CAMERA_INFO)
+    (camera,) = load_calibration(path)
+    np.testing.assert_allclose(camera.K, K_FREIBURG)
+    np.testing.assert_allclose(camera.dist, DIST)
+    assert camera.image_size == (640, 480)
+
+
+def test_a_ros_fisheye_is_refused(tmp_path):
+    path = tmp_path / "camera.yaml"
+    path.write_text(ROS_CAMERA_INFO.replace("plumb_bob", "equidistant"))
+    with pytest.raises(ValueError, match="distortion_model 'equidistant' in .* is not OpenCV's"):
         load_calibration(path)
 
 

@@ -404,7 +404,8 @@ def test_a_batch_in_which_every_pair_fails_exits_1_after_its_lines(
     (tmp_path / "images" / NAME1).write_bytes((DATA / NAME1).read_bytes())
     lines = [f"{NAME1} absent2.png{truth}", f"absent3.png {NAME1}{truth}"]
     (tmp_path / "pairs.txt").write_text("\n".join(lines) + "\n")
-    args = [*COMMAND, "pairs", "pairs.txt", "images", "--K", K_TEXT, "--quiet", *output]
+    K_option = [] if truth else ["--K", K_TEXT]  # lines with their own K take no --K
+    args = [*COMMAND, "pairs", "pairs.txt", "images", *K_option, "--quiet", *output]
     out = subprocess.run(args, capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert out.returncode == 1, out.stderr
     stderr = out.stderr.splitlines()

@@ -119,3 +119,22 @@ def test_pair_help_states_each_range_it_enforces(option, stated, beyond):
     assert out.returncode == 2 and f"{option}" in out.stderr
     low, high = stated.strip("(;)").split("..")
     assert f"must be in {low}..{high}" in out.stderr, out.stderr
+
+
+RANGE = re.compile(r"\d\.\.\d|[\[(]-?[\d.]+, [\d.]+[\])]|\d-[\d.]+\)")
+
+
+@pytest.mark.parametrize("command", ["pair", "pairs", "sfm", "synth"])
+def test_every_numeric_option_states_its_range_in_help(command):
+    # synth's --pairs, --seed ("(>= 0)" for 0..2^32-1), --width, --height, --supersample,
+    # --noise, --blur, --workers, --view-focal-error, --exposure-ev and sfm's --threads
+    # enforced a range their help did not state
+    from typer.testing import CliRunner
+
+    from ppo_cv.cli.main import app
+
+    text = CliRunner().invoke(app, [command, "--help"], terminal_width=400).stdout
+    options = re.findall(r"^\s+(?:-\w, )?(--[\w-]+) <(?:int|float)>\s+(.*)$", text, re.M)
+    assert len(options) >= 3, text
+    unstated = [name for name, described in options if not RANGE.search(described)]
+    assert unstated == [], unstated

@@ -325,3 +325,23 @@ def test_synth_names_the_images_folder_and_the_pairs_command_runs_as_printed(tmp
     assert run.returncode == 0, run.stderr
     (line,) = [json.loads(text) for text in run.stdout.splitlines()]
     assert line["image1"] == "pair_000_1.png" and "error" not in line, line
+
+
+@pytest.mark.parametrize(
+    "options, named",
+    [(["--K", "600,600,320,240"], "--K is"),
+     (["--K", "600,600,320,240", "--K2", "600,600,320,240"], "--K and --K2 are")],
+)  # fmt: skip
+def test_pairs_says_when_every_line_carries_the_cameras_given_on_the_command_line(
+    tmp_path, options, named
+):
+    # the lines' own camera matrices stood and --K was dropped without a word
+    intrinsics = " ".join(["0 0"] + [" ".join(map(str, K_MATRIX.ravel()))] * 2)
+    (tmp_path / "pairs.txt").write_text(f"{DEMO1.name} {DEMO2.name} {intrinsics}\n")
+    done = ppo_cv("pairs", "pairs.txt", DATA, "-q", *options, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert warnings_of(done) == [
+        f"ppo-cv pairs: warning: {named} not used: every line of pairs.txt carries its own "
+        "camera matrices, which stand"
+    ]
+    check_demo_pose(json.loads(done.stdout))

@@ -226,6 +226,10 @@ CASES = {
                                     ValueError, "image1 is 60000x1 pixels: too small or too thin"),
     "estimate_pair 40x12 image": (_pair(image2=GREY[:12, :40], K2=K), ValueError,
                                   "image2 is 40x12 pixels"),
+    # thin only once reduced to max_image_size: the message did not say how to keep it
+    "estimate_pair 4000x30 image": (
+        _pair(image1=np.zeros((30, 4000), np.uint8), K2=K), ValueError,
+        "reduced to 2000: a larger max_image_size (--max-size), or 0 for the full size, keeps it"),
     # options that reached pycolmap or numpy unchecked, or read "no" as true
     "PairOptions seed -1": (lambda: PairOptions(seed=-1), ValueError,
                             "seed must be a whole number in 0..2147483647, got -1"),
@@ -351,6 +355,13 @@ CASES = {
     # a text where points belong: no advice to parse it as intrinsics
     "recoverPose points text": (lambda: ppo_cv.recoverPose(E, "1,2", P2, K), TypeError,
                                 "points1 must be an array of real numbers, got str"),
+    # ragged lists: numpy's 'setting an array element with a sequence' named no argument
+    "recoverPose ragged mask": (lambda: ppo_cv.recoverPose(E, P1, P2, K, mask=[[1, 1], [1]]),
+                                TypeError, "mask must be a numeric array: setting an array"),
+    "form 4 ragged distortion": (_form4(distCoeffs1=[[0.1], [0, 0]]), TypeError,
+                                 "distCoeffs1 must be a numeric array: setting an array"),
+    "Camera ragged dist": (lambda: ppo_cv.Camera(K, [[0.1], [0, 0]]), TypeError,
+                           "Camera.dist must be a numeric array: setting an array"),
 }  # fmt: skip
 
 
@@ -743,6 +754,20 @@ def test_a_camera_of_another_image_size_is_warned_about(scale):
     assert doubt.filename == __file__  # points at the caller's line
 
 
+def test_options_of_other_number_types_are_held_as_python_numbers():
+    # seed=3.0 passed the check and reached numpy's SeedSequence mid-run: "SeedSequence expects
+    # int or sequence of ints for entropy not 3.0", naming no option
+    options = PairOptions(seed=3.0, max_features=np.int32(600), ratio=np.float32(0.75),
+                          max_image_size=640.0, plane=np.bool_(True))  # fmt: skip
+    held = [getattr(options, name)
+            for name in ("seed", "max_features", "ratio", "max_image_size", "plane")]  # fmt: skip
+    assert [type(value) for value in held] == [int, int, float, int, bool]
+    result = ppo_cv.estimate_pair(*DEMO_IMAGES, K_DEMO, options=options)
+    same = PairOptions(seed=3, max_features=600, ratio=0.75, max_image_size=640)
+    expected = ppo_cv.estimate_pair(*DEMO_IMAGES, K_DEMO, options=same)
+    np.testing.assert_array_equal(result.R, expected.R)
+
+
 def test_run_sfm_refuses_a_skewed_K_before_any_work(tmp_path):
     images = tmp_path / "images"
     images.mkdir()
@@ -753,6 +778,29 @@ def test_run_sfm_refuses_a_skewed_K_before_any_work(tmp_path):
     database = tmp_path / "db.db"
     with pytest.raises(ValueError, match=r"K has skew 2\.0, which pycolmap's PINHOLE camera"):
         _sfm_module().run_sfm(images, tmp_path / "model", K=skewed, database_path=database)
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["images"]
+
+
+@pytest.mark.parametrize(
+    "numbers", [{"seed": 3.0}, {"num_threads": 2.0}], ids=str
+)
+def test_sfm_numbers_of_other_types_reach_pycolmap_as_ints(tmp_path, numbers):
+    # they passed the check and failed in pycolmap's option setters: "incompatible function
+    # arguments ... Invoked with: RANSACOptions(...)"
+    images = tmp_path / "images"
+    images.mkdir()
+    for image in DEMO_IMAGES:
+        (images / Path(image).name).write_bytes(Path(image).read_bytes())
+    assert _sfm_module().prepare_database(images, tmp_path / "db.db", **numbers) == 2
+
+
+def test_sfm_of_images_in_subfolders_says_that_subfolders_are_not_read(tmp_path):
+    # "need at least 2 images in 'images', found 0" left a newcomer to guess why
+    (tmp_path / "images" / "cam0").mkdir(parents=True)
+    for image in DEMO_IMAGES:
+        (tmp_path / "images" / "cam0" / Path(image).name).write_bytes(Path(image).read_bytes())
+    with pytest.raises(ValueError, match=r"found 0; its subfolders are not read \('cam0'\)$"):
+        _sfm_module().run_sfm(tmp_path / "images", tmp_path / "model")
     assert sorted(path.name for path in tmp_path.iterdir()) == ["images"]
 
 
@@ -932,12 +980,20 @@ def test_a_camera_matrix_of_another_number_type_is_its_values_exactly(dtype):
      ((-K,), ValueError, "Camera.K must be upper triangular"),
      ((K, [0.1, 0.2, 0.3]), ValueError, "Camera.dist must be OpenCV distortion coefficients"),
      ((K, None, 640), TypeError, "Camera.image_size must be (width, height) or None, got 640"),
-     ((K, None, (640, -1)), ValueError, "Camera.image_size: image width and height must be")],
-    ids=["K text", "K 2x3", "K negative", "dist of 3", "size a number", "size negative"],
+     ((K, None, (640, -1)), ValueError, "Camera.image_size: image width and height must be"),
+     # (True, True) was a 1x1 image
+     ((K, None, (True, True)), ValueError, "Camera.image_size: image width and height must be")],
+    ids=["K text", "K 2x3", "K negative", "dist of 3", "size a number", "size negative",
+         "size of flags"],
 )  # fmt: skip
 def test_a_camera_is_checked_when_made(fields, exception, words):
     with pytest.raises(exception, match=re.escape(words)):
         ppo_cv.Camera(*fields)
+
+
+def test_a_camera_takes_its_image_size_as_a_numpy_pair():
+    # np.array([640, 480]) was "Camera.image_size must be (width, height) or None"
+    assert ppo_cv.Camera(K, None, np.array([640, 480])).image_size == (640, 480)
 
 
 @pytest.mark.skipif(

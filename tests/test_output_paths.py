@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from ppo_cv.atomic import atomic_directory
+from ppo_cv.atomic import atomic_directory, check_target
 
 COMMAND = [sys.executable, "-m", "ppo_cv.cli.main"]
 SMALL_SYNTH = ["-n", "1", "--width", "32", "--height", "32", "--supersample", "1", "-q"]
@@ -56,3 +56,34 @@ def test_synth_replaces_an_output_named_through_itself(tmp_path):
     assert done.returncode == 0, done.stderr
     assert sorted(p.name for p in out.iterdir()) == ["gt", "images", "pairs_with_gt.txt"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+@pytest.mark.parametrize("path", ["/dev/stdout", "/dev/fd/1", "/proc/self/fd/1", "/dev/out"])
+@pytest.mark.parametrize("kind", ["file", "folder"])
+def test_an_output_among_devices_and_streams_is_refused_even_with_overwrite(path, kind):
+    # with standard output redirected to a regular file, /dev/stdout passed as an existing file
+    # and --overwrite renamed the new output onto the /dev/stdout link itself
+    with pytest.raises(ValueError, match="holds devices and streams .*; give another path$"):
+        check_target(path, kind, overwrite=True)
+    assert os.readlink("/dev/stdout") == "/proc/self/fd/1"
+
+
+def test_an_output_that_is_a_fifo_is_not_offered_overwrite(tmp_path):
+    # it said "already exists; pass --overwrite to replace it", which then refused it
+    os.mkfifo(tmp_path / "fifo.jsonl")
+    with pytest.raises(ValueError, match=r"fifo\.jsonl is not a regular file .*give a file name$"):
+        check_target(tmp_path / "fifo.jsonl", "file")
+
+
+def test_pairs_to_dev_stdout_names_the_dash(tmp_path):
+    demo = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
+    (tmp_path / "pairs.txt").write_text("demo1.png demo2.png\n")
+    done = subprocess.run(
+        [*COMMAND, "pairs", "pairs.txt", str(demo), "--K", "535.4,539.2,320.1,247.6",
+         "-o", "/dev/stdout", "-q"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr == (
+        "ppo-cv pairs: -o /dev/stdout is a device or a stream; -o - writes to standard output\n"
+    )
