@@ -1,7 +1,7 @@
 """Speed against accuracy: what the two costly stages of ``estimate_pair`` buy, on real pairs.
 
 Run ``python benchmarks/settings.py [--freiburg DIR] [--pano DIR] [--json FILE]`` from the
-repository root (about 6 minutes on 2 cores).
+repository root (about 4-5 minutes on 2 cores).
 
 Two stages cost more than the rest of a pair and can be turned off:
 
