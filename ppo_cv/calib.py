@@ -3,10 +3,12 @@
 - Strings: ``"fx,fy,cx,cy"`` or the 9 entries of ``K`` row-major; distortion ``"k1,k2,p1,p2[,k3]"``.
 - OpenCV FileStorage YAML/XML as written after ``cv2.calibrateCamera`` (``camera_matrix`` /
   ``cameraMatrix`` / ``K`` / ``M1``, ``distortion_coefficients`` / ``dist_coeffs`` / ``D1``, ...),
-  and ROS ``camera_info`` YAML (``distortion_model`` plumb_bob or rational_polynomial).
+  and ROS ``camera_info`` YAML (``distortion_model`` plumb_bob, rational_polynomial or
+  Kalibr's radtan: OpenCV's pinhole distortion; another model, a fisheye's, is refused).
 - COLMAP ``cameras.txt`` (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV).
 - JSON: ``{"K": ..., "dist": ...}``, ``{"fx", "fy", "cx", "cy"}``, ``{"K1", "K2", "dist1",
-  "dist2"}`` or ``{"cameras": [camera, camera]}``.
+  "dist2"}`` or ``{"cameras": [camera, camera]}``; a ``distortion_model`` must name OpenCV's
+  pinhole distortion, as in ROS YAML.
 - EXIF: a guess from the image's focal length tags (``pycolmap.infer_camera_from_image``).
 
 A file may describe one camera (used for both images) or two (image 1, image 2). A camera
@@ -193,11 +195,8 @@ def _require_known_distortion(storage, path: str) -> None:
     camera read without its distortion; and for a ROS ``distortion_model`` other than OpenCV's
     (``equidistant``, a fisheye)."""
     model = storage.getNode("distortion_model")  # ROS camera_info
-    if model.isString() and model.string() not in ("plumb_bob", "rational_polynomial"):
-        raise ValueError(
-            f"distortion_model {shown(model.string())} in {path} is not OpenCV's pinhole "
-            "distortion (plumb_bob or rational_polynomial), which this reader takes"
-        )
+    if model.isString():
+        _require_opencv_model(model.string(), f"in {path}")
     for key in storage.root().keys():
         if key.lower().startswith("dist") and key not in _OPENCV_DISTORTION_KEYS:
             if not storage.getNode(key).isString():
@@ -206,6 +205,21 @@ def _require_known_distortion(storage, path: str) -> None:
                     f"ignored; name the coefficients {', '.join(_OPENCV_DISTORTION_KEYS[:6])} "
                     "(a second camera's D2, dist2)"
                 )
+
+
+_OPENCV_DISTORTION_MODELS = ("plumb_bob", "rational_polynomial", "radtan")
+"""Names of OpenCV's pinhole distortion in a ``distortion_model`` (ROS ``camera_info``,
+Kalibr): the one model the readers take; another (``equidistant``, a fisheye) is refused."""
+
+
+def _require_opencv_model(model: Any, where: str) -> None:
+    """ValueError for a ``distortion_model`` named in ``where`` that is not OpenCV's pinhole
+    distortion: its coefficients would be read as OpenCV's, a silent wrong camera."""
+    if model is not None and model not in _OPENCV_DISTORTION_MODELS:
+        raise ValueError(
+            f"distortion_model {shown(model)} {where} is not OpenCV's pinhole distortion "
+            f"({', '.join(_OPENCV_DISTORTION_MODELS)}), which this reader takes"
+        )
 
 
 def _opencv_matrices(path: str) -> tuple:
@@ -386,6 +400,7 @@ def _json_camera(entry, where: str) -> Camera:
     else:
         raise ValueError(f"{where}: expected K or fx, fy, cx, cy")
     _require_known_keys(entry, _JSON_NUMBER_KEYS, where)
+    _require_json_model(entry, where)
     key = next((k for k in ("dist", "distortion", "dist_coeffs") if k in entry), None)
     dist = None if key is None or entry[key] is None else _json_numbers(entry[key], where, key)
     dist = as_distortion(dist, f"{where}: {key}")
@@ -393,6 +408,14 @@ def _json_camera(entry, where: str) -> Camera:
     if width is None and height is None:
         return Camera(K, dist)
     return Camera(K, dist, _image_size(width, height, where))
+
+
+def _require_json_model(entry: dict, where: str) -> None:
+    """ValueError for a ``distortion_model`` text of ``entry`` (Kalibr's key) other than
+    OpenCV's pinhole distortion."""
+    model = entry.get("distortion_model")
+    if isinstance(model, str):
+        _require_opencv_model(model, f"in {where}")
 
 
 def _object_of_unique_keys(pairs: list[tuple[str, Any]]) -> dict:
@@ -415,6 +438,8 @@ def _read_json(path: str, text: str) -> list[Camera]:
     except ValueError as exc:  # an integer of more digits than Python converts
         raise ValueError(f"{path} is not a calibration file: {str(exc).split(';')[0]}") from None
     try:
+        if isinstance(data, dict):
+            _require_json_model(data, path)
         listed = data.get("cameras") if isinstance(data, dict) else data
         if isinstance(data, dict) and "cameras" in data and not isinstance(listed, list):
             raise ValueError(f"{path}: cameras must be a list of cameras")

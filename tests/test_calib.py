@@ -616,3 +616,47 @@ def test_a_file_that_is_no_utf8_text_is_named_with_what_it_is(tmp_path, data, wo
     path.write_bytes(data)
     with pytest.raises(ValueError, match=re.escape(f"{what} {path} is not UTF-8 text {words}")):
         load_calibration(path) if what == "calibration file" else read_pairs(path)
+
+
+FISHEYE = [-0.01, 0.002, -0.001, 0.0003]  # equidistant k1..k4, no OpenCV pinhole coefficients
+
+
+@pytest.mark.parametrize(
+    "data, where",
+    [
+        ({"K": K_FREIBURG.tolist(), "dist": FISHEYE, "distortion_model": "equidistant"},
+         "camera.json"),
+        ({"cameras": [{"K": K_FREIBURG.tolist(), "dist": FISHEYE, "distortion_model": "fov"}]},
+         "camera.json camera 1"),
+        ({"K1": K_FREIBURG.tolist(), "dist1": FISHEYE, "distortion_model": "Equidistant"},
+         "camera.json"),
+    ],
+    ids=["camera", "cameras", "rig"],
+)  # fmt: skip
+def test_a_json_fisheye_is_refused_by_name(tmp_path, data, where):
+    # its coefficients were read as OpenCV's pinhole k1, k2, p1, p2: a silent wrong camera
+    path = tmp_path / "camera.json"
+    path.write_text(json.dumps(data))
+    model = (data.get("cameras") or [data])[0]["distortion_model"]
+    with pytest.raises(ValueError, match=f"^distortion_model '{model}' in .*{where} is not "
+                                         "OpenCV's pinhole distortion"):  # fmt: skip
+        load_calibration(path)
+
+
+@pytest.mark.parametrize(
+    "model, dist",
+    [("radtan", DIST[:4]), ("plumb_bob", DIST), ("rational_polynomial", np.r_[DIST, 0.1, 0, 0])],
+)
+@pytest.mark.parametrize("extension", ["json", "yml"])
+def test_opencv_distortion_models_are_read(tmp_path, model, dist, extension):
+    path = tmp_path / f"camera.{extension}"
+    if extension == "json":
+        path.write_text(json.dumps({"distortion_model": model, "K": K_FREIBURG.tolist(),
+                                    "dist": dist.tolist()}))  # fmt: skip
+    else:
+        path.write_text(ROS_CAMERA_INFO.replace("plumb_bob", model).replace(
+            "cols: 5\n  data: [-0.2, 0.05, 0.001, -0.002, 0.01]",
+            f"cols: {dist.size}\n  data: {dist.tolist()}"))  # fmt: skip
+    (camera,) = load_calibration(path)
+    np.testing.assert_array_equal(camera.dist, dist)
+    np.testing.assert_array_equal(camera.K, K_FREIBURG)
