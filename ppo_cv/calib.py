@@ -55,6 +55,8 @@ __all__ = [
     "ImplausibleCameraWarning",
     "ASPECT_TOLERANCE",
     "TURNED_CENTRE_TOLERANCE",
+    "EXIF_FIELD_RANGE_DEG",
+    "unusable_exif_focal",
 ]
 
 ASPECT_TOLERANCE = 0.01
@@ -616,7 +618,9 @@ def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> 
     camera : Camera
     from_exif : bool
         False when the image has no usable EXIF focal length: the focal length is then COLMAP's
-        default guess, 1.2 times the larger image side.
+        default guess, 1.2 times the larger image side. A focal length whose field of view
+        lies outside :data:`EXIF_FIELD_RANGE_DEG` is not used, with an
+        :class:`ImplausibleCameraWarning` saying so.
 
     Raises
     ------
@@ -632,10 +636,51 @@ def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> 
     as_flag(exif_orientation, "exif_orientation")
     check_decodes(path)  # pycolmap guessed a camera for a damaged image, after libpng's errors
     camera = pycolmap.infer_camera_from_image(os.fspath(path))
+    width, height = int(camera.width), int(camera.height)
     K = np.asarray(camera.calibration_matrix(), dtype=np.float64)
-    if exif_orientation and decoded_transposed(path, int(camera.width), int(camera.height)):
+    from_exif = bool(camera.has_prior_focal_length)
+    doubt = unusable_exif_focal(K[0, 0], max(width, height)) if from_exif else None
+    if doubt is not None:
+        warnings.warn(f"{os.fspath(path)}: {doubt}", ImplausibleCameraWarning, stacklevel=2)
+        K[[0, 1], [0, 1]], from_exif = 1.2 * max(width, height), False
+    if exif_orientation and decoded_transposed(path, width, height):
         K = K[[1, 0, 2]][:, [1, 0, 2]]
-    return Camera(_matrix_from_values(K, "EXIF camera")), bool(camera.has_prior_focal_length)
+    return Camera(_matrix_from_values(K, "EXIF camera")), from_exif
+
+
+EXIF_FIELD_RANGE_DEG = (0.5, 150.0)
+"""Fields of view across the larger image side outside which an EXIF focal length is no focal
+length (:func:`camera_from_exif`): 0.5 degrees is narrower than the longest camera zoom (a
+3000 mm equivalent gives 0.66), 150 degrees wider than any rectilinear lens (a 10 mm
+equivalent gives 120); beyond are placeholders such as 65535 mm (0.03 degrees)."""
+
+
+def unusable_exif_focal(focal: float, side: int) -> str | None:
+    """Why an EXIF focal length is not used, or None when it is.
+
+    Parameters
+    ----------
+    focal : float
+        The focal length the EXIF gives, pixels.
+    side : int
+        The larger side of the image, pixels.
+
+    Returns
+    -------
+    str or None
+        A sentence for a warning when the field of view across ``side`` lies outside
+        :data:`EXIF_FIELD_RANGE_DEG` (the focal length is then replaced by COLMAP's default
+        guess, 1.2 times ``side``).
+    """
+    field = math.degrees(2.0 * math.atan2(side, 2.0 * focal))
+    low, high = EXIF_FIELD_RANGE_DEG
+    if low <= field <= high:
+        return None
+    return (
+        f"the EXIF focal length f={focal:.1f} px gives a {field:.3g} deg field of view across "
+        f"{side} px, outside {low:g}..{high:g} deg (a placeholder?): not used, guessing "
+        f"f={1.2 * side:.1f} px (1.2 x image size) as without one; pass --K or --calib"
+    )
 
 
 def fit_to_image(

@@ -660,3 +660,43 @@ def test_opencv_distortion_models_are_read(tmp_path, model, dist, extension):
     (camera,) = load_calibration(path)
     np.testing.assert_array_equal(camera.dist, dist)
     np.testing.assert_array_equal(camera.K, K_FREIBURG)
+
+
+def _photo_of_35mm_focal(path, focal_35mm: int) -> None:
+    from PIL import Image
+
+    exif = Image.Exif()
+    exif[0x010F], exif[0x0110] = "Maker", "Model"
+    exif.get_ifd(0x8769)[0xA405] = focal_35mm  # FocalLengthIn35mmFilm
+    texture = np.random.default_rng(0).integers(0, 256, (480, 640, 3), dtype=np.uint8)
+    Image.fromarray(texture).save(path, exif=exif)
+
+
+@pytest.mark.parametrize("focal_35mm, field", [(65535, "0.0303"), (1, "173")])
+def test_an_exif_focal_length_that_is_none_is_not_used(tmp_path, focal_35mm, field):
+    # 65535 mm (a placeholder) gave f = 1.2 million px, used with a warning of the field only
+    from ppo_cv.cli.common import exif_camera
+
+    path = tmp_path / "photo.jpg"
+    _photo_of_35mm_focal(path, focal_35mm)
+    with pytest.warns(calib.ImplausibleCameraWarning) as caught:
+        camera, from_exif = camera_from_exif(path)
+    assert not from_exif
+    np.testing.assert_array_equal(camera.K, [[768, 0, 320], [0, 768, 240], [0, 0, 1]])
+    (message,) = [str(w.message) for w in caught]
+    assert message.startswith(f"{path}: the EXIF focal length f=")
+    assert f"gives a {field} deg field of view across 640 px, outside 0.5..150 deg" in message
+    assert "not used, guessing f=768.0 px (1.2 x image size)" in message
+    K, found, doubts = exif_camera(path)
+    assert not found and doubts == [message]
+    np.testing.assert_array_equal(K, camera.K)
+
+
+@pytest.mark.parametrize("focal_35mm", [10, 3000])
+def test_an_exif_focal_length_of_a_real_lens_is_used(tmp_path, focal_35mm):
+    path = tmp_path / "photo.jpg"
+    _photo_of_35mm_focal(path, focal_35mm)
+    camera, from_exif = camera_from_exif(path)
+    assert from_exif
+    expected = focal_35mm / np.hypot(36.0, 24.0) * np.hypot(640.0, 480.0)
+    np.testing.assert_allclose(camera.K[0, 0], expected, rtol=1e-3)
