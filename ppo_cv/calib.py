@@ -259,6 +259,7 @@ def _opencv_matrices(path: str) -> tuple:
         D2 = matrix(*_OPENCV_DISTORTION_KEYS[6:])
         _require_known_distortion(storage, path)
         width, height = (storage.getNode(key) for key in ("image_width", "image_height"))
+        _require_both(("image_width", "image_height"), (width.empty(), height.empty()), path)
         size = None
         if not (width.empty() or height.empty()):
             if not all(node.isInt() or node.isReal() for node in (width, height)):
@@ -267,6 +268,17 @@ def _opencv_matrices(path: str) -> tuple:
     finally:
         storage.release()
     return K1, D1, K2, D2, size
+
+
+def _require_both(keys: tuple[str, str], missing: tuple[bool, bool], where: str) -> None:
+    """ValueError when a calibration names one of the image width and height ``keys`` and not
+    the other: the size it states would be dropped, and a camera of other images not fitted."""
+    if missing[0] != missing[1]:
+        given, absent = keys if missing[1] else keys[::-1]
+        raise ValueError(
+            f"{where}: {given} without {absent}; give both (the size of the images the camera "
+            "was calibrated on) or neither"
+        )
 
 
 def _image_size(width, height, where: str) -> tuple[int, int]:
@@ -407,7 +419,8 @@ def _json_camera(entry, where: str) -> Camera:
     dist = None if key is None or entry[key] is None else _json_numbers(entry[key], where, key)
     dist = as_distortion(dist, f"{where}: {key}")
     width, height = entry.get("width"), entry.get("height")
-    if width is None and height is None:
+    _require_both(("width", "height"), (width is None, height is None), where)
+    if width is None:
         return Camera(K, dist)
     return Camera(K, dist, _image_size(width, height, where))
 

@@ -81,12 +81,14 @@ def test_opencv_file_storage(tmp_path, extension):
     path = tmp_path / f"camera.{extension}"
     storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
     storage.write("image_width", 640)
+    storage.write("image_height", 480)
     storage.write("camera_matrix", K_FREIBURG)
     storage.write("distortion_coefficients", DIST.reshape(1, 5))
     storage.release()
     (camera,) = load_calibration(path)
     np.testing.assert_allclose(camera.K, K_FREIBURG)
     np.testing.assert_allclose(camera.dist, DIST)
+    assert camera.image_size == (640, 480)
 
 
 def _written_by_opencv(tmp_path, extension: str) -> bytes:
@@ -700,3 +702,23 @@ def test_an_exif_focal_length_of_a_real_lens_is_used(tmp_path, focal_35mm):
     assert from_exif
     expected = focal_35mm / np.hypot(36.0, 24.0) * np.hypot(640.0, 480.0)
     np.testing.assert_allclose(camera.K[0, 0], expected, rtol=1e-3)
+
+
+@pytest.mark.parametrize(
+    "name, text, message",
+    [
+        ("camera.yml", "%YAML:1.0\n---\nimage_width: 640\n"
+                       "camera_matrix: [500, 0, 320, 0, 500, 240, 0, 0, 1]\n",
+         "image_width without image_height"),
+        ("camera.xml", '<?xml version="1.0"?>\n<opencv_storage><image_height>480</image_height>'
+                       "<camera_matrix>500 0 320 0 500 240 0 0 1</camera_matrix>"
+                       "</opencv_storage>\n", "image_height without image_width"),
+        ("camera.json", '{"K": [500, 500, 320, 240], "width": 640}', "width without height"),
+        ("camera.json", '{"K1": [500, 500, 320, 240], "height": 480}', "height without width"),
+    ],
+)  # fmt: skip
+def test_an_image_width_without_its_height_is_refused(tmp_path, name, text, message):
+    # YAML dropped the size silently, and a camera of other images was not fitted to the image
+    (tmp_path / name).write_text(text)
+    with pytest.raises(ValueError, match=f"{name}: {message}; give both .* or neither$"):
+        load_calibration(tmp_path / name)
