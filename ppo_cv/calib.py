@@ -107,10 +107,22 @@ def _numbers(text: str, name: str) -> np.ndarray:
     try:
         values = np.array([float(p) for p in parts], dtype=np.float64)
     except ValueError:
-        raise ValueError(f"{name} must be comma-separated numbers, got {shown(text)}") from None
+        number, bad = next((i, p) for i, p in enumerate(parts, 1) if not _is_number(p))
+        raise ValueError(
+            f"{name} must be numbers separated by commas, spaces or semicolons: field {number} "
+            f"of {len(parts)} is {shown(bad)}"
+        ) from None
     if not np.all(np.isfinite(values)):
         raise ValueError(f"{name} has NaN or infinite values: {shown(text)}")
     return values
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _matrix_from_values(values: np.ndarray, name: str) -> np.ndarray:
@@ -336,7 +348,7 @@ def _read_colmap(path: str, text: str) -> list[Camera]:
         if len(parts) < 5:
             raise ValueError(f"{path}:{number}: expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS...")
         where = f"{path}:{number}"
-        params = _numbers(" ".join(parts[4:]), where)
+        params = _numbers(" ".join(parts[4:]), f"{where}: PARAMS")
         size = _image_size(parts[2], parts[3], where)
         camera_id = _camera_id(parts[0], where)
         camera = _colmap_camera(parts[1].upper(), params, where, size)

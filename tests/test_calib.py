@@ -722,3 +722,23 @@ def test_an_image_width_without_its_height_is_refused(tmp_path, name, text, mess
     (tmp_path / name).write_text(text)
     with pytest.raises(ValueError, match=f"{name}: {message}; give both .* or neither$"):
         load_calibration(tmp_path / name)
+
+
+@pytest.mark.parametrize(
+    "text, field",
+    [("535.4 539.2; x, 247.6", "field 3 of 4 is 'x'"), ("535,4,539,2,320,1,247,6o", "field 8 of 8 "
+     "is '6o'"), ("[[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, one]]", "field 9 of 9 is 'one'")],
+)  # fmt: skip
+def test_intrinsics_that_are_no_numbers_name_the_field_and_the_separators(text, field):
+    # "--K must be comma-separated numbers", though spaces and semicolons are read too
+    with pytest.raises(ValueError, match=f"^--K must be numbers separated by commas, spaces or "
+                                         f"semicolons: {field}$"):  # fmt: skip
+        parse_intrinsics(text, "--K")
+
+
+def test_colmap_parameters_that_are_no_numbers_name_the_field(tmp_path):
+    path = tmp_path / "cameras.txt"
+    path.write_text("1 PINHOLE 640 480 500 x 320 240\n")
+    message = r"cameras.txt:1: PARAMS must be numbers separated by .*: field 2 of 4 is 'x'$"
+    with pytest.raises(ValueError, match=message):
+        load_calibration(path)
