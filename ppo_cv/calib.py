@@ -534,6 +534,8 @@ def load_calibration(path: str | os.PathLike) -> list[Camera]:
     if extension in (".yml", ".yaml", ".xml"):
         return _read_opencv(path)
     text = read_text_file(path, "calibration file")
+    if not text.strip():  # JSON's reader said "Expecting value"
+        raise ValueError(f"calibration file {path} is empty")
     if '"opencv-matrix"' in text:  # cv2.FileStorage's JSON, as calibrateCamera's YAML
         return _read_opencv(path)
     if extension == ".json" or text.lstrip().startswith(("{", "[")):

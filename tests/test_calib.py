@@ -742,3 +742,13 @@ def test_colmap_parameters_that_are_no_numbers_name_the_field(tmp_path):
     message = r"cameras.txt:1: PARAMS must be numbers separated by .*: field 2 of 4 is 'x'$"
     with pytest.raises(ValueError, match=message):
         load_calibration(path)
+
+
+@pytest.mark.parametrize("name", ["camera.json", "cameras.txt"])
+@pytest.mark.parametrize("text", ["", "\n \n", "\ufeff"])
+def test_an_empty_calibration_file_is_called_empty(tmp_path, name, text):
+    # an empty .json said "is not valid JSON: Expecting value (line 1)"
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(ValueError, match=f"^calibration file .*{name} is empty$"):
+        load_calibration(path)
