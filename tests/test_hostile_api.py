@@ -598,6 +598,14 @@ def test_decompression_bomb_is_refused_from_the_header(tmp_path, monkeypatch):
     monkeypatch.setenv("PPO_CV_MAX_IMAGE_PIXELS", "lots")
     with pytest.raises(ValueError, match="PPO_CV_MAX_IMAGE_PIXELS must be a whole number"):
         load_image(small)
+    for empty in ("", " "):  # unset, as an empty OMP_NUM_THREADS is: it was "got ''"
+        monkeypatch.setenv("PPO_CV_MAX_IMAGE_PIXELS", empty)
+        with pytest.warns(UserWarning, match=f"^PPO_CV_MAX_IMAGE_PIXELS={empty!r} is empty; "
+                                             "ignored$"):  # fmt: skip
+            assert load_image(small).shape == (48, 64, 3)
+        with pytest.warns(UserWarning), pytest.raises(ValueError, match="above the limit of "
+                                                                         "100000000"):  # fmt: skip
+            load_image(bomb)
 
 
 @pytest.mark.parametrize("extension", list(HEADERS))
