@@ -275,15 +275,30 @@ def _motion(fields: list[str]):
     R = T[:3, :3]
     deviation = float(np.abs(R.T @ R - np.eye(3)).max())
     if deviation > RIGID_TOLERANCE:
+        hint = _rounding_hint(fields[:3] + fields[4:7] + fields[8:11], R)
         raise ValueError(
             f"the ground-truth rotation is not orthonormal (|R^T R - I| up to {deviation:.2g}, "
-            f"above {RIGID_TOLERANCE:g})"
+            f"above {RIGID_TOLERANCE:g}){hint}"
         )
     if np.linalg.det(R) < 0:
         raise ValueError(
             "the ground-truth rotation has determinant -1: a reflection, not a rigid motion"
         )
     return T
+
+
+def _rounding_hint(fields: list[str], R) -> str:
+    """The end of the message for a ground-truth rotation ``R`` (3x3) of text ``fields`` (its 9
+    entries) that is a rotation rounded to the 2 to 5 decimals written (nearer the nearest
+    rotation than the 9 entries' rounding, ``1.5 x 10^-decimals`` in Frobenius norm): that they
+    need more decimals; empty otherwise (a shear)."""
+    import numpy as np
+
+    decimals = max((len(f.partition(".")[2]) for f in fields if "e" not in f.lower()), default=0)
+    U, _, Vt = np.linalg.svd(R)
+    if not 2 <= decimals <= 5 or np.linalg.norm(R - U @ Vt) > 1.5 * 10.0**-decimals:
+        return ""
+    return f": its entries, written to {decimals} decimals, are rounded too far; write 6 or more"
 
 
 def pose_errors(R, t, T) -> dict:

@@ -454,32 +454,37 @@ def exif_camera(path, exif_orientation: bool = True) -> tuple[Any, bool, list[st
     then 1.2 times the larger image side). The warnings say when the EXIF pixel dimensions are
     not those of the image (a resized or cropped copy keeps the focal length of the original)
     and when the horizontal field of view the focal length implies lies outside
-    :data:`MIN_EXIF_FIELD_DEG`..:data:`MAX_EXIF_FIELD_DEG`.
+    :data:`MIN_EXIF_FIELD_DEG`..:data:`MAX_EXIF_FIELD_DEG`; and, with ``from_exif`` False,
+    when an EXIF focal length was not used (:data:`ppo_cv.calib.EXIF_FIELD_RANGE_DEG`).
     """
-    from ppo_cv.calib import camera_from_exif
+    from ppo_cv.calib import ImplausibleCameraWarning, camera_from_exif
     from ppo_cv.images import exif_layout
 
-    camera, from_exif = camera_from_exif(path, exif_orientation)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ImplausibleCameraWarning)
+        camera, from_exif = camera_from_exif(path, exif_orientation)
+    doubts = [str(w.message) for w in caught if issubclass(w.category, ImplausibleCameraWarning)]
+    for other in (w for w in caught if not issubclass(w.category, ImplausibleCameraWarning)):
+        warnings.warn_explicit(other.message, other.category, other.filename, other.lineno)
     K = camera.K
     if not from_exif:
-        return K, False, []
-    warnings = []
+        return K, False, doubts
     width, height = round(2 * K[0, 2]), round(2 * K[1, 2])
     recorded = exif_layout(path).pixel_size
     if recorded is not None and sorted(recorded) != sorted((width, height)):
-        warnings.append(
+        doubts.append(
             f"{path}: the EXIF says the photo was {recorded[0]}x{recorded[1]} pixels, the image "
             f"is {width}x{height} (resized or cropped?), so its EXIF focal length may not fit; "
             "pass --K or --calib"
         )
     field = math.degrees(2.0 * math.atan(width / (2.0 * K[0, 0])))
     if not MIN_EXIF_FIELD_DEG <= field <= MAX_EXIF_FIELD_DEG:
-        warnings.append(
+        doubts.append(
             f"{path}: the EXIF focal length f={K[0, 0]:.1f} px gives a {field:.1f} deg "
             f"horizontal field of view at {width} px wide, outside "
             f"{MIN_EXIF_FIELD_DEG:g}..{MAX_EXIF_FIELD_DEG:g} deg; pass --K or --calib"
         )
-    return K, True, warnings
+    return K, True, doubts
 
 
 def exif_note(focals: tuple[float, float], found: tuple[bool, bool], names=("", "")) -> str:

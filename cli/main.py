@@ -153,6 +153,20 @@ def _drop_unreadable_thread_counts(argv: list[str] | None) -> None:
                   "number; ignored", file=sys.stderr)  # fmt: skip
 
 
+_PIXEL_LIMIT_VARIABLE = "PPO_CV_MAX_IMAGE_PIXELS"
+""":data:`ppo_cv.images.MAX_PIXELS_ENV`, named here before numpy loads."""
+
+
+def _drop_empty_pixel_limit(argv: list[str] | None) -> None:
+    """Remove an empty ``PPO_CV_MAX_IMAGE_PIXELS``, with a warning, as an unreadable OpenMP
+    thread count is removed: set to nothing, it is unset (the default limit)."""
+    value = os.environ.get(_PIXEL_LIMIT_VARIABLE)
+    if value is not None and not value.strip():
+        del os.environ[_PIXEL_LIMIT_VARIABLE]
+        print(f"{_command(argv)}: warning: {_PIXEL_LIMIT_VARIABLE}={value!r} is empty; "
+              "ignored", file=sys.stderr)  # fmt: skip
+
+
 def _run(argv: list[str] | None) -> int:
     """The command's exit code; 130 when it was interrupted."""
     if _command(argv).split()[-1] in _PYCOLMAP_COMMANDS:
@@ -190,6 +204,7 @@ def main(argv: list[str] | None = None) -> None:
     for variable in BLAS_THREAD_VARIABLES:
         os.environ.setdefault(variable, "1")
     _drop_unreadable_thread_counts(argv)
+    _drop_empty_pixel_limit(argv)
     sigterm_as_interrupt()
     if sys.stdout is None:  # started with ">&-": every command prints its result there
         print(f"{_command(argv)}: standard output is closed; redirect it to a file or "

@@ -36,7 +36,8 @@ MAX_FEATURES = 100_000
 
 
 def parse_K(text: str) -> np.ndarray:
-    """``fx,fy,cx,cy`` or nine comma-separated values (row-major) as a 3x3 matrix."""
+    """``fx,fy,cx,cy`` or nine values (row-major) as a 3x3 matrix, separated by commas, spaces
+    or semicolons."""
     from ppo_cv.calib import parse_intrinsics
 
     return parse_intrinsics(text, "--K")

@@ -3,10 +3,12 @@
 - Strings: ``"fx,fy,cx,cy"`` or the 9 entries of ``K`` row-major; distortion ``"k1,k2,p1,p2[,k3]"``.
 - OpenCV FileStorage YAML/XML as written after ``cv2.calibrateCamera`` (``camera_matrix`` /
   ``cameraMatrix`` / ``K`` / ``M1``, ``distortion_coefficients`` / ``dist_coeffs`` / ``D1``, ...),
-  and ROS ``camera_info`` YAML (``distortion_model`` plumb_bob or rational_polynomial).
+  and ROS ``camera_info`` YAML (``distortion_model`` plumb_bob, rational_polynomial or
+  Kalibr's radtan: OpenCV's pinhole distortion; another model, a fisheye's, is refused).
 - COLMAP ``cameras.txt`` (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV).
 - JSON: ``{"K": ..., "dist": ...}``, ``{"fx", "fy", "cx", "cy"}``, ``{"K1", "K2", "dist1",
-  "dist2"}`` or ``{"cameras": [camera, camera]}``.
+  "dist2"}`` or ``{"cameras": [camera, camera]}``; a ``distortion_model`` must name OpenCV's
+  pinhole distortion, as in ROS YAML.
 - EXIF: a guess from the image's focal length tags (``pycolmap.infer_camera_from_image``).
 
 A file may describe one camera (used for both images) or two (image 1, image 2). A camera
@@ -53,6 +55,8 @@ __all__ = [
     "ImplausibleCameraWarning",
     "ASPECT_TOLERANCE",
     "TURNED_CENTRE_TOLERANCE",
+    "EXIF_FIELD_RANGE_DEG",
+    "unusable_exif_focal",
 ]
 
 ASPECT_TOLERANCE = 0.01
@@ -103,10 +107,22 @@ def _numbers(text: str, name: str) -> np.ndarray:
     try:
         values = np.array([float(p) for p in parts], dtype=np.float64)
     except ValueError:
-        raise ValueError(f"{name} must be comma-separated numbers, got {shown(text)}") from None
+        number, bad = next((i, p) for i, p in enumerate(parts, 1) if not _is_number(p))
+        raise ValueError(
+            f"{name} must be numbers separated by commas, spaces or semicolons: field {number} "
+            f"of {len(parts)} is {shown(bad)}"
+        ) from None
     if not np.all(np.isfinite(values)):
         raise ValueError(f"{name} has NaN or infinite values: {shown(text)}")
     return values
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _matrix_from_values(values: np.ndarray, name: str) -> np.ndarray:
@@ -193,11 +209,8 @@ def _require_known_distortion(storage, path: str) -> None:
     camera read without its distortion; and for a ROS ``distortion_model`` other than OpenCV's
     (``equidistant``, a fisheye)."""
     model = storage.getNode("distortion_model")  # ROS camera_info
-    if model.isString() and model.string() not in ("plumb_bob", "rational_polynomial"):
-        raise ValueError(
-            f"distortion_model {shown(model.string())} in {path} is not OpenCV's pinhole "
-            "distortion (plumb_bob or rational_polynomial), which this reader takes"
-        )
+    if model.isString():
+        _require_opencv_model(model.string(), f"in {path}")
     for key in storage.root().keys():
         if key.lower().startswith("dist") and key not in _OPENCV_DISTORTION_KEYS:
             if not storage.getNode(key).isString():
@@ -206,6 +219,21 @@ def _require_known_distortion(storage, path: str) -> None:
                     f"ignored; name the coefficients {', '.join(_OPENCV_DISTORTION_KEYS[:6])} "
                     "(a second camera's D2, dist2)"
                 )
+
+
+_OPENCV_DISTORTION_MODELS = ("plumb_bob", "rational_polynomial", "radtan")
+"""Names of OpenCV's pinhole distortion in a ``distortion_model`` (ROS ``camera_info``,
+Kalibr): the one model the readers take; another (``equidistant``, a fisheye) is refused."""
+
+
+def _require_opencv_model(model: Any, where: str) -> None:
+    """ValueError for a ``distortion_model`` named in ``where`` that is not OpenCV's pinhole
+    distortion: its coefficients would be read as OpenCV's, a silent wrong camera."""
+    if model is not None and model not in _OPENCV_DISTORTION_MODELS:
+        raise ValueError(
+            f"distortion_model {shown(model)} {where} is not OpenCV's pinhole distortion "
+            f"({', '.join(_OPENCV_DISTORTION_MODELS)}), which this reader takes"
+        )
 
 
 def _opencv_matrices(path: str) -> tuple:
@@ -243,6 +271,7 @@ def _opencv_matrices(path: str) -> tuple:
         D2 = matrix(*_OPENCV_DISTORTION_KEYS[6:])
         _require_known_distortion(storage, path)
         width, height = (storage.getNode(key) for key in ("image_width", "image_height"))
+        _require_both(("image_width", "image_height"), (width.empty(), height.empty()), path)
         size = None
         if not (width.empty() or height.empty()):
             if not all(node.isInt() or node.isReal() for node in (width, height)):
@@ -251,6 +280,17 @@ def _opencv_matrices(path: str) -> tuple:
     finally:
         storage.release()
     return K1, D1, K2, D2, size
+
+
+def _require_both(keys: tuple[str, str], missing: tuple[bool, bool], where: str) -> None:
+    """ValueError when a calibration names one of the image width and height ``keys`` and not
+    the other: the size it states would be dropped, and a camera of other images not fitted."""
+    if missing[0] != missing[1]:
+        given, absent = keys if missing[1] else keys[::-1]
+        raise ValueError(
+            f"{where}: {given} without {absent}; give both (the size of the images the camera "
+            "was calibrated on) or neither"
+        )
 
 
 def _image_size(width, height, where: str) -> tuple[int, int]:
@@ -308,7 +348,7 @@ def _read_colmap(path: str, text: str) -> list[Camera]:
         if len(parts) < 5:
             raise ValueError(f"{path}:{number}: expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS...")
         where = f"{path}:{number}"
-        params = _numbers(" ".join(parts[4:]), where)
+        params = _numbers(" ".join(parts[4:]), f"{where}: PARAMS")
         size = _image_size(parts[2], parts[3], where)
         camera_id = _camera_id(parts[0], where)
         camera = _colmap_camera(parts[1].upper(), params, where, size)
@@ -386,13 +426,23 @@ def _json_camera(entry, where: str) -> Camera:
     else:
         raise ValueError(f"{where}: expected K or fx, fy, cx, cy")
     _require_known_keys(entry, _JSON_NUMBER_KEYS, where)
+    _require_json_model(entry, where)
     key = next((k for k in ("dist", "distortion", "dist_coeffs") if k in entry), None)
     dist = None if key is None or entry[key] is None else _json_numbers(entry[key], where, key)
     dist = as_distortion(dist, f"{where}: {key}")
     width, height = entry.get("width"), entry.get("height")
-    if width is None and height is None:
+    _require_both(("width", "height"), (width is None, height is None), where)
+    if width is None:
         return Camera(K, dist)
     return Camera(K, dist, _image_size(width, height, where))
+
+
+def _require_json_model(entry: dict, where: str) -> None:
+    """ValueError for a ``distortion_model`` text of ``entry`` (Kalibr's key) other than
+    OpenCV's pinhole distortion."""
+    model = entry.get("distortion_model")
+    if isinstance(model, str):
+        _require_opencv_model(model, f"in {where}")
 
 
 def _object_of_unique_keys(pairs: list[tuple[str, Any]]) -> dict:
@@ -415,6 +465,8 @@ def _read_json(path: str, text: str) -> list[Camera]:
     except ValueError as exc:  # an integer of more digits than Python converts
         raise ValueError(f"{path} is not a calibration file: {str(exc).split(';')[0]}") from None
     try:
+        if isinstance(data, dict):
+            _require_json_model(data, path)
         listed = data.get("cameras") if isinstance(data, dict) else data
         if isinstance(data, dict) and "cameras" in data and not isinstance(listed, list):
             raise ValueError(f"{path}: cameras must be a list of cameras")
@@ -482,6 +534,8 @@ def load_calibration(path: str | os.PathLike) -> list[Camera]:
     if extension in (".yml", ".yaml", ".xml"):
         return _read_opencv(path)
     text = read_text_file(path, "calibration file")
+    if not text.strip():  # JSON's reader said "Expecting value"
+        raise ValueError(f"calibration file {path} is empty")
     if '"opencv-matrix"' in text:  # cv2.FileStorage's JSON, as calibrateCamera's YAML
         return _read_opencv(path)
     if extension == ".json" or text.lstrip().startswith(("{", "[")):
@@ -591,7 +645,9 @@ def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> 
     camera : Camera
     from_exif : bool
         False when the image has no usable EXIF focal length: the focal length is then COLMAP's
-        default guess, 1.2 times the larger image side.
+        default guess, 1.2 times the larger image side. A focal length whose field of view
+        lies outside :data:`EXIF_FIELD_RANGE_DEG` is not used, with an
+        :class:`ImplausibleCameraWarning` saying so.
 
     Raises
     ------
@@ -607,10 +663,51 @@ def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> 
     as_flag(exif_orientation, "exif_orientation")
     check_decodes(path)  # pycolmap guessed a camera for a damaged image, after libpng's errors
     camera = pycolmap.infer_camera_from_image(os.fspath(path))
+    width, height = int(camera.width), int(camera.height)
     K = np.asarray(camera.calibration_matrix(), dtype=np.float64)
-    if exif_orientation and decoded_transposed(path, int(camera.width), int(camera.height)):
+    from_exif = bool(camera.has_prior_focal_length)
+    doubt = unusable_exif_focal(K[0, 0], max(width, height)) if from_exif else None
+    if doubt is not None:
+        warnings.warn(f"{os.fspath(path)}: {doubt}", ImplausibleCameraWarning, stacklevel=2)
+        K[[0, 1], [0, 1]], from_exif = 1.2 * max(width, height), False
+    if exif_orientation and decoded_transposed(path, width, height):
         K = K[[1, 0, 2]][:, [1, 0, 2]]
-    return Camera(_matrix_from_values(K, "EXIF camera")), bool(camera.has_prior_focal_length)
+    return Camera(_matrix_from_values(K, "EXIF camera")), from_exif
+
+
+EXIF_FIELD_RANGE_DEG = (0.5, 150.0)
+"""Fields of view across the larger image side outside which an EXIF focal length is no focal
+length (:func:`camera_from_exif`): 0.5 degrees is narrower than the longest camera zoom (a
+3000 mm equivalent gives 0.66), 150 degrees wider than any rectilinear lens (a 10 mm
+equivalent gives 120); beyond are placeholders such as 65535 mm (0.03 degrees)."""
+
+
+def unusable_exif_focal(focal: float, side: int) -> str | None:
+    """Why an EXIF focal length is not used, or None when it is.
+
+    Parameters
+    ----------
+    focal : float
+        The focal length the EXIF gives, pixels.
+    side : int
+        The larger side of the image, pixels.
+
+    Returns
+    -------
+    str or None
+        A sentence for a warning when the field of view across ``side`` lies outside
+        :data:`EXIF_FIELD_RANGE_DEG` (the focal length is then replaced by COLMAP's default
+        guess, 1.2 times ``side``).
+    """
+    field = math.degrees(2.0 * math.atan2(side, 2.0 * focal))
+    low, high = EXIF_FIELD_RANGE_DEG
+    if low <= field <= high:
+        return None
+    return (
+        f"the EXIF focal length f={focal:.1f} px gives a {field:.3g} deg field of view across "
+        f"{side} px, outside {low:g}..{high:g} deg (a placeholder?): not used, guessing "
+        f"f={1.2 * side:.1f} px (1.2 x image size) as without one; pass --K or --calib"
+    )
 
 
 def fit_to_image(

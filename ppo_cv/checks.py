@@ -227,8 +227,10 @@ def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
         require_finite(K, name)
     (fx, _, _), (k10, fy, _), last = rows
     if max(abs(last[0]), abs(last[1]), abs(last[2] - 1.0), abs(k10)) > 1e-12:
+        scaled = max(abs(last[0]), abs(last[1]), abs(k10)) <= 1e-12 and last[2] != 0
+        hint = f" (scaled as a whole? divide it by K[2,2] = {last[2]:g})" if scaled else ""
         raise ValueError(
-            f"{name} must be upper triangular with last row (0, 0, 1), got {K.tolist()}"
+            f"{name} must be upper triangular with last row (0, 0, 1), got {K.tolist()}{hint}"
         )
     if not (MIN_FOCAL <= fx <= MAX_FOCAL and MIN_FOCAL <= fy <= MAX_FOCAL):
         kind = (

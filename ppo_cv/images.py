@@ -4,7 +4,8 @@ A small compressed file can declare an enormous image (a 878 KB PNG of 30000 x 3
 decodes to 2.7 GB); :func:`load_image` reads the width and height from the file header first
 (PNG by its IHDR chunk, other formats through Pillow's lazy ``Image.open``, which parses only
 the header) and refuses images above ``max_pixels``: by default :data:`DEFAULT_MAX_PIXELS`
-(100 megapixels), overridable per call or by the environment variable ``PPO_CV_MAX_IMAGE_PIXELS``.
+(100 megapixels), overridable per call or by the environment variable ``PPO_CV_MAX_IMAGE_PIXELS``
+(set to nothing, it is unset, with a warning).
 Named pipes, devices and other non-regular files are refused without being opened, so a FIFO
 given as an image cannot block.
 
@@ -56,7 +57,9 @@ _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 def _max_pixels(max_pixels: int | None) -> int:
     if max_pixels is None:
         text = os.environ.get(MAX_PIXELS_ENV)
-        if text is None:
+        if text is not None and not text.strip():
+            warnings.warn(f"{MAX_PIXELS_ENV}={text!r} is empty; ignored", stacklevel=3)
+        if text is None or not text.strip():
             return DEFAULT_MAX_PIXELS
         try:
             max_pixels = int(text)

@@ -436,7 +436,8 @@ def prepare_database(
         verifies pairs with an essential matrix; the images must then all have one size.
         Without it pycolmap guesses a ``SIMPLE_RADIAL`` camera from the EXIF focal length or
         the image size, one for each image size and EXIF focal length
-        (``pycolmap.CameraMode.AUTO``).
+        (``pycolmap.CameraMode.AUTO``); an EXIF focal length that is none
+        (:func:`~ppo_cv.calib.unusable_exif_focal`) is replaced by the image size's guess.
     max_num_features : int
         SIFT features per image.
     num_threads : int
@@ -483,6 +484,8 @@ def prepare_database(
             extraction_options=extraction,
             device=pycolmap.Device.cpu,
         )
+        if K is None:
+            _drop_unusable_exif_focals(database_path)
         _say(progress, f"matching {len(names) * (len(names) - 1) // 2} image pairs")
         pycolmap.match_exhaustive(
             database_path,
@@ -501,6 +504,21 @@ def prepare_database(
             "image, or damaged"
         )
     return len(read)
+
+
+def _drop_unusable_exif_focals(database_path: str | os.PathLike) -> None:
+    """Give each camera pycolmap guessed from an EXIF focal length that is none (a placeholder
+    such as 65535 mm, :func:`~ppo_cv.calib.unusable_exif_focal`) the focal length of an image
+    without one, 1.2 times its larger side, as :func:`~ppo_cv.calib.camera_from_exif` does."""
+    from .calib import unusable_exif_focal
+
+    with pycolmap.Database.open(database_path) as database:
+        for camera in database.read_all_cameras():
+            side = max(camera.width, camera.height)
+            focal = camera.mean_focal_length()
+            if camera.has_prior_focal_length and unusable_exif_focal(focal, side) is not None:
+                camera.focal_length, camera.has_prior_focal_length = 1.2 * side, False
+                database.update_camera(camera)
 
 
 def _check_one_size(image_dir: str | os.PathLike, names: Sequence[str]) -> None:

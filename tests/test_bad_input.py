@@ -108,6 +108,19 @@ def test_camera_matrix_not_a_pinhole(call, pair):
 
 
 @pytest.mark.parametrize("call", BOTH_APIS)
+def test_a_camera_matrix_scaled_as_a_whole_is_refused_with_the_way_out(call, pair):
+    # refused with no hint that K / K[2,2] is the camera matrix meant
+    E, p1, p2 = pair
+    with pytest.raises(ValueError, match=r"last row \(0, 0, 1\), got .*\(scaled as a whole\? "
+                                         r"divide it by K\[2,2\] = 2\)$"):  # fmt: skip
+        call(E, p1, p2, 2.0 * K)
+    skewed_row = K.copy()
+    skewed_row[2] = (0.1, 0.0, 1.0)
+    with pytest.raises(ValueError, match=r"last row \(0, 0, 1\), got [^(]*$"):
+        call(E, p1, p2, skewed_row)
+
+
+@pytest.mark.parametrize("call", BOTH_APIS)
 def test_points_of_wrong_shape(call, pair):
     E, p1, p2 = pair
     with pytest.raises(ValueError, match=r"points1 must have shape \(N, 2\)"):

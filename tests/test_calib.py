@@ -81,12 +81,14 @@ def test_opencv_file_storage(tmp_path, extension):
     path = tmp_path / f"camera.{extension}"
     storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
     storage.write("image_width", 640)
+    storage.write("image_height", 480)
     storage.write("camera_matrix", K_FREIBURG)
     storage.write("distortion_coefficients", DIST.reshape(1, 5))
     storage.release()
     (camera,) = load_calibration(path)
     np.testing.assert_allclose(camera.K, K_FREIBURG)
     np.testing.assert_allclose(camera.dist, DIST)
+    assert camera.image_size == (640, 480)
 
 
 def _written_by_opencv(tmp_path, extension: str) -> bytes:
@@ -616,3 +618,137 @@ def test_a_file_that_is_no_utf8_text_is_named_with_what_it_is(tmp_path, data, wo
     path.write_bytes(data)
     with pytest.raises(ValueError, match=re.escape(f"{what} {path} is not UTF-8 text {words}")):
         load_calibration(path) if what == "calibration file" else read_pairs(path)
+
+
+FISHEYE = [-0.01, 0.002, -0.001, 0.0003]  # equidistant k1..k4, no OpenCV pinhole coefficients
+
+
+@pytest.mark.parametrize(
+    "data, where",
+    [
+        ({"K": K_FREIBURG.tolist(), "dist": FISHEYE, "distortion_model": "equidistant"},
+         "camera.json"),
+        ({"cameras": [{"K": K_FREIBURG.tolist(), "dist": FISHEYE, "distortion_model": "fov"}]},
+         "camera.json camera 1"),
+        ({"K1": K_FREIBURG.tolist(), "dist1": FISHEYE, "distortion_model": "Equidistant"},
+         "camera.json"),
+    ],
+    ids=["camera", "cameras", "rig"],
+)  # fmt: skip
+def test_a_json_fisheye_is_refused_by_name(tmp_path, data, where):
+    # its coefficients were read as OpenCV's pinhole k1, k2, p1, p2: a silent wrong camera
+    path = tmp_path / "camera.json"
+    path.write_text(json.dumps(data))
+    model = (data.get("cameras") or [data])[0]["distortion_model"]
+    with pytest.raises(ValueError, match=f"^distortion_model '{model}' in .*{where} is not "
+                                         "OpenCV's pinhole distortion"):  # fmt: skip
+        load_calibration(path)
+
+
+@pytest.mark.parametrize(
+    "model, dist",
+    [("radtan", DIST[:4]), ("plumb_bob", DIST), ("rational_polynomial", np.r_[DIST, 0.1, 0, 0])],
+)
+@pytest.mark.parametrize("extension", ["json", "yml"])
+def test_opencv_distortion_models_are_read(tmp_path, model, dist, extension):
+    path = tmp_path / f"camera.{extension}"
+    if extension == "json":
+        path.write_text(json.dumps({"distortion_model": model, "K": K_FREIBURG.tolist(),
+                                    "dist": dist.tolist()}))  # fmt: skip
+    else:
+        path.write_text(ROS_CAMERA_INFO.replace("plumb_bob", model).replace(
+            "cols: 5\n  data: [-0.2, 0.05, 0.001, -0.002, 0.01]",
+            f"cols: {dist.size}\n  data: {dist.tolist()}"))  # fmt: skip
+    (camera,) = load_calibration(path)
+    np.testing.assert_array_equal(camera.dist, dist)
+    np.testing.assert_array_equal(camera.K, K_FREIBURG)
+
+
+def _photo_of_35mm_focal(path, focal_35mm: int) -> None:
+    from PIL import Image
+
+    exif = Image.Exif()
+    exif[0x010F], exif[0x0110] = "Maker", "Model"
+    exif.get_ifd(0x8769)[0xA405] = focal_35mm  # FocalLengthIn35mmFilm
+    texture = np.random.default_rng(0).integers(0, 256, (480, 640, 3), dtype=np.uint8)
+    Image.fromarray(texture).save(path, exif=exif)
+
+
+@pytest.mark.parametrize("focal_35mm, field", [(65535, "0.0303"), (1, "173")])
+def test_an_exif_focal_length_that_is_none_is_not_used(tmp_path, focal_35mm, field):
+    # 65535 mm (a placeholder) gave f = 1.2 million px, used with a warning of the field only
+    from ppo_cv.cli.common import exif_camera
+
+    path = tmp_path / "photo.jpg"
+    _photo_of_35mm_focal(path, focal_35mm)
+    with pytest.warns(calib.ImplausibleCameraWarning) as caught:
+        camera, from_exif = camera_from_exif(path)
+    assert not from_exif
+    np.testing.assert_array_equal(camera.K, [[768, 0, 320], [0, 768, 240], [0, 0, 1]])
+    (message,) = [str(w.message) for w in caught]
+    assert message.startswith(f"{path}: the EXIF focal length f=")
+    assert f"gives a {field} deg field of view across 640 px, outside 0.5..150 deg" in message
+    assert "not used, guessing f=768.0 px (1.2 x image size)" in message
+    K, found, doubts = exif_camera(path)
+    assert not found and doubts == [message]
+    np.testing.assert_array_equal(K, camera.K)
+
+
+@pytest.mark.parametrize("focal_35mm", [10, 3000])
+def test_an_exif_focal_length_of_a_real_lens_is_used(tmp_path, focal_35mm):
+    path = tmp_path / "photo.jpg"
+    _photo_of_35mm_focal(path, focal_35mm)
+    camera, from_exif = camera_from_exif(path)
+    assert from_exif
+    expected = focal_35mm / np.hypot(36.0, 24.0) * np.hypot(640.0, 480.0)
+    np.testing.assert_allclose(camera.K[0, 0], expected, rtol=1e-3)
+
+
+@pytest.mark.parametrize(
+    "name, text, message",
+    [
+        ("camera.yml", "%YAML:1.0\n---\nimage_width: 640\n"
+                       "camera_matrix: [500, 0, 320, 0, 500, 240, 0, 0, 1]\n",
+         "image_width without image_height"),
+        ("camera.xml", '<?xml version="1.0"?>\n<opencv_storage><image_height>480</image_height>'
+                       "<camera_matrix>500 0 320 0 500 240 0 0 1</camera_matrix>"
+                       "</opencv_storage>\n", "image_height without image_width"),
+        ("camera.json", '{"K": [500, 500, 320, 240], "width": 640}', "width without height"),
+        ("camera.json", '{"K1": [500, 500, 320, 240], "height": 480}', "height without width"),
+    ],
+)  # fmt: skip
+def test_an_image_width_without_its_height_is_refused(tmp_path, name, text, message):
+    # YAML dropped the size silently, and a camera of other images was not fitted to the image
+    (tmp_path / name).write_text(text)
+    with pytest.raises(ValueError, match=f"{name}: {message}; give both .* or neither$"):
+        load_calibration(tmp_path / name)
+
+
+@pytest.mark.parametrize(
+    "text, field",
+    [("535.4 539.2; x, 247.6", "field 3 of 4 is 'x'"), ("535,4,539,2,320,1,247,6o", "field 8 of 8 "
+     "is '6o'"), ("[[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, one]]", "field 9 of 9 is 'one'")],
+)  # fmt: skip
+def test_intrinsics_that_are_no_numbers_name_the_field_and_the_separators(text, field):
+    # "--K must be comma-separated numbers", though spaces and semicolons are read too
+    with pytest.raises(ValueError, match=f"^--K must be numbers separated by commas, spaces or "
+                                         f"semicolons: {field}$"):  # fmt: skip
+        parse_intrinsics(text, "--K")
+
+
+def test_colmap_parameters_that_are_no_numbers_name_the_field(tmp_path):
+    path = tmp_path / "cameras.txt"
+    path.write_text("1 PINHOLE 640 480 500 x 320 240\n")
+    message = r"cameras.txt:1: PARAMS must be numbers separated by .*: field 2 of 4 is 'x'$"
+    with pytest.raises(ValueError, match=message):
+        load_calibration(path)
+
+
+@pytest.mark.parametrize("name", ["camera.json", "cameras.txt"])
+@pytest.mark.parametrize("text", ["", "\n \n", "\ufeff"])
+def test_an_empty_calibration_file_is_called_empty(tmp_path, name, text):
+    # an empty .json said "is not valid JSON: Expecting value (line 1)"
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(ValueError, match=f"^calibration file .*{name} is empty$"):
+        load_calibration(path)

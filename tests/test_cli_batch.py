@@ -468,3 +468,30 @@ def test_the_repeated_lines_warning_is_one_short_line(tmp_path, capsys, lines, n
         f"ppo-cv pairs: warning: {pairs}: {named} an earlier line; each runs again and gives "
         "its own JSON line\n"
     )
+
+
+ROUNDED = "0.969 -0.158 -0.190 0.138 0.984 -0.114 0.205 0.084 0.975"  # a rotation, 3 decimals
+SHEARED = "1 0.05 0 0 1 0 0 0 1"  # no rotation, however rounded
+
+
+@pytest.mark.parametrize(
+    "R, ending",
+    [
+        (ROUNDED, r"above 0.0001\): its entries, written to 3 decimals, are rounded too far; "
+                  "write 6 or more$"),
+        (SHEARED, r"\(\|R\^T R - I\| up to 0.05, above 0.0001\)$"),
+    ],
+    ids=["rounded", "sheared"],
+)  # fmt: skip
+def test_a_ground_truth_rotation_rounded_too_far_is_refused_with_the_way_out(
+    tmp_path, R, ending
+):
+    # 3 decimals were refused as "not orthonormal", with no word of the decimals
+    rows = R.split()
+    T = " ".join(rows[0:3] + ["0.5"] + rows[3:6] + ["0"] + rows[6:9] + ["0", "0 0 0 1"])
+    K = "535.4 0 320.1 0 539.2 247.6 0 0 1"
+    path = tmp_path / "pairs.txt"
+    path.write_text(f"a.png b.png 0 0 {K} {K} {T}\n")
+    with pytest.raises(ValueError, match="pairs.txt:1: the ground-truth rotation is not "
+                                         "orthonormal .*" + ending):  # fmt: skip
+        batch.read_pairs(path)

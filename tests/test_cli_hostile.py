@@ -478,7 +478,7 @@ CASES = [
      r"--max-features must be in 8\.\.1000000, got <4001-digit integer>$"),
     ([*PAIR, "--" + "x" * 300], "pair", r"No such option: --x{75}\.\.\.$"),
     ([*PAIR[:3], "--K", "x" + "1," * 3000], "pair",
-     r"--K must be comma-separated numbers, got 'x(1,){17}1\.\.\.$"),
+     r"--K must be numbers separated by commas, spaces or semicolons: field 1 of 3000 is 'x1'$"),
     (["synth", "out", "--width", "1" + "0" * 4000], "synth",
      r"--width must be in 16\.\.4096, got <4001-digit integer>$"),
     (["sfm", "images", "model", "--init", "x" * 5000], "sfm",

@@ -134,6 +134,19 @@ def test_an_unreadable_openmp_thread_count_is_one_warning_line(variable, value, 
     assert done.stderr.splitlines() == expected
 
 
+@pytest.mark.parametrize("value", ["", "  "])
+def test_an_empty_pixel_limit_is_unset_with_one_warning_line(value):
+    # it failed every image with "PPO_CV_MAX_IMAGE_PIXELS must be a whole number, got ''"
+    env = {**os.environ, "PPO_CV_MAX_IMAGE_PIXELS": value}
+    done = subprocess.run([sys.executable, "-m", "ppo_cv.cli.main", "demo"],
+                          capture_output=True, text=True, timeout=300, env=env)  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.splitlines()[0] == (
+        f"ppo-cv demo: warning: PPO_CV_MAX_IMAGE_PIXELS={value!r} is empty; ignored"
+    )
+    assert "PPO_CV_MAX_IMAGE_PIXELS" not in "".join(done.stderr.splitlines()[1:])
+
+
 USAGE = {
     "pair": ("[IMAGE1] [IMAGE2]", ["IMAGE1", "IMAGE2"]),
     "pairs": ("PAIRS_FILE IMAGE_DIR", ["PAIRS_FILE", "IMAGE_DIR"]),

@@ -263,7 +263,8 @@ def bad_files(tmp_path_factory):
         (["{text}", DEMO2, "--K", K_TEXT], "not a readable image"),
         ([DEMO1, "{copy}", "--K", K_TEXT], "identical"),
         ([DEMO1, DEMO2, "--K", "535.4,539.2,320.1"], "--K must be 4 numbers"),
-        ([DEMO1, DEMO2, "--K", "a,b,c,d"], "--K must be comma-separated numbers"),
+        ([DEMO1, DEMO2, "--K", "a,b,c,d"], "--K must be numbers separated by commas, spaces or "
+         "semicolons: field 1 of 4 is 'a'"),
         ([DEMO1, DEMO2, "--K", K_TEXT, "--dist", "0.1,0.2,0.3"], "--dist must be"),
         ([DEMO1, DEMO2, "--calib", "{missing}"], "calibration file not found"),
         ([DEMO1, DEMO2, "--K", K_TEXT, "--features", "surf"], "unknown features"),

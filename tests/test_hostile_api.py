@@ -306,7 +306,7 @@ CASES = {
     "load_calibration None": (lambda: ppo_cv.load_calibration(None), TypeError,
                               "path must be a path (str or os.PathLike), got NoneType"),
     "parse_intrinsics names no option": (lambda: ppo_cv.parse_intrinsics("a,b"), ValueError,
-                                         "intrinsics must be comma-separated numbers"),
+                                         "intrinsics must be numbers separated by commas"),
     "parse_distortion names no option": (lambda: ppo_cv.calib.parse_distortion("1"), ValueError,
                                          "distortion must be OpenCV distortion coefficients"),
     "reconstruct no image folder": (lambda: _sfm_module().reconstruct(__file__, "no such folder"),
@@ -374,7 +374,8 @@ LONG_VALUE_CASES = {
     "parse_intrinsics huge int": (lambda: ppo_cv.parse_intrinsics(HUGE, "K"), TypeError,
                                   "K must be a text of numbers, got int <5001-digit integer>"),
     "parse_intrinsics long text": (lambda: ppo_cv.parse_intrinsics("x" + LONG_TEXT, "K"),
-                                   ValueError, "K must be comma-separated numbers, got 'x1,1,1,"),
+                                   ValueError, "K must be numbers separated by commas, spaces or "
+                                   "semicolons: field 1 of 3000 is 'x1'"),
     "parse_intrinsics long NaN text": (lambda: ppo_cv.parse_intrinsics("nan," + LONG_TEXT, "K"),
                                        ValueError, "K has NaN or infinite values: 'nan,1,1,"),
     "PairOptions ratio huge int": (lambda: PairOptions(ratio=HUGE), ValueError,
@@ -597,6 +598,14 @@ def test_decompression_bomb_is_refused_from_the_header(tmp_path, monkeypatch):
     monkeypatch.setenv("PPO_CV_MAX_IMAGE_PIXELS", "lots")
     with pytest.raises(ValueError, match="PPO_CV_MAX_IMAGE_PIXELS must be a whole number"):
         load_image(small)
+    for empty in ("", " "):  # unset, as an empty OMP_NUM_THREADS is: it was "got ''"
+        monkeypatch.setenv("PPO_CV_MAX_IMAGE_PIXELS", empty)
+        with pytest.warns(UserWarning, match=f"^PPO_CV_MAX_IMAGE_PIXELS={empty!r} is empty; "
+                                             "ignored$"):  # fmt: skip
+            assert load_image(small).shape == (48, 64, 3)
+        with pytest.warns(UserWarning), pytest.raises(ValueError, match="above the limit of "
+                                                                         "100000000"):  # fmt: skip
+            load_image(bomb)
 
 
 @pytest.mark.parametrize("extension", list(HEADERS))

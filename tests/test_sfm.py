@@ -354,3 +354,27 @@ def test_initial_pairs_text_keeps_names_with_spaces_as_the_pairs_file_does(tmp_p
                            0.0)  # fmt: skip
     sfm.write_model(result, tmp_path / "model")
     assert (tmp_path / "model" / "initial_pairs.txt").read_bytes() == text.encode("utf-8")
+
+
+def test_an_exif_focal_length_that_is_none_is_not_the_databases_camera(tmp_path):
+    # pycolmap took 65535 mm (a placeholder) for a prior focal length of 1.2 million px
+    from PIL import Image
+
+    images = tmp_path / "images"
+    images.mkdir()
+    texture = np.random.default_rng(0).integers(0, 256, (480, 640, 3), dtype=np.uint8)
+    for name, focal_35mm in (("a.jpg", 65535), ("b.jpg", 36)):
+        exif = Image.Exif()
+        exif[0x010F], exif[0x0110] = "Maker", "Model"
+        exif.get_ifd(0x8769)[0xA405] = focal_35mm  # FocalLengthIn35mmFilm
+        Image.fromarray(texture).save(images / name, exif=exif)
+    database = tmp_path / "db.db"
+    sfm.prepare_database(images, database)
+    with pycolmap.Database.open(database) as opened:
+        cameras = {image.name: opened.read_camera(image.camera_id)
+                   for image in opened.read_all_images()}  # fmt: skip
+    assert cameras["a.jpg"].mean_focal_length() == 768.0
+    assert not cameras["a.jpg"].has_prior_focal_length
+    assert cameras["b.jpg"].has_prior_focal_length
+    expected = 36 / np.hypot(36, 24) * 800  # the 35 mm frame's diagonal to the image's
+    assert cameras["b.jpg"].mean_focal_length() == pytest.approx(expected, rel=1e-3)
