@@ -56,12 +56,18 @@ __all__ = [
     "ASPECT_TOLERANCE",
     "TURNED_CENTRE_TOLERANCE",
     "EXIF_FIELD_RANGE_DEG",
+    "MAX_PIXEL_ASPECT",
     "unusable_exif_focal",
 ]
 
 ASPECT_TOLERANCE = 0.01
 """Relative difference of the horizontal and vertical scale factors within which an image is
 taken for a resized copy of the calibrated one (:func:`fit_to_image`)."""
+
+MAX_PIXEL_ASPECT = 4.0
+"""Largest ratio of ``fx`` to ``fy`` (either way) a calibration may give: an anamorphic lens
+squeezes by 2 at most, so a larger ratio is a typing error (``535,4,539,2`` for 535.4 and
+539.2 reads as fx 535 and fy 4)."""
 
 
 @dataclass(frozen=True)
@@ -142,6 +148,11 @@ def _matrix_from_values(values: np.ndarray, name: str) -> np.ndarray:
     K = as_camera_matrix(K, name)
     if K[0, 0] < 0 or K[1, 1] < 0:
         raise ValueError(f"{name} must have positive focal lengths, got fx={K[0, 0]} fy={K[1, 1]}")
+    if not 1.0 / MAX_PIXEL_ASPECT <= K[0, 0] / K[1, 1] <= MAX_PIXEL_ASPECT:
+        raise ValueError(
+            f"{name} gives fx={K[0, 0]:g} and fy={K[1, 1]:g}, a pixel {K[0, 0] / K[1, 1]:.3g} "
+            "times as wide as tall, which no camera has (a decimal comma? write 535.4, not 535,4)"
+        )
     return K
 
 

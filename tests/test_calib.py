@@ -752,3 +752,15 @@ def test_an_empty_calibration_file_is_called_empty(tmp_path, name, text):
     path.write_text(text, encoding="utf-8")
     with pytest.raises(ValueError, match=f"^calibration file .*{name} is empty$"):
         load_calibration(path)
+
+
+@pytest.mark.parametrize("text", ["535,4,539,2", "4,535,320,240", "535.4,100,320.1,247.6"])
+def test_focal_lengths_no_camera_has_are_refused_with_the_likely_typo(text):
+    # "535,4,539,2" (decimal commas) was read as fx 535, fy 4 and posed behind a warning
+    with pytest.raises(ValueError, match=r"^--K gives fx=.* which no camera has \(a decimal comma"):
+        parse_intrinsics(text, "--K")
+
+
+def test_an_anamorphic_pixel_is_still_a_camera():
+    K = parse_intrinsics("1070.8,535.4,640,360", "--K")
+    assert K[0, 0] / K[1, 1] == pytest.approx(2.0)

@@ -137,6 +137,7 @@ CASES = [
     ([*PAIR[:3], "--calib", "bad.xml"], "pair", r"malformed OpenCV calibration file.*bad\.xml"),
     ([*PAIR[:3], "--calib", "deep.json"], "pair", r"deep\.json is nested too deeply"),
     ([*PAIR[:3], "--calib", "fifo.png"], "pair", r"fifo\.png is not a regular file"),
+    ([*PAIR[:3], "--K", "535,4,539,2"], "pair", r"fy=4, .* \(a decimal comma\? write 535\.4"),
     # section 3: pairs output paths and inconsistent ground truth
     (
         ["pairs", "no_gt.txt", "images", "--K", K_TEXT, "-o", "nodir/x.jsonl"],
