@@ -98,6 +98,7 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
         if database.exists():
             raise ValueError(f"database {database} already exists; give a new file name")
         check_target(database, "file")
+        sfm.require_database_outside(database, out_dir, ("--database", "OUT_DIR"))
     matrix = None if K is None else parse_K(K)
     names, skipped = sfm.screen_images(image_dir)
     sfm.require_two_images(image_dir, names, skipped)

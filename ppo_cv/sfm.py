@@ -94,6 +94,7 @@ __all__ = [
     "list_images",
     "screen_images",
     "require_two_images",
+    "require_database_outside",
     "format_pairs",
     "write_model",
     "pose_errors",
@@ -340,6 +341,27 @@ def _require_utf8_name(name: str) -> None:
         shown = os.fsencode(name).decode("utf-8", "backslashreplace")
         reason = f"the name '{shown}' is not valid UTF-8, which pycolmap cannot read"
         raise ValueError(reason) from None
+
+
+def require_database_outside(
+    database_path: str | os.PathLike,
+    output_dir: str | os.PathLike,
+    names: tuple[str, str] = ("database_path", "output_dir"),
+) -> None:
+    """ValueError when the database would be ``output_dir`` or lie inside it.
+
+    The finished model replaces ``output_dir`` as a whole, so a database kept there would be
+    deleted with it, or the model refused at the end for a folder the run filled itself.
+    Symbolic links and ``..`` are resolved first; ``names`` are how the message calls the two
+    arguments (the command line's ``--database`` and ``OUT_DIR``).
+    """
+    database = Path(os.path.realpath(database_path))
+    folder = Path(os.path.realpath(output_dir))
+    if database == folder or database.is_relative_to(folder):
+        raise ValueError(
+            f"{names[0]} {database_path} lies in {names[1]} {output_dir}, which the model "
+            "replaces as a whole; keep the database outside it"
+        )
 
 
 MAX_NAMED_SKIPS = 3
@@ -1372,7 +1394,7 @@ def run_sfm(
     database_path : path, optional
         Where to keep the feature database (a new file, renamed into place once the features
         are matched, kept when no model can be built from them, never left half-written); a
-        temporary one by default.
+        temporary one by default. Never inside ``output_dir`` (:func:`require_database_outside`).
     overwrite : bool
         Replace an existing ``output_dir`` (never ``database_path``).
     exif_orientation : bool
@@ -1402,6 +1424,8 @@ def run_sfm(
         check_target(output_dir, "folder", overwrite, [image_dir], "output_dir ", API_REPLACE_HINT)
     if database_path is not None:
         _check_new_database(as_path(database_path, "database_path"), image_dir)
+        if output_dir is not None:
+            require_database_outside(database_path, output_dir)
     with contextlib.ExitStack() as stack:
         scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="ppo-cv-sfm-")))
         if exif_orientation:

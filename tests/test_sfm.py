@@ -293,6 +293,27 @@ def test_cli_sfm_bad_folders(tripod, tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+def test_a_database_inside_the_output_folder_is_refused_before_any_work(tripod, tmp_path):
+    # The model replaces the output folder as a whole at the end: a database kept inside it
+    # was deleted and the finished model refused (or, with --overwrite, written with exit 2).
+    images, _, K, *_ = tripod
+    out = tmp_path / "model"
+    out.mkdir()
+    with pytest.raises(ValueError, match=r"database_path .*db\.db lies in output_dir .*model"):
+        sfm.run_sfm(images, out, K=K, database_path=out / "db.db")
+    (out / "keep.txt").write_text("keep")
+    k = f"{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]}"
+    args = ["sfm", str(images), str(out), "--K", k, "--database", str(out / "db.db")]
+    run = CliRunner().invoke(app, [*args, "--overwrite"])
+    assert run.exit_code == 2, run.output
+    assert run.stderr == (
+        f"ppo-cv sfm: --database {out / 'db.db'} lies in OUT_DIR {out}, which the model "
+        "replaces as a whole; keep the database outside it\n"
+    )
+    assert [p.name for p in out.iterdir()] == ["keep.txt"]
+    assert [p.name for p in tmp_path.iterdir()] == ["model"]
+
+
 # --- real images -----------------------------------------------------------------------------
 
 
