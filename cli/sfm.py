@@ -131,7 +131,8 @@ def register(app: typer.Typer) -> None:
         "\n\npycolmap extracts SIFT features and matches all pairs; PPO ranks the candidate "
         "initial pairs, rejecting pure rotations and pairs without parallax (initial_pairs.txt "
         "in OUT_DIR); pycolmap's incremental mapper starts from the best pair. Without --K "
-        "pycolmap estimates a camera per image size and EXIF focal length. OUT_DIR is written "
+        "pycolmap estimates a camera per image size and EXIF focal length (per image without "
+        "one). OUT_DIR is written "
         "completely or not at all; --database once the images are matched, and it is kept "
         "when no model can be built from them (exit code 1).",
     )

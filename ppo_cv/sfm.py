@@ -441,8 +441,8 @@ def prepare_database(
         Known intrinsics: one ``PINHOLE`` camera with a prior focal length, so that pycolmap
         verifies pairs with an essential matrix; the images must then all have one size.
         Without it pycolmap guesses a ``SIMPLE_RADIAL`` camera from the EXIF focal length or
-        the image size, one for each image size and EXIF focal length
-        (``pycolmap.CameraMode.AUTO``).
+        the image size, one for each image size and EXIF focal length, and one per image for
+        images without an EXIF focal length (``pycolmap.CameraMode.AUTO``).
     max_num_features : int
         SIFT features per image.
     num_threads : int
