@@ -1502,17 +1502,24 @@ def _staged_file(
 
 def format_pairs(pairs: Sequence[PairScore]) -> str:
     """The ranking as text, one pair a line: names, score, inliers, PRI, angle, verdict; a
-    name holding whitespace in double quotes, as in a pairs file."""
+    name holding whitespace or starting with ``#`` (a comment) in double quotes, as in a pairs
+    file."""
     lines = ["# name1 name2 score num_inliers num_matches pri tri_angle_deg verdict"]
     for p in pairs:
         require_instance(p, PairScore, "each pair", " (sfm.score_pairs)")
         verdict = "ok" if p.accepted else p.rejection.replace(" ", "_")
-        name1, name2 = (f'"{n}"' if n.split() != [n] else n for n in (p.name1, p.name2))
+        name1, name2 = (_pairs_file_name(n) for n in (p.name1, p.name2))
         lines.append(
             f"{name1} {name2} {p.score:.1f} {p.num_inliers} {p.num_matches} "
             f"{p.pri:.4f} {p.tri_angle:.2f} {verdict}"
         )
     return "\n".join(lines) + "\n"
+
+
+def _pairs_file_name(name: str) -> str:
+    """``name`` as a pairs-file field: in double quotes when it holds whitespace or starts with
+    ``#``, which would start a comment."""
+    return f'"{name}"' if name.split() != [name] or name.startswith("#") else name
 
 
 def write_model(result: SfmResult, output_dir: str | os.PathLike, overwrite: bool = False) -> None:

@@ -362,7 +362,13 @@ def _pair_named(name1: str, name2: str) -> sfm.PairScore:
 
 @pytest.mark.parametrize(
     "names",
-    [("a.png", "b.png"), ("frame one.png", "ünï cödé\t2.png"), ("été.jpg", "x y z.jpg")],
+    [
+        ("a.png", "b.png"),
+        ("frame one.png", "ünï cödé\t2.png"),
+        ("été.jpg", "x y z.jpg"),
+        ("#1.png", "#2.png"),
+        ("a.png", "#b.png"),
+    ],
 )
 def test_initial_pairs_text_keeps_names_with_spaces_as_the_pairs_file_does(tmp_path, names):
     from ppo_cv.cli.batch import _fields
