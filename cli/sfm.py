@@ -95,7 +95,7 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
     check_target(out_dir, "folder", overwrite, [image_dir], "OUT_DIR ")
     if database is not None:
         check_apart(database, [image_dir], "--database ")
-        if database.exists():
+        if database.exists() or database.is_symlink():
             raise ValueError(f"database {database} already exists; give a new file name")
         check_target(database, "file")
         sfm.require_database_outside(database, out_dir, ("--database", "OUT_DIR"))

@@ -278,7 +278,7 @@ def _image_folder(value: Any) -> Path:
 def _check_new_database(database_path: Path, image_dir: Path) -> None:
     """ValueError unless ``database_path`` can receive a new database: a database is built
     anew, never replaced or added to."""
-    if database_path.exists():
+    if database_path.exists() or database_path.is_symlink():
         raise ValueError(
             f"database {str(database_path)!r} already exists; give a new file name (a database "
             "is never replaced)"

@@ -56,3 +56,26 @@ def test_synth_replaces_an_output_named_through_itself(tmp_path):
     assert done.returncode == 0, done.stderr
     assert sorted(p.name for p in out.iterdir()) == ["gt", "images", "pairs_with_gt.txt"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+@pytest.mark.parametrize("kind", ["folder", "file"])
+def test_a_symbolic_link_to_nothing_is_refused_before_any_work_unless_replaced(tmp_path, kind):
+    # It is no file nor folder, so it passed the checks, and the output, complete, was refused
+    # at its final rename ("already exists; pass --overwrite"), after the whole run.
+    from ppo_cv.atomic import atomic_file, check_target
+
+    link = tmp_path / "out"
+    link.symlink_to("nowhere")
+    with pytest.raises(ValueError, match=r"out is a symbolic link to nowhere, which does not "
+                       r"exist; pass --overwrite to replace it$"):  # fmt: skip
+        check_target(link, kind)
+    assert link.is_symlink() and sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    if kind == "folder":
+        with atomic_directory(link, overwrite=True) as staging:
+            (staging / "new.txt").write_text("new")
+        assert [p.name for p in link.iterdir()] == ["new.txt"]
+    else:
+        with atomic_file(link, overwrite=True) as handle:
+            handle.write("new")
+        assert link.read_text() == "new"
+    assert not link.is_symlink() and sorted(p.name for p in tmp_path.iterdir()) == ["out"]

@@ -231,6 +231,17 @@ def test_prepare_database_rejects_bad_inputs(tripod, tmp_path):
     assert not (tmp_path / "db.db").exists()
 
 
+def test_a_database_named_by_a_symbolic_link_to_nothing_is_never_replaced(tripod, tmp_path):
+    # No --overwrite replaces a database, so the link is refused as a database that exists.
+    link = tmp_path / "db.db"
+    link.symlink_to("nowhere.db")
+    with pytest.raises(ValueError, match="already exists; give a new file name"):
+        sfm.prepare_database(tripod[0], link)
+    with pytest.raises(ValueError, match="already exists; give a new file name"):
+        sfm.run_sfm(tripod[0], tmp_path / "model", database_path=link)
+    assert link.is_symlink() and sorted(p.name for p in tmp_path.iterdir()) == ["db.db"]
+
+
 # --- the command line ----------------------------------------------------------------------
 
 
@@ -312,6 +323,19 @@ def test_a_database_inside_the_output_folder_is_refused_before_any_work(tripod, 
     )
     assert [p.name for p in out.iterdir()] == ["keep.txt"]
     assert [p.name for p in tmp_path.iterdir()] == ["model"]
+
+
+def test_cli_sfm_refuses_a_symbolic_link_to_nothing_as_out_dir_before_any_work(tripod, tmp_path):
+    images, _, K, *_ = tripod
+    (tmp_path / "model").symlink_to("nowhere")
+    k = f"{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]}"
+    run = CliRunner().invoke(app, ["sfm", str(images), str(tmp_path / "model"), "--K", k])
+    assert run.exit_code == 2, run.output
+    assert run.stderr == (
+        f"ppo-cv sfm: {tmp_path / 'model'} is a symbolic link to nowhere, which does not exist; "
+        "pass --overwrite to replace it\n"
+    )
+    assert (tmp_path / "model").is_symlink() and len(list(tmp_path.iterdir())) == 1
 
 
 # --- real images -----------------------------------------------------------------------------
