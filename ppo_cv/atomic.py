@@ -90,7 +90,7 @@ def check_target(
             break
     if target.is_symlink() and not target.exists() and not overwrite:
         raise ValueError(
-            f"{target} is a symbolic link to {os.readlink(target)}, which does not exist; "
+            f"{target} is a symbolic link to {os.readlink(target)}, which leads nowhere; "
             f"{replace_hint}"
         )
     if kind == "file":

@@ -327,12 +327,12 @@ def test_a_database_inside_the_output_folder_is_refused_before_any_work(tripod, 
 
 def test_cli_sfm_refuses_a_symbolic_link_to_nothing_as_out_dir_before_any_work(tripod, tmp_path):
     images, _, K, *_ = tripod
-    (tmp_path / "model").symlink_to("nowhere")
+    (tmp_path / "model").symlink_to("gone")
     k = f"{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]}"
     run = CliRunner().invoke(app, ["sfm", str(images), str(tmp_path / "model"), "--K", k])
     assert run.exit_code == 2, run.output
     assert run.stderr == (
-        f"ppo-cv sfm: {tmp_path / 'model'} is a symbolic link to nowhere, which does not exist; "
+        f"ppo-cv sfm: {tmp_path / 'model'} is a symbolic link to gone, which leads nowhere; "
         "pass --overwrite to replace it\n"
     )
     assert (tmp_path / "model").is_symlink() and len(list(tmp_path.iterdir())) == 1
