@@ -1444,10 +1444,25 @@ def run_sfm(
         )  # fmt: skip
         if output_dir is not None:
             if result.reconstruction is None:
-                raise ReconstructionFailed("nothing was reconstructed; no model written")
+                raise ReconstructionFailed(_nothing_built(result))
             write_model(result, output_dir, overwrite=overwrite)
             _say(progress, f"wrote {output_dir}")
     return result
+
+
+def _nothing_built(result: SfmResult) -> str:
+    """Why no model is written when the mapper ran: pycolmap's own initialisation found no
+    pair, or it grew no model from the PPO pairs tried."""
+    if result.initialization == "colmap":
+        return (
+            f"pycolmap's own initialisation found no pair of the {result.num_images} images to "
+            "start a model from (a panorama, or too little parallax) and no model was written; "
+            "the PPO initialisation names why each pair is refused"
+        )
+    return (
+        f"pycolmap's mapper grew no model of the {result.num_images} images from the PPO "
+        "initial pairs tried, and no model was written"
+    )
 
 
 def _upright_images(image_dir: Path, folder: Path) -> Path:

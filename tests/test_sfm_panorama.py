@@ -161,6 +161,25 @@ def test_every_checked_pair_a_rotation_fails_as_a_panorama(tripod, monkeypatch):
     assert f"{len(ranked) - sfm.MAX_IMAGE_CHECKS} not checked on the images" in message
 
 
+def test_pan_folder_with_colmap_initialization_says_why_nothing_was_built(tmp_path):
+    # It said "nothing was reconstructed; no model written", which names no cause.
+    images = tmp_path / "pan"
+    _, K, _ = render_tripod_then_move(images, n_pan=4, n_move=0)
+    k = f"{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]}"
+    run = subprocess.run(
+        [*COMMAND, "sfm", str(images), "model", "--K", k, "--init", "colmap", "--quiet",
+         "--threads", "1"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert run.returncode == 1, run.stderr
+    assert run.stderr == (
+        "ppo-cv sfm: pycolmap's own initialisation found no pair of the 4 images to start a "
+        "model from (a panorama, or too little parallax) and no model was written; the PPO "
+        "initialisation names why each pair is refused\n"
+    )
+    assert run.stdout == "" and not (tmp_path / "model").exists()
+
+
 def test_colmap_initialization_checks_no_pair(tripod, monkeypatch):
     images, database, _, _ = tripod
     calls: list = []
