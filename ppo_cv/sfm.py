@@ -377,9 +377,31 @@ def require_two_images(
         reasons = list(skipped.values())[:MAX_NAMED_SKIPS]
         more = f"; {len(skipped) - len(reasons)} more" if len(skipped) > len(reasons) else ""
         refused = f" ({len(skipped)} skipped: {'; '.join(reasons)}{more})" if skipped else ""
-        raise ValueError(
-            f"need at least 2 images in {str(image_dir)!r}, found {len(names)}{refused}"
+        nested = _image_subfolders(Path(image_dir))[:MAX_NAMED_SKIPS]
+        below = (
+            f"; sub-folders are not read, and {', '.join(nested)} hold images: give the "
+            "folder of the images, or put them in one"
+            if nested
+            else ""
         )
+        raise ValueError(
+            f"need at least 2 images in {str(image_dir)!r}, found {len(names)}{refused}{below}"
+        )
+
+
+def _image_subfolders(image_dir: Path) -> list[str]:
+    """The sorted names of the sub-folders of ``image_dir`` that hold image files directly
+    (those that cannot be listed left out)."""
+    try:
+        folders = sorted(p for p in image_dir.iterdir() if p.is_dir())
+    except OSError:
+        return []
+    holding = []
+    for folder in folders:
+        with contextlib.suppress(OSError):
+            if any(p.suffix.lower() in IMAGE_EXTENSIONS and p.is_file() for p in folder.iterdir()):
+                holding.append(folder.name)
+    return holding
 
 
 def _pycolmap_options(K: np.ndarray | None, max_num_features: int, num_threads: int, seed: int):

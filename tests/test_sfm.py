@@ -242,6 +242,23 @@ def test_a_database_named_by_a_symbolic_link_to_nothing_is_never_replaced(tripod
     assert link.is_symlink() and sorted(p.name for p in tmp_path.iterdir()) == ["db.db"]
 
 
+def test_too_few_images_names_the_sub_folders_that_hold_images(tmp_path):
+    # A COLMAP-style folder of one folder per camera gave "found 0", naming no cause.
+    source = sorted(Path(ppo_cv.__file__).parent.joinpath("data").glob("*.png"))[0]
+    for folder in ("cam2", "cam1", "notes"):
+        (tmp_path / "images" / folder).mkdir(parents=True)
+    for folder in ("cam1", "cam2"):
+        shutil.copy(source, tmp_path / "images" / folder / "a.png")
+    (tmp_path / "images" / "notes" / "a.txt").write_text("no image")
+    with pytest.raises(ValueError) as error:
+        sfm.prepare_database(tmp_path / "images", tmp_path / "db.db")
+    assert str(error.value) == (
+        f"need at least 2 images in {str(tmp_path / 'images')!r}, found 0; sub-folders are not "
+        "read, and cam1, cam2 hold images: give the folder of the images, or put them in one"
+    )
+    assert not (tmp_path / "db.db").exists()
+
+
 # --- the command line ----------------------------------------------------------------------
 
 
