@@ -1280,8 +1280,8 @@ def _with_refusals(pairs: Sequence[PairScore], refused: Sequence[PairScore]) -> 
 
 def _check_scoring(scoring: dict) -> None:
     """TypeError naming a keyword that :func:`score_pairs` does not take, ValueError for a
-    value that is not a finite number >= 0 (a whole number for ``min_inliers``): checked before
-    the features are extracted."""
+    value that is not a finite number >= 0 (> 0 for ``target_tri_angle``, a whole number for
+    ``min_inliers``): checked before the features are extracted."""
     accepted = list(inspect.signature(score_pairs).parameters)[1:]
     for name, value in scoring.items():
         if name not in accepted:
@@ -1293,6 +1293,8 @@ def _check_scoring(scoring: dict) -> None:
             as_whole_number(value, name, 0, MAX_WHOLE_NUMBER)
         elif name == "pri_threshold":
             as_pri_threshold(value)
+        elif name == "target_tri_angle":
+            as_positive(value, name)
         else:
             as_nonnegative(value, name)
 

@@ -217,6 +217,24 @@ def test_reconstruct_rejects_bad_arguments(tripod, tmp_path):
         sfm.reconstruct(database, images, min_inliers=10**6)
 
 
+@pytest.mark.parametrize(
+    "scoring, words",
+    [
+        ({"target_tri_angle": 0}, "target_tri_angle must be a finite number > 0, got 0"),
+        ({"target_tri_angle": -2.0}, "target_tri_angle must be a finite number > 0, got -2"),
+        ({"min_tri_angle": float("nan")}, "min_tri_angle must be a finite number >= 0"),
+    ],
+)
+def test_run_sfm_checks_the_scoring_before_any_feature_is_extracted(tripod, tmp_path, scoring,
+                                                                   words):  # fmt: skip
+    # A target_tri_angle of 0 passed the early check and was refused by the scoring, after
+    # the features were extracted and matched.
+    messages: list[str] = []
+    with pytest.raises(ValueError, match=words):
+        sfm.run_sfm(tripod[0], tmp_path / "model", progress=messages.append, **scoring)
+    assert messages == [] and list(tmp_path.iterdir()) == []
+
+
 def test_prepare_database_rejects_bad_inputs(tripod, tmp_path):
     images, database, *_ = tripod
     with pytest.raises(ValueError, match="already exists"):
