@@ -942,6 +942,7 @@ def reconstruct(
         Keep the database cameras fixed (known calibration); else the checks on the images
         also try the focal length fitted to each pair (:func:`rotation_focal_scale`).
     max_init_trials : int
+        Initial pairs the mapper may start from, 1 or more (with ``colmap``, its one search).
     num_threads, seed : int
         pycolmap threads and random seed.
     verbose : bool
@@ -966,6 +967,7 @@ def reconstruct(
     _check_choices(initialization, seeding, scoring)
     _check_run_numbers(num_threads, seed)
     _check_hooks(progress, fix_intrinsics=fix_intrinsics, verbose=verbose)
+    max_init_trials = as_whole_number(max_init_trials, "max_init_trials", 1, MAX_WHOLE_NUMBER)
     database_path, image_dir = as_path(database_path, "database_path"), _image_folder(image_dir)
     _require_database(database_path)
     start = time.perf_counter()
@@ -980,7 +982,7 @@ def reconstruct(
     with _quiet(verbose), pycolmap.Database.open(database_path) as database:
         num_images = int(database.num_images())
         tried = 0
-        for candidate in itertools.islice(candidates, max(1, int(max_init_trials))):
+        for candidate in itertools.islice(candidates, max_init_trials):
             tried += 1
             options = _pipeline_options(image_dir, fix_intrinsics, num_threads, seed)
             manager = pycolmap.ReconstructionManager()

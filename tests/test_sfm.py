@@ -235,6 +235,19 @@ def test_run_sfm_checks_the_scoring_before_any_feature_is_extracted(tripod, tmp_
     assert messages == [] and list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize(
+    "trials, error",
+    [("a", TypeError), (None, TypeError), (True, TypeError), (0, ValueError), (1.5, ValueError)],
+)
+def test_reconstruct_names_a_max_init_trials_that_is_no_count(tripod, trials, error):
+    # "a" gave int()'s message, naming nothing; 0, -3, 1.5 and True ran as 1.
+    images, database, *_ = tripod
+    messages: list[str] = []
+    with pytest.raises(error, match=r"^max_init_trials must be a whole number"):
+        sfm.reconstruct(database, images, max_init_trials=trials, progress=messages.append)
+    assert messages == []
+
+
 def test_prepare_database_rejects_bad_inputs(tripod, tmp_path):
     images, database, *_ = tripod
     with pytest.raises(ValueError, match="already exists"):
