@@ -56,11 +56,13 @@ from .checks import (
     MAX_WHOLE_NUMBER,
     as_callback,
     as_camera_matrix,
+    as_finite_rows,
     as_flag,
     as_nonnegative,
     as_path,
     as_positive,
     as_pri_threshold,
+    as_rotation,
     as_whole_number,
     require_instance,
     shown,
@@ -1581,13 +1583,13 @@ def pose_errors(reconstruction, gt) -> tuple[list[float], list[float]]:
     """Relative rotation errors and translation-direction errors (degrees) of registered pairs.
 
     Translation errors are skipped for ground-truth pairs without translation (pure rotation).
-    ``gt`` maps a pair of image names to its ``(R, t)``.
+    ``gt`` maps a pair of image names to its ``(R, t)``: a rotation matrix and three finite
+    numbers (TypeError or ValueError naming the first entry that is not).
     """
     require_instance(reconstruction, pycolmap.Reconstruction, "reconstruction")
-    require_instance(gt, dict, "gt", ": {(name1, name2): (R, t)}")
     ids = {reconstruction.image(i).name: i for i in reconstruction.reg_image_ids()}
     rotation_errors, translation_errors = [], []
-    for (name1, name2), (R_gt, t_gt) in gt.items():
+    for (name1, name2), R_gt, t_gt in _checked_gt(gt):
         if name1 not in ids or name2 not in ids:
             continue
         R, t = colmap.relative_pose(reconstruction, ids[name1], ids[name2])
@@ -1595,3 +1597,20 @@ def pose_errors(reconstruction, gt) -> tuple[list[float], list[float]]:
         if np.linalg.norm(t_gt) > 1e-9 and np.linalg.norm(t) > 1e-12:
             translation_errors.append(direction_error_deg(t, t_gt))
     return rotation_errors, translation_errors
+
+
+def _checked_gt(gt: Any) -> list[tuple[tuple[str, str], np.ndarray, np.ndarray]]:
+    """The entries ``((name1, name2), R, t)`` of :func:`pose_errors`' ``gt``; TypeError or
+    ValueError naming the first key that is no pair of names or value that is no ``(R, t)``."""
+    require_instance(gt, dict, "gt", ": {(name1, name2): (R, t)}")
+    entries = []
+    for key, value in gt.items():
+        if not (isinstance(key, tuple) and len(key) == 2 and all(isinstance(n, str) for n in key)):
+            raise TypeError(f"gt keys must be (name1, name2) image names, got {shown(key)}")
+        if not (isinstance(value, (tuple, list)) and len(value) == 2):
+            size = f" of length {len(value)}" if hasattr(value, "__len__") else ""
+            raise TypeError(f"gt[{key!r}] must be (R, t), got {type(value).__name__}{size}")
+        R = as_rotation(value[0], f"gt[{key!r}] R")
+        t = as_finite_rows([np.ravel(value[1])], f"gt[{key!r}] t", 3)[0]
+        entries.append((key, R, t))
+    return entries

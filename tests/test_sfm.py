@@ -386,6 +386,38 @@ def test_cli_sfm_refuses_a_symbolic_link_to_nothing_as_out_dir_before_any_work(t
     assert (tmp_path / "model").is_symlink() and len(list(tmp_path.iterdir())) == 1
 
 
+@pytest.mark.parametrize(
+    "entry, error, words",
+    [
+        (
+            (np.eye(3),),
+            TypeError,
+            r"\('a\.png', 'b\.png'\)\] must be \(R, t\), got tuple of length 1",
+        ),
+        ((np.eye(3) * 2, np.ones(3)), ValueError, r"R is not a rotation matrix"),
+        ((np.full((3, 3), np.nan), np.ones(3)), ValueError, r"R has 9 NaN"),
+        ((np.eye(4), np.ones(3)), ValueError, r"R must be a 3x3 rotation matrix"),
+        ((np.eye(3), [1.0, np.nan, 0.0]), ValueError, r"t has 1 NaN"),
+        ((np.eye(3), "xyz"), TypeError, r"t must hold real numbers"),
+    ],
+)
+def test_pose_errors_names_a_ground_truth_entry_that_is_no_pose(entry, error, words):
+    # NaN gave NaN errors and 2 * I a zero error, silently; the others numpy's messages.
+    reconstruction = pycolmap.Reconstruction()
+    with pytest.raises(error, match=words):
+        sfm.pose_errors(reconstruction, {("a.png", "b.png"): entry})
+    with pytest.raises(TypeError, match="gt keys must be \\(name1, name2\\) image names"):
+        sfm.pose_errors(reconstruction, {"a.png": (np.eye(3), np.ones(3))})
+
+
+def test_pose_errors_takes_a_translation_as_a_column():
+    reconstruction = pycolmap.Reconstruction()
+    assert sfm.pose_errors(reconstruction, {("a.png", "b.png"): (np.eye(3), np.ones((3, 1)))}) == (
+        [],
+        [],
+    )
+
+
 # --- real images -----------------------------------------------------------------------------
 
 
