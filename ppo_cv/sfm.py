@@ -1242,13 +1242,19 @@ def rotation_focal_scale(H: Any, focal: float, size: float) -> float | None:
     Returns
     -------
     float or None
-        ``s``; None when ``H`` is not finite or the best scale lies on a bound of the range
-        (no focal length inside it makes ``H`` a rotation, or the rotation is about the
-        optical axis, which says nothing of the focal length).
+        ``s``; None when ``H`` is not finite or singular, or the best scale lies on a bound of
+        the range (no focal length inside it makes ``H`` a rotation, or the rotation is about
+        the optical axis, which says nothing of the focal length). ``H`` of another shape is a
+        ValueError, one of no numbers a TypeError.
     """
     focal, size = as_positive(focal, "focal"), as_positive(size, "size")
-    H = np.asarray(H, dtype=np.float64)
-    if H.shape != (3, 3) or not np.all(np.isfinite(H)):
+    try:
+        H = np.asarray(H, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"H must be a 3x3 array of numbers, got {shown(H)}") from None
+    if H.shape != (3, 3):
+        raise ValueError(f"H must have shape (3, 3), got {H.shape}")
+    if not np.all(np.isfinite(H)) or np.linalg.svd(H, compute_uv=False)[-1] == 0:
         return None
     low, high = (
         np.log(0.5 * size / np.tan(np.radians(0.5 * field)) / focal)

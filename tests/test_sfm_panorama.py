@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pycolmap
@@ -94,11 +95,27 @@ def test_rotation_focal_scale_recovers_the_focal_length_of_a_rotation(rotvec, fo
         Rotation.from_rotvec([0.0, 0.0, 0.3]).as_matrix(),  # about the optical axis only
         _conjugate_rotation([0.0, 0.2, 0.0], 20.0),  # a focal length far outside the range
         np.full((3, 3), np.nan),
+        np.zeros((3, 3)),
+        np.diag([1.0, 1.0, 0.0]),
     ],
-    ids=["roll", "out of range", "not finite"],
+    ids=["roll", "out of range", "not finite", "zero", "singular"],
 )
 def test_rotation_focal_scale_is_none_without_a_focal_length_in_range(H):
-    assert sfm.rotation_focal_scale(H, 600.0, 640) is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a zero H divided 0 by 0 with a RuntimeWarning
+        assert sfm.rotation_focal_scale(H, 600.0, 640) is None
+
+
+@pytest.mark.parametrize(
+    "H, error, words",
+    [
+        (np.eye(2), ValueError, r"^H must have shape \(3, 3\), got \(2, 2\)$"),  # was None
+        ("abc", TypeError, r"^H must be a 3x3 array of numbers, got 'abc'$"),
+    ],
+)
+def test_rotation_focal_scale_names_an_H_that_is_no_homography(H, error, words):
+    with pytest.raises(error, match=words):
+        sfm.rotation_focal_scale(H, 600.0, 640)
 
 
 def test_image_check_agrees_with_estimate_pair(tripod):
