@@ -435,11 +435,14 @@ def _check_hooks(progress: Any, **flags: Any) -> None:
     as_callback(progress, "progress", "a callable taking a message")
 
 
-def _check_run_numbers(num_threads: Any, seed: Any, max_num_features: Any = 1) -> None:
+def _check_run_numbers(
+    num_threads: Any, seed: Any, max_num_features: Any = 1, max_init_trials: Any = 1
+) -> None:
     """ValueError or TypeError naming the first of pycolmap's numbers that is out of range."""
     as_whole_number(num_threads, "num_threads", 1, MAX_THREADS)
     as_whole_number(seed, "seed", 0, MAX_WHOLE_NUMBER)
     as_whole_number(max_num_features, "max_num_features", 1, MAX_FEATURES)
+    as_whole_number(max_init_trials, "max_init_trials", 1, MAX_WHOLE_NUMBER)
 
 
 def prepare_database(
@@ -943,8 +946,7 @@ def reconstruct(
     fix_intrinsics : bool
         Keep the database cameras fixed (known calibration); else the checks on the images
         also try the focal length fitted to each pair (:func:`rotation_focal_scale`).
-    max_init_trials : int
-        Initial pairs the mapper may start from, 1 or more (with ``colmap``, its one search).
+    max_init_trials : int, >= 1
     num_threads, seed : int
         pycolmap threads and random seed.
     verbose : bool
@@ -967,9 +969,8 @@ def reconstruct(
         them, says the images look like a panorama.
     """
     _check_choices(initialization, seeding, scoring)
-    _check_run_numbers(num_threads, seed)
+    _check_run_numbers(num_threads, seed, max_init_trials=max_init_trials)
     _check_hooks(progress, fix_intrinsics=fix_intrinsics, verbose=verbose)
-    max_init_trials = as_whole_number(max_init_trials, "max_init_trials", 1, MAX_WHOLE_NUMBER)
     database_path, image_dir = as_path(database_path, "database_path"), _image_folder(image_dir)
     _require_database(database_path)
     start = time.perf_counter()
@@ -984,7 +985,7 @@ def reconstruct(
     with _quiet(verbose), pycolmap.Database.open(database_path) as database:
         num_images = int(database.num_images())
         tried = 0
-        for candidate in itertools.islice(candidates, max_init_trials):
+        for candidate in itertools.islice(candidates, int(max_init_trials)):
             tried += 1
             options = _pipeline_options(image_dir, fix_intrinsics, num_threads, seed)
             manager = pycolmap.ReconstructionManager()
