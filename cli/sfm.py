@@ -96,9 +96,10 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
     check_target(out_dir, "folder", overwrite, [image_dir], "OUT_DIR ")
     if database is not None:
         check_apart(database, [image_dir], "--database ")
-        if database.exists():
+        if database.exists() or database.is_symlink():
             raise ValueError(f"database {database} already exists; give a new file name")
         check_target(database, "file")
+        sfm.require_database_outside(database, out_dir, ("--database", "OUT_DIR"))
     matrix = None if K is None else parse_K(K)
     names, skipped = sfm.screen_images(image_dir)
     sfm.require_two_images(image_dir, names, skipped)
@@ -131,7 +132,8 @@ def register(app: typer.Typer) -> None:
         "\n\npycolmap extracts SIFT features and matches all pairs; PPO ranks the candidate "
         "initial pairs, rejecting pure rotations and pairs without parallax (initial_pairs.txt "
         "in OUT_DIR); pycolmap's incremental mapper starts from the best pair. Without --K "
-        "pycolmap estimates a camera per image size and EXIF focal length. OUT_DIR is written "
+        "pycolmap estimates a camera per image size and EXIF focal length (per image without "
+        "one). OUT_DIR is written "
         "completely or not at all; --database once the images are matched, and it is kept "
         "when no model can be built from them (exit code 1).",
     )

@@ -94,6 +94,11 @@ def check_target(
             raise ValueError(f"cannot write {target}: {ancestor} is a file, not a folder")
         if ancestor.exists():
             break
+    if target.is_symlink() and not target.exists() and not overwrite:
+        raise ValueError(
+            f"{target} is a symbolic link to {os.readlink(target)}, which leads nowhere; "
+            f"{replace_hint}"
+        )
     if kind == "file":
         if target.is_dir() or str(path).endswith(os.sep):
             raise ValueError(f"{target} is a folder; give a file name")

@@ -29,6 +29,7 @@ from .checks import (
     MAX_WHOLE_NUMBER,
     as_camera_matrix,
     as_finite_rows,
+    as_nonnegative,
     as_point_pair,
     as_pri_threshold,
     as_rotation,
@@ -480,19 +481,23 @@ def two_view_reconstruction(
     pose : PoseResult
         From :func:`recover_pose_from_geometry` or :func:`ppo_cv.recover_pose`; not a pure
         rotation.
+    min_tri_angle : float
+        Degrees, >= 0. A keypoint matched twice (a matcher without cross-check) observes the
+        point of its first kept match only.
 
     Raises
     ------
     ValueError
-        For a pure rotation (no structure to build) or mismatched ``matches``.
+        For a pure rotation (no structure to build), mismatched ``matches``, a camera or image
+        without an id, an image whose ``camera_id`` is not its camera's, one id for two
+        different cameras, one id or name for both images, or a ``min_tri_angle`` that is not
+        a finite number >= 0 (TypeError for no number).
     """
     _require_pose(pose)
-    _require_camera(camera1, "camera1")
-    _require_camera(camera2, "camera2")
-    require_instance(image1, pycolmap.Image, "image1")
-    require_instance(image2, pycolmap.Image, "image2")
     if pose.pure_rotation:
         raise ValueError("a pure rotation has no two-view structure")
+    _require_two_views(camera1, camera2, image1, image2)
+    min_tri_angle = as_nonnegative(min_tri_angle, "min_tri_angle")
     keypoints1, keypoints2 = _keypoint_rows(keypoints1, 1), _keypoint_rows(keypoints2, 2)
     matches = _as_index_pairs(matches, (len(keypoints1), len(keypoints2)))
     if matches.shape[0] != pose.inliers.shape[0]:
@@ -517,6 +522,7 @@ def two_view_reconstruction(
     angles = triangulation_angles(points, pose.R, pose.t)
     keep = pose.inliers & np.all(np.isfinite(points), axis=1)
     keep &= np.degrees(np.nan_to_num(angles)) >= min_tri_angle
+    keep &= _first_uses(matches, keep)
     id1, id2 = image1.image_id, image2.image_id
     for (index1, index2), xyz in zip(matches[keep].tolist(), points[keep], strict=True):
         track = pycolmap.Track(
@@ -525,3 +531,54 @@ def two_view_reconstruction(
         reconstruction.add_point3D(xyz, track)
     reconstruction.update_point_3d_errors()
     return reconstruction
+
+
+def _first_uses(matches: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """Mask (N,) of the kept matches whose keypoints no earlier kept match uses, in both
+    images: a COLMAP keypoint observes one 3D point."""
+    first = np.zeros(len(matches), dtype=bool)
+    rows = np.flatnonzero(keep)
+    unique = np.ones(len(rows), dtype=bool)
+    for column in (0, 1):
+        _, firsts = np.unique(matches[rows, column], return_index=True)
+        seen = np.zeros(len(rows), dtype=bool)
+        seen[firsts] = True
+        unique &= seen
+    first[rows[unique]] = True
+    return first
+
+
+def _same_camera(camera1: pycolmap.Camera, camera2: pycolmap.Camera) -> bool:
+    return (camera1.model, camera1.width, camera1.height) == (
+        camera2.model, camera2.width, camera2.height
+    ) and np.array_equal(camera1.params, camera2.params)  # fmt: skip
+
+
+def _require_two_views(camera1: Any, camera2: Any, image1: Any, image2: Any) -> None:
+    """TypeError or ValueError naming what would fail inside pycolmap or describe other views:
+    a camera or image without an id, an image whose ``camera_id`` is not its camera's, one id
+    for two different cameras, one id or one name for both images."""
+    _require_camera(camera1, "camera1")
+    _require_camera(camera2, "camera2")
+    require_instance(image1, pycolmap.Image, "image1")
+    require_instance(image2, pycolmap.Image, "image2")
+    for number, (camera, image) in enumerate(((camera1, image1), (camera2, image2)), 1):
+        if camera.camera_id == pycolmap.INVALID_CAMERA_ID:
+            raise ValueError(f"camera{number} has no camera_id; set camera{number}.camera_id")
+        if image.image_id == pycolmap.INVALID_IMAGE_ID:
+            raise ValueError(f"image{number} has no image_id; give pycolmap.Image an image_id")
+        if image.camera_id != camera.camera_id:
+            wanted = "none" if image.camera_id == pycolmap.INVALID_CAMERA_ID else image.camera_id
+            raise ValueError(
+                f"image{number} has camera_id {wanted}, but camera{number} has {camera.camera_id}"
+            )
+    if camera1.camera_id == camera2.camera_id and not _same_camera(camera1, camera2):
+        raise ValueError(
+            f"camera1 and camera2 differ but share camera_id {camera1.camera_id}; give each its "
+            "own id, or pass one camera twice"
+        )
+    if image1.image_id == image2.image_id or image1.name == image2.name:
+        raise ValueError(
+            "image1 and image2 must have distinct image_id and name, got "
+            f"{image1.image_id} {image1.name!r} and {image2.image_id} {image2.name!r}"
+        )

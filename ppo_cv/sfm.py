@@ -56,11 +56,13 @@ from .checks import (
     MAX_WHOLE_NUMBER,
     as_callback,
     as_camera_matrix,
+    as_finite_rows,
     as_flag,
     as_nonnegative,
     as_path,
     as_positive,
     as_pri_threshold,
+    as_rotation,
     as_whole_number,
     require_instance,
     shown,
@@ -94,6 +96,7 @@ __all__ = [
     "list_images",
     "screen_images",
     "require_two_images",
+    "require_database_outside",
     "format_pairs",
     "write_model",
     "pose_errors",
@@ -277,7 +280,7 @@ def _image_folder(value: Any) -> Path:
 def _check_new_database(database_path: Path, image_dir: Path) -> None:
     """ValueError unless ``database_path`` can receive a new database: a database is built
     anew, never replaced or added to."""
-    if database_path.exists():
+    if database_path.exists() or database_path.is_symlink():
         raise ValueError(
             f"database {str(database_path)!r} already exists; give a new file name (a database "
             "is never replaced)"
@@ -342,16 +345,29 @@ def _require_utf8_name(name: str) -> None:
         raise ValueError(reason) from None
 
 
+def require_database_outside(
+    database_path: str | os.PathLike,
+    output_dir: str | os.PathLike,
+    names: tuple[str, str] = ("database_path", "output_dir"),
+) -> None:
+    """ValueError when the database would be ``output_dir`` or lie inside it.
+
+    The finished model replaces ``output_dir`` as a whole, so a database kept there would be
+    deleted with it, or the model refused at the end for a folder the run filled itself.
+    Symbolic links and ``..`` are resolved first; ``names`` are how the message calls the two
+    arguments (the command line's ``--database`` and ``OUT_DIR``).
+    """
+    database = Path(os.path.realpath(database_path))
+    folder = Path(os.path.realpath(output_dir))
+    if database == folder or database.is_relative_to(folder):
+        raise ValueError(
+            f"{names[0]} {database_path} lies in {names[1]} {output_dir}, which the model "
+            "replaces as a whole; keep the database outside it"
+        )
+
+
 MAX_NAMED_SKIPS = 3
 """Skipped images whose reason the error for too few images gives."""
-
-
-def _subfolders(folder: Path) -> list[str]:
-    """The names of the folders in ``folder``, sorted; none when it cannot be listed."""
-    try:
-        return sorted(entry.name for entry in folder.iterdir() if entry.is_dir())
-    except OSError:
-        return []
 
 
 def require_two_images(
@@ -363,12 +379,32 @@ def require_two_images(
         reasons = list(skipped.values())[:MAX_NAMED_SKIPS]
         more = f"; {len(skipped) - len(reasons)} more" if len(skipped) > len(reasons) else ""
         refused = f" ({len(skipped)} skipped: {'; '.join(reasons)}{more})" if skipped else ""
-        folders = _subfolders(Path(image_dir))
-        nested = (f"; its subfolders are not read ({', '.join(map(repr, folders[:3]))}"
-                  f"{', ...' * (len(folders) > 3)})" if folders else "")  # fmt: skip
-        raise ValueError(
-            f"need at least 2 images in {str(image_dir)!r}, found {len(names)}{refused}{nested}"
+        nested = _image_subfolders(Path(image_dir))[:MAX_NAMED_SKIPS]
+        below = (
+            f"; sub-folders are not read, and {', '.join(nested)} "
+            f"{'holds' if len(nested) == 1 else 'hold'} images: give the "
+            "folder of the images, or put them in one"
+            if nested
+            else ""
         )
+        raise ValueError(
+            f"need at least 2 images in {str(image_dir)!r}, found {len(names)}{refused}{below}"
+        )
+
+
+def _image_subfolders(image_dir: Path) -> list[str]:
+    """The sorted names of the sub-folders of ``image_dir`` that hold image files directly
+    (those that cannot be listed left out)."""
+    try:
+        folders = sorted(p for p in image_dir.iterdir() if p.is_dir())
+    except OSError:
+        return []
+    holding = []
+    for folder in folders:
+        with contextlib.suppress(OSError):
+            if any(p.suffix.lower() in IMAGE_EXTENSIONS and p.is_file() for p in folder.iterdir()):
+                holding.append(folder.name)
+    return holding
 
 
 def _pycolmap_options(K: np.ndarray | None, max_num_features: int, num_threads: int, seed: int):
@@ -401,14 +437,15 @@ def _check_hooks(progress: Any, **flags: Any) -> None:
 
 
 def _check_run_numbers(
-    num_threads: Any, seed: Any, max_num_features: Any = 1
-) -> tuple[int, int, int]:
-    """The three as Python ints, which pycolmap's options take (``seed=3.0`` failed there in
+    num_threads: Any, seed: Any, max_num_features: Any = 1, max_init_trials: Any = 1
+) -> tuple[int, int, int, int]:
+    """The four as Python ints, which pycolmap's options take (``seed=3.0`` failed there in
     pybind's words); ValueError or TypeError naming the first one out of range."""
     return (
         as_whole_number(num_threads, "num_threads", 1, MAX_THREADS),
         as_whole_number(seed, "seed", 0, MAX_WHOLE_NUMBER),
         as_whole_number(max_num_features, "max_num_features", 1, MAX_FEATURES),
+        as_whole_number(max_init_trials, "max_init_trials", 1, MAX_WHOLE_NUMBER),
     )
 
 
@@ -435,9 +472,10 @@ def prepare_database(
         Known intrinsics: one ``PINHOLE`` camera with a prior focal length, so that pycolmap
         verifies pairs with an essential matrix; the images must then all have one size.
         Without it pycolmap guesses a ``SIMPLE_RADIAL`` camera from the EXIF focal length or
-        the image size, one for each image size and EXIF focal length
-        (``pycolmap.CameraMode.AUTO``); an EXIF focal length that is none
-        (:func:`~ppo_cv.calib.unusable_exif_focal`) is replaced by the image size's guess.
+        the image size, one for each image size and EXIF focal length, and one per image for
+        images without an EXIF focal length (``pycolmap.CameraMode.AUTO``); an EXIF focal
+        length that is none (:func:`~ppo_cv.calib.unusable_exif_focal`) is replaced by the
+        image size's guess.
     max_num_features : int
         SIFT features per image.
     num_threads : int
@@ -460,7 +498,7 @@ def prepare_database(
         pycolmap could not read (named).
     """
     _check_hooks(progress, verbose=verbose)
-    num_threads, seed, max_num_features = _check_run_numbers(num_threads, seed, max_num_features)
+    num_threads, seed, max_num_features, _ = _check_run_numbers(num_threads, seed, max_num_features)
     if K is not None:
         K = as_camera_matrix(K, "K")
         if K[0, 1] != 0:
@@ -931,7 +969,7 @@ def reconstruct(
     fix_intrinsics : bool
         Keep the database cameras fixed (known calibration); else the checks on the images
         also try the focal length fitted to each pair (:func:`rotation_focal_scale`).
-    max_init_trials : int
+    max_init_trials : int, >= 1
     num_threads, seed : int
         pycolmap threads and random seed.
     verbose : bool
@@ -954,7 +992,7 @@ def reconstruct(
         them, says the images look like a panorama.
     """
     _check_choices(initialization, seeding, scoring)
-    num_threads, seed, _ = _check_run_numbers(num_threads, seed)
+    num_threads, seed, _, init_trials = _check_run_numbers(num_threads, seed, 1, max_init_trials)
     _check_hooks(progress, fix_intrinsics=fix_intrinsics, verbose=verbose)
     database_path, image_dir = as_path(database_path, "database_path"), _image_folder(image_dir)
     _require_database(database_path)
@@ -970,7 +1008,7 @@ def reconstruct(
     with _quiet(verbose), pycolmap.Database.open(database_path) as database:
         num_images = int(database.num_images())
         tried = 0
-        for candidate in itertools.islice(candidates, max(1, int(max_init_trials))):
+        for candidate in itertools.islice(candidates, init_trials):
             tried += 1
             options = _pipeline_options(image_dir, fix_intrinsics, num_threads, seed)
             manager = pycolmap.ReconstructionManager()
@@ -1228,13 +1266,19 @@ def rotation_focal_scale(H: Any, focal: float, size: float) -> float | None:
     Returns
     -------
     float or None
-        ``s``; None when ``H`` is not finite or the best scale lies on a bound of the range
-        (no focal length inside it makes ``H`` a rotation, or the rotation is about the
-        optical axis, which says nothing of the focal length).
+        ``s``; None when ``H`` is not finite or singular, or the best scale lies on a bound of
+        the range (no focal length inside it makes ``H`` a rotation, or the rotation is about
+        the optical axis, which says nothing of the focal length). ``H`` of another shape is a
+        ValueError, one of no numbers a TypeError.
     """
     focal, size = as_positive(focal, "focal"), as_positive(size, "size")
-    H = np.asarray(H, dtype=np.float64)
-    if H.shape != (3, 3) or not np.all(np.isfinite(H)):
+    try:
+        H = np.asarray(H, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TypeError(f"H must be a 3x3 array of numbers, got {shown(H)}") from None
+    if H.shape != (3, 3):
+        raise ValueError(f"H must have shape (3, 3), got {H.shape}")
+    if not np.all(np.isfinite(H)) or np.linalg.svd(H, compute_uv=False)[-1] == 0:
         return None
     low, high = (
         np.log(0.5 * size / np.tan(np.radians(0.5 * field)) / focal)
@@ -1270,8 +1314,8 @@ def _with_refusals(pairs: Sequence[PairScore], refused: Sequence[PairScore]) -> 
 
 def _check_scoring(scoring: dict) -> None:
     """TypeError naming a keyword that :func:`score_pairs` does not take, ValueError for a
-    value that is not a finite number >= 0 (a whole number for ``min_inliers``): checked before
-    the features are extracted."""
+    value that is not a finite number >= 0 (> 0 for ``target_tri_angle``, a whole number for
+    ``min_inliers``): checked before the features are extracted."""
     accepted = list(inspect.signature(score_pairs).parameters)[1:]
     for name, value in scoring.items():
         if name not in accepted:
@@ -1283,6 +1327,8 @@ def _check_scoring(scoring: dict) -> None:
             as_whole_number(value, name, 0, MAX_WHOLE_NUMBER)
         elif name == "pri_threshold":
             as_pri_threshold(value)
+        elif name == "target_tri_angle":
+            as_positive(value, name)
         else:
             as_nonnegative(value, name)
 
@@ -1406,7 +1452,7 @@ def run_sfm(
     database_path : path, optional
         Where to keep the feature database (a new file, renamed into place once the features
         are matched, kept when no model can be built from them, never left half-written); a
-        temporary one by default.
+        temporary one by default. Never inside ``output_dir`` (:func:`require_database_outside`).
     overwrite : bool
         Replace an existing ``output_dir`` (never ``database_path``).
     exif_orientation : bool
@@ -1428,7 +1474,7 @@ def run_sfm(
         For bad arguments or unreadable images, before anything is written.
     """
     _check_choices(initialization, seeding, scoring)
-    num_threads, seed, max_num_features = _check_run_numbers(num_threads, seed, max_num_features)
+    num_threads, seed, max_num_features, _ = _check_run_numbers(num_threads, seed, max_num_features)
     _check_hooks(progress, verbose=verbose, overwrite=overwrite, exif_orientation=exif_orientation)
     image_dir = _image_folder(image_dir)
     if output_dir is not None:  # never the image folder, nor one holding it, even replaced
@@ -1436,6 +1482,8 @@ def run_sfm(
         check_target(output_dir, "folder", overwrite, [image_dir], "output_dir ", API_REPLACE_HINT)
     if database_path is not None:
         _check_new_database(as_path(database_path, "database_path"), image_dir)
+        if output_dir is not None:
+            require_database_outside(database_path, output_dir)
     with contextlib.ExitStack() as stack:
         scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="ppo-cv-sfm-")))
         if exif_orientation:
@@ -1454,10 +1502,25 @@ def run_sfm(
         )  # fmt: skip
         if output_dir is not None:
             if result.reconstruction is None:
-                raise ReconstructionFailed("nothing was reconstructed; no model written")
+                raise ReconstructionFailed(_nothing_built(result))
             write_model(result, output_dir, overwrite=overwrite)
             _say(progress, f"wrote {output_dir}")
     return result
+
+
+def _nothing_built(result: SfmResult) -> str:
+    """Why no model is written when the mapper ran: pycolmap's own initialisation found no
+    pair, or it grew no model from the PPO pairs tried."""
+    if result.initialization == "colmap":
+        return (
+            f"pycolmap's own initialisation found no pair of the {result.num_images} images to "
+            "start a model from (a panorama, or too little parallax) and no model was written; "
+            "the PPO initialisation names why each pair is refused"
+        )
+    return (
+        f"pycolmap's mapper grew no model of the {result.num_images} images from the PPO "
+        "initial pairs tried, and no model was written"
+    )
 
 
 def _upright_images(image_dir: Path, folder: Path) -> Path:
@@ -1512,17 +1575,24 @@ def _staged_file(
 
 def format_pairs(pairs: Sequence[PairScore]) -> str:
     """The ranking as text, one pair a line: names, score, inliers, PRI, angle, verdict; a
-    name holding whitespace in double quotes, as in a pairs file."""
+    name holding whitespace or starting with ``#`` (a comment) in double quotes, as in a pairs
+    file."""
     lines = ["# name1 name2 score num_inliers num_matches pri tri_angle_deg verdict"]
     for p in pairs:
         require_instance(p, PairScore, "each pair", " (sfm.score_pairs)")
         verdict = "ok" if p.accepted else p.rejection.replace(" ", "_")
-        name1, name2 = (f'"{n}"' if n.split() != [n] else n for n in (p.name1, p.name2))
+        name1, name2 = (_pairs_file_name(n) for n in (p.name1, p.name2))
         lines.append(
             f"{name1} {name2} {p.score:.1f} {p.num_inliers} {p.num_matches} "
             f"{p.pri:.4f} {p.tri_angle:.2f} {verdict}"
         )
     return "\n".join(lines) + "\n"
+
+
+def _pairs_file_name(name: str) -> str:
+    """``name`` as a pairs-file field: in double quotes when it holds whitespace or starts with
+    ``#``, which would start a comment."""
+    return f'"{name}"' if name.split() != [name] or name.startswith("#") else name
 
 
 def write_model(result: SfmResult, output_dir: str | os.PathLike, overwrite: bool = False) -> None:
@@ -1543,13 +1613,13 @@ def pose_errors(reconstruction, gt) -> tuple[list[float], list[float]]:
     """Relative rotation errors and translation-direction errors (degrees) of registered pairs.
 
     Translation errors are skipped for ground-truth pairs without translation (pure rotation).
-    ``gt`` maps a pair of image names to its ``(R, t)``.
+    ``gt`` maps a pair of image names to its ``(R, t)``: a rotation matrix and three finite
+    numbers (TypeError or ValueError naming the first entry that is not).
     """
     require_instance(reconstruction, pycolmap.Reconstruction, "reconstruction")
-    require_instance(gt, dict, "gt", ": {(name1, name2): (R, t)}")
     ids = {reconstruction.image(i).name: i for i in reconstruction.reg_image_ids()}
     rotation_errors, translation_errors = [], []
-    for (name1, name2), (R_gt, t_gt) in gt.items():
+    for (name1, name2), R_gt, t_gt in _checked_gt(gt):
         if name1 not in ids or name2 not in ids:
             continue
         R, t = colmap.relative_pose(reconstruction, ids[name1], ids[name2])
@@ -1557,3 +1627,20 @@ def pose_errors(reconstruction, gt) -> tuple[list[float], list[float]]:
         if np.linalg.norm(t_gt) > 1e-9 and np.linalg.norm(t) > 1e-12:
             translation_errors.append(direction_error_deg(t, t_gt))
     return rotation_errors, translation_errors
+
+
+def _checked_gt(gt: Any) -> list[tuple[tuple[str, str], np.ndarray, np.ndarray]]:
+    """The entries ``((name1, name2), R, t)`` of :func:`pose_errors`' ``gt``; TypeError or
+    ValueError naming the first key that is no pair of names or value that is no ``(R, t)``."""
+    require_instance(gt, dict, "gt", ": {(name1, name2): (R, t)}")
+    entries = []
+    for key, value in gt.items():
+        if not (isinstance(key, tuple) and len(key) == 2 and all(isinstance(n, str) for n in key)):
+            raise TypeError(f"gt keys must be (name1, name2) image names, got {shown(key)}")
+        if not (isinstance(value, (tuple, list)) and len(value) == 2):
+            size = f" of length {len(value)}" if hasattr(value, "__len__") else ""
+            raise TypeError(f"gt[{key!r}] must be (R, t), got {type(value).__name__}{size}")
+        R = as_rotation(value[0], f"gt[{key!r}] R")
+        t = as_finite_rows([np.ravel(value[1])], f"gt[{key!r}] t", 3)[0]
+        entries.append((key, R, t))
+    return entries

@@ -130,6 +130,7 @@ def test_sfm_reconstructs_images_of_two_sizes_with_a_camera_each(tmp_path):
     model = pycolmap.Reconstruction(tmp_path / "model")
     sizes = {(c.width, c.height) for c in model.cameras.values()}
     assert sizes == {(640, 480), (512, 384)}
+    assert len(model.cameras) == 3  # PNGs hold no EXIF focal length: a camera per image
     with_K = ppo_cv("sfm", images, tmp_path / "other", "--K", K_TEXT)
     assert with_K.returncode == 2 and not (tmp_path / "other").exists()
     assert "the images have 2 sizes" in with_K.stderr and "omit --K" in with_K.stderr

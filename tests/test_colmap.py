@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pycolmap
 import pytest
@@ -257,6 +259,73 @@ def test_two_view_reconstruction_rejects_pure_rotation(camera):
     matches = np.stack([np.arange(50), np.arange(50)], axis=1)
     with pytest.raises(ValueError, match="pure rotation"):
         colmap.two_view_reconstruction(camera, camera, image1, image2, p1, p2, matches, result)
+
+
+def _two_view_inputs():
+    R_gt = rotation([0.1, 1.0, 0.0], 8.0)
+    t_gt = np.array([1.0, 0.0, 0.0])
+    p1, p2 = scene(7, R_gt, t_gt, n=60, noise=0.0)
+    result = ppo_cv.recover_pose(np.cross(np.eye(3), t_gt) @ R_gt, p1, p2, K)
+    camera = colmap.camera_from_K(K, 640, 480)
+    camera.camera_id = 1
+    return camera, p1, p2, np.stack([np.arange(60), np.arange(60)], axis=1), result
+
+
+def _other_camera(camera_id: int) -> pycolmap.Camera:
+    other = colmap.camera_from_K(K * [[1.1], [1.1], [1.0]], 640, 480)
+    other.camera_id = camera_id
+    return other
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        ({"camera1": "unset"}, "camera1 has no camera_id; set camera1.camera_id"),
+        ({"image2": {"image_id": None}}, "image2 has no image_id"),
+        ({"image1": {"camera_id": 5}}, "image1 has camera_id 5, but camera1 has 1"),
+        ({"camera2": "other"}, "camera1 and camera2 differ but share camera_id 1"),
+        ({"image2": {"image_id": 1}}, "distinct image_id and name, got 1 'a.png' and 1 'b.png'"),
+        ({"image2": {"name": "a.png"}}, "distinct image_id and name"),
+        ({"min_tri_angle": float("nan")}, "min_tri_angle must be a finite number >= 0"),
+        ({"min_tri_angle": -1.0}, "min_tri_angle must be a finite number >= 0"),
+    ],
+)
+def test_two_view_reconstruction_names_inputs_pycolmap_would_fail_on(change, message):
+    # These failed inside pycolmap ("Rig 1 that contains Camera 1 does not exist", for a camera
+    # of camera_from_K), or, for a NaN angle or two cameras of one id, gave another model.
+    camera, p1, p2, matches, result = _two_view_inputs()
+    cameras = {"camera1": camera, "camera2": camera}
+    if change.get("camera1") == "unset":
+        cameras["camera1"] = colmap.camera_from_K(K, 640, 480)
+    if change.get("camera2") == "other":
+        cameras["camera2"] = _other_camera(1)
+    fields = {"image1": {"name": "a.png", "camera_id": 1, "image_id": 1},
+              "image2": {"name": "b.png", "camera_id": 1, "image_id": 2}}  # fmt: skip
+    for key in ("image1", "image2"):
+        fields[key].update(change.get(key, {}))
+    images = [pycolmap.Image(**{k: v for k, v in fields[key].items() if v is not None})
+              for key in ("image1", "image2")]  # fmt: skip
+    angle = {"min_tri_angle": change["min_tri_angle"]} if "min_tri_angle" in change else {}
+    with pytest.raises(ValueError, match=re.escape(message)):
+        colmap.two_view_reconstruction(cameras["camera1"], cameras["camera2"], *images, p1, p2,
+                                       matches, result, **angle)  # fmt: skip
+
+
+def test_two_view_reconstruction_keeps_the_first_match_of_a_keypoint_matched_twice():
+    # A matcher without cross-check matches one keypoint twice; pycolmap failed on the second
+    # point it observed ("point2D.point3D_id == point3D_id").
+    camera, p1, p2, matches, result = _two_view_inputs()
+    matches[5, 1] = matches[4, 1]
+    second = _other_camera(2)
+    image1 = pycolmap.Image(name="a.png", camera_id=1, image_id=1)
+    image2 = pycolmap.Image(name="b.png", camera_id=2, image_id=2)
+    reconstruction = colmap.two_view_reconstruction(
+        camera, second, image1, image2, p1, p2, matches, result, min_tri_angle=0.0
+    )
+    assert reconstruction.num_points3D() == 59 and reconstruction.num_cameras() == 2
+    observed = {e.point2D_idx for p in reconstruction.points3D.values() for e in p.track.elements
+                if e.image_id == 1}  # fmt: skip
+    assert 4 in observed and 5 not in observed
 
 
 def _exact_pose_inputs():

@@ -125,6 +125,25 @@ def test_colmap_model_carries_real_reprojection_errors(demo, demo_result, tmp_pa
     assert all(float(row[7]) >= 0 for row in rows_text)  # ERROR column, -1 meant unknown
 
 
+def test_exported_pair_reads_back_with_its_pose_names_and_point_counts(demo, demo_result, tmp_path):
+    result = demo_result
+    write_outputs(tmp_path / "out", result, demo[0], demo[1], ("a.png", "b.png"))
+    model = pycolmap.Reconstruction(str(tmp_path / "out" / "colmap"))
+    ids = {image.name: image_id for image_id, image in model.images.items()}
+    assert sorted(ids) == ["a.png", "b.png"] and model.num_reg_images() == 2
+    R, t = colmap.relative_pose(model, ids["a.png"], ids["b.png"])  # cam2_from_world * inv(cam1)
+    np.testing.assert_allclose(R, result.R, atol=1e-12)
+    np.testing.assert_allclose(t, result.t, atol=1e-12)
+    (camera,) = model.cameras.values()
+    assert camera.model_name == "PINHOLE"
+    np.testing.assert_allclose(colmap.K_from_camera(camera), result.cameras.K1)
+    data = (tmp_path / "out" / "points.ply").read_bytes()
+    header, body = data.split(b"end_header\n", 1)
+    (count,) = re.findall(rb"element vertex (\d+)", header)
+    assert int(count) == model.num_points3D() == result.num_points > 0
+    assert len(body) == int(count) * (3 * 4 + 3)
+
+
 def test_two_view_reconstruction_carries_real_reprojection_errors():
     rng = np.random.default_rng(3)
     R, t = random_rotation(rng, 10.0), np.array([1.0, 0.2, 0.1]) / np.linalg.norm([1, 0.2, 0.1])

@@ -87,3 +87,26 @@ def test_pairs_to_dev_stdout_names_the_dash(tmp_path):
     assert done.stderr == (
         "ppo-cv pairs: -o /dev/stdout is a device or a stream; -o - writes to standard output\n"
     )
+
+
+@pytest.mark.parametrize("kind", ["folder", "file"])
+def test_a_symbolic_link_to_nothing_is_refused_before_any_work_unless_replaced(tmp_path, kind):
+    # It is no file nor folder, so it passed the checks, and the output, complete, was refused
+    # at its final rename ("already exists; pass --overwrite"), after the whole run.
+    from ppo_cv.atomic import atomic_file, check_target
+
+    link = tmp_path / "out"
+    link.symlink_to("gone")
+    with pytest.raises(ValueError, match=r"out is a symbolic link to gone, which leads "
+                       r"nowhere; pass --overwrite to replace it$"):  # fmt: skip
+        check_target(link, kind)
+    assert link.is_symlink() and sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    if kind == "folder":
+        with atomic_directory(link, overwrite=True) as staging:
+            (staging / "new.txt").write_text("new")
+        assert [p.name for p in link.iterdir()] == ["new.txt"]
+    else:
+        with atomic_file(link, overwrite=True) as handle:
+            handle.write("new")
+        assert link.read_text() == "new"
+    assert not link.is_symlink() and sorted(p.name for p in tmp_path.iterdir()) == ["out"]

@@ -217,6 +217,37 @@ def test_reconstruct_rejects_bad_arguments(tripod, tmp_path):
         sfm.reconstruct(database, images, min_inliers=10**6)
 
 
+@pytest.mark.parametrize(
+    "scoring, words",
+    [
+        ({"target_tri_angle": 0}, "target_tri_angle must be a finite number > 0, got 0"),
+        ({"target_tri_angle": -2.0}, "target_tri_angle must be a finite number > 0, got -2"),
+        ({"min_tri_angle": float("nan")}, "min_tri_angle must be a finite number >= 0"),
+    ],
+)
+def test_run_sfm_checks_the_scoring_before_any_feature_is_extracted(tripod, tmp_path, scoring,
+                                                                   words):  # fmt: skip
+    # A target_tri_angle of 0 passed the early check and was refused by the scoring, after
+    # the features were extracted and matched.
+    messages: list[str] = []
+    with pytest.raises(ValueError, match=words):
+        sfm.run_sfm(tripod[0], tmp_path / "model", progress=messages.append, **scoring)
+    assert messages == [] and list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "trials, error",
+    [("a", TypeError), (None, TypeError), (True, TypeError), (0, ValueError), (1.5, ValueError)],
+)
+def test_reconstruct_names_a_max_init_trials_that_is_no_count(tripod, trials, error):
+    # "a" gave int()'s message, naming nothing; 0, -3, 1.5 and True ran as 1.
+    images, database, *_ = tripod
+    messages: list[str] = []
+    with pytest.raises(error, match=r"^max_init_trials must be a whole number"):
+        sfm.reconstruct(database, images, max_init_trials=trials, progress=messages.append)
+    assert messages == []
+
+
 def test_prepare_database_rejects_bad_inputs(tripod, tmp_path):
     images, database, *_ = tripod
     with pytest.raises(ValueError, match="already exists"):
@@ -228,6 +259,34 @@ def test_prepare_database_rejects_bad_inputs(tripod, tmp_path):
         sfm.prepare_database(lonely, tmp_path / "db.db")
     with pytest.raises(ValueError, match="does not exist"):
         sfm.prepare_database(tmp_path / "nowhere", tmp_path / "db.db")
+    assert not (tmp_path / "db.db").exists()
+
+
+def test_a_database_named_by_a_symbolic_link_to_nothing_is_never_replaced(tripod, tmp_path):
+    # No --overwrite replaces a database, so the link is refused as a database that exists.
+    link = tmp_path / "db.db"
+    link.symlink_to("nowhere.db")
+    with pytest.raises(ValueError, match="already exists; give a new file name"):
+        sfm.prepare_database(tripod[0], link)
+    with pytest.raises(ValueError, match="already exists; give a new file name"):
+        sfm.run_sfm(tripod[0], tmp_path / "model", database_path=link)
+    assert link.is_symlink() and sorted(p.name for p in tmp_path.iterdir()) == ["db.db"]
+
+
+def test_too_few_images_names_the_sub_folders_that_hold_images(tmp_path):
+    # A COLMAP-style folder of one folder per camera gave "found 0", naming no cause.
+    source = sorted(Path(ppo_cv.__file__).parent.joinpath("data").glob("*.png"))[0]
+    for folder in ("cam2", "cam1", "notes"):
+        (tmp_path / "images" / folder).mkdir(parents=True)
+    for folder in ("cam1", "cam2"):
+        shutil.copy(source, tmp_path / "images" / folder / "a.png")
+    (tmp_path / "images" / "notes" / "a.txt").write_text("no image")
+    with pytest.raises(ValueError) as error:
+        sfm.prepare_database(tmp_path / "images", tmp_path / "db.db")
+    assert str(error.value) == (
+        f"need at least 2 images in {str(tmp_path / 'images')!r}, found 0; sub-folders are not "
+        "read, and cam1, cam2 hold images: give the folder of the images, or put them in one"
+    )
     assert not (tmp_path / "db.db").exists()
 
 
@@ -293,6 +352,72 @@ def test_cli_sfm_bad_folders(tripod, tmp_path):
     assert not (tmp_path / "out").exists()
 
 
+def test_a_database_inside_the_output_folder_is_refused_before_any_work(tripod, tmp_path):
+    # The model replaces the output folder as a whole at the end: a database kept inside it
+    # was deleted and the finished model refused (or, with --overwrite, written with exit 2).
+    images, _, K, *_ = tripod
+    out = tmp_path / "model"
+    out.mkdir()
+    with pytest.raises(ValueError, match=r"database_path .*db\.db lies in output_dir .*model"):
+        sfm.run_sfm(images, out, K=K, database_path=out / "db.db")
+    (out / "keep.txt").write_text("keep")
+    k = f"{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]}"
+    args = ["sfm", str(images), str(out), "--K", k, "--database", str(out / "db.db")]
+    run = CliRunner().invoke(app, [*args, "--overwrite"])
+    assert run.exit_code == 2, run.output
+    assert run.stderr == (
+        f"ppo-cv sfm: --database {out / 'db.db'} lies in OUT_DIR {out}, which the model "
+        "replaces as a whole; keep the database outside it\n"
+    )
+    assert [p.name for p in out.iterdir()] == ["keep.txt"]
+    assert [p.name for p in tmp_path.iterdir()] == ["model"]
+
+
+def test_cli_sfm_refuses_a_symbolic_link_to_nothing_as_out_dir_before_any_work(tripod, tmp_path):
+    images, _, K, *_ = tripod
+    (tmp_path / "model").symlink_to("gone")
+    k = f"{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]}"
+    run = CliRunner().invoke(app, ["sfm", str(images), str(tmp_path / "model"), "--K", k])
+    assert run.exit_code == 2, run.output
+    assert run.stderr == (
+        f"ppo-cv sfm: {tmp_path / 'model'} is a symbolic link to gone, which leads nowhere; "
+        "pass --overwrite to replace it\n"
+    )
+    assert (tmp_path / "model").is_symlink() and len(list(tmp_path.iterdir())) == 1
+
+
+@pytest.mark.parametrize(
+    "entry, error, words",
+    [
+        (
+            (np.eye(3),),
+            TypeError,
+            r"\('a\.png', 'b\.png'\)\] must be \(R, t\), got tuple of length 1",
+        ),
+        ((np.eye(3) * 2, np.ones(3)), ValueError, r"R is not a rotation matrix"),
+        ((np.full((3, 3), np.nan), np.ones(3)), ValueError, r"R has 9 NaN"),
+        ((np.eye(4), np.ones(3)), ValueError, r"R must be a 3x3 rotation matrix"),
+        ((np.eye(3), [1.0, np.nan, 0.0]), ValueError, r"t has 1 NaN"),
+        ((np.eye(3), "xyz"), TypeError, r"t must hold real numbers"),
+    ],
+)
+def test_pose_errors_names_a_ground_truth_entry_that_is_no_pose(entry, error, words):
+    # NaN gave NaN errors and 2 * I a zero error, silently; the others numpy's messages.
+    reconstruction = pycolmap.Reconstruction()
+    with pytest.raises(error, match=words):
+        sfm.pose_errors(reconstruction, {("a.png", "b.png"): entry})
+    with pytest.raises(TypeError, match="gt keys must be \\(name1, name2\\) image names"):
+        sfm.pose_errors(reconstruction, {"a.png": (np.eye(3), np.ones(3))})
+
+
+def test_pose_errors_takes_a_translation_as_a_column():
+    reconstruction = pycolmap.Reconstruction()
+    assert sfm.pose_errors(reconstruction, {("a.png", "b.png"): (np.eye(3), np.ones((3, 1)))}) == (
+        [],
+        [],
+    )
+
+
 # --- real images -----------------------------------------------------------------------------
 
 
@@ -341,7 +466,13 @@ def _pair_named(name1: str, name2: str) -> sfm.PairScore:
 
 @pytest.mark.parametrize(
     "names",
-    [("a.png", "b.png"), ("frame one.png", "ünï cödé\t2.png"), ("été.jpg", "x y z.jpg")],
+    [
+        ("a.png", "b.png"),
+        ("frame one.png", "ünï cödé\t2.png"),
+        ("été.jpg", "x y z.jpg"),
+        ("#1.png", "#2.png"),
+        ("a.png", "#b.png"),
+    ],
 )
 def test_initial_pairs_text_keeps_names_with_spaces_as_the_pairs_file_does(tmp_path, names):
     from ppo_cv.cli.batch import _fields

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pycolmap
@@ -94,11 +95,27 @@ def test_rotation_focal_scale_recovers_the_focal_length_of_a_rotation(rotvec, fo
         Rotation.from_rotvec([0.0, 0.0, 0.3]).as_matrix(),  # about the optical axis only
         _conjugate_rotation([0.0, 0.2, 0.0], 20.0),  # a focal length far outside the range
         np.full((3, 3), np.nan),
+        np.zeros((3, 3)),
+        np.diag([1.0, 1.0, 0.0]),
     ],
-    ids=["roll", "out of range", "not finite"],
+    ids=["roll", "out of range", "not finite", "zero", "singular"],
 )
 def test_rotation_focal_scale_is_none_without_a_focal_length_in_range(H):
-    assert sfm.rotation_focal_scale(H, 600.0, 640) is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a zero H divided 0 by 0 with a RuntimeWarning
+        assert sfm.rotation_focal_scale(H, 600.0, 640) is None
+
+
+@pytest.mark.parametrize(
+    "H, error, words",
+    [
+        (np.eye(2), ValueError, r"^H must have shape \(3, 3\), got \(2, 2\)$"),  # was None
+        ("abc", TypeError, r"^H must be a 3x3 array of numbers, got 'abc'$"),
+    ],
+)
+def test_rotation_focal_scale_names_an_H_that_is_no_homography(H, error, words):
+    with pytest.raises(error, match=words):
+        sfm.rotation_focal_scale(H, 600.0, 640)
 
 
 def test_image_check_agrees_with_estimate_pair(tripod):
@@ -159,6 +176,25 @@ def test_every_checked_pair_a_rotation_fails_as_a_panorama(tripod, monkeypatch):
     assert message.startswith("the 6 images look like a panorama (pure rotations about one")
     assert f"{sfm.MAX_IMAGE_CHECKS} pure rotation on the images" in message
     assert f"{len(ranked) - sfm.MAX_IMAGE_CHECKS} not checked on the images" in message
+
+
+def test_pan_folder_with_colmap_initialization_says_why_nothing_was_built(tmp_path):
+    # It said "nothing was reconstructed; no model written", which names no cause.
+    images = tmp_path / "pan"
+    _, K, _ = render_tripod_then_move(images, n_pan=4, n_move=0)
+    k = f"{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]}"
+    run = subprocess.run(
+        [*COMMAND, "sfm", str(images), "model", "--K", k, "--init", "colmap", "--quiet",
+         "--threads", "1"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert run.returncode == 1, run.stderr
+    assert run.stderr == (
+        "ppo-cv sfm: pycolmap's own initialisation found no pair of the 4 images to start a "
+        "model from (a panorama, or too little parallax) and no model was written; the PPO "
+        "initialisation names why each pair is refused\n"
+    )
+    assert run.stdout == "" and not (tmp_path / "model").exists()
 
 
 def test_colmap_initialization_checks_no_pair(tripod, monkeypatch):
