@@ -56,6 +56,7 @@ __all__ = [
     "ASPECT_TOLERANCE",
     "TURNED_CENTRE_TOLERANCE",
     "EXIF_FIELD_RANGE_DEG",
+    "GUESSED_FOCAL_FACTOR",
     "MAX_PIXEL_ASPECT",
     "unusable_exif_focal",
 ]
@@ -680,11 +681,15 @@ def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> 
     doubt = unusable_exif_focal(K[0, 0], max(width, height)) if from_exif else None
     if doubt is not None:
         warnings.warn(f"{os.fspath(path)}: {doubt}", ImplausibleCameraWarning, stacklevel=2)
-        K[[0, 1], [0, 1]], from_exif = 1.2 * max(width, height), False
+        K[[0, 1], [0, 1]], from_exif = GUESSED_FOCAL_FACTOR * max(width, height), False
     if exif_orientation and decoded_transposed(path, width, height):
         K = K[[1, 0, 2]][:, [1, 0, 2]]
     return Camera(_matrix_from_values(K, "EXIF camera")), from_exif
 
+
+GUESSED_FOCAL_FACTOR = 1.2
+"""The focal length of an image without a usable EXIF one, in its larger side: COLMAP's guess
+(``pycolmap.ImageReaderOptions().default_focal_length_factor``)."""
 
 EXIF_FIELD_RANGE_DEG = (0.5, 150.0)
 """Fields of view across the larger image side outside which an EXIF focal length is no focal
@@ -717,7 +722,8 @@ def unusable_exif_focal(focal: float, side: int) -> str | None:
     return (
         f"the EXIF focal length f={focal:.1f} px gives a {field:.3g} deg field of view across "
         f"{side} px, outside {low:g}..{high:g} deg (a placeholder?): not used, guessing "
-        f"f={1.2 * side:.1f} px (1.2 x image size) as without one; pass --K or --calib"
+        f"f={GUESSED_FOCAL_FACTOR * side:.1f} px ({GUESSED_FOCAL_FACTOR:g} x image size) as "
+        "without one; pass --K or --calib"
     )
 
 

@@ -547,15 +547,17 @@ def prepare_database(
 def _drop_unusable_exif_focals(database_path: str | os.PathLike) -> None:
     """Give each camera pycolmap guessed from an EXIF focal length that is none (a placeholder
     such as 65535 mm, :func:`~ppo_cv.calib.unusable_exif_focal`) the focal length of an image
-    without one, 1.2 times its larger side, as :func:`~ppo_cv.calib.camera_from_exif` does."""
-    from .calib import unusable_exif_focal
+    without one (:data:`~ppo_cv.calib.GUESSED_FOCAL_FACTOR` times its larger side), as
+    :func:`~ppo_cv.calib.camera_from_exif` does."""
+    from .calib import GUESSED_FOCAL_FACTOR, unusable_exif_focal
 
     with pycolmap.Database.open(database_path) as database:
         for camera in database.read_all_cameras():
             side = max(camera.width, camera.height)
             focal = camera.mean_focal_length()
             if camera.has_prior_focal_length and unusable_exif_focal(focal, side) is not None:
-                camera.focal_length, camera.has_prior_focal_length = 1.2 * side, False
+                camera.focal_length = GUESSED_FOCAL_FACTOR * side
+                camera.has_prior_focal_length = False
                 database.update_camera(camera)
 
 

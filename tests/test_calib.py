@@ -694,6 +694,15 @@ def test_an_exif_focal_length_that_is_none_is_not_used(tmp_path, focal_35mm, fie
     np.testing.assert_array_equal(K, camera.K)
 
 
+def test_the_focal_length_put_in_place_of_an_unusable_one_is_colmaps_guess(tmp_path):
+    from PIL import Image
+
+    path = tmp_path / "plain.png"  # no EXIF: pycolmap guesses the focal length itself
+    Image.fromarray(np.zeros((480, 640, 3), np.uint8)).save(path)
+    camera, from_exif = camera_from_exif(path)
+    assert not from_exif and camera.K[0, 0] == calib.GUESSED_FOCAL_FACTOR * 640
+
+
 @pytest.mark.parametrize("focal_35mm", [10, 3000])
 def test_an_exif_focal_length_of_a_real_lens_is_used(tmp_path, focal_35mm):
     path = tmp_path / "photo.jpg"
