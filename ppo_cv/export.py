@@ -544,11 +544,7 @@ def write_colmap_model(
 
     require_result(result)
     cameras = result.cameras
-    dists = _checked_dists((cameras.dist1, cameras.dist2) if dists is None else dists)
-    _check_names(names)
-    check_colmap_camera(cameras.K1, dists[0], "camera 1")
-    check_colmap_camera(cameras.K2, dists[1], "camera 2")
-    check_colmap_names(names)
+    dists = _colmap_model_inputs(result, names, dists)
     reconstruction = pycolmap.Reconstruction()
     same = (
         np.allclose(cameras.K1, cameras.K2)
@@ -631,11 +627,7 @@ def write_outputs(
     paths = [image for image in (image1, image2) if isinstance(image, (str, os.PathLike))]
     image1, image2 = _checked_output_arguments(result, (image1, image2), names, extra)
     check_apart(directory, paths, "directory ")
-    dists = (result.cameras.dist1, result.cameras.dist2) if dists is None else dists
-    dists = _checked_dists(dists)
-    check_colmap_camera(result.cameras.K1, dists[0], "camera 1")
-    check_colmap_camera(result.cameras.K2, dists[1], "camera 2")
-    check_colmap_names(names)
+    dists = _colmap_model_inputs(result, names, dists)
     with atomic_directory(directory, overwrite, API_REPLACE_HINT) as staging:
         (staging / "result.json").write_text(
             json.dumps(result_to_dict(result, **(extra or {})), indent=2) + "\n", encoding="utf-8"
@@ -684,6 +676,19 @@ def _checked_images(result: Any, images: tuple[Any, Any]) -> tuple[np.ndarray, n
                 f"is {size[0]}x{size[1]}"
             )
     return arrays
+
+
+def _colmap_model_inputs(result: PairResult, names: Any, dists: Any) -> tuple:
+    """The two cameras' distortions of ``result``'s COLMAP model (``dists``, by default those
+    the result was computed with), checked with the image ``names`` and the cameras: a
+    ValueError or TypeError for what the model cannot hold."""
+    cameras = result.cameras
+    dists = _checked_dists((cameras.dist1, cameras.dist2) if dists is None else dists)
+    _check_names(names)
+    check_colmap_camera(cameras.K1, dists[0], "camera 1")
+    check_colmap_camera(cameras.K2, dists[1], "camera 2")
+    check_colmap_names(names)
+    return dists
 
 
 def _check_names(names: Any) -> None:
