@@ -152,7 +152,7 @@ from .rotation import (
 from .rotation_choice import (
     RotationEstimate,
     choose_rotation,
-    focal_bias_deg,
+    focal_trade_deg,
     released_lens_shift_deg,
     rotation_only_estimate,
     rotation_only_fit,
@@ -464,11 +464,11 @@ def _finish_rotation(state: _Finishing) -> _ModelPart:
     """A pure rotation: the rotation-only fit, no point, ``t`` undetermined (its sigma the cap);
     the rotation's deviation with the tracks' parallax beyond its noise
     (:func:`~ppo_cv.rotation_choice.unbiased_bias_deg`) and the rotation its focal scale may
-    have bought (:func:`~ppo_cv.rotation_choice.focal_bias_deg`)."""
+    have bought (:func:`~ppo_cv.rotation_choice.focal_trade_deg`)."""
     motion, num_matches = state.motion, len(state.found.matches)
     bias = translation_bias(None if state.tracks is None else state.tracks.parallax)
     lens = rotation_only_fit(motion, state.tracks)
-    focal = focal_bias_deg(lens, state.found.x1, state.found.x2, motion.rotation_inliers)
+    focal = focal_trade_deg(lens, state.found.x1, state.found.x2, motion.rotation_inliers)
     deviations = [motion.rotation_sigma_deg, unbiased_bias_deg(*bias), focal]
     return _ModelPart(
         R=motion.R,

@@ -22,9 +22,10 @@ smaller wins (:func:`choose_rotation`).
   rotation_sigma_deg`, or :func:`rotation_fit_sigma_deg` when its lens was clipped to the box)
   and a bias: the translation it does not model (:func:`translation_bias`), measured on
   intensity-aligned tracks or, where none were aligned, on the feature matches
-  (:func:`matches_parallax`), less precisely and with a deviation that says so. The part of that
-  translation its focal scale absorbed (:func:`focal_bias_deg`) is counted in a pure rotation's
-  reported deviation, not in the choice.
+  (:func:`matches_parallax`), less precisely and with a deviation that says so. The rotation
+  its focal scale bought where that scale departs from the given focal length beyond its prior
+  (:func:`focal_trade_deg`) is counted in a pure rotation's reported deviation, not in the
+  choice.
 
 The bias. A camera moved by ``b`` before a point at depth ``Z`` shifts the point's normalised
 image by ``((b_x - x b_z) / Z, (b_y - y b_z) / Z)``; a small rotation ``w`` shifts it by
@@ -173,6 +174,7 @@ __all__ = [
     "across_normal_parallax",
     "choose_rotation",
     "focal_bias_deg",
+    "focal_trade_deg",
     "focal_free_parallax",
     "freed_parallax_refused",
     "given_focal_fit",
@@ -424,11 +426,13 @@ def focal_bias_deg(
     2.9 % off and fitted to 0.1 %, asked for 0.09 of the depth and 5.3 degrees).
     0 when the departure is within the prior; inf when the matches do not determine it.
 
-    A pure rotation's reported deviation counts it; the rotation choice does not: on real
+    The rotation choice does not count it for an estimate whose lens lies in the box: on real
     lenses the focal scale also departs to fit a distortion the division model does not have
     (3-5 % on the pano_dev tripod pairs, whose focal lengths a bundle adjustment gave), which
     this reads as a translation, and rotation-only fits 0.2-0.9 degree from the reference lost
-    to essential matrices 1.1-1.8 degree off.
+    to essential matrices 1.1-1.8 degree off. A pure rotation's reported deviation counts
+    :func:`focal_trade_deg` instead: a step before a scene whose depth varies across the view
+    moves the focal scale far more than this one-depth response says.
 
     >>> import numpy as np
     >>> from ppo_cv.rotation import fit_rotation_lens
@@ -462,6 +466,66 @@ def focal_bias_deg(
         return float("inf")
     step_size = min(excess / np.linalg.norm(g), MAX_TRACK_PARALLAX)
     return float(np.degrees(step_size * np.linalg.norm(G @ g) / np.linalg.norm(g)))
+
+
+def focal_trade_deg(
+    lens: LensRotationFit, x1: np.ndarray, x2: np.ndarray, used: np.ndarray, step: float = 1e-6
+) -> float:
+    """Rotation (degrees) a rotation-only fit's focal scale bought, where that scale departs
+    from the given focal length by more than the deviation :data:`ppo_cv.rotation.FOCAL_PRIOR`
+    the given one is trusted to: a pure rotation's reported deviation counts it.
+
+    Along the fit's valley the rotation follows the focal scale: with the scale moved by
+    ``ds`` and the rotation and ``k1`` (under :data:`ppo_cv.rotation.K1_PRIOR`) fitted again,
+    the rotation moves by ``|dR/ds| ds``, ``dR/ds = -(J_w^T J_w)^-1 J_w^T J_s`` with ``J_s``
+    the transfer errors' derivative in the focal scale and ``J_w`` theirs in the rotation
+    increment and ``k1`` (the matches ``used``, normalised points (N, 2) or (N, 3)). In a pan
+    of angle ``a`` that slope is about ``sin a`` radians per unit of scale, whatever moved the
+    scale: a tripod's step before a scene whose depth varies across the view moves it by
+    several percent where one depth would move it by a few tenths of a percent
+    (:func:`focal_bias_deg`). The departure ``e = s - 1`` is the given focal length's error,
+    of deviation ``FOCAL_PRIOR``, plus what a step put there, whose size is estimated as
+    ``sqrt(max(e^2 - FOCAL_PRIOR^2, 0))`` (as :func:`unbiased_bias_deg`), and the rotation it
+    bought as that times the slope. 0 when the departure is within the prior; inf when the
+    matches do not determine the slope.
+
+    A 40 degree pan about a pivot behind the lens, 0.5 % of the depth off it, before a floor
+    and a ceiling (the inverse depth grows with ``|y|``); the fit's focal scale takes up the
+    step:
+
+    >>> import numpy as np
+    >>> from ppo_cv.rotation import fit_rotation_lens
+    >>> from ppo_cv.metrics import rotation_error_deg
+    >>> rng = np.random.default_rng(0)
+    >>> q1 = rng.uniform(-0.7, 0.7, (400, 2)) * [1.0, 0.75]
+    >>> c, s = np.cos(np.radians(40.0)), np.sin(np.radians(40.0))
+    >>> R = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    >>> pivot = np.array([0.0, 0.0, -1.0])
+    >>> t = (pivot - R @ pivot) * 0.005 / np.linalg.norm(pivot - R @ pivot)
+    >>> inverse_depth = 1.0 + 2.0 * np.abs(q1[:, 1:])
+    >>> ray = np.column_stack([q1, np.ones(400)]) @ R.T + inverse_depth * t
+    >>> x2 = ray[:, :2] / ray[:, 2:] + rng.normal(0.0, 1e-4, (400, 2))
+    >>> used = np.all(np.abs(x2) < 0.7, axis=1)
+    >>> fit = fit_rotation_lens(q1, x2, used, R, noise=1.4e-4, max_focal_change=0.2)
+    >>> round(fit.focal_scale, 3), round(rotation_error_deg(fit.R, R), 2)
+    (0.968, 0.99)
+    >>> round(focal_trade_deg(fit, q1, x2, used), 2), round(focal_bias_deg(fit, q1, x2, used), 2)
+    (1.03, 0.28)
+    """
+    departure = float(lens.focal_scale) - 1.0
+    excess = float(np.sqrt(max(departure**2 - FOCAL_PRIOR**2, 0.0)))
+    if excess == 0.0:
+        return 0.0
+    found = _lens_jacobian(lens, x1, x2, used, step)
+    if found is None:
+        return float("inf")
+    J, noise = found
+    refitted = np.vstack([J[:, [0, 1, 2, 4]], [0.0, 0.0, 0.0, noise / K1_PRIOR]])
+    moved = np.r_[-J[:, 3], 0.0]
+    slope, _, rank, _ = np.linalg.lstsq(refitted, moved, rcond=None)
+    if rank < refitted.shape[1]:
+        return float("inf")
+    return float(np.degrees(excess * np.linalg.norm(slope[:3])))
 
 
 def _translation_flow(lens: LensRotationFit, x1: np.ndarray, axis: int, step: float):

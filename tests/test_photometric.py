@@ -173,7 +173,7 @@ def test_pipeline_rotation_of_imperfect_renders_beats_the_feature_matches():
         errors.append(rotation_error_deg(result.R, pair.R))
         matches_errors.append(rotation_error_deg(matches.R, pair.R))
         # each sigma also counts the rotation a focal length given 2-3 % off may hide
-        # (rotation_choice.focal_bias_deg), which tracks do not resolve: compare the errors
+        # (rotation_choice.focal_trade_deg), which tracks do not resolve: compare the errors
         assert errors[-1] < matches_errors[-1]
         assert errors[-1] < 5.0 * result.uncertainty.rotation_sigma_deg
         assert result.uncertainty.t_sigma_deg > 30.0 and result.num_points == 0

@@ -12,6 +12,7 @@ from ppo_cv.rotation_choice import (
     across_normal_parallax,
     choose_rotation,
     focal_bias_deg,
+    focal_trade_deg,
     given_focal_fit,
     released_lens_shift_deg,
     rotation_fit_sigma_deg,
@@ -207,6 +208,39 @@ def test_focal_bias_is_the_rotation_a_sideways_step_put_into_the_focal_scale(
     share = min(1.0, MAX_TRACK_PARALLAX / step)
     assert error > 0.05
     assert 0.6 * share * error <= bias <= 1.2 * share * error
+
+
+@pytest.mark.parametrize(
+    ("turn_deg", "step", "focal_error"),
+    [
+        (20.0, 0.005, 0.0),
+        (40.0, 0.005, 0.0),
+        (40.0, 0.004, -0.01),  # the given focal length 1 % short besides
+        (40.0, 0.0, 0.015),  # a pure rotation, focal length off within its prior
+    ],
+)
+def test_focal_trade_is_the_rotation_a_step_before_a_floor_and_ceiling_put_into_the_focal_scale(
+    turn_deg, step, focal_error
+):
+    rng = np.random.default_rng(5)
+    q1 = rng.uniform(-0.7, 0.7, (400, 2)) * [1.0, 0.75]
+    R = _turn(turn_deg)
+    pivot = np.array([0.0, 0.0, -1.0])
+    t = (pivot - R @ pivot) / np.linalg.norm(pivot - R @ pivot) * step
+    inverse_depth = 1.0 + 2.0 * np.abs(q1[:, 1:])  # a floor and a ceiling
+    ray = np.column_stack([q1, np.ones(len(q1))]) @ R.T + inverse_depth * t
+    x2 = ray[:, :2] / ray[:, 2:] + rng.normal(0.0, 1e-4, (len(q1), 2))
+    given1, given2 = q1 / (1.0 + focal_error), x2 / (1.0 + focal_error)
+    used = np.all(np.abs(x2) < 0.7, axis=1)
+    fit = fit_rotation_lens(given1, given2, used, R, noise=1.4e-4, max_focal_change=0.2)
+    error = rotation_error_deg(fit.R, R)
+    trade = focal_trade_deg(fit, given1, given2, used)
+    if step == 0.0:
+        assert error < 0.02 and trade == 0.0
+        return
+    assert error > 0.5
+    assert 0.7 * error <= trade <= 2.0 * error
+    assert focal_bias_deg(fit, given1, given2, used) < 0.5 * error  # one depth: a step's share
 
 
 def _distorted(x: np.ndarray, k1: float) -> np.ndarray:
