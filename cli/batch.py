@@ -608,11 +608,15 @@ def _run_all(function, jobs, pool, report: ProgressReport):
         yield outcome
 
 
-def _fit_calibration(rows: list[dict], image_dir: Path, calib, K2) -> None:
+def _fit_calibration(
+    rows: list[dict], image_dir: Path, calib, K2, exif_orientation: bool = True
+) -> None:
     """Fit the cameras of ``calib`` to the images of the rows that take them, by the sizes in
-    the image headers (:func:`ppo_cv.calib.fit_to_image`; ``--K2`` replaces the second one),
-    warning once for all the images scaled; a ValueError for another aspect ratio."""
+    the image headers, turned where the EXIF orientation turns the image as it is read
+    (``exif_orientation``; :func:`ppo_cv.calib.fit_to_image`; ``--K2`` replaces the second
+    one), warning once for all the images scaled; a ValueError for another aspect ratio."""
     from ppo_cv.calib import fit_to_image, load_calibration
+    from ppo_cv.images import exif_layout
 
     from .common import image_size
 
@@ -628,7 +632,10 @@ def _fit_calibration(rows: list[dict], image_dir: Path, calib, K2) -> None:
             if size is None:  # unreadable: the pair reports it
                 continue
             if (key, name) not in fitted:
-                fitted[key, name], note = fit_to_image(camera, size, f"--calib {calib}", name)
+                turned = exif_orientation and exif_layout(image_dir / name).turned
+                fitted[key, name], note = fit_to_image(
+                    camera, size[::-1] if turned else size, f"--calib {calib}", name, turned
+                )
                 notes += [note] if note else []
             row[key] = fitted[key, name].K
     if notes:
@@ -779,7 +786,7 @@ def run_pairs(
         images = {Path(image_dir) / r[k] for r in rows for k in ("image1", "image2")}
         check_apart(output, sorted(images), "-o ")
     if calib is not None:
-        _fit_calibration(rows, Path(image_dir), calib, K2)
+        _fit_calibration(rows, Path(image_dir), calib, K2, exif_orientation)
     _warn_repeated_lines(rows, Path(pairs_file))
     given = "--K" if calib is None else f"--calib {calib}"
     if cameras is not None:

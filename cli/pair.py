@@ -68,22 +68,25 @@ def _require_one_size(images, sizes, source: str) -> None:
         )
 
 
-def _calibrated_cameras(calib, images, sizes, K2, dist, dist2):
+def _calibrated_cameras(calib, images, sizes, K2, dist, dist2, exif_orientation=True):
     """(Cameras, notes) of a calibration file, each camera fitted to its image's size
-    (:func:`ppo_cv.calib.fit_to_image`); ``--K2``, ``--dist``, ``--dist2`` override it, ``--dist``
-    both images' when the file describes one camera (as with ``--K``)."""
+    (:func:`ppo_cv.calib.fit_to_image`, told which images their EXIF orientation turned);
+    ``--K2``, ``--dist``, ``--dist2`` override it, ``--dist`` both images' when the file
+    describes one camera (as with ``--K``)."""
     from ppo_cv.calib import fit_to_image, load_calibration, parse_distortion, parse_intrinsics
+    from ppo_cv.images import exif_layout
 
     cameras = load_calibration(calib)
     if len(cameras) == 1 and K2 is None and cameras[0].image_size is None:
         _require_one_size(images, sizes, f"--calib {calib}")
     name = f"--calib {calib}"
-    first, note1 = fit_to_image(cameras[0], sizes[0], name, str(images[0]))
+    turned = [exif_orientation and exif_layout(image).turned for image in images]
+    first, note1 = fit_to_image(cameras[0], sizes[0], name, str(images[0]), turned[0])
     notes = [note1] if note1 else []
     if K2 is not None:
         K2v, d2 = parse_intrinsics(K2, "--K2"), None
     else:
-        second, note2 = fit_to_image(cameras[-1], sizes[1], name, str(images[1]))
+        second, note2 = fit_to_image(cameras[-1], sizes[1], name, str(images[1]), turned[1])
         K2v, d2 = second.K, second.dist
         notes += [note2] if note2 else []
     given1 = parse_distortion(dist, "--dist") if dist is not None else None
@@ -100,7 +103,9 @@ def _cameras(images, sizes, K, K2, dist, dist2, calib, exif_orientation=True):
     if calib is not None:
         if K is not None:
             raise ValueError("give either --K or --calib, not both")
-        cameras, notes = _calibrated_cameras(calib, images, sizes, K2, dist, dist2)
+        cameras, notes = _calibrated_cameras(
+            calib, images, sizes, K2, dist, dist2, exif_orientation
+        )
         return cameras, None, notes
     cameras = given_cameras(K, K2, dist, dist2, None)
     if cameras is not None:

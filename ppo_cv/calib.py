@@ -728,8 +728,9 @@ def unusable_exif_focal(focal: float, side: int) -> str | None:
 
 
 def fit_to_image(
-    camera: Camera, size: tuple[int, int], name: str, image: str = "the image"
-) -> tuple[Camera, str | None]:
+    camera: Camera, size: tuple[int, int], name: str, image: str = "the image",
+    turned: bool = False,
+) -> tuple[Camera, str | None]:  # fmt: skip
     """``camera`` for an image of ``size`` (width, height), and a note when it was scaled.
 
     A camera without a stated image size, or calibrated on images of this size, is returned
@@ -744,6 +745,9 @@ def fit_to_image(
         ``(width, height)`` of the image, pixels.
     name, image : str
         The calibration and the image, as messages name them.
+    turned : bool
+        The image was turned upright by its EXIF orientation (``size`` is the upright one): a
+        calibration of the pixels as stored is then refused with that cause and the way out.
 
     Returns
     -------
@@ -761,11 +765,20 @@ def fit_to_image(
     """
     require_instance(camera, Camera, "camera")
     size = as_image_size(size, "size")
+    as_flag(turned, "turned")
     if camera.image_size is None or tuple(camera.image_size) == tuple(size):
         return camera, None
     (width, height), (calibrated_width, calibrated_height) = size, camera.image_size
     sx, sy = width / calibrated_width, height / calibrated_height
     if abs(sx - sy) > ASPECT_TOLERANCE * max(sx, sy):
+        sx_stored, sy_stored = height / calibrated_width, width / calibrated_height
+        if turned and abs(sx_stored - sy_stored) <= ASPECT_TOLERANCE * max(sx_stored, sy_stored):
+            raise ValueError(
+                f"{name} describes a camera of {calibrated_width}x{calibrated_height} images, "
+                f"the pixels of {image} as stored ({height}x{width}), but its EXIF orientation "
+                f"turns them upright to {width}x{height}: --no-exif-orientation (or "
+                "exif_orientation=False) reads them as stored, as the calibration describes them"
+            )
         raise ValueError(
             f"{name} describes a camera of {calibrated_width}x{calibrated_height} images but "
             f"{image} is {width}x{height} pixels, another aspect ratio (cropped or turned?): "

@@ -50,6 +50,14 @@ pairs detected again, 37 keeping the denser features; at 0.02 the gain at AUC@5 
 about half). Detecting at a lower
 threshold on every pair costs the pairs with many inliers accuracy, weak keypoints being
 located worse: at 0.02 throughout, freiburg's AUC@5 fell to 60.6."""
+_PARALLEL_DETECTION_PIXELS = 3_000_000
+"""Most pixels the detection copies of a pair's two images (each reduced to
+``PairOptions.max_image_size``) hold together for :func:`detect_both` to detect them at once on
+two threads; a larger pair is detected one image after the other. OpenCV's SIFT builds its
+scale space at twice the copy's size, about 210 bytes per pixel of the copy: on a 4000x3000
+pair (two 2000x1500 copies, 6 megapixels) detection peaked at 1.18 GB of resident memory on two
+threads and 0.80 GB one after the other, in the same time on the loaded 2-core host (3.2-3.3 s
+against 3.1-3.9 s); a 640x480 pair (0.6 megapixels) keeps its two threads."""
 FIRST_DETECTION_PER_MEGAPIXEL = 13_000
 """Keypoints per megapixel of the detected image that the first SIFT detection of
 ``PairOptions.detect_once``, run at :data:`REDETECT_THRESHOLD_SCALE`, keeps at most (never
@@ -86,19 +94,27 @@ def _first_detection(image: np.ndarray, options: PairOptions) -> Features:
 
 def _first_detection_cap(shape: tuple, options: PairOptions) -> int:
     """Keypoints the first detection keeps (:data:`FIRST_DETECTION_PER_MEGAPIXEL`)."""
+    megapixels = _detected_pixels(shape, options) / 1e6
+    return min(options.max_features, int(np.ceil(FIRST_DETECTION_PER_MEGAPIXEL * megapixels)))
+
+
+def _detected_pixels(shape: tuple, options: PairOptions) -> float:
+    """Pixels of the copy of an image of ``shape`` (H, W[, C]) that detection runs on, its
+    longer side reduced to ``options.max_image_size``."""
     height, width = int(shape[0]), int(shape[1])
     scale = 1.0
     if options.max_image_size is not None and max(height, width) > options.max_image_size:
         scale = options.max_image_size / max(height, width)
-    megapixels = height * width * scale**2 / 1e6
-    return min(options.max_features, int(np.ceil(FIRST_DETECTION_PER_MEGAPIXEL * megapixels)))
+    return height * width * scale**2
 
 
 def detect_both(
     image1, image2, options: PairOptions, threshold_scale: float | None = None
 ) -> tuple[Features, Features, float]:
-    """Features of both images on two threads (OpenCV releases the GIL), and when both were done:
-    at ``threshold_scale``, by default those of the first consensus (:func:`_first_detection`).
+    """Features of both images on two threads (OpenCV releases the GIL), one after the other
+    when their detection copies hold more than :data:`_PARALLEL_DETECTION_PIXELS` together, and
+    when both were done: at ``threshold_scale``, by default those of the first consensus
+    (:func:`_first_detection`).
 
     The first use of pycolmap in a process pays its import; it is overlapped with detection.
     The returned ``time.perf_counter()`` of the end of detection separates the two.
@@ -116,7 +132,9 @@ def detect_both(
     with ThreadPoolExecutor(max_workers=3) as pool:
         if options.backend == "pycolmap" and "pycolmap" not in sys.modules:
             pool.submit(importlib.import_module, "pycolmap")
-        (f1, done1), (f2, done2) = pool.map(run, (image1, image2))
+        pixels = sum(_detected_pixels(np.shape(image), options) for image in (image1, image2))
+        each = pool.map if pixels <= _PARALLEL_DETECTION_PIXELS else map
+        (f1, done1), (f2, done2) = each(run, (image1, image2))
     return f1, f2, max(done1, done2)
 
 

@@ -560,6 +560,26 @@ def test_a_camera_is_scaled_to_a_resized_image_about_the_pixel_centres():
         fit_to_image(camera, (640, 400), "c", "a.png")
 
 
+def test_a_calibration_of_an_image_turned_by_exif_names_the_turn():
+    """The camera of 320x240 images and an image stored so (a resized copy too) but shown
+    upright as 240x320 or 480x640: the EXIF orientation is named with the way out; an image
+    not turned by EXIF keeps the general refusal."""
+    camera = Camera(np.array([[267.7, 0, 159.8], [0, 269.6, 123.55], [0, 0, 1]]), None, (320, 240))
+    for size in ((240, 320), (480, 640)):
+        message = (
+            rf"the pixels of a.jpg as stored \({size[1]}x{size[0]}\), but its EXIF orientation "
+            "turns them upright to .*--no-exif-orientation"
+        )
+        with pytest.raises(ValueError, match=message):
+            fit_to_image(camera, size, "c", "a.jpg", turned=True)
+        with pytest.raises(ValueError, match="another aspect ratio"):
+            fit_to_image(camera, size, "c", "a.jpg")
+    with pytest.raises(ValueError, match="another aspect ratio"):
+        fit_to_image(camera, (640, 400), "c", "a.jpg", turned=True)
+    with pytest.raises(TypeError, match="turned"):
+        fit_to_image(camera, (640, 480), "c", "a.jpg", turned="yes")
+
+
 @pytest.mark.parametrize("value", [None, 535.4, b"535.4,539.2,320.1,247.6"], ids=repr)
 @pytest.mark.parametrize("parse", [parse_intrinsics, parse_distortion], ids=lambda f: f.__name__)
 def test_parsing_something_other_than_text_is_a_type_error(parse, value):

@@ -495,3 +495,53 @@ def test_a_ground_truth_rotation_rounded_too_far_is_refused_with_the_way_out(
     with pytest.raises(ValueError, match="pairs.txt:1: the ground-truth rotation is not "
                                          "orthonormal .*" + ending):  # fmt: skip
         batch.read_pairs(path)
+
+
+def _calibration(path: Path, size: tuple[int, int], matrix) -> Path:
+    storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    storage.write("image_width", size[0])
+    storage.write("image_height", size[1])
+    storage.write("camera_matrix", np.array(matrix, float))
+    storage.write("distortion_coefficients", np.zeros(5))
+    storage.release()
+    return path
+
+
+def test_a_calibration_is_fitted_to_the_images_as_read_upright(tmp_path):
+    """Photos stored sideways (480x640) and shown upright (640x480) by their EXIF orientation,
+    as ``pair`` reads them: the calibration of the upright images serves them (it was refused
+    by the stored size in the header, "another aspect ratio"), one of the stored pixels is
+    refused naming the orientation, and serves them read as stored."""
+    from PIL import Image
+
+    for name in (NAME1, NAME2):
+        image = Image.open(DATA / name).convert("RGB").transpose(Image.Transpose.ROTATE_90)
+        exif = Image.Exif()
+        exif[0x0112] = 6
+        image.save(tmp_path / f"{Path(name).stem}.jpg", quality=95, exif=exif.tobytes())
+    pairs = tmp_path / "pairs.txt"
+    pairs.write_text(f"{Path(NAME1).stem}.jpg {Path(NAME2).stem}.jpg\n")
+    upright = _calibration(tmp_path / "upright.yml", (640, 480), K)
+    stored = _calibration(
+        tmp_path / "stored.yml", (480, 640), [[fy, 0, cy], [0, fx, 639 - cx], [0, 0, 1]]
+    )
+
+    def run(calib: Path, *more: str):
+        out = tmp_path / f"{calib.stem}{len(more)}.jsonl"
+        args = ["pairs", str(pairs), str(tmp_path), "--calib", str(calib), "-o", str(out)]
+        result = CliRunner().invoke(app, [*args, "--workers", "1", "--quiet", *more])
+        lines = out.read_text().splitlines() if out.exists() else []
+        return result, [json.loads(line) for line in lines]
+
+    result, (line,) = run(upright)
+    assert result.exit_code == 0, result.output
+    np.testing.assert_allclose(line["cameras"]["K1"], K)
+    assert abs(line["rotation_angle_deg"] - 10.9) < 0.5
+    result, lines = run(stored)
+    assert result.exit_code == 2 and lines == []
+    assert "as stored (480x640), but its EXIF orientation turns them upright to 640x480" in (
+        result.stderr
+    )
+    result, (line,) = run(stored, "--no-exif-orientation")
+    assert result.exit_code == 0, result.output
+    assert line["cameras"]["image_size1"] == [480, 640]

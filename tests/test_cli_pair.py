@@ -233,6 +233,40 @@ def test_exif_orientation_gives_the_camera_of_the_upright_image(tmp_path):
     assert rotation_error_deg(turned["R"], upright["R"]) < 0.3
 
 
+def test_a_calibration_of_the_pixels_as_stored_names_the_exif_orientation(tmp_path):
+    """A phone calibrated in landscape and a photo taken upright: its pixels are stored as the
+    calibration describes them (480x640) and shown turned (640x480). The refusal names the
+    EXIF orientation and the way out, which poses the pair in the stored pixels' frame."""
+    paths = [tmp_path / f"{k}.jpg" for k in (1, 2)]
+    for source, path in zip((DEMO1, DEMO2), paths, strict=True):
+        _phone_jpeg(source, path, 6)
+    fx, fy, cx, cy = DEMO["intrinsics"]
+    calib = tmp_path / "phone.yml"
+    storage = cv2.FileStorage(str(calib), cv2.FILE_STORAGE_WRITE)
+    storage.write("image_width", 480)
+    storage.write("image_height", 640)
+    storage.write("camera_matrix", np.array([[fy, 0, cy], [0, fx, 639 - cx], [0, 0, 1]]))
+    storage.write("distortion_coefficients", np.zeros(5))
+    storage.release()
+    args = ["pair", *map(str, paths), "--calib", str(calib), "--json"]
+    refused = runner.invoke(app, args)
+    assert refused.exit_code == 2 and refused.stdout == ""
+    assert refused.stderr.strip() == (
+        f"ppo-cv pair: --calib {calib} describes a camera of 480x640 images, the pixels of "
+        f"{paths[0]} as stored (480x640), but its EXIF orientation turns them upright to "
+        "640x480: --no-exif-orientation (or exif_orientation=False) reads them as stored, as "
+        "the calibration describes them"
+    )
+    stored = runner.invoke(app, [*args, "--no-exif-orientation"])
+    assert stored.exit_code == 0, stored.output
+    data = json.loads(stored.stdout)
+    assert data["cameras"]["image_size1"] == [480, 640]
+    upright = runner.invoke(app, ["pair", DEMO1, DEMO2, "--K", K_TEXT, "--json"])
+    turn = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # upright to stored axes
+    R_upright = np.array(json.loads(upright.stdout)["R"])
+    assert rotation_error_deg(data["R"], turn @ R_upright @ turn.T) < 0.3
+
+
 @pytest.fixture(scope="module")
 def bad_files(tmp_path_factory):
     root = tmp_path_factory.mktemp("bad")
