@@ -429,3 +429,37 @@ def test_the_writers_check_what_write_outputs_checks(demo_result, demo, tmp_path
     with pytest.raises(exception, match=re.escape(words)):
         call(demo_result, demo[:2], tmp_path / "out")
     assert list(tmp_path.iterdir()) == []
+
+
+def _mean_reprojection_px(model, camera) -> float:
+    """Mean distance (pixels) of every track element of ``model`` from its point seen by
+    ``camera``."""
+    errors = []
+    for point in model.points3D.values():
+        for element in point.track.elements:
+            image = model.images[element.image_id]
+            seen = camera.img_from_cam(image.cam_from_world() * point.xyz)
+            errors.append(np.linalg.norm(seen - image.points2D[element.point2D_idx].xy))
+    return float(np.mean(errors))
+
+
+@pytest.mark.parametrize("dist", [None, np.array([0.01, -0.002, 0.0, 0.0, 0.001])])
+def test_the_colmap_camera_carries_the_radial_term_the_pose_was_fitted_with(tmp_path, dist):
+    from imperfect import imperfect_render
+
+    pair = imperfect_render(1, 0.15)  # a general motion whose refined pose keeps k1 near 0.06
+    result = estimate_pair(pair.image1, pair.image2, pair.K_given, dist1=dist, dist2=dist)
+    assert result.model == "general" and result.lens.radial_k1 > 0.03
+    write_outputs(tmp_path / "out", result, pair.image1, pair.image2)
+    model = pycolmap.Reconstruction(str(tmp_path / "out" / "colmap"))
+    (camera,) = model.cameras.values()
+    assert camera.model_name == ("OPENCV" if dist is None else "FULL_OPENCV")
+    K, coefficients = result.cameras.K1, np.zeros(8) if dist is None else np.r_[dist, 0, 0, 0]
+    given = pycolmap.Camera(
+        model="FULL_OPENCV", width=camera.width, height=camera.height,
+        params=[K[0, 0], K[1, 1], K[0, 2], K[1, 2], *coefficients],
+    )  # fmt: skip
+    exported = _mean_reprojection_px(model, camera)
+    through_given = _mean_reprojection_px(model, given)
+    assert exported < 0.5 * through_given and exported < 0.2
+    assert model.compute_mean_reprojection_error() == pytest.approx(exported, rel=1e-6)
