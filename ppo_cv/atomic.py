@@ -26,6 +26,7 @@ __all__ = [
     "check_apart",
     "settled",
     "names_a_stream",
+    "linked_folder",
     "staging_folder",
     "remove_stale",
     "atomic_file",
@@ -77,11 +78,12 @@ def check_target(
     -------
     pathlib.Path
         ``path`` with the ``..`` and symbolic links of its folder resolved (:func:`settled`), its
-        parent folder existing and writable.
+        parent folder existing and writable; for a folder, the one a symbolic link named by
+        ``path`` leads to (:func:`linked_folder`), so that the link is kept.
     """
     if type(overwrite).__name__ not in ("bool", "bool_"):  # numpy not loaded for the CLI's start
         raise TypeError(f"overwrite must be True or False, got {type(overwrite).__name__}")
-    target = Path(path)
+    target = linked_folder(path) if kind == "folder" else Path(path)
     _require_short_names(target)
     if names_a_stream(target):
         raise ValueError(
@@ -131,6 +133,15 @@ def check_target(
     if not os.access(existing, os.W_OK | os.X_OK):
         raise ValueError(f"cannot write {target}: {existing} is not writable")
     return settled(target)
+
+
+def linked_folder(path: str | os.PathLike) -> Path:
+    """The folder an output folder ``path`` is written into: the one it leads to when it is a
+    symbolic link to a folder, which is kept (``out -> /data/out`` writes ``/data/out``),
+    ``path`` itself otherwise. A link that leads nowhere is no folder: it is refused, or with
+    ``overwrite`` replaced (:func:`check_target`)."""
+    target = Path(path)
+    return Path(os.path.realpath(target)) if target.is_symlink() and target.is_dir() else target
 
 
 def names_a_stream(path: str | os.PathLike) -> bool:
