@@ -664,6 +664,41 @@ def test_opencv_distortion_models_are_read(tmp_path, model, dist, extension):
     np.testing.assert_array_equal(camera.K, K_FREIBURG)
 
 
+KALIBR_NONE = {
+    "json": {"K": K_FREIBURG.tolist(), "distortion_model": "none", "distortion_coeffs": []},
+    "json rig": {"K1": K_FREIBURG.tolist(), "distortion_model": "none", "dist1": [0, 0, 0, 0]},
+    "yml": ROS_CAMERA_INFO.replace("plumb_bob", "none").replace(
+        "distortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [-0.2, 0.05, 0.001, -0.002, 0.01]",
+        "distortion_coeffs: []"),
+    "yml no coefficients": ROS_CAMERA_INFO.replace("plumb_bob", '""').replace(
+        "  data: [-0.2, 0.05, 0.001, -0.002, 0.01]", "  data: [0, 0, 0, 0, 0]"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", list(KALIBR_NONE))
+def test_a_distortion_model_of_none_is_read_as_no_distortion(tmp_path, case):
+    # Kalibr's "distortion_model: none" was refused as no OpenCV pinhole distortion
+    data = KALIBR_NONE[case]
+    path = tmp_path / f"camera.{case.split()[0]}"
+    path.write_text(json.dumps(data) if isinstance(data, dict) else data)
+    (camera,) = load_calibration(path)
+    assert camera.dist is None
+    np.testing.assert_array_equal(camera.K, K_FREIBURG)
+
+
+@pytest.mark.parametrize("extension", ["json", "yml"])
+def test_a_distortion_model_of_none_with_coefficients_is_refused(tmp_path, extension):
+    path = tmp_path / f"camera.{extension}"
+    if extension == "json":
+        path.write_text(json.dumps({"K": K_FREIBURG.tolist(), "distortion_model": "none",
+                                    "distortion_coeffs": DIST[:4].tolist()}))  # fmt: skip
+    else:
+        path.write_text(ROS_CAMERA_INFO.replace("plumb_bob", "none"))
+    words = r"distortion_model 'none' in .*camera\.(json|yml) says no distortion, but the "
+    with pytest.raises(ValueError, match=words + r"coefficients \[-0\.2, .*remove one of the"):
+        load_calibration(path)
+
+
 def _photo_of_35mm_focal(path, focal_35mm: int) -> None:
     from PIL import Image
 
