@@ -57,6 +57,8 @@ __all__ = [
     "ASPECT_TOLERANCE",
     "TURNED_CENTRE_TOLERANCE",
     "EXIF_FIELD_RANGE_DEG",
+    "EXIF_PLAUSIBLE_FIELD_DEG",
+    "field_of_view_deg",
     "GUESSED_FOCAL_FACTOR",
     "MAX_PIXEL_ASPECT",
     "unusable_exif_focal",
@@ -722,6 +724,24 @@ length (:func:`camera_from_exif`): 0.5 degrees is narrower than the longest came
 3000 mm equivalent gives 0.66), 150 degrees wider than any rectilinear lens (a 10 mm
 equivalent gives 120); beyond are placeholders such as 65535 mm (0.03 degrees)."""
 
+EXIF_PLAUSIBLE_FIELD_DEG = (15.0, 120.0)
+"""Horizontal fields of view an EXIF focal length that is used may imply without a warning
+(``ppo_cv.cli.common.exif_camera``): 15 degrees is a 135 mm lens on a full-frame camera, about
+a phone's longest telephoto; 120 degrees is a 10 mm lens, beyond which lenses are fisheyes
+that a pinhole camera with a centred principal point does not describe. Outside, the focal
+length is more likely that of another image size (a resized or cropped copy). Within
+:data:`EXIF_FIELD_RANGE_DEG`, outside which the focal length is not used at all."""
+
+
+def field_of_view_deg(focal: float, extent: float) -> float:
+    """Field of view (degrees) across ``extent`` pixels centred on the principal point of a
+    pinhole camera of focal length ``focal`` pixels: ``2 atan(extent / (2 focal))``.
+
+    >>> round(field_of_view_deg(500.0, 1000.0), 6)
+    90.0
+    """
+    return math.degrees(2.0 * math.atan2(extent, 2.0 * focal))
+
 
 def unusable_exif_focal(focal: float, side: int) -> str | None:
     """Why an EXIF focal length is not used, or None when it is.
@@ -740,7 +760,7 @@ def unusable_exif_focal(focal: float, side: int) -> str | None:
         :data:`EXIF_FIELD_RANGE_DEG` (the focal length is then replaced by COLMAP's default
         guess, 1.2 times ``side``).
     """
-    field = math.degrees(2.0 * math.atan2(side, 2.0 * focal))
+    field = field_of_view_deg(focal, side)
     low, high = EXIF_FIELD_RANGE_DEG
     if low <= field <= high:
         return None

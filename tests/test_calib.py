@@ -729,6 +729,29 @@ def test_an_exif_focal_length_that_is_none_is_not_used(tmp_path, focal_35mm, fie
     np.testing.assert_array_equal(K, camera.K)
 
 
+def test_the_exif_field_bounds_and_both_exif_checks_share_one_field_of_view(tmp_path):
+    # the CLI's warning and calib's refusal each computed the field of view themselves
+    from ppo_cv.cli.common import exif_camera
+
+    low, high = calib.EXIF_PLAUSIBLE_FIELD_DEG
+    assert calib.EXIF_FIELD_RANGE_DEG[0] < low < high < calib.EXIF_FIELD_RANGE_DEG[1]
+    assert calib.field_of_view_deg(18.0, 36.0) == pytest.approx(90.0)
+    assert calib.field_of_view_deg(50.0, 36.0) == pytest.approx(39.5978, abs=1e-4)  # 50 mm
+    path = tmp_path / "photo.jpg"
+    _photo_of_35mm_focal(path, 200)  # a 200 mm equivalent: about 10 deg across
+    K, found, doubts = exif_camera(path)
+    field = calib.field_of_view_deg(K[0, 0], 640)
+    assert found and 5 < field < low
+    assert doubts == [
+        f"{path}: the EXIF focal length f={K[0, 0]:.1f} px gives a {field:.1f} deg horizontal "
+        f"field of view at 640 px wide, outside {low:g}..{high:g} deg; pass --K or --calib"
+    ]
+    assert calib.unusable_exif_focal(K[0, 0], 640) is None
+    assert f"a {calib.field_of_view_deg(65535 / 36 * 640, 640):.3g} deg field" in (
+        calib.unusable_exif_focal(65535 / 36 * 640, 640)
+    )
+
+
 def test_the_focal_length_put_in_place_of_an_unusable_one_is_colmaps_guess(tmp_path):
     from PIL import Image
 
