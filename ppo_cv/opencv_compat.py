@@ -19,8 +19,10 @@ place and is returned, as OpenCV's input-output arrays are.
 
 As in OpenCV, a positional number after ``cameraMatrix`` is the ``R`` output buffer (first
 form, four outputs); ``distanceThresh`` selects the third form by keyword (or with eight or nine
-positional arguments). ``E`` may have any shape of nine entries (``(9,)``, ``(1, 9)``, ...), and
-``cv2.UMat`` inputs give ``cv2.UMat`` outputs.
+positional arguments), and so does a ``triangulatedPoints`` keyword, which only the third form
+has (the number after ``cameraMatrix`` is then ``distanceThresh``). ``E`` may have any shape
+of nine entries (``(9,)``, ``(1, 9)``, ...), and ``cv2.UMat`` inputs give ``cv2.UMat``
+outputs.
 
 Bad input raises :class:`RecoverPoseError` (a ``ValueError``) or :class:`RecoverPoseTypeError`
 (a ``TypeError``), both subclasses of ``cv2.error``, so code written for OpenCV that catches
@@ -160,7 +162,8 @@ def _form(args: tuple, kwargs: dict) -> tuple[str, ...]:
     has_camera = "cameraMatrix" in kwargs or (len(args) > 3 and args[3] is not None)
     if not has_camera:
         return _FORM2
-    if "distanceThresh" in kwargs or (len(args) > len(_FORM1) and _is_number(args[4])):
+    third = "distanceThresh" in kwargs or "triangulatedPoints" in kwargs
+    if third or (len(args) > len(_FORM1) and _is_number(args[4])):
         return _FORM3
     return _FORM1
 
@@ -237,6 +240,14 @@ def _threshold(value: Any) -> float:
     if threshold > _MAX_THRESHOLD:
         raise ValueError(f"threshold must be in (0, {_MAX_THRESHOLD:g}] pixels, got {threshold}")
     return threshold
+
+
+def _distance(value: Any) -> float:
+    """``distanceThresh``: a number > 0, infinity keeping every point as in OpenCV (no cut of
+    far points)."""
+    if _is_number(value) and value == math.inf:
+        return math.inf
+    return as_positive(value, "distanceThresh")
 
 
 def _essential(value: Any) -> np.ndarray:
@@ -397,7 +408,7 @@ def _recover_pose(args: tuple, kwargs: dict) -> tuple:
     R, t, inliers = _identify(E, points, K_inv, used)
     if form is not _FORM3:
         return _outputs(R, t, inliers, bound)
-    distance = as_positive(bound.get("distanceThresh"), "distanceThresh")
+    distance = _distance(bound.get("distanceThresh"))
     X1, X2 = K_inv @ points
     z1, z2, _ = ppo._depths(X1, X2, R, t, 1e-12)
     inliers &= (z1 < distance) & (z2 < distance)
