@@ -1013,3 +1013,19 @@ def test_a_long_double_pixel_beyond_float64_is_named_so():
     image[3, 4] = np.longdouble("1e400")  # finite in long double, infinite in float64
     with pytest.raises(ValueError, match=r"^image1 has 1 pixel value\(s\) beyond the range of "):
         ppo_cv.estimate_pair(image, GREY, K)
+
+
+def test_a_float_image_that_overshoots_one_keeps_its_contrast():
+    # [0, 1.2] was read as 0..255 values: two grey levels, "too few features: blank or
+    # textureless image"
+    ramp = np.tile(np.linspace(0.0, 1.2, 64), (4, 1))
+    gray = ppo_cv.features.to_uint8(ramp)
+    assert gray.min() == 0 and gray.max() == 255 and len(np.unique(gray)) == 64
+    dim = np.tile(np.arange(20.0), (4, 1))  # a float 0..255 image of 20 levels is kept
+    np.testing.assert_array_equal(ppo_cv.features.to_uint8(dim), dim.astype(np.uint8))
+    data = Path(ppo_cv.__file__).parent / "data"
+    image1, image2 = load_image(data / "demo1.png"), load_image(data / "demo2.png")
+    K = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
+    reference = ppo_cv.estimate_pair(image1, image2, K)
+    result = ppo_cv.estimate_pair(image1 / 255.0 * 1.2, image2 / 255.0 * 1.2, K)
+    assert result.model == reference.model and result.num_inliers > 0.9 * reference.num_inliers
