@@ -29,7 +29,9 @@ Bad input raises :class:`RecoverPoseError` (a ``ValueError``) or :class:`Recover
 ``cv2.error`` keeps working under :func:`install`. Unlike OpenCV, a mask selecting fewer than
 five points, mask values other than 0..255 whole numbers, non-positive focal lengths and an
 ``E`` far from every essential matrix (a fundamental matrix in pixels, the identity) are errors
-rather than silent zeros, mirrored poses or poses of no meaning.
+rather than silent zeros, mirrored poses or poses of no meaning; so is a camera matrix given
+with ``focal`` or ``pp`` (it stands in the place of the ``R`` output, and OpenCV writes the
+rotation over it).
 """
 
 from __future__ import annotations
@@ -199,6 +201,21 @@ def _outputs(
     R = _out_matrix(bound.get("R"), R)
     t = _out_matrix(bound.get("t"), t.reshape(3, 1))
     return int(np.count_nonzero(inliers)), R, t, _out_mask(inliers, bound.get("mask"))
+
+
+def _require_no_camera_as_R(R: Any) -> None:
+    """TypeError for a camera matrix in the ``R`` place of the focal, pp form (``recoverPose(E,
+    p1, p2, K, focal=f)``): OpenCV takes it as the output buffer and writes the rotation over
+    the caller's camera matrix. A rotation has no entry beyond 1; a camera matrix has a last
+    row (0, 0, 1) and focal lengths beyond 1."""
+    if not (isinstance(R, np.ndarray) and R.shape == (3, 3) and R.dtype.kind in "iuf"):
+        return
+    if np.array_equal(R[2], [0, 0, 1]) and R[1, 0] == 0 and min(R[0, 0], R[1, 1]) > 1:
+        raise TypeError(
+            "recoverPose got a camera matrix in the place of the R output (fourth argument) of "
+            "the focal, pp form, which would write the rotation over it: pass cameraMatrix "
+            "alone, or focal and pp alone"
+        )
 
 
 def _camera_from_focal(focal: Any, pp: Any) -> np.ndarray:
@@ -398,6 +415,7 @@ def _recover_pose(args: tuple, kwargs: dict) -> tuple:
     if form is _FORM4:
         return _recover_from_points(bound)
     if form is _FORM2:
+        _require_no_camera_as_R(bound.get("R"))
         K = _camera_from_focal(bound.get("focal", 1.0), bound.get("pp"))
     else:
         K = bound.get("cameraMatrix")

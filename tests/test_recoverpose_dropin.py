@@ -256,3 +256,20 @@ def test_an_infinite_distance_threshold_keeps_every_point_as_in_opencv(scene):
     for bad in (0.0, -1.0, -np.inf, np.nan):
         with pytest.raises(ValueError, match="distanceThresh must be a finite number > 0"):
             ppo_cv.recoverPose(*args, distanceThresh=bad)
+
+
+def test_a_camera_matrix_given_with_focal_is_refused_not_overwritten(scene):
+    # the focal, pp form takes the fourth argument as its R output: OpenCV, and this function,
+    # wrote the rotation over the caller's camera matrix
+    K = scene["K"].copy()
+    args = (scene["E"], scene["p1"], scene["p2"], K)
+    for keywords in ({"focal": 800.0}, {"pp": (320.0, 240.0)}, {"focal": 800.0, "pp": (320, 240)}):
+        with pytest.raises(ppo_cv.RecoverPoseTypeError, match="a camera matrix in the place of"):
+            ppo_cv.recoverPose(*args, **keywords)
+        np.testing.assert_array_equal(K, scene["K"])
+    rotation = cv2.Rodrigues(np.array([0.0, 0.0, 0.3]))[0]  # a previous answer, reused as buffer
+    for buffer in (np.zeros((3, 3)), np.eye(3), rotation):
+        out = ppo_cv.recoverPose(scene["E"], scene["p1"], scene["p2"], buffer, focal=800.0,
+                                 pp=(320.0, 240.0))  # fmt: skip
+        assert out[1] is buffer
+        _check_pose(out, scene, OPENCV_RECOVER_POSE(*args[:3], scene["K"]))
