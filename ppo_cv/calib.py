@@ -5,7 +5,8 @@
   ``cameraMatrix`` / ``K`` / ``M1``, ``distortion_coefficients`` / ``dist_coeffs`` / ``D1``, ...),
   and ROS ``camera_info`` YAML (``distortion_model`` plumb_bob, rational_polynomial or
   Kalibr's radtan: OpenCV's pinhole distortion; Kalibr's none: no distortion; another model,
-  a fisheye's, is refused). Kalibr's ``distortion_coeffs`` are read as OpenCV's.
+  a fisheye's, is refused). Kalibr's ``distortion_coeffs`` are read as OpenCV's, and a Kalibr
+  ``camchain.yaml`` of pinhole cameras camera by camera (``cam0``, ``cam1``).
 - COLMAP ``cameras.txt`` (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV).
 - JSON: ``{"K": ..., "dist": ...}``, ``{"fx", "fy", "cx", "cy"}``, ``{"K1", "K2", "dist1",
   "dist2"}`` or ``{"cameras": [camera, camera]}``; a ``distortion_model`` must name OpenCV's
@@ -184,6 +185,9 @@ def _read_opencv(path: str) -> list[Camera]:
 
     if os.path.getsize(path) == 0:
         raise ValueError(f"calibration file {path} is empty")
+    kalibr = _kalibr_chain(path)
+    if kalibr is not None:
+        return _one_or_two(kalibr, path)
     try:
         K1, D1, K2, D2, size = _opencv_matrices(path)
     except (cv2.error, SystemError) as exc:
@@ -199,6 +203,53 @@ def _read_opencv(path: str) -> list[Camera]:
         K2 = _matrix_from_values(K2, f"camera matrix 2 in {path}")
         cameras.append(Camera(K2, as_distortion(D2, f"distortion coefficients 2 in {path}"), size))
     return cameras
+
+
+_KALIBR_CAMERA = re.compile(r"^(cam\d+):[ \t]*\n((?:[ \t]+.*\n?|[ \t]*\n)*)", re.MULTILINE)
+_KALIBR_ENTRY = re.compile(r"^[ \t]+(\w+):[ \t]*(\S.*?)[ \t]*$", re.MULTILINE)
+
+
+def _kalibr_chain(path: str) -> list[Camera] | None:
+    """The cameras of a Kalibr ``camchain.yaml`` (``cam0:``, ``cam1:`` blocks holding
+    ``intrinsics: [fu, fv, pu, pv]``, ``distortion_coeffs``, ``resolution: [w, h]``), or None
+    for another file. OpenCV's YAML parser fails on its nested lists ("Incorrect
+    indentation"), so its one-line entries are read here. A ``camera_model`` other than
+    ``pinhole`` or a ``distortion_model`` other than ``radtan`` or ``none`` is refused."""
+    with open(path, encoding="utf-8-sig", errors="replace") as handle:
+        text = handle.read()
+    blocks = [(name, dict(_KALIBR_ENTRY.findall(body))) for name, body in
+              _KALIBR_CAMERA.findall(text.replace("\r\n", "\n"))]  # fmt: skip
+    blocks = [(name, entries) for name, entries in blocks if "intrinsics" in entries]
+    if not blocks:
+        return None
+    blocks.sort(key=lambda block: int(block[0][3:]))
+    return [_kalibr_camera(entries, f"{path} {name}") for name, entries in blocks]
+
+
+def _kalibr_camera(entries: dict[str, str], where: str) -> Camera:
+    """One ``camN`` block of a Kalibr camchain as a :class:`Camera`."""
+    model = entries.get("camera_model", "pinhole")
+    if model != "pinhole":
+        raise ValueError(f"camera_model {shown(model)} in {where} is not a pinhole camera")
+    distortion = entries.get("distortion_model")
+    _require_opencv_model(distortion, f"in {where}")
+
+    def numbers(key: str) -> np.ndarray | None:
+        text = entries.get(key)
+        if text is None:
+            return None
+        if not (text.startswith("[") and text.endswith("]")):
+            raise ValueError(f"{where}: {key} must be a list [...] of numbers, got {shown(text)}")
+        return _numbers(text[1:-1], f"{where}: {key}") if text[1:-1].strip() else np.zeros(0)
+
+    intrinsics, coefficients = numbers("intrinsics"), numbers("distortion_coeffs")
+    dist = as_distortion(coefficients, f"{where}: distortion_coeffs")
+    _require_no_coefficients(distortion, (dist,), f"in {where}")
+    resolution = numbers("resolution")
+    if resolution is not None and resolution.size != 2:
+        raise ValueError(f"{where}: resolution must be [width, height], got {resolution.tolist()}")
+    size = None if resolution is None else _image_size(*resolution, where)
+    return Camera(_matrix_from_values(intrinsics, f"{where}: intrinsics"), dist, size)
 
 
 def _open_storage(path: str):

@@ -699,6 +699,63 @@ def test_a_distortion_model_of_none_with_coefficients_is_refused(tmp_path, exten
         load_calibration(path)
 
 
+KALIBR_CAMCHAIN = """cam0:
+  cam_overlaps: [1]
+  camera_model: pinhole
+  distortion_coeffs: [-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05]
+  distortion_model: radtan
+  intrinsics: [458.654, 457.296, 367.215, 248.375]
+  resolution: [752, 480]
+  rostopic: /cam0/image_raw
+cam1:
+  T_cn_cnm1:
+  - [0.9999972564779, 0.002312067192424, 0.0003760081024, -0.110073808127187]
+  - [-0.002317135723275, 0.999898048507103, 0.014089835846691, 0.000399121547014]
+  - [-0.000343393120620, -0.014090668452714, 0.999900662638082, -0.000853702503357]
+  - [0.0, 0.0, 0.0, 1.0]
+  cam_overlaps: [0]
+  camera_model: pinhole
+  distortion_coeffs: [-0.28368365, 0.07451284, -0.00010473, -3.55590700e-05]
+  distortion_model: radtan
+  intrinsics: [457.587, 456.134, 379.999, 255.238]
+  resolution: [752, 480]
+  rostopic: /cam1/image_raw
+"""
+
+
+@pytest.mark.parametrize("newline", ["\n", "\r\n"], ids=["LF", "CRLF"])
+def test_a_kalibr_camchain_is_read_camera_by_camera(tmp_path, newline):
+    # OpenCV's YAML parser failed on its T_cn_cnm1 lists: "malformed OpenCV calibration file
+    # camchain.yaml: skipSpaces ... Incorrect indentation"
+    path = tmp_path / "camchain.yaml"
+    path.write_bytes(KALIBR_CAMCHAIN.replace("\n", newline).encode())
+    first, second = load_calibration(path)
+    K = [[458.654, 0, 367.215], [0, 457.296, 248.375], [0, 0, 1]]
+    np.testing.assert_array_equal(first.K, K)
+    np.testing.assert_array_equal(first.dist, [-0.28340811, 0.07395907, 0.00019359, 1.76187114e-5])
+    np.testing.assert_array_equal(second.K[:2, 2], [379.999, 255.238])
+    assert first.image_size == second.image_size == (752, 480)
+    one = KALIBR_CAMCHAIN.split("cam1:")[0].replace("radtan", "none")
+    path.write_text(one.replace("[-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05]", "[]"))
+    (camera,) = load_calibration(path)
+    assert camera.dist is None and camera.K[0, 0] == 458.654
+
+
+@pytest.mark.parametrize(
+    "change, words",
+    [(("pinhole", "omni"), "camera_model 'omni' in .*camchain.yaml cam0 is not a pinhole camera"),
+     (("radtan", "equidistant"), "distortion_model 'equidistant' in .*cam0 is not OpenCV's"),
+     (("[752, 480]", "[752]"), r"cam0: resolution must be \[width, height\], got \[752.0\]"),
+     (("[458.654, 457.296,", "[458.654, x,"), "cam0: intrinsics must be numbers")],
+    ids=["omnidirectional", "fisheye", "resolution", "intrinsics"],
+)  # fmt: skip
+def test_a_kalibr_camera_this_reader_cannot_take_is_refused_by_name(tmp_path, change, words):
+    path = tmp_path / "camchain.yaml"
+    path.write_text(KALIBR_CAMCHAIN.replace(*change, 1))
+    with pytest.raises(ValueError, match=words):
+        load_calibration(path)
+
+
 def _photo_of_35mm_focal(path, focal_35mm: int) -> None:
     from PIL import Image
 
