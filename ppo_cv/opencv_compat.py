@@ -51,6 +51,7 @@ from .checks import (
     MAX_FOCAL,
     MIN_FOCAL,
     as_camera_matrix,
+    as_distance_threshold,
     as_distortion,
     as_essential,
     as_homogeneous_pair,
@@ -259,14 +260,6 @@ def _threshold(value: Any) -> float:
     return threshold
 
 
-def _distance(value: Any) -> float:
-    """``distanceThresh``: a number > 0, infinity keeping every point as in OpenCV (no cut of
-    far points)."""
-    if _is_number(value) and value == math.inf:
-        return math.inf
-    return as_positive(value, "distanceThresh")
-
-
 def _essential(value: Any) -> np.ndarray:
     """``E`` as OpenCV reads it: any array of nine entries is one 3x3 matrix."""
     shape = getattr(value, "shape", None)
@@ -426,10 +419,11 @@ def _recover_pose(args: tuple, kwargs: dict) -> tuple:
     R, t, inliers = _identify(E, points, K_inv, used)
     if form is not _FORM3:
         return _outputs(R, t, inliers, bound)
-    distance = _distance(bound.get("distanceThresh"))
+    distance = as_distance_threshold(bound.get("distanceThresh"), "distanceThresh")
     X1, X2 = K_inv @ points
-    z1, z2, _ = ppo._depths(X1, X2, R, t, 1e-12)
-    inliers &= (z1 < distance) & (z2 < distance)
+    if distance < math.inf:
+        z1, z2, _ = ppo._depths(X1, X2, R, t, 1e-12)
+        inliers &= (z1 < distance) & (z2 < distance)
     points = _out_matrix(bound.get("triangulatedPoints"), _homogeneous_points(X1, X2, R, t))
     return (*_outputs(R, t, inliers, bound), points)
 
