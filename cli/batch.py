@@ -247,7 +247,10 @@ def _require_unturned(fields: list[str]) -> None:
         try:
             turns = [float(field) for field in fields]
         except ValueError:
-            raise ValueError(f"fields 3 and 4 must be 0 0, got {' '.join(fields)}") from None
+            raise ValueError(
+                f"fields 3 and 4 must be 0 0, got {' '.join(fields)} (two names with spaces? "
+                "put each in double quotes)"
+            ) from None
         if any(turns):
             raise ValueError(
                 f"fields 3 and 4 (EXIF rotations) must be 0 0, got {' '.join(fields)}: turn "

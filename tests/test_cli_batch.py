@@ -371,6 +371,21 @@ def test_a_line_of_the_wrong_length_gets_the_remedy_that_fits(tmp_path, line, re
         batch.read_pairs(pairs, K=K_TEXT)
 
 
+@pytest.mark.parametrize(
+    "line",
+    ["my photo.png\tyour photo.png", "'my photo.png' 'your photo.png'"],
+    ids=["tab-separated", "single quotes"],
+)
+def test_two_names_with_spaces_that_make_four_fields_get_the_quoting_remedy(tmp_path, line):
+    # four fields read as 'name1 name2 0 0': "fields 3 and 4 must be 0 0, got your photo.png"
+    pairs = tmp_path / "pairs.txt"
+    pairs.write_text(f"{line}\n")
+    with pytest.raises(ValueError, match=r"pairs\.txt:1: fields 3 and 4 must be 0 0, got .*"
+                                         r"photo\.png'? \(two names with spaces\? put each in "
+                                         r"double quotes\)$"):  # fmt: skip
+        batch.read_pairs(pairs, K=K_TEXT)
+
+
 def test_output_dash_is_standard_output(tmp_path):
     (tmp_path / "pairs.txt").write_text(f"{NAME1} absent2.png\n")
     (tmp_path / "images").mkdir()
