@@ -230,9 +230,13 @@ def _warn_unused_cameras(rows: list[dict], pairs_file: Path, given: str) -> None
 
 
 def _require_regular_file(path: Path, what: str) -> None:
-    """ValueError naming what ``path`` is when it is not an existing regular file."""
+    """ValueError naming what ``path`` is when it is not an existing regular file; ``-``, which
+    is no file here, is named as standard input, which is not read (``-o -`` writes to
+    standard output)."""
     from ppo_cv.images import file_mode
 
+    if str(path) == "-" and not path.exists():
+        raise ValueError(f"{what} '-': standard input is not read; give the {what}'s path")
     file_mode(path, what)
     if path.is_dir():
         raise ValueError(f"{what} {path} is a directory")

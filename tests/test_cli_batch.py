@@ -510,3 +510,13 @@ def test_a_ground_truth_rotation_rounded_too_far_is_refused_with_the_way_out(
     with pytest.raises(ValueError, match="pairs.txt:1: the ground-truth rotation is not "
                                          "orthonormal .*" + ending):  # fmt: skip
         batch.read_pairs(path)
+
+
+def test_a_pairs_file_given_as_a_dash_is_named_as_standard_input(tmp_path, monkeypatch):
+    # "pairs file not found: -", as if a file named '-' were missing
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ValueError, match=r"^pairs file '-': standard input is not read; give "
+                                         r"the pairs file's path$"):  # fmt: skip
+        batch.read_pairs(Path("-"), K=K_TEXT)
+    Path("-").write_text("a.png b.png\n")  # a file of that name is read
+    assert [row["image2"] for row in batch.read_pairs(Path("-"), K=K_TEXT)] == ["b.png"]
