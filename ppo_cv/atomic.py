@@ -141,7 +141,11 @@ def linked_folder(path: str | os.PathLike) -> Path:
     ``path`` itself otherwise. A link that leads nowhere is no folder: it is refused, or with
     ``overwrite`` replaced (:func:`check_target`)."""
     target = Path(path)
-    return Path(os.path.realpath(target)) if target.is_symlink() and target.is_dir() else target
+    try:
+        linked = target.is_symlink() and target.is_dir()
+    except OSError:  # a name too long, a loop: check_target names the problem
+        return target
+    return Path(os.path.realpath(target)) if linked else target
 
 
 def names_a_stream(path: str | os.PathLike) -> bool:
