@@ -28,7 +28,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ppo_cv.atomic import linked_folder, staging_folder, worker_count, worker_pool
+from ppo_cv.atomic import linked_output, staging_folder, worker_count, worker_pool
 from ppo_cv.checks import as_number, as_path, require_instance, shown
 
 from .imperfect import Imperfections
@@ -310,7 +310,7 @@ def make_dataset(
     ----------
     out_dir : path
         Must not exist, or be an empty directory; a symbolic link to one is kept and the folder
-        it leads to written (:func:`ppo_cv.atomic.linked_folder`).
+        it leads to written (:func:`ppo_cv.atomic.linked_output`).
     pairs : int
         Number of pairs (>= 1).
     motion : str, optional
@@ -337,7 +337,7 @@ imperfections, pivot_offset
         ``out_dir``; its pairs file is ``out_dir / PAIRS_FILE``.
     """
     given = as_path(out_dir, "out_dir")
-    out = linked_folder(given)
+    out = linked_output(given, "folder")
     if out.exists() and not out.is_dir():
         raise FileExistsError(f"{out} is a file, not a folder")
     if isinstance(pairs, bool) or not isinstance(pairs, (int, np.integer)) or pairs < 1:

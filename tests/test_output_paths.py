@@ -162,3 +162,20 @@ def test_make_dataset_into_a_link_to_an_empty_folder(tmp_path):
         tmp_path / "out"
     )
     assert (tmp_path / "out").is_symlink() and (tmp_path / "real" / PAIRS_FILE).is_file()
+
+
+def test_an_output_file_that_is_a_link_keeps_the_link_and_replaces_its_file(tmp_path):
+    # the link was replaced by a regular file, and the file it led to kept its old content
+    from ppo_cv.atomic import atomic_file
+
+    real = tmp_path / "disk" / "poses.jsonl"
+    real.parent.mkdir()
+    real.write_text("old\n")
+    link = tmp_path / "poses.jsonl"
+    link.symlink_to(real)
+    with pytest.raises(ValueError, match=r"disk/poses\.jsonl already exists; pass --overwrite"):
+        check_target(link, "file")
+    with atomic_file(link, overwrite=True) as handle:
+        handle.write("new\n")
+    assert link.is_symlink() and os.readlink(link) == str(real) and real.read_text() == "new\n"
+    assert sorted(p.name for p in real.parent.iterdir()) == ["poses.jsonl"]
