@@ -144,8 +144,8 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
     rows, first_gt, seen = [], None, {}
     for number, line in enumerate(text.splitlines(), 1):
         where = f"{pairs_file}:{number}"
-        try:
-            parts = _fields(line)
+        try:  # a byte-order mark within: files saved by Windows editors, concatenated
+            parts = _fields(line.lstrip("\ufeff"))
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
         if not parts:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import codecs
 import io
 import json
 import subprocess
@@ -520,3 +521,15 @@ def test_a_pairs_file_given_as_a_dash_is_named_as_standard_input(tmp_path, monke
         batch.read_pairs(Path("-"), K=K_TEXT)
     Path("-").write_text("a.png b.png\n")  # a file of that name is read
     assert [row["image2"] for row in batch.read_pairs(Path("-"), K=K_TEXT)] == ["b.png"]
+
+
+def test_a_byte_order_mark_at_the_start_of_a_later_line_is_read_past(tmp_path):
+    # two pairs files saved with a BOM and concatenated: the comment read as a pair of names
+    # '\ufeff#' and 'c', the quoted names as an unclosed double quote
+    pairs = tmp_path / "pairs.txt"
+    parts = ("a.png b.png\r\n", "# c\r\n", '"my a.png" "my b.png"\r\n')
+    pairs.write_bytes(b"".join(codecs.BOM_UTF8 + part.encode() for part in parts))
+    rows = batch.read_pairs(pairs, K=K_TEXT)
+    assert [(row["image1"], row["image2"], row["line"]) for row in rows] == [
+        ("a.png", "b.png", 1), ("my a.png", "my b.png", 3)
+    ]  # fmt: skip
