@@ -495,6 +495,16 @@ def _error_line(exc: Exception, path: str | None = None) -> str:
     return f"{type(exc).__name__}{where}: {message}" if message else f"{type(exc).__name__}{where}"
 
 
+def _backslash_remedy(paths: tuple[Path, Path]) -> str:
+    """The remedy for a name written with Windows' separator (``sub\\a.png``) that names no
+    file where the same name with ``/`` does; empty otherwise."""
+    for path in paths:
+        forward = Path(str(path).replace("\\", "/"))
+        if "\\" in str(path) and not path.exists() and forward.is_file():
+            return f" ({forward} exists: separate folders in names with /, not \\)"
+    return ""
+
+
 def _load_features(target: str):
     import numpy as np
 
@@ -598,7 +608,7 @@ def _pair_job(job: tuple) -> dict:
 
             result, note = decide_with_fitted_focal(result, images, options, **given)
     except Exception as exc:  # one pair's failure is its error line, not the batch's
-        return {**names, "error": _error_line(exc)}
+        return {**names, "error": _error_line(exc) + _backslash_remedy(paths)}
     data = result_to_dict(result, **names)
     if note:
         data["camera_note"] = note

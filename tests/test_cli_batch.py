@@ -533,3 +533,20 @@ def test_a_byte_order_mark_at_the_start_of_a_later_line_is_read_past(tmp_path):
     assert [(row["image1"], row["image2"], row["line"]) for row in rows] == [
         ("a.png", "b.png", 1), ("my a.png", "my b.png", 3)
     ]  # fmt: skip
+
+
+@pytest.mark.parametrize("cache", [[], ["--no-cache"]], ids=["cached", "per pair"])
+def test_a_name_with_windows_separators_gets_the_forward_slash_remedy(tmp_path, cache):
+    # "image not found: images/sub\\demo2.png", where images/sub/demo2.png was the file meant
+    (tmp_path / "images" / "sub").mkdir(parents=True)
+    (tmp_path / "images" / NAME1).write_bytes((DATA / NAME1).read_bytes())
+    (tmp_path / "images" / "sub" / NAME2).write_bytes((DATA / NAME2).read_bytes())
+    (tmp_path / "pairs.txt").write_text(f"{NAME1} sub\\{NAME2}\n")
+    args = [*COMMAND, "pairs", "pairs.txt", "images", "--K", K_TEXT, "-q", "--workers", "1"]
+    done = subprocess.run([*args, *cache], capture_output=True, text=True, timeout=120,
+                          cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 1, done.stderr
+    error = json.loads(done.stdout)["error"]
+    assert error.startswith("image not found: ") and error.endswith(
+        f"sub\\{NAME2} (images/sub/{NAME2} exists: separate folders in names with /, not \\)"
+    )
