@@ -537,6 +537,11 @@ def _colmap_camera(
 COMPOSED_GRID = 17
 """Samples per image side on which :func:`composed_distortion` fits its coefficients."""
 
+COMPOSED_TOLERANCE_PX = 0.05
+"""Largest distance (pixels, over the grid) from the composed lens at which
+:func:`composed_distortion` keeps four coefficients (``OPENCV``); beyond, as for a strong
+radial term in a wide field, it fits ``k3`` too (``FULL_OPENCV``)."""
+
 
 def fitted_radial_k1(result: PairResult) -> float:
     """The radial (division-model) coefficient the pose of ``result`` was fitted with:
@@ -573,19 +578,32 @@ def composed_distortion(
     Returns
     -------
     ndarray, shape (4,) or (8,)
-        ``(k1, k2, p1, p2)`` when ``dist`` has at most four coefficients, else
+        ``(k1, k2, p1, p2)`` when ``dist`` has at most four coefficients and these reproduce
+        the composed lens within :data:`COMPOSED_TOLERANCE_PX`, else
         ``(k1, k2, p1, p2, k3, k4, k5, k6)``.
     """
     from .camera import pixels_to_normalized
     from .plane import undistort_division
 
     given = np.zeros(0) if dist is None else np.asarray(dist, float).ravel()
-    full = given.size > 4
     u, v = np.meshgrid(*(np.linspace(0.0, n - 1.0, COMPOSED_GRID) for n in size))
     pixels = np.column_stack([u.ravel(), v.ravel()])
     seen = (pixels - K[:2, 2]) / np.diag(K)[:2]
     c = undistort_division(pixels_to_normalized(pixels, K, dist), k1)[:, :2]
-    rational = np.r_[given[5:8], np.zeros(3)][:3] if full else np.zeros(3)
+    if given.size <= 4:
+        solved, error = _composed_fit(c, seen, given, full=False)
+        if np.max(np.abs(error) * np.diag(K)[:2]) <= COMPOSED_TOLERANCE_PX:
+            return solved
+    return _composed_fit(c, seen, given, full=True)[0]
+
+
+def _composed_fit(
+    c: np.ndarray, seen: np.ndarray, given: np.ndarray, full: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """OpenCV coefficients (4, or 8 when ``full``) taking the undistorted normalised points
+    ``c`` (M, 2) to the seen ones (M, 2), the rational terms of ``given`` held, and the
+    misfit (M, 2) of each point in normalised units."""
+    rational = np.r_[given[5:8], np.zeros(3)][:3]
     r2 = np.sum(c**2, axis=1)
     den = 1.0 + r2 * (rational[0] + r2 * (rational[1] + r2 * rational[2]))
     x, y = c.T
@@ -597,8 +615,10 @@ def composed_distortion(
     ]
     columns += [c * (r2**3 / den)[:, None]] if full else []
     A = np.stack([column.ravel() for column in columns], axis=1)
-    solved = np.linalg.lstsq(A, (seen - c / den[:, None]).ravel(), rcond=None)[0]
-    return np.r_[solved, rational] if full else solved
+    target = (seen - c / den[:, None]).ravel()
+    solved = np.linalg.lstsq(A, target, rcond=None)[0]
+    error = (A @ solved - target).reshape(-1, 2)
+    return (np.r_[solved, rational] if full else solved), error
 
 
 def write_colmap_model(

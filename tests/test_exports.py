@@ -472,3 +472,23 @@ def test_the_colmap_camera_carries_the_radial_term_the_pose_was_fitted_with(
     through_given = _mean_reprojection_px(model, given)
     assert exported < 0.5 * through_given and exported < 0.2
     assert model.compute_mean_reprojection_error() == pytest.approx(exported, rel=1e-6)
+
+
+@pytest.mark.parametrize(
+    "focal, k1, size, worst_px",
+    [(900.0, 0.1, 4, 0.05), (500.0, -0.1, 4, 0.05), (500.0, 0.3, 8, 0.1), (350.0, -0.1, 8, 0.05)],
+    ids=["narrow", "normal", "strong", "wide"],
+)
+def test_the_composed_lens_takes_k3_where_four_coefficients_miss_it(focal, k1, size, worst_px):
+    # (k1, k2) alone missed a strong radial term in a wide field by up to 10 px at the corners
+    from ppo_cv.camera import normalized_to_pixels, pixels_to_normalized
+    from ppo_cv.export import composed_distortion
+    from ppo_cv.plane import undistort_division
+
+    K_wide = np.array([[focal, 0.0, 320.0], [0.0, focal, 240.0], [0.0, 0.0, 1.0]])
+    coefficients = composed_distortion(K_wide, None, (640, 480), k1)
+    u, v = np.meshgrid(np.linspace(0, 639, 41), np.linspace(0, 479, 31))
+    pixels = np.column_stack([u.ravel(), v.ravel()])
+    ideal = undistort_division(pixels_to_normalized(pixels, K_wide, None), k1)[:, :2]
+    back = normalized_to_pixels(ideal, K_wide, coefficients)
+    assert coefficients.size == size and np.abs(back - pixels).max() < worst_px
