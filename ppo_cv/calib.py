@@ -206,7 +206,7 @@ def _read_opencv(path: str) -> list[Camera]:
 
 
 _KALIBR_CAMERA = re.compile(r"^(cam\d+):[ \t]*\n((?:[ \t]+.*\n?|[ \t]*\n)*)", re.MULTILINE)
-_KALIBR_ENTRY = re.compile(r"^[ \t]+(\w+):[ \t]*(\S.*?)[ \t]*$", re.MULTILINE)
+_KALIBR_ENTRY = re.compile(r"^[ \t]+(\w+):[ \t]*(.*?)[ \t]*$", re.MULTILINE)
 
 
 def _kalibr_chain(path: str) -> list[Camera] | None:
@@ -239,7 +239,10 @@ def _kalibr_camera(entries: dict[str, str], where: str) -> Camera:
         if text is None:
             return None
         if not (text.startswith("[") and text.endswith("]")):
-            raise ValueError(f"{where}: {key} must be a list [...] of numbers, got {shown(text)}")
+            raise ValueError(
+                f"{where}: {key} must be a list of numbers on its line, [a, b, ...], got "
+                f"{shown(text)}"
+            )
         return _numbers(text[1:-1], f"{where}: {key}") if text[1:-1].strip() else np.zeros(0)
 
     intrinsics, coefficients = numbers("intrinsics"), numbers("distortion_coeffs")

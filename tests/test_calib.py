@@ -746,8 +746,11 @@ def test_a_kalibr_camchain_is_read_camera_by_camera(tmp_path, newline):
     [(("pinhole", "omni"), "camera_model 'omni' in .*camchain.yaml cam0 is not a pinhole camera"),
      (("radtan", "equidistant"), "distortion_model 'equidistant' in .*cam0 is not OpenCV's"),
      (("[752, 480]", "[752]"), r"cam0: resolution must be \[width, height\], got \[752.0\]"),
-     (("[458.654, 457.296,", "[458.654, x,"), "cam0: intrinsics must be numbers")],
-    ids=["omnidirectional", "fisheye", "resolution", "intrinsics"],
+     (("[458.654, 457.296,", "[458.654, x,"), "cam0: intrinsics must be numbers"),
+     (("intrinsics: [458.654, 457.296, 367.215, 248.375]",
+       "intrinsics:\n  - 458.654\n  - 457.296\n  - 367.215\n  - 248.375"),
+      r"cam0: intrinsics must be a list of numbers on its line, \[a, b, ...\], got ''")],
+    ids=["omnidirectional", "fisheye", "resolution", "intrinsics", "block list"],
 )  # fmt: skip
 def test_a_kalibr_camera_this_reader_cannot_take_is_refused_by_name(tmp_path, change, words):
     path = tmp_path / "camchain.yaml"
