@@ -144,8 +144,8 @@ def read_pairs(pairs_file: Path, K: str | None = None, cameras=None) -> list[dic
     rows, first_gt, seen = [], None, {}
     for number, line in enumerate(text.splitlines(), 1):
         where = f"{pairs_file}:{number}"
-        try:
-            parts = _fields(line)
+        try:  # a byte-order mark within: files saved by Windows editors, concatenated
+            parts = _fields(line.lstrip("\ufeff"))
         except ValueError as exc:
             raise ValueError(f"{where}: {exc}") from None
         if not parts:
@@ -230,9 +230,13 @@ def _warn_unused_cameras(rows: list[dict], pairs_file: Path, given: str) -> None
 
 
 def _require_regular_file(path: Path, what: str) -> None:
-    """ValueError naming what ``path`` is when it is not an existing regular file."""
+    """ValueError naming what ``path`` is when it is not an existing regular file; ``-``, which
+    is no file here, is named as standard input, which is not read (``-o -`` writes to
+    standard output)."""
     from ppo_cv.images import file_mode
 
+    if str(path) == "-" and not path.exists():
+        raise ValueError(f"{what} '-': standard input is not read; give the {what}'s path")
     file_mode(path, what)
     if path.is_dir():
         raise ValueError(f"{what} {path} is a directory")
@@ -247,7 +251,10 @@ def _require_unturned(fields: list[str]) -> None:
         try:
             turns = [float(field) for field in fields]
         except ValueError:
-            raise ValueError(f"fields 3 and 4 must be 0 0, got {' '.join(fields)}") from None
+            raise ValueError(
+                f"fields 3 and 4 must be 0 0, got {' '.join(fields)} (two names with spaces? "
+                "put each in double quotes)"
+            ) from None
         if any(turns):
             raise ValueError(
                 f"fields 3 and 4 (EXIF rotations) must be 0 0, got {' '.join(fields)}: turn "
@@ -488,6 +495,16 @@ def _error_line(exc: Exception, path: str | None = None) -> str:
     return f"{type(exc).__name__}{where}: {message}" if message else f"{type(exc).__name__}{where}"
 
 
+def _backslash_remedy(paths: tuple[Path, Path]) -> str:
+    """The remedy for a name written with Windows' separator (``sub\\a.png``) that names no
+    file where the same name with ``/`` does; empty otherwise."""
+    for path in paths:
+        forward = Path(str(path).replace("\\", "/"))
+        if "\\" in str(path) and not path.exists() and forward.is_file():
+            return f" ({forward} exists: separate folders in names with /, not \\)"
+    return ""
+
+
 def _load_features(target: str):
     import numpy as np
 
@@ -591,7 +608,7 @@ def _pair_job(job: tuple) -> dict:
 
             result, note = decide_with_fitted_focal(result, images, options, **given)
     except Exception as exc:  # one pair's failure is its error line, not the batch's
-        return {**names, "error": _error_line(exc)}
+        return {**names, "error": _error_line(exc) + _backslash_remedy(paths)}
     data = result_to_dict(result, **names)
     if note:
         data["camera_note"] = note

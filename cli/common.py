@@ -31,8 +31,6 @@ __all__ = [
     "NO_RESULT",
     "SEED_MAX",
     "MAX_FEATURES_MAX",
-    "MIN_EXIF_FIELD_DEG",
-    "MAX_EXIF_FIELD_DEG",
     "RedetectBelow",
     "ExifOrientation",
     "Cameras",
@@ -439,14 +437,6 @@ def given_cameras(K, K2, dist, dist2, calib) -> Cameras | None:
     return Cameras(K1, d1, K1, d2 if d2 is not None else d1)
 
 
-MIN_EXIF_FIELD_DEG, MAX_EXIF_FIELD_DEG = 15.0, 120.0
-"""Horizontal fields of view an EXIF focal length may imply without a warning: 15 degrees is a
-135 mm lens on a full-frame camera, about a phone's longest telephoto; 120 degrees is a 10 mm
-lens, beyond which lenses are fisheyes that a pinhole camera with a centred principal point does
-not describe. Outside, the focal length is more likely that of another image size (a resized
-or cropped copy)."""
-
-
 def exif_camera(path, exif_orientation: bool = True) -> tuple[Any, bool, list[str]]:
     """``(K, from_exif, warnings)`` of the camera guessed from an image's EXIF.
 
@@ -454,10 +444,15 @@ def exif_camera(path, exif_orientation: bool = True) -> tuple[Any, bool, list[st
     then 1.2 times the larger image side). The warnings say when the EXIF pixel dimensions are
     not those of the image (a resized or cropped copy keeps the focal length of the original)
     and when the horizontal field of view the focal length implies lies outside
-    :data:`MIN_EXIF_FIELD_DEG`..:data:`MAX_EXIF_FIELD_DEG`; and, with ``from_exif`` False,
+    :data:`ppo_cv.calib.EXIF_PLAUSIBLE_FIELD_DEG`; and, with ``from_exif`` False,
     when an EXIF focal length was not used (:data:`ppo_cv.calib.EXIF_FIELD_RANGE_DEG`).
     """
-    from ppo_cv.calib import ImplausibleCameraWarning, camera_from_exif
+    from ppo_cv.calib import (
+        EXIF_PLAUSIBLE_FIELD_DEG,
+        ImplausibleCameraWarning,
+        camera_from_exif,
+        field_of_view_deg,
+    )
     from ppo_cv.images import exif_layout
 
     with warnings.catch_warnings(record=True) as caught:
@@ -477,12 +472,12 @@ def exif_camera(path, exif_orientation: bool = True) -> tuple[Any, bool, list[st
             f"is {width}x{height} (resized or cropped?), so its EXIF focal length may not fit; "
             "pass --K or --calib"
         )
-    field = math.degrees(2.0 * math.atan(width / (2.0 * K[0, 0])))
-    if not MIN_EXIF_FIELD_DEG <= field <= MAX_EXIF_FIELD_DEG:
+    field, (low, high) = field_of_view_deg(K[0, 0], width), EXIF_PLAUSIBLE_FIELD_DEG
+    if not low <= field <= high:
         doubts.append(
             f"{path}: the EXIF focal length f={K[0, 0]:.1f} px gives a {field:.1f} deg "
-            f"horizontal field of view at {width} px wide, outside "
-            f"{MIN_EXIF_FIELD_DEG:g}..{MAX_EXIF_FIELD_DEG:g} deg; pass --K or --calib"
+            f"horizontal field of view at {width} px wide, outside {low:g}..{high:g} deg; pass "
+            "--K or --calib"
         )
     return K, True, doubts
 

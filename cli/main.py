@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import errno
 import functools
+import itertools
 import os
 import re
 import sys
@@ -102,8 +103,37 @@ def _usage_error(exc: Exception, argv: list[str] | None) -> int:
     command = ctx.command_path if ctx is not None else _command(argv)
     from .common import short_words
 
-    typer.echo(f"{command}: {short_words(exc.format_message(), 80)}", err=True)
+    message = short_words(exc.format_message(), 80)
+    if message.startswith("Got unexpected extra argument"):
+        message += _spread_numbers_hint(sys.argv[1:] if argv is None else argv)
+    typer.echo(f"{command}: {message}", err=True)
     return getattr(exc, "exit_code", 2)
+
+
+_NUMBER_LIST_OPTIONS = ("--K", "--K2", "--dist", "--dist2")
+"""Options that take several numbers as one argument (``--K 535.4,539.2,320.1,247.6``)."""
+
+
+def _spread_numbers_hint(args: list[str]) -> str:
+    """The remedy when an option of :data:`_NUMBER_LIST_OPTIONS` was given its numbers as
+    separate arguments (``--K 535.4 539.2 320.1 247.6``), the rest of which the command line
+    then reads as extra arguments; empty otherwise."""
+
+    def number(text: str) -> bool:
+        try:
+            float(text)
+        except ValueError:
+            return False
+        return True
+
+    for position, option in enumerate(args):
+        values = list(itertools.takewhile(number, args[position + 1 :]))
+        if option in _NUMBER_LIST_OPTIONS and len(values) > 1:
+            return (
+                f"; {option} takes its numbers as one argument, joined by commas: "
+                f"{option} {','.join(values)}"
+            )
+    return ""
 
 
 def _command(argv: list[str] | None) -> str:

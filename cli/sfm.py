@@ -11,6 +11,7 @@ import numpy as np
 import typer
 
 from ppo_cv.checks import shown
+from ppo_cv.limits import MAX_FEATURES, MAX_THREADS
 
 from .common import (
     NO_RESULT,
@@ -31,8 +32,6 @@ from .common import (
 )
 
 __all__ = ["register", "parse_K"]
-
-MAX_FEATURES = 100_000
 
 
 def parse_K(text: str) -> np.ndarray:
@@ -90,7 +89,7 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
             f"--seeding must be one of {', '.join(sfm.SEEDINGS)}, got {shown(seeding)}"
         )
     check_range("--max-features", max_features, 1, MAX_FEATURES)
-    check_range("--threads", threads, 1, sfm.MAX_THREADS)
+    check_range("--threads", threads, 1, MAX_THREADS)
     check_range("--seed", seed, 0, SEED_MAX)
     check_range("--pri-threshold", pri_threshold, *PRI_THRESHOLD_RANGE)
     check_target(out_dir, "folder", overwrite, [image_dir], "OUT_DIR ")
@@ -168,7 +167,7 @@ def register(app: typer.Typer) -> None:
             typer.Option("--max-features", help=f"SIFT features per image (1..{MAX_FEATURES})."),
         ] = 8192,
         threads: Annotated[
-            int, typer.Option("--threads", help="Threads for pycolmap (1..256).")
+            int, typer.Option("--threads", help=f"Threads for pycolmap (1..{MAX_THREADS}).")
         ] = 2,
         seed: Annotated[int, typer.Option(help=f"RANSAC seed (0..{SEED_MAX}).")] = 0,
         pri_threshold: PriThreshold = DEFAULT_PRI_THRESHOLD,

@@ -18,7 +18,7 @@ from ppo_cv.data_gen.names import (
     SCENES,
 )
 
-from .common import ProgressReport, Quiet, error_message, fail, print_result
+from .common import WORKERS_MAX, ProgressReport, Quiet, error_message, fail, print_result
 
 __all__ = ["register", "MAX_BLUR", "MAX_NOISE"]
 
@@ -76,8 +76,8 @@ def _check(out_dir: Path, pairs: int, seed: int, motion: str | None, scene: str 
         _fail(f"--noise must be in [0, {MAX_NOISE:g}], got {shown(noise)}")
     if blur is not None and not 0.0 <= blur <= MAX_BLUR:
         _fail(f"--blur must be in [0, {MAX_BLUR:g}], got {shown(blur)}")
-    if workers is not None and not 0 <= workers <= 256:
-        _fail(f"--workers must be in 0..256, got {shown(workers)}")
+    if workers is not None and not 0 <= workers <= WORKERS_MAX:
+        _fail(f"--workers must be in 0..{WORKERS_MAX}, got {shown(workers)}")
     if warp:
         if motion not in (None, "panorama"):
             _fail(f"--warp makes tripod pans (--motion panorama), not {shown(motion)}")
@@ -263,8 +263,8 @@ def register(app: typer.Typer) -> None:
         workers: Annotated[
             int | None,
             typer.Option(
-                help="Worker processes (0..256; 0 or none: one per CPU); never more than the CPUs "
-                "this process may use or --pairs."
+                help=f"Worker processes (0..{WORKERS_MAX}; 0 or none: one per CPU); never more "
+                "than the CPUs this process may use or --pairs."
             ),
         ] = None,
         overwrite: Annotated[

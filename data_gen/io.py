@@ -28,7 +28,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from ppo_cv.atomic import staging_folder, worker_count, worker_pool
+from ppo_cv.atomic import linked_output, staging_folder, worker_count, worker_pool
 from ppo_cv.checks import as_number, as_path, require_instance, shown
 
 from .imperfect import Imperfections
@@ -309,7 +309,8 @@ def make_dataset(
     Parameters
     ----------
     out_dir : path
-        Must not exist, or be an empty directory.
+        Must not exist, or be an empty directory; a symbolic link to one is kept and the folder
+        it leads to written (:func:`ppo_cv.atomic.linked_output`).
     pairs : int
         Number of pairs (>= 1).
     motion : str, optional
@@ -335,7 +336,8 @@ imperfections, pivot_offset
     pathlib.Path
         ``out_dir``; its pairs file is ``out_dir / PAIRS_FILE``.
     """
-    out = as_path(out_dir, "out_dir")
+    given = as_path(out_dir, "out_dir")
+    out = linked_output(given, "folder")
     if out.exists() and not out.is_dir():
         raise FileExistsError(f"{out} is a file, not a folder")
     if isinstance(pairs, bool) or not isinstance(pairs, (int, np.integer)) or pairs < 1:
@@ -383,4 +385,4 @@ imperfections, pivot_offset
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
-    return out
+    return given

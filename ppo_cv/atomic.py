@@ -26,6 +26,7 @@ __all__ = [
     "check_apart",
     "settled",
     "names_a_stream",
+    "linked_output",
     "staging_folder",
     "remove_stale",
     "atomic_file",
@@ -77,17 +78,21 @@ def check_target(
     -------
     pathlib.Path
         ``path`` with the ``..`` and symbolic links of its folder resolved (:func:`settled`), its
-        parent folder existing and writable.
+        parent folder existing and writable; the file or folder a symbolic link named by
+        ``path`` leads to (:func:`linked_output`), so that the link is kept.
     """
     if type(overwrite).__name__ not in ("bool", "bool_"):  # numpy not loaded for the CLI's start
         raise TypeError(f"overwrite must be True or False, got {type(overwrite).__name__}")
-    target = Path(path)
+    _require_short_names(Path(path))
+    target = linked_output(path, kind)
+    for named in dict.fromkeys((Path(path), target)):  # /dev/stdout leads to a regular file
+        if names_a_stream(named):
+            raise ValueError(
+                f"cannot write {named}: {settled(named).parent} holds devices and streams (such "
+                "as /dev/stdout), which an output renamed into place would replace; give "
+                "another path"
+            )
     _require_short_names(target)
-    if names_a_stream(target):
-        raise ValueError(
-            f"cannot write {target}: {settled(target).parent} holds devices and streams (such "
-            "as /dev/stdout), which an output renamed into place would replace; give another path"
-        )
     parent = target.parent
     for ancestor in (parent, *parent.parents):
         if ancestor.exists() and not ancestor.is_dir():
@@ -131,6 +136,19 @@ def check_target(
     if not os.access(existing, os.W_OK | os.X_OK):
         raise ValueError(f"cannot write {target}: {existing} is not writable")
     return settled(target)
+
+
+def linked_output(path: str | os.PathLike, kind: str) -> Path:
+    """Where an output ``path`` of ``kind`` (``"file"`` or ``"folder"``) is written: the file
+    or folder it leads to when it is a symbolic link to one of that kind, which is kept
+    (``out -> /data/out`` writes ``/data/out``), ``path`` itself otherwise. A link that leads
+    nowhere is refused, or with ``overwrite`` replaced (:func:`check_target`)."""
+    target = Path(path)
+    try:
+        linked = target.is_symlink() and (target.is_dir() if kind == "folder" else target.is_file())
+    except OSError:  # a name too long, a loop: check_target names the problem
+        return target
+    return Path(os.path.realpath(target)) if linked else target
 
 
 def names_a_stream(path: str | os.PathLike) -> bool:

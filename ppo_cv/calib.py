@@ -4,11 +4,13 @@
 - OpenCV FileStorage YAML/XML as written after ``cv2.calibrateCamera`` (``camera_matrix`` /
   ``cameraMatrix`` / ``K`` / ``M1``, ``distortion_coefficients`` / ``dist_coeffs`` / ``D1``, ...),
   and ROS ``camera_info`` YAML (``distortion_model`` plumb_bob, rational_polynomial or
-  Kalibr's radtan: OpenCV's pinhole distortion; another model, a fisheye's, is refused).
+  Kalibr's radtan: OpenCV's pinhole distortion; Kalibr's none: no distortion; another model,
+  a fisheye's, is refused). Kalibr's ``distortion_coeffs`` are read as OpenCV's, and a Kalibr
+  ``camchain.yaml`` of pinhole cameras camera by camera (``cam0``, ``cam1``).
 - COLMAP ``cameras.txt`` (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV).
 - JSON: ``{"K": ..., "dist": ...}``, ``{"fx", "fy", "cx", "cy"}``, ``{"K1", "K2", "dist1",
   "dist2"}`` or ``{"cameras": [camera, camera]}``; a ``distortion_model`` must name OpenCV's
-  pinhole distortion, as in ROS YAML.
+  pinhole distortion or none, as in ROS YAML.
 - EXIF: a guess from the image's focal length tags (``pycolmap.infer_camera_from_image``).
 
 A file may describe one camera (used for both images) or two (image 1, image 2). A camera
@@ -56,6 +58,8 @@ __all__ = [
     "ASPECT_TOLERANCE",
     "TURNED_CENTRE_TOLERANCE",
     "EXIF_FIELD_RANGE_DEG",
+    "EXIF_PLAUSIBLE_FIELD_DEG",
+    "field_of_view_deg",
     "GUESSED_FOCAL_FACTOR",
     "MAX_PIXEL_ASPECT",
     "unusable_exif_focal",
@@ -181,6 +185,9 @@ def _read_opencv(path: str) -> list[Camera]:
 
     if os.path.getsize(path) == 0:
         raise ValueError(f"calibration file {path} is empty")
+    kalibr = _kalibr_chain(path)
+    if kalibr is not None:
+        return _one_or_two(kalibr, path)
     try:
         K1, D1, K2, D2, size = _opencv_matrices(path)
     except (cv2.error, SystemError) as exc:
@@ -198,6 +205,56 @@ def _read_opencv(path: str) -> list[Camera]:
     return cameras
 
 
+_KALIBR_CAMERA = re.compile(r"^(cam\d+):[ \t]*\n((?:[ \t]+.*\n?|[ \t]*\n)*)", re.MULTILINE)
+_KALIBR_ENTRY = re.compile(r"^[ \t]+(\w+):[ \t]*(.*?)[ \t]*$", re.MULTILINE)
+
+
+def _kalibr_chain(path: str) -> list[Camera] | None:
+    """The cameras of a Kalibr ``camchain.yaml`` (``cam0:``, ``cam1:`` blocks holding
+    ``intrinsics: [fu, fv, pu, pv]``, ``distortion_coeffs``, ``resolution: [w, h]``), or None
+    for another file. OpenCV's YAML parser fails on its nested lists ("Incorrect
+    indentation"), so its one-line entries are read here. A ``camera_model`` other than
+    ``pinhole`` or a ``distortion_model`` other than ``radtan`` or ``none`` is refused."""
+    with open(path, encoding="utf-8-sig", errors="replace") as handle:
+        text = handle.read()
+    blocks = [(name, dict(_KALIBR_ENTRY.findall(body))) for name, body in
+              _KALIBR_CAMERA.findall(text.replace("\r\n", "\n"))]  # fmt: skip
+    blocks = [(name, entries) for name, entries in blocks if "intrinsics" in entries]
+    if not blocks:
+        return None
+    blocks.sort(key=lambda block: int(block[0][3:]))
+    return [_kalibr_camera(entries, f"{path} {name}") for name, entries in blocks]
+
+
+def _kalibr_camera(entries: dict[str, str], where: str) -> Camera:
+    """One ``camN`` block of a Kalibr camchain as a :class:`Camera`."""
+    model = entries.get("camera_model", "pinhole")
+    if model != "pinhole":
+        raise ValueError(f"camera_model {shown(model)} in {where} is not a pinhole camera")
+    distortion = entries.get("distortion_model")
+    _require_opencv_model(distortion, f"in {where}")
+
+    def numbers(key: str) -> np.ndarray | None:
+        text = entries.get(key)
+        if text is None:
+            return None
+        if not (text.startswith("[") and text.endswith("]")):
+            raise ValueError(
+                f"{where}: {key} must be a list of numbers on its line, [a, b, ...], got "
+                f"{shown(text)}"
+            )
+        return _numbers(text[1:-1], f"{where}: {key}") if text[1:-1].strip() else np.zeros(0)
+
+    intrinsics, coefficients = numbers("intrinsics"), numbers("distortion_coeffs")
+    dist = as_distortion(coefficients, f"{where}: distortion_coeffs")
+    _require_no_coefficients(distortion, (dist,), f"in {where}")
+    resolution = numbers("resolution")
+    if resolution is not None and resolution.size != 2:
+        raise ValueError(f"{where}: resolution must be [width, height], got {resolution.tolist()}")
+    size = None if resolution is None else _image_size(*resolution, where)
+    return Camera(_matrix_from_values(intrinsics, f"{where}: intrinsics"), dist, size)
+
+
 def _open_storage(path: str):
     """OpenCV's FileStorage of ``path``, read from memory past a UTF-8 byte-order mark (which
     text editors on Windows write and OpenCV's parsers refuse)."""
@@ -212,17 +269,21 @@ def _open_storage(path: str):
 
 
 _OPENCV_DISTORTION_KEYS = ("distortion_coefficients", "dist_coeffs", "distCoeffs", "D", "D1",
-                           "dist1", "D2", "dist2", "distortion_coefficients_2")  # fmt: skip
+                           "dist1", "distortion_coeffs", "D2", "dist2",
+                           "distortion_coefficients_2")  # fmt: skip
+_FIRST_DISTORTION_KEYS = 7
+"""How many of :data:`_OPENCV_DISTORTION_KEYS` name the first camera's coefficients (Kalibr's
+``distortion_coeffs`` the last of them); the others name the second camera's."""
 
 
-def _require_known_distortion(storage, path: str) -> None:
+def _require_known_distortion(storage, path: str) -> str | None:
     """ValueError for numbers under a key that names a distortion but is none of
     :data:`_OPENCV_DISTORTION_KEYS` (``distortion``, ``dist``): they would be dropped, and the
     camera read without its distortion; and for a ROS ``distortion_model`` other than OpenCV's
-    (``equidistant``, a fisheye)."""
-    model = storage.getNode("distortion_model")  # ROS camera_info
-    if model.isString():
-        _require_opencv_model(model.string(), f"in {path}")
+    (``equidistant``, a fisheye). Returns that ``distortion_model``, None for none."""
+    node = storage.getNode("distortion_model")  # ROS camera_info
+    model = node.string() if node.isString() else None
+    _require_opencv_model(model, f"in {path}")
     for key in storage.root().keys():
         if key.lower().startswith("dist") and key not in _OPENCV_DISTORTION_KEYS:
             if not storage.getNode(key).isString():
@@ -231,20 +292,37 @@ def _require_known_distortion(storage, path: str) -> None:
                     f"ignored; name the coefficients {', '.join(_OPENCV_DISTORTION_KEYS[:6])} "
                     "(a second camera's D2, dist2)"
                 )
+    return model
 
 
 _OPENCV_DISTORTION_MODELS = ("plumb_bob", "rational_polynomial", "radtan")
 """Names of OpenCV's pinhole distortion in a ``distortion_model`` (ROS ``camera_info``,
 Kalibr): the one model the readers take; another (``equidistant``, a fisheye) is refused."""
 
+NO_DISTORTION_MODELS = ("none", "")
+"""Names of no distortion in a ``distortion_model``: Kalibr's ``none`` and the empty text of
+an uncalibrated ROS ``camera_info``. Read as no distortion, with coefficients none, empty or
+zeros (:func:`_require_no_coefficients`)."""
+
 
 def _require_opencv_model(model: Any, where: str) -> None:
     """ValueError for a ``distortion_model`` named in ``where`` that is not OpenCV's pinhole
-    distortion: its coefficients would be read as OpenCV's, a silent wrong camera."""
-    if model is not None and model not in _OPENCV_DISTORTION_MODELS:
+    distortion nor none: its coefficients would be read as OpenCV's, a silent wrong camera."""
+    if model is not None and model not in _OPENCV_DISTORTION_MODELS + NO_DISTORTION_MODELS:
         raise ValueError(
             f"distortion_model {shown(model)} {where} is not OpenCV's pinhole distortion "
-            f"({', '.join(_OPENCV_DISTORTION_MODELS)}), which this reader takes"
+            f"({', '.join(_OPENCV_DISTORTION_MODELS)}) nor none, which this reader takes"
+        )
+
+
+def _require_no_coefficients(model: Any, dists: tuple, where: str) -> None:
+    """ValueError when a ``distortion_model`` of no distortion (:data:`NO_DISTORTION_MODELS`)
+    comes with non-zero coefficients: the file says two things."""
+    given = [np.asarray(d, float).ravel() for d in dists if d is not None and np.any(d)]
+    if model in NO_DISTORTION_MODELS and given:
+        raise ValueError(
+            f"distortion_model {shown(model)} {where} says no distortion, but the coefficients "
+            f"{cut(str(given[0].tolist()))} are given; remove one of the two"
         )
 
 
@@ -278,10 +356,10 @@ def _opencv_matrices(path: str) -> tuple:
             return None
 
         K1 = matrix("camera_matrix", "cameraMatrix", "K", "M1", "K1", "camera_matrix_1")
-        D1 = matrix(*_OPENCV_DISTORTION_KEYS[:6])
+        D1 = matrix(*_OPENCV_DISTORTION_KEYS[:_FIRST_DISTORTION_KEYS])
         K2 = matrix("M2", "K2", "camera_matrix_2")
-        D2 = matrix(*_OPENCV_DISTORTION_KEYS[6:])
-        _require_known_distortion(storage, path)
+        D2 = matrix(*_OPENCV_DISTORTION_KEYS[_FIRST_DISTORTION_KEYS:])
+        _require_no_coefficients(_require_known_distortion(storage, path), (D1, D2), f"in {path}")
         width, height = (storage.getNode(key) for key in ("image_width", "image_height"))
         _require_both(("image_width", "image_height"), (width.empty(), height.empty()), path)
         size = None
@@ -382,8 +460,9 @@ def _camera_id(text: str, where: str) -> int:
     return int(text)
 
 
-_JSON_NUMBER_KEYS = ("K", "camera_matrix", "fx", "fy", "cx", "cy", "f", "dist", "distortion",
-                     "dist_coeffs", "width", "height")  # fmt: skip
+_JSON_DISTORTION_KEYS = ("dist", "distortion", "dist_coeffs", "distortion_coeffs")
+_JSON_NUMBER_KEYS = ("K", "camera_matrix", "fx", "fy", "cx", "cy", "f", *_JSON_DISTORTION_KEYS,
+                     "width", "height")  # fmt: skip
 _JSON_RIG_KEYS = ("K1", "K2", "dist1", "dist2", "width", "height")
 
 
@@ -439,9 +518,10 @@ def _json_camera(entry, where: str) -> Camera:
         raise ValueError(f"{where}: expected K or fx, fy, cx, cy")
     _require_known_keys(entry, _JSON_NUMBER_KEYS, where)
     _require_json_model(entry, where)
-    key = next((k for k in ("dist", "distortion", "dist_coeffs") if k in entry), None)
+    key = next((k for k in _JSON_DISTORTION_KEYS if k in entry), None)
     dist = None if key is None or entry[key] is None else _json_numbers(entry[key], where, key)
     dist = as_distortion(dist, f"{where}: {key}")
+    _require_no_coefficients(entry.get("distortion_model"), (dist,), f"in {where}")
     width, height = entry.get("width"), entry.get("height")
     _require_both(("width", "height"), (width is None, height is None), where)
     if width is None:
@@ -492,7 +572,8 @@ def _read_json(path: str, text: str) -> list[Camera]:
             cameras = [_json_camera(c, f"{path} camera {i + 1}") for i, c in enumerate(listed)]
         elif isinstance(data, dict) and "K1" in data:
             _require_known_keys(data, _JSON_RIG_KEYS, path)
-            size = {"width": data.get("width"), "height": data.get("height")}
+            size = {"width": data.get("width"), "height": data.get("height"),
+                    "distortion_model": data.get("distortion_model")}  # fmt: skip
             cameras = [_json_camera({"K": data["K1"], "dist": data.get("dist1"), **size}, path)]
             if "K2" in data:
                 second = {"K": data["K2"], "dist": data.get("dist2"), **size}
@@ -697,6 +778,24 @@ length (:func:`camera_from_exif`): 0.5 degrees is narrower than the longest came
 3000 mm equivalent gives 0.66), 150 degrees wider than any rectilinear lens (a 10 mm
 equivalent gives 120); beyond are placeholders such as 65535 mm (0.03 degrees)."""
 
+EXIF_PLAUSIBLE_FIELD_DEG = (15.0, 120.0)
+"""Horizontal fields of view an EXIF focal length that is used may imply without a warning
+(``ppo_cv.cli.common.exif_camera``): 15 degrees is a 135 mm lens on a full-frame camera, about
+a phone's longest telephoto; 120 degrees is a 10 mm lens, beyond which lenses are fisheyes
+that a pinhole camera with a centred principal point does not describe. Outside, the focal
+length is more likely that of another image size (a resized or cropped copy). Within
+:data:`EXIF_FIELD_RANGE_DEG`, outside which the focal length is not used at all."""
+
+
+def field_of_view_deg(focal: float, extent: float) -> float:
+    """Field of view (degrees) across ``extent`` pixels centred on the principal point of a
+    pinhole camera of focal length ``focal`` pixels: ``2 atan(extent / (2 focal))``.
+
+    >>> round(field_of_view_deg(500.0, 1000.0), 6)
+    90.0
+    """
+    return math.degrees(2.0 * math.atan2(extent, 2.0 * focal))
+
 
 def unusable_exif_focal(focal: float, side: int) -> str | None:
     """Why an EXIF focal length is not used, or None when it is.
@@ -715,7 +814,7 @@ def unusable_exif_focal(focal: float, side: int) -> str | None:
         :data:`EXIF_FIELD_RANGE_DEG` (the focal length is then replaced by COLMAP's default
         guess, 1.2 times ``side``).
     """
-    field = math.degrees(2.0 * math.atan2(side, 2.0 * focal))
+    field = field_of_view_deg(focal, side)
     low, high = EXIF_FIELD_RANGE_DEG
     if low <= field <= high:
         return None

@@ -402,6 +402,15 @@ def as_positive(value: Any, name: str) -> float:
     return number
 
 
+def as_distance_threshold(value: Any, name: str) -> float:
+    """A distance beyond which points are dropped: a number > 0, infinity for no cut (as
+    OpenCV's ``distanceThresh`` takes it)."""
+    number = _as_float(value, name)
+    if number == np.inf:
+        return number
+    return as_positive(number, name)
+
+
 def as_nonnegative(value: Any, name: str) -> float:
     """A finite number >= 0."""
     number = _as_float(value, name)

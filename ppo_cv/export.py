@@ -44,6 +44,8 @@ __all__ = [
     "check_colmap_names",
     "write_colmap_model",
     "write_outputs",
+    "fitted_radial_k1",
+    "composed_distortion",
     "require_result",
 ]
 
@@ -508,20 +510,115 @@ def check_colmap_names(names: tuple[str, str]) -> None:
             ) from None
 
 
-def _colmap_camera(K: np.ndarray, dist: np.ndarray | None, size: tuple[int, int], camera_id: int):
+def _colmap_camera(
+    K: np.ndarray, dist: np.ndarray | None, size: tuple[int, int], camera_id: int, k1: float = 0.0
+):
+    """The COLMAP camera of intrinsics ``K``, OpenCV distortion ``dist`` and the pose's radial
+    term ``k1`` (:func:`fitted_radial_k1`) composed after it (:func:`composed_distortion`):
+    ``PINHOLE`` without distortion, ``OPENCV`` for up to four coefficients, else
+    ``FULL_OPENCV``."""
     import pycolmap
 
     fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
-    if dist is None or not np.any(dist):
+    coefficients = np.zeros(0) if dist is None else np.asarray(dist, float).ravel()[:8]
+    if k1 != 0.0:
+        coefficients = composed_distortion(K, dist, size, k1)
+    if not np.any(coefficients):
         model, params = "PINHOLE", [fx, fy, cx, cy]
-    elif np.asarray(dist).size <= 4:
-        model, params = "OPENCV", [fx, fy, cx, cy, *np.asarray(dist)[:4]]
+    elif coefficients.size <= 4:
+        model, params = "OPENCV", [fx, fy, cx, cy, *np.r_[coefficients, np.zeros(4)][:4]]
     else:
-        coeffs = np.r_[np.asarray(dist, float)[:8], np.zeros(8)][:8]
-        model, params = "FULL_OPENCV", [fx, fy, cx, cy, *coeffs]
+        model, params = "FULL_OPENCV", [fx, fy, cx, cy, *np.r_[coefficients, np.zeros(8)][:8]]
     return pycolmap.Camera(
         model=model, width=size[0], height=size[1], params=params, camera_id=camera_id
     )
+
+
+COMPOSED_GRID = 17
+"""Samples per image side on which :func:`composed_distortion` fits its coefficients."""
+
+COMPOSED_TOLERANCE_PX = 0.05
+"""Largest distance (pixels, over the grid) from the composed lens at which
+:func:`composed_distortion` keeps four coefficients (``OPENCV``); beyond, as for a strong
+radial term in a wide field, it fits ``k3`` too (``FULL_OPENCV``)."""
+
+
+def fitted_radial_k1(result: PairResult) -> float:
+    """The radial (division-model) coefficient the pose of ``result`` was fitted with:
+    ``lens.radial_k1`` of a general motion, ``plane.k1`` of a plane, 0 for a rotation."""
+    require_result(result)
+    if np.isfinite(result.lens.radial_k1):
+        return float(result.lens.radial_k1)
+    return 0.0 if result.plane is None else float(result.plane.k1)
+
+
+def composed_distortion(
+    K: np.ndarray, dist: np.ndarray | None, size: tuple[int, int], k1: float
+) -> np.ndarray:
+    """OpenCV coefficients of the lens ``dist`` followed by the division term ``k1``.
+
+    The pipeline removes ``dist`` from the pixels, then divides the normalised points ``x`` by
+    ``1 + k1 |x|^2`` (:func:`ppo_cv.plane.undistort_division`); the pose and the points are
+    those of the result, so the camera that reprojects them onto the pixels is the inverse of
+    both. Its radial coefficients, and the tangential ones when ``dist`` has any, are fitted by
+    linear least squares on a ``COMPOSED_GRID`` square grid over the image, the rational terms
+    of ``dist`` held.
+
+    Parameters
+    ----------
+    K : ndarray, shape (3, 3)
+        Intrinsics.
+    dist : ndarray or None
+        OpenCV coefficients removed from the pixels; None for none.
+    size : tuple of int
+        ``(width, height)`` of the image.
+    k1 : float
+        Division coefficient fitted with the pose.
+
+    Returns
+    -------
+    ndarray, shape (4,) or (8,)
+        ``(k1, k2, p1, p2)`` when ``dist`` has at most four coefficients and these reproduce
+        the composed lens within :data:`COMPOSED_TOLERANCE_PX`, else
+        ``(k1, k2, p1, p2, k3, k4, k5, k6)``.
+    """
+    from .camera import pixels_to_normalized
+    from .plane import undistort_division
+
+    given = np.zeros(0) if dist is None else np.asarray(dist, float).ravel()
+    u, v = np.meshgrid(*(np.linspace(0.0, n - 1.0, COMPOSED_GRID) for n in size))
+    pixels = np.column_stack([u.ravel(), v.ravel()])
+    seen = (pixels - K[:2, 2]) / np.diag(K)[:2]
+    c = undistort_division(pixels_to_normalized(pixels, K, dist), k1)[:, :2]
+    if given.size <= 4:
+        solved, error = _composed_fit(c, seen, given, full=False)
+        if np.max(np.abs(error) * np.diag(K)[:2]) <= COMPOSED_TOLERANCE_PX:
+            return solved
+    return _composed_fit(c, seen, given, full=True)[0]
+
+
+def _composed_fit(
+    c: np.ndarray, seen: np.ndarray, given: np.ndarray, full: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """OpenCV coefficients (4, or 8 when ``full``) taking the undistorted normalised points
+    ``c`` (M, 2) to the seen ones (M, 2), the rational terms of ``given`` held, and the
+    misfit (M, 2) of each point in normalised units."""
+    rational = np.r_[given[5:8], np.zeros(3)][:3]
+    r2 = np.sum(c**2, axis=1)
+    den = 1.0 + r2 * (rational[0] + r2 * (rational[1] + r2 * rational[2]))
+    x, y = c.T
+    zero = np.zeros_like(c)
+    tangential = np.any(given[2:4])
+    columns = [c * (r2**power / den)[:, None] for power in (1, 2)] + [
+        np.column_stack([2 * x * y, r2 + 2 * y**2]) if tangential else zero,
+        np.column_stack([r2 + 2 * x**2, 2 * x * y]) if tangential else zero,
+    ]
+    columns += [c * (r2**3 / den)[:, None]] if full else []
+    A = np.stack([column.ravel() for column in columns], axis=1)
+    target = (seen - c / den[:, None]).ravel()
+    solved = np.linalg.lstsq(A, target, rcond=None)[0]
+    error = (A @ solved - target).reshape(-1, 2)
+    return (np.r_[solved, rational] if full else solved), error
 
 
 def write_colmap_model(
@@ -536,7 +633,10 @@ def write_colmap_model(
     Camera 1 is the world frame; camera 2 has pose ``(R, t)`` (``t`` zero for a pure rotation);
     the unit is the baseline. Each point's error is its mean reprojection error over the two
     views in pixels, through the camera models (distortion included), as COLMAP defines it.
-    ``dists`` defaults to the distortion the result was computed with. A camera no COLMAP
+    ``dists`` defaults to the distortion the result was computed with. The cameras are those the
+    pose was fitted with: the radial term of a general or plane pose (:func:`fitted_radial_k1`)
+    composed after ``dists`` (:func:`composed_distortion`, an ``OPENCV`` or ``FULL_OPENCV``
+    camera), so the points reproject onto their pixels. A camera no COLMAP
     model holds (:func:`check_colmap_camera`), ``names`` that are not two distinct non-empty
     texts or ``dists`` that are not two distortions is a ValueError or TypeError.
     """
@@ -556,12 +656,13 @@ def write_colmap_model(
             )
         )
     )
+    k1 = fitted_radial_k1(result)
     reconstruction.add_camera_with_trivial_rig(
-        _colmap_camera(cameras.K1, dists[0], cameras.image_size1, 1)
+        _colmap_camera(cameras.K1, dists[0], cameras.image_size1, 1, k1)
     )
     if not same:
         reconstruction.add_camera_with_trivial_rig(
-            _colmap_camera(cameras.K2, dists[1], cameras.image_size2, 2)
+            _colmap_camera(cameras.K2, dists[1], cameras.image_size2, 2, k1)
         )
     p1, p2 = result.inlier_points
     t = np.zeros(3) if result.pure_rotation else np.asarray(result.t, float)

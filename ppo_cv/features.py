@@ -14,6 +14,7 @@ import numpy as np
 __all__ = [
     "FEATURE_TYPES",
     "MIN_IMAGE_SIDE",
+    "MIN_FLOAT_LEVELS",
     "PIXEL_PAIR_RESOLUTION",
     "Features",
     "to_uint8",
@@ -71,14 +72,21 @@ class Features:
         return int(self.keypoints.shape[0])
 
 
+MIN_FLOAT_LEVELS = 16.0
+"""Fewest grey levels a float image beyond [0, 1] spans for :func:`to_uint8` to read it as
+0..255 values; one spanning fewer (a unit image that overshoots 1, as after an exposure or
+gamma change: [0, 1.2] kept would be two grey levels, no features) is scaled by its range."""
+
+
 def to_uint8(image: np.ndarray, name: str = "image") -> np.ndarray:
     """An image of any depth as uint8, scaled by its actual range.
 
     uint8 passes through and bool maps to {0, 255}. Values already within 0..255 (integers, or
-    floats beyond 1) are kept; floats within [0, 1] are multiplied by 255; anything else
-    (16-bit, 12-bit in 16, signed, floats of any range) maps ``[min, max]`` linearly onto
-    ``[0, 255]``, so a 12-bit image keeps its contrast; a constant image beyond that range
-    maps to 0. NaN or infinite pixels are a ValueError naming ``name``.
+    floats beyond 1 spanning at least :data:`MIN_FLOAT_LEVELS`) are kept; floats within [0, 1]
+    are multiplied by 255; anything else (16-bit, 12-bit in 16, signed, floats of any other
+    range, such as [0, 1.2]) maps ``[min, max]`` linearly onto ``[0, 255]``, so a 12-bit image
+    keeps its contrast; a constant image beyond that range maps to 0. NaN or infinite pixels
+    are a ValueError naming ``name``.
     """
     image = np.asarray(image)
     if image.dtype == np.uint8:
@@ -96,7 +104,8 @@ def to_uint8(image: np.ndarray, name: str = "image") -> np.ndarray:
         raise ValueError(f"{name} has {beyond} pixel value(s) beyond the range of float64")
     if image.dtype.kind == "f" and low >= 0.0 and high <= 1.0:
         return np.rint(image * 255.0).astype(np.uint8)
-    if low >= 0.0 and high <= 255.0:
+    kept = image.dtype.kind != "f" or high - low >= MIN_FLOAT_LEVELS
+    if low >= 0.0 and high <= 255.0 and kept:
         return np.rint(image).astype(np.uint8)
     if high == low:
         return np.zeros(image.shape, dtype=np.uint8)

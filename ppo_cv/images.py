@@ -338,7 +338,9 @@ def native_messages_silenced() -> Iterator[None]:
 
 def as_image(image: Any, name: str) -> np.ndarray:
     """An image argument as an 8-bit array (H, W) or (H, W, C): a path is loaded, an array
-    checked (shape, numeric, no NaN) and scaled to 8 bits by its range."""
+    checked (shape, numeric, no NaN), its alpha channel dropped (BGRA to BGR: an opaque 16-bit
+    alpha would widen the range by which the colours are scaled) and scaled to 8 bits by its
+    range."""
     if isinstance(image, (str, os.PathLike)):
         return load_image(image)
     if image is None:
@@ -365,4 +367,4 @@ def as_image(image: Any, name: str) -> np.ndarray:
         )
     if array.dtype.kind not in "buif":
         raise TypeError(f"{name} must hold numbers, got dtype {array.dtype}")
-    return to_uint8(array, name)
+    return to_uint8(array[:, :, :3] if array.ndim == 3 else array, name)

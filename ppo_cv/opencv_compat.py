@@ -19,15 +19,19 @@ place and is returned, as OpenCV's input-output arrays are.
 
 As in OpenCV, a positional number after ``cameraMatrix`` is the ``R`` output buffer (first
 form, four outputs); ``distanceThresh`` selects the third form by keyword (or with eight or nine
-positional arguments). ``E`` may have any shape of nine entries (``(9,)``, ``(1, 9)``, ...), and
-``cv2.UMat`` inputs give ``cv2.UMat`` outputs.
+positional arguments), and so does a ``triangulatedPoints`` keyword, which only the third form
+has (the number after ``cameraMatrix`` is then ``distanceThresh``). ``E`` may have any shape
+of nine entries (``(9,)``, ``(1, 9)``, ...), and ``cv2.UMat`` inputs give ``cv2.UMat``
+outputs.
 
 Bad input raises :class:`RecoverPoseError` (a ``ValueError``) or :class:`RecoverPoseTypeError`
 (a ``TypeError``), both subclasses of ``cv2.error``, so code written for OpenCV that catches
 ``cv2.error`` keeps working under :func:`install`. Unlike OpenCV, a mask selecting fewer than
 five points, mask values other than 0..255 whole numbers, non-positive focal lengths and an
 ``E`` far from every essential matrix (a fundamental matrix in pixels, the identity) are errors
-rather than silent zeros, mirrored poses or poses of no meaning.
+rather than silent zeros, mirrored poses or poses of no meaning; so is a camera matrix given
+with ``focal`` or ``pp`` (it stands in the place of the ``R`` output, and OpenCV writes the
+rotation over it).
 """
 
 from __future__ import annotations
@@ -47,6 +51,7 @@ from .checks import (
     MAX_FOCAL,
     MIN_FOCAL,
     as_camera_matrix,
+    as_distance_threshold,
     as_distortion,
     as_essential,
     as_homogeneous_pair,
@@ -160,7 +165,8 @@ def _form(args: tuple, kwargs: dict) -> tuple[str, ...]:
     has_camera = "cameraMatrix" in kwargs or (len(args) > 3 and args[3] is not None)
     if not has_camera:
         return _FORM2
-    if "distanceThresh" in kwargs or (len(args) > len(_FORM1) and _is_number(args[4])):
+    third = "distanceThresh" in kwargs or "triangulatedPoints" in kwargs
+    if third or (len(args) > len(_FORM1) and _is_number(args[4])):
         return _FORM3
     return _FORM1
 
@@ -196,6 +202,21 @@ def _outputs(
     R = _out_matrix(bound.get("R"), R)
     t = _out_matrix(bound.get("t"), t.reshape(3, 1))
     return int(np.count_nonzero(inliers)), R, t, _out_mask(inliers, bound.get("mask"))
+
+
+def _require_no_camera_as_R(R: Any) -> None:
+    """TypeError for a camera matrix in the ``R`` place of the focal, pp form (``recoverPose(E,
+    p1, p2, K, focal=f)``): OpenCV takes it as the output buffer and writes the rotation over
+    the caller's camera matrix. A rotation has no entry beyond 1; a camera matrix has a last
+    row (0, 0, 1) and focal lengths beyond 1."""
+    if not (isinstance(R, np.ndarray) and R.shape == (3, 3) and R.dtype.kind in "iuf"):
+        return
+    if np.array_equal(R[2], [0, 0, 1]) and R[1, 0] == 0 and min(R[0, 0], R[1, 1]) > 1:
+        raise TypeError(
+            "recoverPose got a camera matrix in the place of the R output (fourth argument) of "
+            "the focal, pp form, which would write the rotation over it: pass cameraMatrix "
+            "alone, or focal and pp alone"
+        )
 
 
 def _camera_from_focal(focal: Any, pp: Any) -> np.ndarray:
@@ -387,6 +408,7 @@ def _recover_pose(args: tuple, kwargs: dict) -> tuple:
     if form is _FORM4:
         return _recover_from_points(bound)
     if form is _FORM2:
+        _require_no_camera_as_R(bound.get("R"))
         K = _camera_from_focal(bound.get("focal", 1.0), bound.get("pp"))
     else:
         K = bound.get("cameraMatrix")
@@ -397,10 +419,11 @@ def _recover_pose(args: tuple, kwargs: dict) -> tuple:
     R, t, inliers = _identify(E, points, K_inv, used)
     if form is not _FORM3:
         return _outputs(R, t, inliers, bound)
-    distance = as_positive(bound.get("distanceThresh"), "distanceThresh")
+    distance = as_distance_threshold(bound.get("distanceThresh"), "distanceThresh")
     X1, X2 = K_inv @ points
-    z1, z2, _ = ppo._depths(X1, X2, R, t, 1e-12)
-    inliers &= (z1 < distance) & (z2 < distance)
+    if distance < math.inf:
+        z1, z2, _ = ppo._depths(X1, X2, R, t, 1e-12)
+        inliers &= (z1 < distance) & (z2 < distance)
     points = _out_matrix(bound.get("triangulatedPoints"), _homogeneous_points(X1, X2, R, t))
     return (*_outputs(R, t, inliers, bound), points)
 

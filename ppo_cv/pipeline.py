@@ -757,7 +757,9 @@ def estimate_pair(
 
     Parameters
     ----------
-    image1, image2 : ndarray (H, W) / (H, W, 3) BGR, or path
+    image1, image2 : ndarray or path
+        Shape (H, W), (H, W, 1), (H, W, 3) BGR or (H, W, 4) BGRA (alpha ignored), of any
+        depth (scaled to 8 bits by :func:`ppo_cv.images.as_image`), or an image file.
     K1, K2 : array_like, shape (3, 3)
         Intrinsics of the cameras; ``K2`` defaults to ``K1``.
     dist1, dist2 : array_like, optional

@@ -10,10 +10,10 @@ import numpy as np
 from . import ppo
 from .checks import (
     as_camera_matrix,
+    as_distance_threshold,
     as_essential,
     as_mask,
     as_point_pair,
-    as_positive,
     as_pri_threshold,
 )
 
@@ -136,7 +136,8 @@ def recover_pose(
     pri_threshold : float
         Motion is a pure rotation when PRI is below it (paper: 0.015).
     distance_thresh : float, optional
-        Points farther than this (in baselines) from either camera are not inliers.
+        Points farther than this (in baselines) from either camera are not inliers; infinity
+        (as None) drops none.
 
     Returns
     -------
@@ -165,7 +166,8 @@ def recover_pose(
     used = as_mask(mask, p1.shape[0])
     used = np.ones(p1.shape[0], dtype=bool) if used is None else used
     if distance_thresh is not None:
-        distance_thresh = as_positive(distance_thresh, "distance_thresh")
+        distance_thresh = as_distance_threshold(distance_thresh, "distance_thresh")
+        distance_thresh = None if distance_thresh == np.inf else distance_thresh
     X1, X2 = pixel_rays(p1, K1), pixel_rays(p2, K2)
     return _recover_rays(E, X1, X2, used, pri_threshold, distance_thresh)
 

@@ -69,6 +69,7 @@ from .checks import (
 )
 from .homography import estimate_homography
 from .images import check_decodes, file_mode
+from .limits import MAX_FEATURES, MAX_THREADS
 from .metrics import direction_error_deg, rotation_error_deg
 from .motion_model import MotionDecision, decide_motion, plane_ransac_trials
 from .parallax import nearest_rotation_log_scale, rotation_spread
@@ -102,10 +103,6 @@ __all__ = [
     "pose_errors",
 ]
 
-MAX_THREADS = 256
-"""Upper bound of ``num_threads`` (a million threads makes pycolmap abort the process)."""
-MAX_FEATURES = 100_000
-"""Upper bound of ``max_num_features``, SIFT features per image."""
 
 INITIALIZATIONS = ("ppo", "colmap")
 """``ppo``: the best-scored pair seeds the mapper; ``colmap``: pycolmap's own initialisation."""

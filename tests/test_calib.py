@@ -684,6 +684,101 @@ def test_opencv_distortion_models_are_read(tmp_path, model, dist, extension):
     np.testing.assert_array_equal(camera.K, K_FREIBURG)
 
 
+KALIBR_NONE = {
+    "json": {"K": K_FREIBURG.tolist(), "distortion_model": "none", "distortion_coeffs": []},
+    "json rig": {"K1": K_FREIBURG.tolist(), "distortion_model": "none", "dist1": [0, 0, 0, 0]},
+    "yml": ROS_CAMERA_INFO.replace("plumb_bob", "none").replace(
+        "distortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [-0.2, 0.05, 0.001, -0.002, 0.01]",
+        "distortion_coeffs: []"),
+    "yml no coefficients": ROS_CAMERA_INFO.replace("plumb_bob", '""').replace(
+        "  data: [-0.2, 0.05, 0.001, -0.002, 0.01]", "  data: [0, 0, 0, 0, 0]"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", list(KALIBR_NONE))
+def test_a_distortion_model_of_none_is_read_as_no_distortion(tmp_path, case):
+    # Kalibr's "distortion_model: none" was refused as no OpenCV pinhole distortion
+    data = KALIBR_NONE[case]
+    path = tmp_path / f"camera.{case.split()[0]}"
+    path.write_text(json.dumps(data) if isinstance(data, dict) else data)
+    (camera,) = load_calibration(path)
+    assert camera.dist is None
+    np.testing.assert_array_equal(camera.K, K_FREIBURG)
+
+
+@pytest.mark.parametrize("extension", ["json", "yml"])
+def test_a_distortion_model_of_none_with_coefficients_is_refused(tmp_path, extension):
+    path = tmp_path / f"camera.{extension}"
+    if extension == "json":
+        path.write_text(json.dumps({"K": K_FREIBURG.tolist(), "distortion_model": "none",
+                                    "distortion_coeffs": DIST[:4].tolist()}))  # fmt: skip
+    else:
+        path.write_text(ROS_CAMERA_INFO.replace("plumb_bob", "none"))
+    words = r"distortion_model 'none' in .*camera\.(json|yml) says no distortion, but the "
+    with pytest.raises(ValueError, match=words + r"coefficients \[-0\.2, .*remove one of the"):
+        load_calibration(path)
+
+
+KALIBR_CAMCHAIN = """cam0:
+  cam_overlaps: [1]
+  camera_model: pinhole
+  distortion_coeffs: [-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05]
+  distortion_model: radtan
+  intrinsics: [458.654, 457.296, 367.215, 248.375]
+  resolution: [752, 480]
+  rostopic: /cam0/image_raw
+cam1:
+  T_cn_cnm1:
+  - [0.9999972564779, 0.002312067192424, 0.0003760081024, -0.110073808127187]
+  - [-0.002317135723275, 0.999898048507103, 0.014089835846691, 0.000399121547014]
+  - [-0.000343393120620, -0.014090668452714, 0.999900662638082, -0.000853702503357]
+  - [0.0, 0.0, 0.0, 1.0]
+  cam_overlaps: [0]
+  camera_model: pinhole
+  distortion_coeffs: [-0.28368365, 0.07451284, -0.00010473, -3.55590700e-05]
+  distortion_model: radtan
+  intrinsics: [457.587, 456.134, 379.999, 255.238]
+  resolution: [752, 480]
+  rostopic: /cam1/image_raw
+"""
+
+
+@pytest.mark.parametrize("newline", ["\n", "\r\n"], ids=["LF", "CRLF"])
+def test_a_kalibr_camchain_is_read_camera_by_camera(tmp_path, newline):
+    # OpenCV's YAML parser failed on its T_cn_cnm1 lists: "malformed OpenCV calibration file
+    # camchain.yaml: skipSpaces ... Incorrect indentation"
+    path = tmp_path / "camchain.yaml"
+    path.write_bytes(KALIBR_CAMCHAIN.replace("\n", newline).encode())
+    first, second = load_calibration(path)
+    K = [[458.654, 0, 367.215], [0, 457.296, 248.375], [0, 0, 1]]
+    np.testing.assert_array_equal(first.K, K)
+    np.testing.assert_array_equal(first.dist, [-0.28340811, 0.07395907, 0.00019359, 1.76187114e-5])
+    np.testing.assert_array_equal(second.K[:2, 2], [379.999, 255.238])
+    assert first.image_size == second.image_size == (752, 480)
+    one = KALIBR_CAMCHAIN.split("cam1:")[0].replace("radtan", "none")
+    path.write_text(one.replace("[-0.28340811, 0.07395907, 0.00019359, 1.76187114e-05]", "[]"))
+    (camera,) = load_calibration(path)
+    assert camera.dist is None and camera.K[0, 0] == 458.654
+
+
+@pytest.mark.parametrize(
+    "change, words",
+    [(("pinhole", "omni"), "camera_model 'omni' in .*camchain.yaml cam0 is not a pinhole camera"),
+     (("radtan", "equidistant"), "distortion_model 'equidistant' in .*cam0 is not OpenCV's"),
+     (("[752, 480]", "[752]"), r"cam0: resolution must be \[width, height\], got \[752.0\]"),
+     (("[458.654, 457.296,", "[458.654, x,"), "cam0: intrinsics must be numbers"),
+     (("intrinsics: [458.654, 457.296, 367.215, 248.375]",
+       "intrinsics:\n  - 458.654\n  - 457.296\n  - 367.215\n  - 248.375"),
+      r"cam0: intrinsics must be a list of numbers on its line, \[a, b, ...\], got ''")],
+    ids=["omnidirectional", "fisheye", "resolution", "intrinsics", "block list"],
+)  # fmt: skip
+def test_a_kalibr_camera_this_reader_cannot_take_is_refused_by_name(tmp_path, change, words):
+    path = tmp_path / "camchain.yaml"
+    path.write_text(KALIBR_CAMCHAIN.replace(*change, 1))
+    with pytest.raises(ValueError, match=words):
+        load_calibration(path)
+
+
 def _photo_of_35mm_focal(path, focal_35mm: int) -> None:
     from PIL import Image
 
@@ -712,6 +807,29 @@ def test_an_exif_focal_length_that_is_none_is_not_used(tmp_path, focal_35mm, fie
     K, found, doubts = exif_camera(path)
     assert not found and doubts == [message]
     np.testing.assert_array_equal(K, camera.K)
+
+
+def test_the_exif_field_bounds_and_both_exif_checks_share_one_field_of_view(tmp_path):
+    # the CLI's warning and calib's refusal each computed the field of view themselves
+    from ppo_cv.cli.common import exif_camera
+
+    low, high = calib.EXIF_PLAUSIBLE_FIELD_DEG
+    assert calib.EXIF_FIELD_RANGE_DEG[0] < low < high < calib.EXIF_FIELD_RANGE_DEG[1]
+    assert calib.field_of_view_deg(18.0, 36.0) == pytest.approx(90.0)
+    assert calib.field_of_view_deg(50.0, 36.0) == pytest.approx(39.5978, abs=1e-4)  # 50 mm
+    path = tmp_path / "photo.jpg"
+    _photo_of_35mm_focal(path, 200)  # a 200 mm equivalent: about 10 deg across
+    K, found, doubts = exif_camera(path)
+    field = calib.field_of_view_deg(K[0, 0], 640)
+    assert found and 5 < field < low
+    assert doubts == [
+        f"{path}: the EXIF focal length f={K[0, 0]:.1f} px gives a {field:.1f} deg horizontal "
+        f"field of view at 640 px wide, outside {low:g}..{high:g} deg; pass --K or --calib"
+    ]
+    assert calib.unusable_exif_focal(K[0, 0], 640) is None
+    assert f"a {calib.field_of_view_deg(65535 / 36 * 640, 640):.3g} deg field" in (
+        calib.unusable_exif_focal(65535 / 36 * 640, 640)
+    )
 
 
 def test_the_focal_length_put_in_place_of_an_unusable_one_is_colmaps_guess(tmp_path):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import codecs
 import io
 import json
 import subprocess
@@ -371,6 +372,21 @@ def test_a_line_of_the_wrong_length_gets_the_remedy_that_fits(tmp_path, line, re
         batch.read_pairs(pairs, K=K_TEXT)
 
 
+@pytest.mark.parametrize(
+    "line",
+    ["my photo.png\tyour photo.png", "'my photo.png' 'your photo.png'"],
+    ids=["tab-separated", "single quotes"],
+)
+def test_two_names_with_spaces_that_make_four_fields_get_the_quoting_remedy(tmp_path, line):
+    # four fields read as 'name1 name2 0 0': "fields 3 and 4 must be 0 0, got your photo.png"
+    pairs = tmp_path / "pairs.txt"
+    pairs.write_text(f"{line}\n")
+    with pytest.raises(ValueError, match=r"pairs\.txt:1: fields 3 and 4 must be 0 0, got .*"
+                                         r"photo\.png'? \(two names with spaces\? put each in "
+                                         r"double quotes\)$"):  # fmt: skip
+        batch.read_pairs(pairs, K=K_TEXT)
+
+
 def test_output_dash_is_standard_output(tmp_path):
     (tmp_path / "pairs.txt").write_text(f"{NAME1} absent2.png\n")
     (tmp_path / "images").mkdir()
@@ -545,3 +561,42 @@ def test_a_calibration_is_fitted_to_the_images_as_read_upright(tmp_path):
     result, (line,) = run(stored, "--no-exif-orientation")
     assert result.exit_code == 0, result.output
     assert line["cameras"]["image_size1"] == [480, 640]
+
+
+def test_a_pairs_file_given_as_a_dash_is_named_as_standard_input(tmp_path, monkeypatch):
+    # "pairs file not found: -", as if a file named '-' were missing
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ValueError, match=r"^pairs file '-': standard input is not read; give "
+                                         r"the pairs file's path$"):  # fmt: skip
+        batch.read_pairs(Path("-"), K=K_TEXT)
+    Path("-").write_text("a.png b.png\n")  # a file of that name is read
+    assert [row["image2"] for row in batch.read_pairs(Path("-"), K=K_TEXT)] == ["b.png"]
+
+
+def test_a_byte_order_mark_at_the_start_of_a_later_line_is_read_past(tmp_path):
+    # two pairs files saved with a BOM and concatenated: the comment read as a pair of names
+    # '\ufeff#' and 'c', the quoted names as an unclosed double quote
+    pairs = tmp_path / "pairs.txt"
+    parts = ("a.png b.png\r\n", "# c\r\n", '"my a.png" "my b.png"\r\n')
+    pairs.write_bytes(b"".join(codecs.BOM_UTF8 + part.encode() for part in parts))
+    rows = batch.read_pairs(pairs, K=K_TEXT)
+    assert [(row["image1"], row["image2"], row["line"]) for row in rows] == [
+        ("a.png", "b.png", 1), ("my a.png", "my b.png", 3)
+    ]  # fmt: skip
+
+
+@pytest.mark.parametrize("cache", [[], ["--no-cache"]], ids=["cached", "per pair"])
+def test_a_name_with_windows_separators_gets_the_forward_slash_remedy(tmp_path, cache):
+    # "image not found: images/sub\\demo2.png", where images/sub/demo2.png was the file meant
+    (tmp_path / "images" / "sub").mkdir(parents=True)
+    (tmp_path / "images" / NAME1).write_bytes((DATA / NAME1).read_bytes())
+    (tmp_path / "images" / "sub" / NAME2).write_bytes((DATA / NAME2).read_bytes())
+    (tmp_path / "pairs.txt").write_text(f"{NAME1} sub\\{NAME2}\n")
+    args = [*COMMAND, "pairs", "pairs.txt", "images", "--K", K_TEXT, "-q", "--workers", "1"]
+    done = subprocess.run([*args, *cache], capture_output=True, text=True, timeout=120,
+                          cwd=tmp_path)  # fmt: skip
+    assert done.returncode == 1, done.stderr
+    error = json.loads(done.stdout)["error"]
+    assert error.startswith("image not found: ") and error.endswith(
+        f"sub\\{NAME2} (images/sub/{NAME2} exists: separate folders in names with /, not \\)"
+    )

@@ -168,3 +168,32 @@ def test_usage_and_arguments_use_the_names_the_help_text_uses(command, capsys):
     if command != "pair":
         code, _, err = _run([command], capsys)
         assert (code, err) == (2, f"ppo-cv {command}: Missing argument '{names[0]}'.\n")
+
+
+_SFM_IMPORT_PROBE = """
+import sys
+import ppo_cv.cli.sfm
+print('ppo_cv.sfm' in sys.modules, 'pycolmap' in sys.modules)
+"""
+
+
+def test_the_bounds_in_sfm_and_synth_help_are_the_ones_checked():
+    # sfm's help wrote the literal 1..256 beside sfm.MAX_THREADS and the CLI kept its own
+    # MAX_FEATURES; synth wrote 0..256 beside WORKERS_MAX
+    from ppo_cv import limits, sfm
+    from ppo_cv.cli.common import WORKERS_MAX
+
+    assert (sfm.MAX_THREADS, sfm.MAX_FEATURES) == (limits.MAX_THREADS, limits.MAX_FEATURES)
+    env = {**os.environ, "COLUMNS": "200", "TERMINAL_WIDTH": "200"}
+    helps = {}
+    for command in ("sfm", "synth"):
+        done = subprocess.run([sys.executable, "-m", "ppo_cv.cli.main", command, "--help"],
+                              capture_output=True, text=True, timeout=60, env=env)  # fmt: skip
+        assert done.returncode == 0, done.stderr
+        helps[command] = " ".join(done.stdout.split())
+    assert f"Threads for pycolmap (1..{limits.MAX_THREADS})." in helps["sfm"]
+    assert f"SIFT features per image (1..{limits.MAX_FEATURES})." in helps["sfm"]
+    assert f"Worker processes (0..{WORKERS_MAX}; 0 or none" in helps["synth"]
+    done = subprocess.run([sys.executable, "-c", _SFM_IMPORT_PROBE], capture_output=True,
+                          text=True, timeout=60)  # fmt: skip
+    assert done.stdout == "False False\n", done.stderr

@@ -346,3 +346,21 @@ def test_pairs_says_when_every_line_carries_the_cameras_given_on_the_command_lin
         "camera matrices, which stand"
     ]
     check_demo_pose(json.loads(done.stdout))
+
+
+@pytest.mark.parametrize(
+    "args, option, joined",
+    [(["pair", DEMO1, DEMO2, "--K", FX, FY, CX, CY], "--K", K_TEXT),
+     (["pair", DEMO1, DEMO2, "--K", K_TEXT, "--dist", "-0.1", "0.01", "0", "0"], "--dist",
+      "-0.1,0.01,0,0"),
+     (["pairs", "pairs.txt", "images", "--K", FX, FY, CX, CY], "--K", K_TEXT)],
+    ids=["pair --K", "pair --dist", "pairs --K"],
+)  # fmt: skip
+def test_numbers_given_as_separate_arguments_get_the_comma_remedy(args, option, joined):
+    # "Got unexpected extra argument(s) (539.2 320.1 247.6)" and nothing about --K
+    done = ppo_cv(*args)
+    assert done.returncode == 2 and done.stdout == ""
+    assert done.stderr.endswith(
+        f"; {option} takes its numbers as one argument, joined by commas: {option} {joined}\n"
+    )
+    assert done.stderr.count("\n") == 1

@@ -429,3 +429,66 @@ def test_the_writers_check_what_write_outputs_checks(demo_result, demo, tmp_path
     with pytest.raises(exception, match=re.escape(words)):
         call(demo_result, demo[:2], tmp_path / "out")
     assert list(tmp_path.iterdir()) == []
+
+
+def _mean_reprojection_px(model, camera) -> float:
+    """Mean distance (pixels) of every track element of ``model`` from its point seen by
+    ``camera``."""
+    errors = []
+    for point in model.points3D.values():
+        for element in point.track.elements:
+            image = model.images[element.image_id]
+            seen = camera.img_from_cam(image.cam_from_world() * point.xyz)
+            errors.append(np.linalg.norm(seen - image.points2D[element.point2D_idx].xy))
+    return float(np.mean(errors))
+
+
+@pytest.mark.parametrize(
+    "seed, scene, dist, model",
+    [(1, None, None, "general"), (1, None, np.array([0.01, -0.002, 0.0, 0.0, 0.001]), "general"),
+     (0, "plane", None, "plane")],
+    ids=["general", "general with a given distortion", "plane"],
+)  # fmt: skip
+def test_the_colmap_camera_carries_the_radial_term_the_pose_was_fitted_with(
+    tmp_path, seed, scene, dist, model
+):
+    from imperfect import imperfect_render
+
+    from ppo_cv.export import fitted_radial_k1
+
+    pair = imperfect_render(seed, 0.15 if scene is None else 0.1, scene=scene)
+    result = estimate_pair(pair.image1, pair.image2, pair.K_given, dist1=dist, dist2=dist)
+    assert result.model == model and abs(fitted_radial_k1(result)) > 0.03  # k1 0.06 or -0.05
+    write_outputs(tmp_path / "out", result, pair.image1, pair.image2)
+    model = pycolmap.Reconstruction(str(tmp_path / "out" / "colmap"))
+    (camera,) = model.cameras.values()
+    assert camera.model_name == ("OPENCV" if dist is None else "FULL_OPENCV")
+    K, coefficients = result.cameras.K1, np.zeros(8) if dist is None else np.r_[dist, 0, 0, 0]
+    given = pycolmap.Camera(
+        model="FULL_OPENCV", width=camera.width, height=camera.height,
+        params=[K[0, 0], K[1, 1], K[0, 2], K[1, 2], *coefficients],
+    )  # fmt: skip
+    exported = _mean_reprojection_px(model, camera)
+    through_given = _mean_reprojection_px(model, given)
+    assert exported < 0.5 * through_given and exported < 0.2
+    assert model.compute_mean_reprojection_error() == pytest.approx(exported, rel=1e-6)
+
+
+@pytest.mark.parametrize(
+    "focal, k1, size, worst_px",
+    [(900.0, 0.1, 4, 0.05), (500.0, -0.1, 4, 0.05), (500.0, 0.3, 8, 0.1), (350.0, -0.1, 8, 0.05)],
+    ids=["narrow", "normal", "strong", "wide"],
+)
+def test_the_composed_lens_takes_k3_where_four_coefficients_miss_it(focal, k1, size, worst_px):
+    # (k1, k2) alone missed a strong radial term in a wide field by up to 10 px at the corners
+    from ppo_cv.camera import normalized_to_pixels, pixels_to_normalized
+    from ppo_cv.export import composed_distortion
+    from ppo_cv.plane import undistort_division
+
+    K_wide = np.array([[focal, 0.0, 320.0], [0.0, focal, 240.0], [0.0, 0.0, 1.0]])
+    coefficients = composed_distortion(K_wide, None, (640, 480), k1)
+    u, v = np.meshgrid(np.linspace(0, 639, 41), np.linspace(0, 479, 31))
+    pixels = np.column_stack([u.ravel(), v.ravel()])
+    ideal = undistort_division(pixels_to_normalized(pixels, K_wide, None), k1)[:, :2]
+    back = normalized_to_pixels(ideal, K_wide, coefficients)
+    assert coefficients.size == size and np.abs(back - pixels).max() < worst_px

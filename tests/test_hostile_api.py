@@ -1013,3 +1013,39 @@ def test_a_long_double_pixel_beyond_float64_is_named_so():
     image[3, 4] = np.longdouble("1e400")  # finite in long double, infinite in float64
     with pytest.raises(ValueError, match=r"^image1 has 1 pixel value\(s\) beyond the range of "):
         ppo_cv.estimate_pair(image, GREY, K)
+
+
+def test_a_float_image_that_overshoots_one_keeps_its_contrast():
+    # [0, 1.2] was read as 0..255 values: two grey levels, "too few features: blank or
+    # textureless image"
+    ramp = np.tile(np.linspace(0.0, 1.2, 64), (4, 1))
+    gray = ppo_cv.features.to_uint8(ramp)
+    assert gray.min() == 0 and gray.max() == 255 and len(np.unique(gray)) == 64
+    dim = np.tile(np.arange(20.0), (4, 1))  # a float 0..255 image of 20 levels is kept
+    np.testing.assert_array_equal(ppo_cv.features.to_uint8(dim), dim.astype(np.uint8))
+    data = Path(ppo_cv.__file__).parent / "data"
+    image1, image2 = load_image(data / "demo1.png"), load_image(data / "demo2.png")
+    K = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
+    reference = ppo_cv.estimate_pair(image1, image2, K)
+    result = ppo_cv.estimate_pair(image1 / 255.0 * 1.2, image2 / 255.0 * 1.2, K)
+    assert result.model == reference.model and result.num_inliers > 0.9 * reference.num_inliers
+
+
+def test_the_alpha_channel_of_a_deep_image_does_not_scale_its_colours():
+    # a 12-bit BGRA array with an opaque 16-bit alpha was scaled by 0..65535: colours 0..16
+    data = Path(ppo_cv.__file__).parent / "data"
+    image1, image2 = load_image(data / "demo1.png"), load_image(data / "demo2.png")
+    K = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
+
+    def twelve_bit(image, alpha=None):
+        deep = image.astype(np.uint16) * 16
+        return deep if alpha is None else np.dstack([deep, np.full(image.shape[:2], alpha)])
+
+    from ppo_cv.images import as_image
+
+    opaque = twelve_bit(image1, np.uint16(65535))
+    np.testing.assert_array_equal(as_image(opaque, "image1"), as_image(twelve_bit(image1), "x"))
+    reference = ppo_cv.estimate_pair(twelve_bit(image1), twelve_bit(image2), K)
+    result = ppo_cv.estimate_pair(opaque, twelve_bit(image2, np.uint16(65535)), K)
+    assert result.num_inliers == reference.num_inliers
+    np.testing.assert_array_equal(result.R, reference.R)

@@ -110,3 +110,72 @@ def test_a_symbolic_link_to_nothing_is_refused_before_any_work_unless_replaced(t
             handle.write("new")
         assert link.read_text() == "new"
     assert not link.is_symlink() and sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+@pytest.mark.parametrize("old", [[], ["old.txt"]], ids=["empty", "replaced"])
+def test_an_output_folder_that_is_a_link_keeps_the_link_and_fills_its_folder(tmp_path, old):
+    # the link was set aside with the old output and a real folder put in its place
+    real = tmp_path / "disk" / "out"
+    real.mkdir(parents=True)
+    for name in old:
+        (real / name).write_text("old")
+    (tmp_path / "out").symlink_to(real)
+    with atomic_directory(tmp_path / "out", overwrite=bool(old)) as staging:
+        (staging / "new.txt").write_text("new")
+    assert (tmp_path / "out").is_symlink() and os.readlink(tmp_path / "out") == str(real)
+    assert [p.name for p in real.iterdir()] == ["new.txt"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["disk", "out"]
+    assert [p.name for p in real.parent.iterdir()] == ["out"]
+
+
+def test_a_link_to_a_folder_that_is_not_empty_is_refused_by_the_folder_it_leads_to(tmp_path):
+    (tmp_path / "real").mkdir()
+    (tmp_path / "real" / "old.txt").write_text("old")
+    (tmp_path / "out").symlink_to("real")
+    with pytest.raises(ValueError, match=r"real exists and is not an empty directory; pass"):
+        check_target(tmp_path / "out", "folder")
+
+
+def test_pair_out_through_a_link_writes_the_linked_folder(tmp_path):
+    demo = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
+    (tmp_path / "real").mkdir()
+    (tmp_path / "out").symlink_to("real")
+    done = subprocess.run(
+        [*COMMAND, "pair", str(demo / "demo1.png"), str(demo / "demo2.png"),
+         "--K", "535.4,539.2,320.1,247.6", "--out", "out", "-q"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "out").is_symlink()
+    assert sorted(p.name for p in (tmp_path / "real").iterdir()) == [
+        "colmap", "matches.png", "points.ply", "result.json"
+    ]  # fmt: skip
+
+
+def test_make_dataset_into_a_link_to_an_empty_folder(tmp_path):
+    # os.rmdir of the link failed with NotADirectoryError after the pairs were rendered
+    from ppo_cv.data_gen.io import PAIRS_FILE, make_dataset
+
+    (tmp_path / "real").mkdir()
+    (tmp_path / "out").symlink_to("real")
+    assert make_dataset(tmp_path / "out", 1, size=(32, 32), supersample=1, workers=1) == (
+        tmp_path / "out"
+    )
+    assert (tmp_path / "out").is_symlink() and (tmp_path / "real" / PAIRS_FILE).is_file()
+
+
+def test_an_output_file_that_is_a_link_keeps_the_link_and_replaces_its_file(tmp_path):
+    # the link was replaced by a regular file, and the file it led to kept its old content
+    from ppo_cv.atomic import atomic_file
+
+    real = tmp_path / "disk" / "poses.jsonl"
+    real.parent.mkdir()
+    real.write_text("old\n")
+    link = tmp_path / "poses.jsonl"
+    link.symlink_to(real)
+    with pytest.raises(ValueError, match=r"disk/poses\.jsonl already exists; pass --overwrite"):
+        check_target(link, "file")
+    with atomic_file(link, overwrite=True) as handle:
+        handle.write("new\n")
+    assert link.is_symlink() and os.readlink(link) == str(real) and real.read_text() == "new\n"
+    assert sorted(p.name for p in real.parent.iterdir()) == ["poses.jsonl"]

@@ -117,3 +117,14 @@ def test_distance_threshold_drops_far_points(K):
     near = ppo_cv.recover_pose(skew(t) @ R, p1, p2, K, distance_thresh=8.0)
     assert near.inliers.any() and not near.inliers.all()
     assert np.all(near.depths[near.inliers] < 8.0)
+
+
+def test_an_infinite_distance_threshold_drops_no_point(K):
+    # refused as not finite, where recoverPose's distanceThresh takes infinity as OpenCV does
+    rng = np.random.default_rng(11)
+    _, p1, p2, R, t = _general_motion(rng, K)
+    free = ppo_cv.recover_pose(skew(t) @ R, p1, p2, K)
+    endless = ppo_cv.recover_pose(skew(t) @ R, p1, p2, K, distance_thresh=np.inf)
+    np.testing.assert_array_equal(endless.inliers, free.inliers)
+    with pytest.raises(ValueError, match="distance_thresh must be a finite number > 0"):
+        ppo_cv.recover_pose(skew(t) @ R, p1, p2, K, distance_thresh=-np.inf)

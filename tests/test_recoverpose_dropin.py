@@ -111,6 +111,19 @@ def test_form_distance_threshold_returns_analytic_points(scene):
     assert keyword[0] < ours[0]
 
 
+def test_a_positional_distance_with_a_triangulated_points_buffer_is_the_third_form(scene):
+    # OpenCV tries each form in turn: a number after cameraMatrix is the R buffer of the first,
+    # but with triangulatedPoints=, which only the third has, the distance; this was a TypeError
+    args = (scene["E"], scene["p1"], scene["p2"], scene["K"], 50.0)
+    buffer, theirs = np.zeros((4, len(scene["p1"]))), np.zeros((4, len(scene["p1"])))
+    ours = ppo_cv.recoverPose(*args, triangulatedPoints=buffer)
+    reference = OPENCV_RECOVER_POSE(*args, triangulatedPoints=theirs)
+    assert len(ours) == len(reference) == 5 and ours[4] is buffer and reference[4] is theirs
+    _check_pose(ours, scene, reference)
+    keyword = ppo_cv.recoverPose(*args[:4], distanceThresh=50.0)
+    assert ours[0] == keyword[0] and np.array_equal(ours[4], keyword[4])
+
+
 def test_form_two_cameras_with_distortion():
     rng = np.random.default_rng(4)
     K1 = np.array([[700.0, 0.0, 330.0], [0.0, 710.0, 250.0], [0.0, 0.0, 1.0]])
@@ -231,3 +244,32 @@ def test_form_with_points_keeps_the_rotation_and_the_mask_contract_for_pure_rota
     m2 = ppo_cv.ppo.intersection_scores(x1, x2, R_out, t_out.ravel())
     both = (m1 > 0) & (m2 > 0)
     assert np.all(both[mask.ravel() > 0]) and retval == np.count_nonzero(mask)
+
+
+def test_an_infinite_distance_threshold_keeps_every_point_as_in_opencv(scene):
+    # "no cut of far points" was refused: distanceThresh must be a finite number > 0
+    args = (scene["E"], scene["p1"], scene["p2"], scene["K"])
+    ours = ppo_cv.recoverPose(*args, distanceThresh=np.inf)
+    reference = OPENCV_RECOVER_POSE(*args, distanceThresh=np.inf)
+    _check_pose(ours, scene, reference)
+    assert ours[0] == ppo_cv.recoverPose(*args)[0]
+    for bad in (0.0, -1.0, -np.inf, np.nan):
+        with pytest.raises(ValueError, match="distanceThresh must be a finite number > 0"):
+            ppo_cv.recoverPose(*args, distanceThresh=bad)
+
+
+def test_a_camera_matrix_given_with_focal_is_refused_not_overwritten(scene):
+    # the focal, pp form takes the fourth argument as its R output: OpenCV, and this function,
+    # wrote the rotation over the caller's camera matrix
+    K = scene["K"].copy()
+    args = (scene["E"], scene["p1"], scene["p2"], K)
+    for keywords in ({"focal": 800.0}, {"pp": (320.0, 240.0)}, {"focal": 800.0, "pp": (320, 240)}):
+        with pytest.raises(ppo_cv.RecoverPoseTypeError, match="a camera matrix in the place of"):
+            ppo_cv.recoverPose(*args, **keywords)
+        np.testing.assert_array_equal(K, scene["K"])
+    rotation = cv2.Rodrigues(np.array([0.0, 0.0, 0.3]))[0]  # a previous answer, reused as buffer
+    for buffer in (np.zeros((3, 3)), np.eye(3), rotation):
+        out = ppo_cv.recoverPose(scene["E"], scene["p1"], scene["p2"], buffer, focal=800.0,
+                                 pp=(320.0, 240.0))  # fmt: skip
+        assert out[1] is buffer
+        _check_pose(out, scene, OPENCV_RECOVER_POSE(*args[:3], scene["K"]))

@@ -1,0 +1,14 @@
+"""Bounds on the numbers both the API and the command line check, in a module that imports
+nothing: the command line builds its help without importing :mod:`ppo_cv.sfm` (and pycolmap).
+"""
+
+from __future__ import annotations
+
+__all__ = ["MAX_THREADS", "MAX_FEATURES"]
+
+MAX_THREADS = 256
+"""Upper bound of ``num_threads`` (``sfm --threads``): a million threads makes pycolmap abort
+the process."""
+
+MAX_FEATURES = 100_000
+"""Upper bound of ``max_num_features`` (``sfm --max-features``), SIFT features per image."""
