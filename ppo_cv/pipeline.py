@@ -67,7 +67,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -555,6 +555,26 @@ def _finish_general(state: _Finishing) -> _ModelPart:
     )
 
 
+def _with_points_of(state: _Finishing, part: _ModelPart, R: np.ndarray) -> _ModelPart:
+    """``part`` with its analytic points (eq. 36) recomputed through the returned rotation ``R``
+    where the rotation choice took the rotation-only fit's over the moving model's, so that the
+    points, the PLY and the COLMAP model are those of the pose returned."""
+    if state.motion.model == "rotation" or np.array_equal(R, part.R):
+        return part
+    k1 = part.radial_k1 if part.plane is None else part.plane.k1
+    k1 = float(k1) if np.isfinite(k1) else 0.0
+    c1 = undistort_division(state.found.x1, k1)
+    c2 = undistort_division(state.found.x2, k1)
+    points3d = ppo.analytic_points(c1, c2, R, part.t)
+    keep = np.zeros(len(points3d), bool)
+    keep[part.point_matches] = np.all(np.isfinite(points3d[part.point_matches]), axis=1)
+    return replace(
+        part,
+        points3d=np.where(keep[:, None], points3d, np.nan),
+        point_matches=np.flatnonzero(keep),
+    )
+
+
 def _same_pose(R, t, R_other, t_other) -> bool:
     """Whether two poses (``t`` unit vectors) are one up to rounding (1e-9)."""
     return bool(np.allclose(R, R_other, rtol=0.0, atol=1e-9)
@@ -804,5 +824,6 @@ def estimate_pair(
     state = _Finishing(inputs, found, pose, motion, priors, tracks, options, missed)
     part = FINISHERS[motion.model](state)
     rotation = _choose_rotation(state, part)
+    part = _with_points_of(state, part, rotation.R)
     watch.lap("decision")
     return _assemble(state, part, rotation, num_tracks, watch.timings)

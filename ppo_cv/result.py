@@ -372,9 +372,9 @@ class PairResult:
         ``"plane"`` (the homography's pose). A pair that is not a pure rotation returns the
         estimate with the smallest expected error, ``|bias| + deviation``: the rotation-only
         fit is biased by about the parallax of the translation it ignores, the moving model's
-        rotation is unbiased with deviation ``uncertainty.rotation_sigma_deg``. ``t``, the
-        points and ``model`` stay the moving model's, so with ``"rotation"`` the points are
-        those of the moving model's rotation, not of ``R``.
+        rotation is unbiased with deviation ``uncertainty.rotation_sigma_deg``. ``t`` and
+        ``model`` stay the moving model's; the points are recomputed through ``R`` and ``t``,
+        so that they, the PLY and the COLMAP model are those of the pose returned.
     pri : float
         Pure-rotation indicator (mean ``|M2|``, eq. 84) of the returned pose over the inliers:
         the essential matrix's refined pose, for a plane the homography's PPO pose, or for a

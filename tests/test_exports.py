@@ -492,3 +492,31 @@ def test_the_composed_lens_takes_k3_where_four_coefficients_miss_it(focal, k1, s
     ideal = undistort_division(pixels_to_normalized(pixels, K_wide, None), k1)[:, :2]
     back = normalized_to_pixels(ideal, K_wide, coefficients)
     assert coefficients.size == size and np.abs(back - pixels).max() < worst_px
+
+
+def test_a_moving_pair_given_the_rotation_only_fit_exports_points_of_that_rotation(tmp_path):
+    # the points were the essential matrix's, whose rotation the choice had set aside: image 2
+    # of the COLMAP model saw them tens of pixels from their keypoints on a tripod pair
+    from ppo_cv import data_gen
+
+    pair = data_gen.make_pair(
+        "tiny-baseline", seed=0, index=9, imperfections=data_gen.REAL_PHOTO, baseline_ratio=0.02
+    )
+    images = [np.ascontiguousarray(image[..., ::-1]) for image in (pair.image1, pair.image2)]
+    result = estimate_pair(*images, pair.K1_given, pair.K2_given)
+    assert result.model != "rotation" and result.rotation_source == "rotation"
+    assert len(result.point_matches) > 0.9 * np.count_nonzero(result.inliers)
+    write_outputs(tmp_path / "out", result, *images)
+    model = pycolmap.Reconstruction(str(tmp_path / "out" / "colmap"))
+    errors = {
+        image_id: np.median([
+            np.linalg.norm(
+                model.cameras[image.camera_id].img_from_cam(
+                    image.cam_from_world() * model.points3D[point.point3D_id].xyz
+                ) - point.xy
+            )
+            for point in image.points2D if point.has_point3D()
+        ])
+        for image_id, image in model.images.items()
+    }  # fmt: skip
+    assert errors[2] < 1.0 and errors[2] < 3.0 * errors[1] + 0.1, errors
