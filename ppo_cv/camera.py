@@ -25,6 +25,35 @@ CENTRE_TOLERANCE_PX = 0.5
 be the image centre; the two conventions are half a pixel apart."""
 
 
+def reduced_view(
+    image: np.ndarray, K: np.ndarray, max_size: int | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """``image`` (H, W) or (H, W, C) with its longer side reduced to ``max_size`` (area
+    averaging) and the camera matrix ``K`` (3, 3) of the reduced pixels; both unchanged when
+    ``max_size`` is None or the image no larger. Pixel centres map as
+    ``u' = (u + 1/2) W' / W - 1/2`` (as :func:`ppo_cv.features.detect_features` maps its
+    keypoints back), so ``K' = S K`` with ``S`` that map; distortion coefficients, which act
+    on normalised points, are those of ``K``. An inner helper of the refit: it checks
+    nothing.
+
+    >>> import numpy as np
+    >>> K = np.array([[1000.0, 0, 1999.5], [0, 1000.0, 1499.5], [0, 0, 1]])
+    >>> small, K_small = reduced_view(np.zeros((3000, 4000), np.uint8), K, 2000)
+    >>> small.shape, K_small[0].tolist(), K_small[1].tolist()
+    ((1500, 2000), [500.0, 0.0, 999.5], [0.0, 500.0, 749.5])
+    """
+    height, width = image.shape[:2]
+    if max_size is None or max(height, width) <= max_size:
+        return image, K
+    import cv2
+
+    scale = max_size / float(max(height, width))
+    size = (max(1, round(width * scale)), max(1, round(height * scale)))
+    sx, sy = size[0] / width, size[1] / height
+    S = np.array([[sx, 0.0, (sx - 1.0) / 2.0], [0.0, sy, (sy - 1.0) / 2.0], [0.0, 0.0, 1.0]])
+    return cv2.resize(image, size, interpolation=cv2.INTER_AREA), S @ K
+
+
 def pixels_to_normalized(points: np.ndarray, K: np.ndarray, dist: np.ndarray | None) -> np.ndarray:
     """Pixel points (N, 2) to normalised points (N, 2), distortion ``dist`` removed.
 

@@ -44,9 +44,10 @@ class PairOptions:
     max_features : int
         Keypoints kept per image, strongest first.
     max_image_size : int or None
-        Detect on a copy whose longer side is at most this (pixels); None keeps full size, at
-        a cost growing with the pixel count (a 6000x4000 pair: 5-8 s and 0.9 GB with the
-        default, reported at 41 s and 11.3 GB with None).
+        Detect on a copy whose longer side is at most this (pixels), and align the
+        photometric refit's windows on such copies; None keeps full size, at a cost growing
+        with the pixel count (a 6000x4000 pair: 5-8 s and 0.9 GB with the default, reported at
+        41 s and 11.3 GB with None).
     ratio : float
         Lowe's ratio test bound.
     mutual : bool

@@ -74,7 +74,7 @@ import numpy as np
 
 from . import ppo
 from .calib import warn_implausible
-from .camera import principal_point_is_centre
+from .camera import principal_point_is_centre, reduced_view
 from .checks import (
     as_callback,
     as_camera_matrix,
@@ -420,14 +420,18 @@ def _decide(
 def _align_tracks(
     inputs: PairInputs, motion: MotionDecision, priors: _LensPriors, keep_clipped: bool = False,
     sigma_deg: float | None = None, on_clipped: Callable[[], None] | None = None,
+    max_image_size: int | None = None,
 ) -> PhotometricRotation | None:  # fmt: skip
     """The rotation-only fit refitted on intensity-aligned windows around ``motion.R``
     (:func:`refine_rotation_photometric`, ``on_clipped`` called for each lens fit clipped to
     its box), None when too few windows align; searched over ``sigma_deg``, by default the
-    fit's own deviation (both capped)."""
+    fit's own deviation (both capped); on the images reduced as the features were
+    (``PairOptions.max_image_size``, :func:`~ppo_cv.camera.reduced_view`)."""
     sigma_deg = motion.rotation_sigma_deg if sigma_deg is None else sigma_deg
+    img1, K1 = reduced_view(inputs.img1, inputs.K1, max_image_size)
+    img2, K2 = reduced_view(inputs.img2, inputs.K2, max_image_size)
     return refine_rotation_photometric(
-        inputs.img1, inputs.img2, inputs.K1, inputs.K2, motion.R,
+        img1, img2, K1, K2, motion.R,
         focal_scale=motion.focal_scale, k1=motion.k1,
         principal_offset=motion.principal_offset, principal_prior=priors.principal,
         focal_ratio=motion.focal_ratio, **priors.ratio_keywords,
@@ -450,7 +454,10 @@ def _revisit_with_tracks(
     if not options.photometric or not (motion.pure_rotation or motion.rotation_candidate):
         return motion, None, 0, False
     clipped = []
-    tracks = _align_tracks(inputs, motion, priors, on_clipped=lambda: clipped.append(True))
+    tracks = _align_tracks(
+        inputs, motion, priors, on_clipped=lambda: clipped.append(True),
+        max_image_size=options.max_image_size,
+    )  # fmt: skip
     if tracks is None:
         return motion, None, 0, not clipped
     motion = with_tracks(
@@ -650,7 +657,7 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     ):
         tracks = _align_tracks(
             state.inputs, motion, state.priors, keep_clipped=True,
-            sigma_deg=rotation_only.fit_sigma_deg,
+            sigma_deg=rotation_only.fit_sigma_deg, max_image_size=state.options.max_image_size,
         )  # fmt: skip
         rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used, to_beat)
     chosen = choose_rotation([moving, rotation_only])

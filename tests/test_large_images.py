@@ -104,3 +104,32 @@ def test_the_refit_prepares_an_image_in_few_bytes_per_pixel():
         tracemalloc.stop()
     assert peak / pixels < 46 and kept / pixels < 38 and warp / pixels < 24
     np.testing.assert_array_equal(prepared.plane2.intensity, image.ravel())
+
+
+def test_the_refit_of_a_large_pure_rotation_runs_on_the_reduced_copy(monkeypatch):
+    """A 640x480 pure-rotation render enlarged to 2560x1920: the refit aligns its windows on
+    copies of at most ``max_image_size`` pixels, as the features were found (at full size it
+    prepared and warped 12-megapixel planes, 5-6 s of a phone-size pair), and keeps the
+    rotation of the render."""
+    from ppo_cv import data_gen, pipeline
+    from ppo_cv.metrics import rotation_error_deg
+
+    seen = []
+    refit = pipeline.refine_rotation_photometric
+
+    def recording(image1, image2, *args, **kwargs):
+        seen.append((image1.shape[:2], image2.shape[:2]))
+        return refit(image1, image2, *args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "refine_rotation_photometric", recording)
+    pair = data_gen.make_pair("pure-rotation", seed=0, index=0)
+    scale = 4.0
+    S = np.array([[scale, 0, (scale - 1) / 2], [0, scale, (scale - 1) / 2], [0, 0, 1]])
+    images = [
+        cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_CUBIC)
+        for image in (pair.image1, pair.image2)
+    ]
+    result = pipeline.estimate_pair(*images, S @ pair.K1_given, S @ pair.K2_given)
+    assert seen and all(shape == ((1500, 2000), (1500, 2000)) for shape in seen)
+    assert result.pure_rotation and result.uncertainty.rotation_tracks > 100
+    assert rotation_error_deg(result.R, pair.R) < 0.05
