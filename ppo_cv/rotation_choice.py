@@ -449,13 +449,9 @@ def focal_bias_deg(
     >>> round(rotation_error_deg(fit.R, R), 2), round(bias, 2)
     (0.17, 0.15)
     """
-    departure = float(lens.focal_scale) - 1.0
-    excess = float(np.sqrt(max(departure**2 - FOCAL_PRIOR**2, 0.0)))
-    if excess == 0.0:
-        return 0.0
-    found = _lens_jacobian(lens, x1, x2, used, step)
-    if found is None:
-        return float("inf")
+    excess, found = _focal_excess(lens, x1, x2, used, step)
+    if excess == 0.0 or found is None:
+        return 0.0 if excess == 0.0 else float("inf")
     J, noise = found
     prior = np.diag([0.0, 0.0, 0.0, noise / FOCAL_PRIOR, noise / K1_PRIOR])[3:]
     flows = np.column_stack([_translation_flow(lens, x1[used], axis, step) for axis in (0, 1)])
@@ -512,13 +508,9 @@ def focal_trade_deg(
     >>> round(focal_trade_deg(fit, q1, x2, used), 2), round(focal_bias_deg(fit, q1, x2, used), 2)
     (1.03, 0.28)
     """
-    departure = float(lens.focal_scale) - 1.0
-    excess = float(np.sqrt(max(departure**2 - FOCAL_PRIOR**2, 0.0)))
-    if excess == 0.0:
-        return 0.0
-    found = _lens_jacobian(lens, x1, x2, used, step)
-    if found is None:
-        return float("inf")
+    excess, found = _focal_excess(lens, x1, x2, used, step)
+    if excess == 0.0 or found is None:
+        return 0.0 if excess == 0.0 else float("inf")
     J, noise = found
     refitted = np.vstack([J[:, [0, 1, 2, 4]], [0.0, 0.0, 0.0, noise / K1_PRIOR]])
     moved = np.r_[-J[:, 3], 0.0]
@@ -526,6 +518,17 @@ def focal_trade_deg(
     if rank < refitted.shape[1]:
         return float("inf")
     return float(np.degrees(excess * np.linalg.norm(slope[:3])))
+
+
+def _focal_excess(
+    lens: LensRotationFit, x1: np.ndarray, x2: np.ndarray, used: np.ndarray, step: float
+) -> tuple[float, tuple[np.ndarray, float] | None]:
+    """The departure of a fit's focal scale beyond :data:`ppo_cv.rotation.FOCAL_PRIOR`,
+    ``sqrt(max(e^2 - FOCAL_PRIOR^2, 0))`` with ``e = s - 1``, and, where it is not 0, the fit's
+    Jacobian and noise (:func:`_lens_jacobian`; None where the matches do not determine it)."""
+    departure = float(lens.focal_scale) - 1.0
+    excess = float(np.sqrt(max(departure**2 - FOCAL_PRIOR**2, 0.0)))
+    return excess, None if excess == 0.0 else _lens_jacobian(lens, x1, x2, used, step)
 
 
 def _translation_flow(lens: LensRotationFit, x1: np.ndarray, axis: int, step: float):
