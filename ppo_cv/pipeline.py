@@ -102,7 +102,6 @@ from .homography import (
 )
 from .images import as_image as _as_image
 from .images import load_image
-from .metrics import rotation_error_deg
 from .motion_model import MotionDecision, decide_motion, plane_ransac_trials, with_tracks
 from .options import (
     FOCAL_RATIO_MODES,
@@ -661,46 +660,10 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
             sigma_deg=rotation_only.fit_sigma_deg, max_image_size=state.options.max_image_size,
         )  # fmt: skip
         rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used, to_beat)
-    moving = _focal_charged(state, part, moving, rotation_only)
     chosen = choose_rotation([moving, rotation_only])
     if chosen is rotation_only and tracks is None:
         return through_given_focal(chosen, motion, x1, x2)
     return chosen
-
-
-def _focal_charged(
-    state: _Finishing, part: _ModelPart, moving: RotationEstimate, rotation_only: RotationEstimate
-) -> RotationEstimate:  # fmt: skip
-    """The moving model's estimate with the move of its rotation when refitted through the focal
-    length the matches want (:func:`~ppo_cv.rotation_choice.wanted_focal_scale`) added to its
-    bias, where the ``rotation_only`` estimate reads the pair as a rotation through a focal
-    length given off (:attr:`~ppo_cv.rotation_choice.RotationEstimate.focal_error`) and the two
-    rotations lie further apart than their expected errors together: then one of them is off by
-    more than its budget, and the moving model's deviation counts the given focal length's
-    error within its prior only. ``moving`` otherwise, and where no focal length is wanted."""
-    if moving.source == "rotation" or not rotation_only.focal_error:
-        return moving
-    apart = float(rotation_error_deg(moving.R, rotation_only.R))
-    if not apart > moving.expected_error_deg + rotation_only.expected_error_deg:
-        return moving
-    scale = wanted_focal_scale(state.motion, state.found.x1, state.found.x2)
-    if not np.isfinite(scale):
-        return moving
-    S = np.diag([scale, scale, 1.0])
-    if moving.source == "plane":
-        plane = state.motion.plane
-        R = refine_planar_pose(
-            plane.R, plane.candidates.T[plane.candidate], plane.n, state.found.x1 @ S,
-            state.found.x2 @ S,
-            state.motion.homography_inliers, scale=state.options.ransac_threshold / state.focal,
-            fit_k1=True,
-        ).R  # fmt: skip
-    else:
-        k1 = part.radial_k1 if np.isfinite(part.radial_k1) else 0.0
-        c1, c2 = (undistort_division(x, k1) @ S for x in (state.found.x1, state.found.x2))
-        R, _ = refine_pose(part.R, part.t, c1, c2, part.inliers, state.focal)
-    shift = float(rotation_error_deg(R, part.R))
-    return replace(moving, bias_deg=moving.bias_deg + shift)
 
 
 def _misses_again(state: _Finishing, sigma_deg: float) -> bool:

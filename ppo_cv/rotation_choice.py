@@ -120,26 +120,6 @@ through the given focal length, 0.66 at the edge: the focal scales the two want,
 parallax and the essential matrix's rotation (nearer the edge's in both) do not tell these
 two apart.
 
-The moving model through a focal length given off. Where that reading stood
-(:attr:`RotationEstimate.focal_error`), the moving model was fitted through the given focal
-length as well, and its deviation counts that length's error within
-:data:`ppo_cv.rotation.FOCAL_PRIOR` only; in a narrow field a focal error slides its rotation
-along the bas-relief valley. pano_dev's csie IMG_8713/8714 (a 9 degree tilt whose matches want
-a focal length 0.80 times the given one) has its essential matrix's rotation 7.6 degrees from
-the reference and 7.1 from the rotation-only fit's, with an expected error of 2.1; both images
-vignetted (corners at 30 %), 0.9, and it won, 7.5 degrees off. Two estimates further apart
-than their expected errors together cannot both lie within them: one budget is wrong. Where
-that is so, the moving model's rotation is refitted through the focal length the matches want
-(:func:`wanted_focal_scale`; :func:`ppo_cv.refine.refine_pose` for the essential matrix,
-:func:`ppo_cv.plane.refine_planar_pose` for a plane) and its move is added to its bias: 3.0
-degrees on that pair, 5.5 vignetted (0.19 degree off then, the rotation-only estimate's), 2.1
-on csie IMG_8711/8712 with one image two stops darker, whose plane, 3.9 degrees off, had won
-with a deviation of 0.5 (0.19 now). Within their budgets the two are left alone: on pano_dev's
-book and bookshelf pairs (focal lengths 0.90-0.95 times the given ones) the essential matrix's
-rotation, 0.1-0.5 degree off and 0.3-1.1 from the rotation-only fit's, moves by 0.5-1.1
-through the wanted focal length; charged so, it lost on seven pairs, six of them 0.12-0.90
-degree worse (pano_dev's median 0.29 to 0.35).
-
 What it costs. A homography cannot tell that focal error from a translation: a pan about a
 pivot off the centre before a vertical wall is exactly ``S R' S^-1`` on the wall's homography
 (the pan's axis in the wall's plane; a tilt about the other axis leaves a third of the
