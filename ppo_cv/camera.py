@@ -17,6 +17,7 @@ import numpy as np
 
 from . import ppo
 from .checks import as_camera_matrix, as_image_size
+from .features import detection_size
 
 __all__ = ["principal_point_is_centre"]
 
@@ -29,9 +30,10 @@ def reduced_view(
     image: np.ndarray, K: np.ndarray, max_size: int | None
 ) -> tuple[np.ndarray, np.ndarray]:
     """``image`` (H, W) or (H, W, C) with its longer side reduced to ``max_size`` (area
-    averaging) and the camera matrix ``K`` (3, 3) of the reduced pixels; both unchanged when
-    ``max_size`` is None or the image no larger. Pixel centres map as
-    ``u' = (u + 1/2) W' / W - 1/2`` (as :func:`ppo_cv.features.detect_features` maps its
+    averaging), the copy :func:`ppo_cv.features.detect_features` detects on
+    (:func:`ppo_cv.features.detection_size`), and the camera matrix ``K`` (3, 3) of its
+    pixels; both unchanged when ``max_size`` is None or the image no larger. Pixel centres map
+    as ``u' = (u + 1/2) W' / W - 1/2`` (as :func:`ppo_cv.features.detect_features` maps its
     keypoints back), so ``K' = S K`` with ``S`` that map; distortion coefficients, which act
     on normalised points, are those of ``K``. An inner helper of the refit: it checks
     nothing.
@@ -42,14 +44,12 @@ def reduced_view(
     >>> small.shape, K_small[0].tolist(), K_small[1].tolist()
     ((1500, 2000), [500.0, 0.0, 999.5], [0.0, 500.0, 749.5])
     """
-    height, width = image.shape[:2]
-    if max_size is None or max(height, width) <= max_size:
+    size = detection_size(image.shape, max_size)
+    if size is None:
         return image, K
     import cv2
 
-    scale = max_size / float(max(height, width))
-    size = (max(1, round(width * scale)), max(1, round(height * scale)))
-    sx, sy = size[0] / width, size[1] / height
+    sx, sy = size[0] / image.shape[1], size[1] / image.shape[0]
     S = np.array([[sx, 0.0, (sx - 1.0) / 2.0], [0.0, sy, (sy - 1.0) / 2.0], [0.0, 0.0, 1.0]])
     return cv2.resize(image, size, interpolation=cv2.INTER_AREA), S @ K
 

@@ -176,6 +176,17 @@ def _root_sift(descriptors: np.ndarray) -> np.ndarray:
     return np.sqrt(descriptors / l1).astype(np.float32)
 
 
+def detection_size(shape: tuple, max_image_size: int | None) -> tuple[int, int] | None:
+    """``(width, height)`` of the copy of an image of ``shape`` (H, W[, C]) that
+    :func:`detect_features` detects on, its longer side reduced to ``max_image_size``; None
+    when the image is no larger (or ``max_image_size`` is None) and is detected as it is."""
+    height, width = int(shape[0]), int(shape[1])
+    if max_image_size is None or max(height, width) <= max_image_size:
+        return None
+    scale = max(height, width) / float(max_image_size)
+    return round(width / scale), round(height / scale)
+
+
 def detect_features(
     image: np.ndarray,
     kind: str = "sift",
@@ -218,10 +229,9 @@ def detect_features(
         raise ValueError(f"threshold_scale must be a positive number, got {threshold_scale}")
     gray = to_gray(image)
     require_detectable(gray.shape, name, max_image_size)
-    scale = 1.0
-    if max_image_size is not None and max(gray.shape) > max_image_size:
+    scale, size = 1.0, detection_size(gray.shape, max_image_size)
+    if size is not None:
         scale = max(gray.shape) / float(max_image_size)
-        size = (round(gray.shape[1] / scale), round(gray.shape[0] / scale))
         gray = cv2.resize(gray, size, interpolation=cv2.INTER_AREA)
     detector = _detector(kind, int(max_features), float(threshold_scale))
     keypoints, descriptors = detector.detectAndCompute(gray, None)
