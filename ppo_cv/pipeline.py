@@ -562,12 +562,13 @@ def _finish_general(state: _Finishing) -> _ModelPart:
     )
 
 
-def _with_points_of(state: _Finishing, part: _ModelPart, R: np.ndarray) -> _ModelPart:
-    """``part`` with its analytic points (eq. 36) recomputed through the returned rotation ``R``
+def _with_points_of(state: _Finishing, part: _ModelPart, rotation: RotationEstimate) -> _ModelPart:
+    """``part`` with its analytic points (eq. 36) recomputed through the returned ``rotation``
     where the rotation choice took the rotation-only fit's over the moving model's, so that the
     points, the PLY and the COLMAP model are those of the pose returned."""
-    if state.motion.model == "rotation" or np.array_equal(R, part.R):
+    if state.motion.model == "rotation" or rotation.source != "rotation":
         return part
+    R = rotation.R
     k1 = part.radial_k1 if part.plane is None else part.plane.k1
     k1 = float(k1) if np.isfinite(k1) else 0.0
     c1 = undistort_division(state.found.x1, k1)
@@ -831,6 +832,6 @@ def estimate_pair(
     state = _Finishing(inputs, found, pose, motion, priors, tracks, options, missed)
     part = FINISHERS[motion.model](state)
     rotation = _choose_rotation(state, part)
-    part = _with_points_of(state, part, rotation.R)
+    part = _with_points_of(state, part, rotation)
     watch.lap("decision")
     return _assemble(state, part, rotation, num_tracks, watch.timings)
