@@ -153,6 +153,7 @@ from .rotation_choice import (
     RotationEstimate,
     choose_rotation,
     focal_trade_deg,
+    refit_could_change,
     released_lens_shift_deg,
     rotation_only_estimate,
     rotation_only_fit,
@@ -452,6 +453,8 @@ def _revisit_with_tracks(
     whether a refit aligned none without clipping a lens fit
     (:attr:`_Finishing.unclipped_miss`)."""
     if not options.photometric or not (motion.pure_rotation or motion.rotation_candidate):
+        return motion, None, 0, False
+    if not refit_could_change(motion, found.x1, found.x2):
         return motion, None, 0, False
     clipped = []
     tracks = _align_tracks(
