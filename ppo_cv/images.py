@@ -19,6 +19,7 @@ warnings about a damaged EXIF block) is held back: the ValueError says what went
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import stat
 import struct
@@ -191,10 +192,15 @@ class ExifLayout:
     pixel_size : tuple of (int, int) or None
         ``(PixelXDimension, PixelYDimension)``: the size the camera wrote, which a resized or
         cropped copy no longer has; None without them.
+    focal_35mm : float or None
+        ``FocalLengthIn35mmFilm`` when above zero, mm: the focal length relative to the
+        frame's diagonal, which pycolmap reads before ``FocalLength`` and which a resized copy
+        keeps true; None without one.
     """
 
     orientation: int | None = None
     pixel_size: tuple[int, int] | None = None
+    focal_35mm: float | None = None
 
     @property
     def turned(self) -> bool:
@@ -203,11 +209,13 @@ class ExifLayout:
 
 
 _ORIENTATION_TAG, _EXIF_IFD, _PIXEL_X_TAG, _PIXEL_Y_TAG = 0x0112, 0x8769, 0xA002, 0xA003
+_FOCAL_35MM_TAG = 0xA405
 
 
 def exif_layout(path: str | os.PathLike) -> ExifLayout:
-    """The EXIF orientation and pixel dimensions of an image file (empty when it has none,
-    Pillow cannot read it or it is no regular file: a FIFO is never opened)."""
+    """The EXIF orientation, pixel dimensions and 35 mm equivalent focal length of an image
+    file (empty when it has none, Pillow cannot read it or it is no regular file: a FIFO is
+    never opened)."""
     if not _is_regular_file(path):
         return ExifLayout()
     try:
@@ -218,11 +226,22 @@ def exif_layout(path: str | os.PathLike) -> ExifLayout:
             orientation = exif.get(_ORIENTATION_TAG)
             sub = exif.get_ifd(_EXIF_IFD)
             width, height = sub.get(_PIXEL_X_TAG), sub.get(_PIXEL_Y_TAG)
+            focal_35mm = _positive(sub.get(_FOCAL_35MM_TAG))
+            size = (int(width), int(height)) if width and height else None
     except Exception:  # no Pillow, not an image Pillow knows, a damaged EXIF block
         return ExifLayout()
-    size = (int(width), int(height)) if width and height else None
     known = isinstance(orientation, int) and 1 <= orientation <= 8
-    return ExifLayout(orientation if known else None, size)
+    return ExifLayout(orientation if known else None, size, focal_35mm)
+
+
+def _positive(value: Any) -> float | None:
+    """An EXIF number (int or rational) as a float when it is finite and above zero, else
+    None."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError, ZeroDivisionError):
+        return None
+    return number if math.isfinite(number) and number > 0 else None
 
 
 def decoded_transposed(path: str | os.PathLike, width: int, height: int) -> bool:
