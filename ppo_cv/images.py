@@ -357,7 +357,8 @@ def native_messages_silenced() -> Iterator[None]:
 
 def as_image(image: Any, name: str) -> np.ndarray:
     """An image argument as an 8-bit array (H, W) or (H, W, C): a path is loaded, an array
-    checked (shape, numeric, no NaN), its alpha channel dropped (BGRA to BGR: an opaque 16-bit
+    checked (shape, numeric, no NaN; a 3x3 one is refused as a camera matrix in an image's
+    place), its alpha channel dropped (BGRA to BGR: an opaque 16-bit
     alpha would widen the range by which the colours are scaled) and scaled to 8 bits by its
     range."""
     if isinstance(image, (str, os.PathLike)):
@@ -386,4 +387,9 @@ def as_image(image: Any, name: str) -> np.ndarray:
         )
     if array.dtype.kind not in "buif":
         raise TypeError(f"{name} must hold numbers, got dtype {array.dtype}")
+    if array.shape == (3, 3):
+        raise ValueError(
+            f"{name} is a 3x3 array, no image: a camera matrix given in its place? (the "
+            "images come first, then the camera matrices)"
+        )
     return to_uint8(array[:, :, :3] if array.ndim == 3 else array, name)

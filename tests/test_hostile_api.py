@@ -1049,3 +1049,38 @@ def test_the_alpha_channel_of_a_deep_image_does_not_scale_its_colours():
     result = ppo_cv.estimate_pair(opaque, twelve_bit(image2, np.uint16(65535)), K)
     assert result.num_inliers == reference.num_inliers
     np.testing.assert_array_equal(result.R, reference.R)
+
+
+@pytest.mark.parametrize("order", ["K first", "K between the images"])
+def test_a_camera_matrix_in_an_images_place_is_named_so(order):
+    # estimate_pair(K, img1, img2) said "image1 is 3x3 pixels: too small or too thin to detect
+    # features on", a fault of the image
+    arguments = (K, GREY, GREY) if order == "K first" else (GREY, K, GREY)
+    name = "image1" if order == "K first" else "image2"
+    with pytest.raises(ValueError) as error:
+        ppo_cv.estimate_pair(*arguments)
+    assert str(error.value) == (
+        f"{name} is a 3x3 array, no image: a camera matrix given in its place? (the images "
+        "come first, then the camera matrices)"
+    )
+
+
+@pytest.mark.parametrize(
+    "matrix, hint",
+    [(K.T, "(transposed, as MATLAB's IntrinsicMatrix? pass its transpose)"),
+     (2 * K, "(scaled as a whole? divide it by K[2,2] = 2)"),
+     (skew([0.6, 0.0, 0.8]) @ random_rotation(np.random.default_rng(1), 20.0),
+      "(an essential matrix? the arguments may be out of order)"),
+     (np.eye(3)[::-1], "")],
+    ids=["transposed", "scaled", "essential", "another matrix"],
+)  # fmt: skip
+def test_a_matrix_that_is_no_camera_matrix_is_named_for_what_it_likely_is(matrix, hint):
+    # recoverPose(points1, points2, E, K) and a MATLAB IntrinsicMatrix got only "must be upper
+    # triangular with last row (0, 0, 1)"
+    with pytest.raises(ValueError) as error:
+        ppo_cv.checks.as_camera_matrix(matrix, "K")
+    assert str(error.value).endswith("]]" + (f" {hint}" if hint else ""))
+    assert str(error.value).startswith("K must be upper triangular with last row (0, 0, 1)")
+    points = np.random.default_rng(0).uniform(0, 640, (20, 2))
+    with pytest.raises(cv2.error, match=re.escape(hint) if hint else "cameraMatrix1"):
+        ppo_cv.recoverPose(points, points, matrix, K)
