@@ -600,3 +600,17 @@ def test_a_name_with_windows_separators_gets_the_forward_slash_remedy(tmp_path, 
     assert error.startswith("image not found: ") and error.endswith(
         f"sub\\{NAME2} (images/sub/{NAME2} exists: separate folders in names with /, not \\)"
     )
+
+
+def test_pairs_with_its_two_arguments_the_other_way_round_says_which_comes_first(tmp_path):
+    # it said only "pairs file images is a directory"
+    (tmp_path / "images").mkdir()
+    (tmp_path / "pairs.txt").write_text("a.png b.png\n")
+    run = CliRunner().invoke(app, ["pairs", str(tmp_path / "images"), str(tmp_path / "pairs.txt"),
+                                   "--quiet"])  # fmt: skip
+    assert run.exit_code == 2 and run.stdout == ""
+    assert run.stderr == (
+        f"ppo-cv pairs: pairs file {tmp_path / 'images'} is a directory and image folder "
+        f"{tmp_path / 'pairs.txt'} a file: the pairs file comes first, ppo-cv pairs PAIRS_FILE "
+        "IMAGE_DIR\n"
+    )
