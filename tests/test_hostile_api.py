@@ -1084,3 +1084,20 @@ def test_a_matrix_that_is_no_camera_matrix_is_named_for_what_it_likely_is(matrix
     points = np.random.default_rng(0).uniform(0, 640, (20, 2))
     with pytest.raises(cv2.error, match=re.escape(hint) if hint else "cameraMatrix1"):
         ppo_cv.recoverPose(points, points, matrix, K)
+
+
+@pytest.mark.parametrize("dist", [np.zeros(5), [0.1, -0.05, 0.0, 0.0, 0.01], np.zeros(8)],
+                         ids=["five zeros", "a list", "rational"])  # fmt: skip
+def test_distortion_coefficients_in_the_place_of_K2_are_named_so(dist):
+    # estimate_pair(img1, img2, K, dist), in OpenCV's order, said "K2 must be a 3x3 matrix, got
+    # shape (5,)"
+    with pytest.raises(ValueError) as error:
+        ppo_cv.estimate_pair(GREY, GREY[::-1], K, dist)
+    assert str(error.value) == (
+        f"K2 must be a 3x3 matrix, got {len(dist)} numbers: distortion coefficients? "
+        "estimate_pair takes image1, image2, K1, K2, dist1, dist2; pass them as dist1="
+    )
+    with pytest.raises(ValueError, match=r"^K2 must be a 3x3 matrix, got shape \(1, 5\)$"):
+        ppo_cv.estimate_pair(GREY, GREY[::-1], K, [[0, 0, 0, 0, 0]])
+    with pytest.raises((TypeError, ValueError), match="K2"):
+        ppo_cv.estimate_pair(GREY, GREY[::-1], K, [1, [2, 3], 4, 5, 6])
