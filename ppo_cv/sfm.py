@@ -48,6 +48,7 @@ from . import colmap, ppo
 from .atomic import (
     API_REPLACE_HINT,
     atomic_directory,
+    check_apart,
     check_target,
     signals_deferred,
     staging_folder,
@@ -98,6 +99,7 @@ __all__ = [
     "screen_images",
     "require_two_images",
     "require_database_outside",
+    "require_no_images",
     "format_pairs",
     "write_model",
     "pose_errors",
@@ -340,6 +342,34 @@ def _require_utf8_name(name: str) -> None:
         shown = os.fsencode(name).decode("utf-8", "backslashreplace")
         reason = f"the name '{shown}' is not valid UTF-8, which pycolmap cannot read"
         raise ValueError(reason) from None
+
+
+def require_no_images(output_dir: str | os.PathLike, name: str, usage: str) -> None:
+    """ValueError when the output folder ``output_dir`` holds images, which a model folder never
+    does: a folder of photos given as the output (the two folders the other way round), which
+    the advice to replace an existing output would have deleted, even with ``overwrite``.
+
+    Parameters
+    ----------
+    output_dir : path
+        The output folder; nothing is checked when it is no folder.
+    name : str
+        How the message calls it (``"OUT_DIR "``, ``"output_dir "``).
+    usage : str
+        The call in the right order, for the message.
+    """
+    try:
+        held = sorted(p.name for p in Path(output_dir).iterdir()
+                      if p.suffix.lower() in IMAGE_EXTENSIONS and p.is_file())  # fmt: skip
+    except OSError:  # missing, a file, unreadable: check_target names it
+        return
+    if held:
+        listed = ", ".join(held[:3]) + (", ..." if len(held) > 3 else "")
+        raise ValueError(
+            f"{name}{output_dir} holds {len(held)} image{'s' * (len(held) > 1)} ({listed}), "
+            f"which a model folder never does: the image folder comes first, {usage}; give "
+            "an output folder without images"
+        )
 
 
 def require_database_outside(
@@ -1486,6 +1516,8 @@ def run_sfm(
     image_dir = _image_folder(image_dir)
     if output_dir is not None:  # never the image folder, nor one holding it, even replaced
         output_dir = as_path(output_dir, "output_dir")
+        check_apart(output_dir, [image_dir], "output_dir ")
+        require_no_images(output_dir, "output_dir ", "run_sfm(image_dir, output_dir)")
         check_target(output_dir, "folder", overwrite, [image_dir], "output_dir ", API_REPLACE_HINT)
     if database_path is not None:
         _check_new_database(as_path(database_path, "database_path"), image_dir)

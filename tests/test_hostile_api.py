@@ -1101,3 +1101,26 @@ def test_distortion_coefficients_in_the_place_of_K2_are_named_so(dist):
         ppo_cv.estimate_pair(GREY, GREY[::-1], K, [[0, 0, 0, 0, 0]])
     with pytest.raises((TypeError, ValueError), match="K2"):
         ppo_cv.estimate_pair(GREY, GREY[::-1], K, [1, [2, 3], 4, 5, 6])
+
+
+def test_run_sfm_into_a_folder_of_photos_says_the_image_folder_comes_first(tmp_path):
+    # run_sfm(model, images), the two folders the other way round, said "images exists and is
+    # not an empty directory; pass overwrite=True to replace it": the photos' deletion
+    for folder in ("model", "images"):
+        (tmp_path / folder).mkdir()
+    for image in ("demo1.png", "demo2.png"):
+        (tmp_path / "model" / f"m_{image}").write_bytes(b"")
+        (tmp_path / "images" / image).write_bytes(
+            (Path(ppo_cv.__file__).parent / "data" / image).read_bytes()
+        )
+    before = {p.name: p.read_bytes() for p in (tmp_path / "images").iterdir()}
+    for overwrite in (False, True):
+        with pytest.raises(ValueError) as error:
+            _sfm_module().run_sfm(tmp_path / "model", tmp_path / "images", K=K,
+                                  overwrite=overwrite)  # fmt: skip
+        assert str(error.value) == (
+            f"output_dir {tmp_path / 'images'} holds 2 images (demo1.png, demo2.png), which a "
+            "model folder never does: the image folder comes first, run_sfm(image_dir, "
+            "output_dir); give an output folder without images"
+        )
+    assert {p.name: p.read_bytes() for p in (tmp_path / "images").iterdir()} == before

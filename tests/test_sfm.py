@@ -535,3 +535,23 @@ def test_the_databases_camera_of_a_resized_photo_has_the_focal_length_of_its_pix
     assert cameras["b.jpg"].mean_focal_length() == pytest.approx(2500.0, rel=1e-4)
     assert all(camera.has_prior_focal_length for camera in cameras.values())
     assert ppo_cv.camera_from_exif(images / "a.jpg")[0].K[0, 0] == pytest.approx(400.0, rel=1e-4)
+
+
+def test_sfm_into_a_folder_of_photos_says_the_image_folder_comes_first(tmp_path):
+    # `ppo-cv sfm model images` advised "pass --overwrite to replace it" for the photos
+    data = Path(ppo_cv.__file__).parent / "data"
+    for folder in ("model", "images"):
+        (tmp_path / folder).mkdir()
+    (tmp_path / "model" / "cameras.bin").write_bytes(b"")
+    for image in ("demo1.png", "demo2.png"):
+        (tmp_path / "images" / image).write_bytes((data / image).read_bytes())
+    args = ["sfm", str(tmp_path / "model"), str(tmp_path / "images"), "--K", "500,500,320,240"]
+    for extra in ([], ["--overwrite"]):
+        run = CliRunner().invoke(app, [*args, *extra])
+        assert run.exit_code == 2 and run.stdout == ""
+        assert run.stderr == (
+            f"ppo-cv sfm: OUT_DIR {tmp_path / 'images'} holds 2 images (demo1.png, demo2.png), "
+            "which a model folder never does: the image folder comes first, ppo-cv sfm "
+            "IMAGE_DIR OUT_DIR; give an output folder without images\n"
+        )
+    assert sorted(p.name for p in (tmp_path / "images").iterdir()) == ["demo1.png", "demo2.png"]
