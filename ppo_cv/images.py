@@ -225,21 +225,24 @@ def exif_layout(path: str | os.PathLike) -> ExifLayout:
             exif = image.getexif()
             orientation = exif.get(_ORIENTATION_TAG)
             sub = exif.get_ifd(_EXIF_IFD)
-            width, height = sub.get(_PIXEL_X_TAG), sub.get(_PIXEL_Y_TAG)
+            width, height = _positive(sub.get(_PIXEL_X_TAG)), _positive(sub.get(_PIXEL_Y_TAG))
             focal_35mm = _positive(sub.get(_FOCAL_35MM_TAG))
-            size = (int(width), int(height)) if width and height else None
     except Exception:  # no Pillow, not an image Pillow knows, a damaged EXIF block
         return ExifLayout()
+    whole = width is not None and height is not None and width >= 1 and height >= 1
+    size = (int(width), int(height)) if whole else None
     known = isinstance(orientation, int) and 1 <= orientation <= 8
     return ExifLayout(orientation if known else None, size, focal_35mm)
 
 
 def _positive(value: Any) -> float | None:
     """An EXIF number (int or rational) as a float when it is finite and above zero, else
-    None."""
+    None (text, a list, a rational over zero)."""
+    if isinstance(value, (str, bytes)):
+        return None
     try:
         number = float(value)
-    except (TypeError, ValueError, ZeroDivisionError):
+    except (TypeError, ValueError, ZeroDivisionError, OverflowError):
         return None
     return number if math.isfinite(number) and number > 0 else None
 

@@ -1124,3 +1124,18 @@ def test_run_sfm_into_a_folder_of_photos_says_the_image_folder_comes_first(tmp_p
             "output_dir); give an output folder without images"
         )
     assert {p.name: p.read_bytes() for p in (tmp_path / "images").iterdir()} == before
+
+
+@pytest.mark.parametrize("recorded", [("640 px", 480), (0, 480), (-640, 480)],
+                         ids=["text", "zero", "negative"])  # fmt: skip
+def test_a_recorded_pixel_size_that_is_none_is_ignored_keeping_the_orientation(tmp_path, recorded):
+    # a text PixelXDimension raised "invalid literal for int() with base 10: '640 px'" from
+    # exif_layout, which pair calls on every photo, --K or not
+    from PIL import Image
+
+    path = tmp_path / "photo.jpg"
+    exif = Image.Exif()
+    exif[0x0112] = 6
+    exif.get_ifd(0x8769)[0xA002], exif.get_ifd(0x8769)[0xA003] = recorded
+    Image.fromarray(np.zeros((48, 64, 3), np.uint8)).save(path, exif=exif)
+    assert ppo_cv.images.exif_layout(path) == ppo_cv.images.ExifLayout(6, None, None)
