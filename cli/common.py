@@ -481,8 +481,8 @@ def exif_camera(path, exif_orientation: bool = True) -> tuple[Any, bool, list[st
 def _recorded_size_doubt(layout: Any, size: tuple[int, int], focal: float) -> str | None:
     """What the EXIF's recorded pixel size, when it is not the image's ``size`` (width,
     height), says of the focal length ``focal`` (pixels) read from it: a resized copy's was
-    scaled (:func:`ppo_cv.calib.exif_focal_scale`) or, from a 35 mm equivalent, fits as it is
-    (None); a crop's may not fit."""
+    scaled (:func:`ppo_cv.calib.exif_focal_scale`) or, from a 35 mm equivalent or pycolmap's
+    table of sensor widths, fits as it is (None); a crop's may not fit."""
     from ppo_cv.calib import resize_scale
 
     recorded = layout.pixel_size
@@ -495,7 +495,7 @@ def _recorded_size_doubt(layout: Any, size: tuple[int, int], focal: float) -> st
             f"{said}{size[0]}x{size[1]}, another aspect ratio (cropped?), so its EXIF focal "
             "length may not fit; pass --K or --calib"
         )
-    if layout.focal_35mm is not None:
+    if layout.focal_35mm is not None or not layout.sensor_resolution:
         return None
     return (
         f"{said}{size[0]}x{size[1]}, a resized copy: its EXIF focal length, in the original's "

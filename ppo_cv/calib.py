@@ -790,6 +790,9 @@ def exif_focal_scale(layout: Any, size: tuple[int, int]) -> float:
     - it has a 35 mm equivalent (``FocalLengthIn35mmFilm``), which pycolmap reads first and
       multiplies by the image's own diagonal: a resized copy keeps the ratio of focal length to
       diagonal, so this focal length fits it as it is;
+    - it has no ``FocalPlaneXResolution`` with a unit of length
+      (``layout.sensor_resolution``): pycolmap then takes the sensor's width from its table of
+      cameras and multiplies by the image's own size, which fits a resized copy as it is;
     - the recorded size has another aspect ratio (beyond :data:`ASPECT_TOLERANCE`): a crop,
       whose pixels are the camera's unless it was resized too, which no tag tells.
 
@@ -806,7 +809,7 @@ def exif_focal_scale(layout: Any, size: tuple[int, int]) -> float:
     float
         The ratio of the image's larger side to the recorded larger side, or 1.
     """
-    if layout.pixel_size is None or layout.focal_35mm is not None:
+    if layout.pixel_size is None or layout.focal_35mm is not None or not layout.sensor_resolution:
         return 1.0
     scale = resize_scale(layout.pixel_size, size)
     return 1.0 if scale is None else scale

@@ -196,11 +196,17 @@ class ExifLayout:
         ``FocalLengthIn35mmFilm`` when above zero, mm: the focal length relative to the
         frame's diagonal, which pycolmap reads before ``FocalLength`` and which a resized copy
         keeps true; None without one.
+    sensor_resolution : bool
+        Whether ``FocalPlaneXResolution`` is given with a unit of length
+        (``FocalPlaneResolutionUnit`` inch, cm, mm or um): pycolmap then reads ``FocalLength``
+        through it, in the pixels the camera wrote, rather than through its table of sensor
+        widths, which it multiplies by the image's own size.
     """
 
     orientation: int | None = None
     pixel_size: tuple[int, int] | None = None
     focal_35mm: float | None = None
+    sensor_resolution: bool = False
 
     @property
     def turned(self) -> bool:
@@ -210,11 +216,12 @@ class ExifLayout:
 
 _ORIENTATION_TAG, _EXIF_IFD, _PIXEL_X_TAG, _PIXEL_Y_TAG = 0x0112, 0x8769, 0xA002, 0xA003
 _FOCAL_35MM_TAG = 0xA405
+_PLANE_X_TAG, _PLANE_UNIT_TAG, _PLANE_UNITS = 0xA20E, 0xA210, (2, 3, 4, 5)
 
 
 def exif_layout(path: str | os.PathLike) -> ExifLayout:
-    """The EXIF orientation, pixel dimensions and 35 mm equivalent focal length of an image
-    file (empty when it has none, Pillow cannot read it or it is no regular file: a FIFO is
+    """The EXIF orientation, pixel dimensions and focal length tags of an image file (empty
+    when it has none, Pillow cannot read it or it is no regular file: a FIFO is
     never opened)."""
     if not _is_regular_file(path):
         return ExifLayout()
@@ -227,12 +234,13 @@ def exif_layout(path: str | os.PathLike) -> ExifLayout:
             sub = exif.get_ifd(_EXIF_IFD)
             width, height = _positive(sub.get(_PIXEL_X_TAG)), _positive(sub.get(_PIXEL_Y_TAG))
             focal_35mm = _positive(sub.get(_FOCAL_35MM_TAG))
+            plane = sub.get(_PLANE_X_TAG) is not None and sub.get(_PLANE_UNIT_TAG) in _PLANE_UNITS
     except Exception:  # no Pillow, not an image Pillow knows, a damaged EXIF block
         return ExifLayout()
     whole = width is not None and height is not None and width >= 1 and height >= 1
     size = (int(width), int(height)) if whole else None
     known = isinstance(orientation, int) and 1 <= orientation <= 8
-    return ExifLayout(orientation if known else None, size, focal_35mm)
+    return ExifLayout(orientation if known else None, size, focal_35mm, plane)
 
 
 def _positive(value: Any) -> float | None:

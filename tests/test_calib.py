@@ -1016,7 +1016,31 @@ def test_exif_focal_scale_and_resize_scale():
     assert calib.resize_scale((4000, 3000), (1600, 1200)) == 0.4
     assert calib.resize_scale((3000, 4000), (1600, 1200)) == 0.4
     assert calib.resize_scale((4000, 3000), (1600, 1600)) is None
-    assert calib.exif_focal_scale(ExifLayout(None, (4000, 3000)), (1600, 1200)) == 0.4
-    assert calib.exif_focal_scale(ExifLayout(None, (4000, 3000), 28.0), (1600, 1200)) == 1.0
-    assert calib.exif_focal_scale(ExifLayout(None, None), (1600, 1200)) == 1.0
-    assert calib.exif_focal_scale(ExifLayout(None, (4000, 3000)), (1600, 1600)) == 1.0
+    scale = calib.exif_focal_scale
+    assert scale(ExifLayout(None, (4000, 3000), None, True), (1600, 1200)) == 0.4
+    assert scale(ExifLayout(None, (4000, 3000), 28.0, True), (1600, 1200)) == 1.0
+    assert scale(ExifLayout(None, (4000, 3000), None, False), (1600, 1200)) == 1.0
+    assert scale(ExifLayout(None, None, None, True), (1600, 1200)) == 1.0
+    assert scale(ExifLayout(None, (4000, 3000), None, True), (1600, 1600)) == 1.0
+
+
+def test_a_focal_length_from_pycolmaps_table_of_sensors_is_never_scaled(tmp_path):
+    # without FocalPlaneXResolution pycolmap takes the sensor's width from its table (a Canon
+    # PowerShot S45: 7.18 mm) and multiplies by the image's own size: right for a resized copy
+    from PIL import Image
+    from PIL.TiffImagePlugin import IFDRational
+
+    from ppo_cv.cli.common import exif_camera
+    from ppo_cv.images import exif_layout
+
+    path = tmp_path / "s45.jpg"
+    exif = Image.Exif()
+    exif[0x010F], exif[0x0110] = "Canon", "Canon PowerShot S45"
+    sub = exif.get_ifd(0x8769)
+    sub[0x920A], sub[0xA002], sub[0xA003] = IFDRational(12.28125), 2272, 1704
+    Image.fromarray(np.zeros((540, 720, 3), np.uint8)).save(path, exif=exif)
+    layout = exif_layout(path)
+    assert layout.pixel_size == (2272, 1704) and not layout.sensor_resolution
+    camera, from_exif = camera_from_exif(path)
+    assert from_exif and 1200 < camera.K[0, 0] < 1290  # 12.28 / 7.18 x 720 = 1231.5
+    assert exif_camera(path)[2] == []
