@@ -109,6 +109,9 @@ def _fields(line: str) -> list[str]:
 def _remedy(parts: list[str]) -> str:
     """What a line of the wrong number of fields most likely lacks."""
     if len(parts) == 1:
+        separator = next((c for c in ",;" if c in parts[0]), None)
+        if separator is not None:
+            return f"a pair needs two image names, separated by spaces, not {separator!r}"
         return "a pair needs two image names"
     try:
         [float(part) for part in parts[2:]]

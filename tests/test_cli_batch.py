@@ -362,8 +362,13 @@ _K_FIELDS = "535.4 0 320.1 0 539.2 247.6 0 0 1"
         (f"a.png b.png 0 0 {_K_FIELDS} {_K_FIELDS} 1 0 0", r"got 25 fields \(after the names"),
         ("a b.png c.png 0 0", r"got 5 fields \(put a name with spaces in double quotes\)"),
         ("a.png", r"got 1 field \(a pair needs two image names\)"),
+        ("a.png,b.png", r"got 1 field \(a pair needs two image names, separated by spaces, not "
+                        r"','\)"),
+        ("a.png;b.png", r"got 1 field \(a pair needs two image names, separated by spaces, not "
+                        r"';'\)"),
     ],
-    ids=["space in a name", "one number", "K2 short", "T short", "space and numbers", "one name"],
+    ids=["space in a name", "one number", "K2 short", "T short", "space and numbers", "one name",
+         "comma-separated", "semicolon-separated"],
 )
 def test_a_line_of_the_wrong_length_gets_the_remedy_that_fits(tmp_path, line, remedy):
     pairs = tmp_path / "pairs.txt"
