@@ -106,7 +106,17 @@ def _as_real_array(value: Any, name: str, text_hint: str = "") -> np.ndarray:
 def _not_numbers(value: Any, array: np.ndarray, name: str, text_hint: str = "") -> str:
     """The message for an argument that holds no real numbers: its dtype, or for a single
     object (a text, a record) its type and how to pass what it stands for (``text_hint`` for a
-    text: how to parse it, for the arguments a text can describe)."""
+    text: how to parse it, for the arguments a text can describe); for a list or tuple holding
+    a camera record (what ``camera_from_exif`` and ``load_calibration`` return) how to pass
+    it."""
+    held = value if isinstance(value, (list, tuple)) else ()
+    camera = next((v for v in held if hasattr(v, "K") and hasattr(v, "dist")), None)
+    if camera is not None:
+        return (
+            f"{name} must be an array of real numbers, got a {type(value).__name__} holding a "
+            f"{type(camera).__name__} (as camera_from_exif and load_calibration return them): "
+            "pass the camera's .K (and its .dist as the distortion)"
+        )
     if array.ndim or isinstance(value, np.ndarray):
         return f"{name} must hold real numbers, got dtype {array.dtype}"
     hint = (

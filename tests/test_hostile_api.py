@@ -1139,3 +1139,17 @@ def test_a_recorded_pixel_size_that_is_none_is_ignored_keeping_the_orientation(t
     exif.get_ifd(0x8769)[0xA002], exif.get_ifd(0x8769)[0xA003] = recorded
     Image.fromarray(np.zeros((48, 64, 3), np.uint8)).save(path, exif=exif)
     assert ppo_cv.images.exif_layout(path) == ppo_cv.images.ExifLayout(6, None, None)
+
+
+def test_what_camera_from_exif_and_load_calibration_return_is_named_when_passed_as_K(tmp_path):
+    # estimate_pair(a, b, camera_from_exif(a)) said "K1 must hold real numbers, got dtype object"
+    camera = ppo_cv.Camera(K)
+    words = (
+        "K1 must be an array of real numbers, got a {} holding a Camera (as camera_from_exif "
+        "and load_calibration return them): pass the camera's .K (and its .dist as the "
+        "distortion)"
+    )
+    for given, kind in (((camera, True), "tuple"), ([camera], "list")):
+        with pytest.raises(TypeError) as error:
+            ppo_cv.estimate_pair(GREY, GREY[::-1], given)
+        assert str(error.value) == words.format(kind)
