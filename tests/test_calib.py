@@ -947,7 +947,7 @@ def test_the_sensor_focal_length_of_a_resized_photo_is_scaled_to_its_pixels(tmp_
     # copy of 640 px, a 14.6 deg field for a 77 deg one
     from ppo_cv.cli.common import exif_camera
 
-    path = tmp_path / "shared.jpg"
+    path = tmp_path / "resized.jpg"
     _phone_photo(path, unit=unit)
     camera, from_exif = camera_from_exif(path)
     assert from_exif
@@ -966,7 +966,7 @@ def test_the_sensor_focal_length_of_a_resized_photo_is_scaled_to_its_pixels(tmp_
 @pytest.mark.parametrize("orientation, stored", [(6, (640, 480)), (None, (480, 640))],
                          ids=["turned by its orientation", "turned pixels"])  # fmt: skip
 def test_a_resized_photo_turned_upright_is_scaled_by_its_own_sides(tmp_path, orientation, stored):
-    path = tmp_path / "shared.jpg"
+    path = tmp_path / "resized.jpg"
     _phone_photo(path, stored, orientation=orientation)
     camera, _ = camera_from_exif(path)
     np.testing.assert_allclose(np.diag(camera.K)[:2], 400.0, rtol=1e-4)
