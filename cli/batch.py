@@ -109,6 +109,9 @@ def _fields(line: str) -> list[str]:
 def _remedy(parts: list[str]) -> str:
     """What a line of the wrong number of fields most likely lacks."""
     if len(parts) == 1:
+        separator = next((c for c in ",;" if c in parts[0]), None)
+        if separator is not None:
+            return f"a pair needs two image names, separated by spaces, not {separator!r}"
         return "a pair needs two image names"
     try:
         [float(part) for part in parts[2:]]
@@ -242,6 +245,16 @@ def _require_regular_file(path: Path, what: str) -> None:
         raise ValueError(f"{what} {path} is a directory")
     if not path.is_file():
         raise ValueError(f"{what} {path} is not a regular file (a pipe, socket or device?)")
+
+
+def _require_order(pairs_file: Path, image_dir: Path) -> None:
+    """ValueError when the pairs file is a folder and the image folder a file: the two
+    arguments given the other way round."""
+    if pairs_file.is_dir() and image_dir.is_file():
+        raise ValueError(
+            f"pairs file {pairs_file} is a directory and image folder {image_dir} a file: "
+            "the pairs file comes first, ppo-cv pairs PAIRS_FILE IMAGE_DIR"
+        )
 
 
 def _require_unturned(fields: list[str]) -> None:
@@ -791,6 +804,7 @@ def run_pairs(
     if output is not None:
         check_target(output, "file", overwrite, [pairs_file, image_dir], "-o ")
     cameras = given_cameras(K, K2, None, None, calib)
+    _require_order(Path(pairs_file), Path(image_dir))
     rows = read_pairs(Path(pairs_file), cameras=cameras)
     from ppo_cv.images import file_mode
 

@@ -442,8 +442,8 @@ def exif_camera(path, exif_orientation: bool = True) -> tuple[Any, bool, list[st
 
     ``from_exif`` is False when the image has no usable EXIF focal length (the focal length is
     then 1.2 times the larger image side). The warnings say when the EXIF pixel dimensions are
-    not those of the image (a resized or cropped copy keeps the focal length of the original)
-    and when the horizontal field of view the focal length implies lies outside
+    not those of the image (a resized copy's focal length was scaled to it, a cropped copy's may
+    not fit) and when the horizontal field of view the focal length implies lies outside
     :data:`ppo_cv.calib.EXIF_PLAUSIBLE_FIELD_DEG`; and, with ``from_exif`` False,
     when an EXIF focal length was not used (:data:`ppo_cv.calib.EXIF_FIELD_RANGE_DEG`).
     """
@@ -465,13 +465,9 @@ def exif_camera(path, exif_orientation: bool = True) -> tuple[Any, bool, list[st
     if not from_exif:
         return K, False, doubts
     width, height = round(2 * K[0, 2]), round(2 * K[1, 2])
-    recorded = exif_layout(path).pixel_size
-    if recorded is not None and sorted(recorded) != sorted((width, height)):
-        doubts.append(
-            f"{path}: the EXIF says the photo was {recorded[0]}x{recorded[1]} pixels, the image "
-            f"is {width}x{height} (resized or cropped?), so its EXIF focal length may not fit; "
-            "pass --K or --calib"
-        )
+    doubt = _recorded_size_doubt(exif_layout(path), (width, height), K[0, 0])
+    if doubt is not None:
+        doubts.append(f"{path}: {doubt}")
     field, (low, high) = field_of_view_deg(K[0, 0], width), EXIF_PLAUSIBLE_FIELD_DEG
     if not low <= field <= high:
         doubts.append(
@@ -480,6 +476,32 @@ def exif_camera(path, exif_orientation: bool = True) -> tuple[Any, bool, list[st
             "--K or --calib"
         )
     return K, True, doubts
+
+
+def _recorded_size_doubt(layout: Any, size: tuple[int, int], focal: float) -> str | None:
+    """What the EXIF's recorded pixel size, when it is not the image's ``size`` (width,
+    height), says of the focal length ``focal`` (pixels) read from it: a resized copy's was
+    scaled (:func:`ppo_cv.calib.exif_focal_scale`) or, from a 35 mm equivalent or pycolmap's
+    table of sensor widths, fits as it is (None); a crop's may not fit."""
+    from ppo_cv.calib import resize_scale
+
+    recorded = layout.pixel_size
+    if recorded is None or sorted(recorded) == sorted(size):
+        return None
+    said = f"the EXIF says the photo was {recorded[0]}x{recorded[1]} pixels, the image is "
+    scale = resize_scale(recorded, size)
+    if scale is None:
+        return (
+            f"{said}{size[0]}x{size[1]}, another aspect ratio (cropped?), so its EXIF focal "
+            "length may not fit; pass --K or --calib"
+        )
+    if layout.focal_35mm is not None or not layout.sensor_resolution:
+        return None
+    return (
+        f"{said}{size[0]}x{size[1]}, a resized copy: its EXIF focal length, in the original's "
+        f"pixels, is scaled by {scale:.4g} to f={focal:.1f} px (not right if it was cropped "
+        "too; pass --K or --calib)"
+    )
 
 
 def exif_note(focals: tuple[float, float], found: tuple[bool, bool], names=("", "")) -> str:

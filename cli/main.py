@@ -104,8 +104,12 @@ def _usage_error(exc: Exception, argv: list[str] | None) -> int:
     from .common import short_words
 
     message = short_words(exc.format_message(), 80)
+    args = sys.argv[1:] if argv is None else argv
     if message.startswith("Got unexpected extra argument"):
-        message += _spread_numbers_hint(sys.argv[1:] if argv is None else argv)
+        message += _spread_numbers_hint(args) or _loose_numbers_hint(args)
+    if message.startswith("No such command") and ctx is not None:
+        hint = _command_first_hint(args, ctx.command.list_commands(ctx))
+        message = message.rstrip(".") + hint if hint else message
     typer.echo(f"{command}: {message}", err=True)
     return getattr(exc, "exit_code", 2)
 
@@ -134,6 +138,28 @@ def _spread_numbers_hint(args: list[str]) -> str:
                 f"{option} {','.join(values)}"
             )
     return ""
+
+
+def _loose_numbers_hint(args: list[str]) -> str:
+    """The remedy when intrinsics were given without their option (``ppo-cv pair a.png b.png
+    535.4,539.2,320.1,247.6``); empty otherwise."""
+    for position, text in enumerate(args):
+        previous = args[position - 1] if position else ""
+        numbers = [p for p in re.split(r"[,\s;\[\]()]+", text) if p]
+        if previous.startswith("-") or len(numbers) not in (4, 9):
+            continue
+        if all(re.fullmatch(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?", n) for n in numbers):
+            return f"; intrinsics go after --K: --K {','.join(numbers)}"
+    return ""
+
+
+def _command_first_hint(args: list[str], commands: list[str]) -> str:
+    """The remedy when the command's name follows its arguments (``ppo-cv a.png b.png pair``);
+    empty when no argument names a command."""
+    named = next((a for a in args[1:] if a in commands), None)
+    if named is None:
+        return ""
+    return f"; the command comes first: ppo-cv {named} followed by its arguments"
 
 
 def _command(argv: list[str] | None) -> str:

@@ -417,6 +417,24 @@ def _check_colmap_cameras(cameras) -> None:
         raise ValueError(f"--out: {exc}; run without --out") from None
 
 
+_FILE_SUFFIXES = (".json", ".ply", ".png", ".jpg", ".txt", ".yml", ".yaml")
+"""Suffixes of the files ``--out`` writes, and of others: an ``--out`` named so is a file
+name where a folder is wanted."""
+
+
+def _require_folder_name(out) -> None:
+    """ValueError for an ``--out`` named as a file (``result.json``) that is no folder yet:
+    it would become a folder of that name holding ``result.json``."""
+    from pathlib import Path
+
+    if Path(out).suffix.lower() in _FILE_SUFFIXES and not Path(out).is_dir():
+        raise ValueError(
+            f"--out takes a folder, and {out} names a file: the folder receives result.json, "
+            "points.ply, matches.png and a COLMAP model; --json > result.json writes the JSON "
+            "object alone"
+        )
+
+
 def _run_pair(
     image1, image2, K, K2, dist, dist2, calib, as_json, out, options, note=None, reference=None,
     overwrite=False, command="pair", exif_orientation=True, quiet=False,
@@ -435,6 +453,7 @@ def _run_pair(
         if out is not None:
             inputs = [image1, image2, *([calib] if calib is not None else [])]
             check_target(out, "folder", overwrite, inputs, "--out ")
+            _require_folder_name(out)
             _check_colmap_names(image1, image2)
         for image in (image1, image2):
             check_image_file(image)

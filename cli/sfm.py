@@ -92,6 +92,8 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
     check_range("--threads", threads, 1, MAX_THREADS)
     check_range("--seed", seed, 0, SEED_MAX)
     check_range("--pri-threshold", pri_threshold, *PRI_THRESHOLD_RANGE)
+    check_apart(out_dir, [image_dir], "OUT_DIR ")
+    sfm.require_no_images(out_dir, "OUT_DIR ", "ppo-cv sfm IMAGE_DIR OUT_DIR")
     check_target(out_dir, "folder", overwrite, [image_dir], "OUT_DIR ")
     if database is not None:
         check_apart(database, [image_dir], "--database ")

@@ -60,6 +60,8 @@ __all__ = [
     "EXIF_FIELD_RANGE_DEG",
     "EXIF_PLAUSIBLE_FIELD_DEG",
     "field_of_view_deg",
+    "exif_focal_scale",
+    "resize_scale",
     "GUESSED_FOCAL_FACTOR",
     "MAX_PIXEL_ASPECT",
     "unusable_exif_focal",
@@ -733,6 +735,10 @@ def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> 
     gives the camera of the stored pixels, as ``load_image(..., exif_orientation=False)``
     shows them.
 
+    The focal length is pycolmap's reading of the EXIF (``FocalLengthIn35mmFilm`` times the
+    image diagonal over the 35 mm frame's, else ``FocalLength`` times
+    ``FocalPlaneXResolution``), scaled to a resized copy by :func:`exif_focal_scale`.
+
     Returns
     -------
     camera : Camera
@@ -750,7 +756,7 @@ def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> 
     """
     import pycolmap
 
-    from .images import check_decodes, decoded_transposed
+    from .images import check_decodes, decoded_transposed, exif_layout
 
     as_path(path, "path")
     as_flag(exif_orientation, "exif_orientation")
@@ -759,6 +765,8 @@ def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> 
     width, height = int(camera.width), int(camera.height)
     K = np.asarray(camera.calibration_matrix(), dtype=np.float64)
     from_exif = bool(camera.has_prior_focal_length)
+    if from_exif:
+        K[[0, 1], [0, 1]] *= exif_focal_scale(exif_layout(path), (width, height))
     doubt = unusable_exif_focal(K[0, 0], max(width, height)) if from_exif else None
     if doubt is not None:
         warnings.warn(f"{os.fspath(path)}: {doubt}", ImplausibleCameraWarning, stacklevel=2)
@@ -766,6 +774,60 @@ def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> 
     if exif_orientation and decoded_transposed(path, width, height):
         K = K[[1, 0, 2]][:, [1, 0, 2]]
     return Camera(_matrix_from_values(K, "EXIF camera")), from_exif
+
+
+def exif_focal_scale(layout: Any, size: tuple[int, int]) -> float:
+    """The factor that takes the focal length pycolmap reads from an image's EXIF to the image.
+
+    pycolmap's focal length in pixels from ``FocalLength`` (mm) times ``FocalPlaneXResolution``
+    (pixels per mm of the sensor) is in the pixels the camera wrote. A copy resized later (a
+    phone's sharing at 1600 px, a download for the web) keeps those tags and the size the
+    camera wrote, ``PixelXDimension`` x ``PixelYDimension``: its focal length is that one times
+    its size over the recorded size (a 4000 px photo shared at 1600 px: 0.4; unscaled, the field
+    of view came out 2.5 times too narrow). The factor is 1 when
+
+    - the EXIF records no size, or the image's own;
+    - it has a 35 mm equivalent (``FocalLengthIn35mmFilm``), which pycolmap reads first and
+      multiplies by the image's own diagonal: a resized copy keeps the ratio of focal length to
+      diagonal, so this focal length fits it as it is;
+    - it has no ``FocalPlaneXResolution`` with a unit of length
+      (``layout.sensor_resolution``): pycolmap then takes the sensor's width from its table of
+      cameras and multiplies by the image's own size, which fits a resized copy as it is;
+    - the recorded size has another aspect ratio (beyond :data:`ASPECT_TOLERANCE`): a crop,
+      whose pixels are the camera's unless it was resized too, which no tag tells.
+
+    Parameters
+    ----------
+    layout : ppo_cv.images.ExifLayout
+        The image's EXIF (:func:`ppo_cv.images.exif_layout`).
+    size : tuple of int
+        ``(width, height)`` of the image, pixels, either way round: the recorded size is
+        compared both ways (a copy whose pixels were turned upright).
+
+    Returns
+    -------
+    float
+        The ratio of the image's larger side to the recorded larger side, or 1.
+    """
+    if layout.pixel_size is None or layout.focal_35mm is not None or not layout.sensor_resolution:
+        return 1.0
+    scale = resize_scale(layout.pixel_size, size)
+    return 1.0 if scale is None else scale
+
+
+def resize_scale(original: tuple[int, int], size: tuple[int, int]) -> float | None:
+    """The factor by which an image of ``size`` is a resized copy of one of ``original`` size
+    (both ``(width, height)``, compared either way round): the ratio of their larger sides, or
+    None when their aspect ratios differ by more than :data:`ASPECT_TOLERANCE` (a crop).
+
+    >>> resize_scale((4000, 3000), (1200, 1600))
+    0.4
+    """
+    (short, long), (original_short, original_long) = sorted(size), sorted(original)
+    scale_short, scale_long = short / original_short, long / original_long
+    if abs(scale_short - scale_long) > ASPECT_TOLERANCE * max(scale_short, scale_long):
+        return None
+    return float(scale_long)
 
 
 GUESSED_FOCAL_FACTOR = 1.2

@@ -106,7 +106,17 @@ def _as_real_array(value: Any, name: str, text_hint: str = "") -> np.ndarray:
 def _not_numbers(value: Any, array: np.ndarray, name: str, text_hint: str = "") -> str:
     """The message for an argument that holds no real numbers: its dtype, or for a single
     object (a text, a record) its type and how to pass what it stands for (``text_hint`` for a
-    text: how to parse it, for the arguments a text can describe)."""
+    text: how to parse it, for the arguments a text can describe); for a list or tuple holding
+    a camera record (what ``camera_from_exif`` and ``load_calibration`` return) how to pass
+    it."""
+    held = value if isinstance(value, (list, tuple)) else ()
+    camera = next((v for v in held if hasattr(v, "K") and hasattr(v, "dist")), None)
+    if camera is not None:
+        return (
+            f"{name} must be an array of real numbers, got a {type(value).__name__} holding a "
+            f"{type(camera).__name__} (as camera_from_exif and load_calibration return them): "
+            "pass the camera's .K (and its .dist as the distortion)"
+        )
     if array.ndim or isinstance(value, np.ndarray):
         return f"{name} must hold real numbers, got dtype {array.dtype}"
     hint = (
@@ -227,10 +237,9 @@ def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
         require_finite(K, name)
     (fx, _, _), (k10, fy, _), last = rows
     if max(abs(last[0]), abs(last[1]), abs(last[2] - 1.0), abs(k10)) > 1e-12:
-        scaled = max(abs(last[0]), abs(last[1]), abs(k10)) <= 1e-12 and last[2] != 0
-        hint = f" (scaled as a whole? divide it by K[2,2] = {last[2]:g})" if scaled else ""
         raise ValueError(
-            f"{name} must be upper triangular with last row (0, 0, 1), got {K.tolist()}{hint}"
+            f"{name} must be upper triangular with last row (0, 0, 1), got {K.tolist()}"
+            f"{_not_camera_hint(K)}"
         )
     if not (MIN_FOCAL <= fx <= MAX_FOCAL and MIN_FOCAL <= fy <= MAX_FOCAL):
         kind = (
@@ -249,6 +258,22 @@ def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
             f"{name} has a skew or principal point beyond {MAX_COORDINATE:.0e} px: {K.tolist()}"
         )
     return K
+
+
+def _not_camera_hint(K: np.ndarray) -> str:
+    """What a finite 3x3 matrix that is no camera matrix likely is, for its error message: a
+    camera matrix scaled as a whole, one transposed (MATLAB's ``IntrinsicMatrix``, principal
+    point in the last row), or an essential matrix (two equal singular values and a zero one)
+    given in its place; empty otherwise."""
+    upper, lower = np.abs(K[[1, 2, 2], [0, 0, 1]]), np.abs(K[[0, 0, 1], [1, 2, 2]])
+    if upper.max() <= 1e-12 and K[2, 2] != 0:
+        return f" (scaled as a whole? divide it by K[2,2] = {K[2, 2]:g})"
+    if lower.max() <= 1e-12 and K[2, 2] == 1.0 and K[0, 0] > 0 and K[1, 1] > 0:
+        return " (transposed, as MATLAB's IntrinsicMatrix? pass its transpose)"
+    s1, s2, s3 = np.linalg.svd(K, compute_uv=False)
+    if s1 > 0 and s2 >= 0.9 * s1 and s3 <= 1e-3 * s1:
+        return " (an essential matrix? the arguments may be out of order)"
+    return ""
 
 
 def as_rotation(value: Any, name: str = "R") -> np.ndarray:

@@ -19,6 +19,7 @@ warnings about a damaged EXIF block) is held back: the ValueError says what went
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import stat
 import struct
@@ -191,10 +192,21 @@ class ExifLayout:
     pixel_size : tuple of (int, int) or None
         ``(PixelXDimension, PixelYDimension)``: the size the camera wrote, which a resized or
         cropped copy no longer has; None without them.
+    focal_35mm : float or None
+        ``FocalLengthIn35mmFilm`` when above zero, mm: the focal length relative to the
+        frame's diagonal, which pycolmap reads before ``FocalLength`` and which a resized copy
+        keeps true; None without one.
+    sensor_resolution : bool
+        Whether ``FocalPlaneXResolution`` is given with a unit of length
+        (``FocalPlaneResolutionUnit`` inch, cm, mm or um): pycolmap then reads ``FocalLength``
+        through it, in the pixels the camera wrote, rather than through its table of sensor
+        widths, which it multiplies by the image's own size.
     """
 
     orientation: int | None = None
     pixel_size: tuple[int, int] | None = None
+    focal_35mm: float | None = None
+    sensor_resolution: bool = False
 
     @property
     def turned(self) -> bool:
@@ -203,11 +215,14 @@ class ExifLayout:
 
 
 _ORIENTATION_TAG, _EXIF_IFD, _PIXEL_X_TAG, _PIXEL_Y_TAG = 0x0112, 0x8769, 0xA002, 0xA003
+_FOCAL_35MM_TAG = 0xA405
+_PLANE_X_TAG, _PLANE_UNIT_TAG, _PLANE_UNITS = 0xA20E, 0xA210, (2, 3, 4, 5)
 
 
 def exif_layout(path: str | os.PathLike) -> ExifLayout:
-    """The EXIF orientation and pixel dimensions of an image file (empty when it has none,
-    Pillow cannot read it or it is no regular file: a FIFO is never opened)."""
+    """The EXIF orientation, pixel dimensions and focal length tags of an image file (empty
+    when it has none, Pillow cannot read it or it is no regular file: a FIFO is
+    never opened)."""
     if not _is_regular_file(path):
         return ExifLayout()
     try:
@@ -217,12 +232,27 @@ def exif_layout(path: str | os.PathLike) -> ExifLayout:
             exif = image.getexif()
             orientation = exif.get(_ORIENTATION_TAG)
             sub = exif.get_ifd(_EXIF_IFD)
-            width, height = sub.get(_PIXEL_X_TAG), sub.get(_PIXEL_Y_TAG)
+            width, height = _positive(sub.get(_PIXEL_X_TAG)), _positive(sub.get(_PIXEL_Y_TAG))
+            focal_35mm = _positive(sub.get(_FOCAL_35MM_TAG))
+            plane = sub.get(_PLANE_X_TAG) is not None and sub.get(_PLANE_UNIT_TAG) in _PLANE_UNITS
     except Exception:  # no Pillow, not an image Pillow knows, a damaged EXIF block
         return ExifLayout()
-    size = (int(width), int(height)) if width and height else None
+    whole = width is not None and height is not None and width >= 1 and height >= 1
+    size = (int(width), int(height)) if whole else None
     known = isinstance(orientation, int) and 1 <= orientation <= 8
-    return ExifLayout(orientation if known else None, size)
+    return ExifLayout(orientation if known else None, size, focal_35mm, plane)
+
+
+def _positive(value: Any) -> float | None:
+    """An EXIF number (int or rational) as a float when it is finite and above zero, else
+    None (text, a list, a rational over zero)."""
+    if isinstance(value, (str, bytes)):
+        return None
+    try:
+        number = float(value)
+    except (TypeError, ValueError, ZeroDivisionError, OverflowError):
+        return None
+    return number if math.isfinite(number) and number > 0 else None
 
 
 def decoded_transposed(path: str | os.PathLike, width: int, height: int) -> bool:
@@ -338,7 +368,8 @@ def native_messages_silenced() -> Iterator[None]:
 
 def as_image(image: Any, name: str) -> np.ndarray:
     """An image argument as an 8-bit array (H, W) or (H, W, C): a path is loaded, an array
-    checked (shape, numeric, no NaN), its alpha channel dropped (BGRA to BGR: an opaque 16-bit
+    checked (shape, numeric, no NaN; a 3x3 one is refused as a camera matrix in an image's
+    place), its alpha channel dropped (BGRA to BGR: an opaque 16-bit
     alpha would widen the range by which the colours are scaled) and scaled to 8 bits by its
     range."""
     if isinstance(image, (str, os.PathLike)):
@@ -367,4 +398,9 @@ def as_image(image: Any, name: str) -> np.ndarray:
         )
     if array.dtype.kind not in "buif":
         raise TypeError(f"{name} must hold numbers, got dtype {array.dtype}")
+    if array.shape == (3, 3):
+        raise ValueError(
+            f"{name} is a 3x3 array, no image: a camera matrix given in its place? (the "
+            "images come first, then the camera matrices)"
+        )
     return to_uint8(array[:, :, :3] if array.ndim == 3 else array, name)

@@ -310,6 +310,7 @@ def _load_inputs(image1, image2, K1, K2, dist1, dist2, detect: bool, options) ->
     if detect:
         for image, name in ((img1, "image1"), (img2, "image2")):
             require_detectable(image.shape, name, options.max_image_size)
+    _require_no_distortion_as_K2(K2)
     K1 = as_camera_matrix(K1, "K1")
     dist1 = as_distortion(dist1, "dist1")
     if K2 is None:
@@ -324,6 +325,19 @@ def _load_inputs(image1, image2, K1, K2, dist1, dist2, detect: bool, options) ->
         warn_implausible(K2, img2.shape, "K2", stacklevel=3)
     focal = float(np.mean([K1[0, 0], K1[1, 1], K2[0, 0], K2[1, 1]]))
     return PairInputs(img1, img2, K1, K2, dist1, dist2, focal)
+
+
+def _require_no_distortion_as_K2(K2: Any) -> None:
+    """ValueError when ``K2`` holds a flat 5, 8, 12 or 14 numbers: OpenCV's distortion
+    coefficients, given in the place that follows ``K1`` as OpenCV's functions take them."""
+    flat = (isinstance(K2, np.ndarray) and K2.ndim == 1) or (
+        isinstance(K2, (list, tuple)) and all(isinstance(v, (int, float, np.number)) for v in K2)
+    )
+    if flat and len(K2) in (5, 8, 12, 14):
+        raise ValueError(
+            f"K2 must be a 3x3 matrix, got {len(K2)} numbers: distortion coefficients? "
+            "estimate_pair takes image1, image2, K1, K2, dist1, dist2; pass them as dist1="
+        )
 
 
 def _check_hooks(features1: Any, features2: Any, progress: Any) -> None:

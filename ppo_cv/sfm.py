@@ -48,6 +48,7 @@ from . import colmap, ppo
 from .atomic import (
     API_REPLACE_HINT,
     atomic_directory,
+    check_apart,
     check_target,
     signals_deferred,
     staging_folder,
@@ -98,6 +99,7 @@ __all__ = [
     "screen_images",
     "require_two_images",
     "require_database_outside",
+    "require_no_images",
     "format_pairs",
     "write_model",
     "pose_errors",
@@ -342,6 +344,34 @@ def _require_utf8_name(name: str) -> None:
         raise ValueError(reason) from None
 
 
+def require_no_images(output_dir: str | os.PathLike, name: str, usage: str) -> None:
+    """ValueError when the output folder ``output_dir`` holds images, which a model folder never
+    does: a folder of photos given as the output (the two folders the other way round), which
+    the advice to replace an existing output would have deleted, even with ``overwrite``.
+
+    Parameters
+    ----------
+    output_dir : path
+        The output folder; nothing is checked when it is no folder.
+    name : str
+        How the message calls it (``"OUT_DIR "``, ``"output_dir "``).
+    usage : str
+        The call in the right order, for the message.
+    """
+    try:
+        held = sorted(p.name for p in Path(output_dir).iterdir()
+                      if p.suffix.lower() in IMAGE_EXTENSIONS and p.is_file())  # fmt: skip
+    except OSError:  # missing, a file, unreadable: check_target names it
+        return
+    if held:
+        listed = ", ".join(held[:3]) + (", ..." if len(held) > 3 else "")
+        raise ValueError(
+            f"{name}{output_dir} holds {len(held)} image{'s' * (len(held) > 1)} ({listed}), "
+            f"which a model folder never does: the image folder comes first, {usage}; give "
+            "an output folder without images"
+        )
+
+
 def require_database_outside(
     database_path: str | os.PathLike,
     output_dir: str | os.PathLike,
@@ -471,8 +501,9 @@ def prepare_database(
         Without it pycolmap guesses a ``SIMPLE_RADIAL`` camera from the EXIF focal length or
         the image size, one for each image size and EXIF focal length, and one per image for
         images without an EXIF focal length (``pycolmap.CameraMode.AUTO``); an EXIF focal
-        length that is none (:func:`~ppo_cv.calib.unusable_exif_focal`) is replaced by the
-        image size's guess.
+        length is scaled to a resized copy (:func:`~ppo_cv.calib.exif_focal_scale`), and one
+        that is none (:func:`~ppo_cv.calib.unusable_exif_focal`) is replaced by the image
+        size's guess.
     max_num_features : int
         SIFT features per image.
     num_threads : int
@@ -520,7 +551,7 @@ def prepare_database(
             device=pycolmap.Device.cpu,
         )
         if K is None:
-            _drop_unusable_exif_focals(database_path)
+            _fit_exif_focals(database_path, image_dir)
         _say(progress, f"matching {len(names) * (len(names) - 1) // 2} image pairs")
         pycolmap.match_exhaustive(
             database_path,
@@ -541,21 +572,28 @@ def prepare_database(
     return len(read)
 
 
-def _drop_unusable_exif_focals(database_path: str | os.PathLike) -> None:
-    """Give each camera pycolmap guessed from an EXIF focal length that is none (a placeholder
-    such as 65535 mm, :func:`~ppo_cv.calib.unusable_exif_focal`) the focal length of an image
-    without one (:data:`~ppo_cv.calib.GUESSED_FOCAL_FACTOR` times its larger side), as
-    :func:`~ppo_cv.calib.camera_from_exif` does."""
-    from .calib import GUESSED_FOCAL_FACTOR, unusable_exif_focal
+def _fit_exif_focals(database_path: str | os.PathLike, image_dir: str | os.PathLike) -> None:
+    """Fit each camera pycolmap guessed from an EXIF focal length to its images as
+    :func:`~ppo_cv.calib.camera_from_exif` does: scaled to a resized copy
+    (:func:`~ppo_cv.calib.exif_focal_scale` of its first image), and one that is none (a
+    placeholder such as 65535 mm, :func:`~ppo_cv.calib.unusable_exif_focal`) replaced by the
+    focal length of an image without one (:data:`~ppo_cv.calib.GUESSED_FOCAL_FACTOR` times its
+    larger side)."""
+    from .calib import GUESSED_FOCAL_FACTOR, exif_focal_scale, unusable_exif_focal
+    from .images import exif_layout
 
     with pycolmap.Database.open(database_path) as database:
+        names = {image.camera_id: image.name for image in database.read_all_images()}
         for camera in database.read_all_cameras():
-            side = max(camera.width, camera.height)
-            focal = camera.mean_focal_length()
-            if camera.has_prior_focal_length and unusable_exif_focal(focal, side) is not None:
-                camera.focal_length = GUESSED_FOCAL_FACTOR * side
-                camera.has_prior_focal_length = False
-                database.update_camera(camera)
+            if not camera.has_prior_focal_length or camera.camera_id not in names:
+                continue
+            size = (camera.width, camera.height)
+            layout = exif_layout(Path(image_dir) / names[camera.camera_id])
+            focal = camera.mean_focal_length() * exif_focal_scale(layout, size)
+            if unusable_exif_focal(focal, max(size)) is not None:
+                focal, camera.has_prior_focal_length = GUESSED_FOCAL_FACTOR * max(size), False
+            camera.focal_length = focal
+            database.update_camera(camera)
 
 
 def _check_one_size(image_dir: str | os.PathLike, names: Sequence[str]) -> None:
@@ -1478,6 +1516,8 @@ def run_sfm(
     image_dir = _image_folder(image_dir)
     if output_dir is not None:  # never the image folder, nor one holding it, even replaced
         output_dir = as_path(output_dir, "output_dir")
+        check_apart(output_dir, [image_dir], "output_dir ")
+        require_no_images(output_dir, "output_dir ", "run_sfm(image_dir, output_dir)")
         check_target(output_dir, "folder", overwrite, [image_dir], "output_dir ", API_REPLACE_HINT)
     if database_path is not None:
         _check_new_database(as_path(database_path, "database_path"), image_dir)

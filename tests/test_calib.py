@@ -911,3 +911,136 @@ def test_focal_lengths_no_camera_has_are_refused_with_the_likely_typo(text):
 def test_an_anamorphic_pixel_is_still_a_camera():
     K = parse_intrinsics("1070.8,535.4,640,360", "--K")
     assert K[0, 0] / K[1, 1] == pytest.approx(2.0)
+
+
+# A phone's photo: 4000x3000 pixels on a 6.4 mm wide sensor (625 px/mm), a 4 mm lens: f = 2500
+# px at the camera's size, 400 px in a copy of 640x480 (0.16 of it), a 77 deg field across.
+PHONE_FOCAL_MM, PHONE_PX_PER_MM, PHONE_SIZE = 4.0, 625.0, (4000, 3000)
+PER_UNIT = {2: 25.4, 3: 10.0, 4: 1.0}  # FocalPlaneResolutionUnit: inch, cm, mm
+
+
+def _phone_photo(path, size=(640, 480), *, recorded=PHONE_SIZE, unit=3, focal_35mm=None,
+                 orientation=None, focal_plane=True) -> None:  # fmt: skip
+    """A black JPEG of ``size`` (width, height) with the EXIF of :data:`PHONE_FOCAL_MM`."""
+    from PIL import Image
+    from PIL.TiffImagePlugin import IFDRational
+
+    exif = Image.Exif()
+    exif[0x010F], exif[0x0110] = "Maker", "Model"
+    if orientation is not None:
+        exif[0x0112] = orientation
+    sub = exif.get_ifd(0x8769)
+    if focal_plane:
+        sub[0x920A] = IFDRational(PHONE_FOCAL_MM)  # FocalLength, mm
+        resolution = IFDRational(PHONE_PX_PER_MM * PER_UNIT[unit])
+        sub[0xA20E], sub[0xA20F], sub[0xA210] = resolution, resolution, unit
+    if recorded is not None:
+        sub[0xA002], sub[0xA003] = recorded  # PixelXDimension, PixelYDimension
+    if focal_35mm is not None:
+        sub[0xA405] = focal_35mm
+    Image.fromarray(np.zeros((size[1], size[0], 3), np.uint8)).save(path, exif=exif)
+
+
+@pytest.mark.parametrize("unit", [2, 3, 4], ids=["inch", "cm", "mm"])
+def test_the_sensor_focal_length_of_a_resized_photo_is_scaled_to_its_pixels(tmp_path, unit):
+    # pycolmap's FocalLength x FocalPlaneXResolution is in the camera's pixels: 2500 px for a
+    # copy of 640 px, a 14.6 deg field for a 77 deg one
+    from ppo_cv.cli.common import exif_camera
+
+    path = tmp_path / "resized.jpg"
+    _phone_photo(path, unit=unit)
+    camera, from_exif = camera_from_exif(path)
+    assert from_exif
+    np.testing.assert_allclose(np.diag(camera.K)[:2], 400.0, rtol=1e-4)
+    np.testing.assert_allclose(camera.K[:2, 2], [320.0, 240.0])
+    K, found, doubts = exif_camera(path)
+    low, high = calib.EXIF_PLAUSIBLE_FIELD_DEG
+    assert found and low < calib.field_of_view_deg(K[0, 0], 640) < high
+    assert doubts == [
+        f"{path}: the EXIF says the photo was 4000x3000 pixels, the image is 640x480, a resized "
+        "copy: its EXIF focal length, in the original's pixels, is scaled by 0.16 to f=400.0 px "
+        "(not right if it was cropped too; pass --K or --calib)"
+    ]
+
+
+@pytest.mark.parametrize("orientation, stored", [(6, (640, 480)), (None, (480, 640))],
+                         ids=["turned by its orientation", "turned pixels"])  # fmt: skip
+def test_a_resized_photo_turned_upright_is_scaled_by_its_own_sides(tmp_path, orientation, stored):
+    path = tmp_path / "resized.jpg"
+    _phone_photo(path, stored, orientation=orientation)
+    camera, _ = camera_from_exif(path)
+    np.testing.assert_allclose(np.diag(camera.K)[:2], 400.0, rtol=1e-4)
+    np.testing.assert_allclose(camera.K[:2, 2], [240.0, 320.0])
+
+
+@pytest.mark.parametrize("recorded", [PHONE_SIZE, None, (640, 480)],
+                         ids=["resized", "no recorded size", "the camera's size"])  # fmt: skip
+def test_a_35mm_equivalent_is_read_on_the_image_and_never_scaled(tmp_path, recorded):
+    # pycolmap reads it before the sensor's tags, on the image's own diagonal: a resized copy
+    # keeps it true, and a warning that its focal length may not fit said what was not so
+    from ppo_cv.cli.common import exif_camera
+
+    path = tmp_path / "photo.jpg"
+    _phone_photo(path, recorded=recorded, focal_35mm=28)
+    camera, _ = camera_from_exif(path)
+    np.testing.assert_allclose(camera.K[0, 0], 28 / np.hypot(36, 24) * 800, rtol=1e-4)
+    assert exif_camera(path)[2] == []
+
+
+def test_the_sensor_focal_length_is_kept_at_the_cameras_size_or_without_a_recorded_one(
+    tmp_path,
+):
+    for recorded in ((640, 480), None):
+        path = tmp_path / f"{recorded}.jpg"
+        _phone_photo(path, recorded=recorded)
+        np.testing.assert_allclose(camera_from_exif(path)[0].K[0, 0], 2500.0, rtol=1e-4)
+
+
+@pytest.mark.parametrize("focal_35mm", [None, 28], ids=["sensor focal", "35 mm equivalent"])
+def test_a_cropped_photos_focal_length_is_not_scaled_but_doubted(tmp_path, focal_35mm):
+    from ppo_cv.cli.common import exif_camera
+
+    path = tmp_path / "square.jpg"
+    _phone_photo(path, (480, 480), focal_35mm=focal_35mm)
+    expected = 2500.0 if focal_35mm is None else 28 / np.hypot(36, 24) * np.hypot(480, 480)
+    np.testing.assert_allclose(camera_from_exif(path)[0].K[0, 0], expected, rtol=1e-4)
+    assert exif_camera(path)[2][0] == (
+        f"{path}: the EXIF says the photo was 4000x3000 pixels, the image is 480x480, another "
+        "aspect ratio (cropped?), so its EXIF focal length may not fit; pass --K or --calib"
+    )
+
+
+def test_exif_focal_scale_and_resize_scale():
+    from ppo_cv.images import ExifLayout
+
+    assert calib.resize_scale((4000, 3000), (1600, 1200)) == 0.4
+    assert calib.resize_scale((3000, 4000), (1600, 1200)) == 0.4
+    assert calib.resize_scale((4000, 3000), (1600, 1600)) is None
+    scale = calib.exif_focal_scale
+    assert scale(ExifLayout(None, (4000, 3000), None, True), (1600, 1200)) == 0.4
+    assert scale(ExifLayout(None, (4000, 3000), 28.0, True), (1600, 1200)) == 1.0
+    assert scale(ExifLayout(None, (4000, 3000), None, False), (1600, 1200)) == 1.0
+    assert scale(ExifLayout(None, None, None, True), (1600, 1200)) == 1.0
+    assert scale(ExifLayout(None, (4000, 3000), None, True), (1600, 1600)) == 1.0
+
+
+def test_a_focal_length_from_pycolmaps_table_of_sensors_is_never_scaled(tmp_path):
+    # without FocalPlaneXResolution pycolmap takes the sensor's width from its table (a Canon
+    # PowerShot S45: 7.18 mm) and multiplies by the image's own size: right for a resized copy
+    from PIL import Image
+    from PIL.TiffImagePlugin import IFDRational
+
+    from ppo_cv.cli.common import exif_camera
+    from ppo_cv.images import exif_layout
+
+    path = tmp_path / "s45.jpg"
+    exif = Image.Exif()
+    exif[0x010F], exif[0x0110] = "Canon", "Canon PowerShot S45"
+    sub = exif.get_ifd(0x8769)
+    sub[0x920A], sub[0xA002], sub[0xA003] = IFDRational(12.28125), 2272, 1704
+    Image.fromarray(np.zeros((540, 720, 3), np.uint8)).save(path, exif=exif)
+    layout = exif_layout(path)
+    assert layout.pixel_size == (2272, 1704) and not layout.sensor_resolution
+    camera, from_exif = camera_from_exif(path)
+    assert from_exif and 1200 < camera.K[0, 0] < 1290  # 12.28 / 7.18 x 720 = 1231.5
+    assert exif_camera(path)[2] == []

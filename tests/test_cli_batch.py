@@ -362,8 +362,13 @@ _K_FIELDS = "535.4 0 320.1 0 539.2 247.6 0 0 1"
         (f"a.png b.png 0 0 {_K_FIELDS} {_K_FIELDS} 1 0 0", r"got 25 fields \(after the names"),
         ("a b.png c.png 0 0", r"got 5 fields \(put a name with spaces in double quotes\)"),
         ("a.png", r"got 1 field \(a pair needs two image names\)"),
+        ("a.png,b.png", r"got 1 field \(a pair needs two image names, separated by spaces, not "
+                        r"','\)"),
+        ("a.png;b.png", r"got 1 field \(a pair needs two image names, separated by spaces, not "
+                        r"';'\)"),
     ],
-    ids=["space in a name", "one number", "K2 short", "T short", "space and numbers", "one name"],
+    ids=["space in a name", "one number", "K2 short", "T short", "space and numbers", "one name",
+         "comma-separated", "semicolon-separated"],
 )
 def test_a_line_of_the_wrong_length_gets_the_remedy_that_fits(tmp_path, line, remedy):
     pairs = tmp_path / "pairs.txt"
@@ -599,4 +604,18 @@ def test_a_name_with_windows_separators_gets_the_forward_slash_remedy(tmp_path, 
     error = json.loads(done.stdout)["error"]
     assert error.startswith("image not found: ") and error.endswith(
         f"sub\\{NAME2} (images/sub/{NAME2} exists: separate folders in names with /, not \\)"
+    )
+
+
+def test_pairs_with_its_two_arguments_the_other_way_round_says_which_comes_first(tmp_path):
+    # it said only "pairs file images is a directory"
+    (tmp_path / "images").mkdir()
+    (tmp_path / "pairs.txt").write_text("a.png b.png\n")
+    run = CliRunner().invoke(app, ["pairs", str(tmp_path / "images"), str(tmp_path / "pairs.txt"),
+                                   "--quiet"])  # fmt: skip
+    assert run.exit_code == 2 and run.stdout == ""
+    assert run.stderr == (
+        f"ppo-cv pairs: pairs file {tmp_path / 'images'} is a directory and image folder "
+        f"{tmp_path / 'pairs.txt'} a file: the pairs file comes first, ppo-cv pairs PAIRS_FILE "
+        "IMAGE_DIR\n"
     )

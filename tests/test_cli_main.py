@@ -197,3 +197,26 @@ def test_the_bounds_in_sfm_and_synth_help_are_the_ones_checked():
     done = subprocess.run([sys.executable, "-c", _SFM_IMPORT_PROBE], capture_output=True,
                           text=True, timeout=60)  # fmt: skip
     assert done.stdout == "False False\n", done.stderr
+
+
+@pytest.mark.parametrize(
+    "argv, line",
+    [(["a.png", "b.png", "pair"],
+      "ppo-cv: No such command 'a.png'; the command comes first: ppo-cv pair followed by its "
+      "arguments"),
+     (["pair", "a.png", "b.png", "535.4,539.2,320.1,247.6"],
+      "ppo-cv pair: Got unexpected extra argument(s) (535.4,539.2,320.1,247.6); intrinsics go "
+      "after --K: --K 535.4,539.2,320.1,247.6"),
+     (["pairs", "pairs.txt", "images", "[[500, 0, 320], [0, 500, 240], [0, 0, 1]]"],
+      "ppo-cv pairs: Got unexpected extra argument(s) ([[500, 0, 320], [0, 500, 240], [0, 0, "
+      "1]]); intrinsics go after --K: --K 500,0,320,0,500,240,0,0,1"),
+     (["pair", "a.png", "b.png", "c.png"], "ppo-cv pair: Got unexpected extra argument(s) (c.png)"),
+     (["bogus", "pairs"], "ppo-cv: No such command 'bogus'; the command comes first: ppo-cv "
+      "pairs followed by its arguments")],
+    ids=["command last", "intrinsics without --K", "a matrix without --K", "a third image",
+         "a word before the command"],
+)  # fmt: skip
+def test_a_command_line_in_the_wrong_order_gets_the_remedy(argv, line, capsys):
+    # "No such command 'a.png'." and "Got unexpected extra argument(s)" said nothing of the order
+    code, out, err = _run(argv, capsys)
+    assert (code, out, err) == (2, "", line + "\n")

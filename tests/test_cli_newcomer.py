@@ -210,13 +210,16 @@ def test_no_exif_orientation_reads_the_pixels_as_stored(tmp_path):
     assert rotation_error_deg(np.array(row["R"]), np.array(data["R"])) < 0.5
 
 
-def test_exif_of_a_resized_photo_and_an_implausible_field_warn(tmp_path):
-    photo(DEMO1, tmp_path / "a.jpg", recorded_size=(4032, 3024))
+def test_exif_of_a_cropped_photo_and_an_implausible_field_warn(tmp_path):
+    photo(DEMO1, tmp_path / "a.jpg", recorded_size=(4032, 2268))
     photo(DEMO2, tmp_path / "b.jpg", focal_35mm=400)
+    photo(DEMO1, tmp_path / "c.jpg", recorded_size=(4032, 3024))  # resized: its 35 mm fits
     done = ppo_cv("pair", tmp_path / "a.jpg", tmp_path / "b.jpg", "--json")
     warnings = warnings_of(done)
-    assert any("a.jpg: the EXIF says the photo was 4032x3024 pixels, the image is 640x480"
-               in w for w in warnings)  # fmt: skip
+    assert any("a.jpg: the EXIF says the photo was 4032x2268 pixels, the image is 640x480, "
+               "another aspect ratio (cropped?)" in w for w in warnings)  # fmt: skip
+    resized = warnings_of(ppo_cv("pair", tmp_path / "c.jpg", tmp_path / "b.jpg", "--json"))
+    assert not any("c.jpg" in w for w in resized) and any("b.jpg" in w for w in resized)
     (field,) = [w for w in warnings if "field of view" in w]
     assert "b.jpg: the EXIF focal length" in field and "outside 15..120 deg" in field
     assert not any("a.jpg" in w and "field of view" in w for w in warnings)

@@ -391,3 +391,21 @@ def test_demo_data_is_attributed():
     text = (DATA / "DEMO.md").read_text()
     assert "TUM RGB-D" in text and "CC BY 4.0" in text
     assert os.path.getsize(DEMO1) > 0 and cv2.imread(DEMO1).shape == (480, 640, 3)
+
+
+@pytest.mark.parametrize("name", ["result.json", "points.PLY", "pose.txt"])
+def test_an_out_named_as_a_file_is_refused_before_the_run(tmp_path, name):
+    # --out result.json wrote a folder named result.json holding result.json
+    result = runner.invoke(app, ["pair", DEMO1, DEMO2, "--K", K_TEXT, "--out",
+                                 str(tmp_path / name)])  # fmt: skip
+    assert result.exit_code == 2 and result.stdout == ""
+    assert result.stderr == (
+        f"ppo-cv pair: --out takes a folder, and {tmp_path / name} names a file: the folder "
+        "receives result.json, points.ply, matches.png and a COLMAP model; --json > "
+        "result.json writes the JSON object alone\n"
+    )
+    assert list(tmp_path.iterdir()) == []
+    (tmp_path / name).mkdir()  # a folder so named is one
+    replaced = runner.invoke(app, ["pair", DEMO1, DEMO2, "--K", K_TEXT, "--out",
+                                   str(tmp_path / name), "--quiet"])  # fmt: skip
+    assert replaced.exit_code == 0 and (tmp_path / name / "result.json").is_file()

@@ -1049,3 +1049,107 @@ def test_the_alpha_channel_of_a_deep_image_does_not_scale_its_colours():
     result = ppo_cv.estimate_pair(opaque, twelve_bit(image2, np.uint16(65535)), K)
     assert result.num_inliers == reference.num_inliers
     np.testing.assert_array_equal(result.R, reference.R)
+
+
+@pytest.mark.parametrize("order", ["K first", "K between the images"])
+def test_a_camera_matrix_in_an_images_place_is_named_so(order):
+    # estimate_pair(K, img1, img2) said "image1 is 3x3 pixels: too small or too thin to detect
+    # features on", a fault of the image
+    arguments = (K, GREY, GREY) if order == "K first" else (GREY, K, GREY)
+    name = "image1" if order == "K first" else "image2"
+    with pytest.raises(ValueError) as error:
+        ppo_cv.estimate_pair(*arguments)
+    assert str(error.value) == (
+        f"{name} is a 3x3 array, no image: a camera matrix given in its place? (the images "
+        "come first, then the camera matrices)"
+    )
+
+
+@pytest.mark.parametrize(
+    "matrix, hint",
+    [(K.T, "(transposed, as MATLAB's IntrinsicMatrix? pass its transpose)"),
+     (2 * K, "(scaled as a whole? divide it by K[2,2] = 2)"),
+     (skew([0.6, 0.0, 0.8]) @ random_rotation(np.random.default_rng(1), 20.0),
+      "(an essential matrix? the arguments may be out of order)"),
+     (np.eye(3)[::-1], "")],
+    ids=["transposed", "scaled", "essential", "another matrix"],
+)  # fmt: skip
+def test_a_matrix_that_is_no_camera_matrix_is_named_for_what_it_likely_is(matrix, hint):
+    # recoverPose(points1, points2, E, K) and a MATLAB IntrinsicMatrix got only "must be upper
+    # triangular with last row (0, 0, 1)"
+    with pytest.raises(ValueError) as error:
+        ppo_cv.checks.as_camera_matrix(matrix, "K")
+    assert str(error.value).endswith("]]" + (f" {hint}" if hint else ""))
+    assert str(error.value).startswith("K must be upper triangular with last row (0, 0, 1)")
+    points = np.random.default_rng(0).uniform(0, 640, (20, 2))
+    with pytest.raises(cv2.error, match=re.escape(hint) if hint else "cameraMatrix1"):
+        ppo_cv.recoverPose(points, points, matrix, K)
+
+
+@pytest.mark.parametrize("dist", [np.zeros(5), [0.1, -0.05, 0.0, 0.0, 0.01], np.zeros(8)],
+                         ids=["five zeros", "a list", "rational"])  # fmt: skip
+def test_distortion_coefficients_in_the_place_of_K2_are_named_so(dist):
+    # estimate_pair(img1, img2, K, dist), in OpenCV's order, said "K2 must be a 3x3 matrix, got
+    # shape (5,)"
+    with pytest.raises(ValueError) as error:
+        ppo_cv.estimate_pair(GREY, GREY[::-1], K, dist)
+    assert str(error.value) == (
+        f"K2 must be a 3x3 matrix, got {len(dist)} numbers: distortion coefficients? "
+        "estimate_pair takes image1, image2, K1, K2, dist1, dist2; pass them as dist1="
+    )
+    with pytest.raises(ValueError, match=r"^K2 must be a 3x3 matrix, got shape \(1, 5\)$"):
+        ppo_cv.estimate_pair(GREY, GREY[::-1], K, [[0, 0, 0, 0, 0]])
+    with pytest.raises((TypeError, ValueError), match="K2"):
+        ppo_cv.estimate_pair(GREY, GREY[::-1], K, [1, [2, 3], 4, 5, 6])
+
+
+def test_run_sfm_into_a_folder_of_photos_says_the_image_folder_comes_first(tmp_path):
+    # run_sfm(model, images), the two folders the other way round, said "images exists and is
+    # not an empty directory; pass overwrite=True to replace it": the photos' deletion
+    for folder in ("model", "images"):
+        (tmp_path / folder).mkdir()
+    for image in ("demo1.png", "demo2.png"):
+        (tmp_path / "model" / f"m_{image}").write_bytes(b"")
+        (tmp_path / "images" / image).write_bytes(
+            (Path(ppo_cv.__file__).parent / "data" / image).read_bytes()
+        )
+    before = {p.name: p.read_bytes() for p in (tmp_path / "images").iterdir()}
+    for overwrite in (False, True):
+        with pytest.raises(ValueError) as error:
+            _sfm_module().run_sfm(tmp_path / "model", tmp_path / "images", K=K,
+                                  overwrite=overwrite)  # fmt: skip
+        assert str(error.value) == (
+            f"output_dir {tmp_path / 'images'} holds 2 images (demo1.png, demo2.png), which a "
+            "model folder never does: the image folder comes first, run_sfm(image_dir, "
+            "output_dir); give an output folder without images"
+        )
+    assert {p.name: p.read_bytes() for p in (tmp_path / "images").iterdir()} == before
+
+
+@pytest.mark.parametrize("recorded", [("640 px", 480), (0, 480), (-640, 480)],
+                         ids=["text", "zero", "negative"])  # fmt: skip
+def test_a_recorded_pixel_size_that_is_none_is_ignored_keeping_the_orientation(tmp_path, recorded):
+    # a text PixelXDimension raised "invalid literal for int() with base 10: '640 px'" from
+    # exif_layout, which pair calls on every photo, --K or not
+    from PIL import Image
+
+    path = tmp_path / "photo.jpg"
+    exif = Image.Exif()
+    exif[0x0112] = 6
+    exif.get_ifd(0x8769)[0xA002], exif.get_ifd(0x8769)[0xA003] = recorded
+    Image.fromarray(np.zeros((48, 64, 3), np.uint8)).save(path, exif=exif)
+    assert ppo_cv.images.exif_layout(path) == ppo_cv.images.ExifLayout(6, None, None)
+
+
+def test_what_camera_from_exif_and_load_calibration_return_is_named_when_passed_as_K(tmp_path):
+    # estimate_pair(a, b, camera_from_exif(a)) said "K1 must hold real numbers, got dtype object"
+    camera = ppo_cv.Camera(K)
+    words = (
+        "K1 must be an array of real numbers, got a {} holding a Camera (as camera_from_exif "
+        "and load_calibration return them): pass the camera's .K (and its .dist as the "
+        "distortion)"
+    )
+    for given, kind in (((camera, True), "tuple"), ([camera], "list")):
+        with pytest.raises(TypeError) as error:
+            ppo_cv.estimate_pair(GREY, GREY[::-1], given)
+        assert str(error.value) == words.format(kind)

@@ -509,3 +509,49 @@ def test_an_exif_focal_length_that_is_none_is_not_the_databases_camera(tmp_path)
     assert cameras["b.jpg"].has_prior_focal_length
     expected = 36 / np.hypot(36, 24) * 800  # the 35 mm frame's diagonal to the image's
     assert cameras["b.jpg"].mean_focal_length() == pytest.approx(expected, rel=1e-3)
+
+
+def test_the_databases_camera_of_a_resized_photo_has_the_focal_length_of_its_pixels(tmp_path):
+    # pycolmap's FocalLength x FocalPlaneXResolution is in the camera's pixels, 4000 wide: 2500
+    # px for a copy of 640, where camera_from_exif gives 400
+    from PIL import Image
+    from PIL.TiffImagePlugin import IFDRational
+
+    images = tmp_path / "images"
+    images.mkdir()
+    texture = np.random.default_rng(0).integers(0, 256, (480, 640, 3), dtype=np.uint8)
+    for name, recorded in (("a.jpg", (4000, 3000)), ("b.jpg", (640, 480))):
+        exif = Image.Exif()
+        sub = exif.get_ifd(0x8769)
+        sub[0x920A], sub[0xA20E], sub[0xA210] = IFDRational(4.0), IFDRational(6250.0), 3
+        sub[0xA002], sub[0xA003] = recorded  # 4 mm at 625 px/mm, the size the camera wrote
+        Image.fromarray(texture).save(images / name, exif=exif)
+    database = tmp_path / "db.db"
+    sfm.prepare_database(images, database)
+    with pycolmap.Database.open(database) as opened:
+        cameras = {image.name: opened.read_camera(image.camera_id)
+                   for image in opened.read_all_images()}  # fmt: skip
+    assert cameras["a.jpg"].mean_focal_length() == pytest.approx(400.0, rel=1e-4)
+    assert cameras["b.jpg"].mean_focal_length() == pytest.approx(2500.0, rel=1e-4)
+    assert all(camera.has_prior_focal_length for camera in cameras.values())
+    assert ppo_cv.camera_from_exif(images / "a.jpg")[0].K[0, 0] == pytest.approx(400.0, rel=1e-4)
+
+
+def test_sfm_into_a_folder_of_photos_says_the_image_folder_comes_first(tmp_path):
+    # `ppo-cv sfm model images` advised "pass --overwrite to replace it" for the photos
+    data = Path(ppo_cv.__file__).parent / "data"
+    for folder in ("model", "images"):
+        (tmp_path / folder).mkdir()
+    (tmp_path / "model" / "cameras.bin").write_bytes(b"")
+    for image in ("demo1.png", "demo2.png"):
+        (tmp_path / "images" / image).write_bytes((data / image).read_bytes())
+    args = ["sfm", str(tmp_path / "model"), str(tmp_path / "images"), "--K", "500,500,320,240"]
+    for extra in ([], ["--overwrite"]):
+        run = CliRunner().invoke(app, [*args, *extra])
+        assert run.exit_code == 2 and run.stdout == ""
+        assert run.stderr == (
+            f"ppo-cv sfm: OUT_DIR {tmp_path / 'images'} holds 2 images (demo1.png, demo2.png), "
+            "which a model folder never does: the image folder comes first, ppo-cv sfm "
+            "IMAGE_DIR OUT_DIR; give an output folder without images\n"
+        )
+    assert sorted(p.name for p in (tmp_path / "images").iterdir()) == ["demo1.png", "demo2.png"]
