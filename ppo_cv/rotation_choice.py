@@ -211,12 +211,13 @@ digital zoom; a stitcher's estimate from a narrow overlap), not the few percent 
 :data:`ppo_cv.rotation.FOCAL_PRIOR`."""
 
 
-REFIT_TOLERANCE_DEG = 0.01
-"""Largest deviation (degrees) of a pure rotation's rotation on its matches for which
-:func:`refit_could_change` skips the refit on tracks: the refit moves the rotation by one or two
-such deviations (a clean 640 x 480 render of 1,500 matches: 0.0056 degree, moved 0.010), and a
-hundredth of a degree is a tenth of what a real panorama's reference resolves
-(``../shared/data/pano_dev``: 0.1-0.2 degree; its pairs' matches leave 0.04-0.36)."""
+REFIT_TOLERANCE_DEG = 0.02
+"""Largest expected change (degrees) of a pure rotation's rotation for which
+:func:`refit_could_change` skips the refit on tracks: the matches' deviation, the rotation their
+focal scale bought and the bias their parallax gives, together (a clean 640 x 480 render of
+1,500 matches: 0.013 degree, the refit moved it 0.010). A fiftieth of a degree is a tenth of
+what a real panorama's reference resolves (``../shared/data/pano_dev``: 0.1-0.2 degree; its
+pairs' matches alone leave deviations of 0.04-0.36)."""
 
 
 @dataclass(frozen=True)
@@ -822,7 +823,10 @@ def refit_could_change(motion: MotionDecision, x1: np.ndarray, x2: np.ndarray) -
     happen when
 
     - the matches' deviation of the rotation, with the rotation their focal scale bought
-      (:func:`focal_trade_deg`), is at most :data:`REFIT_TOLERANCE_DEG`, and
+      (:func:`focal_trade_deg`) and the bias their parallax gives it beyond its noise
+      (:func:`translation_bias`, :func:`unbiased_bias_deg`), is at most
+      :data:`REFIT_TOLERANCE_DEG`: the tracks would measure that bias, and a pure rotation's
+      reported deviation counts it, and
     - the parallax of the matches (:func:`matches_parallax`, normalised points ``x1``, ``x2``
       (N, 2) or (N, 3)) stays below that bound by ``PARALLAX_SIGNIFICANCE`` of its own
       deviations: the tracks measure the same homography, more precisely, so their parallax
@@ -837,14 +841,15 @@ def refit_could_change(motion: MotionDecision, x1: np.ndarray, x2: np.ndarray) -
         return True
     used = motion.rotation_inliers
     lens = rotation_only_fit(motion, None)
-    focal = focal_trade_deg(lens, x1, x2, used)
-    if not np.hypot(motion.rotation_sigma_deg, focal) <= REFIT_TOLERANCE_DEG:
-        return True
     parallax = matches_parallax(lens, x1, x2, used)
     if parallax is None:
         return True
     reach = parallax.parallax + PARALLAX_SIGNIFICANCE * parallax.sigma
-    return not reach <= motion.track_parallax_bound
+    if not reach <= motion.track_parallax_bound:
+        return True
+    bias = unbiased_bias_deg(*translation_bias(parallax))
+    focal = focal_trade_deg(lens, x1, x2, used)
+    return not np.linalg.norm([motion.rotation_sigma_deg, focal, bias]) <= REFIT_TOLERANCE_DEG
 
 
 def rotation_only_fit(
