@@ -98,7 +98,9 @@ Backend = Annotated[
 Threshold = Annotated[
     float,
     typer.Option(
-        help=f"RANSAC threshold, pixels ({THRESHOLD_RANGE_PX[0]:g}..{THRESHOLD_RANGE_PX[1]:g}).",
+        help="RANSAC threshold, pixels of the full-size image; an image above --max-size is "
+        "fitted at this times its reduction "
+        f"({THRESHOLD_RANGE_PX[0]:g}..{THRESHOLD_RANGE_PX[1]:g}).",
         rich_help_panel=_PANEL,
     ),
 ]

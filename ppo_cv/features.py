@@ -187,6 +187,15 @@ def detection_size(shape: tuple, max_image_size: int | None) -> tuple[int, int] 
     return round(width / scale), round(height / scale)
 
 
+def detection_scale(shape: tuple, max_image_size: int | None) -> float:
+    """How many full-size pixels of an image of ``shape`` (H, W[, C]) one pixel of its
+    detection copy spans (:func:`detection_size`): ``max(H, W) / max_image_size``, 1.0 when
+    the image is detected as it is."""
+    if detection_size(shape, max_image_size) is None:
+        return 1.0
+    return max(int(shape[0]), int(shape[1])) / float(max_image_size)
+
+
 def detect_features(
     image: np.ndarray,
     kind: str = "sift",
@@ -229,9 +238,9 @@ def detect_features(
         raise ValueError(f"threshold_scale must be a positive number, got {threshold_scale}")
     gray = to_gray(image)
     require_detectable(gray.shape, name, max_image_size)
-    scale, size = 1.0, detection_size(gray.shape, max_image_size)
+    size = detection_size(gray.shape, max_image_size)
+    scale = detection_scale(gray.shape, max_image_size)
     if size is not None:
-        scale = max(gray.shape) / float(max_image_size)
         gray = cv2.resize(gray, size, interpolation=cv2.INTER_AREA)
     detector = _detector(kind, int(max_features), float(threshold_scale))
     keypoints, descriptors = detector.detectAndCompute(gray, None)

@@ -55,7 +55,12 @@ class PairOptions:
     backend : {"pycolmap", "opencv"}
         Robust estimator of ``E``: COLMAP LO-RANSAC or OpenCV USAC MAGSAC++.
     ransac_threshold : float
-        Inlier threshold on the epipolar error, pixels.
+        Inlier threshold on the epipolar error, pixels of the full-size image. An image
+        larger than ``max_image_size`` has its keypoints located on a copy reduced ``s``
+        times (:func:`ppo_cv.features.detection_scale`), so they carry ``s`` times the copy's
+        noise: its pair is fitted at ``s`` times this threshold (the larger ``s`` of the two
+        images, at most :data:`MAX_RANSAC_THRESHOLD`), and the refinement, the model decision
+        and the Huber bounds read that threshold too (``docs/limits.md``).
     confidence : float
         RANSAC confidence.
     min_trials, max_trials : int

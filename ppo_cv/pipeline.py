@@ -92,6 +92,7 @@ from .consensus import (
 )
 from .features import (
     Features,
+    detection_scale,
     require_detectable,
 )
 from .homography import (
@@ -342,6 +343,30 @@ def _require_no_distortion_as_K2(K2: Any) -> None:
             f"K2 must be a 3x3 matrix, got {len(K2)} numbers: distortion coefficients? "
             "estimate_pair takes image1, image2, K1, K2, dist1, dist2; pass them as dist1="
         )
+
+
+def _in_detection_pixels(inputs: PairInputs, options: PairOptions) -> PairOptions:
+    """``options`` with ``ransac_threshold`` in pixels of the detection copy: multiplied by
+    the larger :func:`~ppo_cv.features.detection_scale` of the two images (at most
+    :data:`MAX_RANSAC_THRESHOLD`), since keypoints located on a copy reduced ``s`` times carry
+    ``s`` times its noise in full-size pixels; ``options`` itself for images no larger than
+    ``options.max_image_size``. Every stage bounded by the threshold (the robust fits and
+    their significance, ``refine``, the model decision, the Huber bounds) reads it here."""
+    scale = max(
+        detection_scale(image.shape, options.max_image_size) for image in (inputs.img1, inputs.img2)
+    )
+    if scale == 1.0:
+        return options
+    threshold = min(options.ransac_threshold * scale, MAX_RANSAC_THRESHOLD)
+    return replace(options, ransac_threshold=threshold)
+
+
+def _checked_options(options: Any) -> PairOptions:
+    """``options``, the defaults for None; TypeError for anything but a :class:`PairOptions`."""
+    options = PairOptions() if options is None else options
+    if not isinstance(options, PairOptions):
+        raise TypeError(f"options must be a PairOptions, got {type(options).__name__}")
+    return options
 
 
 def _check_hooks(features1: Any, features2: Any, progress: Any) -> None:
@@ -820,6 +845,7 @@ def estimate_pair(
     dist1, dist2 : array_like, optional
         OpenCV distortion coefficients; ``dist2`` defaults to ``dist1`` when ``K2`` is not given.
     options : PairOptions, optional
+        Its ``ransac_threshold`` applies times the reduction of an image detected downsized.
     features1, features2 : Features, optional
         Precomputed features (module docstring, "Given features"): the first detection is skipped.
     progress : callable, optional
@@ -836,13 +862,12 @@ def estimate_pair(
     TypeError
         ``options`` that is not a :class:`PairOptions`, non-numeric images.
     """
-    options = PairOptions() if options is None else options
-    if not isinstance(options, PairOptions):
-        raise TypeError(f"options must be a PairOptions, got {type(options).__name__}")
+    options = _checked_options(options)
     _check_hooks(features1, features2, progress)
     watch = _Stopwatch(progress)
     detect = features1 is None or features2 is None
     inputs = _load_inputs(image1, image2, K1, K2, dist1, dist2, detect, options)
+    options = _in_detection_pixels(inputs, options)
     watch.lap("load")
     f1, f2 = _features(inputs, features1, features2, options, watch)
     found = best_consensus(f1, f2, inputs, options, watch.lap)

@@ -1,4 +1,5 @@
-"""Photos of phone size: what a 12-megapixel pair costs in memory, answers unchanged."""
+"""Photos of phone size: what a 12-megapixel pair costs in memory, and the threshold of keypoints
+located on its reduced copy."""
 
 from __future__ import annotations
 
@@ -133,3 +134,51 @@ def test_the_refit_of_a_large_pure_rotation_runs_on_the_reduced_copy(monkeypatch
     assert seen and all(shape == ((1500, 2000), (1500, 2000)) for shape in seen)
     assert result.pure_rotation and result.uncertainty.rotation_tracks > 100
     assert rotation_error_deg(result.R, pair.R) < 0.05
+
+
+def test_an_enlarged_pair_detected_on_a_reduced_copy_keeps_the_inliers_of_the_original():
+    """The demo pair enlarged twice (bicubic, the camera matrix scaled) and detected on a copy
+    reduced back to 640 px: its keypoints carry twice the original's noise in full-size
+    pixels. With the threshold held at 1 full-size pixel it kept 202 inliers where the
+    original keeps 259 of its matches; with the threshold scaled by the reduction, 255."""
+    import json
+    from pathlib import Path
+
+    from ppo_cv import pipeline
+    from ppo_cv.metrics import direction_error_deg, rotation_error_deg
+
+    data = Path(pipeline.__file__).parent / "data"
+    demo = json.loads((data / "demo.json").read_text())
+    images = [cv2.imread(str(data / demo[name])) for name in ("image1", "image2")]
+    fx, fy, cx, cy = demo["intrinsics"]
+    K = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1]])
+    S = np.array([[2.0, 0, 0.5], [0, 2.0, 0.5], [0, 0, 1]])
+    enlarged = [
+        cv2.resize(image, None, fx=2, fy=2, interpolation=cv2.INTER_CUBIC) for image in images
+    ]
+    original = pipeline.estimate_pair(*images, K)
+    result = pipeline.estimate_pair(*enlarged, S @ K, options=PairOptions(max_image_size=640))
+    assert result.num_inliers >= 0.95 * original.num_inliers
+    assert rotation_error_deg(result.R, np.array(demo["reference_R"])) < 0.5
+    assert direction_error_deg(result.t, np.array(demo["reference_t"])) < 1.5
+
+
+def test_the_threshold_is_scaled_by_the_larger_reduction_within_the_accepted_range():
+    """A 4000x3000 image with a 2000x1500 one: the threshold doubles, as the first image's
+    keypoints are located on a copy reduced twice; 80 pixels so doubled are held at
+    ``MAX_RANSAC_THRESHOLD`` (the replaced options checked it: "must be in (0, 100]", for a
+    threshold the user never gave). A pair no larger than ``max_image_size`` keeps its
+    options."""
+    from types import SimpleNamespace
+
+    from ppo_cv import pipeline
+
+    large = SimpleNamespace(img1=np.zeros((3000, 4000), np.uint8), img2=np.zeros((1500, 2000)))
+    assert pipeline._in_detection_pixels(large, PairOptions()).ransac_threshold == 2.0
+    held = pipeline._in_detection_pixels(large, PairOptions(ransac_threshold=80))
+    assert held.ransac_threshold == pipeline.MAX_RANSAC_THRESHOLD
+    options = PairOptions(ransac_threshold=0.7)
+    small = SimpleNamespace(img1=large.img2, img2=large.img2)
+    assert pipeline._in_detection_pixels(small, options) is options
+    full_size = PairOptions(max_image_size=None)
+    assert pipeline._in_detection_pixels(large, full_size) is full_size
