@@ -154,8 +154,6 @@ from .rotation_choice import (
     RotationEstimate,
     choose_rotation,
     focal_trade_deg,
-    matches_parallax,
-    refit_could_change,
     released_lens_shift_deg,
     rotation_only_estimate,
     rotation_only_fit,
@@ -282,9 +280,6 @@ class _Finishing:
     unclipped_miss: bool = False
     """Whether the refit of ``motion`` aligned no tracks without clipping a lens fit to its box:
     with ``keep_clipped`` it would align none either (:func:`_misses_again`)."""
-    refit_skipped: bool = False
-    """Whether the refit of a pure rotation was skipped as unable to change its answer
-    (:func:`~ppo_cv.rotation_choice.refit_could_change`): its bias is read on the matches."""
 
     @property
     def focal(self) -> float:
@@ -489,45 +484,37 @@ def _align_tracks(
 def _revisit_with_tracks(
     inputs: PairInputs, found: Consensus, motion: MotionDecision, priors: _LensPriors,
     options: PairOptions,
-) -> tuple[MotionDecision, PhotometricRotation | None, int, bool, bool]:  # fmt: skip
+) -> tuple[MotionDecision, PhotometricRotation | None, int, bool]:  # fmt: skip
     """For a pure rotation or a rotation candidate: the rotation refitted on intensity-aligned
     windows and the decision revisited on their parallax (:func:`with_tracks`); with the
-    tracks (None when none were aligned), the number behind a pure rotation's ``R``,
+    tracks (None when none were aligned), the number behind a pure rotation's ``R`` and
     whether a refit aligned none without clipping a lens fit
-    (:attr:`_Finishing.unclipped_miss`) and whether a pure rotation's refit was skipped as
-    unable to change its answer (:func:`~ppo_cv.rotation_choice.refit_could_change`)."""
+    (:attr:`_Finishing.unclipped_miss`)."""
     if not options.photometric or not (motion.pure_rotation or motion.rotation_candidate):
-        return motion, None, 0, False, False
-    if not refit_could_change(motion, found.x1, found.x2):
-        return motion, None, 0, False, True
+        return motion, None, 0, False
     clipped = []
     tracks = _align_tracks(
         inputs, motion, priors, on_clipped=lambda: clipped.append(True),
         max_image_size=options.max_image_size,
     )  # fmt: skip
     if tracks is None:
-        return motion, None, 0, not clipped, False
+        return motion, None, 0, not clipped
     motion = with_tracks(
         motion, tracks.fit, tracks.parallax, found.x1, found.x2, inputs.focal,
         threshold_px=options.ransac_threshold,
     )  # fmt: skip
-    return motion, tracks, tracks.num_tracks if motion.pure_rotation else 0, False, False
+    return motion, tracks, tracks.num_tracks if motion.pure_rotation else 0, False
 
 
 def _finish_rotation(state: _Finishing) -> _ModelPart:
     """A pure rotation: the rotation-only fit, no point, ``t`` undetermined (its sigma the cap);
     the rotation's deviation with the tracks' parallax beyond its noise
-    (:func:`~ppo_cv.rotation_choice.unbiased_bias_deg`; the matches' parallax,
-    :func:`~ppo_cv.rotation_choice.matches_parallax`, where the refit was skipped) and the
-    rotation its focal scale may have bought (:func:`~ppo_cv.rotation_choice.focal_trade_deg`)."""
+    (:func:`~ppo_cv.rotation_choice.unbiased_bias_deg`) and the rotation its focal scale may
+    have bought (:func:`~ppo_cv.rotation_choice.focal_trade_deg`)."""
     motion, num_matches = state.motion, len(state.found.matches)
-    x1, x2, used = state.found.x1, state.found.x2, motion.rotation_inliers
+    bias = translation_bias(None if state.tracks is None else state.tracks.parallax)
     lens = rotation_only_fit(motion, state.tracks)
-    parallax = None if state.tracks is None else state.tracks.parallax
-    if state.refit_skipped:
-        parallax = matches_parallax(lens, x1, x2, used)
-    bias = translation_bias(parallax)
-    focal = focal_trade_deg(lens, x1, x2, used)
+    focal = focal_trade_deg(lens, state.found.x1, state.found.x2, motion.rotation_inliers)
     deviations = [motion.rotation_sigma_deg, unbiased_bias_deg(*bias), focal]
     return _ModelPart(
         R=motion.R,
@@ -877,11 +864,11 @@ def estimate_pair(
     priors = _lens_priors(inputs, options)
     motion = _decide(found, pose, homography, priors, inputs.focal, options)
     watch.lap("model")
-    motion, tracks, num_tracks, missed, skipped = _revisit_with_tracks(
+    motion, tracks, num_tracks, missed = _revisit_with_tracks(
         inputs, found, motion, priors, options
     )
     watch.lap("photometric")
-    state = _Finishing(inputs, found, pose, motion, priors, tracks, options, missed, skipped)
+    state = _Finishing(inputs, found, pose, motion, priors, tracks, options, missed)
     part = FINISHERS[motion.model](state)
     rotation = _choose_rotation(state, part)
     part = _with_points_of(state, part, rotation)

@@ -144,12 +144,7 @@ import numpy as np
 from .lsq import gauss_newton_covariance, rotation_increment
 from .metrics import rotation_error_deg
 from .model_selection import robust_sigma
-from .motion_model import (
-    MAX_TRACK_PARALLAX,
-    PARALLAX_SIGNIFICANCE,
-    MotionDecision,
-    parallax_refuses_rotation,
-)
+from .motion_model import MAX_TRACK_PARALLAX, MotionDecision, parallax_refuses_rotation
 from .parallax import (
     PlaneParallax,
     fit_plane_parallax,
@@ -184,8 +179,6 @@ __all__ = [
     "freed_parallax_refused",
     "given_focal_fit",
     "matches_parallax",
-    "REFIT_TOLERANCE_DEG",
-    "refit_could_change",
     "released_lens_shift_deg",
     "rotation_only_estimate",
     "rotation_only_fit",
@@ -209,15 +202,6 @@ for the one that makes a homography a rotation: the errors of a calibration nobo
 a focal length read for another crop or zoom (EXIF of a cropped sensor: 1.3-1.6 times; a
 digital zoom; a stitcher's estimate from a narrow overlap), not the few percent of
 :data:`ppo_cv.rotation.FOCAL_PRIOR`."""
-
-
-REFIT_TOLERANCE_DEG = 0.02
-"""Largest expected change (degrees) of a pure rotation's rotation for which
-:func:`refit_could_change` skips the refit on tracks: the matches' deviation, the rotation their
-focal scale bought and the bias their parallax gives, together (a clean 640 x 480 render of
-1,500 matches: 0.013 degree, the refit moved it 0.010). A fiftieth of a degree is a tenth of
-what a real panorama's reference resolves (``../shared/data/pano_dev``: 0.1-0.2 degree; its
-pairs' matches alone leave deviations of 0.04-0.36)."""
 
 
 @dataclass(frozen=True)
@@ -809,47 +793,6 @@ def matches_parallax(
     q1 = correct_points(x1[used], lens.focal_scale, lens.k1, lens.principal_offset)
     q2 = correct_points(x2[used], lens.focal_scale2, lens.k1, lens.principal_offset)
     return fit_plane_parallax(q1, q2)
-
-
-def refit_could_change(motion: MotionDecision, x1: np.ndarray, x2: np.ndarray) -> bool:
-    """Whether refitting a pure rotation on intensity-aligned tracks could change its answer
-    (:func:`ppo_cv.photometric.refine_rotation_photometric`, then
-    :func:`ppo_cv.motion_model.with_tracks`); True for any other decision.
-
-    The refit changes two things: the rotation, by about the matches' deviation, and the
-    verdict, when the tracks' parallax exceeds the veto bound
-    (:attr:`~ppo_cv.motion_model.MotionDecision.track_parallax_bound`) by
-    :data:`~ppo_cv.motion_model.PARALLAX_SIGNIFICANCE` of their deviations. Neither can
-    happen when
-
-    - the matches' deviation of the rotation, with the rotation their focal scale bought
-      (:func:`focal_trade_deg`) and the bias their parallax gives it beyond its noise
-      (:func:`translation_bias`, :func:`unbiased_bias_deg`), is at most
-      :data:`REFIT_TOLERANCE_DEG`: the tracks would measure that bias, and a pure rotation's
-      reported deviation counts it, and
-    - the parallax of the matches (:func:`matches_parallax`, normalised points ``x1``, ``x2``
-      (N, 2) or (N, 3)) stays below that bound by ``PARALLAX_SIGNIFICANCE`` of its own
-      deviations: the tracks measure the same homography, more precisely, so their parallax
-      lies within a few of their deviations of a value below the bound (on real tripod
-      panoramas the matches read more parallax than the tracks, not less: their lens is
-      fitted less well).
-
-    A lens clipped to its box is always refitted: its tracks are fitted in a wider box and
-    measure a translation the matches' lens absorbed.
-    """
-    if not motion.pure_rotation or motion.lens_clipped:
-        return True
-    used = motion.rotation_inliers
-    lens = rotation_only_fit(motion, None)
-    parallax = matches_parallax(lens, x1, x2, used)
-    if parallax is None:
-        return True
-    reach = parallax.parallax + PARALLAX_SIGNIFICANCE * parallax.sigma
-    if not reach <= motion.track_parallax_bound:
-        return True
-    bias = unbiased_bias_deg(*translation_bias(parallax))
-    focal = focal_trade_deg(lens, x1, x2, used)
-    return not np.linalg.norm([motion.rotation_sigma_deg, focal, bias]) <= REFIT_TOLERANCE_DEG
 
 
 def rotation_only_fit(

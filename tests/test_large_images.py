@@ -108,10 +108,10 @@ def test_the_refit_prepares_an_image_in_few_bytes_per_pixel():
 
 
 def test_the_refit_of_a_large_pure_rotation_runs_on_the_reduced_copy(monkeypatch):
-    """A 640x480 pure-rotation render through a real photo's lens enlarged to 2560x1920: the
-    refit aligns its windows on copies of at most ``max_image_size`` pixels, as the features
-    were found (at full size it prepared and warped 12-megapixel planes, 5-6 s of a phone-size
-    pair), and keeps the rotation of the render."""
+    """A 640x480 pure-rotation render enlarged to 2560x1920: the refit aligns its windows on
+    copies of at most ``max_image_size`` pixels, as the features were found (at full size it
+    prepared and warped 12-megapixel planes, 5-6 s of a phone-size pair), and keeps the
+    rotation of the render."""
     from ppo_cv import data_gen, pipeline
     from ppo_cv.metrics import rotation_error_deg
 
@@ -123,7 +123,7 @@ def test_the_refit_of_a_large_pure_rotation_runs_on_the_reduced_copy(monkeypatch
         return refit(image1, image2, *args, **kwargs)
 
     monkeypatch.setattr(pipeline, "refine_rotation_photometric", recording)
-    pair = data_gen.make_pair("pure-rotation", seed=0, index=0, imperfections=data_gen.REAL_PHOTO)
+    pair = data_gen.make_pair("pure-rotation", seed=0, index=0)
     scale = 4.0
     S = np.array([[scale, 0, (scale - 1) / 2], [0, scale, (scale - 1) / 2], [0, 0, 1]])
     images = [
