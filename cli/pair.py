@@ -368,6 +368,8 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
         f"  log10 NFA    {log10_nfa:.1f} (consensus against chance; lower is stronger)",
         f"  matches      {result.num_matches} putative, {result.num_inliers} inliers, "
         f"{result.num_points} 3D points" + _denser_note(result),
+        f"  threshold    {result.evidence.significance.ransac_threshold_px:.3g} px "
+        "(inliers, full-size pixels)",
         "  time         "
         + ", ".join(f"{k} {1000 * v:.1f} ms" for k, v in result.timings.items())
         + f" (total {1000 * sum(result.timings.values()):.0f} ms)",

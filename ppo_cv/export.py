@@ -198,6 +198,7 @@ def _evidence(evidence: DecisionEvidence) -> dict:
         "significance": {
             "log10_nfa": float(evidence.significance.log10_nfa),
             "threshold_scale": float(evidence.significance.threshold_scale),
+            "ransac_threshold_px": float(evidence.significance.ransac_threshold_px),
         },
     }
 

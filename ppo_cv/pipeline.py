@@ -775,7 +775,9 @@ def _evidence(motion: MotionDecision, found: Consensus, options: PairOptions) ->
     return DecisionEvidence(
         selection=selection,
         tracks=TrackParallax(motion.track_parallax, motion.track_parallax_sigma),
-        significance=ConsensusSignificance(found.significance.log10_nfa, found.threshold_scale),
+        significance=ConsensusSignificance(
+            found.significance.log10_nfa, found.threshold_scale, options.ransac_threshold
+        ),
     )
 
 

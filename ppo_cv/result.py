@@ -251,10 +251,16 @@ class ConsensusSignificance:
         Detector threshold scale of the features behind the result: 1, or
         :data:`ppo_cv.consensus.REDETECT_THRESHOLD_SCALE` when the second detection
         (``PairOptions.redetect_below``) gave a fit that chance explains less.
+    ransac_threshold_px : float
+        Inlier threshold the pair was fitted at, pixels of the full-size image:
+        ``PairOptions.ransac_threshold`` times the reduction of an image detected on a copy
+        reduced to ``PairOptions.max_image_size`` (its keypoints carry that much more noise in
+        full-size pixels), at most :data:`ppo_cv.options.MAX_RANSAC_THRESHOLD`.
     """
 
     log10_nfa: float
     threshold_scale: float
+    ransac_threshold_px: float
 
 
 @dataclass(frozen=True)

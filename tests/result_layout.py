@@ -28,7 +28,7 @@ FLAT_FIELDS = (
     "principal_offset_px", "principal_bound", "threshold_scale", "dist1", "dist2",
     "log10_nfa", "plane_residual_px", "gric_plane_difference", "plane_epipolar_ratio",
     "plane_normal", "plane_distance", "plane_ambiguous", "plane_k1", "radial_k1",
-    "rotation_source", "rotation_bias_deg", "wanted_focal_scale",
+    "rotation_source", "rotation_bias_deg", "wanted_focal_scale", "ransac_threshold_px",
 )  # fmt: skip
 """Every field of the flat ``PairResult`` but ``timings`` (seconds differ run to run), and
 those added since (:data:`ADDED_FIELDS`)."""
@@ -37,6 +37,7 @@ ADDED_FIELDS = {
     "rotation_source": "rotation_source",
     "rotation_bias_deg": "uncertainty.rotation_bias_deg",
     "wanted_focal_scale": "lens.wanted_focal_scale",
+    "ransac_threshold_px": "evidence.significance.ransac_threshold_px",
 }
 """Fields added after 0.1.0 -> their path: the record names them as the flat layout would."""
 

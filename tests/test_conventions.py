@@ -169,7 +169,7 @@ def test_result_to_dict_keeps_t_for_a_general_motion():
         lens=LensTerms(1.0, 1.0, np.zeros(2), 3.0, nan, 0.0),
         evidence=DecisionEvidence(
             ModelComparison(0.015, *[nan] * 10), TrackParallax(nan, nan),
-            ConsensusSignificance(-50.0, 1.0),
+            ConsensusSignificance(-50.0, 1.0, 1.0),
         ),
         plane=None, timings={},
     )  # fmt: skip

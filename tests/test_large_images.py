@@ -159,6 +159,8 @@ def test_an_enlarged_pair_detected_on_a_reduced_copy_keeps_the_inliers_of_the_or
     original = pipeline.estimate_pair(*images, K)
     result = pipeline.estimate_pair(*enlarged, S @ K, options=PairOptions(max_image_size=640))
     assert result.num_inliers >= 0.95 * original.num_inliers
+    assert result.evidence.significance.ransac_threshold_px == 2.0
+    assert original.evidence.significance.ransac_threshold_px == 1.0
     assert rotation_error_deg(result.R, np.array(demo["reference_R"])) < 0.5
     assert direction_error_deg(result.t, np.array(demo["reference_t"])) < 1.5
 
