@@ -487,6 +487,14 @@ def test_initial_pairs_text_keeps_names_with_spaces_as_the_pairs_file_does(tmp_p
     assert (tmp_path / "model" / "initial_pairs.txt").read_bytes() == text.encode("utf-8")
 
 
+def _database_cameras(images, database) -> dict:
+    """The camera of each image of ``images`` in the database ``prepare_database`` writes."""
+    sfm.prepare_database(images, database)
+    with pycolmap.Database.open(database) as opened:
+        return {image.name: opened.read_camera(image.camera_id)
+                for image in opened.read_all_images()}  # fmt: skip
+
+
 def test_an_exif_focal_length_that_is_none_is_not_the_databases_camera(tmp_path):
     # pycolmap took 65535 mm (a placeholder) for a prior focal length of 1.2 million px
     from PIL import Image
@@ -499,11 +507,7 @@ def test_an_exif_focal_length_that_is_none_is_not_the_databases_camera(tmp_path)
         exif[0x010F], exif[0x0110] = "Maker", "Model"
         exif.get_ifd(0x8769)[0xA405] = focal_35mm  # FocalLengthIn35mmFilm
         Image.fromarray(texture).save(images / name, exif=exif)
-    database = tmp_path / "db.db"
-    sfm.prepare_database(images, database)
-    with pycolmap.Database.open(database) as opened:
-        cameras = {image.name: opened.read_camera(image.camera_id)
-                   for image in opened.read_all_images()}  # fmt: skip
+    cameras = _database_cameras(images, tmp_path / "db.db")
     assert cameras["a.jpg"].mean_focal_length() == 768.0
     assert not cameras["a.jpg"].has_prior_focal_length
     assert cameras["b.jpg"].has_prior_focal_length
@@ -526,11 +530,7 @@ def test_the_databases_camera_of_a_resized_photo_has_the_focal_length_of_its_pix
         sub[0x920A], sub[0xA20E], sub[0xA210] = IFDRational(4.0), IFDRational(6250.0), 3
         sub[0xA002], sub[0xA003] = recorded  # 4 mm at 625 px/mm, the size the camera wrote
         Image.fromarray(texture).save(images / name, exif=exif)
-    database = tmp_path / "db.db"
-    sfm.prepare_database(images, database)
-    with pycolmap.Database.open(database) as opened:
-        cameras = {image.name: opened.read_camera(image.camera_id)
-                   for image in opened.read_all_images()}  # fmt: skip
+    cameras = _database_cameras(images, tmp_path / "db.db")
     assert cameras["a.jpg"].mean_focal_length() == pytest.approx(400.0, rel=1e-4)
     assert cameras["b.jpg"].mean_focal_length() == pytest.approx(2500.0, rel=1e-4)
     assert all(camera.has_prior_focal_length for camera in cameras.values())
