@@ -98,8 +98,8 @@ Backend = Annotated[
 Threshold = Annotated[
     float,
     typer.Option(
-        help="RANSAC threshold, pixels of the full-size image; an image above --max-size is "
-        "fitted at this times its reduction "
+        help="RANSAC threshold, pixels of the full-size image; an image detected on a reduced "
+        "copy is fitted at this times its reduction "
         f"({THRESHOLD_RANGE_PX[0]:g}..{THRESHOLD_RANGE_PX[1]:g}).",
         rich_help_panel=_PANEL,
     ),
