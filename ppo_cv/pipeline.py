@@ -58,7 +58,9 @@ Errors. ``estimate_pair`` raises ValueError for an unreadable or oversized image
 on (a side below :data:`~ppo_cv.features.MIN_IMAGE_SIDE` pixels), images of different sizes
 without ``K2``, identical images, too few features, matches or inliers, a consensus that chance
 could explain (``PairOptions.max_log10_nfa``: "no reliable two-view geometry" with the
-figures), and one image a mirror image of the other
+figures) or a moving pose that has its inliers seen from directions too far apart for their
+descriptors to have matched (:func:`~ppo_cv.significance.require_matchable_viewpoints`), and
+one image a mirror image of the other
 (:func:`~ppo_cv.homography.require_unmirrored` says what is and is not caught).
 """
 
@@ -163,7 +165,7 @@ from .rotation_choice import (
     unbiased_bias_deg,
     wanted_focal_scale,
 )
-from .significance import DEFAULT_MAX_LOG10_NFA
+from .significance import DEFAULT_MAX_LOG10_NFA, require_matchable_viewpoints
 from .valley import ValleyOutcome, valley_minima, valley_outcome
 
 __all__ = [
@@ -785,8 +787,12 @@ def _assemble(
     state: _Finishing, part: _ModelPart, rotation: RotationEstimate, tracks: int,
     timings: dict[str, float],
 ) -> PairResult:  # fmt: skip
-    """The :class:`PairResult` of a finished model with its chosen rotation."""
+    """The :class:`PairResult` of a finished model with its chosen rotation; ValueError when a
+    moving pose has its inliers seen from directions no descriptor matches across
+    (:func:`~ppo_cv.significance.require_matchable_viewpoints`)."""
     inputs, found, motion = state.inputs, state.found, state.motion
+    if not motion.pure_rotation:
+        require_matchable_viewpoints(found.x1[part.inliers], found.x2[part.inliers], rotation.R)
     img1, img2 = inputs.img1, inputs.img2
     cameras = PairCameras(
         inputs.K1, inputs.K2, inputs.dist1, inputs.dist2,
