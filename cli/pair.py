@@ -484,7 +484,8 @@ def _run_pair(
             except ValueError as exc:
                 if "load" not in report.done:  # the pipeline refused its input
                     raise
-                fail(command, f"no pose: {error_message(exc)}", NO_RESULT)
+                doubts = "".join(f"; warning: {one_line(w)}" for w in warnings)
+                fail(command, f"no pose: {error_message(exc)}{doubts}", NO_RESULT)
             if exif_text:
                 from ppo_cv.guessed_camera import decide_with_fitted_focal
 
