@@ -9,8 +9,12 @@
   (``book`` 611x918, ``bookshelf`` 382x574, ``csie`` 720x540), each labelled with its pixels
   against the demo pair's, since detection and the refit's windows grow with them.
 
-Run ``python benchmarks/cli_time.py [--runs 7] [--floor] [--every-sequence]``: prints the
-machine, the median wall time of the whole command per pair with its ratio to the demo pair's,
+With ``--phone-size`` that first pair also enlarged to a phone photo's 12 megapixels (a longer
+side of 4032 px, JPEG): detected on a copy reduced to ``--max-size`` (2000 px) and refitted on
+it, at the threshold times that reduction.
+
+Run ``python benchmarks/cli_time.py [--runs 7] [--floor] [--every-sequence] [--phone-size]``:
+prints the machine, the median wall time of the whole command per pair with its ratio to the demo pair's,
 and the median of each pipeline stage as reported in the ``--json`` output. The pairs take
 turns within each run, so a change of load on the machine touches them alike. ``--floor`` adds
 each rotation pair once more with ``--no-photometric``: what the pair costs without its refit,
@@ -93,6 +97,42 @@ def _tripod_arguments(fields: list[str]) -> tuple[str, list[str]]:
     pixels = width * height / (640 * 480)
     label = f"real tripod pair, pano_dev {fields[0]} ({width}x{height}, {pixels:.2f}x the pixels)"
     return label, [*images, "--K", _intrinsics(K1), "--K2", _intrinsics(K2)]
+
+
+PHONE_SIDE = 4032
+"""Longer side, pixels, of ``--phone-size``'s pair: a 12-megapixel phone photo."""
+
+
+def _phone_size_pair(folder: Path) -> list[tuple[str, list[str]]]:
+    """Label and ``ppo-cv pair`` arguments of the first pano_dev pair enlarged to a longer side
+    of :data:`PHONE_SIDE` (bicubic, written as JPEG at quality 95 as a phone does, the camera
+    matrices scaled by the pixel-centre map); none without the data."""
+    import cv2
+    import numpy as np
+
+    pairs = PANO_DEV / "pairs_with_gt.txt"
+    if not pairs.is_file():
+        return []
+    fields = next(line.split() for line in pairs.read_text().splitlines() if line.strip())
+    images = [cv2.imread(str(PANO_DEV / "images" / name)) for name in fields[:2]]
+    scale = PHONE_SIDE / max(images[0].shape[:2])
+    S = np.array([[scale, 0, (scale - 1) / 2], [0, scale, (scale - 1) / 2], [0, 0, 1]])
+    paths = [folder / f"phone_{i}.jpg" for i in (1, 2)]
+    for path, image in zip(paths, images, strict=True):
+        enlarged = cv2.resize(image, None, fx=scale, fy=scale, interpolation=cv2.INTER_CUBIC)
+        cv2.imwrite(str(path), enlarged, [cv2.IMWRITE_JPEG_QUALITY, 95])
+    height, width = cv2.imread(str(paths[0]), cv2.IMREAD_GRAYSCALE).shape
+    cameras = [
+        S @ np.array([float(v) for v in fields[start : start + 9]]).reshape(3, 3)
+        for start in (4, 13)
+    ]
+    pixels = width * height / (640 * 480)
+    label = (
+        f"real tripod pair, pano_dev {fields[0]} enlarged to {width}x{height} "
+        f"({pixels:.1f}x the pixels)"
+    )
+    arguments = [*map(str, paths), "--K", _intrinsics(cameras[0]), "--K2", _intrinsics(cameras[1])]
+    return [(label, arguments)]
 
 
 def run(pairs: dict[str, list[str]], runs: int) -> dict[str, tuple[list, dict, list]]:
@@ -270,6 +310,10 @@ def main(argv: list[str] | None = None) -> None:
         "--every-sequence", action="store_true",
         help="the first pair of each pano_dev sequence, not only of the first",
     )  # fmt: skip
+    parser.add_argument(
+        "--phone-size", action="store_true",
+        help=f"also the first pano_dev pair enlarged to a longer side of {PHONE_SIDE} px",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     if args.refit:
         os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # before numpy loads, as the command
@@ -283,6 +327,8 @@ def main(argv: list[str] | None = None) -> None:
         if not tripods:
             notes.append(f"Note: no real tripod pair measured ({PANO_DEV} is absent).")
         pairs |= dict(tripods)
+        if args.phone_size:
+            pairs |= dict(_phone_size_pair(Path(folder)))
         rotations = list(pairs.items())[1:]
         if args.floor:
             pairs |= {
