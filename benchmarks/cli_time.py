@@ -14,14 +14,15 @@ side of 4032 px, JPEG): detected on a copy reduced to ``--max-size`` (2000 px) a
 it, at the threshold times that reduction.
 
 Run ``python benchmarks/cli_time.py [--runs 7] [--floor] [--every-sequence] [--phone-size]``:
-prints the machine, the median wall time of the whole command per pair with its ratio to the demo pair's,
-and the median of each pipeline stage as reported in the ``--json`` output. The pairs take
-turns within each run, so a change of load on the machine touches them alike. ``--floor`` adds
-each rotation pair once more with ``--no-photometric``: what the pair costs without its refit,
-the part of its time that the refit cannot explain. ``--refit N`` adds where the refit's time
-goes: the photometric refit of each rotation pair, its inputs taken from one run of
-``estimate_pair``, replayed N times in this process with one BLAS thread (the command's) and
-its threads run one after the other, the process CPU time of each part (median over the calls).
+prints the machine, the median wall time of the whole command per pair with its ratio to the
+demo pair's, and the median of each pipeline stage as reported in the ``--json`` output. The
+pairs take turns within each run, so a change of load on the machine touches them alike.
+``--floor`` adds each rotation pair once more with ``--no-photometric``: what the pair costs
+without its refit, the part of its time that the refit cannot explain. ``--refit N`` adds where
+the refit's time goes: the photometric refit of each rotation pair, its inputs taken from one
+run of ``estimate_pair``, replayed N times in this process with one BLAS thread (the command's)
+and its threads run one after the other, the process CPU time of each part (median over the
+calls).
 """
 
 from __future__ import annotations
