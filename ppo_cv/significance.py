@@ -60,6 +60,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .metrics import direction_error_deg
+
 __all__ = [
     "CONFIDENT_LOG10_NFA",
     "DEFAULT_MAX_LOG10_NFA",
@@ -392,10 +394,7 @@ def ray_angles_deg(x1: np.ndarray, x2: np.ndarray, R: np.ndarray) -> np.ndarray:
     R : ndarray, shape (3, 3)
         Rotation from camera 1 to camera 2.
     """
-    d1 = x1 / np.linalg.norm(x1, axis=1, keepdims=True)
-    d2 = x2 @ np.asarray(R, float)
-    d2 = d2 / np.linalg.norm(d2, axis=1, keepdims=True)
-    return np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", d1, d2), -1.0, 1.0)))
+    return np.atleast_1d(direction_error_deg(x1, x2 @ np.asarray(R, float)))
 
 
 def require_matchable_viewpoints(x1: np.ndarray, x2: np.ndarray, R: np.ndarray) -> float:
