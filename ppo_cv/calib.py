@@ -825,9 +825,13 @@ def resize_scale(original: tuple[int, int], size: tuple[int, int]) -> float | No
     """
     (short, long), (original_short, original_long) = sorted(size), sorted(original)
     scale_short, scale_long = short / original_short, long / original_long
-    if abs(scale_short - scale_long) > ASPECT_TOLERANCE * max(scale_short, scale_long):
-        return None
-    return float(scale_long)
+    return float(scale_long) if _one_scale(scale_short, scale_long) else None
+
+
+def _one_scale(sx: float, sy: float) -> bool:
+    """Whether scales ``sx`` and ``sy`` along two axes agree within :data:`ASPECT_TOLERANCE`
+    (of the larger): a resize that keeps the aspect ratio."""
+    return abs(sx - sy) <= ASPECT_TOLERANCE * max(sx, sy)
 
 
 GUESSED_FOCAL_FACTOR = 1.2
@@ -931,9 +935,8 @@ def fit_to_image(
         return camera, None
     (width, height), (calibrated_width, calibrated_height) = size, camera.image_size
     sx, sy = width / calibrated_width, height / calibrated_height
-    if abs(sx - sy) > ASPECT_TOLERANCE * max(sx, sy):
-        sx_stored, sy_stored = height / calibrated_width, width / calibrated_height
-        if turned and abs(sx_stored - sy_stored) <= ASPECT_TOLERANCE * max(sx_stored, sy_stored):
+    if not _one_scale(sx, sy):
+        if turned and _one_scale(height / calibrated_width, width / calibrated_height):
             raise ValueError(
                 f"{name} describes a camera of {calibrated_width}x{calibrated_height} images, "
                 f"the pixels of {image} as stored ({height}x{width}), but its EXIF orientation "
