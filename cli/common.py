@@ -497,7 +497,7 @@ def _recorded_size_doubt(layout: Any, size: tuple[int, int], focal: float) -> st
             f"{said}{size[0]}x{size[1]}, another aspect ratio (cropped?), so its EXIF focal "
             "length may not fit; pass --K or --calib"
         )
-    if layout.focal_35mm is not None or not layout.sensor_resolution:
+    if not layout.focal_in_recorded_pixels:
         return None
     return (
         f"{said}{size[0]}x{size[1]}, a resized copy: its EXIF focal length, in the original's "

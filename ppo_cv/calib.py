@@ -809,7 +809,7 @@ def exif_focal_scale(layout: Any, size: tuple[int, int]) -> float:
     float
         The ratio of the image's larger side to the recorded larger side, or 1.
     """
-    if layout.pixel_size is None or layout.focal_35mm is not None or not layout.sensor_resolution:
+    if layout.pixel_size is None or not layout.focal_in_recorded_pixels:
         return 1.0
     scale = resize_scale(layout.pixel_size, size)
     return 1.0 if scale is None else scale

@@ -213,6 +213,13 @@ class ExifLayout:
         """Whether the orientation shows the stored pixels turned a quarter."""
         return self.orientation in (5, 6, 7, 8)
 
+    @property
+    def focal_in_recorded_pixels(self) -> bool:
+        """Whether pycolmap reads the focal length in the pixels the camera wrote
+        (``FocalLength`` through :attr:`sensor_resolution`, no :attr:`focal_35mm` read before
+        it), which a resized copy must scale; else in the image's own."""
+        return self.focal_35mm is None and self.sensor_resolution
+
 
 _ORIENTATION_TAG, _EXIF_IFD, _PIXEL_X_TAG, _PIXEL_Y_TAG = 0x0112, 0x8769, 0xA002, 0xA003
 _FOCAL_35MM_TAG = 0xA405
