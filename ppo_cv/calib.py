@@ -61,6 +61,7 @@ __all__ = [
     "EXIF_PLAUSIBLE_FIELD_DEG",
     "field_of_view_deg",
     "exif_focal_scale",
+    "fitted_exif_focal",
     "resize_scale",
     "GUESSED_FOCAL_FACTOR",
     "MAX_PIXEL_ASPECT",
@@ -766,11 +767,10 @@ def camera_from_exif(path: str | os.PathLike, exif_orientation: bool = True) -> 
     K = np.asarray(camera.calibration_matrix(), dtype=np.float64)
     from_exif = bool(camera.has_prior_focal_length)
     if from_exif:
-        K[[0, 1], [0, 1]] *= exif_focal_scale(exif_layout(path), (width, height))
-    doubt = unusable_exif_focal(K[0, 0], max(width, height)) if from_exif else None
-    if doubt is not None:
-        warnings.warn(f"{os.fspath(path)}: {doubt}", ImplausibleCameraWarning, stacklevel=2)
-        K[[0, 1], [0, 1]], from_exif = GUESSED_FOCAL_FACTOR * max(width, height), False
+        focal, doubt = fitted_exif_focal(K[0, 0], exif_layout(path), (width, height))
+        K[[0, 1], [0, 1]], from_exif = focal, doubt is None
+        if doubt is not None:
+            warnings.warn(f"{os.fspath(path)}: {doubt}", ImplausibleCameraWarning, stacklevel=2)
     if exif_orientation and decoded_transposed(path, width, height):
         K = K[[1, 0, 2]][:, [1, 0, 2]]
     return Camera(_matrix_from_values(K, "EXIF camera")), from_exif
@@ -813,6 +813,18 @@ def exif_focal_scale(layout: Any, size: tuple[int, int]) -> float:
         return 1.0
     scale = resize_scale(layout.pixel_size, size)
     return 1.0 if scale is None else scale
+
+
+def fitted_exif_focal(focal: float, layout: Any, size: tuple[int, int]) -> tuple[float, str | None]:
+    """The focal length (pixels) pycolmap read from an image's EXIF, ``focal``, fitted to the
+    image of ``size`` (width, height) and EXIF ``layout`` (:func:`ppo_cv.images.exif_layout`):
+    scaled to a resized copy (:func:`exif_focal_scale`), or, where that is none
+    (:func:`unusable_exif_focal`), COLMAP's guess for an image without one
+    (:data:`GUESSED_FOCAL_FACTOR` times its larger side); with why it was replaced, None when
+    it is the EXIF's."""
+    focal = float(focal) * exif_focal_scale(layout, size)
+    doubt = unusable_exif_focal(focal, max(size))
+    return (focal, None) if doubt is None else (GUESSED_FOCAL_FACTOR * max(size), doubt)
 
 
 def resize_scale(original: tuple[int, int], size: tuple[int, int]) -> float | None:

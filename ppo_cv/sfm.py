@@ -574,12 +574,10 @@ def prepare_database(
 
 def _fit_exif_focals(database_path: str | os.PathLike, image_dir: str | os.PathLike) -> None:
     """Fit each camera pycolmap guessed from an EXIF focal length to its images as
-    :func:`~ppo_cv.calib.camera_from_exif` does: scaled to a resized copy
-    (:func:`~ppo_cv.calib.exif_focal_scale` of its first image), and one that is none (a
-    placeholder such as 65535 mm, :func:`~ppo_cv.calib.unusable_exif_focal`) replaced by the
-    focal length of an image without one (:data:`~ppo_cv.calib.GUESSED_FOCAL_FACTOR` times its
-    larger side)."""
-    from .calib import GUESSED_FOCAL_FACTOR, exif_focal_scale, unusable_exif_focal
+    :func:`~ppo_cv.calib.camera_from_exif` does (:func:`~ppo_cv.calib.fitted_exif_focal` of
+    its first image): scaled to a resized copy, and one that is none (a placeholder such as
+    65535 mm) replaced by the focal length of an image without one."""
+    from .calib import fitted_exif_focal
     from .images import exif_layout
 
     with pycolmap.Database.open(database_path) as database:
@@ -589,10 +587,8 @@ def _fit_exif_focals(database_path: str | os.PathLike, image_dir: str | os.PathL
                 continue
             size = (camera.width, camera.height)
             layout = exif_layout(Path(image_dir) / names[camera.camera_id])
-            focal = camera.mean_focal_length() * exif_focal_scale(layout, size)
-            if unusable_exif_focal(focal, max(size)) is not None:
-                focal, camera.has_prior_focal_length = GUESSED_FOCAL_FACTOR * max(size), False
-            camera.focal_length = focal
+            focal, doubt = fitted_exif_focal(camera.mean_focal_length(), layout, size)
+            camera.focal_length, camera.has_prior_focal_length = focal, doubt is None
             database.update_camera(camera)
 
 
