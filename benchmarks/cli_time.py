@@ -192,6 +192,7 @@ REFIT_PARTS = {
     "_seen_through": "warps of image 2",
     "_prepare": "preparing the images",
     "_search": "Lucas-Kanade searches",
+    "_corner_candidates": "corner response (both sides)",
     "_corners": "corners",
     "_plane_parallax": "the tracks' parallax",
 }

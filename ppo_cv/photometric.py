@@ -66,12 +66,14 @@ import numpy as np
 
 from .camera import normalized_to_pixels, pixels_to_normalized
 from .checks import (
+    MAX_WHOLE_NUMBER,
     as_callback,
     as_camera_matrix,
     as_distortion,
     as_points,
     as_positive,
     as_rotation,
+    as_whole_number,
 )
 from .features import to_gray
 from .metrics import rotation_error_deg
@@ -153,9 +155,9 @@ _CHUNK = 65536  # window pixels aligned at a time
 _THREADS = 2  # aligning chunks of windows, or searching window sides, at once
 _SIDES_AT_ONCE_PIXELS = 3_000_000
 """Largest image 1 (pixels) whose window sides are searched on two threads at once, larger ones
-one side after the other: each side's search holds image 2 warped and normalised at full size
-and OpenCV's corner map of image 1, which on a 4000x3000 pair raised the peak resident memory
-of the refit from 1.02 to 1.22 GB when the two sides ran together."""
+one side after the other: each side's search holds image 2 warped and normalised at full size.
+On a 4000x3000 pair the peak resident memory of the refit rose from 1.02 to 1.22 GB when the two
+sides ran together (each side then also held OpenCV's corner map of image 1)."""
 _JACOBIANS = 2  # of the polish: at the start, and where its steps led
 _REGATHER = 0.01  # pixels a window moves from where image 2 was read for another read
 _RETAKE = 0.02  # pixels a window moves with the first Jacobian of the polish for a second
@@ -163,6 +165,7 @@ _RETAKE = 0.02  # pixels a window moves with the first Jacobian of the polish fo
 _DAMPING = 0.7  # of each Gauss-Newton step: the sampled gradients overshoot by about 1.4
 _OUTLIER_SIGMAS = 3.0
 _CONTRAST_BOX = 31  # pixels
+_CORNER_QUALITY = 0.003  # of the strongest corner response, the weakest a corner may have
 _DENSE_STEP = 8  # pixels between exact transfers of the search's warp
 _NODES = 5  # per side of a window, where _window_transfer transfers exactly
 _CLIP_MARGIN = 2  # pixels: the bilinear samples and the 3x3 gradients reach past a clipped one
@@ -690,22 +693,25 @@ def _seen_through(images: _Images, transfer) -> np.ndarray:
     seen = cv2.remap(images.gray2.astype(np.float32), mapping, None, cv2.INTER_LINEAR,
                      borderMode=cv2.BORDER_CONSTANT, borderValue=-1.0)  # fmt: skip
     del mapping
-    overlap = seen >= 0
-    np.copyto(seen, 0.0, where=~overlap)
-    return np.where(overlap, _local_contrast(seen), 0).astype(np.uint8)
+    outside = seen < 0
+    contrast = _local_contrast(np.maximum(seen, 0.0, out=seen))
+    np.copyto(contrast, 0, where=outside)
+    return contrast
 
 
 def _local_contrast(image: np.ndarray) -> np.ndarray:
     """``image`` less its mean over :data:`_CONTRAST_BOX` pixels, over its deviation there,
     as 8-bit grey levels about 128: the search then sees no exposure, gain or vignetting
-    change between the images."""
+    change between the images. A float32 ``image`` is overwritten."""
     import cv2
 
-    image = image.astype(np.float32)
+    image = image.astype(np.float32, copy=False)
     box = (_CONTRAST_BOX, _CONTRAST_BOX)
     mean = cv2.blur(image, box)
-    spread = cv2.blur(image * image, box)
-    spread -= mean * mean
+    square = np.multiply(image, image)
+    spread = cv2.blur(square, box)
+    spread -= np.multiply(mean, mean, out=square)
+    del square
     deviation = np.sqrt(np.maximum(spread, 0.0, out=spread), out=spread)
     deviation += 2.0
     image -= mean
@@ -713,7 +719,7 @@ def _local_contrast(image: np.ndarray) -> np.ndarray:
     image *= 32.0
     image /= deviation
     image += 128.0
-    return np.clip(image, 0, 255, out=image).astype(np.uint8)
+    return np.clip(image, 0, 255, out=np.empty(image.shape, np.uint8), casting="unsafe")
 
 
 def _search(images: _Images, seen, points1, transfer, window, levels) -> WindowTracks:
@@ -832,6 +838,13 @@ def _as_windows(window) -> tuple[int, ...]:
     return sides
 
 
+def _as_count(max_corners) -> int:
+    """``max_corners`` checked, :data:`MAX_CORNERS` for None."""
+    if max_corners is None:
+        return MAX_CORNERS
+    return as_whole_number(max_corners, "max_corners", 1, MAX_WHOLE_NUMBER)
+
+
 def _require_window(window) -> None:
     if isinstance(window, bool) or not isinstance(window, (int, np.integer)):
         raise TypeError(f"window must be an integer, got {type(window).__name__}")
@@ -852,21 +865,79 @@ def _inside(xy: np.ndarray, width: int, height: int) -> np.ndarray:
     return np.all((x >= 0) & (x <= width - 1) & (y >= 0) & (y <= height - 1), axis=1)
 
 
-def _corners(gray1, count, window, transfer, shape2) -> np.ndarray:
-    """Strongest corners of image 1 (integer pixels, at least a quarter window apart) whose
-    window lies inside image 1 and whose transfer lies a window inside image 2."""
+def _corner_candidates(gray1: np.ndarray) -> np.ndarray:
+    """Corner candidates of image 1 (n, 2) integer pixels ``(x, y)``, strongest first: the
+    local maxima of the minimum eigenvalue of the gradient structure tensor above
+    :data:`_CORNER_QUALITY` times its largest, in ``cv2.goodFeaturesToTrack``'s order (equal
+    responses the later pixel first), before its spacing (:func:`_spaced`). The response map is
+    the same for every window side; only the spacing depends on the side."""
     import cv2
 
+    response = cv2.cornerMinEigenVal(gray1, 3)
+    cv2.threshold(response, float(response.max()) * _CORNER_QUALITY, 0.0, cv2.THRESH_TOZERO,
+                  dst=response)  # fmt: skip
+    keep = response == cv2.dilate(response, None)
+    keep &= response != 0
+    keep[[0, -1]] = keep[:, [0, -1]] = False
+    pixel = np.flatnonzero(keep)
+    strength = response.ravel()[pixel].view(np.int32).astype(np.int64)  # > 0: as the floats
+    pixel = np.sort((strength << 32) | pixel)[::-1] & 0xFFFFFFFF
+    width = response.shape[1]
+    return np.column_stack([pixel % width, pixel // width])
+
+
+def _spaced(candidates: np.ndarray, distance: int) -> np.ndarray:
+    """Indices of ``candidates`` (n, 2) integer pixels, strongest first, that
+    ``cv2.goodFeaturesToTrack`` keeps with ``minDistance`` ``distance``: each one closer than
+    ``distance`` to no stronger one kept. Taken in rounds over the pairs closer than that
+    (found in bands of ``distance`` rows, each candidate against its band and the next): a
+    candidate none of whose stronger neighbours is undecided or kept is kept, one with a
+    stronger neighbour kept is dropped."""
+    x, y = candidates[:, 0], candidates[:, 1]
+    n = len(candidates)
+    stride = int(x.max(initial=0)) + 2 * distance
+    place = y // distance * stride + x
+    order = np.argsort(place)
+    ordered = place[order]
+    low = np.concatenate([ordered, ordered + (stride - distance + 1)])
+    first = np.searchsorted(ordered, low)
+    counts = np.searchsorted(ordered, low + np.repeat([distance, 2 * distance - 1], n)) - first
+    near = order[np.arange(counts.sum()) + np.repeat(first - np.cumsum(counts) + counts, counts)]
+    one = np.repeat(np.tile(order, 2), counts)
+    close = (x[one] - x[near]) ** 2 + (y[one] - y[near]) ** 2 < distance * distance
+    close &= one != near
+    weaker, stronger = np.maximum(one, near)[close], np.minimum(one, near)[close]
+    state = np.zeros(n, np.int8)  # 1 kept, -1 dropped
+    while (state == 0).any():
+        blocked = np.zeros(n, bool)
+        blocked[weaker[state[stronger] >= 0]] = True
+        state[(state == 0) & ~blocked] = 1
+        beaten = np.zeros(n, bool)
+        beaten[weaker[state[stronger] == 1]] = True
+        state[beaten & (state == 0)] = -1
+    return np.flatnonzero(state == 1)
+
+
+def _corners(candidates, count, window, transfer, shape1, shape2) -> np.ndarray:
+    """The first ``count`` corners of image 1 (of ``shape1``; integer pixels, at least a quarter
+    window apart, from :func:`_corner_candidates`) whose window lies inside image 1 and whose
+    transfer lies a window inside image 2 (of ``shape2``), among the ``4 count`` strongest so
+    spaced: those of ``cv2.goodFeaturesToTrack``. Spaced over the strongest ``4 count``
+    candidates, then twice as many while too few corners pass (the spacing of the strongest
+    candidates does not depend on the weaker ones)."""
     half = window // 2
-    found = cv2.goodFeaturesToTrack(gray1, 4 * count, 0.003, max(half // 2, 3))
-    if found is None:
-        return np.zeros((0, 2))
-    corners = np.round(found.reshape(-1, 2).astype(np.float64))
-    h, w = gray1.shape
-    corners = corners[_within(corners, w, h, half)]
-    if len(corners):
-        corners = corners[_within(transfer(corners), shape2[1], shape2[0], window)]
-    return corners[:count]
+    distance, most = max(half // 2, 3), 4 * count
+    h, w = shape1[:2]
+    taken = most
+    while True:
+        head = candidates[:taken]
+        spaced = head[_spaced(head, distance)][:most].astype(np.float64)
+        corners = spaced[_within(spaced, w, h, half)]
+        if len(corners):
+            corners = corners[_within(transfer(corners), shape2[1], shape2[0], window)]
+        if len(corners) >= count or len(spaced) >= most or taken >= len(candidates):
+            return corners[:count]
+        taken *= 2
 
 
 def _within(xy: np.ndarray, width: int, height: int, margin: float) -> np.ndarray:
@@ -1019,7 +1090,7 @@ def refine_rotation_photometric(
         Window side, pixels, or the sides to try (default :data:`WINDOWS`): the refit of least
         ``rotation_sigma_deg`` is returned.
     max_corners : int, optional
-        Windows aligned at most (default :data:`MAX_CORNERS`).
+        Windows aligned at most, a whole number >= 1 (default :data:`MAX_CORNERS`).
     keep_clipped : bool
         ``k1`` held by its prior alone, a clipped focal scale returned (rotation-only refits).
     on_clipped : callable, optional
@@ -1058,10 +1129,10 @@ def refine_rotation_photometric(
     )  # fmt: skip
     priors.update(keep_clipped=bool(keep_clipped), on_clipped=as_callback(on_clipped, "on_clipped"))
     start = (R, float(focal_scale), float(k1), _as_offset(principal_offset), focal_ratio)
+    windows, count = _as_windows(window), _as_count(max_corners)
     return _best_window_refit(
-        image1, image2, cameras, start, priors, rotation_sigma_deg, _as_windows(window),
-        max_corners,
-    )  # fmt: skip
+        image1, image2, cameras, start, priors, rotation_sigma_deg, windows, count
+    )
 
 
 def _checked_inputs(
@@ -1104,11 +1175,11 @@ def refit_reach_deg(rotation_sigma_deg: float) -> float:
 
 
 def _best_window_refit(
-    image1, image2, cameras, start, priors: dict, rotation_sigma_deg: float, windows, max_corners
+    image1, image2, cameras, start, priors: dict, rotation_sigma_deg: float, windows, count: int
 ) -> PhotometricRotation | None:
     """The refit of least ``rotation_sigma_deg`` among the window sides that give one within
-    ``4 rotation_sigma_deg + 0.1`` degrees of the start, with the parallax of its tracks; None
-    when none does."""
+    ``4 rotation_sigma_deg + 0.1`` degrees of the start, each side on at most ``count`` windows,
+    with the parallax of its tracks; None when none does."""
     K1, K2, dist1, dist2 = cameras
     R = start[0]
     focal = float(np.mean([K2[0, 0], K2[1, 1]]))
@@ -1119,13 +1190,13 @@ def _best_window_refit(
             transfer_points(pixels_to_normalized(pixels, K1, dist1), *model), K2, dist2
         )
 
-    count = MAX_CORNERS if max_corners is None else int(max_corners)
     shift = max(3.0 * np.radians(min(rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG)) * focal, 1.0)
     levels = {
         side: int(np.clip(np.ceil(np.log2(shift / (side / 8.0))), 0, _MAX_LEVELS))
         for side in windows
     }
     images = _prepare(gray1, gray2)
+    candidates = _corner_candidates(gray1)
     seen = _seen_through(images, transfer_with(start))
     normalize2 = lambda pixels: pixels_to_normalized(pixels, K2, dist2)  # noqa: E731
     plausible = lambda refined: (  # noqa: E731
@@ -1134,7 +1205,8 @@ def _best_window_refit(
     )
 
     def searched(side: int) -> PhotometricRotation | None:
-        corners = _corners(gray1, count, side, transfer_with(start), gray2.shape)
+        corners = _corners(candidates, count, side, transfer_with(start), gray1.shape,
+                           gray2.shape)  # fmt: skip
         if len(corners) < MIN_TRACKS:
             return None
         y1 = pixels_to_normalized(corners, K1, dist1)

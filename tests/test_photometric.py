@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from imperfect import imperfect_render, warped_rotation_pair
 
-from ppo_cv import PairOptions, estimate_pair
+from ppo_cv import PairOptions, estimate_pair, photometric
 from ppo_cv.export import result_to_dict
 from ppo_cv.metrics import rotation_error_deg
 from ppo_cv.photometric import MIN_NCC, align_windows, refine_rotation_photometric
@@ -284,6 +284,71 @@ def test_bad_arguments_are_named():
         refine_rotation_photometric(image, image, K, K, np.eye(3), rotation_sigma_deg=0.0)
     with pytest.raises(ValueError, match="K2"):
         refine_rotation_photometric(image, image, K, np.eye(2), np.eye(3))
+    for count in (0, -1, 2.5, 2**40):  # 0 and 2.5 gave None, -1 and 2**40 an OpenCV error
+        with pytest.raises(ValueError, match="max_corners"):
+            refine_rotation_photometric(image, image, K, K, np.eye(3), max_corners=count)
+    for count in ("600", True):
+        with pytest.raises(TypeError, match="max_corners"):
+            refine_rotation_photometric(image, image, K, K, np.eye(3), max_corners=count)
+
+
+def _good_features_corners(gray, count, window, transfer):
+    """The corners of a window side as ``cv2.goodFeaturesToTrack`` selects them."""
+    found = cv2.goodFeaturesToTrack(gray, 4 * count, 0.003, max(window // 4, 3))
+    corners = np.zeros((0, 2)) if found is None else found.reshape(-1, 2).astype(np.float64)
+    h, w = gray.shape
+    half = window // 2
+    inside = (corners >= half).all(axis=1) & (corners <= [w - 1 - half, h - 1 - half]).all(axis=1)
+    corners = corners[inside]
+    moved = transfer(corners)
+    inside = (moved >= window).all(axis=1) & (moved <= [w - 1 - window, h - 1 - window]).all(axis=1)
+    return corners[inside][:count]
+
+
+def test_corners_of_every_window_side_are_those_of_good_features_to_track():
+    """The window sides share one corner response of image 1 and space its candidates each
+    by their own distance: the same corners in the same order as ``cv2.goodFeaturesToTrack``
+    (equal responses included: a checkerboard of single pixels is made of ties)."""
+    rng = np.random.default_rng(3)
+    texture = cv2.GaussianBlur(rng.uniform(0, 255, (240, 320)), (0, 0), 2).astype(np.uint8)
+    pixels = (np.indices((90, 120)).sum(axis=0) % 2 * 255).astype(np.uint8)
+    squares = ((np.indices((240, 320)) // 8).sum(axis=0) % 2 * 255).astype(np.uint8)
+    flat = np.full((60, 80), 90, np.uint8)
+    photo = cv2.cvtColor(_demo_photo(), cv2.COLOR_BGR2GRAY)
+    for gray in (photo, texture, pixels, squares, flat):
+        candidates = photometric._corner_candidates(gray)
+        for shift in ((0.0, 0.0), (0.7 * gray.shape[1], 3.0)):
+            transfer = lambda points, shift=shift: points + np.array(shift)  # noqa: E731
+            for window, count in ((5, 600), (21, 600), (31, 600), (31, 40), (41, 1)):
+                expected = _good_features_corners(gray, count, window, transfer)
+                found = photometric._corners(
+                    candidates, count, window, transfer, gray.shape, gray.shape
+                )
+                np.testing.assert_array_equal(found, expected)
+    assert len(photometric._corners(photometric._corner_candidates(flat), 9, 21, transfer,
+                                    flat.shape, flat.shape)) == 0  # fmt: skip
+
+
+def test_the_window_sides_share_one_corner_response(monkeypatch):
+    calls = {"cornerMinEigenVal": 0, "goodFeaturesToTrack": 0}
+    for name in calls:
+        function = getattr(cv2, name)
+
+        def counted(*args, name=name, function=function, **kwargs):
+            calls[name] += 1
+            return function(*args, **kwargs)
+
+        monkeypatch.setattr(cv2, name, counted)
+    image1 = cv2.GaussianBlur(
+        np.random.default_rng(0).uniform(0, 255, (240, 320)), (0, 0), 2
+    ).astype(np.uint8)
+    K = np.array([[400.0, 0, 159.5], [0, 400.0, 119.5], [0, 0, 1]])
+    c, s = np.cos(np.radians(2.0)), np.sin(np.radians(2.0))
+    R = np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+    image2 = cv2.warpPerspective(image1, K @ R @ np.linalg.inv(K), (320, 240))
+    refined = refine_rotation_photometric(image1, image2, K, K, np.eye(3), window=(21, 31))
+    assert refined is not None and rotation_error_deg(refined.fit.R, R) < 0.02
+    assert calls == {"cornerMinEigenVal": 1, "goodFeaturesToTrack": 0}
 
 
 @pytest.mark.parametrize("index", [0, pytest.param(1, marks=pytest.mark.slow)])
