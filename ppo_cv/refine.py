@@ -27,6 +27,7 @@ from .lsq import (
     levenberg_marquardt_batched,
     pose_increment,
     rotation_increments,
+    row_chunks,
     tangent_basis,
 )
 from .model_selection import robust_sigma
@@ -339,15 +340,22 @@ def _radial_residuals(R0, t0, basis, scale, k1_prior, k1_start):
     """The residuals (K, N + 1) of :func:`_radial_fit`'s cost at the parameter rows ``P`` (K,
     6) about ``(R0, t0)`` (``basis`` the tangent basis of ``t0``), on the ``points`` of the
     two views (:class:`_RadialPoints`, of their sets ``rows`` when given), the prior row
-    weighted by ``weight`` (a float or (K,))."""
+    weighted by ``weight`` (a float or (K,)); the rows evaluated by chunks
+    (:func:`ppo_cv.lsq.row_chunks`), each row's figures those of the row alone."""
 
-    def residuals(P, points, weight, rows=None):
+    def chunk(P, points, weight, rows):
         Rp = rotation_increments(P[:, :3]) @ R0
         tp = t0 + P[:, 3:5] @ basis
         tp = tp / np.linalg.norm(tp, axis=1, keepdims=True)
         k1 = k1_start + P[:, 5]
         r = _sampson_by_coordinate(Rp, tp, *(view.undistorted(k1, rows) for view in points))
         return np.column_stack([huber_weights(np.abs(r), scale) * r, weight * k1 / k1_prior])
+
+    def residuals(P, points, weight, rows=None):
+        weight = np.broadcast_to(weight, (len(P),))
+        parts = [chunk(P[s], points, weight[s], None if rows is None else rows[s])
+                 for s in row_chunks(len(P), points[0].r2.shape[-1])]  # fmt: skip
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
     return residuals
 
@@ -998,7 +1006,8 @@ def _calibrated_residuals(R: np.ndarray, t: np.ndarray):
 
     A row is (rotation increment ``w`` (3), tangent step ``v`` (2), focal scale ``s - 1``,
     ``k1``, principal-point offset ``p`` (2)); row ``p`` is evaluated on the points of row
-    ``p`` (or on shared points).
+    ``p`` (or on shared points). The rows are evaluated by chunks
+    (:func:`ppo_cv.lsq.row_chunks`), each row's figures those of the row alone.
     """
     U = tangent_basis(t)
 
@@ -1013,11 +1022,16 @@ def _calibrated_residuals(R: np.ndarray, t: np.ndarray):
         out[:, 2] = 1.0
         return out
 
-    def residuals(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    def chunk(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         tp = t + p[:, 3:4] * U[0] + p[:, 4:5] * U[1]
         tp /= np.linalg.norm(tp, axis=1, keepdims=True)
         Rp = rotation_increments(p[:, :3]) @ R
         return _sampson_by_coordinate(Rp, tp, lens(a, p), lens(b, p))
+
+    def residuals(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        parts = [chunk(p[s], a if len(a) == 1 else a[s], b if len(b) == 1 else b[s])
+                 for s in row_chunks(len(p), a.shape[1])]  # fmt: skip
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
     return residuals
 
