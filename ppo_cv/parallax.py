@@ -169,15 +169,18 @@ def _unit_determinant(H: np.ndarray) -> np.ndarray:
 
 
 def _transfer(H: np.ndarray, xy1: np.ndarray, xy2: np.ndarray) -> np.ndarray:
-    """Transfer error vectors (N, 2) of ``xy1`` through ``H`` against ``xy2``."""
-    h = xy1 @ H[:, :2].T + H[:, 2]
-    z = np.where(np.abs(h[:, 2:]) > 1e-12, h[:, 2:], 1e-12)
-    return h[:, :2] / z - xy2
+    """Transfer error vectors (..., N, 2) of ``xy1`` through ``H`` (3, 3) or each of a stack
+    (K, 3, 3) against ``xy2``."""
+    h = xy1 @ np.swapaxes(H[..., :2], -1, -2) + H[..., None, :, 2]
+    z = np.where(np.abs(h[..., 2:]) > 1e-12, h[..., 2:], 1e-12)
+    return h[..., :2] / z - xy2
 
 
 def _perturbed(H0: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """``H0 (I + P)`` with the 8 entries of ``P`` other than the last given by ``p``."""
-    return H0 @ (np.eye(3) + np.append(p, 0.0).reshape(3, 3))
+    """``H0 (I + P)`` with the 8 entries of ``P`` other than the last given by ``p`` (8,), or
+    each of a stack for ``p`` (K, 8)."""
+    P = np.concatenate([p, np.zeros(p.shape[:-1] + (1,))], axis=-1)
+    return H0 @ (np.eye(3) + P.reshape(p.shape[:-1] + (3, 3)))
 
 
 def fit_plane_parallax(x1: np.ndarray, x2: np.ndarray, noise: float | None = None) -> PlaneParallax:
@@ -228,10 +231,13 @@ def fit_plane_parallax(x1: np.ndarray, x2: np.ndarray, noise: float | None = Non
         noise = as_positive(noise, "noise")
     H0 = _unit_determinant(_direct_linear(xy1, xy2))
 
+    def many(P: np.ndarray) -> np.ndarray:
+        return _transfer(_perturbed(H0, P), xy1, xy2).reshape(len(P), -1)
+
     def residuals(p: np.ndarray) -> np.ndarray:
         return _transfer(_perturbed(H0, p), xy1, xy2).ravel()
 
-    p, J = levenberg_marquardt(residuals, np.zeros(8), _ITERATIONS)
+    p, J = levenberg_marquardt(residuals, np.zeros(8), _ITERATIONS, many=many)
     H = _unit_determinant(_perturbed(H0, p))
     parallax = homography_parallax(H)
     errors = np.linalg.norm(_transfer(H, xy1, xy2), axis=1)

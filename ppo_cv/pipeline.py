@@ -70,6 +70,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -112,6 +113,7 @@ from .options import (
     PRINCIPAL_POINT_MODES,
     PairOptions,
 )
+from .parallax import PlaneParallax
 from .photometric import (
     MAX_SEARCH_SIGMA_DEG,
     PhotometricRotation,
@@ -155,6 +157,7 @@ from .rotation import (
 from .rotation_choice import (
     RotationEstimate,
     choose_rotation,
+    feature_parallax,
     focal_trade_deg,
     released_lens_shift_deg,
     rotation_only_estimate,
@@ -286,6 +289,13 @@ class _Finishing:
     @property
     def focal(self) -> float:
         return self.inputs.focal
+
+    @cached_property
+    def feature_parallax(self) -> PlaneParallax | None:
+        """The plane parallax of the decision's rotation-only fit on the feature matches
+        (:func:`~ppo_cv.rotation_choice.feature_parallax`), measured once for the rotation
+        choice and the lens terms."""
+        return feature_parallax(self.motion, self.found.x1, self.found.x2)
 
 
 @dataclass(frozen=True)
@@ -689,7 +699,8 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     moving = _moving_estimate(state, part)
     to_beat = moving.expected_error_deg
     tracks = state.tracks
-    rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used, to_beat)
+    parallax = state.feature_parallax if tracks is None else None
+    rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used, to_beat, parallax)
     if (
         tracks is None
         and state.options.photometric
@@ -701,7 +712,8 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
             state.inputs, motion, state.priors, keep_clipped=True,
             sigma_deg=rotation_only.fit_sigma_deg, max_image_size=state.options.max_image_size,
         )  # fmt: skip
-        rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used, to_beat)
+        parallax = state.feature_parallax if tracks is None else None
+        rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used, to_beat, parallax)
     chosen = choose_rotation([moving, rotation_only])
     if chosen is rotation_only and tracks is None:
         return through_given_focal(chosen, motion, x1, x2)
@@ -740,9 +752,12 @@ def _moving_estimate(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     return RotationEstimate("essential", part.R, shift, sigma, shift_sigma)
 
 
-def _lens_terms(
-    motion: MotionDecision, found: Consensus, focal: float, radial_k1: float
-) -> LensTerms:
+def _lens_terms(state: _Finishing, radial_k1: float) -> LensTerms:
+    """The result's lens terms: the decision's rotation-only fit's, the radial coefficient of
+    the finished pose and the focal scale the matches want (from the feature matches' parallax
+    the rotation choice measured, where the fit's lens was clipped)."""
+    motion, found, focal = state.motion, state.found, state.inputs.focal
+    parallax = state.feature_parallax if motion.lens_clipped else None
     return LensTerms(
         focal_scale=motion.focal_scale,
         focal_ratio=motion.focal_ratio,
@@ -750,7 +765,7 @@ def _lens_terms(
         principal_bound=motion.principal_bound,
         lens_excess=motion.lens_excess if motion.lens_excess > -np.inf else float("nan"),
         radial_k1=radial_k1,
-        wanted_focal_scale=wanted_focal_scale(motion, found.x1, found.x2),
+        wanted_focal_scale=wanted_focal_scale(motion, found.x1, found.x2, parallax),
     )
 
 
@@ -816,7 +831,7 @@ def _assemble(
         uncertainty=PoseUncertainty(
             part.t_sigma_deg, rotation.rms_error_deg, tracks, rotation.bias_deg
         ),
-        lens=_lens_terms(motion, found, inputs.focal, part.radial_k1),
+        lens=_lens_terms(state, part.radial_k1),
         evidence=_evidence(motion, found, state.options),
         plane=part.plane,
         timings=timings,

@@ -27,12 +27,13 @@ from .lsq import (
     levenberg_marquardt_batched,
     pose_increment,
     rotation_increments,
+    row_chunks,
     tangent_basis,
 )
 from .model_selection import robust_sigma
 from .plane import K1_SIGNIFICANCE, rms_rotation_angle_deg, undistort_division
 from .ppo import rotation_from_rays
-from .robust import sampson_signed, virtual_camera
+from .robust import sampson_signed, sampson_signed_rows, virtual_camera
 from .rotation import FOCAL_PRIOR, K1_PRIOR
 
 __all__ = [
@@ -339,15 +340,22 @@ def _radial_residuals(R0, t0, basis, scale, k1_prior, k1_start):
     """The residuals (K, N + 1) of :func:`_radial_fit`'s cost at the parameter rows ``P`` (K,
     6) about ``(R0, t0)`` (``basis`` the tangent basis of ``t0``), on the ``points`` of the
     two views (:class:`_RadialPoints`, of their sets ``rows`` when given), the prior row
-    weighted by ``weight`` (a float or (K,))."""
+    weighted by ``weight`` (a float or (K,)); the rows evaluated by chunks
+    (:func:`ppo_cv.lsq.row_chunks`), each row's figures those of the row alone."""
 
-    def residuals(P, points, weight, rows=None):
+    def chunk(P, points, weight, rows):
         Rp = rotation_increments(P[:, :3]) @ R0
         tp = t0 + P[:, 3:5] @ basis
         tp = tp / np.linalg.norm(tp, axis=1, keepdims=True)
         k1 = k1_start + P[:, 5]
-        r = _sampson_signed(Rp, tp, *(view.undistorted(k1, rows) for view in points))
+        r = _sampson_by_coordinate(Rp, tp, *(view.undistorted(k1, rows) for view in points))
         return np.column_stack([huber_weights(np.abs(r), scale) * r, weight * k1 / k1_prior])
+
+    def residuals(P, points, weight, rows=None):
+        weight = np.broadcast_to(weight, (len(P),))
+        parts = [chunk(P[s], points, weight[s], None if rows is None else rows[s])
+                 for s in row_chunks(len(P), points[0].r2.shape[-1])]  # fmt: skip
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
     return residuals
 
@@ -360,19 +368,35 @@ def _stacked_sets(sets) -> tuple[np.ndarray, np.ndarray]:
 
 class _RadialPoints:
     """Normalised points (N, 2 or 3), or S sets of them (S, N, 2 or 3), as
-    :func:`ppo_cv.plane.undistort_division` reads them, their squared radii taken once for
-    the several coefficients of a fit."""
+    :func:`ppo_cv.plane.undistort_division` reads them, their coordinates held as contiguous
+    arrays (N,) or (S, N) and their squared radii taken once for the several coefficients of
+    a fit."""
 
     def __init__(self, x: np.ndarray) -> None:
-        self.xy = np.asarray(x, dtype=np.float64)[..., :2]
-        self.r2 = np.sum(self.xy**2, axis=-1)
+        xy = np.asarray(x, dtype=np.float64)[..., :2]
+        self.r2 = np.sum(xy**2, axis=-1)
+        self.x, self.y = np.ascontiguousarray(xy[..., 0]), np.ascontiguousarray(xy[..., 1])
 
     def undistorted(self, k1: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         """:func:`~ppo_cv.plane.undistort_division` by each coefficient of ``k1`` (K,), of the
-        one set or of the sets ``rows`` (K,), shape (K, N, 3): the same figures."""
-        xy, r2 = (self.xy[None], self.r2[None]) if rows is None else (self.xy[rows], self.r2[rows])
-        xy = xy / (1.0 + k1[:, None] * r2)[..., None]
-        return np.concatenate([xy, np.ones(xy.shape[:2] + (1,))], axis=2)
+        one set or of the sets ``rows`` (K,), laid out by coordinate, shape (K, 3, N): the
+        same figures, each coordinate a contiguous row (a broadcast over pairs of coordinates
+        is several times slower)."""
+        x, y, r2 = (self.x, self.y, self.r2) if rows is None else (
+            self.x[rows], self.y[rows], self.r2[rows])  # fmt: skip
+        scale = 1.0 + k1[:, None] * r2
+        out = np.empty((len(scale), 3, scale.shape[1]))
+        np.divide(x, scale, out=out[:, 0])
+        np.divide(y, scale, out=out[:, 1])
+        out[:, 2] = 1.0
+        return out
+
+
+def _sampson_by_coordinate(R: np.ndarray, t: np.ndarray, X1: np.ndarray, X2: np.ndarray):
+    """:func:`_sampson_signed` (K, N) of ``E = [t]_x R``, ``R`` (K, 3, 3) and ``t`` (K, 3), on
+    points laid out by coordinate (K or 1, 3, N) (:func:`ppo_cv.robust.sampson_signed_rows`):
+    the same figures."""
+    return sampson_signed_rows(cross_matrices(t) @ R, X1, X2)
 
 
 K1_BIAS_REPLICATES = 16
@@ -982,21 +1006,32 @@ def _calibrated_residuals(R: np.ndarray, t: np.ndarray):
 
     A row is (rotation increment ``w`` (3), tangent step ``v`` (2), focal scale ``s - 1``,
     ``k1``, principal-point offset ``p`` (2)); row ``p`` is evaluated on the points of row
-    ``p`` (or on shared points).
+    ``p`` (or on shared points). The rows are evaluated by chunks
+    (:func:`ppo_cv.lsq.row_chunks`), each row's figures those of the row alone.
     """
     U = tangent_basis(t)
 
     def lens(x: np.ndarray, p: np.ndarray) -> np.ndarray:
-        x = x[..., :2] - p[:, None, 7:9]
-        r2 = x[..., 0] ** 2 + x[..., 1] ** 2
+        x0, x1 = x[..., 0] - p[:, 7:8], x[..., 1] - p[:, 8:9]
+        r2 = x0**2 + x1**2
         s = 1.0 + p[:, 5:6]
         factor = s * (1.0 - p[:, 6:7] * s * s * r2)
-        return np.stack([x[..., 0] * factor, x[..., 1] * factor, np.ones_like(factor)], axis=-1)
+        out = np.empty((len(factor), 3, factor.shape[1]))
+        np.multiply(x0, factor, out=out[:, 0])
+        np.multiply(x1, factor, out=out[:, 1])
+        out[:, 2] = 1.0
+        return out
 
-    def residuals(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    def chunk(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         tp = t + p[:, 3:4] * U[0] + p[:, 4:5] * U[1]
         tp /= np.linalg.norm(tp, axis=1, keepdims=True)
-        return _sampson_signed(rotation_increments(p[:, :3]) @ R, tp, lens(a, p), lens(b, p))
+        Rp = rotation_increments(p[:, :3]) @ R
+        return _sampson_by_coordinate(Rp, tp, lens(a, p), lens(b, p))
+
+    def residuals(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        parts = [chunk(p[s], a if len(a) == 1 else a[s], b if len(b) == 1 else b[s])
+                 for s in row_chunks(len(p), a.shape[1])]  # fmt: skip
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
     return residuals
 

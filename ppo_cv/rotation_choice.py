@@ -178,6 +178,7 @@ __all__ = [
     "focal_free_parallax",
     "freed_parallax_refused",
     "given_focal_fit",
+    "feature_parallax",
     "matches_parallax",
     "released_lens_shift_deg",
     "rotation_only_estimate",
@@ -571,6 +572,7 @@ def rotation_only_estimate(
     x2: np.ndarray,
     used: np.ndarray,
     to_beat: float = float("inf"),
+    parallax: PlaneParallax | None = None,
 ) -> RotationEstimate:
     """The rotation-only fit of a pair as a :class:`RotationEstimate`.
 
@@ -595,6 +597,9 @@ def rotation_only_estimate(
     to_beat : float, optional
         Expected error (degrees) of the moving model's estimate: the focal-length reading
         below, which can only lower the bias, is taken only where the deviation is below it.
+    parallax : PlaneParallax, optional
+        The feature matches' parallax (:func:`feature_parallax` of ``motion``) when already
+        measured, read when no tracks were aligned; measured here when None.
 
     Returns
     -------
@@ -610,8 +615,9 @@ def rotation_only_estimate(
         refuses that reading (:func:`freed_parallax_refused`).
     """
     lens = rotation_only_fit(motion, tracks)
-    parallax = None if tracks is None else tracks.parallax
-    if parallax is None:
+    if tracks is not None and tracks.parallax is not None:
+        parallax = tracks.parallax
+    elif tracks is not None or parallax is None:
         parallax = matches_parallax(lens, x1, x2, motion.rotation_inliers)
     sigma = float(lens.rotation_sigma_deg)
     if not np.isfinite(sigma):
@@ -759,7 +765,9 @@ def _transfer_noise(lens: LensRotationFit, x1, x2, used) -> float:
     return robust_sigma(transfers, 2)
 
 
-def wanted_focal_scale(motion: MotionDecision, x1: np.ndarray, x2: np.ndarray) -> float:
+def wanted_focal_scale(
+    motion: MotionDecision, x1: np.ndarray, x2: np.ndarray, parallax: PlaneParallax | None = None
+) -> float:
     """Focal scale (given over true) with which the matches of a pair are nearest a rotation,
     when its rotation-only fit's lens was clipped to its box
     (:attr:`ppo_cv.motion_model.MotionDecision.lens_clipped`); NaN otherwise, and when no focal
@@ -770,15 +778,27 @@ def wanted_focal_scale(motion: MotionDecision, x1: np.ndarray, x2: np.ndarray) -
     conjugated by the focal scale that makes it nearest a rotation
     (:func:`focal_free_parallax`), that scale composed with the fit's. A translation before a
     plane makes the same homography (see the module docstring): the scale says which focal
-    length would make the pair a rotation, not that it is one.
+    length would make the pair a rotation, not that it is one. ``parallax``, that homography's
+    :func:`feature_parallax` when already measured, is measured here when None.
     """
     if not motion.lens_clipped:
         return float("nan")
     lens = rotation_only_fit(motion, None)
-    parallax = matches_parallax(lens, x1, x2, motion.rotation_inliers)
+    if parallax is None:
+        parallax = feature_parallax(motion, x1, x2)
     if parallax is None or not np.all(np.isfinite(parallax.H)):
         return float("nan")
     return float(lens.focal_scale * focal_free_parallax(parallax)[1])
+
+
+def feature_parallax(
+    motion: MotionDecision, x1: np.ndarray, x2: np.ndarray
+) -> PlaneParallax | None:
+    """:func:`matches_parallax` of the decision's own rotation-only fit (no tracks) on its
+    rotation inliers among the matches ``x1``, ``x2`` (normalised points of all matches, lens
+    not corrected): what :func:`rotation_only_estimate` reads without tracks and
+    :func:`wanted_focal_scale` conjugates, measured once for both."""
+    return matches_parallax(rotation_only_fit(motion, None), x1, x2, motion.rotation_inliers)
 
 
 def matches_parallax(

@@ -32,7 +32,7 @@ from .lsq import (
 )
 from .metrics import rotation_error_deg
 from .plane import K1_SIGNIFICANCE
-from .robust import sampson_signed
+from .robust import sampson_signed_rows
 
 __all__ = [
     "VALLEY_STEPS_DEG",
@@ -92,10 +92,12 @@ class ValleyOutcome:
 
 
 def _cost(x1: np.ndarray, x2: np.ndarray, scale: float):
-    """Huber-weighted Sampson residuals of the essential matrix ``E`` (3, 3)."""
+    """Huber-weighted Sampson residuals of the essential matrix ``E`` (3, 3), or of each of
+    a stack (K, 3, 3), the points taken by coordinate (:func:`sampson_signed_rows`)."""
+    X1, X2 = np.ascontiguousarray(x1.T), np.ascontiguousarray(x2.T)
 
     def residuals(E: np.ndarray) -> np.ndarray:
-        r = sampson_signed(E, x1, x2)
+        r = sampson_signed_rows(E, X1, X2)
         return huber_weights(np.abs(r), scale) * r
 
     return residuals

@@ -149,3 +149,15 @@ def test_rotation_increments_are_rodrigues_row_by_row():
     assert stacked.shape == (22, 3, 3)
     for row, R in zip(w, stacked, strict=True):
         np.testing.assert_allclose(R, cv2.Rodrigues(row)[0], atol=1e-12)
+
+
+def test_row_chunks_cover_every_row_once_in_chunks_of_about_the_budget():
+    from ppo_cv.lsq import CHUNK_VALUES, row_chunks
+
+    for count, width in [(96, 581), (144, 256), (7, 30), (5, 10 * CHUNK_VALUES), (0, 50)]:
+        chunks = row_chunks(count, width)
+        rows = np.concatenate([np.arange(count)[s] for s in chunks] or [np.empty(0, int)])
+        assert np.array_equal(rows, np.arange(count))
+        assert all(s.stop - s.start >= 1 for s in chunks)
+        assert all((s.stop - s.start) * width <= max(CHUNK_VALUES, width) for s in chunks)
+    assert len(row_chunks(96, 581)) > 1 and len(row_chunks(7, 581)) == 1

@@ -71,3 +71,28 @@ def test_the_deviation_grows_in_a_narrow_strip_and_with_few_points():
 def test_bad_input_is_named(x1, x2, noise, message):
     with pytest.raises(ValueError, match=message):
         fit_plane_parallax(x1, x2, noise)
+
+
+def test_each_jacobian_of_the_fit_is_one_stacked_call_with_the_same_figures(monkeypatch):
+    import ppo_cv.parallax as parallax
+
+    rng = np.random.default_rng(2)
+    x1 = rng.uniform(-0.3, 0.3, (120, 2))
+    H = np.array([[1.01, 0.002, 0.03], [-0.003, 0.99, -0.01], [0.02, 0.01, 1.0]])
+    h = np.column_stack([x1, np.ones(120)]) @ H.T
+    x2 = h[:, :2] / h[:, 2:] + rng.normal(0.0, 1e-3, (120, 2))
+    fit = fit_plane_parallax(x1, x2)
+    shapes = []
+    transfer = parallax._transfer
+    monkeypatch.setattr(
+        parallax, "_transfer", lambda H, a, b: shapes.append(np.shape(H)) or transfer(H, a, b)
+    )
+    assert fit_plane_parallax(x1, x2).parallax == fit.parallax
+    assert (8, 3, 3) in shapes and shapes.count((3, 3)) < 2 * shapes.count((8, 3, 3)) + 3
+    one_at_a_time = parallax.levenberg_marquardt
+    monkeypatch.setattr(
+        parallax, "levenberg_marquardt", lambda f, p, steps, many=None: one_at_a_time(f, p, steps)
+    )
+    alone = fit_plane_parallax(x1, x2)
+    assert np.array_equal(alone.H, fit.H)
+    assert (alone.parallax, alone.sigma) == (fit.parallax, fit.sigma)

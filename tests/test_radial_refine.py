@@ -133,3 +133,59 @@ def test_noise_replicates_lie_on_the_model_up_to_the_noise_they_were_given(size,
         assert rms == pytest.approx(size, rel=0.15, abs=1e-8)
     first = next(noise_replicates(E, x1, x2, sizes, 1, k1))[0]
     np.testing.assert_array_equal(replicates[0][0], first)
+
+
+def _stacked_matches(rng, sets, n):
+    xy = rng.uniform(-0.6, 0.6, (sets, n, 2))
+    return np.concatenate([xy, np.ones((sets, n, 1))], axis=2)
+
+
+def test_the_radial_fit_undistorts_coordinate_by_coordinate_with_the_same_figures():
+    from ppo_cv.refine import _RadialPoints
+
+    rng = np.random.default_rng(3)
+    sets = _stacked_matches(rng, 4, 57)
+    k1 = np.array([0.0, 0.07, -0.2, 1e-7, 0.3, -0.05])
+    rows = np.array([0, 3, 3, 1, 2, 0])
+    laid_out = _RadialPoints(sets).undistorted(k1, rows)
+    assert laid_out.shape == (6, 3, 57) and laid_out.flags["C_CONTIGUOUS"]
+    for i, (k, row) in enumerate(zip(k1, rows, strict=True)):
+        assert np.array_equal(laid_out[i], undistort_division(sets[row], k).T)
+    one = _RadialPoints(sets[2]).undistorted(k1)
+    assert all(np.array_equal(one[i], undistort_division(sets[2], k).T) for i, k in enumerate(k1))
+
+
+def test_sampson_residuals_by_coordinate_are_those_of_the_matches_as_rows():
+    from ppo_cv.lsq import cross_matrices, rotation_increments
+    from ppo_cv.robust import sampson_signed, sampson_signed_rows
+
+    rng = np.random.default_rng(4)
+    x1, x2 = _stacked_matches(rng, 8, 213), _stacked_matches(rng, 8, 213)
+    x2[..., 2] = rng.uniform(0.5, 2.0, (8, 213))
+    t = rng.normal(size=(8, 3))
+    E = cross_matrices(t) @ rotation_increments(rng.normal(0.0, 0.2, (8, 3)))
+    rows = [np.ascontiguousarray(np.swapaxes(x, 1, 2)) for x in (x1, x2)]
+    assert np.array_equal(sampson_signed_rows(E, *rows), sampson_signed(E, x1, x2))
+    assert np.array_equal(sampson_signed_rows(E[3], *(r[3] for r in rows)),
+                          sampson_signed(E[3], x1[3], x2[3]))  # fmt: skip
+    assert np.array_equal(sampson_signed_rows(E, rows[0][:1], rows[1][:1]),
+                          sampson_signed(E, x1[:1], x2[:1]))  # fmt: skip
+
+
+def test_the_radial_residuals_of_a_stack_are_those_of_each_row_alone():
+    from ppo_cv.lsq import row_chunks, tangent_basis
+    from ppo_cv.refine import _radial_residuals, _RadialPoints
+
+    rng = np.random.default_rng(5)
+    n, stack = 600, 96
+    assert len(row_chunks(stack, n)) > 1
+    A, B = _stacked_matches(rng, 16, n), _stacked_matches(rng, 16, n)
+    t = np.array([0.3, -0.1, 0.95]) / np.linalg.norm([0.3, -0.1, 0.95])
+    residuals = _radial_residuals(np.eye(3), t, tangent_basis(t), 1e-3, 0.1, 0.02)
+    points = [_RadialPoints(x) for x in (A, B)]
+    P, rows = rng.normal(0.0, 1e-3, (stack, 6)), np.repeat(np.arange(16), 6)
+    weights = rng.uniform(0.5, 2.0, stack)
+    stacked = residuals(P, points, weights, rows)
+    alone = [residuals(P[i : i + 1], points, weights[i : i + 1], rows[i : i + 1])[0]
+             for i in range(stack)]  # fmt: skip
+    assert stacked.shape == (stack, n + 1) and np.array_equal(stacked, np.array(alone))

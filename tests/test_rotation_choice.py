@@ -465,3 +465,26 @@ def test_tracks_are_aligned_while_the_refit_could_come_within_both_budgets(
     rotation = RotationEstimate("rotation", _turn(apart_deg), 5.0, fit_sigma_deg)
     assert rotation_error_deg(rotation.R, essential.R) == pytest.approx(apart_deg)
     assert tracks_could_win(essential, rotation) is could_win
+
+
+def test_a_clipped_lens_measures_the_feature_matches_parallax_once(monkeypatch):
+    from result_layout import demo_inputs
+
+    import ppo_cv.pipeline as pipeline
+    import ppo_cv.rotation_choice as rotation_choice
+    from ppo_cv import PairOptions, estimate_pair
+
+    measured, clipped = [], []
+    measure, wanted = rotation_choice.matches_parallax, pipeline.wanted_focal_scale
+    monkeypatch.setattr(
+        rotation_choice, "matches_parallax", lambda *a: measured.append(1) or measure(*a)
+    )
+    monkeypatch.setattr(
+        pipeline,
+        "wanted_focal_scale",
+        lambda motion, *a: clipped.append(motion.lens_clipped) or wanted(motion, *a),
+    )
+    image1, image2, K = demo_inputs()
+    result = estimate_pair(image1, image2, K, options=PairOptions(photometric=False))
+    assert result.model == "general" and result.rotation_source == "essential"
+    assert clipped == [True] and len(measured) == 1
