@@ -235,11 +235,12 @@ class PhotometricRotation:
 @dataclass(frozen=True)
 class _Plane:
     """A grey image as the polish reads it, per pixel cell (the square between four pixels,
-    named by its top-left one): ``cells`` (H W, 5) float32, the coefficients of the cell's
-    exact bilinear interpolation ``base + fx slope_x + fy (slope_y + fx twist)`` of the
+    named by its top-left one): ``cells`` (5, H W) float32, a plane per coefficient of the
+    cell's exact bilinear interpolation ``base + fx slope_x + fy (slope_y + fx twist)`` of the
     intensity, then 1 where none of its corners lies within :data:`_CLIP_MARGIN` pixels of a
-    pixel clipped at white (:data:`SATURATED`), else 0 (no rows when only whole pixels are
-    read, from ``intensity``); ``clipped`` (H W) non-zero at the pixels within the margin;
+    pixel clipped at white (:data:`SATURATED`), else 0 (no columns when only whole pixels are
+    read, from ``intensity``; a gather reads the planes it needs, each into a contiguous
+    array); ``clipped`` (H W) non-zero at the pixels within the margin;
     ``gradients`` optionally the Scharr derivatives (H, W) along x and y, which the polish
     samples with ``cv2.remap``: they only weigh its steps, where a sampling position off by
     1/64 pixel does not matter."""
@@ -268,22 +269,22 @@ def _plane(gray: np.ndarray, gradients: bool, cells: bool = True) -> _Plane:
         else ()
     )
     if not cells:
-        return _Plane(np.zeros((0, 5), np.float32), w, h, clipped.ravel(), image.ravel())
+        return _Plane(np.zeros((5, 0), np.float32), w, h, clipped.ravel(), image.ravel())
     near = np.pad(clipped, ((0, 1), (0, 1)), mode="edge")
     table = _bilinear_coefficients(image)
-    table[:, :, _CLEAR] = (near[:-1, :-1] | near[:-1, 1:] | near[1:, :-1] | near[1:, 1:]) == 0
-    cells_table = table.reshape(h * w, -1)  # its first column is the intensity, not kept twice
-    return _Plane(cells_table, w, h, clipped.ravel(), cells_table[:, 0], derivatives)
+    table[_CLEAR] = (near[:-1, :-1] | near[:-1, 1:] | near[1:, :-1] | near[1:, 1:]) == 0
+    cells_table = table.reshape(5, h * w)  # its first plane is the intensity, not kept twice
+    return _Plane(cells_table, w, h, clipped.ravel(), cells_table[0], derivatives)
 
 
 def _bilinear_coefficients(image: np.ndarray) -> np.ndarray:
     """``base``, ``slope_x``, ``slope_y``, ``twist`` of every pixel cell of ``image`` (H, W),
-    the last row and column repeated past the edge: a table (H, W, 5) float32 whose last
-    channel is left for the caller. Written in place: on a 12-megapixel image, four separate
-    channels and their merge peaked 0.15 GB higher."""
-    table = np.empty((*image.shape, 5), np.float32)
-    table[:, :, 0] = image
-    slope_x, slope_y, twist = (table[:, :, i] for i in (1, 2, 3))
+    the last row and column repeated past the edge: a table (5, H, W) float32 whose last
+    plane is left for the caller. Written in place: on a 12-megapixel image, four separate
+    planes and their merge peaked 0.15 GB higher."""
+    table = np.empty((5, *image.shape), np.float32)
+    table[0] = image
+    slope_x, slope_y, twist = table[1:4]
     slope_x[:, -1] = slope_y[-1] = twist[-1] = 0.0
     np.subtract(image[:, 1:], image[:, :-1], out=slope_x[:, :-1])
     np.subtract(image[1:], image[:-1], out=slope_y[:-1])
@@ -293,16 +294,15 @@ def _bilinear_coefficients(image: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class _Cells:
-    """A :class:`_Plane` about points (n, k) of n windows: rows of each point's cell
-    (``coefficients``, the plane's row number to (n, k)) and its place in it, ``fx`` and ``fy``
-    in [0, 1].
+    """A :class:`_Plane` about points (n, k) of n windows: the first planes of each point's
+    cell (``coefficients``, (planes, n, k)) and its place in it, ``fx`` and ``fy`` in [0, 1].
 
     Moving the points by a shift inside their cells is then a few products (``values``); past
     a cell's edge the polynomial extrapolates, off by the shift past it times the change of
     slope.
     """
 
-    coefficients: dict
+    coefficients: np.ndarray
     fx: np.ndarray
     fy: np.ndarray
 
@@ -311,30 +311,37 @@ class _Cells:
         """1 where the pixels a point reads are not near a clipped one, else 0."""
         return self.coefficients[_CLEAR]
 
-    def values(self, shift: np.ndarray | None = None, rows=slice(None), first: int = 0):
-        """The interpolation of the channel whose coefficients start at row ``first`` (the
-        intensity by default) at the points of the windows ``rows`` moved by ``shift``
-        (pixels, a row (2,) per window)."""
+    def values(self, shift: np.ndarray | None = None, rows=slice(None)) -> np.ndarray:
+        """The intensity (m, k) at the points of the windows ``rows`` (m of them) moved by
+        ``shift`` (pixels, a row (2,) per window)."""
         fx, fy = self.fx[rows], self.fy[rows]
-        base, slope_x, slope_y, twist = (self.coefficients[first + i][rows] for i in range(4))
+        base, slope_x, slope_y, twist = self.coefficients[:4, rows]
         if shift is not None:
             shift = shift.astype(np.float32)
-            fx, fy = fx + shift[:, :1], fy + shift[:, 1:]
-        return base + fx * slope_x + fy * (slope_y + fx * twist)
+            copies = not isinstance(rows, slice)  # then fx and fy are the caller's own
+            fx = np.add(fx, shift[:, :1], out=fx if copies else None)
+            fy = np.add(fy, shift[:, 1:], out=fy if copies else None)
+        value = np.multiply(fx, slope_x)
+        value += base
+        curve = np.multiply(fx, twist)
+        curve += slope_y
+        curve *= fy
+        value += curve
+        return value
 
 
-def _cells(plane: _Plane, x: np.ndarray, y: np.ndarray, rows: Sequence[int]) -> _Cells:
-    """:class:`_Cells` of ``plane`` with its ``rows`` at points ``(x, y)`` (n, k) float32;
-    outside the image, any of its cells (such windows are not valid).
+def _cells(plane: _Plane, x: np.ndarray, y: np.ndarray, planes: int) -> _Cells:
+    """:class:`_Cells` of ``plane`` with its first ``planes`` at points ``(x, y)`` (n, k)
+    float32; outside the image, any of its cells (such windows are not valid).
 
     Exact bilinear weights (``cv2.remap`` rounds them to 1/32 pixel, a bias that matters at the
     hundredths of a pixel sought here)."""
 
     x0, y0 = np.floor(x), np.floor(y)
-    first = y0.astype(np.intp) * plane.width + x0.astype(np.intp)
-    block = np.take(plane.cells, first.ravel(), axis=0, mode="clip")
-    columns = np.ascontiguousarray(block.T)
-    coefficients = {row: columns[row].reshape(first.shape) for row in rows}
+    first = y0.astype(np.intp)
+    first *= plane.width
+    first += x0.astype(np.intp)
+    coefficients = np.take(plane.cells[:planes], first, axis=1, mode="clip")
     return _Cells(coefficients, x - x0, y - y0)
 
 
@@ -345,7 +352,7 @@ def _template(plane: _Plane, points, offsets) -> tuple[np.ndarray, np.ndarray]:
     w, h = plane.width, plane.height
     if not np.array_equal(points, np.round(points)):
         grid = (points[:, None, :] + offsets[None, :, :]).astype(np.float32)
-        cells = _cells(plane, grid[..., 0], grid[..., 1], (0, 1, 2, 3, _CLEAR))
+        cells = _cells(plane, grid[..., 0], grid[..., 1], _CLEAR + 1)
         return cells.values(), cells.clear
     side = _side(offsets)
     o = offsets[:side, 0].astype(np.intp)
@@ -413,16 +420,16 @@ def _align_level(template, template_clear, positions, d, plane2, ramp, iteration
         there: the shifts, brightness, image 2 there, its derivatives and weights."""
         x_of, y_of = x[windows], y[windows]
 
-        def reread(cells: _Cells, rows: np.ndarray, at: np.ndarray) -> None:
+        def reread(cells: _Cells, rows: np.ndarray, at: np.ndarray) -> np.ndarray:
             at = at.astype(np.float32)
-            again = _cells(plane2, x_of[rows] + at[:, :1], y_of[rows] + at[:, 1:], range(4))
-            for row in range(4):
-                cells.coefficients[row][rows] = again.coefficients[row]
+            again = _cells(plane2, x_of[rows] + at[:, :1], y_of[rows] + at[:, 1:], 4)
+            cells.coefficients[:4, rows] = again.coefficients
             cells.fx[rows], cells.fy[rows] = again.fx, again.fy
+            return again.values()
 
         d32 = shifts.astype(np.float32)
         at_x, at_y = x_of + d32[:, :1], y_of + d32[:, 1:]
-        cells = _cells(plane2, at_x, at_y, range(_CLEAR + 1))
+        cells = _cells(plane2, at_x, at_y, _CLEAR + 1)
         gradients = tuple(
             cv2.remap(gradient, at_x, at_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
             for gradient in plane2.gradients
@@ -430,10 +437,10 @@ def _align_level(template, template_clear, positions, d, plane2, ramp, iteration
         weight = cells.clear * template_clear[windows]
         target = template[windows] * weight
         intensity = cells.values()
-        jacobian_t, brightness = _jacobian_t(
+        jacobian_t, brightness, normal = _jacobian_t(
             intensity, gradients, weight, target, ramp_columns, brightness
         )
-        steps = _GaussNewton(template[windows], _normal_inverse(jacobian_t), jacobian_t,
+        steps = _GaussNewton(template[windows], _normal_inverse(normal), jacobian_t,
                              ramp_columns, iterations)  # fmt: skip
         intensity = steps.run(cells, reread, shifts, brightness, intensity)
         return shifts, brightness, intensity, *gradients, weight
@@ -455,37 +462,39 @@ def _align_level(template, template_clear, positions, d, plane2, ramp, iteration
 
 def _jacobian_t(
     intensity, gradients, weight, target, ramp_columns, brightness=None
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(n, 6, k): the residuals' derivatives along the shift, the gain ramp and the offset,
     the shift's at the gain of ``brightness`` (n, 4), by default fitted in closed form
-    (:func:`_brightness_of`); and that brightness."""
+    (:func:`_brightness_of`); that brightness; and its normal matrices (n, 6, 6) float32."""
     n, k = intensity.shape
     jacobian_t = np.empty((n, 6, k), dtype=np.float32)
     np.multiply(intensity, weight, out=jacobian_t[:, 2])
     for i in (1, 2):
         np.multiply(jacobian_t[:, 2], ramp_columns[:, i], out=jacobian_t[:, 2 + i])
     jacobian_t[:, 5] = weight
+    normal = np.empty((n, 6, 6), dtype=np.float32)
+    normal[:, 2:, 2:] = np.einsum("nik,njk->nij", jacobian_t[:, 2:], jacobian_t[:, 2:])
     if brightness is None:
-        brightness = _brightness_of(jacobian_t, target)
+        brightness = _brightness_of(jacobian_t, normal[:, 2:, 2:], target)
     gain = brightness[:, :3].astype(np.float32) @ ramp_columns.T
     gain *= weight
     for i in range(2):
         np.multiply(gain, gradients[i], out=jacobian_t[:, i])
-    return jacobian_t, brightness
+    normal[:, :2] = np.einsum("nik,njk->nij", jacobian_t[:, :2], jacobian_t)
+    normal[:, 2:, :2] = normal[:, :2, 2:].transpose(0, 2, 1)
+    return jacobian_t, brightness, normal
 
 
-def _brightness_of(jacobian_t, target) -> np.ndarray:
+def _brightness_of(jacobian_t, normal, target) -> np.ndarray:
     """Gain ramp and offset (n, 4) float64 fitted in closed form to image 2 as it was read
-    (rows 2-5 of ``jacobian_t``)."""
+    (rows 2-5 of ``jacobian_t``, whose normal matrices (n, 4, 4) are ``normal``)."""
     columns = jacobian_t[:, 2:]
-    normal = _regularised(np.einsum("nik,njk->nij", columns, columns).astype(np.float64))
+    normal = _regularised(normal.astype(np.float64))
     return np.linalg.solve(normal, (columns @ target[..., None]).astype(np.float64))[..., 0]
 
 
-def _normal_inverse(jacobian_t: np.ndarray) -> np.ndarray:
-    """Inverse normal matrices (n, m, m) float64 of transposed Jacobians (n, m, k), slightly
-    regularised."""
-    normal = np.einsum("nik,njk->nij", jacobian_t, jacobian_t)
+def _normal_inverse(normal: np.ndarray) -> np.ndarray:
+    """Inverse (n, m, m) float64 of normal matrices (n, m, m), slightly regularised."""
     return np.linalg.inv(_regularised(normal.astype(np.float64)))
 
 
@@ -500,8 +509,8 @@ def _regularised(normal: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class _GaussNewton:
     """Damped Gauss-Newton steps of windows' shifts and brightness with a fixed Jacobian:
-    ``template`` (n, k) image 1, the inverse normal matrices and the transposed Jacobians of
-    :func:`_normal_inverse`.
+    ``template`` (n, k) image 1, the inverse normal matrices of :func:`_normal_inverse` and
+    the transposed Jacobians of :func:`_jacobian_t`.
 
     Every row of the Jacobian carries the pixels' weights (0 or 1), so its product with the
     residual ``w (g I2 + b - I1)`` is its product with ``g I2 - I1`` plus ``b`` times its
@@ -519,7 +528,7 @@ class _GaussNewton:
         overwritten): the shift at most 2 pixels and damped by :data:`_DAMPING`, until it
         moves less than :data:`_CONVERGED`. A window that moved more than :data:`_REGATHER`
         pixels from where it was read is read again where it is (``reread(cells, windows,
-        shifts)``). Image 2 at the last shifts (n, k)."""
+        shifts)``, which returns image 2 there). Image 2 at the last shifts (n, k)."""
         d, level, read_at = shifts, brightness, shifts.copy()
         active = np.ones(len(d), dtype=bool)
         row_sums = self.jacobian_t.sum(axis=2, dtype=np.float64)
@@ -529,18 +538,20 @@ class _GaussNewton:
             part = slice(None) if active.all() else np.flatnonzero(active)
             if iteration:
                 windows = np.arange(len(d))[part]
-                far = windows[np.abs(d[part] - read_at[part]).max(axis=1) > _REGATHER]
+                far = np.abs(d[part] - read_at[part]).max(axis=1) > _REGATHER
+                far, near = windows[far], windows[~far]
                 if len(far):
-                    reread(cells, far, d[far])
+                    intensity[far] = reread(cells, far, d[far])
                     read_at[far] = d[far]
-                intensity[part] = cells.values(d[part] - read_at[part], part)
+                if len(near):
+                    intensity[near] = cells.values(d[near] - read_at[near], near)
             gain = level[part, :3].astype(np.float32) @ self.ramp_columns.T
             difference = np.multiply(gain, intensity[part], out=gain)
             difference -= self.template[part]
             gradient = (self.jacobian_t[part] @ difference[..., None])[..., 0]
             gradient = gradient + level[part, 3:] * row_sums[part]
             step = -_DAMPING * (self.inverse[part] @ gradient[..., None])[..., 0]
-            shift = np.clip(step[:, :2], -2.0, 2.0)
+            shift = np.minimum(np.maximum(step[:, :2], -2.0), 2.0)
             d[part] += shift
             level[part] += step[:, 2:]
             active[part] = np.abs(shift).max(axis=1) > _CONVERGED
