@@ -30,7 +30,8 @@ Under a pure rotation the bearings of a match obey ``b2 = R b1`` (paper eq. 3 wi
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -221,11 +222,12 @@ class LensRotationFit:
         Radial coefficient (OpenCV's ``k1``) of the true camera.
     focal_scale_sigma : float
         Standard deviation of ``focal_scale`` from the Gauss-Newton covariance (inf when not
-        estimated).
+        estimated, NaN when left out: :func:`fit_rotation_lens`'s ``deviations``).
     rotation_sigma_deg : float
         Root-mean-square angle (degrees) of the rotation's error from the same covariance, the
         lens terms estimated jointly under their priors (inf when they are not estimated): the
-        Cramer-Rao bound of the rotation given these matches, their noise and the priors.
+        Cramer-Rao bound of the rotation given these matches, their noise and the priors (NaN
+        when left out).
     residuals : ndarray, shape (N,)
         Transfer error ``|pi(R c(x1)) - c(x2)| / s`` (normalised units of the given camera) of
         every match.
@@ -238,7 +240,7 @@ class LensRotationFit:
         How far the fitted ``s``, ``k1`` and ``rho`` lay beyond their box before they were
         clipped to it, in their own posterior deviations (``noise^2 (J^T J)^-1``): the largest
         of ``(|s - 1| - max_focal_change) / sd(s)`` and its likes, negative inside the box,
-        ``-inf`` when the lens terms were not estimated.
+        ``-inf`` when the lens terms were not estimated, NaN when left out.
     offset_dropped : bool
         A principal-point offset was to be fitted and lay beyond its bound: the given
         principal point was kept.
@@ -277,11 +279,18 @@ def _bearings(x: np.ndarray) -> np.ndarray:
     return _unit_rows(x)
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a x b`` of vectors (..., 3), written out as ``np.cross`` computes it."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
 def _triads(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Orthonormal frames (..., 3, 3) with columns bisector, normal, their cross product."""
     m = _unit_rows(a + b)
-    c = _unit_rows(np.cross(a, b))
-    return np.stack([m, c, np.cross(m, c)], axis=-1)
+    c = _unit_rows(_cross(a, b))
+    return np.stack([m, c, _cross(m, c)], axis=-1)
 
 
 def rotations_from_two_rays(
@@ -311,7 +320,7 @@ def rotation_residuals(R: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndar
     ``x1, x2`` are normalised points (N, 2), homogeneous points or bearings (N, 3).
     """
     b1, b2 = _bearings(x1) @ np.asarray(R).T, _bearings(x2)
-    cross = np.linalg.norm(np.cross(b1, b2), axis=1)
+    cross = np.linalg.norm(_cross(b1, b2), axis=1)
     return np.arctan2(cross, np.einsum("ij,ij->i", b1, b2))
 
 
@@ -560,6 +569,7 @@ def fit_rotation_lens(
     focal_ratio_mean: float = 1.0,
     principal_bound: float = PRINCIPAL_BOUND,
     lens_start: LensRotationFit | None = None,
+    deviations: bool | Callable[[LensRotationFit], bool] = True,
 ) -> LensRotationFit:
     """Rotation, focal scale, radial coefficient (principal point, focal ratio) by Gauss-Newton.
 
@@ -606,11 +616,13 @@ def fit_rotation_lens(
         Standard deviation (:func:`focal_ratio_prior`; None keeps ``rho = 1``, needs ``noise``)
         and mean of the prior on ``rho``.
     principal_bound : float
-        Largest offset kept, in ``principal_prior`` deviations per coordinate (default
-        :data:`PRINCIPAL_BOUND`).
+        Largest offset kept, in ``principal_prior`` deviations per coordinate.
     lens_start : LensRotationFit, optional
         A fit of nearly the same matches (e.g. before its outliers were dropped) whose lens
         terms the steps start from, not the priors' means: fewer steps to the same minimum.
+    deviations : bool or callable
+        Compute the deviations and ``lens_excess`` (a Jacobian at the minimum; else NaN, inf
+        when clipped), or as a callable given the fit without them say whether to.
 
     Returns
     -------
@@ -633,16 +645,21 @@ def fit_rotation_lens(
     >>> round(fit.focal_ratio, 4), bool(np.allclose(fit.R, R, atol=1e-6))
     (1.03, True)
     """
-    rows1, rows2 = (np.ascontiguousarray(np.asarray(x, float)[:, :2].T) for x in (x1, x2))
-    R0 = np.asarray(R, float)
     free, prior, centre, bounds, offset_bound = _lens_terms_setup(
         noise, focal_prior, k1_prior, principal_prior, focal_ratio_prior, focal_ratio_mean,
         principal_bound, max_focal_change, max_k1,
     )  # fmt: skip
-    problem = (R0, rows1[:, used], rows2[:, used], prior, free, centre)
-    start = _start_params(lens_start, free, centre, bounds)
+    problem, rows1, rows2 = _problem(x1, x2, used, R, prior, free, centre)
     limits = bounds, offset_bound, noise, focal_ratio_prior
-    return _solve_rotation_lens(problem, rows1, rows2, *limits, iterations, start)
+    return _solve_rotation_lens(problem, rows1, rows2, *limits, iterations, lens_start, deviations)
+
+
+def _problem(x1, x2, used, R, prior, free, centre) -> tuple:
+    """The least-squares problem of :func:`fit_rotation_lens` (the start rotation, the ``used``
+    matches' coordinates as rows (2, I) of each view, the priors' weights, the free terms and
+    the priors' means) and the coordinates of all matches, rows (2, N) of each view."""
+    rows1, rows2 = (np.ascontiguousarray(np.asarray(x, float)[:, :2].T) for x in (x1, x2))
+    return (np.asarray(R, float), rows1[:, used], rows2[:, used], prior, free, centre), rows1, rows2
 
 
 def _start_params(lens_start: LensRotationFit | None, free, centre, bounds) -> np.ndarray:
@@ -656,48 +673,67 @@ def _start_params(lens_start: LensRotationFit | None, free, centre, bounds) -> n
 
 
 def _solve_rotation_lens(
-    problem, rows1, rows2, bounds, offset_bound, noise, focal_ratio_prior, iterations, start
-) -> LensRotationFit:
-    """:func:`fit_rotation_lens` on its ``problem`` from the parameters ``start``: lens terms
-    beyond their box clipped and the rotation alone refitted; residuals over all matches,
-    whose coordinates are the rows of ``rows1``, ``rows2`` (2, N)."""
+    problem, rows1, rows2, bounds, offset_bound, noise, focal_ratio_prior, iterations,
+    lens_start, deviations,
+) -> LensRotationFit:  # fmt: skip
+    """:func:`fit_rotation_lens` on its ``problem``, the steps started from ``lens_start``
+    (:func:`_start_params`): lens terms beyond their box clipped and the rotation alone
+    refitted; residuals over all matches, whose coordinates are the rows of ``rows1``,
+    ``rows2`` (2, N); the deviations at the minimum before the clipping when ``deviations``
+    asks for them."""
     R0, a, b, prior, free, centre = problem
     with_noise = noise is not None and noise > 0
     count = a.shape[1]
     enough = count >= (MIN_LENS_MATCHES if with_noise else 2 * int(np.count_nonzero(_LENS)))
-    params = (start if enough else centre).copy()
-    sigma, rotation_sigma, excess = np.inf, np.inf, -np.inf
+    params = _start_params(lens_start, free, centre, bounds) if enough else centre.copy()
+    minimum = None
     if enough:
         fitted = _gauss_newton(params, problem, iterations)
         params, problem, forward = _without_implausible_terms(
             fitted, problem, offset_bound, noise, focal_ratio_prior, iterations
         )
-        residual, jacobian = _jacobian(params, problem, forward)
-        inverse = gauss_newton_covariance(jacobian, 1.0)
-        sigma, rotation_sigma = _sigmas(residual, inverse, problem)
-        if with_noise:
-            excess = _lens_excess(params, inverse, problem, bounds, noise)
-    if np.any(np.abs(params) > bounds) or not enough:
-        params, sigma, rotation_sigma = np.clip(params, -bounds, bounds), np.inf, np.inf
+        minimum = params, problem, forward
+    clipped = bool(np.any(np.abs(params) > bounds)) or not enough
+    if clipped:
+        params = np.clip(params, -bounds, bounds)
         params[:3] = 0.0
         if count >= 2:
             params = _gauss_newton(params, (R0, a, b, prior, _ROTATION, centre), iterations)[0]
     R_final = rotation_increment(params[:3]) @ R0
     lens_only = np.r_[0.0, 0.0, 0.0, params[3:]]
     error = _transfer_rows(lens_only, R_final, rows1, rows2)
-    residuals = np.sqrt(error[0] * error[0] + error[1] * error[1])
-    return LensRotationFit(
+    unknown = np.inf if clipped else np.nan
+    fit = LensRotationFit(
         R=R_final,
         focal_scale=1.0 + float(params[3]),
         k1=float(params[4]),
-        focal_scale_sigma=float(sigma),
-        residuals=residuals,
-        rotation_sigma_deg=float(rotation_sigma),
+        focal_scale_sigma=unknown,
+        residuals=np.sqrt(error[0] * error[0] + error[1] * error[1]),
+        rotation_sigma_deg=unknown,
         principal_offset=params[5:7].copy(),
         focal_ratio=1.0 + float(params[7]),
-        lens_excess=excess,
+        lens_excess=np.nan if minimum is not None and with_noise else -np.inf,
         offset_dropped=bool(free[5] and not problem[4][5]),
     )
+    if minimum is None or not (deviations(fit) if callable(deviations) else deviations):
+        return fit
+    sigma, rotation_sigma, excess = _deviations(*minimum, bounds, noise if with_noise else None)
+    if clipped:
+        sigma = rotation_sigma = np.inf
+    return replace(fit, focal_scale_sigma=sigma, rotation_sigma_deg=rotation_sigma,
+                   lens_excess=excess)  # fmt: skip
+
+
+def _deviations(params, problem, forward, bounds, noise) -> tuple[float, float, float]:
+    """The focal scale's and the rotation's deviations (:func:`_sigmas`) and the lens excess
+    (:func:`_lens_excess`, -inf without the ``noise``) of the minimum ``params`` of
+    ``problem``, its :func:`_forward` pass ``forward``."""
+    residual = _residual(params, problem, forward)
+    inverse = gauss_newton_covariance(_jacobian(params, problem, forward), 1.0)
+    sigma, rotation_sigma = _sigmas(residual, inverse, problem)
+    if noise is None:
+        return sigma, rotation_sigma, float("-inf")
+    return sigma, rotation_sigma, _lens_excess(params, inverse, problem, bounds, noise)
 
 
 def _lens_terms_setup(
@@ -752,12 +788,17 @@ def _without_implausible_terms(fitted, problem, offset_bound, noise, focal_ratio
 
 
 def _objective(params, problem) -> tuple[np.ndarray, tuple]:
+    """:func:`_residual` at ``params`` (8,) and the :func:`_forward` pass it came from."""
+    forward = _forward(params, problem[0], problem[1])
+    return _residual(params, problem, forward), forward
+
+
+def _residual(params, problem, forward) -> np.ndarray:
     """Transfer residuals (2I,), x and y of each match in turn, followed by the prior rows of
-    the fitted parameters, at ``params`` (8,); and the :func:`_forward` pass they came from."""
+    the fitted parameters, at ``params`` (8,) from its :func:`_forward` pass."""
     R0, a, b, prior, free, centre = problem
-    forward = _forward(params, R0, a)
     transfer = forward[-1] / ((1.0 + params[3]) * (1.0 + params[7])) - b
-    return np.concatenate([transfer.T.ravel(), prior[free] * (params - centre)[free]]), forward
+    return np.concatenate([transfer.T.ravel(), prior[free] * (params - centre)[free]])
 
 
 def _forward(params: np.ndarray, R0: np.ndarray, rows1: np.ndarray) -> tuple:
@@ -789,24 +830,26 @@ def _transfer_rows(params: np.ndarray, R0: np.ndarray, rows1: np.ndarray, rows2:
     return distorted / ((1.0 + params[3]) * (1.0 + params[7])) - rows2
 
 
-def _jacobian(params, problem, forward=None):
-    """Residual and its Jacobian in the free parameters of ``problem`` (:func:`_objective`),
-    analytic (:func:`_transfer_jacobian`) with the prior rows below; ``forward`` the
-    :func:`_forward` pass at ``params`` when known."""
+def _jacobian(params, problem, forward) -> np.ndarray:
+    """Jacobian of :func:`_residual` in the free parameters of ``problem``, Fortran order:
+    analytic (:func:`_transfer_jacobian`, from the :func:`_forward` pass at ``params``) with
+    the prior rows below."""
     R0, a, b, prior, free, centre = problem
-    forward = _forward(params, R0, a) if forward is None else forward
-    residual, transfer = _transfer_jacobian(params, a, b, forward)
+    transfer = _transfer_jacobian(params, a, forward)
     count, size = a.shape[1], int(np.count_nonzero(free))
-    columns = np.empty((size, 2 * count + size))  # the Jacobian in Fortran order
-    columns[:, : 2 * count].reshape(size, count, 2)[...] = transfer[:, free].transpose(1, 2, 0)
+    if np.all(free[:size]):
+        transfer = transfer[:, :size]
+    else:
+        transfer = transfer[:, free]
+    columns = np.empty((size, 2 * count + size))
+    columns[:, : 2 * count].reshape(size, count, 2)[...] = transfer.transpose(1, 2, 0)
     columns[:, 2 * count :] = np.diag(prior[free])
-    prior_rows = prior[free] * (params - centre)[free]
-    return np.concatenate([residual.T.ravel(), prior_rows]), columns.T
+    return columns.T
 
 
-def _transfer_jacobian(params: np.ndarray, rows1: np.ndarray, rows2: np.ndarray, forward):
-    """Residuals (2, N) of :func:`_transfer_rows` at ``params`` (8,) and their derivatives
-    (2, 8, N) in every parameter, from the :func:`_forward` pass of ``rows1`` there.
+def _transfer_jacobian(params: np.ndarray, rows1: np.ndarray, forward) -> np.ndarray:
+    """Derivatives (2, 8, N) of the residuals of :func:`_transfer_rows` at ``params`` (8,) in
+    every parameter, from the :func:`_forward` pass of ``rows1`` there.
 
     ``q1`` solves ``s x1 - p = q1 (1 + k1 |q1|^2)``, so ``D1 dq1 = x1 ds - dp - q1 |q1|^2 dk1``
     with ``D = (1 + k1 |q|^2) I + 2 k1 q q^T``; a rotation increment moves the ray ``R q1`` by
@@ -815,7 +858,6 @@ def _transfer_jacobian(params: np.ndarray, rows1: np.ndarray, rows2: np.ndarray,
     transfer is that over ``s rho``."""
     scale, k1, ratio = 1.0 + params[3], params[4], 1.0 + params[7]
     R, q1, ray, z, q2, norm2, distorted = forward
-    residual = distorted / (scale * ratio) - rows2
     d_ray = np.empty((3, 7, q1.shape[1]))
     _rotation_rays(_left_jacobian(params[:3]), ray, d_ray[:, :3])
     d_q1 = _distortion_solve(q1, k1, rows1)
@@ -832,7 +874,7 @@ def _transfer_jacobian(params: np.ndarray, rows1: np.ndarray, rows2: np.ndarray,
     derivative[:, :7] /= scale * ratio
     derivative[:, 3] -= distorted / (scale * scale * ratio)
     derivative[:, 7] = -distorted / (scale * ratio * ratio)
-    return residual, derivative
+    return derivative
 
 
 def _rotation_rays(J: np.ndarray, ray: np.ndarray, out: np.ndarray) -> None:
@@ -851,11 +893,12 @@ def _distortion_apply(q: np.ndarray, norm2: np.ndarray, k1: float, d: np.ndarray
     ``norm2`` their ``|q|^2`` (N,), ``d`` (2, M, N)."""
     x, y = q
     radial = 1.0 + k1 * norm2
-    cross = 2.0 * k1 * x * y
-    np.multiply(radial + 2.0 * k1 * x * x, d[0], out=out[0])
+    x2, y2 = 2.0 * k1 * x, 2.0 * k1 * y
+    cross = x2 * y
+    np.multiply(radial + x2 * x, d[0], out=out[0])
     out[0] += cross * d[1]
     np.multiply(cross, d[0], out=out[1])
-    out[1] += (radial + 2.0 * k1 * y * y) * d[1]
+    out[1] += (radial + y2 * y) * d[1]
 
 
 def _distortion_solve(q: np.ndarray, k1: float, rows: np.ndarray) -> np.ndarray:
@@ -865,8 +908,9 @@ def _distortion_solve(q: np.ndarray, k1: float, rows: np.ndarray) -> np.ndarray:
     x, y = q
     norm2 = x * x + y * y
     radial = 1.0 + k1 * norm2
-    cross = 2.0 * k1 * x * y
-    xx, yy = radial + 2.0 * k1 * x * x, radial + 2.0 * k1 * y * y
+    x2, y2 = 2.0 * k1 * x, 2.0 * k1 * y
+    cross = x2 * y
+    xx, yy = radial + x2 * x, radial + y2 * y
     det = xx * yy - cross * cross
     dx, dy = -(x * norm2), -(y * norm2)
     solved = np.empty((2, 4, len(x)))
@@ -909,7 +953,7 @@ def _offset_beyond_bound(params, problem, bound, noise, forward) -> bool:
     excess = np.abs(params[5:7]) - bound
     if not np.any(excess > 0):
         return False
-    inverse = gauss_newton_covariance(_jacobian(params, problem, forward)[1], 1.0)
+    inverse = gauss_newton_covariance(_jacobian(params, problem, forward), 1.0)
     deviation = _posterior_deviations(inverse, problem, noise)
     deviation = np.zeros(2) if deviation is None else deviation[5:7]
     return bool(np.any(excess > PRINCIPAL_SIGNIFICANCE * deviation))
@@ -957,7 +1001,7 @@ def _gauss_newton(params, problem, iterations):
     normal = None
     for _ in range(iterations):
         if normal is None:
-            J = _jacobian(params, problem, forward)[1]
+            J = _jacobian(params, problem, forward)
             normal = J.T @ J, J.T @ residual
         H, g = normal
         update = np.linalg.solve(H + damping * np.diag(np.diag(H) + 1e-12), -g)

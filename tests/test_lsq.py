@@ -149,3 +149,14 @@ def test_rotation_increments_are_rodrigues_row_by_row():
     assert stacked.shape == (22, 3, 3)
     for row, R in zip(w, stacked, strict=True):
         np.testing.assert_allclose(R, cv2.Rodrigues(row)[0], atol=1e-12)
+
+
+def test_one_rotation_increment_and_cross_matrix_are_the_stacked_ones_to_the_bit():
+    from ppo_cv.lsq import rotation_increment, rotation_increments
+
+    rng = np.random.default_rng(5)
+    w = rng.normal(size=(300, 3)) * 10.0 ** rng.uniform(-14, 0.5, (300, 1))
+    w[::7, 1] = 0.0
+    for row in np.vstack([w, np.zeros(3)]):
+        assert np.array_equal(rotation_increment(row), rotation_increments(row[None])[0])
+        assert np.array_equal(cross_matrix(row), cross_matrices(row[None])[0])
