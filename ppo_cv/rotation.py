@@ -41,7 +41,6 @@ from .lsq import (
     cross_matrix,
     gauss_newton_covariance,
     rotation_increment,
-    rotation_increments,
 )
 from .ppo import rotation_from_rays
 
@@ -409,21 +408,6 @@ def ransac_rotation(
     return RotationFit(R=R, inliers=residuals < threshold, residuals=residuals, trials=trials)
 
 
-def _lens_map(xy: np.ndarray, scale, k1, offset=(0.0, 0.0), iterations: int = 6) -> np.ndarray:
-    """True normalised points ``q`` (..., N, 2) of given points ``x``:
-    ``s x = p + q (1 + k1 |q|^2)``; ``scale``, ``k1`` and ``offset`` broadcast against ``q``."""
-    distorted = scale * xy - np.asarray(offset, dtype=np.float64)
-    q = distorted
-    for _ in range(iterations):
-        q = distorted / (1.0 + k1 * _squared_norms(q))
-    return q
-
-
-def _squared_norms(q: np.ndarray) -> np.ndarray:
-    """``|q|^2`` of 2-vectors (..., 2), shape (..., 1)."""
-    return q[..., :1] * q[..., :1] + q[..., 1:] * q[..., 1:]
-
-
 def correct_points(
     x: np.ndarray, focal_scale: float, k1: float, principal_offset: ArrayLike = (0.0, 0.0)
 ) -> np.ndarray:
@@ -431,20 +415,11 @@ def correct_points(
 
     The inverse of ``s x = p + q (1 + k1 |q|^2)``: the lens terms of :func:`fit_rotation_lens`.
     """
-    q = _lens_map(np.asarray(x, dtype=np.float64)[:, :2], focal_scale, k1, principal_offset)
+    xy = np.asarray(x, dtype=np.float64)[:, :2]
+    offset = np.broadcast_to(np.asarray(principal_offset, dtype=np.float64), (2,))[:, None]
+    q = np.empty_like(xy)  # laid out as the given points, which the products of the rays follow
+    q.T[...] = _true_rows(np.ascontiguousarray(xy.T), focal_scale, k1, offset)
     return np.column_stack([q, np.ones(len(q))])
-
-
-def _lens_transfers(params: np.ndarray, R0: np.ndarray, xy1: np.ndarray, xy2: np.ndarray):
-    """Residual vectors (P, N, 2) in view 2, given normalised units, of each row of ``params``
-    (P, 8): ``x2`` minus the transfer of ``x1`` (``q1`` rotated, distorted and scaled back by
-    view 2's focal scale)."""
-    R = rotation_increments(params[:, :3]) @ R0
-    scale, k1 = 1.0 + params[:, 3, None, None], params[:, 4, None, None]
-    offset, ratio = params[:, None, 5:7], 1.0 + params[:, 7, None, None]
-    q1 = _lens_map(xy1, scale, k1, offset)
-    ray = q1 @ np.swapaxes(R[:, :, :2], 1, 2) + R[:, None, :, 2]
-    return seen_through_lens(ray, scale, k1, offset, ratio) - xy2
 
 
 def seen_through_lens(ray: np.ndarray, scale, k1, offset, ratio) -> np.ndarray:
@@ -453,13 +428,16 @@ def seen_through_lens(ray: np.ndarray, scale, k1, offset, ratio) -> np.ndarray:
     ``q2`` the ray's projection; the lens terms broadcast against ``q2``."""
     z = np.where(np.abs(ray[..., 2:]) > 1e-9, ray[..., 2:], 1e-9)
     q2 = ray[..., :2] / z
-    distorted = q2 * (1.0 + k1 * _squared_norms(q2)) + offset
+    distorted = q2 * (1.0 + k1 * (q2[..., :1] * q2[..., :1] + q2[..., 1:] * q2[..., 1:])) + offset
     return distorted / (scale * ratio)
 
 
 def _lens_transfer(params: np.ndarray, R0: np.ndarray, xy1: np.ndarray, xy2: np.ndarray):
-    """:func:`_lens_transfers` of one parameter vector (8,): residual vectors (N, 2)."""
-    return _lens_transfers(np.asarray(params, dtype=np.float64)[None], R0, xy1, xy2)[0]
+    """Residual vectors (N, 2) in view 2, given normalised units, of the lens terms ``params``
+    (8,) (:func:`_transfer_rows`): ``x2`` minus the transfer of ``x1`` (N, 2), laid out as the
+    difference of a C-ordered array and ``x2``."""
+    distorted = _forward(params, R0, np.ascontiguousarray(xy1.T))[-1]
+    return np.ascontiguousarray((distorted / ((1.0 + params[3]) * (1.0 + params[7]))).T) - xy2
 
 
 def _lens_params(
@@ -816,7 +794,8 @@ def _forward(params: np.ndarray, R0: np.ndarray, rows1: np.ndarray) -> tuple:
 
 
 def _true_rows(rows: np.ndarray, scale, k1, offset, iterations: int = 6) -> np.ndarray:
-    """:func:`_lens_map` of the points ``rows`` (2, N), ``offset`` (2, 1): ``q`` (2, N)."""
+    """True normalised points ``q`` (2, N) of the given points ``rows`` (2, N),
+    ``s x = p + q (1 + k1 |q|^2)`` solved by fixed-point iteration; ``offset`` ``p`` (2, 1)."""
     distorted = scale * rows - offset
     q = distorted
     for _ in range(iterations):
@@ -825,7 +804,9 @@ def _true_rows(rows: np.ndarray, scale, k1, offset, iterations: int = 6) -> np.n
 
 
 def _transfer_rows(params: np.ndarray, R0: np.ndarray, rows1: np.ndarray, rows2: np.ndarray):
-    """:func:`_lens_transfer` of the points ``rows1``, ``rows2`` (2, N): residuals (2, N)."""
+    """Residuals (2, N) in view 2 of the points ``rows1``, ``rows2`` (2, N) at ``params`` (8,):
+    ``x2`` minus the transfer of ``x1`` (``q1`` rotated, distorted and scaled back by view 2's
+    focal scale)."""
     distorted = _forward(params, R0, rows1)[-1]
     return distorted / ((1.0 + params[3]) * (1.0 + params[7])) - rows2
 

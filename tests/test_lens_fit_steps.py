@@ -138,3 +138,18 @@ def test_the_settled_rotation_computes_the_deviations_of_its_last_fit_only(monke
     lens, inliers = motion_model._settled_lens_fit(start, np.eye(3), priors, context)
     assert not inliers[-20:].any() and inliers[:-20].all()
     _only_the_last_has_deviations(calls, lens)
+
+
+def test_the_lens_maps_give_the_same_points_whatever_the_layout_of_the_given_ones():
+    rng = np.random.default_rng(4)
+    points = rng.uniform(-0.5, 0.5, (300, 3))
+    lens = (1.03, 0.05, (0.004, -0.002))
+    given = [points[:, :2].copy(), np.asfortranarray(points[:, :2]), points, points[:, :2]]
+    rays = [rotation.correct_points(x, *lens) for x in given]
+    moved = [rotation.transfer_points(x, np.eye(3), *lens) for x in given]
+    assert all(np.array_equal(r, rays[0]) for r in rays) and np.all(rays[0][:, 2] == 1.0)
+    assert all(np.array_equal(m, moved[0]) for m in moved)
+    q = rays[0][:, :2]
+    distorted = np.asarray(lens[2]) + q * (1 + lens[1] * np.sum(q * q, axis=1, keepdims=True))
+    np.testing.assert_allclose(distorted, lens[0] * points[:, :2], atol=1e-9)
+    np.testing.assert_allclose(moved[0], points[:, :2], atol=1e-9)
