@@ -874,12 +874,12 @@ def _distortion_apply(q: np.ndarray, norm2: np.ndarray, k1: float, d: np.ndarray
     ``norm2`` their ``|q|^2`` (N,), ``d`` (2, M, N)."""
     x, y = q
     radial = 1.0 + k1 * norm2
-    x2, y2 = 2.0 * k1 * x, 2.0 * k1 * y
-    cross = x2 * y
-    np.multiply(radial + x2 * x, d[0], out=out[0])
+    kx, ky = 2.0 * k1 * x, 2.0 * k1 * y
+    cross = kx * y
+    np.multiply(radial + kx * x, d[0], out=out[0])
     out[0] += cross * d[1]
     np.multiply(cross, d[0], out=out[1])
-    out[1] += (radial + y2 * y) * d[1]
+    out[1] += (radial + ky * y) * d[1]
 
 
 def _distortion_solve(q: np.ndarray, k1: float, rows: np.ndarray) -> np.ndarray:
@@ -889,9 +889,9 @@ def _distortion_solve(q: np.ndarray, k1: float, rows: np.ndarray) -> np.ndarray:
     x, y = q
     norm2 = x * x + y * y
     radial = 1.0 + k1 * norm2
-    x2, y2 = 2.0 * k1 * x, 2.0 * k1 * y
-    cross = x2 * y
-    xx, yy = radial + x2 * x, radial + y2 * y
+    kx, ky = 2.0 * k1 * x, 2.0 * k1 * y
+    cross = kx * y
+    xx, yy = radial + kx * x, radial + ky * y
     det = xx * yy - cross * cross
     dx, dy = -(x * norm2), -(y * norm2)
     solved = np.empty((2, 4, len(x)))
