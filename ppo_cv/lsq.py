@@ -50,13 +50,20 @@ def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 def rotation_increment(w: np.ndarray) -> np.ndarray:
     """``exp([w]x)`` (3, 3): the rotation by ``|w|`` radians about ``w / |w|`` (Rodrigues), to
-    first order ``I + [w]x`` below 1e-12 rad."""
-    return rotation_increments(np.asarray(w, dtype=np.float64)[None])[0]
+    first order ``I + [w]x`` below 1e-12 rad; the figures of :func:`rotation_increments`."""
+    w = np.asarray(w, dtype=np.float64)
+    theta = np.sqrt(np.add.reduce(w * w))
+    K = cross_matrix(w)
+    if theta < 1e-12:
+        return np.eye(3) + K
+    a, b = np.sin(theta) / theta, (1.0 - np.cos(theta)) / (theta * theta)
+    return np.eye(3) + a * K + b * (K @ K)
 
 
 def cross_matrix(v: np.ndarray) -> np.ndarray:
     """``[v]_x`` (3, 3) of one vector ``v`` (3,): ``[v]_x u = v x u``."""
-    return cross_matrices(np.asarray(v, dtype=np.float64).reshape(1, 3))[0]
+    v = np.asarray(v, dtype=np.float64).reshape(3)
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def cross_matrices(v: np.ndarray) -> np.ndarray:

@@ -111,6 +111,7 @@ at the centre. Without a homography the decision is between "rotation" and "gene
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
@@ -679,19 +680,32 @@ def _settled_lens_fit(
     start_inliers, start_R, priors: dict, context: _Context
 ) -> tuple[LensRotationFit, np.ndarray]:
     """Lens rotation from a RANSAC consensus, its inliers re-selected at the transfer bound
-    until they settle (at most five fits, while at least four remain)."""
+    until they settle (at most five fits, while at least four remain); the deviations of the
+    last fit only."""
     x1, x2, noise, threshold = context.x1, context.x2, context.noise, context.threshold
-    lens = fit_rotation_lens(x1, x2, start_inliers, start_R, noise=noise, **priors)
+    last = partial(_settled, used=None, threshold=threshold, final=False)
+    lens = fit_rotation_lens(x1, x2, start_inliers, start_R, noise=noise, deviations=last, **priors)
     rotation_inliers = lens.residuals < threshold
-    for _ in range(4):
+    for attempt in range(4):
         if np.count_nonzero(rotation_inliers) < MIN_LENS_MATCHES:
             break
-        lens = fit_rotation_lens(x1, x2, rotation_inliers, lens.R, noise=noise, **priors)
+        last = partial(_settled, used=rotation_inliers, threshold=threshold, final=attempt == 3)
+        lens = fit_rotation_lens(
+            x1, x2, rotation_inliers, lens.R, noise=noise, deviations=last, **priors
+        )
         within = lens.residuals < threshold
         if np.array_equal(within, rotation_inliers):
             break
         rotation_inliers = within
     return lens, rotation_inliers
+
+
+def _settled(lens, used, threshold, final) -> bool:
+    """:func:`_settled_lens_fit` ends after ``lens``: its ``final`` fit, or one whose matches
+    within the transfer bound ``threshold`` are the ``used`` ones it was fitted to or too few
+    for another."""
+    within = lens.residuals < threshold
+    return final or np.count_nonzero(within) < MIN_LENS_MATCHES or np.array_equal(within, used)
 
 
 def _rotation_evidence(

@@ -61,6 +61,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from functools import partial
 
 import numpy as np
 
@@ -1020,28 +1021,43 @@ def _fit_tracks(y1, y2, valid, R, focal, priors):
     ``(fit, used, noise_px)`` or None when too few tracks remain, or when the lens was clipped
     to its box (no deviation) unless ``priors["keep_clipped"]``, which also frees ``k1`` of
     its box (its prior alone holds it); ``priors["on_clipped"]`` is called for each lens fit
-    clipped to its box."""
+    clipped to its box. Only the last fit's deviations are computed."""
     priors = dict(priors)
     keep_clipped = priors.pop("keep_clipped", False)
     on_clipped = priors.pop("on_clipped", None)
     if keep_clipped:
         priors["max_k1"] = np.inf
     used, noise, fit = valid.copy(), 0.1 / focal, None
-    for _ in range(5):
+    for attempt in range(5):
         if np.count_nonzero(used) < MIN_TRACKS:
             return None
         start = R if fit is None else fit.R
-        fit = fit_rotation_lens(y1, y2, used, start, noise=noise, lens_start=fit, **priors)
-        if on_clipped is not None and not np.isfinite(fit.rotation_sigma_deg):
+        last = partial(_last_track_fit, used=used, valid=valid, final=attempt == 4)
+        fit = fit_rotation_lens(
+            y1, y2, used, start, noise=noise, lens_start=fit, deviations=last, **priors
+        )
+        if on_clipped is not None and np.isinf(fit.rotation_sigma_deg):
             on_clipped()
-        noise = robust_sigma(fit.residuals[used], 2)
-        within = valid & (fit.residuals < _OUTLIER_SIGMAS * np.sqrt(2.0) * noise)
+        noise, within = _track_inliers(fit, used, valid)
         if np.array_equal(within, used):
             break
         used = within
     if not noise > 0 or not (keep_clipped or np.isfinite(fit.rotation_sigma_deg)):
         return None
     return fit, used, noise * focal
+
+
+def _track_inliers(fit, used, valid) -> tuple[float, np.ndarray]:
+    """The noise of a lens fit's ``used`` tracks and the ``valid`` tracks within
+    ``3 sqrt(2)`` deviations of it (N,)."""
+    noise = robust_sigma(fit.residuals[used], 2)
+    return noise, valid & (fit.residuals < _OUTLIER_SIGMAS * np.sqrt(2.0) * noise)
+
+
+def _last_track_fit(fit, used, valid, final) -> bool:
+    """:func:`_fit_tracks`' loop ends after ``fit``: its ``final`` fit, or one whose inliers
+    are the ``used`` tracks it was fitted to."""
+    return final or np.array_equal(_track_inliers(fit, used, valid)[1], used)
 
 
 def refine_rotation_photometric(

@@ -30,7 +30,8 @@ Under a pure rotation the bearings of a match obey ``b2 = R b1`` (paper eq. 3 wi
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -40,7 +41,6 @@ from .lsq import (
     cross_matrix,
     gauss_newton_covariance,
     rotation_increment,
-    rotation_increments,
 )
 from .ppo import rotation_from_rays
 
@@ -221,11 +221,12 @@ class LensRotationFit:
         Radial coefficient (OpenCV's ``k1``) of the true camera.
     focal_scale_sigma : float
         Standard deviation of ``focal_scale`` from the Gauss-Newton covariance (inf when not
-        estimated).
+        estimated, NaN when left out: :func:`fit_rotation_lens`'s ``deviations``).
     rotation_sigma_deg : float
         Root-mean-square angle (degrees) of the rotation's error from the same covariance, the
         lens terms estimated jointly under their priors (inf when they are not estimated): the
-        Cramer-Rao bound of the rotation given these matches, their noise and the priors.
+        Cramer-Rao bound of the rotation given these matches, their noise and the priors (NaN
+        when left out).
     residuals : ndarray, shape (N,)
         Transfer error ``|pi(R c(x1)) - c(x2)| / s`` (normalised units of the given camera) of
         every match.
@@ -238,7 +239,7 @@ class LensRotationFit:
         How far the fitted ``s``, ``k1`` and ``rho`` lay beyond their box before they were
         clipped to it, in their own posterior deviations (``noise^2 (J^T J)^-1``): the largest
         of ``(|s - 1| - max_focal_change) / sd(s)`` and its likes, negative inside the box,
-        ``-inf`` when the lens terms were not estimated.
+        ``-inf`` when the lens terms were not estimated, NaN when left out.
     offset_dropped : bool
         A principal-point offset was to be fitted and lay beyond its bound: the given
         principal point was kept.
@@ -277,11 +278,18 @@ def _bearings(x: np.ndarray) -> np.ndarray:
     return _unit_rows(x)
 
 
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a x b`` of vectors (..., 3), written out as ``np.cross`` computes it."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
 def _triads(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Orthonormal frames (..., 3, 3) with columns bisector, normal, their cross product."""
     m = _unit_rows(a + b)
-    c = _unit_rows(np.cross(a, b))
-    return np.stack([m, c, np.cross(m, c)], axis=-1)
+    c = _unit_rows(_cross(a, b))
+    return np.stack([m, c, _cross(m, c)], axis=-1)
 
 
 def rotations_from_two_rays(
@@ -311,7 +319,7 @@ def rotation_residuals(R: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndar
     ``x1, x2`` are normalised points (N, 2), homogeneous points or bearings (N, 3).
     """
     b1, b2 = _bearings(x1) @ np.asarray(R).T, _bearings(x2)
-    cross = np.linalg.norm(np.cross(b1, b2), axis=1)
+    cross = np.linalg.norm(_cross(b1, b2), axis=1)
     return np.arctan2(cross, np.einsum("ij,ij->i", b1, b2))
 
 
@@ -400,21 +408,6 @@ def ransac_rotation(
     return RotationFit(R=R, inliers=residuals < threshold, residuals=residuals, trials=trials)
 
 
-def _lens_map(xy: np.ndarray, scale, k1, offset=(0.0, 0.0), iterations: int = 6) -> np.ndarray:
-    """True normalised points ``q`` (..., N, 2) of given points ``x``:
-    ``s x = p + q (1 + k1 |q|^2)``; ``scale``, ``k1`` and ``offset`` broadcast against ``q``."""
-    distorted = scale * xy - np.asarray(offset, dtype=np.float64)
-    q = distorted
-    for _ in range(iterations):
-        q = distorted / (1.0 + k1 * _squared_norms(q))
-    return q
-
-
-def _squared_norms(q: np.ndarray) -> np.ndarray:
-    """``|q|^2`` of 2-vectors (..., 2), shape (..., 1)."""
-    return q[..., :1] * q[..., :1] + q[..., 1:] * q[..., 1:]
-
-
 def correct_points(
     x: np.ndarray, focal_scale: float, k1: float, principal_offset: ArrayLike = (0.0, 0.0)
 ) -> np.ndarray:
@@ -422,20 +415,11 @@ def correct_points(
 
     The inverse of ``s x = p + q (1 + k1 |q|^2)``: the lens terms of :func:`fit_rotation_lens`.
     """
-    q = _lens_map(np.asarray(x, dtype=np.float64)[:, :2], focal_scale, k1, principal_offset)
+    xy = np.asarray(x, dtype=np.float64)[:, :2]
+    offset = np.broadcast_to(np.asarray(principal_offset, dtype=np.float64), (2,))[:, None]
+    q = np.empty_like(xy)  # laid out as the given points, which the products of the rays follow
+    q.T[...] = _true_rows(np.ascontiguousarray(xy.T), focal_scale, k1, offset)
     return np.column_stack([q, np.ones(len(q))])
-
-
-def _lens_transfers(params: np.ndarray, R0: np.ndarray, xy1: np.ndarray, xy2: np.ndarray):
-    """Residual vectors (P, N, 2) in view 2, given normalised units, of each row of ``params``
-    (P, 8): ``x2`` minus the transfer of ``x1`` (``q1`` rotated, distorted and scaled back by
-    view 2's focal scale)."""
-    R = rotation_increments(params[:, :3]) @ R0
-    scale, k1 = 1.0 + params[:, 3, None, None], params[:, 4, None, None]
-    offset, ratio = params[:, None, 5:7], 1.0 + params[:, 7, None, None]
-    q1 = _lens_map(xy1, scale, k1, offset)
-    ray = q1 @ np.swapaxes(R[:, :, :2], 1, 2) + R[:, None, :, 2]
-    return seen_through_lens(ray, scale, k1, offset, ratio) - xy2
 
 
 def seen_through_lens(ray: np.ndarray, scale, k1, offset, ratio) -> np.ndarray:
@@ -444,13 +428,16 @@ def seen_through_lens(ray: np.ndarray, scale, k1, offset, ratio) -> np.ndarray:
     ``q2`` the ray's projection; the lens terms broadcast against ``q2``."""
     z = np.where(np.abs(ray[..., 2:]) > 1e-9, ray[..., 2:], 1e-9)
     q2 = ray[..., :2] / z
-    distorted = q2 * (1.0 + k1 * _squared_norms(q2)) + offset
+    distorted = q2 * (1.0 + k1 * (q2[..., :1] * q2[..., :1] + q2[..., 1:] * q2[..., 1:])) + offset
     return distorted / (scale * ratio)
 
 
 def _lens_transfer(params: np.ndarray, R0: np.ndarray, xy1: np.ndarray, xy2: np.ndarray):
-    """:func:`_lens_transfers` of one parameter vector (8,): residual vectors (N, 2)."""
-    return _lens_transfers(np.asarray(params, dtype=np.float64)[None], R0, xy1, xy2)[0]
+    """Residual vectors (N, 2) in view 2, given normalised units, of the lens terms ``params``
+    (8,) (:func:`_transfer_rows`): ``x2`` minus the transfer of ``x1`` (N, 2), laid out as the
+    difference of a C-ordered array and ``x2``."""
+    distorted = _forward(params, R0, np.ascontiguousarray(xy1.T))[-1]
+    return np.ascontiguousarray((distorted / ((1.0 + params[3]) * (1.0 + params[7]))).T) - xy2
 
 
 def _lens_params(
@@ -560,6 +547,7 @@ def fit_rotation_lens(
     focal_ratio_mean: float = 1.0,
     principal_bound: float = PRINCIPAL_BOUND,
     lens_start: LensRotationFit | None = None,
+    deviations: bool | Callable[[LensRotationFit], bool] = True,
 ) -> LensRotationFit:
     """Rotation, focal scale, radial coefficient (principal point, focal ratio) by Gauss-Newton.
 
@@ -606,11 +594,13 @@ def fit_rotation_lens(
         Standard deviation (:func:`focal_ratio_prior`; None keeps ``rho = 1``, needs ``noise``)
         and mean of the prior on ``rho``.
     principal_bound : float
-        Largest offset kept, in ``principal_prior`` deviations per coordinate (default
-        :data:`PRINCIPAL_BOUND`).
+        Largest offset kept, in ``principal_prior`` deviations per coordinate.
     lens_start : LensRotationFit, optional
         A fit of nearly the same matches (e.g. before its outliers were dropped) whose lens
         terms the steps start from, not the priors' means: fewer steps to the same minimum.
+    deviations : bool or callable
+        Compute the deviations and ``lens_excess`` (a Jacobian at the minimum; else NaN, inf
+        when clipped), or as a callable given the fit without them say whether to.
 
     Returns
     -------
@@ -633,16 +623,21 @@ def fit_rotation_lens(
     >>> round(fit.focal_ratio, 4), bool(np.allclose(fit.R, R, atol=1e-6))
     (1.03, True)
     """
-    xy1, xy2 = np.asarray(x1, float)[:, :2], np.asarray(x2, float)[:, :2]
-    R0 = np.asarray(R, float)
     free, prior, centre, bounds, offset_bound = _lens_terms_setup(
         noise, focal_prior, k1_prior, principal_prior, focal_ratio_prior, focal_ratio_mean,
         principal_bound, max_focal_change, max_k1,
     )  # fmt: skip
-    problem = (R0, xy1[used], xy2[used], prior, free, centre)
-    start = _start_params(lens_start, free, centre, bounds)
+    problem, rows1, rows2 = _problem(x1, x2, used, R, prior, free, centre)
     limits = bounds, offset_bound, noise, focal_ratio_prior
-    return _solve_rotation_lens(problem, xy1, xy2, *limits, iterations, start)
+    return _solve_rotation_lens(problem, rows1, rows2, *limits, iterations, lens_start, deviations)
+
+
+def _problem(x1, x2, used, R, prior, free, centre) -> tuple:
+    """The least-squares problem of :func:`fit_rotation_lens` (the start rotation, the ``used``
+    matches' coordinates as rows (2, I) of each view, the priors' weights, the free terms and
+    the priors' means) and the coordinates of all matches, rows (2, N) of each view."""
+    rows1, rows2 = (np.ascontiguousarray(np.asarray(x, float)[:, :2].T) for x in (x1, x2))
+    return (np.asarray(R, float), rows1[:, used], rows2[:, used], prior, free, centre), rows1, rows2
 
 
 def _start_params(lens_start: LensRotationFit | None, free, centre, bounds) -> np.ndarray:
@@ -656,45 +651,67 @@ def _start_params(lens_start: LensRotationFit | None, free, centre, bounds) -> n
 
 
 def _solve_rotation_lens(
-    problem, xy1, xy2, bounds, offset_bound, noise, focal_ratio_prior, iterations, start
-) -> LensRotationFit:
-    """:func:`fit_rotation_lens` on its ``problem`` from the parameters ``start``: lens terms
-    beyond their box clipped and the rotation alone refitted; residuals over all matches
-    ``xy1``, ``xy2``."""
+    problem, rows1, rows2, bounds, offset_bound, noise, focal_ratio_prior, iterations,
+    lens_start, deviations,
+) -> LensRotationFit:  # fmt: skip
+    """:func:`fit_rotation_lens` on its ``problem``, the steps started from ``lens_start``
+    (:func:`_start_params`): lens terms beyond their box clipped and the rotation alone
+    refitted; residuals over all matches, whose coordinates are the rows of ``rows1``,
+    ``rows2`` (2, N); the deviations at the minimum before the clipping when ``deviations``
+    asks for them."""
     R0, a, b, prior, free, centre = problem
     with_noise = noise is not None and noise > 0
-    enough = len(a) >= (MIN_LENS_MATCHES if with_noise else 2 * int(np.count_nonzero(_LENS)))
-    params = (start if enough else centre).copy()
-    sigma, rotation_sigma, excess = np.inf, np.inf, -np.inf
+    count = a.shape[1]
+    enough = count >= (MIN_LENS_MATCHES if with_noise else 2 * int(np.count_nonzero(_LENS)))
+    params = _start_params(lens_start, free, centre, bounds) if enough else centre.copy()
+    minimum = None
     if enough:
-        params = _gauss_newton(params, problem, iterations)
-        params, problem = _without_implausible_terms(
-            params, problem, offset_bound, noise, focal_ratio_prior, iterations
+        fitted = _gauss_newton(params, problem, iterations)
+        params, problem, forward = _without_implausible_terms(
+            fitted, problem, offset_bound, noise, focal_ratio_prior, iterations
         )
-        residual, jacobian = _jacobian(params, problem)
-        sigma, rotation_sigma = _sigmas(residual, jacobian, problem)
-        if with_noise:
-            excess = _lens_excess(params, jacobian, problem, bounds, noise)
-    if np.any(np.abs(params) > bounds) or not enough:
-        params, sigma, rotation_sigma = np.clip(params, -bounds, bounds), np.inf, np.inf
+        minimum = params, problem, forward
+    clipped = bool(np.any(np.abs(params) > bounds)) or not enough
+    if clipped:
+        params = np.clip(params, -bounds, bounds)
         params[:3] = 0.0
-        if len(a) >= 2:
-            params = _gauss_newton(params, (R0, a, b, prior, _ROTATION, centre), iterations)
+        if count >= 2:
+            params = _gauss_newton(params, (R0, a, b, prior, _ROTATION, centre), iterations)[0]
     R_final = rotation_increment(params[:3]) @ R0
     lens_only = np.r_[0.0, 0.0, 0.0, params[3:]]
-    residuals = np.linalg.norm(_lens_transfer(lens_only, R_final, xy1, xy2), axis=1)
-    return LensRotationFit(
+    error = _transfer_rows(lens_only, R_final, rows1, rows2)
+    unknown = np.inf if clipped else np.nan
+    fit = LensRotationFit(
         R=R_final,
         focal_scale=1.0 + float(params[3]),
         k1=float(params[4]),
-        focal_scale_sigma=float(sigma),
-        residuals=residuals,
-        rotation_sigma_deg=float(rotation_sigma),
+        focal_scale_sigma=unknown,
+        residuals=np.sqrt(error[0] * error[0] + error[1] * error[1]),
+        rotation_sigma_deg=unknown,
         principal_offset=params[5:7].copy(),
         focal_ratio=1.0 + float(params[7]),
-        lens_excess=excess,
+        lens_excess=np.nan if minimum is not None and with_noise else -np.inf,
         offset_dropped=bool(free[5] and not problem[4][5]),
     )
+    if minimum is None or not (deviations(fit) if callable(deviations) else deviations):
+        return fit
+    sigma, rotation_sigma, excess = _deviations(*minimum, bounds, noise if with_noise else None)
+    if clipped:
+        sigma = rotation_sigma = np.inf
+    return replace(fit, focal_scale_sigma=sigma, rotation_sigma_deg=rotation_sigma,
+                   lens_excess=excess)  # fmt: skip
+
+
+def _deviations(params, problem, forward, bounds, noise) -> tuple[float, float, float]:
+    """The focal scale's and the rotation's deviations (:func:`_sigmas`) and the lens excess
+    (:func:`_lens_excess`, -inf without the ``noise``) of the minimum ``params`` of
+    ``problem``, its :func:`_forward` pass ``forward``."""
+    residual = _residual(params, problem, forward)
+    inverse = gauss_newton_covariance(_jacobian(params, problem, forward), 1.0)
+    sigma, rotation_sigma = _sigmas(residual, inverse, problem)
+    if noise is None:
+        return sigma, rotation_sigma, float("-inf")
+    return sigma, rotation_sigma, _lens_excess(params, inverse, problem, bounds, noise)
 
 
 def _lens_terms_setup(
@@ -727,14 +744,16 @@ def _lens_terms_setup(
     return free, prior, centre, bounds, offset_bound
 
 
-def _without_implausible_terms(params, problem, offset_bound, noise, focal_ratio_prior, iterations):
+def _without_implausible_terms(fitted, problem, offset_bound, noise, focal_ratio_prior, iterations):
     """Parallax, not a lens: an offset beyond its bound or a ratio beyond
     :data:`FOCAL_RATIO_BOUND` priors from its mean is dropped (no offset, ratio 1) and the rest
-    fitted again; ``(params, problem)`` with the terms left free."""
+    fitted again; ``fitted`` is :func:`_gauss_newton`'s ``(params, forward)``. Returns
+    ``(params, problem, forward)`` with the terms left free."""
     R0, a, b, prior, free, centre = problem
+    params, forward = fitted
     for _ in range(2):
         implausible = np.zeros(_NPARAMS, dtype=bool)
-        if free[5] and _offset_beyond_bound(params, problem, offset_bound, noise):
+        if free[5] and _offset_beyond_bound(params, problem, offset_bound, noise, forward):
             implausible |= _OFFSET
         if free[7] and abs(params[7] - centre[7]) > FOCAL_RATIO_BOUND * focal_ratio_prior:
             implausible |= _RATIO
@@ -742,91 +761,145 @@ def _without_implausible_terms(params, problem, offset_bound, noise, focal_ratio
             break
         free = free & ~implausible
         problem = (R0, a, b, prior, free, centre)
-        params = _gauss_newton(np.where(free, centre, 0.0), problem, iterations)
-    return params, problem
+        params, forward = _gauss_newton(np.where(free, centre, 0.0), problem, iterations)
+    return params, problem, forward
 
 
-def _objectives(params: np.ndarray, problem) -> np.ndarray:
-    """Transfer residuals (P, 2I) followed by the prior rows of the fitted parameters, for each
-    row of ``params`` (P, 8)."""
+def _objective(params, problem) -> tuple[np.ndarray, tuple]:
+    """:func:`_residual` at ``params`` (8,) and the :func:`_forward` pass it came from."""
+    forward = _forward(params, problem[0], problem[1])
+    return _residual(params, problem, forward), forward
+
+
+def _residual(params, problem, forward) -> np.ndarray:
+    """Transfer residuals (2I,), x and y of each match in turn, followed by the prior rows of
+    the fitted parameters, at ``params`` (8,) from its :func:`_forward` pass."""
     R0, a, b, prior, free, centre = problem
-    transfer = _lens_transfers(params, R0, a, b).reshape(len(params), -1)
-    return np.concatenate([transfer, (prior * (params - centre))[:, free]], axis=1)
+    transfer = forward[-1] / ((1.0 + params[3]) * (1.0 + params[7])) - b
+    return np.concatenate([transfer.T.ravel(), prior[free] * (params - centre)[free]])
 
 
-def _objective(params, problem) -> np.ndarray:
-    """:func:`_objectives` of one parameter vector."""
-    return _objectives(params[None], problem)[0]
+def _forward(params: np.ndarray, R0: np.ndarray, rows1: np.ndarray) -> tuple:
+    """The transfer of view 1's points ``rows1`` (2, N) at ``params`` (8,): the rotation
+    (3, 3), true points ``q1`` (2, N), rays (3, N), their depths (N,), projections ``q2``
+    (2, N), ``|q2|^2`` (N,) and view 2's distorted points (2, N), before the focal scale."""
+    R = rotation_increment(params[:3]) @ R0
+    k1, offset = params[4], params[5:7, None]
+    q1 = _true_rows(rows1, 1.0 + params[3], k1, offset)
+    ray = R[:, :2] @ q1 + R[:, 2:]
+    z = np.where(np.abs(ray[2]) > 1e-9, ray[2], 1e-9)
+    q2 = ray[:2] / z
+    norm2 = q2[0] * q2[0] + q2[1] * q2[1]
+    return R, q1, ray, z, q2, norm2, q2 * (1.0 + k1 * norm2) + offset
 
 
-def _jacobian(params, problem):
-    """Residual and its Jacobian in the free parameters of ``problem`` (:func:`_objectives`),
-    analytic (:func:`_transfer_jacobian`) with the prior rows below."""
+def _true_rows(rows: np.ndarray, scale, k1, offset, iterations: int = 6) -> np.ndarray:
+    """True normalised points ``q`` (2, N) of the given points ``rows`` (2, N),
+    ``s x = p + q (1 + k1 |q|^2)`` solved by fixed-point iteration; ``offset`` ``p`` (2, 1)."""
+    distorted = scale * rows - offset
+    q = distorted
+    for _ in range(iterations):
+        q = distorted / (1.0 + k1 * (q[0] * q[0] + q[1] * q[1]))
+    return q
+
+
+def _transfer_rows(params: np.ndarray, R0: np.ndarray, rows1: np.ndarray, rows2: np.ndarray):
+    """Residuals (2, N) in view 2 of the points ``rows1``, ``rows2`` (2, N) at ``params`` (8,):
+    ``x2`` minus the transfer of ``x1`` (``q1`` rotated, distorted and scaled back by view 2's
+    focal scale)."""
+    distorted = _forward(params, R0, rows1)[-1]
+    return distorted / ((1.0 + params[3]) * (1.0 + params[7])) - rows2
+
+
+def _jacobian(params, problem, forward) -> np.ndarray:
+    """Jacobian of :func:`_residual` in the free parameters of ``problem``, Fortran order:
+    analytic (:func:`_transfer_jacobian`, from the :func:`_forward` pass at ``params``) with
+    the prior rows below."""
     R0, a, b, prior, free, centre = problem
-    residual, transfer = _transfer_jacobian(params, R0, a, b)
-    prior_rows = np.diag(prior)[free]
-    jacobian = np.concatenate([transfer.reshape(-1, _NPARAMS), prior_rows])[:, free]
-    return np.concatenate([residual.ravel(), prior[free] * (params - centre)[free]]), jacobian
+    transfer = _transfer_jacobian(params, a, forward)
+    count, size = a.shape[1], int(np.count_nonzero(free))
+    if np.all(free[:size]):
+        transfer = transfer[:, :size]
+    else:
+        transfer = transfer[:, free]
+    columns = np.empty((size, 2 * count + size))
+    columns[:, : 2 * count].reshape(size, count, 2)[...] = transfer.transpose(1, 2, 0)
+    columns[:, 2 * count :] = np.diag(prior[free])
+    return columns.T
 
 
-def _transfer_jacobian(params: np.ndarray, R0: np.ndarray, xy1: np.ndarray, xy2: np.ndarray):
-    """Residual vectors (N, 2) of :func:`_lens_transfers` at ``params`` (8,) and their
-    derivatives (N, 2, 8) in every parameter.
+def _transfer_jacobian(params: np.ndarray, rows1: np.ndarray, forward) -> np.ndarray:
+    """Derivatives (2, 8, N) of the residuals of :func:`_transfer_rows` at ``params`` (8,) in
+    every parameter, from the :func:`_forward` pass of ``rows1`` there.
 
     ``q1`` solves ``s x1 - p = q1 (1 + k1 |q1|^2)``, so ``D1 dq1 = x1 ds - dp - q1 |q1|^2 dk1``
     with ``D = (1 + k1 |q|^2) I + 2 k1 q q^T``; a rotation increment moves the ray ``R q1`` by
     ``-[R q1]_x J(w) dw``, ``J`` the left Jacobian of the rotation's exponential; view 2's
     distortion of the projection ``q2`` changes by ``D2 dq2 + q2 |q2|^2 dk1 + dp``, and the
     transfer is that over ``s rho``."""
-    w, scale, k1 = params[:3], 1.0 + params[3], params[4]
-    offset, ratio = params[5:7], 1.0 + params[7]
-    R = rotation_increment(w) @ R0
-    q1 = _lens_map(xy1, scale, k1, offset)
-    ray = q1 @ R[:, :2].T + R[:, 2]
-    z = np.where(np.abs(ray[:, 2:]) > 1e-9, ray[:, 2:], 1e-9)
-    q2 = ray[:, :2] / z
-    norm2 = _squared_norms(q2)
-    distorted = q2 * (1.0 + k1 * norm2) + offset
-    residual = distorted / (scale * ratio) - xy2
-    lens = np.zeros((2, len(q1), _NPARAMS))  # D1 dq1, x and y
-    lens[:, :, 3] = xy1.T
-    lens[:, :, 4] = -(q1 * _squared_norms(q1)).T
-    lens[0, :, 5] = lens[1, :, 6] = -1.0
-    d_q1 = _distortion_solve(q1, k1, lens)
-    d_ray = np.einsum("ij,jnk->ink", R[:, :2], d_q1)
-    d_ray[:, :, :3] = np.cross(_left_jacobian(w).T[:, None, :], ray[None], axis=2).transpose(
-        2, 1, 0
-    )
-    d_q2 = (d_ray[:2] - q2.T[:, :, None] * d_ray[2]) / z[:, 0, None]
-    d_distorted = _distortion_apply(q2, k1, d_q2)
-    d_distorted[:, :, 4] += (q2 * norm2).T
-    d_distorted[0, :, 5] += 1.0
-    d_distorted[1, :, 6] += 1.0
-    derivative = d_distorted / (scale * ratio)
-    derivative[:, :, 3] -= distorted.T / (scale * scale * ratio)
-    derivative[:, :, 7] = -distorted.T / (scale * ratio * ratio)
-    return residual, derivative.transpose(1, 0, 2)
+    scale, k1, ratio = 1.0 + params[3], params[4], 1.0 + params[7]
+    R, q1, ray, z, q2, norm2, distorted = forward
+    d_ray = np.empty((3, 7, q1.shape[1]))
+    _rotation_rays(_left_jacobian(params[:3]), ray, d_ray[:, :3])
+    d_q1 = _distortion_solve(q1, k1, rows1)
+    np.multiply(R[:, 0, None, None], d_q1[0], out=d_ray[:, 3:])
+    d_ray[:, 3:] += R[:, 1, None, None] * d_q1[1]
+    d_q2 = np.multiply(q2[:, None], d_ray[2])
+    np.subtract(d_ray[:2], d_q2, out=d_q2)
+    d_q2 /= z
+    derivative = np.empty((2, _NPARAMS, q1.shape[1]))
+    _distortion_apply(q2, norm2, k1, d_q2, derivative[:, :7])
+    derivative[:, 4] += q2 * norm2
+    derivative[0, 5] += 1.0
+    derivative[1, 6] += 1.0
+    derivative[:, :7] /= scale * ratio
+    derivative[:, 3] -= distorted / (scale * scale * ratio)
+    derivative[:, 7] = -distorted / (scale * ratio * ratio)
+    return derivative
 
 
-def _distortion_apply(q: np.ndarray, k1: float, d: np.ndarray) -> np.ndarray:
-    """``D d`` with ``D = d (q (1 + k1 |q|^2)) / dq`` at points ``q`` (N, 2), ``d`` (2, N, M)."""
-    x, y = q[:, :1], q[:, 1:]
-    radial = 1.0 + k1 * (x * x + y * y)
-    cross = 2.0 * k1 * x * y
-    return np.stack([
-        (radial + 2.0 * k1 * x * x) * d[0] + cross * d[1],
-        cross * d[0] + (radial + 2.0 * k1 * y * y) * d[1],
-    ])  # fmt: skip
+def _rotation_rays(J: np.ndarray, ray: np.ndarray, out: np.ndarray) -> None:
+    """``J[:, k] x ray`` into ``out`` (3, 3, N) for each column ``k`` of ``J`` (3, 3) and ray
+    (3, N): the change of the rays under the rotation increments, written out as ``np.cross``
+    computes it."""
+    other = np.empty(out.shape[1:])
+    for i, (j, k) in enumerate(((1, 2), (2, 0), (0, 1))):
+        np.multiply(J[j, :, None], ray[k], out=out[i])
+        np.multiply(J[k, :, None], ray[j], out=other)
+        out[i] -= other
 
 
-def _distortion_solve(q: np.ndarray, k1: float, d: np.ndarray) -> np.ndarray:
-    """``D^-1 d`` for the ``D`` of :func:`_distortion_apply`."""
-    x, y = q[:, :1], q[:, 1:]
-    radial = 1.0 + k1 * (x * x + y * y)
-    cross = 2.0 * k1 * x * y
-    xx, yy = radial + 2.0 * k1 * x * x, radial + 2.0 * k1 * y * y
+def _distortion_apply(q: np.ndarray, norm2: np.ndarray, k1: float, d: np.ndarray, out) -> None:
+    """``D d`` into ``out`` (2, M, N), ``D = d (q (1 + k1 |q|^2)) / dq`` at points ``q`` (2, N),
+    ``norm2`` their ``|q|^2`` (N,), ``d`` (2, M, N)."""
+    x, y = q
+    radial = 1.0 + k1 * norm2
+    kx, ky = 2.0 * k1 * x, 2.0 * k1 * y
+    cross = kx * y
+    np.multiply(radial + kx * x, d[0], out=out[0])
+    out[0] += cross * d[1]
+    np.multiply(cross, d[0], out=out[1])
+    out[1] += (radial + ky * y) * d[1]
+
+
+def _distortion_solve(q: np.ndarray, k1: float, rows: np.ndarray) -> np.ndarray:
+    """``D^-1 d`` (2, 4, N), ``D`` that of :func:`_distortion_apply` at ``q`` (2, N), of the
+    changes ``d`` of ``D dq`` per unit of the focal scale (the given points ``rows`` (2, N)),
+    of ``k1`` and of the offset's two coordinates."""
+    x, y = q
+    norm2 = x * x + y * y
+    radial = 1.0 + k1 * norm2
+    kx, ky = 2.0 * k1 * x, 2.0 * k1 * y
+    cross = kx * y
+    xx, yy = radial + kx * x, radial + ky * y
     det = xx * yy - cross * cross
-    return np.stack([(yy * d[0] - cross * d[1]) / det, (xx * d[1] - cross * d[0]) / det])
+    dx, dy = -(x * norm2), -(y * norm2)
+    solved = np.empty((2, 4, len(x)))
+    solved[0, 0], solved[1, 0] = yy * rows[0] - cross * rows[1], xx * rows[1] - cross * rows[0]
+    solved[0, 1], solved[1, 1] = yy * dx - cross * dy, xx * dy - cross * dx
+    solved[0, 2], solved[1, 2], solved[0, 3], solved[1, 3] = -yy, cross, cross, -xx
+    solved /= det
+    return solved
 
 
 def _left_jacobian(w: np.ndarray) -> np.ndarray:
@@ -840,34 +913,34 @@ def _left_jacobian(w: np.ndarray) -> np.ndarray:
     return np.eye(3) + a * K + b * (K @ K)
 
 
-def _sigmas(residual, J, problem) -> tuple[float, float]:
+def _sigmas(residual, inverse, problem) -> tuple[float, float]:
     """Deviations of the focal scale and of the rotation angle (degrees, root-mean-square) from
-    the covariance ``v (J^T J)^-1``, ``v = |r|^2 / (2I - P)``, of the residual ``r`` and its
-    Jacobian ``J`` at the minimum (:func:`_jacobian`, with the prior rows)."""
+    the covariance ``v (J^T J)^-1``, ``v = |r|^2 / (2I - P)``, of the residual ``r`` and the
+    ``inverse`` ``(J^T J)^-1`` of its Jacobian ``J`` at the minimum (:func:`_jacobian`, with
+    the prior rows; None when singular)."""
     count = int(np.count_nonzero(problem[4]))
     transfer = residual[:-count]
-    if len(transfer) <= count:
+    if len(transfer) <= count or inverse is None:
         return float("inf"), float("inf")
-    cov = gauss_newton_covariance(J, float(transfer @ transfer) / (len(transfer) - count))
-    if cov is None:
-        return float("inf"), float("inf")
+    cov = float(transfer @ transfer) / (len(transfer) - count) * inverse
     rotation = np.degrees(np.sqrt(max(float(np.trace(cov[:3, :3])), 0.0)))
     return float(np.sqrt(max(cov[3, 3], 0.0))), float(rotation)
 
 
-def _offset_beyond_bound(params, problem, bound, noise) -> bool:
+def _offset_beyond_bound(params, problem, bound, noise, forward) -> bool:
     """A coordinate of the fitted offset lies beyond ``bound`` (2,) by more than
     :data:`PRINCIPAL_SIGNIFICANCE` posterior deviations, ``noise^2 (J^T J)^-1`` with ``J`` the
     Jacobian of the residuals and the prior rows (the plain bound when it is singular)."""
     excess = np.abs(params[5:7]) - bound
     if not np.any(excess > 0):
         return False
-    deviation = _posterior_deviations(_jacobian(params, problem)[1], problem, noise)
+    inverse = gauss_newton_covariance(_jacobian(params, problem, forward), 1.0)
+    deviation = _posterior_deviations(inverse, problem, noise)
     deviation = np.zeros(2) if deviation is None else deviation[5:7]
     return bool(np.any(excess > PRINCIPAL_SIGNIFICANCE * deviation))
 
 
-def _lens_excess(params, J, problem, bounds, noise) -> float:
+def _lens_excess(params, inverse, problem, bounds, noise) -> float:
     """Largest ``(|param| - bound) / deviation`` over the free focal scale, ``k1`` and focal
     ratio, the deviations those of :func:`_posterior_deviations` (inf beyond the box when the
     covariance is singular; -inf when none is bounded)."""
@@ -875,19 +948,20 @@ def _lens_excess(params, J, problem, bounds, noise) -> float:
     if bounded.size == 0:
         return float("-inf")
     excess = np.abs(params[bounded]) - bounds[bounded]
-    deviation = _posterior_deviations(J, problem, noise)
+    deviation = _posterior_deviations(inverse, problem, noise)
     if deviation is None:
         return float("inf") if np.any(excess > 0) else float("-inf")
     return float(np.max(excess / np.maximum(deviation[bounded], np.sqrt(1e-300))))
 
 
-def _posterior_deviations(J, problem, noise) -> np.ndarray | None:
+def _posterior_deviations(inverse, problem, noise) -> np.ndarray | None:
     """Posterior deviation of each parameter (8,), from ``noise^2 (J^T J)^-1`` with ``J`` the
-    Jacobian of the residuals and the prior rows (NaN for the held ones); None when singular."""
+    Jacobian of the residuals and the prior rows, ``inverse`` its ``(J^T J)^-1`` (NaN for the
+    held ones); None when singular (``inverse`` None)."""
     free = problem[4]
-    cov = gauss_newton_covariance(J, noise**2)
-    if cov is None:
+    if inverse is None:
         return None
+    cov = noise**2 * inverse
     deviation = np.full(free.size, np.nan)
     deviation[free] = np.sqrt(np.maximum(np.diag(cov), 0.0))
     return deviation
@@ -899,29 +973,30 @@ def _gauss_newton(params, problem, iterations):
     shorter than :data:`_SETTLED` deviations of the parameters (``u^T H u`` against the
     residual's variance per degree of freedom): Gauss-Newton converges quadratically, so the
     next would move them by a far smaller fraction of their uncertainty, at the price of a
-    Jacobian."""
+    Jacobian. Returns the parameters and the :func:`_forward` pass there."""
     free = problem[4]
     damping = 1e-6
-    residual = _objective(params, problem)
+    residual, forward = _objective(params, problem)
     cost = residual @ residual
     freedom = max(len(residual) - int(np.count_nonzero(free)), 1)
     normal = None
     for _ in range(iterations):
         if normal is None:
-            J = _jacobian(params, problem)[1]
+            J = _jacobian(params, problem, forward)
             normal = J.T @ J, J.T @ residual
         H, g = normal
         update = np.linalg.solve(H + damping * np.diag(np.diag(H) + 1e-12), -g)
         trial = params.copy()
         trial[free] += update
-        new_residual = _objective(trial, problem)
+        new_residual, trial_forward = _objective(trial, problem)
         new_cost = new_residual @ new_residual
         if new_cost < cost:
             params, residual, damping, normal = trial, new_residual, damping * 0.1, None
+            forward = trial_forward
             settled = update @ H @ update < _SETTLED**2 * new_cost / freedom
             if settled or cost - new_cost < 1e-12 * cost:
                 break
             cost = new_cost
         else:
             damping *= 10.0
-    return params
+    return params, forward

@@ -161,3 +161,14 @@ def test_row_chunks_cover_every_row_once_in_chunks_of_about_the_budget():
         assert all(s.stop - s.start >= 1 for s in chunks)
         assert all((s.stop - s.start) * width <= max(CHUNK_VALUES, width) for s in chunks)
     assert len(row_chunks(96, 581)) > 1 and len(row_chunks(7, 581)) == 1
+
+
+def test_one_rotation_increment_and_cross_matrix_are_the_stacked_ones_to_the_bit():
+    from ppo_cv.lsq import rotation_increment, rotation_increments
+
+    rng = np.random.default_rng(5)
+    w = rng.normal(size=(300, 3)) * 10.0 ** rng.uniform(-14, 0.5, (300, 1))
+    w[::7, 1] = 0.0
+    for row in np.vstack([w, np.zeros(3)]):
+        assert np.array_equal(rotation_increment(row), rotation_increments(row[None])[0])
+        assert np.array_equal(cross_matrix(row), cross_matrices(row[None])[0])
