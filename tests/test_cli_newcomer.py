@@ -367,3 +367,34 @@ def test_numbers_given_as_separate_arguments_get_the_comma_remedy(args, option, 
         f"; {option} takes its numbers as one argument, joined by commas: {option} {joined}\n"
     )
     assert done.stderr.count("\n") == 1
+
+
+@pytest.mark.parametrize(
+    "args, name",
+    [
+        (["pairs", "pairs.txt", ""], "'IMAGE_DIR'"),
+        (["pairs", "", "."], "'PAIRS_FILE'"),
+        (["pairs", "pairs.txt", ".", "-o", ""], "'--output' / '-o'"),
+        (["pair", "", "b.png"], "'IMAGE1'"),
+        (["pair", "a.png", "b.png", "--calib", ""], "'--calib'"),
+        (["pair", "a.png", "b.png", "--out", ""], "'--out'"),
+        (["sfm", "", "model"], "'IMAGE_DIR'"),
+        (["sfm", ".", "model", "--database", ""], "'--database'"),
+        (["synth", ""], "'OUT_DIR'"),
+    ],
+)
+def test_an_empty_path_is_refused_not_read_as_the_current_folder(tmp_path, args, name):
+    """An unset variable (``ppo-cv pairs "$PAIRS" "$DIR"``) gives an empty path, which Python
+    reads as ``.``: run in a folder holding the images, ``pairs`` would run on it."""
+    for image in (DEMO1, DEMO2):
+        shutil.copy(image, tmp_path / image.name)
+    (tmp_path / "pairs.txt").write_text(f"{DEMO1.name} {DEMO2.name}\n")
+    done = ppo_cv(*args, "--quiet", cwd=tmp_path)
+    assert done.returncode == 2, done.stderr
+    assert done.stdout == ""
+    assert done.stderr.splitlines() == [
+        f"ppo-cv {args[0]}: Invalid value for {name}: the path is empty (an unset variable?); "
+        "give a name"
+    ]
+    left = sorted(p.name for p in tmp_path.iterdir())
+    assert left == sorted([DEMO1.name, DEMO2.name, "pairs.txt"])
