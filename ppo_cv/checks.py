@@ -510,9 +510,12 @@ def as_flag(value: Any, name: str) -> bool:
 
 
 def as_path(value: Any, name: str) -> Path:
-    """``value`` as a Path; TypeError naming ``name`` for anything but a str or PathLike."""
+    """``value`` as a Path; TypeError naming ``name`` for anything but a str or PathLike,
+    ValueError for the empty path, which ``Path`` reads as the current folder."""
     if not isinstance(value, (str, os.PathLike)):
         raise TypeError(f"{name} must be a path (str or os.PathLike), got {type(value).__name__}")
+    if not os.fspath(value):
+        raise ValueError(f"{name} is an empty path, not a file or folder name")
     return Path(value)
 
 

@@ -380,7 +380,7 @@ def as_image(image: Any, name: str) -> np.ndarray:
     alpha would widen the range by which the colours are scaled) and scaled to 8 bits by its
     range."""
     if isinstance(image, (str, os.PathLike)):
-        return load_image(image)
+        return load_image(as_path(image, name))
     if image is None:
         raise TypeError(f"{name} is required: an image array or a path, got None")
     if isinstance(image, (bytes, bytearray, memoryview)):

@@ -269,6 +269,20 @@ CASES = {
                              "output_dir must be a path"),
     "score_pairs None": (lambda: _sfm_module().score_pairs(None), TypeError,
                          "database_path must be a path"),
+    # an empty path (an unset variable) is no name: Path("") would be the current folder
+    "estimate_pair image1 empty": (_pair(image1=""), ValueError,
+                                   "image1 is an empty path, not a file or folder name"),
+    "run_sfm image_dir empty": (lambda: _sfm_module().run_sfm("", "model", K=K), ValueError,
+                                "image_dir is an empty path"),
+    "run_sfm output_dir empty": (lambda: _sfm_module().run_sfm(".", "", K=K), ValueError,
+                                 "output_dir is an empty path"),
+    "score_pairs empty": (lambda: _sfm_module().score_pairs(""), ValueError,
+                          "database_path is an empty path"),
+    "load_calibration empty": (lambda: ppo_cv.load_calibration(""), ValueError,
+                               "path is an empty path"),
+    "write_outputs directory empty": (
+        lambda: ppo_cv.write_outputs("", None, GREY, GREY), ValueError,
+        "directory is an empty path"),
     "estimate_pair K text": (_pair(K1="535.4,539.2,320.1,247.6"), TypeError,
                              "K1 must be an array of real numbers, got str: parse a text with "
                              "ppo_cv.parse_intrinsics"),
