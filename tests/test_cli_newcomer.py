@@ -5,6 +5,7 @@ summary, and photos whose EXIF is stale or belongs to a larger original."""
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -398,3 +399,18 @@ def test_an_empty_path_is_refused_not_read_as_the_current_folder(tmp_path, args,
     ]
     left = sorted(p.name for p in tmp_path.iterdir())
     assert left == sorted([DEMO1.name, DEMO2.name, "pairs.txt"])
+
+
+def test_the_readme_explains_every_line_of_the_demo_summary():
+    """Each line ``ppo-cv pair`` prints on the demo pair is in the README's sample of that
+    summary and has a row in the table below it."""
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    section = readme.split("### What the summary says", 1)[1].split("\n## ", 1)[0]
+    sample, table = section.split("| line | what it means |", 1)
+    done = ppo_cv("pair", "--quiet")
+    assert done.returncode == 0, done.stderr
+    labels = [re.match(r"  (\S+(?: \S+)?) {2,}", line) for line in done.stdout.splitlines()[1:]]
+    assert labels and all(labels)
+    for label in (found[1] for found in labels):
+        assert f"\n  {label} " in sample, label
+        assert re.search(rf"^\|[^|]*`{re.escape(label)}`", table, re.M), label
