@@ -192,6 +192,9 @@ CASES = {
     # estimate_pair: options, thresholds, distortion, images
     "estimate_pair options not PairOptions": (_pair(options={"features": "sift"}), TypeError,
                                               "options must be a PairOptions"),
+    "PairOptions max_image_size 0": (lambda: PairOptions(max_image_size=0), ValueError,
+                                     "max_image_size must be a whole number in 32..2147483647, "
+                                     "got 0 (None: full size)"),
     "PairOptions threshold inf": (lambda: PairOptions(ransac_threshold=np.inf), ValueError,
                                   "ransac_threshold must be in (0, 100]"),
     "PairOptions threshold nan": (lambda: PairOptions(ransac_threshold=np.nan), ValueError,
