@@ -161,6 +161,12 @@ CASES = [
         "sfm",
         r"database taken\.jsonl already exists; give a new file name",
     ),
+    (
+        ["sfm", "images", "out", "--K", K_TEXT, "--database", "taken.jsonl", "--overwrite"],
+        "sfm",
+        r"database taken\.jsonl already exists; give a new file name \(a database is never "
+        r"replaced, --overwrite or not\)$",
+    ),
     # section 3: numbers out of range, checked before any work
     ([*PAIR, "--seed", "1099511627776"], "pair", r"--seed must be in 0\.\.2147483647"),
     ([*PAIR, "--seed", "-1"], "pair", r"--seed must be in 0\.\."),
