@@ -222,6 +222,13 @@ def as_homogeneous_pair(points1: Any, points2: Any, min_points: int = MIN_POINTS
     return stack
 
 
+_FLAT_CAMERA_HINTS = {
+    (4,): " (fx, fy, cx, cy? give [[fx, 0, cx], [0, fy, cy], [0, 0, 1]])",
+    (9,): " (the 9 entries of K? reshape them to (3, 3), row by row)",
+}
+"""The remedy for a camera given flat, as the command line's --K takes it."""
+
+
 def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
     """A 3x3 pinhole matrix, last row (0, 0, 1), focal lengths in [MIN_FOCAL, MAX_FOCAL].
 
@@ -231,7 +238,8 @@ def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
     """
     K = _as_real_array(value, name, _PARSE_INTRINSICS)
     if K.shape != (3, 3):
-        raise ValueError(f"{name} must be a 3x3 matrix, got shape {K.shape}")
+        raise ValueError(f"{name} must be a 3x3 matrix, got shape {K.shape}"
+                         + _FLAT_CAMERA_HINTS.get(K.shape, ""))  # fmt: skip
     rows = K.tolist()
     if not math.isfinite(sum(rows[0]) + sum(rows[1]) + sum(rows[2])):
         require_finite(K, name)

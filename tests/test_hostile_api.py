@@ -192,6 +192,12 @@ CASES = {
     # estimate_pair: options, thresholds, distortion, images
     "estimate_pair options not PairOptions": (_pair(options={"features": "sift"}), TypeError,
                                               "options must be a PairOptions"),
+    "run_sfm K flat 4": (lambda: _sfm_module().run_sfm(".", None, K=[535.4, 539.2, 320.1, 247.6]),
+                         ValueError, "K must be a 3x3 matrix, got shape (4,) (fx, fy, cx, "
+                         "cy? give [[fx, 0, cx], [0, fy, cy], [0, 0, 1]])"),
+    "estimate_pair K1 flat 9": (_pair(K1=K.ravel()), ValueError,
+                                "K1 must be a 3x3 matrix, got shape (9,) (the 9 entries of K? "
+                                "reshape them to (3, 3), row by row)"),
     "PairOptions max_image_size 0": (lambda: PairOptions(max_image_size=0), ValueError,
                                      "max_image_size must be a whole number in 32..2147483647, "
                                      "got 0 (None: full size)"),
