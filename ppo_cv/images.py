@@ -86,9 +86,22 @@ def file_mode(path: str | os.PathLike, what: str) -> int:
     try:
         return os.stat(path).st_mode
     except FileNotFoundError:
-        raise ValueError(f"{what} not found: {os.fspath(path)}") from None
+        raise ValueError(f"{what} not found: {os.fspath(path)}{_case_hint(path)}") from None
     except OSError as exc:
         raise ValueError(f"cannot read {what} {os.fspath(path)}: {exc.strerror or exc}") from None
+
+
+def _case_hint(path: str | os.PathLike) -> str:
+    """`` (NAME exists: names are case-sensitive)`` when the folder of ``path``, a name not
+    found, holds one that differs from it in case only (``.JPG`` for ``.jpg``, as a list
+    written on a system that ignores case names them); empty otherwise."""
+    folder, name = os.path.split(os.fspath(path))
+    try:
+        names = os.listdir(folder or ".")
+    except (OSError, ValueError):
+        return ""
+    alike = sorted(other for other in names if other.casefold() == name.casefold())
+    return f" ({alike[0]} exists: names are case-sensitive)" if alike else ""
 
 
 def check_regular_file(path: str | os.PathLike) -> None:

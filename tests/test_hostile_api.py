@@ -1176,3 +1176,17 @@ def test_what_camera_from_exif_and_load_calibration_return_is_named_when_passed_
         with pytest.raises(TypeError) as error:
             ppo_cv.estimate_pair(GREY, GREY[::-1], given)
         assert str(error.value) == words.format(kind)
+
+
+def test_a_name_not_found_names_the_file_that_differs_in_case_only(tmp_path):
+    """A camera's ``IMG_1.JPG`` named ``IMG_1.jpg``, as a list written where case is ignored
+    names it: the error says which file is there."""
+    photo = tmp_path / "IMG_1.JPG"
+    photo.write_bytes((Path(ppo_cv.__file__).parent / "data" / "demo1.png").read_bytes())
+    with pytest.raises(ValueError) as info:
+        ppo_cv.estimate_pair(tmp_path / "IMG_1.jpg", photo, K)
+    assert str(info.value) == (
+        f"image not found: {tmp_path / 'IMG_1.jpg'} (IMG_1.JPG exists: names are case-sensitive)"
+    )
+    with pytest.raises(ValueError, match=r"not found: \S+IMG_2\.jpg$"):
+        ppo_cv.estimate_pair(tmp_path / "IMG_2.jpg", photo, K)
