@@ -39,6 +39,7 @@ __all__ = [
     "MAX_PIXELS_ENV",
     "ExifLayout",
     "as_image",
+    "case_alike",
     "check_decodes",
     "check_header",
     "check_regular_file",
@@ -91,17 +92,22 @@ def file_mode(path: str | os.PathLike, what: str) -> int:
         raise ValueError(f"cannot read {what} {os.fspath(path)}: {exc.strerror or exc}") from None
 
 
-def _case_hint(path: str | os.PathLike) -> str:
-    """`` (NAME exists: names are case-sensitive)`` when the folder of ``path``, a name not
-    found, holds one that differs from it in case only (``.JPG`` for ``.jpg``, as a list
-    written on a system that ignores case names them); empty otherwise."""
+def case_alike(path: str | os.PathLike) -> str | None:
+    """The name in the folder of ``path``, a name not found, that differs from it in case only
+    (``IMG_1.JPG`` for ``IMG_1.jpg``, as a list written on a system that ignores case gives
+    it), or None."""
     folder, name = os.path.split(os.fspath(path))
     try:
         names = os.listdir(folder or ".")
     except (OSError, ValueError):
-        return ""
+        return None
     alike = sorted(other for other in names if other.casefold() == name.casefold())
-    return f" ({alike[0]} exists: names are case-sensitive)" if alike else ""
+    return alike[0] if alike else None
+
+
+def _case_hint(path: str | os.PathLike) -> str:
+    alike = case_alike(path)
+    return f" ({alike} exists: names are case-sensitive)" if alike else ""
 
 
 def check_regular_file(path: str | os.PathLike) -> None:

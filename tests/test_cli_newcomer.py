@@ -414,3 +414,17 @@ def test_the_readme_explains_every_line_of_the_demo_summary():
     for label in (found[1] for found in labels):
         assert f"\n  {label} " in sample, label
         assert re.search(rf"^\|[^|]*`{re.escape(label)}`", table, re.M), label
+
+
+def test_pairs_whose_names_differ_from_the_files_in_case_say_so(tmp_path):
+    """A list naming ``.jpg`` what the camera wrote ``.JPG``: no image of it is found."""
+    (tmp_path / "images").mkdir()
+    for index, image in enumerate((DEMO1, DEMO2)):
+        photo(image, tmp_path / "images" / f"IMG_{index}.JPG")
+    (tmp_path / "pairs.txt").write_text("IMG_0.jpg IMG_1.jpg\n")
+    done = ppo_cv("pairs", "pairs.txt", "images", "--K", K_TEXT, "-q", cwd=tmp_path)
+    assert done.returncode == 2
+    assert done.stderr.splitlines() == [
+        "ppo-cv pairs: image folder images holds none of the 2 images pairs.txt names (the "
+        "first: IMG_0.jpg); IMG_0.JPG exists: names are case-sensitive"
+    ]
