@@ -14,6 +14,7 @@ import re
 import sys
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any, NoReturn
@@ -201,13 +202,34 @@ Overwrite = Annotated[
 Quiet = Annotated[bool, typer.Option("--quiet", "-q", help="No progress on stderr.")]
 
 
+def _refusing_empty(convert: Callable) -> Callable:
+    """``convert`` of a path parameter, refusing the empty text: ``Path("")`` is the current
+    folder, so an unset shell variable (``ppo-cv pairs "$PAIRS" "$DIR"``) would read it, or
+    name ``.`` in its errors."""
+
+    def checked(value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, str) and not value:
+            message = "the path is empty (an unset variable?); give a name"
+            raise typer.BadParameter(message, ctx, param)
+        return convert(value, param, ctx)
+
+    return checked
+
+
 class PanelledHelpCommand(TyperCommand):
     """A command whose ``--help`` is plain text wrapped to the terminal, every option name whole
-    on its own line when it is long, the options grouped under their ``rich_help_panel``.
+    on its own line when it is long, the options grouped under their ``rich_help_panel``; its
+    path arguments and options refuse an empty path.
 
     typer's tables cut long option names (``--no-exif-orientation``) and words of the help at
     80 columns.
     """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        for param in self.params:
+            if getattr(param.type, "name", None) == "path":
+                param.type.convert = _refusing_empty(param.type.convert)
 
     def collect_usage_pieces(self, ctx: click.Context) -> list[str]:
         """``[OPTIONS] PAIRS_FILE IMAGE_DIR``: each argument by its metavar, the upper-case

@@ -98,7 +98,8 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
     if database is not None:
         check_apart(database, [image_dir], "--database ")
         if database.exists() or database.is_symlink():
-            raise ValueError(f"database {database} already exists; give a new file name")
+            raise ValueError(f"database {database} already exists; give a new file name (a "
+                             "database is never replaced, --overwrite or not)")  # fmt: skip
         check_target(database, "file")
         sfm.require_database_outside(database, out_dir, ("--database", "OUT_DIR"))
     matrix = None if K is None else parse_K(K)

@@ -692,7 +692,10 @@ def implausible_intrinsics(
     side = max(width, height)
     problems = []
     if not all(0.1 * side <= f <= 10.0 * side for f in (fx, fy)):
-        problems.append(f"focal length fx={fx:g} fy={fy:g} px is outside 0.1..10 x {side} px")
+        problems.append(
+            f"focal length fx={fx:g} fy={fy:g} px is outside 0.1..10 x {side} px"
+            + _normalised_hint(fx, fy, cx, cy, width, height)
+        )
     if not (0.0 <= cx <= width and 0.0 <= cy <= height):
         problems.append(f"principal point ({cx:g}, {cy:g}) is outside the {width}x{height} image")
     elif _at_turned_centre(cx, cy, width, height):
@@ -708,6 +711,16 @@ def implausible_intrinsics(
     if not problems:
         return None
     return f"{name} looks implausible for a {width}x{height} image: " + "; ".join(problems)
+
+
+def _normalised_hint(fx: float, fy: float, cx: float, cy: float, width: int, height: int) -> str:
+    """The pixel values of intrinsics some datasets give in units of the image size (``fx`` and
+    ``cx`` over the width, ``fy`` and ``cy`` over the height), when the focal lengths are below
+    a pixel's scale and the principal point lies inside the unit square; empty otherwise."""
+    if not (0.0 < cx < 1.0 and 0.0 < cy < 1.0 and 0.0 < fx < 10.0 and 0.0 < fy < 10.0):
+        return ""
+    pixels = f"{fx * width:g},{fy * height:g},{cx * width:g},{cy * height:g}"
+    return f" (in units of the image size? in pixels fx,fy,cx,cy are {pixels})"
 
 
 class ImplausibleCameraWarning(UserWarning):

@@ -222,6 +222,13 @@ def as_homogeneous_pair(points1: Any, points2: Any, min_points: int = MIN_POINTS
     return stack
 
 
+_FLAT_CAMERA_HINTS = {
+    (4,): " (fx, fy, cx, cy? give [[fx, 0, cx], [0, fy, cy], [0, 0, 1]])",
+    (9,): " (the 9 entries of K? reshape them to (3, 3), row by row)",
+}
+"""The remedy for a camera given flat, as the command line's --K takes it."""
+
+
 def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
     """A 3x3 pinhole matrix, last row (0, 0, 1), focal lengths in [MIN_FOCAL, MAX_FOCAL].
 
@@ -231,7 +238,8 @@ def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
     """
     K = _as_real_array(value, name, _PARSE_INTRINSICS)
     if K.shape != (3, 3):
-        raise ValueError(f"{name} must be a 3x3 matrix, got shape {K.shape}")
+        raise ValueError(f"{name} must be a 3x3 matrix, got shape {K.shape}"
+                         + _FLAT_CAMERA_HINTS.get(K.shape, ""))  # fmt: skip
     rows = K.tolist()
     if not math.isfinite(sum(rows[0]) + sum(rows[1]) + sum(rows[2])):
         require_finite(K, name)
@@ -510,9 +518,12 @@ def as_flag(value: Any, name: str) -> bool:
 
 
 def as_path(value: Any, name: str) -> Path:
-    """``value`` as a Path; TypeError naming ``name`` for anything but a str or PathLike."""
+    """``value`` as a Path; TypeError naming ``name`` for anything but a str or PathLike,
+    ValueError for the empty path, which ``Path`` reads as the current folder."""
     if not isinstance(value, (str, os.PathLike)):
         raise TypeError(f"{name} must be a path (str or os.PathLike), got {type(value).__name__}")
+    if not os.fspath(value):
+        raise ValueError(f"{name} is an empty path, not a file or folder name")
     return Path(value)
 
 

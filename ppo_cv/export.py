@@ -17,7 +17,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .checks import MAX_WHOLE_NUMBER, as_rotation, as_whole_number, shown
+from .checks import MAX_WHOLE_NUMBER, as_path, as_rotation, as_whole_number, shown
 from .result import (
     DecisionEvidence,
     LensTerms,
@@ -724,8 +724,7 @@ def write_outputs(
 
     from .atomic import API_REPLACE_HINT, atomic_directory, check_apart
 
-    if not isinstance(directory, (str, os.PathLike)):
-        raise TypeError(f"directory must be a path, got {type(directory).__name__}")
+    as_path(directory, "directory")
     paths = [image for image in (image1, image2) if isinstance(image, (str, os.PathLike))]
     image1, image2 = _checked_output_arguments(result, (image1, image2), names, extra)
     check_apart(directory, paths, "directory ")

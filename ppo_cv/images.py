@@ -39,6 +39,7 @@ __all__ = [
     "MAX_PIXELS_ENV",
     "ExifLayout",
     "as_image",
+    "case_alike",
     "check_decodes",
     "check_header",
     "check_regular_file",
@@ -86,9 +87,27 @@ def file_mode(path: str | os.PathLike, what: str) -> int:
     try:
         return os.stat(path).st_mode
     except FileNotFoundError:
-        raise ValueError(f"{what} not found: {os.fspath(path)}") from None
+        raise ValueError(f"{what} not found: {os.fspath(path)}{_case_hint(path)}") from None
     except OSError as exc:
         raise ValueError(f"cannot read {what} {os.fspath(path)}: {exc.strerror or exc}") from None
+
+
+def case_alike(path: str | os.PathLike) -> str | None:
+    """The name in the folder of ``path``, a name not found, that differs from it in case only
+    (``IMG_1.JPG`` for ``IMG_1.jpg``, as a list written on a system that ignores case gives
+    it), or None."""
+    folder, name = os.path.split(os.fspath(path))
+    try:
+        names = os.listdir(folder or ".")
+    except (OSError, ValueError):
+        return None
+    alike = sorted(other for other in names if other.casefold() == name.casefold())
+    return alike[0] if alike else None
+
+
+def _case_hint(path: str | os.PathLike) -> str:
+    alike = case_alike(path)
+    return f" ({alike} exists: names are case-sensitive)" if alike else ""
 
 
 def check_regular_file(path: str | os.PathLike) -> None:
@@ -380,7 +399,7 @@ def as_image(image: Any, name: str) -> np.ndarray:
     alpha would widen the range by which the colours are scaled) and scaled to 8 bits by its
     range."""
     if isinstance(image, (str, os.PathLike)):
-        return load_image(image)
+        return load_image(as_path(image, name))
     if image is None:
         raise TypeError(f"{name} is required: an image array or a path, got None")
     if isinstance(image, (bytes, bytearray, memoryview)):

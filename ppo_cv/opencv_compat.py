@@ -436,7 +436,9 @@ def is_installed() -> bool:
 def install() -> None:
     """Replace ``cv2.recoverPose`` with :func:`recoverPose` for all code in this process.
 
-    Installing twice is harmless; :func:`uninstall` restores what was there before.
+    Installing twice is harmless; :func:`uninstall` restores what was there before. A name
+    bound to OpenCV's function before the call (``from cv2 import recoverPose``) keeps it:
+    install first, or call ``cv2.recoverPose``.
     """
     if cv2.recoverPose is not recoverPose:
         _replaced[:] = [cv2.recoverPose]

@@ -168,7 +168,11 @@ class PairOptions:
             put(name, as_whole_number(getattr(self, name), name, low, MAX_WHOLE_NUMBER))
         size = self.max_image_size
         if size is not None:
-            put("max_image_size", as_whole_number(size, "max_image_size", 32, MAX_WHOLE_NUMBER))
+            try:
+                size = as_whole_number(size, "max_image_size", 32, MAX_WHOLE_NUMBER)
+            except ValueError as exc:  # the command line's --max-size 0 is None here
+                raise ValueError(f"{exc} (None: full size)") from None
+            put("max_image_size", size)
         for name, modes in (
             ("principal_point", PRINCIPAL_POINT_MODES),
             ("focal_ratio", FOCAL_RATIO_MODES),

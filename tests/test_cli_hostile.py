@@ -161,6 +161,12 @@ CASES = [
         "sfm",
         r"database taken\.jsonl already exists; give a new file name",
     ),
+    (
+        ["sfm", "images", "out", "--K", K_TEXT, "--database", "taken.jsonl", "--overwrite"],
+        "sfm",
+        r"database taken\.jsonl already exists; give a new file name \(a database is never "
+        r"replaced, --overwrite or not\)$",
+    ),
     # section 3: numbers out of range, checked before any work
     ([*PAIR, "--seed", "1099511627776"], "pair", r"--seed must be in 0\.\.2147483647"),
     ([*PAIR, "--seed", "-1"], "pair", r"--seed must be in 0\.\."),
@@ -641,6 +647,20 @@ def test_implausible_intrinsics_warn():
     assert "focal length fx=1 fy=2 px is outside 0.1..10 x 640 px" in lines[0]
     assert "principal point (-400, 247.6) is outside the 640x480 image" in lines[0]
     assert out.stdout == ""
+
+
+def test_intrinsics_in_units_of_the_image_size_get_their_pixel_values():
+    """A camera given as fractions of the image size, as some datasets store it, gives the demo
+    pair a rotation of 0.8 degrees for 10.9, or no pose; the warning gives the pixel values."""
+    from ppo_cv.cli.common import implausible_intrinsics
+
+    normalised = [[0.8366, 0, 0.5002], [0, 1.1233, 0.5158], [0, 0, 1]]
+    warning = implausible_intrinsics(normalised, (640, 480))
+    assert warning is not None
+    assert warning.endswith("(in units of the image size? in pixels fx,fy,cx,cy are "
+                            "535.424,539.184,320.128,247.584)")  # fmt: skip
+    for K in ([[1, 0, 0], [0, 1, 0], [0, 0, 1]], [[1, 0, 320], [0, 1, 240], [0, 0, 1]]):
+        assert "in units of the image size" not in implausible_intrinsics(K, (640, 480))
 
 
 def test_camera_of_the_image_turned_a_quarter_is_named():

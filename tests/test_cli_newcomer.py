@@ -5,6 +5,7 @@ summary, and photos whose EXIF is stale or belongs to a larger original."""
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -367,3 +368,63 @@ def test_numbers_given_as_separate_arguments_get_the_comma_remedy(args, option, 
         f"; {option} takes its numbers as one argument, joined by commas: {option} {joined}\n"
     )
     assert done.stderr.count("\n") == 1
+
+
+@pytest.mark.parametrize(
+    "args, name",
+    [
+        (["pairs", "pairs.txt", ""], "'IMAGE_DIR'"),
+        (["pairs", "", "."], "'PAIRS_FILE'"),
+        (["pairs", "pairs.txt", ".", "-o", ""], "'--output' / '-o'"),
+        (["pair", "", "b.png"], "'IMAGE1'"),
+        (["pair", "a.png", "b.png", "--calib", ""], "'--calib'"),
+        (["pair", "a.png", "b.png", "--out", ""], "'--out'"),
+        (["sfm", "", "model"], "'IMAGE_DIR'"),
+        (["sfm", ".", "model", "--database", ""], "'--database'"),
+        (["synth", ""], "'OUT_DIR'"),
+    ],
+)
+def test_an_empty_path_is_refused_not_read_as_the_current_folder(tmp_path, args, name):
+    """An unset variable (``ppo-cv pairs "$PAIRS" "$DIR"``) gives an empty path, which Python
+    reads as ``.``: run in a folder holding the images, ``pairs`` would run on it."""
+    for image in (DEMO1, DEMO2):
+        shutil.copy(image, tmp_path / image.name)
+    (tmp_path / "pairs.txt").write_text(f"{DEMO1.name} {DEMO2.name}\n")
+    done = ppo_cv(*args, "--quiet", cwd=tmp_path)
+    assert done.returncode == 2, done.stderr
+    assert done.stdout == ""
+    assert done.stderr.splitlines() == [
+        f"ppo-cv {args[0]}: Invalid value for {name}: the path is empty (an unset variable?); "
+        "give a name"
+    ]
+    left = sorted(p.name for p in tmp_path.iterdir())
+    assert left == sorted([DEMO1.name, DEMO2.name, "pairs.txt"])
+
+
+def test_the_readme_explains_every_line_of_the_demo_summary():
+    """Each line ``ppo-cv pair`` prints on the demo pair is in the README's sample of that
+    summary and has a row in the table below it."""
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    section = readme.split("### What the summary says", 1)[1].split("\n## ", 1)[0]
+    sample, table = section.split("| line | what it means |", 1)
+    done = ppo_cv("pair", "--quiet")
+    assert done.returncode == 0, done.stderr
+    labels = [re.match(r"  (\S+(?: \S+)?) {2,}", line) for line in done.stdout.splitlines()[1:]]
+    assert labels and all(labels)
+    for label in (found[1] for found in labels):
+        assert f"\n  {label} " in sample, label
+        assert re.search(rf"^\|[^|]*`{re.escape(label)}`", table, re.M), label
+
+
+def test_pairs_whose_names_differ_from_the_files_in_case_say_so(tmp_path):
+    """A list naming ``.jpg`` what the camera wrote ``.JPG``: no image of it is found."""
+    (tmp_path / "images").mkdir()
+    for index, image in enumerate((DEMO1, DEMO2)):
+        photo(image, tmp_path / "images" / f"IMG_{index}.JPG")
+    (tmp_path / "pairs.txt").write_text("IMG_0.jpg IMG_1.jpg\n")
+    done = ppo_cv("pairs", "pairs.txt", "images", "--K", K_TEXT, "-q", cwd=tmp_path)
+    assert done.returncode == 2
+    assert done.stderr.splitlines() == [
+        "ppo-cv pairs: image folder images holds none of the 2 images pairs.txt names (the "
+        "first: IMG_0.jpg); IMG_0.JPG exists: names are case-sensitive"
+    ]

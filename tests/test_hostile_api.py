@@ -192,6 +192,15 @@ CASES = {
     # estimate_pair: options, thresholds, distortion, images
     "estimate_pair options not PairOptions": (_pair(options={"features": "sift"}), TypeError,
                                               "options must be a PairOptions"),
+    "run_sfm K flat 4": (lambda: _sfm_module().run_sfm(".", None, K=[535.4, 539.2, 320.1, 247.6]),
+                         ValueError, "K must be a 3x3 matrix, got shape (4,) (fx, fy, cx, "
+                         "cy? give [[fx, 0, cx], [0, fy, cy], [0, 0, 1]])"),
+    "estimate_pair K1 flat 9": (_pair(K1=K.ravel()), ValueError,
+                                "K1 must be a 3x3 matrix, got shape (9,) (the 9 entries of K? "
+                                "reshape them to (3, 3), row by row)"),
+    "PairOptions max_image_size 0": (lambda: PairOptions(max_image_size=0), ValueError,
+                                     "max_image_size must be a whole number in 32..2147483647, "
+                                     "got 0 (None: full size)"),
     "PairOptions threshold inf": (lambda: PairOptions(ransac_threshold=np.inf), ValueError,
                                   "ransac_threshold must be in (0, 100]"),
     "PairOptions threshold nan": (lambda: PairOptions(ransac_threshold=np.nan), ValueError,
@@ -269,6 +278,20 @@ CASES = {
                              "output_dir must be a path"),
     "score_pairs None": (lambda: _sfm_module().score_pairs(None), TypeError,
                          "database_path must be a path"),
+    # an empty path (an unset variable) is no name: Path("") would be the current folder
+    "estimate_pair image1 empty": (_pair(image1=""), ValueError,
+                                   "image1 is an empty path, not a file or folder name"),
+    "run_sfm image_dir empty": (lambda: _sfm_module().run_sfm("", "model", K=K), ValueError,
+                                "image_dir is an empty path"),
+    "run_sfm output_dir empty": (lambda: _sfm_module().run_sfm(".", "", K=K), ValueError,
+                                 "output_dir is an empty path"),
+    "score_pairs empty": (lambda: _sfm_module().score_pairs(""), ValueError,
+                          "database_path is an empty path"),
+    "load_calibration empty": (lambda: ppo_cv.load_calibration(""), ValueError,
+                               "path is an empty path"),
+    "write_outputs directory empty": (
+        lambda: ppo_cv.write_outputs("", None, GREY, GREY), ValueError,
+        "directory is an empty path"),
     "estimate_pair K text": (_pair(K1="535.4,539.2,320.1,247.6"), TypeError,
                              "K1 must be an array of real numbers, got str: parse a text with "
                              "ppo_cv.parse_intrinsics"),
@@ -1153,3 +1176,17 @@ def test_what_camera_from_exif_and_load_calibration_return_is_named_when_passed_
         with pytest.raises(TypeError) as error:
             ppo_cv.estimate_pair(GREY, GREY[::-1], given)
         assert str(error.value) == words.format(kind)
+
+
+def test_a_name_not_found_names_the_file_that_differs_in_case_only(tmp_path):
+    """A camera's ``IMG_1.JPG`` named ``IMG_1.jpg``, as a list written where case is ignored
+    names it: the error says which file is there."""
+    photo = tmp_path / "IMG_1.JPG"
+    photo.write_bytes((Path(ppo_cv.__file__).parent / "data" / "demo1.png").read_bytes())
+    with pytest.raises(ValueError) as info:
+        ppo_cv.estimate_pair(tmp_path / "IMG_1.jpg", photo, K)
+    assert str(info.value) == (
+        f"image not found: {tmp_path / 'IMG_1.jpg'} (IMG_1.JPG exists: names are case-sensitive)"
+    )
+    with pytest.raises(ValueError, match=r"not found: \S+IMG_2\.jpg$"):
+        ppo_cv.estimate_pair(tmp_path / "IMG_2.jpg", photo, K)

@@ -16,6 +16,7 @@ import dataclasses
 import json
 import math
 import re
+import typing
 from pathlib import Path
 
 import numpy as np
@@ -148,3 +149,24 @@ def test_the_changelog_lists_every_renamed_field():
     text = (Path(__file__).resolve().parents[1] / "CHANGELOG.md").read_text(encoding="utf-8")
     rows = dict(re.findall(r"^\| `result\.(\w+)` \| `result\.([\w.]+)` \|$", text, re.M))
     assert rows == RENAMED_FIELDS
+
+
+def test_the_python_docs_table_names_every_field_of_the_records():
+    """``docs/python.md``'s table of ``result.<record>`` paths names each field of the record."""
+    text = (Path(__file__).resolve().parents[1] / "docs" / "python.md").read_text(encoding="utf-8")
+    rows = dict(re.findall(r"^\| `result\.([\w.]+)` \| (.*) \|$", text, re.M))
+    records = {"cameras", "uncertainty", "lens", "evidence.selection", "evidence.tracks",
+               "evidence.significance", "plane"}  # fmt: skip
+    assert records <= set(rows)
+    for path in records:
+        record = _record_type(path)
+        missing = [f.name for f in dataclasses.fields(record) if f"`{f.name}`" not in rows[path]]
+        assert not missing, (path, missing)
+
+
+def _record_type(path: str) -> type:
+    """The record class at ``path`` below ``PairResult`` (``evidence.tracks``), None left out."""
+    first, _, rest = path.partition(".")
+    hint = typing.get_type_hints(PairResult)[first]
+    kind = typing.get_args(hint)[0] if typing.get_args(hint) else hint
+    return typing.get_type_hints(kind)[rest] if rest else kind

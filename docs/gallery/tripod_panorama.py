@@ -36,7 +36,7 @@ def darker_and_vignetted(image):
     return np.clip(image * (0.7 * (1 - 0.3 * r2))[..., None], 0, 255).astype(np.uint8)
 
 
-print("pair  flagged  R err matches  R err refit  R sigma  windows  focal scale (true)")
+print(f"{'pair':12s}  flagged  R err matches  R err refit  R sigma  windows  focal scale (true)")
 errors = {"matches": [], "refit": []}  # over the flagged pairs
 pairs = [(index, make_warped_pair(seed=0, index=index, source=PHOTO)) for index in range(5)]
 pairs.append(("4, exposure", pairs[-1][1]))
@@ -60,7 +60,7 @@ for name, pair in pairs:
     else:
         sigma, scale = f"{'-':>7s}", f"{'-':>6s}"
     print(
-        f"{name!s:12s}  {result.pure_rotation!s:5s}  {err_matches:13.3f}  {err_refit:11.3f}"
+        f"{name!s:12s}  {result.pure_rotation!s:7s}  {err_matches:13.3f}  {err_refit:11.3f}"
         f"  {sigma}  {result.uncertainty.rotation_tracks:7d}  {scale} ({true_scale:.4f})"
     )
 
