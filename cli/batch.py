@@ -781,6 +781,26 @@ def _grouped_doubts(doubts: list[tuple[str, str]], image_dir: Path) -> list[str]
     return lines
 
 
+_OTHER_FORMATS = {
+    ".json": "one JSON document", ".csv": "CSV", ".tsv": "tab-separated values",
+    ".xlsx": "a spreadsheet", ".xls": "a spreadsheet", ".yaml": "YAML", ".yml": "YAML",
+    ".xml": "XML", ".npz": "numpy arrays", ".npy": "a numpy array", ".pkl": "a pickle",
+    ".parquet": "Parquet", ".ply": "a point cloud", ".md": "Markdown",
+}  # fmt: skip
+"""Suffixes of ``pairs -o`` that name a format other than the JSON lines it writes."""
+
+
+def _require_json_lines_name(output: Path) -> None:
+    """ValueError for a ``pairs -o`` name whose suffix promises another format than the JSON
+    lines written (``poses.csv`` would hold one JSON object per line)."""
+    other = _OTHER_FORMATS.get(output.suffix.lower())
+    if other is not None:
+        raise ValueError(
+            f"-o {output}: pairs writes JSON lines (one JSON object per pair and line), not "
+            f"{other}; name the file {output.with_suffix('.jsonl').name}"
+        )
+
+
 def run_pairs(
     pairs_file, image_dir, K, output, workers, options, *, cache=True, quiet=False,
     overwrite=False, K2=None, calib=None, exif_orientation=True,
@@ -808,6 +828,7 @@ def run_pairs(
     if output is not None and names_a_stream(output):
         raise ValueError(f"-o {output} is a device or a stream; -o - writes to standard output")
     if output is not None:
+        _require_json_lines_name(Path(output))
         check_target(output, "file", overwrite, [pairs_file, image_dir], "-o ")
     cameras = given_cameras(K, K2, None, None, calib)
     _require_order(Path(pairs_file), Path(image_dir))

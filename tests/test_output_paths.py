@@ -3,6 +3,7 @@ before any work, never set aside and lost."""
 
 from __future__ import annotations
 
+import json
 import os
 import subprocess
 import sys
@@ -179,3 +180,37 @@ def test_an_output_file_that_is_a_link_keeps_the_link_and_replaces_its_file(tmp_
         handle.write("new\n")
     assert link.is_symlink() and os.readlink(link) == str(real) and real.read_text() == "new\n"
     assert sorted(p.name for p in real.parent.iterdir()) == ["poses.jsonl"]
+
+
+@pytest.mark.parametrize(
+    ("name", "format_"),
+    [("poses.csv", "CSV"), ("poses.json", "one JSON document"), ("poses.YAML", "YAML")],
+)
+def test_pairs_refuses_an_output_named_for_another_format(tmp_path, name, format_):
+    # poses.csv was written, exit 0, holding JSON lines that a CSV reader cannot read
+    demo = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
+    (tmp_path / "pairs.txt").write_text("demo1.png demo2.png\n")
+    done = subprocess.run(
+        [*COMMAND, "pairs", "pairs.txt", str(demo), "--K", "535.4,539.2,320.1,247.6",
+         "-o", name, "-q"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    stem = name.rsplit(".", 1)[0]
+    assert done.returncode == 2 and not (tmp_path / name).exists()
+    assert done.stderr == (
+        f"ppo-cv pairs: -o {name}: pairs writes JSON lines (one JSON object per pair and line), "
+        f"not {format_}; name the file {stem}.jsonl\n"
+    )
+
+
+def test_pairs_writes_json_lines_to_a_plain_name(tmp_path):
+    demo = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
+    (tmp_path / "pairs.txt").write_text("demo1.png demo2.png\n")
+    done = subprocess.run(
+        [*COMMAND, "pairs", "pairs.txt", str(demo), "--K", "535.4,539.2,320.1,247.6",
+         "-o", "poses.txt", "-q"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    (line,) = (tmp_path / "poses.txt").read_text().splitlines()
+    assert json.loads(line)["model"] == "general"
