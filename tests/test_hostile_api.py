@@ -362,6 +362,27 @@ CASES = {
                                  "distCoeffs1 must be a numeric array: setting an array"),
     "Camera ragged dist": (lambda: ppo_cv.Camera(K, [[0.1], [0, 0]]), TypeError,
                            "Camera.dist must be a numeric array: setting an array"),
+    # the form with points, its first camera matrix not 3x3: "E must be a 3x3 matrix, got (40, 2)"
+    "form 4 camera matrix of nine numbers": (
+        lambda: ppo_cv.recoverPose(P1, P2, K.ravel(), None, K, None), ValueError,
+        "cameraMatrix1 must be a 3x3 matrix, got shape (9,)"),
+    "form 4 camera matrix None": (lambda: ppo_cv.recoverPose(P1, P2, None, None, K, None),
+                                  TypeError, "cameraMatrix1 is required"),
+    "form 4 points as lists": (lambda: ppo_cv.recoverPose(P1.tolist(), P2, [1] * 9, None, K, None),
+                               ValueError, "cameraMatrix1 must be a 3x3 matrix"),
+    # pose's public helpers: AttributeError, ZeroDivisionError, numpy's unpacking messages
+    "inverse_camera list": (lambda: ppo_cv.pose.inverse_camera(K.tolist()[:2]), ValueError,
+                            "K must be a 3x3 matrix, got shape (2, 3)"),
+    "inverse_camera zeros": (lambda: ppo_cv.pose.inverse_camera(np.zeros((3, 3))), ValueError,
+                             "K must be upper triangular"),
+    "inverse_camera None": (lambda: ppo_cv.pose.inverse_camera(None), TypeError,
+                            "K is required"),
+    "pixel_rays points (N, 3)": (lambda: ppo_cv.pose.pixel_rays(np.ones((4, 3)), K), ValueError,
+                                 "points must have shape (N, 2)"),
+    "pixel_rays NaN point": (lambda: ppo_cv.pose.pixel_rays([[np.nan, 1.0]], K), ValueError,
+                             "points has 1 NaN"),
+    "pixel_rays K text": (lambda: ppo_cv.pose.pixel_rays(P1, "800,800,320,240"), TypeError,
+                          "K must be an array of real numbers, got str"),
 }  # fmt: skip
 
 

@@ -52,3 +52,42 @@ def test_direction_error_of_a_zero_vector_is_nan():
 def test_wrong_shapes_are_named(function, a, b):
     with pytest.raises(ValueError, match="must have shape"):
         function(a, b)
+
+
+@pytest.mark.parametrize("scale", [1e200, 1e-200, 1e-170])
+def test_direction_error_of_vectors_of_any_finite_length(scale):
+    # 1e200 overflowed its norm (90 degrees where the directions agree, with a RuntimeWarning),
+    # 1e-200 underflowed it (NaN, as for a zero vector)
+    t = np.array([scale, scale, 0.0])
+    assert direction_error_deg(t, [1.0, 1.0, 0.0]) == pytest.approx(0.0, abs=1e-5)
+    assert direction_error_deg(t, [0.0, 0.0, scale]) == pytest.approx(90.0)
+    assert direction_error_deg(-t, t, signed=False) == pytest.approx(0.0, abs=1e-5)
+
+
+@pytest.mark.parametrize(
+    ("call", "error", "words"),
+    [
+        (lambda: rotation_error_deg(np.eye(3) + 0j, np.eye(3)), TypeError,
+         "R must hold real numbers, got dtype complex128"),
+        (lambda: rotation_error_deg(np.eye(3), np.eye(3, dtype=bool)), TypeError,
+         "R_ref must hold real numbers, got dtype bool"),
+        (lambda: direction_error_deg("1,0,0", [1, 0, 0]), TypeError,
+         "t must be an array of real numbers, got str"),
+        (lambda: direction_error_deg([1, 0, 0], None), TypeError, "t_ref is required"),
+        (lambda: direction_error_deg([1, 0, 0], [1, 0, 0], signed="no"), TypeError,
+         "signed must be True or False"),
+        (lambda: rotation_error_deg(np.stack([np.eye(3)] * 2), np.stack([np.eye(3)] * 3)),
+         ValueError, "R and R_ref must be single or stacks of one shape (or broadcastable), "
+         "got stacks of shape (2,) and (3,)"),
+        (lambda: direction_error_deg(np.ones((2, 3)), np.ones((3, 3))), ValueError,
+         "got stacks of shape (2,) and (3,)"),
+    ],
+    ids=["complex", "bool", "text", "None", "signed text", "rotation stacks", "vector stacks"],
+)  # fmt: skip
+def test_arguments_that_are_no_rotations_or_vectors_are_named(call, error, words):
+    # complex and bool arrays were read as numbers (a ComplexWarning), a text as numpy's
+    # "could not convert string to float", stacks of two lengths as numpy's broadcast message,
+    # and signed="no" as True
+    with pytest.raises(error) as info:
+        call()
+    assert words in str(info.value)
