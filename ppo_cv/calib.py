@@ -92,7 +92,7 @@ class Camera:
 
     Each field is checked as the pipeline checks its arguments (a ValueError or TypeError
     naming it) and held as float64: a K of float16, float32 or integers is converted exactly,
-    all-zero distortion is None.
+    all-zero distortion is None. ``K`` and ``dist`` are read-only copies of the arrays given.
     """
 
     K: np.ndarray
@@ -100,8 +100,9 @@ class Camera:
     image_size: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "K", as_camera_matrix(self.K, "Camera.K"))
-        object.__setattr__(self, "dist", as_distortion(self.dist, "Camera.dist"))
+        object.__setattr__(self, "K", _held(as_camera_matrix(self.K, "Camera.K")))
+        dist = as_distortion(self.dist, "Camera.dist")
+        object.__setattr__(self, "dist", None if dist is None else _held(dist))
         size = self.image_size
         if size is None:
             return
@@ -110,6 +111,13 @@ class Camera:
         if not (isinstance(size, (tuple, list)) and len(size) == 2):
             raise TypeError(f"Camera.image_size must be (width, height) or None, got {shown(size)}")
         object.__setattr__(self, "image_size", _image_size(*size, "Camera.image_size"))
+
+
+def _held(array: np.ndarray) -> np.ndarray:
+    """A read-only copy: a camera checked when made does not change with its caller's array."""
+    array = array.copy()
+    array.flags.writeable = False
+    return array
 
 
 def _numbers(text: str, name: str) -> np.ndarray:

@@ -292,7 +292,13 @@ def as_distortion(value: Any, name: str) -> np.ndarray | None:
     """OpenCV distortion coefficients as float64 (n,), or None for none or all zeros."""
     if value is None or _as_array(value, name).size == 0:
         return None
-    coefficients = _as_real_array(value, name, _PARSE_DISTORTION).reshape(-1)
+    coefficients = _as_real_array(value, name, _PARSE_DISTORTION)
+    if sum(side > 1 for side in coefficients.shape) > 1:
+        raise ValueError(
+            f"{name} must be one row or column of coefficients, got shape {coefficients.shape}: "
+            "the coefficients of several cameras? pass one camera's"
+        )
+    coefficients = coefficients.reshape(-1)
     if coefficients.size not in (4, 5, 8, 12, 14):
         raise ValueError(
             f"{name} must be OpenCV distortion coefficients k1,k2,p1,p2[,k3] (4 or 5 numbers; "

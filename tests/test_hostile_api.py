@@ -1021,6 +1021,34 @@ def test_a_camera_is_checked_when_made(fields, exception, words):
         ppo_cv.Camera(*fields)
 
 
+def test_a_camera_holds_its_own_read_only_arrays():
+    # Camera kept the caller's float64 arrays: changing them later changed the checked camera
+    # (a negative focal length, unchecked), and so did writing into camera.K
+    K_given, dist_given = K.copy(), np.array([0.01, 0.0, 0.0, 0.0])
+    camera = ppo_cv.Camera(K_given, dist_given)
+    K_given[0, 0], dist_given[0] = -800.0, 5.0
+    assert camera.K[0, 0] == 800.0 and camera.dist[0] == 0.01
+    for array in (camera.K, camera.dist):
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = 0.0
+
+
+@pytest.mark.parametrize(
+    "call",
+    [lambda dist: ppo_cv.Camera(K, dist),
+     lambda dist: ppo_cv.recoverPose(P1, P2, K, dist, K, None),
+     lambda dist: ppo_cv.estimate_pair(GREY, GREY[::-1], K, dist1=dist)],
+    ids=["Camera", "recoverPose", "estimate_pair"],
+)  # fmt: skip
+@pytest.mark.parametrize("shape", [(2, 4), (3, 4), (2, 7)])
+def test_the_coefficients_of_several_cameras_are_refused_as_distortion(call, shape):
+    # two cameras' k1,k2,p1,p2 stacked (2, 4) were read as one rational model of 8 (and
+    # (3, 4) as 12, (2, 7) as 14): OpenCV refuses them
+    with pytest.raises(ValueError) as error:
+        call(np.full(shape, 0.01))
+    assert f"must be one row or column of coefficients, got shape {shape}" in str(error.value)
+
+
 def test_a_camera_takes_its_image_size_as_a_numpy_pair():
     # np.array([640, 480]) was "Camera.image_size must be (width, height) or None"
     assert ppo_cv.Camera(K, None, np.array([640, 480])).image_size == (640, 480)
