@@ -91,6 +91,18 @@ def _form4(**kwargs):
     return lambda: ppo_cv.recoverPose(P1, P2, cameraMatrix1=K, cameraMatrix2=K, **args)
 
 
+RAYS = np.column_stack([(P1 - K[:2, 2]) / K[0, 0], np.ones(len(P1))])
+RAYS2 = np.column_stack([(P2 - K[:2, 2]) / K[0, 0], np.ones(len(P2))])
+
+
+def _robust_fit(model, **changes):
+    from ppo_cv import homography, robust
+
+    fit = robust.estimate_essential if model == "essential" else homography.estimate_homography
+    arguments = {"x1": RAYS, "x2": RAYS2, "focal": 800.0, **changes}
+    return fit(arguments.pop("x1"), arguments.pop("x2"), arguments.pop("focal"), **arguments)
+
+
 CASES = {
     # negative, zero, tiny, huge, non-finite focal lengths (issue section 4)
     "recoverPose negative fx": (lambda: ppo_cv.recoverPose(E, P1, P2, _K(fx=-800)), ValueError,
@@ -383,6 +395,31 @@ CASES = {
                              "points has 1 NaN"),
     "pixel_rays K text": (lambda: ppo_cv.pose.pixel_rays(P1, "800,800,320,240"), TypeError,
                           "K must be an array of real numbers, got str"),
+    # the robust fits: a negative trial count ran pycolmap's sampler without end, None failed
+    # with an IndexError, a text focal length with Python's "'>' not supported"
+    "estimate_essential max_trials -1": (lambda: _robust_fit("essential", max_trials=-1),
+                                         ValueError, "max_trials must be a whole number in 0.."),
+    "estimate_essential x1 None": (lambda: _robust_fit("essential", x1=None), TypeError,
+                                   "x1 is required"),
+    "estimate_essential focal 0": (lambda: _robust_fit("essential", focal=0), ValueError,
+                                   "focal must be a finite number > 0"),
+    "estimate_essential confidence 2": (lambda: _robust_fit("essential", confidence=2.0),
+                                        ValueError, "confidence must be in (0, 1]"),
+    "estimate_essential seed text": (lambda: _robust_fit("essential", seed="1"), TypeError,
+                                     "seed must be a whole number, got str"),
+    "estimate_homography min_trials -1": (lambda: _robust_fit("homography", min_trials=-1),
+                                          ValueError, "min_trials must be a whole number in 0.."),
+    "estimate_homography focal text": (lambda: _robust_fit("homography", focal="800"),
+                                       TypeError, "focal must be a number, got str"),
+    "estimate_homography x2 complex": (lambda: _robust_fit("homography", x2=RAYS + 0j),
+                                       TypeError, "x2 must hold real numbers, got dtype complex"),
+    # "object of type 'NoneType' has no len()"; a text was read as no matches
+    "homography_rotation_focal None": (
+        lambda: _sfm_module().homography_rotation_focal(None, RAYS, 800.0, 640), TypeError,
+        "x1 is required"),
+    "homography_rotation_focal text": (
+        lambda: _sfm_module().homography_rotation_focal(RAYS, "x", 800.0, 640), TypeError,
+        "x2 must be an array of real numbers, got str"),
 }  # fmt: skip
 
 
