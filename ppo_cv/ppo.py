@@ -16,8 +16,11 @@ on coordinate columns, so that its cost is a few passes over the data.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+
+from .checks import as_camera_matrix, as_essential, as_finite_rows, as_points
 
 __all__ = [
     "W1",
@@ -119,7 +122,17 @@ def normalize(points: np.ndarray, K: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (N, 2)
     """
+    return _normalize(as_points(points, "points"), as_camera_matrix(K, "K"))
+
+
+def _normalize(points: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """:func:`normalize` of checked points (N, 2) and camera matrix (3, 3)."""
     return (np.linalg.inv(K)[:2] @ _planar(points)).T
+
+
+def _checked_rays(x: Any, name: str) -> np.ndarray:
+    """Normalized points (N, 2), or homogeneous (N, 3), checked, as stacked rays (3, N)."""
+    return _planar(as_finite_rows(x, name, 2 if np.shape(x)[-1:] == (2,) else 3))
 
 
 def _planar(x: np.ndarray) -> np.ndarray:
@@ -169,6 +182,7 @@ def decompose_essential(E: np.ndarray) -> Candidates:
     -------
     Candidates
     """
+    as_essential(E, check_spread=False)  # a finite, nonzero 3x3 matrix, decomposed unscaled
     U, s, Vt = np.linalg.svd(np.asarray(E, dtype=np.float64))
     return candidates_from_svd(U, s, Vt)
 
@@ -298,7 +312,17 @@ def select_pose(
     >>> np.allclose(sel.R, np.eye(3)), sel.t.round(6).tolist(), sel.support_R, sel.support_t
     (True, [1.0, 0.0, 0.0], 20, 20)
     """
-    return _select(decompose_essential(E), _planar(x1), _planar(x2), used)
+    X1, X2 = _checked_rays(x1, "x1"), _checked_rays(x2, "x2")
+    if X1.shape != X2.shape:
+        raise ValueError(
+            f"x1 and x2 must have the same length, got {X1.shape[1]} and {X2.shape[1]}"
+        )
+    if used is not None:
+        used = np.asarray(used)
+        if used.dtype != bool or used.shape != (X1.shape[1],):
+            raise TypeError(f"used must be a bool array of shape ({X1.shape[1]},), got "
+                            f"{used.dtype} of shape {used.shape}")  # fmt: skip
+    return _select(decompose_essential(E), X1, X2, used)
 
 
 def frame_scores(F: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
