@@ -729,6 +729,11 @@ def warn_implausible(
     ``image_shape`` (rows, columns, ...): a camera of another image size or of the image turned
     a quarter gives a confident wrong pose. ``stacklevel`` counts from the caller, as in
     :func:`warnings.warn`."""
+    if isinstance(image_shape, (str, bytes)) or len(np.shape(image_shape)) != 1 or not (
+        2 <= len(image_shape) <= 3
+    ):
+        raise TypeError(f"image_shape must be an image's shape (rows, columns[, channels]), "
+                        f"got {shown(image_shape)}")  # fmt: skip
     message = implausible_intrinsics(K, (image_shape[1], image_shape[0]), name)
     if message is not None:
         warnings.warn(message, ImplausibleCameraWarning, stacklevel=stacklevel + 1)
@@ -843,6 +848,7 @@ def resize_scale(original: tuple[int, int], size: tuple[int, int]) -> float | No
     >>> resize_scale((4000, 3000), (1200, 1600))
     0.4
     """
+    original, size = as_image_size(original, "original"), as_image_size(size, "size")
     (short, long), (original_short, original_long) = sorted(size), sorted(original)
     scale_short, scale_long = short / original_short, long / original_long
     return float(scale_long) if _one_scale(scale_short, scale_long) else None
