@@ -221,9 +221,23 @@ _E = skew([1.0, 0.0, 0.0])
       "used must be a bool array of shape (8,), got float64"),
      (lambda: ppo.normalize(None, K), TypeError, "points is required"),
      (lambda: ppo.normalize(_X.tolist(), None), TypeError, "K is required"),
-     (lambda: ppo.normalize(_X, K.ravel()), ValueError, "K must be a 3x3 matrix")],
+     (lambda: ppo.normalize(_X, K.ravel()), ValueError, "K must be a 3x3 matrix"),
+     (lambda: ppo.same_side_scores(_X, _X, np.eye(3), np.zeros(3)), ValueError,
+      "t is zero: it has no direction"),
+     (lambda: ppo.intersection_scores(_X, _X[:3], np.eye(3), [1, 0, 0]), ValueError,
+      "x1 and x2 must have the same length, got 8 and 3"),
+     (lambda: ppo.analytic_points(_X, _X, np.eye(2), [1, 0, 0]), ValueError,
+      "R must be a 3x3 matrix, got shape (2, 2)"),
+     (lambda: ppo.analytic_depths(_X, None, np.eye(3), [1, 0, 0]), TypeError,
+      "x2 is required"),
+     (lambda: ppo.m3_indicator(_X.tolist(), _X, np.full((3, 3), np.nan)), ValueError,
+      "R has 9 NaN"),
+     (lambda: ppo.pure_rotation_indicator(None), ValueError,
+      "m2 must be scores of shape (N,), got shape ()"),
+     (lambda: ppo.pure_rotation_indicator([0.1, np.nan]), ValueError, "m2 has 1 NaN")],
     ids=["E None", "E NaN", "E flat", "E zeros", "x1 None", "lengths", "x2 transposed",
-         "used floats", "points None", "K None", "K flat"],
+         "used floats", "points None", "K None", "K flat", "zero t", "score lengths",
+         "R 2x2", "depths None", "m3 NaN R", "PRI None", "PRI NaN"],
 )  # fmt: skip
 def test_the_paper_s_functions_name_a_bad_argument(call, error, words):
     # numpy's LinAlgError ("0-dimensional array given", "SVD did not converge"), an
@@ -240,3 +254,6 @@ def test_the_paper_s_functions_take_lists_and_homogeneous_points():
     expected = ppo.select_pose(_E, _X, _X)
     assert np.array_equal(chosen.R, expected.R) and np.array_equal(chosen.m1, expected.m1)
     np.testing.assert_allclose(ppo.normalize(_X.tolist(), K.tolist()), (_X - 512.0) / 800.0)
+    assert ppo.pure_rotation_indicator([0.1, -0.3]) == pytest.approx(0.2)
+    depths = ppo.analytic_depths(_X.tolist(), homogeneous, np.eye(3).tolist(), [[1], [0], [0]])
+    assert np.all(np.isinf(depths[0]))  # identical rays: parallel, no depth
