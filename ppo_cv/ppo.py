@@ -554,7 +554,8 @@ def rotation_from_rays(x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (3, 3)
     """
-    return _rotation_from_rays(_planar(x1), _planar(x2))
+    X1, X2, _, _ = _checked_pose_rays(x1, x2, np.eye(3))
+    return _rotation_from_rays(X1, X2)
 
 
 def _rotation_from_rays(X1: np.ndarray, X2: np.ndarray) -> np.ndarray:

@@ -234,10 +234,13 @@ _E = skew([1.0, 0.0, 0.0])
       "R has 9 NaN"),
      (lambda: ppo.pure_rotation_indicator(None), ValueError,
       "m2 must be scores of shape (N,), got shape ()"),
-     (lambda: ppo.pure_rotation_indicator([0.1, np.nan]), ValueError, "m2 has 1 NaN")],
+     (lambda: ppo.pure_rotation_indicator([0.1, np.nan]), ValueError, "m2 has 1 NaN"),
+     (lambda: ppo.rotation_from_rays(_X, None), TypeError, "x2 is required"),
+     (lambda: ppo.rotation_from_rays(_X, _X[:4]), ValueError, "x1 and x2 must have the same")],
     ids=["E None", "E NaN", "E flat", "E zeros", "x1 None", "lengths", "x2 transposed",
          "used floats", "points None", "K None", "K flat", "zero t", "score lengths",
-         "R 2x2", "depths None", "m3 NaN R", "PRI None", "PRI NaN"],
+         "R 2x2", "depths None", "m3 NaN R", "PRI None", "PRI NaN", "rays None",
+         "rays lengths"],
 )  # fmt: skip
 def test_the_paper_s_functions_name_a_bad_argument(call, error, words):
     # numpy's LinAlgError ("0-dimensional array given", "SVD did not converge"), an
