@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .checks import as_flag, as_number, require_instance
+from .checks import MAX_WHOLE_NUMBER, as_flag, as_number, as_whole_number, require_instance
 
 __all__ = [
     "FEATURE_TYPES",
@@ -234,9 +234,10 @@ def detect_features(
 
     if kind not in FEATURE_TYPES:
         raise ValueError(f"unknown feature type {kind!r}; choose one of {', '.join(FEATURE_TYPES)}")
-    if int(max_features) < 1:
-        raise ValueError(f"max_features must be >= 1, got {max_features}")
-    if not 0 < float(threshold_scale) < np.inf:
+    max_features = as_whole_number(max_features, "max_features", 1, MAX_WHOLE_NUMBER)
+    if max_image_size is not None:
+        max_image_size = as_whole_number(max_image_size, "max_image_size", 32, MAX_WHOLE_NUMBER)
+    if not 0 < as_number(threshold_scale, "threshold_scale") < np.inf:
         raise ValueError(f"threshold_scale must be a positive number, got {threshold_scale}")
     gray = to_gray(image)
     require_detectable(gray.shape, name, max_image_size)

@@ -34,6 +34,9 @@ def test_a_repeated_descriptor_is_the_mutual_match_of_its_first_row_only(block):
     assert mutual12[0] and mutual12[1] and not mutual12[6]
 
 
+_GREY = np.random.default_rng(1).integers(0, 256, (48, 64), dtype=np.uint8)
+
+
 def _sift(count: int = 4):
     from ppo_cv.features import Features
 
@@ -58,11 +61,22 @@ def _sift(count: int = 4):
      (lambda f: features.at_threshold(f, None), TypeError,
       "threshold_scale must be a number, got NoneType"),
      (lambda f: features.at_threshold((f,), 2.0), TypeError,
-      "features must be a ppo_cv.features.Features, got tuple")],
+      "features must be a ppo_cv.features.Features, got tuple"),
+     # max_features=1.5 ran as 1, a text failed in int(); max_image_size=0 was called a size
+     # that makes the image too small, "or 0 for the full size"
+     (lambda f: features.detect_features(_GREY, max_features=1.5), ValueError,
+      "max_features must be a whole number in 1.."),
+     (lambda f: features.detect_features(_GREY, max_features="800"), TypeError,
+      "max_features must be a whole number, got str"),
+     (lambda f: features.detect_features(_GREY, max_image_size=0), ValueError,
+      "max_image_size must be a whole number in 32.."),
+     (lambda f: features.detect_features(_GREY, threshold_scale="2"), TypeError,
+      "threshold_scale must be a number, got str")],
     ids=["features None", "ratio text", "ratio True", "mutual text", "unique 0",
-         "threshold None", "features tuple"],
+         "threshold None", "features tuple", "max_features 1.5", "max_features text",
+         "max_image_size 0", "threshold_scale text"],
 )  # fmt: skip
-def test_matching_names_a_bad_argument(call, error, words):
+def test_detection_and_matching_name_a_bad_argument(call, error, words):
     # an AttributeError ("'NoneType' object has no attribute 'kind'"), Python's "'<' not
     # supported", ratio=True read as 1 and mutual="no" as true
     with pytest.raises(error) as info:
