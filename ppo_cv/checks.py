@@ -158,8 +158,12 @@ def _point_rows(value: Any, name: str) -> np.ndarray:
     shape = array.shape
     if array.ndim == 3 and shape[2] == 2 and (shape[1] == 1 or shape[0] == 1):
         return array.reshape(-1, 2)
+    if array.ndim == 3 and shape[1:] == (2, 1):  # column vectors, as OpenCV also reads them
+        return array.reshape(-1, 2)
     if not (array.ndim == 2 and shape[1] == 2):
-        raise ValueError(f"{name} must have shape (N, 2), (N, 1, 2) or (1, N, 2), got {shape}")
+        raise ValueError(
+            f"{name} must have shape (N, 2), (N, 1, 2), (1, N, 2) or (N, 2, 1), got {shape}"
+        )
     return array
 
 
@@ -174,7 +178,8 @@ def as_finite_rows(value: Any, name: str, width: int) -> np.ndarray:
 
 
 def as_points(value: Any, name: str) -> np.ndarray:
-    """Image points as float64 (N, 2), from (N, 2), (N, 1, 2) or (1, N, 2), OpenCV's shapes."""
+    """Image points as float64 (N, 2), from (N, 2), (N, 1, 2), (1, N, 2) or (N, 2, 1), OpenCV's
+    shapes."""
     array = _point_rows(value, name)
     _require_coordinates(array, name)
     return array

@@ -101,7 +101,7 @@ def pixel_rays(points: Any, K: Any) -> np.ndarray:
 
     Parameters
     ----------
-    points : array_like, shape (N, 2), (N, 1, 2) or (1, N, 2)
+    points : array_like, shape (N, 2), (N, 1, 2), (1, N, 2) or (N, 2, 1)
         Finite pixel coordinates.
     K : array_like, shape (3, 3)
         Camera matrix, as for :func:`inverse_camera`.
@@ -155,7 +155,7 @@ def recover_pose(
     ----------
     E : array_like, shape (3, 3)
         Essential matrix in normalized coordinates, ``x2^T E x1 = 0``, any scale.
-    points1, points2 : array_like, shape (N, 2), (N, 1, 2) or (1, N, 2)
+    points1, points2 : array_like, shape (N, 2), (N, 1, 2), (1, N, 2) or (N, 2, 1)
         Matching pixel coordinates in image 1 and image 2, N >= 5.
     K1 : array_like, shape (3, 3)
         Intrinsics of camera 1; positive focal lengths (a negative one would mirror the image
