@@ -46,6 +46,27 @@ def _require_broadcast(shape: tuple, shape_ref: tuple, name: str, name_ref: str)
         ) from None
 
 
+_ROTATION_TOLERANCE = 1e-3  # |R R^T - I| of a rotation: float32 or six decimals stay within
+
+
+def _require_rotations(R: np.ndarray, name: str) -> None:
+    """ValueError for a matrix of the stack ``R`` (..., 3, 3) that is no rotation (a scaled
+    one, an essential or camera matrix, a mirror); NaN matrices pass, giving NaN angles."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        off = np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3)).max(axis=(-2, -1))
+        skewed, mirrored = off > _ROTATION_TOLERANCE, np.linalg.det(R) < 0
+    if not (np.any(skewed) or np.any(mirrored)):
+        return
+    count = int(np.count_nonzero(skewed | mirrored))
+    why = [f"|R R^T - I| up to {float(np.max(off[skewed])):.3g}"] if np.any(skewed) else []
+    why += ["a mirror, of determinant -1"] if np.any(mirrored & ~skewed) else []
+    raise ValueError(
+        f"{name} must hold rotation matrices (orthonormal, determinant +1), got {count} "
+        f"{'matrix' if count == 1 else 'matrices'} that {'is' if count == 1 else 'are'} not: "
+        f"{'; '.join(why)}"
+    )
+
+
 def _unit_scaled(t: np.ndarray) -> np.ndarray:
     """``t`` (..., 3) divided by its largest magnitude, so that no norm under- or overflows;
     zero vectors stay zero."""
@@ -77,6 +98,8 @@ def rotation_error_deg(R: ArrayLike, R_ref: ArrayLike) -> float | np.ndarray:
     """
     R, R_ref = _as_stack(R, (3, 3), "R"), _as_stack(R_ref, (3, 3), "R_ref")
     _require_broadcast(R.shape[:-2], R_ref.shape[:-2], "R", "R_ref")
+    _require_rotations(R, "R")
+    _require_rotations(R_ref, "R_ref")
     cosine = (np.einsum("...ij,...ij->...", R, R_ref) - 1.0) / 2.0
     angle = np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
     return float(angle) if np.ndim(angle) == 0 else angle

@@ -91,3 +91,20 @@ def test_arguments_that_are_no_rotations_or_vectors_are_named(call, error, words
     with pytest.raises(error) as info:
         call()
     assert words in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("matrix", "words"),
+    [(2.0 * np.eye(3), "|R R^T - I| up to 3"),
+     (np.diag([1.0, 1.0, -1.0]), "a mirror, of determinant -1"),
+     (np.array([[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]), "|R R^T - I| up to 1")],
+    ids=["scaled", "mirror", "essential matrix"],
+)  # fmt: skip
+def test_a_matrix_that_is_no_rotation_is_refused(matrix, words):
+    # a scaled rotation, a mirror or an essential matrix gave an angle (0, 180 or 90 degrees)
+    with pytest.raises(ValueError) as info:
+        rotation_error_deg(matrix, np.eye(3))
+    assert str(info.value).startswith("R must hold rotation matrices") and words in str(info.value)
+    stack = np.stack([np.eye(3), np.full((3, 3), np.nan)])
+    assert np.isnan(rotation_error_deg(stack, np.eye(3))[1])  # NaN stays NaN
+    assert rotation_error_deg(_random_rotations(1)[0].astype(np.float32), np.eye(3)) > 0
