@@ -288,7 +288,9 @@ def as_rotation(value: Any, name: str = "R") -> np.ndarray:
     if R.shape != (3, 3):
         raise ValueError(f"{name} must be a 3x3 rotation matrix, got shape {R.shape}")
     require_finite(R, name)
-    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+    if np.abs(R).max() > 2 or not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or (
+        np.linalg.det(R) < 0
+    ):  # entries beyond 2 are no rotation's, and their product could overflow
         raise ValueError(f"{name} is not a rotation matrix (orthonormal, determinant +1)")
     return R
 

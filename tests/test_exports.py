@@ -538,3 +538,13 @@ def test_a_moving_pair_given_the_rotation_only_fit_exports_points_of_that_rotati
         for image_id, image in model.images.items()
     }  # fmt: skip
     assert errors[2] < 1.0 and errors[2] < 3.0 * errors[1] + 0.1, errors
+
+
+def test_a_huge_matrix_is_no_rotation_without_a_runtime_warning():
+    # R R^T overflowed with a RuntimeWarning before the error
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match="R is not a rotation matrix"):
+            ppo_cv.export.camera_euler_degrees(np.eye(3) * 1e300)
