@@ -29,7 +29,15 @@ import cv2
 import numpy as np
 
 from ppo_cv.atomic import linked_output, staging_folder, worker_count, worker_pool
-from ppo_cv.checks import as_number, as_path, require_instance, shown
+from ppo_cv.checks import (
+    as_camera_matrix,
+    as_finite_rows,
+    as_number,
+    as_path,
+    as_rotation,
+    require_instance,
+    shown,
+)
 
 from .imperfect import Imperfections
 from .motion import DEFAULT_SCENE, MAX_BASELINE_RATIO, MOTIONS, check_pivot_offset, sample_motion
@@ -169,9 +177,24 @@ def _matrix_text(values: np.ndarray, fmt: str) -> str:
 def pairs_line(
     name1: str, name2: str, K1: np.ndarray, K2: np.ndarray, R: np.ndarray, t: np.ndarray
 ) -> str:
-    """One pairs-file line ``name1 name2 0 0 K1(9) K2(9) T_1to2(16)`` (no newline)."""
+    """One pairs-file line ``name1 name2 0 0 K1(9) K2(9) T_1to2(16)`` (no newline).
+
+    ValueError or TypeError naming what :func:`read_pairs` could not read back: a name that is
+    empty, holds a space or starts with ``#``, a camera matrix, rotation or translation (3
+    finite numbers) that is not one.
+    """
+    for label, name in (("name1", name1), ("name2", name2)):
+        if not isinstance(name, str):
+            raise TypeError(f"{label} must be a text, got {type(name).__name__}")
+        if not name or name.startswith("#") or len(name.split()) != 1 or name.strip() != name:
+            raise ValueError(
+                f"{label} must be a name without spaces, not starting with '#', got {shown(name)}"
+            )
+    K1, K2 = as_camera_matrix(K1, "K1"), as_camera_matrix(K2, "K2")
     T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, np.asarray(t, float).ravel()
+    if np.size(t) != 3:
+        raise ValueError(f"t must be 3 numbers, got shape {np.shape(t)}")
+    T[:3, :3], T[:3, 3] = as_rotation(R, "R"), as_finite_rows(np.reshape(t, (1, 3)), "t", 3)[0]
     return " ".join(
         [name1, name2, "0", "0", _matrix_text(K1, "%.6f"), _matrix_text(K2, "%.6f"),
          _matrix_text(T, "%.12f")]

@@ -4,11 +4,19 @@ from __future__ import annotations
 
 import math
 import os
+from typing import Any
 
 import cv2
 import numpy as np
 
-from ppo_cv.checks import MAX_WHOLE_NUMBER, as_number, as_path, as_whole_number
+from ppo_cv.checks import (
+    MAX_WHOLE_NUMBER,
+    as_finite_rows,
+    as_number,
+    as_path,
+    as_rotation,
+    as_whole_number,
+)
 
 from .render import _check_size, render_view
 from .scenes import make_scene
@@ -93,10 +101,27 @@ def render_tripod_then_move(
     return names, K, poses
 
 
+def _checked_pose(pose: Any, name: str) -> tuple[np.ndarray, np.ndarray]:
+    if not (isinstance(pose, (tuple, list)) and len(pose) == 2):
+        raise TypeError(f"{name} must be a pair (R, t), got {type(pose).__name__}")
+    if np.size(pose[1]) != 3:
+        raise ValueError(f"{name} t must be 3 numbers, got shape {np.shape(pose[1])}")
+    t = as_finite_rows(np.reshape(pose[1], (1, 3)), f"{name} t", 3)[0]
+    return as_rotation(pose[0], f"{name} R"), t
+
+
 def relative_gt_from_poses(
     names: list[str], poses: list[tuple[np.ndarray, np.ndarray]]
 ) -> dict[tuple[str, str], tuple[np.ndarray, np.ndarray]]:
-    """Ground-truth ``cam2_from_cam1`` of every pair of views from their ``cam_from_world``."""
+    """Ground-truth ``cam2_from_cam1`` of every pair of views from their ``cam_from_world``.
+
+    ``poses`` holds one ``(R (3, 3), t (3,))`` per name; a ValueError or TypeError names a
+    count that differs, a pose that is no pair, a rotation or translation that is not one.
+    """
+    if len(names) != len(poses):
+        raise ValueError(f"names and poses must have one entry per view, got {len(names)} "
+                         f"names and {len(poses)} poses")  # fmt: skip
+    poses = [_checked_pose(pose, f"poses[{i}]") for i, pose in enumerate(poses)]
     gt = {}
     for i, (R1, t1) in enumerate(poses):
         for j in range(i + 1, len(poses)):

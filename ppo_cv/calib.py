@@ -92,7 +92,7 @@ class Camera:
 
     Each field is checked as the pipeline checks its arguments (a ValueError or TypeError
     naming it) and held as float64: a K of float16, float32 or integers is converted exactly,
-    all-zero distortion is None.
+    all-zero distortion is None. ``K`` and ``dist`` are read-only copies of the arrays given.
     """
 
     K: np.ndarray
@@ -100,8 +100,9 @@ class Camera:
     image_size: tuple[int, int] | None = None
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "K", as_camera_matrix(self.K, "Camera.K"))
-        object.__setattr__(self, "dist", as_distortion(self.dist, "Camera.dist"))
+        object.__setattr__(self, "K", _held(as_camera_matrix(self.K, "Camera.K")))
+        dist = as_distortion(self.dist, "Camera.dist")
+        object.__setattr__(self, "dist", None if dist is None else _held(dist))
         size = self.image_size
         if size is None:
             return
@@ -110,6 +111,13 @@ class Camera:
         if not (isinstance(size, (tuple, list)) and len(size) == 2):
             raise TypeError(f"Camera.image_size must be (width, height) or None, got {shown(size)}")
         object.__setattr__(self, "image_size", _image_size(*size, "Camera.image_size"))
+
+
+def _held(array: np.ndarray) -> np.ndarray:
+    """A read-only copy: a camera checked when made does not change with its caller's array."""
+    array = array.copy()
+    array.flags.writeable = False
+    return array
 
 
 def _numbers(text: str, name: str) -> np.ndarray:
@@ -734,6 +742,11 @@ def warn_implausible(
     ``image_shape`` (rows, columns, ...): a camera of another image size or of the image turned
     a quarter gives a confident wrong pose. ``stacklevel`` counts from the caller, as in
     :func:`warnings.warn`."""
+    if isinstance(image_shape, (str, bytes)) or len(np.shape(image_shape)) != 1 or not (
+        2 <= len(image_shape) <= 3
+    ):
+        raise TypeError(f"image_shape must be an image's shape (rows, columns[, channels]), "
+                        f"got {shown(image_shape)}")  # fmt: skip
     message = implausible_intrinsics(K, (image_shape[1], image_shape[0]), name)
     if message is not None:
         warnings.warn(message, ImplausibleCameraWarning, stacklevel=stacklevel + 1)
@@ -848,6 +861,7 @@ def resize_scale(original: tuple[int, int], size: tuple[int, int]) -> float | No
     >>> resize_scale((4000, 3000), (1200, 1600))
     0.4
     """
+    original, size = as_image_size(original, "original"), as_image_size(size, "size")
     (short, long), (original_short, original_long) = sorted(size), sorted(original)
     scale_short, scale_long = short / original_short, long / original_long
     return float(scale_long) if _one_scale(scale_short, scale_long) else None

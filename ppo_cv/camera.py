@@ -63,7 +63,7 @@ def pixels_to_normalized(points: np.ndarray, K: np.ndarray, dist: np.ndarray | N
     """
     points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     if dist is None:
-        return ppo.normalize(points, K)
+        return ppo._normalize(points, K)
     import cv2
 
     return cv2.undistortPoints(points.reshape(-1, 1, 2), K, dist).reshape(-1, 2)

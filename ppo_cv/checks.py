@@ -158,8 +158,12 @@ def _point_rows(value: Any, name: str) -> np.ndarray:
     shape = array.shape
     if array.ndim == 3 and shape[2] == 2 and (shape[1] == 1 or shape[0] == 1):
         return array.reshape(-1, 2)
+    if array.ndim == 3 and shape[1:] == (2, 1):  # column vectors, as OpenCV also reads them
+        return array.reshape(-1, 2)
     if not (array.ndim == 2 and shape[1] == 2):
-        raise ValueError(f"{name} must have shape (N, 2), (N, 1, 2) or (1, N, 2), got {shape}")
+        raise ValueError(
+            f"{name} must have shape (N, 2), (N, 1, 2), (1, N, 2) or (N, 2, 1), got {shape}"
+        )
     return array
 
 
@@ -174,7 +178,8 @@ def as_finite_rows(value: Any, name: str, width: int) -> np.ndarray:
 
 
 def as_points(value: Any, name: str) -> np.ndarray:
-    """Image points as float64 (N, 2), from (N, 2), (N, 1, 2) or (1, N, 2), OpenCV's shapes."""
+    """Image points as float64 (N, 2), from (N, 2), (N, 1, 2), (1, N, 2) or (N, 2, 1), OpenCV's
+    shapes."""
     array = _point_rows(value, name)
     _require_coordinates(array, name)
     return array
@@ -291,7 +296,9 @@ def as_rotation(value: Any, name: str = "R") -> np.ndarray:
     if R.shape != (3, 3):
         raise ValueError(f"{name} must be a 3x3 rotation matrix, got shape {R.shape}")
     require_finite(R, name)
-    if not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+    if np.abs(R).max() > 2 or not np.allclose(R @ R.T, np.eye(3), atol=1e-6) or (
+        np.linalg.det(R) < 0
+    ):  # entries beyond 2 are no rotation's, and their product could overflow
         raise ValueError(f"{name} is not a rotation matrix (orthonormal, determinant +1)")
     return R
 
@@ -300,7 +307,13 @@ def as_distortion(value: Any, name: str) -> np.ndarray | None:
     """OpenCV distortion coefficients as float64 (n,), or None for none or all zeros."""
     if value is None or _as_array(value, name).size == 0:
         return None
-    coefficients = _as_real_array(value, name, _PARSE_DISTORTION).reshape(-1)
+    coefficients = _as_real_array(value, name, _PARSE_DISTORTION)
+    if sum(side > 1 for side in coefficients.shape) > 1:
+        raise ValueError(
+            f"{name} must be one row or column of coefficients, got shape {coefficients.shape}: "
+            "the coefficients of several cameras? pass one camera's"
+        )
+    coefficients = coefficients.reshape(-1)
     if coefficients.size not in (4, 5, 8, 12, 14):
         raise ValueError(
             f"{name} must be OpenCV distortion coefficients k1,k2,p1,p2[,k3] (4 or 5 numbers; "

@@ -286,6 +286,7 @@ def write_ply(path: str | os.PathLike, points: np.ndarray, colours: np.ndarray) 
     """
     from .atomic import atomic_file
 
+    path = as_path(path, "path")
     points, colours = _ply_rows(points, colours)
     vertex = np.empty(
         len(points),
@@ -329,6 +330,20 @@ def _ply_rows(points: Any, colours: Any) -> tuple[np.ndarray, np.ndarray]:
     return points, colours.astype(np.uint8)
 
 
+def _max_lines(value: Any) -> int | None:
+    """``max_lines`` checked: None or a whole number >= 0, named in the error."""
+    if value is None:
+        return None
+    if isinstance(value, (bool, np.bool_)) or not isinstance(
+        value, (int, float, np.integer, np.floating)
+    ):
+        raise TypeError(f"max_lines must be a whole number or None, got {type(value).__name__} "
+                        f"{shown(value)}")  # fmt: skip
+    if not (value >= 0 and float(value).is_integer()):
+        raise ValueError(f"max_lines must be a whole number >= 0 or None, got {shown(value)}")
+    return int(value)
+
+
 def matches_to_draw(
     inliers: np.ndarray, max_lines: int | None = MAX_DRAWN_MATCHES, seed: int = 0
 ) -> np.ndarray:
@@ -355,10 +370,9 @@ def matches_to_draw(
             f"{inliers.shape}"
         )
     seed = as_whole_number(seed, "seed", 0, MAX_WHOLE_NUMBER)
+    max_lines = _max_lines(max_lines)
     if max_lines is None or inliers.size <= max_lines:
         return np.arange(inliers.size)
-    if max_lines < 0:
-        raise ValueError(f"max_lines must be >= 0 or None, got {max_lines}")
     rng = np.random.default_rng(seed)
     inlier_rows, outlier_rows = np.flatnonzero(inliers), np.flatnonzero(~inliers)
     take = min(inlier_rows.size, max_lines)
@@ -500,14 +514,20 @@ def check_colmap_camera(K: np.ndarray, dist: np.ndarray | None, name: str) -> No
 
 def check_colmap_names(names: tuple[str, str]) -> None:
     """ValueError naming an image name that is not valid UTF-8 (a file name of other bytes, as
-    Python gives it with surrogate escapes), which a COLMAP model cannot hold."""
+    Python gives it with surrogate escapes) or holds a NUL character (the end of a name in
+    COLMAP's binary files), which a COLMAP model cannot hold."""
     for name in names:
+        if "\0" in name:
+            raise ValueError(
+                f"image name {shown(name)} holds a NUL character, which no file name and no "
+                "COLMAP model can hold"
+            )
         try:
             name.encode("utf-8")
         except UnicodeEncodeError:
-            shown = os.fsencode(name).decode("utf-8", "backslashreplace")
+            escaped = os.fsencode(name).decode("utf-8", "backslashreplace")
             raise ValueError(
-                f"image name '{shown}' is not valid UTF-8, which a COLMAP model cannot hold"
+                f"image name '{escaped}' is not valid UTF-8, which a COLMAP model cannot hold"
             ) from None
 
 
@@ -753,6 +773,9 @@ def _checked_output_arguments(
     _check_names(names)
     if extra is not None and not isinstance(extra, dict):
         raise TypeError(f"extra must be a dict of JSON values, got {type(extra).__name__}")
+    key = next((key for key in extra or {} if not isinstance(key, str)), None)
+    if key is not None:
+        raise TypeError(f"extra's keys must be texts, got {type(key).__name__} {shown(key)}")
     try:
         json.dumps(extra, allow_nan=False)
     except (TypeError, ValueError) as exc:

@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .checks import MAX_WHOLE_NUMBER, as_flag, as_number, as_whole_number, require_instance
+
 __all__ = [
     "FEATURE_TYPES",
     "MIN_IMAGE_SIDE",
@@ -232,9 +234,10 @@ def detect_features(
 
     if kind not in FEATURE_TYPES:
         raise ValueError(f"unknown feature type {kind!r}; choose one of {', '.join(FEATURE_TYPES)}")
-    if int(max_features) < 1:
-        raise ValueError(f"max_features must be >= 1, got {max_features}")
-    if not 0 < float(threshold_scale) < np.inf:
+    max_features = as_whole_number(max_features, "max_features", 1, MAX_WHOLE_NUMBER)
+    if max_image_size is not None:
+        max_image_size = as_whole_number(max_image_size, "max_image_size", 32, MAX_WHOLE_NUMBER)
+    if not 0 < as_number(threshold_scale, "threshold_scale") < np.inf:
         raise ValueError(f"threshold_scale must be a positive number, got {threshold_scale}")
     gray = to_gray(image)
     require_detectable(gray.shape, name, max_image_size)
@@ -320,9 +323,10 @@ def at_threshold(features: Features, threshold_scale: float) -> Features:
     ValueError
         Features of another detector or without responses, or a threshold scale below theirs.
     """
+    require_instance(features, Features, "features", " (ppo_cv.features.detect_features)")
     if features.kind != "sift" or features.responses is None:
         raise ValueError("only SIFT features with their responses can be thinned to a threshold")
-    if not features.threshold_scale <= threshold_scale < np.inf:
+    if not features.threshold_scale <= as_number(threshold_scale, "threshold_scale") < np.inf:
         raise ValueError(
             f"threshold_scale must be at least the features' {features.threshold_scale:g}, "
             f"got {threshold_scale}"
@@ -464,10 +468,14 @@ def match_features_scored(
         the lower, the more distinctive the match and the likelier an inlier (Lowe 2004; the
         ranking PROSAC samples by, Chum and Matas 2005).
     """
+    for name, given in (("features1", features1), ("features2", features2)):
+        require_instance(given, Features, name, " (ppo_cv.features.detect_features)")
     if features1.kind != features2.kind:
         raise ValueError(f"cannot match {features1.kind} features with {features2.kind} features")
-    if not 0 < ratio <= 1:
+    if not 0 < as_number(ratio, "ratio") <= 1:
         raise ValueError(f"ratio must be in (0, 1], got {ratio}")
+    mutual, unique = as_flag(mutual, "mutual"), as_flag(unique, "unique")
+    flann = None if flann is None else as_flag(flann, "flann")
     d1, d2 = features1.descriptors, features2.descriptors
     if len(d1) < 2 or len(d2) < 2:
         return np.zeros((0, 2), dtype=np.int64), np.zeros(0)

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .plane import normalize_homography
-from .robust import ransac_options
+from .robust import checked_fit_settings, checked_rays, ransac_options
 
 __all__ = [
     "HOMOGRAPHY_BACKENDS",
@@ -148,15 +148,7 @@ def _opencv(p1, p2, threshold, confidence, min_trials, max_trials, seed):
 
 
 def _check_points(x1, x2) -> tuple[np.ndarray, np.ndarray]:
-    x1 = np.ascontiguousarray(x1, dtype=np.float64)
-    x2 = np.ascontiguousarray(x2, dtype=np.float64)
-    for name, x in (("x1", x1), ("x2", x2)):
-        if x.ndim != 2 or x.shape[1] != 3:
-            raise ValueError(f"{name} must have shape (N, 3), got {x.shape}")
-        if not np.all(np.isfinite(x)):
-            raise ValueError(f"{name} has NaN or infinite values")
-    if len(x1) != len(x2):
-        raise ValueError(f"x1 and x2 must have the same length, got {len(x1)} and {len(x2)}")
+    x1, x2 = checked_rays(x1, x2)
     if len(x1) < 4:
         raise ValueError(f"at least 4 matches are needed for a homography, got {len(x1)}")
     return x1, x2
@@ -219,21 +211,13 @@ def estimate_homography(
         raise ValueError(
             f"unknown backend {backend!r}; choose one of {', '.join(HOMOGRAPHY_BACKENDS)}"
         )
-    if not focal > 0 or not threshold > 0:
-        raise ValueError(f"focal and threshold must be > 0, got {focal} and {threshold}")
     x1, x2 = _check_points(x1, x2)
+    focal, threshold, *settings = checked_fit_settings(
+        focal, threshold, confidence, min_trials, max_trials, seed
+    )
     pick = _fit_selection(fit_on, len(x1))
     fit = _pycolmap if backend == "pycolmap" else _opencv
-    focal = float(focal)
-    found = fit(
-        focal * x1[pick, :2],
-        focal * x2[pick, :2],
-        float(threshold),
-        float(confidence),
-        min_trials,
-        max_trials,
-        seed,
-    )
+    found = fit(focal * x1[pick, :2], focal * x2[pick, :2], threshold, *settings)
     if found is None or not found[1].any() or not np.all(np.isfinite(found[0])):
         return None
     scale = np.array([focal, focal, 1.0])

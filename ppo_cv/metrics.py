@@ -21,17 +21,58 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .checks import _as_real_array, as_flag
+
 __all__ = ["rotation_error_deg", "direction_error_deg"]
 
 
 def _as_stack(value: ArrayLike, tail: tuple[int, ...], name: str) -> np.ndarray:
-    array = np.asarray(value, dtype=np.float64)
+    array = _as_real_array(value, name)
     if tail == (3,) and array.shape == (3, 1):
         array = array[:, 0]
     if array.shape[array.ndim - len(tail) :] != tail:
         shape = ", ".join(map(str, tail))
         raise ValueError(f"{name} must have shape (..., {shape}), got {array.shape}")
     return array
+
+
+def _require_broadcast(shape: tuple, shape_ref: tuple, name: str, name_ref: str) -> None:
+    try:
+        np.broadcast_shapes(shape, shape_ref)
+    except ValueError:
+        raise ValueError(
+            f"{name} and {name_ref} must be single or stacks of one shape (or broadcastable), "
+            f"got stacks of shape {shape} and {shape_ref}"
+        ) from None
+
+
+_ROTATION_TOLERANCE = 1e-3  # |R R^T - I| of a rotation: float32 or six decimals stay within
+
+
+def _require_rotations(R: np.ndarray, name: str) -> None:
+    """ValueError for a matrix of the stack ``R`` (..., 3, 3) that is no rotation (a scaled
+    one, an essential or camera matrix, a mirror); NaN matrices pass, giving NaN angles."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        off = np.abs(R @ np.swapaxes(R, -1, -2) - np.eye(3)).max(axis=(-2, -1))
+        skewed, mirrored = off > _ROTATION_TOLERANCE, np.linalg.det(R) < 0
+    if not (np.any(skewed) or np.any(mirrored)):
+        return
+    count = int(np.count_nonzero(skewed | mirrored))
+    why = [f"|R R^T - I| up to {float(np.max(off[skewed])):.3g}"] if np.any(skewed) else []
+    why += ["a mirror, of determinant -1"] if np.any(mirrored & ~skewed) else []
+    raise ValueError(
+        f"{name} must hold rotation matrices (orthonormal, determinant +1), got {count} "
+        f"{'matrix' if count == 1 else 'matrices'} that {'is' if count == 1 else 'are'} not: "
+        f"{'; '.join(why)}"
+    )
+
+
+def _unit_scaled(t: np.ndarray) -> np.ndarray:
+    """``t`` (..., 3) divided by its largest magnitude, so that no norm under- or overflows;
+    zero vectors stay zero."""
+    largest = np.abs(t).max(axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore"):  # inf / inf: NaN, as a NaN entry gives
+        return t / np.where(largest > 0, largest, 1.0)
 
 
 def rotation_error_deg(R: ArrayLike, R_ref: ArrayLike) -> float | np.ndarray:
@@ -56,6 +97,9 @@ def rotation_error_deg(R: ArrayLike, R_ref: ArrayLike) -> float | np.ndarray:
     10.0
     """
     R, R_ref = _as_stack(R, (3, 3), "R"), _as_stack(R_ref, (3, 3), "R_ref")
+    _require_broadcast(R.shape[:-2], R_ref.shape[:-2], "R", "R_ref")
+    _require_rotations(R, "R")
+    _require_rotations(R_ref, "R_ref")
     cosine = (np.einsum("...ij,...ij->...", R, R_ref) - 1.0) / 2.0
     angle = np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
     return float(angle) if np.ndim(angle) == 0 else angle
@@ -87,6 +131,9 @@ def direction_error_deg(
     0.0
     """
     t, t_ref = _as_stack(t, (3,), "t"), _as_stack(t_ref, (3,), "t_ref")
+    _require_broadcast(t.shape[:-1], t_ref.shape[:-1], "t", "t_ref")
+    signed = as_flag(signed, "signed")
+    t, t_ref = _unit_scaled(t), _unit_scaled(t_ref)
     norms = np.linalg.norm(t, axis=-1) * np.linalg.norm(t_ref, axis=-1)
     dot = np.einsum("...i,...i->...", t, t_ref)
     if not signed:

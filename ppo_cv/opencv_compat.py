@@ -61,7 +61,7 @@ from .checks import (
     require_essential_spread,
     shown,
 )
-from .pose import inverse_camera
+from .pose import _inverse
 
 __all__ = [
     "recoverPose",
@@ -157,8 +157,19 @@ def _is_number(value: Any) -> bool:
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
 
 
+def _are_points(value: Any) -> bool:
+    """Whether ``value`` has a shape of points, (N, 2) or (N, 1, 2), which no ``E`` has."""
+    try:
+        shape = np.shape(value)
+    except ValueError:  # ragged
+        return False
+    return len(shape) in (2, 3) and shape[-1] == 2
+
+
 def _form(args: tuple, kwargs: dict) -> tuple[str, ...]:
     if "cameraMatrix1" in kwargs or (len(args) > 2 and _is_3x3(args[2])):
+        return _FORM4
+    if args and _are_points(args[0]):
         return _FORM4
     if "focal" in kwargs or "pp" in kwargs:
         return _FORM2
@@ -331,12 +342,12 @@ def _inverse_camera_matrix(K: Any) -> np.ndarray:
     (a video or a matcher loop passes the same matrix call after call)."""
     if isinstance(K, np.ndarray) and K.dtype == np.float64 and K.shape == (3, 3):
         return _cached_inverse(K.tobytes())
-    return inverse_camera(as_camera_matrix(K, "cameraMatrix"))
+    return _inverse(as_camera_matrix(K, "cameraMatrix"))
 
 
 @functools.lru_cache(maxsize=16)
 def _cached_inverse(K_bytes: bytes) -> np.ndarray:
-    K_inv = inverse_camera(as_camera_matrix(np.frombuffer(K_bytes).reshape(3, 3), "cameraMatrix"))
+    K_inv = _inverse(as_camera_matrix(np.frombuffer(K_bytes).reshape(3, 3), "cameraMatrix"))
     K_inv.flags.writeable = False
     return K_inv
 

@@ -14,6 +14,7 @@ from .checks import (
     as_essential,
     as_mask,
     as_point_pair,
+    as_points,
     as_pri_threshold,
 )
 
@@ -79,21 +80,52 @@ class PoseResult:
         return int(np.count_nonzero(self.inliers))
 
 
-def inverse_camera(K: np.ndarray) -> np.ndarray:
-    """``K^-1`` of a 3x3 pinhole matrix, upper triangular with last row (0, 0, 1)."""
+def inverse_camera(K: Any) -> np.ndarray:
+    """``K^-1`` of a pinhole camera matrix.
+
+    Parameters
+    ----------
+    K : array_like, shape (3, 3)
+        Upper triangular with last row (0, 0, 1) and positive focal lengths (skew allowed).
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        Its inverse, float64.
+    """
+    return _inverse(as_camera_matrix(K, "K"))
+
+
+def pixel_rays(points: Any, K: Any) -> np.ndarray:
+    """Pixel points to stacked normalized rays ``K^-1 [u, v, 1]^T``.
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 2), (N, 1, 2), (1, N, 2) or (N, 2, 1)
+        Finite pixel coordinates.
+    K : array_like, shape (3, 3)
+        Camera matrix, as for :func:`inverse_camera`.
+
+    Returns
+    -------
+    ndarray, shape (3, N)
+        One ray per column, third coordinate 1.
+    """
+    return _rays(as_points(points, "points"), as_camera_matrix(K, "K"))
+
+
+def _inverse(K: np.ndarray) -> np.ndarray:
+    """``K^-1`` of a checked camera matrix (3, 3)."""
     (fx, skew, cx), (_, fy, cy), _ = K.tolist()
     fxy = fx * fy
     inverse = [1.0 / fx, -skew / fxy, (skew * cy - cx * fy) / fxy, 0.0, 1.0 / fy, -cy / fy]
     return np.array([*inverse, 0.0, 0.0, 1.0]).reshape(3, 3)
 
 
-def pixel_rays(points: np.ndarray, K: np.ndarray) -> np.ndarray:
-    """Pixel points (N, 2) to stacked normalized rays ``K^-1 [u, v, 1]^T``, shape (3, N).
-
-    ``K`` is upper triangular with last row (0, 0, 1), as checked by ``as_camera_matrix``.
-    """
+def _rays(points: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """:func:`pixel_rays` of checked points (N, 2) and camera matrix (3, 3)."""
     if points.shape[0] <= 4096:  # one small matrix product is cheapest here, row passes beyond
-        K_inv = inverse_camera(K)
+        K_inv = _inverse(K)
         return K_inv[:, :2] @ points.T + K_inv[:, 2:]
     (fx, skew, cx), (_, fy, cy), _ = K.tolist()
     rays = np.empty((3, points.shape[0]))
@@ -123,7 +155,7 @@ def recover_pose(
     ----------
     E : array_like, shape (3, 3)
         Essential matrix in normalized coordinates, ``x2^T E x1 = 0``, any scale.
-    points1, points2 : array_like, shape (N, 2), (N, 1, 2) or (1, N, 2)
+    points1, points2 : array_like, shape (N, 2), (N, 1, 2), (1, N, 2) or (N, 2, 1)
         Matching pixel coordinates in image 1 and image 2, N >= 5.
     K1 : array_like, shape (3, 3)
         Intrinsics of camera 1; positive focal lengths (a negative one would mirror the image
@@ -168,7 +200,7 @@ def recover_pose(
     if distance_thresh is not None:
         distance_thresh = as_distance_threshold(distance_thresh, "distance_thresh")
         distance_thresh = None if distance_thresh == np.inf else distance_thresh
-    X1, X2 = pixel_rays(p1, K1), pixel_rays(p2, K2)
+    X1, X2 = _rays(p1, K1), _rays(p2, K2)
     return _recover_rays(E, X1, X2, used, pri_threshold, distance_thresh)
 
 

@@ -16,8 +16,11 @@ on coordinate columns, so that its cost is a few passes over the data.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+
+from .checks import as_camera_matrix, as_essential, as_finite_rows, as_points
 
 __all__ = [
     "W1",
@@ -119,7 +122,39 @@ def normalize(points: np.ndarray, K: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (N, 2)
     """
+    return _normalize(as_points(points, "points"), as_camera_matrix(K, "K"))
+
+
+def _normalize(points: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """:func:`normalize` of checked points (N, 2) and camera matrix (3, 3)."""
     return (np.linalg.inv(K)[:2] @ _planar(points)).T
+
+
+def _checked_rays(x: Any, name: str) -> np.ndarray:
+    """Normalized points (N, 2), or homogeneous (N, 3), checked, as stacked rays (3, N)."""
+    return _planar(as_finite_rows(x, name, 2 if np.shape(x)[-1:] == (2,) else 3))
+
+
+def _checked_pose_rays(
+    x1: Any, x2: Any, R: Any, t: Any = (0.0, 0.0, 1.0)
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(X1, X2, R, e_t)``: matched rays (3, N) of one length, a finite 3x3 ``R`` and the unit
+    direction of a finite nonzero ``t`` (3 numbers); ValueError or TypeError naming the
+    argument otherwise."""
+    X1, X2 = _checked_rays(x1, "x1"), _checked_rays(x2, "x2")
+    if X1.shape != X2.shape:
+        raise ValueError(
+            f"x1 and x2 must have the same length, got {X1.shape[1]} and {X2.shape[1]}"
+        )
+    if np.shape(R) != (3, 3):
+        raise ValueError(f"R must be a 3x3 matrix, got shape {np.shape(R)}")
+    R = as_finite_rows(R, "R", 3)
+    if np.size(t) != 3:
+        raise ValueError(f"t must be 3 numbers, got shape {np.shape(t)}")
+    t = as_finite_rows(np.reshape(t, (1, 3)), "t", 3)[0]
+    if not t.any():
+        raise ValueError("t is zero: it has no direction")
+    return X1, X2, R, _unit(t)
 
 
 def _planar(x: np.ndarray) -> np.ndarray:
@@ -169,6 +204,7 @@ def decompose_essential(E: np.ndarray) -> Candidates:
     -------
     Candidates
     """
+    as_essential(E, check_spread=False)  # a finite, nonzero 3x3 matrix, decomposed unscaled
     U, s, Vt = np.linalg.svd(np.asarray(E, dtype=np.float64))
     return candidates_from_svd(U, s, Vt)
 
@@ -216,8 +252,8 @@ def same_side_scores(x1: np.ndarray, x2: np.ndarray, R: np.ndarray, t: np.ndarra
     -------
     ndarray, shape (N,)
     """
-    e = _unit(t)
-    return _dot(_planar(x2), (R - e[:, None] * (e @ R)) @ _planar(x1))  # [e]x^T [e]x = I - e e^T
+    X1, X2, R, e = _checked_pose_rays(x1, x2, R, t)
+    return _dot(X2, (R - e[:, None] * (e @ R)) @ X1)  # [e]x^T [e]x = I - e e^T
 
 
 def intersection_scores(x1: np.ndarray, x2: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -239,7 +275,7 @@ def intersection_scores(x1: np.ndarray, x2: np.ndarray, R: np.ndarray, t: np.nda
     -------
     ndarray, shape (N,)
     """
-    X1, X2, e = _planar(x1), _planar(x2), _unit(t)
+    X1, X2, R, e = _checked_pose_rays(x1, x2, R, t)
     return np.sqrt(_dot(X1, X1)) * (e @ X2) - np.sqrt(_dot(X2, X2)) * ((e @ R) @ X1)
 
 
@@ -298,7 +334,17 @@ def select_pose(
     >>> np.allclose(sel.R, np.eye(3)), sel.t.round(6).tolist(), sel.support_R, sel.support_t
     (True, [1.0, 0.0, 0.0], 20, 20)
     """
-    return _select(decompose_essential(E), _planar(x1), _planar(x2), used)
+    X1, X2 = _checked_rays(x1, "x1"), _checked_rays(x2, "x2")
+    if X1.shape != X2.shape:
+        raise ValueError(
+            f"x1 and x2 must have the same length, got {X1.shape[1]} and {X2.shape[1]}"
+        )
+    if used is not None:
+        used = np.asarray(used)
+        if used.dtype != bool or used.shape != (X1.shape[1],):
+            raise TypeError(f"used must be a bool array of shape ({X1.shape[1]},), got "
+                            f"{used.dtype} of shape {used.shape}")  # fmt: skip
+    return _select(decompose_essential(E), X1, X2, used)
 
 
 def frame_scores(F: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -384,6 +430,9 @@ def pure_rotation_indicator(m2: np.ndarray) -> float:
     float
         NaN for an empty input.
     """
+    if np.ndim(m2) != 1:
+        raise ValueError(f"m2 must be scores of shape (N,), got shape {np.shape(m2)}")
+    m2 = as_finite_rows(np.reshape(m2, (-1, 1)), "m2", 1)
     return float(np.mean(np.abs(m2))) if m2.size else float("nan")
 
 
@@ -392,7 +441,7 @@ def m3_indicator(x1: np.ndarray, x2: np.ndarray, R: np.ndarray) -> float:
 
     The paper's alternative pure-rotation test, kept for comparison with PRI.
     """
-    X1, X2 = _planar(x1), _planar(x2)
+    X1, X2, R, _ = _checked_pose_rays(x1, x2, R)
     if X1.shape[1] == 0:
         return float("nan")
     sin_parallax = np.sqrt(_dot(*(2 * [_cross(X2, R @ X1)])) / (_dot(X1, X1) * _dot(X2, X2)))
@@ -425,8 +474,8 @@ def analytic_depths(
     z1, z2 : ndarray, shape (N,)
         Depths (third coordinate) in camera 1 and camera 2.
     """
-    X1, X2 = _planar(x1), _planar(x2)
-    z1, z2, _ = _depths(X1, X2, R, _unit(t), rtol)
+    X1, X2, R, e = _checked_pose_rays(x1, x2, R, t)
+    z1, z2, _ = _depths(X1, X2, R, e, rtol)
     return z1, z2
 
 
@@ -471,8 +520,8 @@ def analytic_points(
     ndarray, shape (N, 3)
         NaN rows where the depth is infinite.
     """
-    X1, X2 = _planar(x1), _planar(x2)
-    return _points(X1, X2, R, _unit(t), rtol).T
+    X1, X2, R, e = _checked_pose_rays(x1, x2, R, t)
+    return _points(X1, X2, R, e, rtol).T
 
 
 def _points(
@@ -505,7 +554,8 @@ def rotation_from_rays(x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (3, 3)
     """
-    return _rotation_from_rays(_planar(x1), _planar(x2))
+    X1, X2, _, _ = _checked_pose_rays(x1, x2, np.eye(3))
+    return _rotation_from_rays(X1, X2)
 
 
 def _rotation_from_rays(X1: np.ndarray, X2: np.ndarray) -> np.ndarray:

@@ -31,9 +31,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
+from .checks import (
+    MAX_WHOLE_NUMBER,
+    as_finite_rows,
+    as_positive,
+    as_whole_number,
+)
 from .lsq import cross_matrix
 from .significance import (
     ESSENTIAL_SAMPLE_SIZE,
@@ -180,6 +187,32 @@ def virtual_camera(focal: float, width: int = 0, height: int = 0):
     )
 
 
+def checked_rays(x1: Any, x2: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Two arrays of matched rays as contiguous float64 (N, 3), all finite; a ValueError or
+    TypeError naming ``x1`` or ``x2`` otherwise, or when their lengths differ."""
+    x1, x2 = as_finite_rows(x1, "x1", 3), as_finite_rows(x2, "x2", 3)
+    if len(x1) != len(x2):
+        raise ValueError(f"x1 and x2 must have the same length, got {len(x1)} and {len(x2)}")
+    return np.ascontiguousarray(x1), np.ascontiguousarray(x2)
+
+
+def checked_fit_settings(
+    focal: Any, threshold: Any, confidence: Any, min_trials: Any, max_trials: Any, seed: Any
+) -> tuple[float, float, float, int, int, int]:
+    """``(focal, threshold, confidence, min_trials, max_trials, seed)`` of a robust fit checked:
+    positive focal length and threshold, a confidence in (0, 1], whole trial counts and seed
+    from 0 (a negative count ran pycolmap's sampler without end); ValueError or TypeError
+    naming the argument."""
+    focal, threshold = as_positive(focal, "focal"), as_positive(threshold, "threshold")
+    confidence = as_positive(confidence, "confidence")
+    if confidence > 1:
+        raise ValueError(f"confidence must be in (0, 1], got {confidence}")
+    trials = [as_whole_number(value, name, 0, MAX_WHOLE_NUMBER)
+              for name, value in (("min_trials", min_trials), ("max_trials", max_trials),
+                                  ("seed", seed))]  # fmt: skip
+    return (focal, threshold, confidence, *trials)
+
+
 def ransac_options(threshold, confidence, min_trials, max_trials, seed, multiplier=3.0):
     """``pycolmap.RANSACOptions`` for a pixel ``threshold``, trial bounds, a seed and the factor
     on the hypotheses of the adaptive stop (COLMAP's ``dyn_num_trials_multiplier``)."""
@@ -280,18 +313,11 @@ def estimate_essential(
     """
     if backend not in ROBUST_BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; choose one of {', '.join(ROBUST_BACKENDS)}")
+    x1, x2 = checked_rays(x1, x2)
+    settings = checked_fit_settings(focal, threshold, confidence, min_trials, max_trials, seed)
+    multiplier = as_positive(trials_multiplier, "trials_multiplier")
     fit = _pycolmap if backend == "pycolmap" else _opencv
-    found = fit(
-        np.ascontiguousarray(x1, dtype=np.float64),
-        np.ascontiguousarray(x2, dtype=np.float64),
-        float(focal),
-        float(threshold),
-        float(confidence),
-        min_trials,
-        max_trials,
-        seed,
-        trials_multiplier,
-    )
+    found = fit(x1, x2, *settings, multiplier)
     if found is None or not found[1].any():
         return None
     return RobustEstimate(E=found[0], inliers=found[1], backend=backend)

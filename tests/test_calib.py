@@ -1044,3 +1044,23 @@ def test_a_focal_length_from_pycolmaps_table_of_sensors_is_never_scaled(tmp_path
     camera, from_exif = camera_from_exif(path)
     assert from_exif and 1200 < camera.K[0, 0] < 1290  # 12.28 / 7.18 x 720 = 1231.5
     assert exif_camera(path)[2] == []
+
+
+@pytest.mark.parametrize(
+    "call, error, words",
+    [(lambda: calib.resize_scale((0, 0), (1600, 1200)), ValueError,
+      "original width must be a whole number in 1.."),
+     (lambda: calib.resize_scale((4000, 3000), None), TypeError,
+      "size must be (width, height), got None"),
+     (lambda: calib.warn_implausible(np.diag([500.0, 500.0, 1.0]), "480x640", "K"), TypeError,
+      "image_shape must be an image's shape (rows, columns[, channels]), got '480x640'"),
+     (lambda: calib.warn_implausible(np.diag([500.0, 500.0, 1.0]), (480,), "K"), TypeError,
+      "image_shape must be an image's shape")],
+    ids=["resize from zero", "resize to None", "shape text", "shape of one side"],
+)  # fmt: skip
+def test_the_size_helpers_name_a_size_that_is_none(call, error, words):
+    # a ZeroDivisionError, "'NoneType' object is not iterable", "string index out of range",
+    # "tuple index out of range"
+    with pytest.raises(error) as info:
+        call()
+    assert words in str(info.value)

@@ -70,6 +70,41 @@ CASES = {  # name: (call, error type, words of its message)
     "tripod_poses_inf_pan": (
         lambda: dg.tripod_then_move_poses(pan_step=INF), ValueError, "pan_step",
     ),
+    # pairs_line wrote lines read_pairs cannot read back (39 fields, a comment, "nan" for None)
+    "pairs_line_name_with_space": (
+        lambda: dg.pairs_line("a b.png", "c.png", K, K, np.eye(3), np.ones(3)), ValueError,
+        "name1 must be a name without spaces, not starting with '#', got 'a b.png'",
+    ),
+    "pairs_line_comment_name": (
+        lambda: dg.pairs_line("a.png", "#c.png", K, K, np.eye(3), np.ones(3)), ValueError,
+        "name2 must be a name without spaces",
+    ),
+    "pairs_line_no_K2": (
+        lambda: dg.pairs_line("a.png", "c.png", K, None, np.eye(3), np.ones(3)), TypeError,
+        "K2 is required",
+    ),
+    "pairs_line_no_rotation": (
+        lambda: dg.pairs_line("a.png", "c.png", K, K, np.ones((3, 3)), np.ones(3)), ValueError,
+        "R is not a rotation matrix",
+    ),
+    "pairs_line_nan_t": (
+        lambda: dg.pairs_line("a.png", "c.png", K, K, np.eye(3), [NAN, 0, 0]), ValueError,
+        "t has 1 NaN",
+    ),
+    # two names and one pose gave no pair without a word, one name and two an IndexError
+    "relative_gt_counts": (
+        lambda: dg.relative_gt_from_poses(["a", "b"], [(np.eye(3), np.zeros(3))]), ValueError,
+        "names and poses must have one entry per view, got 2 names and 1 poses",
+    ),
+    "relative_gt_three_poses": (
+        lambda: dg.relative_gt_from_poses(["a", "b"], [(np.eye(3), np.zeros(3))] * 3),
+        ValueError, "got 2 names and 3 poses",
+    ),
+    "relative_gt_scaled_rotation": (
+        lambda: dg.relative_gt_from_poses(["a", "b"], [(np.eye(3), np.zeros(3)),
+                                                       (2 * np.eye(3), np.zeros(3))]),
+        ValueError, r"poses\[1\] R is not a rotation matrix",
+    ),
 }  # fmt: skip
 
 
@@ -138,3 +173,5 @@ def test_good_arguments_still_give_what_they_gave():
     np.testing.assert_allclose(R, np.eye(3), atol=1e-12)
     assert dg.jpeg_roundtrip(RGB, 90).shape == RGB.shape
     assert len(dg.tripod_then_move_poses(2, 3)) == 5
+    assert dg.pairs_line("a.png", "b.png", K, K, np.eye(3), np.ones((3, 1))).split()[-4:] == [
+        "0.000000000000", "0.000000000000", "0.000000000000", "1.000000000000"]  # fmt: skip

@@ -301,6 +301,11 @@ WRITE_OUTPUTS_CASES = {
                    "dists[0] must be OpenCV distortion coefficients"),
     "result None": ({"result": None}, TypeError, "result must be a PairResult"),
     "directory None": ({"directory": None}, TypeError, "directory must be a path"),
+    # Python's "keywords must be strings", naming nothing
+    "extra int key": ({"extra": {1: "a"}}, TypeError, "extra's keys must be texts, got int 1"),
+    # a NUL in a name with a space (a binary model) ended the name: a model no reader could read
+    "name NUL": ({"names": ("a\0 1.png", "a\0 2.png")}, ValueError,
+                 "image name 'a\\x00 1.png' holds a NUL character"),
 }  # fmt: skip
 
 
@@ -369,9 +374,22 @@ COLOURS = np.zeros((3, 3), np.uint8)
      (lambda p: ppo_cv.export.result_to_dict(None), TypeError,
       "result must be a PairResult (estimate_pair), got NoneType"),
      (lambda p: ppo_cv.export.draw_matches(None, None, {}), TypeError,
-      "result must be a PairResult (estimate_pair), got dict")],
+      "result must be a PairResult (estimate_pair), got dict"),
+     # numpy's "expected a sequence of integers", "'<=' not supported", "negative dimensions"
+     (lambda p: matches_to_draw(np.ones(200, bool), 1.5), ValueError,
+      "max_lines must be a whole number >= 0 or None, got 1.5"),
+     (lambda p: matches_to_draw(np.ones(200, bool), "10"), TypeError,
+      "max_lines must be a whole number or None, got str '10'"),
+     (lambda p: matches_to_draw(np.ones(200, bool), np.nan), ValueError,
+      "max_lines must be a whole number >= 0 or None, got nan"),
+     (lambda p: matches_to_draw(np.ones(3, bool), True), TypeError,
+      "max_lines must be a whole number or None, got bool True"),
+     # Python's "expected str, bytes or os.PathLike object, not int"
+     (lambda p: write_ply(3, ROWS, COLOURS), TypeError,
+      "path must be a path (str or os.PathLike), got int")],
     ids=["NaN points", "colours fewer", "points of two", "colour 300", "beyond float32",
-         "folder", "euler NaN", "angle-axis zeros", "zyx mirror", "dict None", "draw dict"],
+         "folder", "euler NaN", "angle-axis zeros", "zyx mirror", "dict None", "draw dict",
+         "max_lines fraction", "max_lines text", "max_lines NaN", "max_lines True", "ply path"],
 )  # fmt: skip
 def test_the_export_helpers_refuse_what_they_cannot_write(tmp_path, call, exception, words):
     # they wrote NaN vertices, wrapped colour 300 to 44, broke on a numpy broadcast, read a
@@ -520,3 +538,13 @@ def test_a_moving_pair_given_the_rotation_only_fit_exports_points_of_that_rotati
         for image_id, image in model.images.items()
     }  # fmt: skip
     assert errors[2] < 1.0 and errors[2] < 3.0 * errors[1] + 0.1, errors
+
+
+def test_a_huge_matrix_is_no_rotation_without_a_runtime_warning():
+    # R R^T overflowed with a RuntimeWarning before the error
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match="R is not a rotation matrix"):
+            ppo_cv.export.camera_euler_degrees(np.eye(3) * 1e300)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ppo_cv import features
 from ppo_cv.features import _two_nearest_dense
 
 
@@ -31,3 +32,53 @@ def test_a_repeated_descriptor_is_the_mutual_match_of_its_first_row_only(block):
     index12, _, mutual12 = _two_nearest_dense(d1, d2, block=block)
     assert index12[0, 0] == index12[6, 0] == 5
     assert mutual12[0] and mutual12[1] and not mutual12[6]
+
+
+_GREY = np.random.default_rng(1).integers(0, 256, (48, 64), dtype=np.uint8)
+
+
+def _sift(count: int = 4):
+    from ppo_cv.features import Features
+
+    rng = np.random.default_rng(0)
+    return Features(rng.uniform(0, 100, (count, 2)).astype(np.float32),
+                    rng.uniform(0, 1, (count, 128)).astype(np.float32), "sift",
+                    np.full(count, 0.05, np.float32))  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "call, error, words",
+    [(lambda f: features.match_features(None, f), TypeError,
+      "features1 must be a ppo_cv.features.Features, got NoneType"),
+     (lambda f: features.match_features(f, f, ratio="0.8"), TypeError,
+      "ratio must be a number, got str"),
+     (lambda f: features.match_features(f, f, ratio=True), TypeError,
+      "ratio must be a number, got True"),
+     (lambda f: features.match_features(f, f, mutual="no"), TypeError,
+      "mutual must be True or False, got str 'no'"),
+     (lambda f: features.match_features(f, f, unique=0), TypeError,
+      "unique must be True or False, got int 0"),
+     (lambda f: features.at_threshold(f, None), TypeError,
+      "threshold_scale must be a number, got NoneType"),
+     (lambda f: features.at_threshold((f,), 2.0), TypeError,
+      "features must be a ppo_cv.features.Features, got tuple"),
+     # max_features=1.5 ran as 1, a text failed in int(); max_image_size=0 was called a size
+     # that makes the image too small, "or 0 for the full size"
+     (lambda f: features.detect_features(_GREY, max_features=1.5), ValueError,
+      "max_features must be a whole number in 1.."),
+     (lambda f: features.detect_features(_GREY, max_features="800"), TypeError,
+      "max_features must be a whole number, got str"),
+     (lambda f: features.detect_features(_GREY, max_image_size=0), ValueError,
+      "max_image_size must be a whole number in 32.."),
+     (lambda f: features.detect_features(_GREY, threshold_scale="2"), TypeError,
+      "threshold_scale must be a number, got str")],
+    ids=["features None", "ratio text", "ratio True", "mutual text", "unique 0",
+         "threshold None", "features tuple", "max_features 1.5", "max_features text",
+         "max_image_size 0", "threshold_scale text"],
+)  # fmt: skip
+def test_detection_and_matching_name_a_bad_argument(call, error, words):
+    # an AttributeError ("'NoneType' object has no attribute 'kind'"), Python's "'<' not
+    # supported", ratio=True read as 1 and mutual="no" as true
+    with pytest.raises(error) as info:
+        call(_sift())
+    assert words in str(info.value)

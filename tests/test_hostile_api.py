@@ -91,6 +91,18 @@ def _form4(**kwargs):
     return lambda: ppo_cv.recoverPose(P1, P2, cameraMatrix1=K, cameraMatrix2=K, **args)
 
 
+RAYS = np.column_stack([(P1 - K[:2, 2]) / K[0, 0], np.ones(len(P1))])
+RAYS2 = np.column_stack([(P2 - K[:2, 2]) / K[0, 0], np.ones(len(P2))])
+
+
+def _robust_fit(model, **changes):
+    from ppo_cv import homography, robust
+
+    fit = robust.estimate_essential if model == "essential" else homography.estimate_homography
+    arguments = {"x1": RAYS, "x2": RAYS2, "focal": 800.0, **changes}
+    return fit(arguments.pop("x1"), arguments.pop("x2"), arguments.pop("focal"), **arguments)
+
+
 CASES = {
     # negative, zero, tiny, huge, non-finite focal lengths (issue section 4)
     "recoverPose negative fx": (lambda: ppo_cv.recoverPose(E, P1, P2, _K(fx=-800)), ValueError,
@@ -385,6 +397,52 @@ CASES = {
                                  "distCoeffs1 must be a numeric array: setting an array"),
     "Camera ragged dist": (lambda: ppo_cv.Camera(K, [[0.1], [0, 0]]), TypeError,
                            "Camera.dist must be a numeric array: setting an array"),
+    # the form with points, its first camera matrix not 3x3: "E must be a 3x3 matrix, got (40, 2)"
+    "form 4 camera matrix of nine numbers": (
+        lambda: ppo_cv.recoverPose(P1, P2, K.ravel(), None, K, None), ValueError,
+        "cameraMatrix1 must be a 3x3 matrix, got shape (9,)"),
+    "form 4 camera matrix None": (lambda: ppo_cv.recoverPose(P1, P2, None, None, K, None),
+                                  TypeError, "cameraMatrix1 is required"),
+    "form 4 points as lists": (lambda: ppo_cv.recoverPose(P1.tolist(), P2, [1] * 9, None, K, None),
+                               ValueError, "cameraMatrix1 must be a 3x3 matrix"),
+    # pose's public helpers: AttributeError, ZeroDivisionError, numpy's unpacking messages
+    "inverse_camera list": (lambda: ppo_cv.pose.inverse_camera(K.tolist()[:2]), ValueError,
+                            "K must be a 3x3 matrix, got shape (2, 3)"),
+    "inverse_camera zeros": (lambda: ppo_cv.pose.inverse_camera(np.zeros((3, 3))), ValueError,
+                             "K must be upper triangular"),
+    "inverse_camera None": (lambda: ppo_cv.pose.inverse_camera(None), TypeError,
+                            "K is required"),
+    "pixel_rays points (N, 3)": (lambda: ppo_cv.pose.pixel_rays(np.ones((4, 3)), K), ValueError,
+                                 "points must have shape (N, 2)"),
+    "pixel_rays NaN point": (lambda: ppo_cv.pose.pixel_rays([[np.nan, 1.0]], K), ValueError,
+                             "points has 1 NaN"),
+    "pixel_rays K text": (lambda: ppo_cv.pose.pixel_rays(P1, "800,800,320,240"), TypeError,
+                          "K must be an array of real numbers, got str"),
+    # the robust fits: a negative trial count ran pycolmap's sampler without end, None failed
+    # with an IndexError, a text focal length with Python's "'>' not supported"
+    "estimate_essential max_trials -1": (lambda: _robust_fit("essential", max_trials=-1),
+                                         ValueError, "max_trials must be a whole number in 0.."),
+    "estimate_essential x1 None": (lambda: _robust_fit("essential", x1=None), TypeError,
+                                   "x1 is required"),
+    "estimate_essential focal 0": (lambda: _robust_fit("essential", focal=0), ValueError,
+                                   "focal must be a finite number > 0"),
+    "estimate_essential confidence 2": (lambda: _robust_fit("essential", confidence=2.0),
+                                        ValueError, "confidence must be in (0, 1]"),
+    "estimate_essential seed text": (lambda: _robust_fit("essential", seed="1"), TypeError,
+                                     "seed must be a whole number, got str"),
+    "estimate_homography min_trials -1": (lambda: _robust_fit("homography", min_trials=-1),
+                                          ValueError, "min_trials must be a whole number in 0.."),
+    "estimate_homography focal text": (lambda: _robust_fit("homography", focal="800"),
+                                       TypeError, "focal must be a number, got str"),
+    "estimate_homography x2 complex": (lambda: _robust_fit("homography", x2=RAYS + 0j),
+                                       TypeError, "x2 must hold real numbers, got dtype complex"),
+    # "object of type 'NoneType' has no len()"; a text was read as no matches
+    "homography_rotation_focal None": (
+        lambda: _sfm_module().homography_rotation_focal(None, RAYS, 800.0, 640), TypeError,
+        "x1 is required"),
+    "homography_rotation_focal text": (
+        lambda: _sfm_module().homography_rotation_focal(RAYS, "x", 800.0, 640), TypeError,
+        "x2 must be an array of real numbers, got str"),
 }  # fmt: skip
 
 
@@ -1021,6 +1079,34 @@ def test_a_camera_matrix_of_another_number_type_is_its_values_exactly(dtype):
 def test_a_camera_is_checked_when_made(fields, exception, words):
     with pytest.raises(exception, match=re.escape(words)):
         ppo_cv.Camera(*fields)
+
+
+def test_a_camera_holds_its_own_read_only_arrays():
+    # Camera kept the caller's float64 arrays: changing them later changed the checked camera
+    # (a negative focal length, unchecked), and so did writing into camera.K
+    K_given, dist_given = K.copy(), np.array([0.01, 0.0, 0.0, 0.0])
+    camera = ppo_cv.Camera(K_given, dist_given)
+    K_given[0, 0], dist_given[0] = -800.0, 5.0
+    assert camera.K[0, 0] == 800.0 and camera.dist[0] == 0.01
+    for array in (camera.K, camera.dist):
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = 0.0
+
+
+@pytest.mark.parametrize(
+    "call",
+    [lambda dist: ppo_cv.Camera(K, dist),
+     lambda dist: ppo_cv.recoverPose(P1, P2, K, dist, K, None),
+     lambda dist: ppo_cv.estimate_pair(GREY, GREY[::-1], K, dist1=dist)],
+    ids=["Camera", "recoverPose", "estimate_pair"],
+)  # fmt: skip
+@pytest.mark.parametrize("shape", [(2, 4), (3, 4), (2, 7)])
+def test_the_coefficients_of_several_cameras_are_refused_as_distortion(call, shape):
+    # two cameras' k1,k2,p1,p2 stacked (2, 4) were read as one rational model of 8 (and
+    # (3, 4) as 12, (2, 7) as 14): OpenCV refuses them
+    with pytest.raises(ValueError) as error:
+        call(np.full(shape, 0.01))
+    assert f"must be one row or column of coefficients, got shape {shape}" in str(error.value)
 
 
 def test_a_camera_takes_its_image_size_as_a_numpy_pair():

@@ -201,3 +201,62 @@ def test_normalize_inverts_the_camera_matrix_with_skew():
     x = rng.normal(size=(10, 2))
     pixels = (np.c_[x, np.ones(10)] @ Ks.T)[:, :2]
     np.testing.assert_allclose(ppo.normalize(pixels, Ks), x, atol=1e-12)
+
+
+_X = np.column_stack([np.linspace(-0.3, 0.3, 8), np.linspace(0.2, -0.2, 8)])
+_E = skew([1.0, 0.0, 0.0])
+
+
+@pytest.mark.parametrize(
+    "call, error, words",
+    [(lambda: ppo.decompose_essential(None), TypeError, "E is required"),
+     (lambda: ppo.decompose_essential(np.full((3, 3), np.nan)), ValueError, "E has 9 NaN"),
+     (lambda: ppo.decompose_essential(np.zeros(9)), ValueError, "E must be a 3x3 matrix"),
+     (lambda: ppo.decompose_essential(np.zeros((3, 3))), ValueError, "E is all zeros"),
+     (lambda: ppo.select_pose(_E, None, _X), TypeError, "x1 is required"),
+     (lambda: ppo.select_pose(_E, _X, _X.tolist()[:5]), ValueError,
+      "x1 and x2 must have the same length, got 8 and 5"),
+     (lambda: ppo.select_pose(_E, _X, _X.T), ValueError, "x2 must have shape (N, 3)"),
+     (lambda: ppo.select_pose(_E, _X, _X, used=np.ones(8)), TypeError,
+      "used must be a bool array of shape (8,), got float64"),
+     (lambda: ppo.normalize(None, K), TypeError, "points is required"),
+     (lambda: ppo.normalize(_X.tolist(), None), TypeError, "K is required"),
+     (lambda: ppo.normalize(_X, K.ravel()), ValueError, "K must be a 3x3 matrix"),
+     (lambda: ppo.same_side_scores(_X, _X, np.eye(3), np.zeros(3)), ValueError,
+      "t is zero: it has no direction"),
+     (lambda: ppo.intersection_scores(_X, _X[:3], np.eye(3), [1, 0, 0]), ValueError,
+      "x1 and x2 must have the same length, got 8 and 3"),
+     (lambda: ppo.analytic_points(_X, _X, np.eye(2), [1, 0, 0]), ValueError,
+      "R must be a 3x3 matrix, got shape (2, 2)"),
+     (lambda: ppo.analytic_depths(_X, None, np.eye(3), [1, 0, 0]), TypeError,
+      "x2 is required"),
+     (lambda: ppo.m3_indicator(_X.tolist(), _X, np.full((3, 3), np.nan)), ValueError,
+      "R has 9 NaN"),
+     (lambda: ppo.pure_rotation_indicator(None), ValueError,
+      "m2 must be scores of shape (N,), got shape ()"),
+     (lambda: ppo.pure_rotation_indicator([0.1, np.nan]), ValueError, "m2 has 1 NaN"),
+     (lambda: ppo.rotation_from_rays(_X, None), TypeError, "x2 is required"),
+     (lambda: ppo.rotation_from_rays(_X, _X[:4]), ValueError, "x1 and x2 must have the same")],
+    ids=["E None", "E NaN", "E flat", "E zeros", "x1 None", "lengths", "x2 transposed",
+         "used floats", "points None", "K None", "K flat", "zero t", "score lengths",
+         "R 2x2", "depths None", "m3 NaN R", "PRI None", "PRI NaN", "rays None",
+         "rays lengths"],
+)  # fmt: skip
+def test_the_paper_s_functions_name_a_bad_argument(call, error, words):
+    # numpy's LinAlgError ("0-dimensional array given", "SVD did not converge"), an
+    # AttributeError ("'NoneType' object has no attribute 'shape'") or a RuntimeWarning and
+    # candidates of NaN for a zero E
+    with pytest.raises(error) as info:
+        call()
+    assert words in str(info.value)
+
+
+def test_the_paper_s_functions_take_lists_and_homogeneous_points():
+    homogeneous = np.column_stack([_X, np.ones(8)])
+    chosen = ppo.select_pose(_E.tolist(), _X.tolist(), homogeneous)
+    expected = ppo.select_pose(_E, _X, _X)
+    assert np.array_equal(chosen.R, expected.R) and np.array_equal(chosen.m1, expected.m1)
+    np.testing.assert_allclose(ppo.normalize(_X.tolist(), K.tolist()), (_X - 512.0) / 800.0)
+    assert ppo.pure_rotation_indicator([0.1, -0.3]) == pytest.approx(0.2)
+    depths = ppo.analytic_depths(_X.tolist(), homogeneous, np.eye(3).tolist(), [[1], [0], [0]])
+    assert np.all(np.isinf(depths[0]))  # identical rays: parallel, no depth

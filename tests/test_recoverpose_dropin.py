@@ -157,11 +157,13 @@ def test_form_two_cameras_with_distortion():
 
 
 @pytest.mark.parametrize("dtype", [np.float32, np.float64])
-@pytest.mark.parametrize("shape", ["N2", "N12", "1N2"])
+@pytest.mark.parametrize("shape", ["N2", "N12", "1N2", "N21"])
 def test_accepted_shapes_and_dtypes(scene, dtype, shape):
+    # (N, 2, 1), column vectors, which cv2.recoverPose reads too, was refused
     def reshape(p):
         p = p.astype(dtype)
-        return {"N2": p, "N12": p.reshape(-1, 1, 2), "1N2": p.reshape(1, -1, 2)}[shape]
+        return {"N2": p, "N12": p.reshape(-1, 1, 2), "1N2": p.reshape(1, -1, 2),
+                "N21": p.reshape(-1, 2, 1)}[shape]  # fmt: skip
 
     p1, p2 = reshape(scene["p1"]), reshape(scene["p2"])
     reference = OPENCV_RECOVER_POSE(scene["E"], p1, p2, scene["K"])
