@@ -76,14 +76,19 @@ def test_an_output_that_is_a_fifo_is_not_offered_overwrite(tmp_path):
         check_target(tmp_path / "fifo.jsonl", "file")
 
 
-def test_pairs_to_dev_stdout_names_the_dash(tmp_path):
+def _pairs_of_the_demo_pair(folder: Path, output: str) -> subprocess.CompletedProcess:
+    """``ppo-cv pairs`` on the demo pair listed in ``folder``, run there, ``-o output``."""
     demo = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
-    (tmp_path / "pairs.txt").write_text("demo1.png demo2.png\n")
-    done = subprocess.run(
+    (folder / "pairs.txt").write_text("demo1.png demo2.png\n")
+    return subprocess.run(
         [*COMMAND, "pairs", "pairs.txt", str(demo), "--K", "535.4,539.2,320.1,247.6",
-         "-o", "/dev/stdout", "-q"],
-        cwd=tmp_path, capture_output=True, text=True, timeout=300,
+         "-o", output, "-q"],
+        cwd=folder, capture_output=True, text=True, timeout=300,
     )  # fmt: skip
+
+
+def test_pairs_to_dev_stdout_names_the_dash(tmp_path):
+    done = _pairs_of_the_demo_pair(tmp_path, "/dev/stdout")
     assert done.returncode == 2 and done.stdout == ""
     assert done.stderr == (
         "ppo-cv pairs: -o /dev/stdout is a device or a stream; -o - writes to standard output\n"
@@ -188,13 +193,7 @@ def test_an_output_file_that_is_a_link_keeps_the_link_and_replaces_its_file(tmp_
 )
 def test_pairs_refuses_an_output_named_for_another_format(tmp_path, name, format_):
     # poses.csv was written, exit 0, holding JSON lines that a CSV reader cannot read
-    demo = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
-    (tmp_path / "pairs.txt").write_text("demo1.png demo2.png\n")
-    done = subprocess.run(
-        [*COMMAND, "pairs", "pairs.txt", str(demo), "--K", "535.4,539.2,320.1,247.6",
-         "-o", name, "-q"],
-        cwd=tmp_path, capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
+    done = _pairs_of_the_demo_pair(tmp_path, name)
     stem = name.rsplit(".", 1)[0]
     assert done.returncode == 2 and not (tmp_path / name).exists()
     assert done.stderr == (
@@ -204,13 +203,7 @@ def test_pairs_refuses_an_output_named_for_another_format(tmp_path, name, format
 
 
 def test_pairs_writes_json_lines_to_a_plain_name(tmp_path):
-    demo = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
-    (tmp_path / "pairs.txt").write_text("demo1.png demo2.png\n")
-    done = subprocess.run(
-        [*COMMAND, "pairs", "pairs.txt", str(demo), "--K", "535.4,539.2,320.1,247.6",
-         "-o", "poses.txt", "-q"],
-        cwd=tmp_path, capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
+    done = _pairs_of_the_demo_pair(tmp_path, "poses.txt")
     assert done.returncode == 0, done.stderr
     (line,) = (tmp_path / "poses.txt").read_text().splitlines()
     assert json.loads(line)["model"] == "general"
