@@ -421,6 +421,20 @@ CASES = {
         "cameraMatrix1 must be a 3x3 matrix, got shape (9,)"),
     "form 4 camera matrix None": (lambda: ppo_cv.recoverPose(P1, P2, None, None, K, None),
                                   TypeError, "cameraMatrix1 is required"),
+    # one camera matrix and no E, as recoverPose(E, points1, points2, K) without E: OpenCV 5
+    # reads the points as E and fails on an assertion; "cameraMatrix2 is required" gave no form
+    "form 4 one camera matrix": (
+        lambda: ppo_cv.recoverPose(P1, P2, K), TypeError,
+        "cameraMatrix2 is required, got None: the form with points is recoverPose(points1, "
+        "points2, cameraMatrix1, distCoeffs1, cameraMatrix2, distCoeffs2), recoverPose(p1, p2, K, "
+        "None, K, None) for one camera without distortion; with an essential matrix, "
+        "recoverPose(E, points1, points2, cameraMatrix)"),
+    "form 4 second camera matrix for distCoeffs1": (
+        lambda: ppo_cv.recoverPose(P1, P2, K, K), TypeError,
+        "cameraMatrix2 is required, got None, and distCoeffs1 is a 3x3 matrix: the second "
+        "camera's in its place?"),
+    "form 4 points alone": (lambda: ppo_cv.recoverPose(P1, P2), TypeError,
+                            "cameraMatrix1 is required, got None: the form with points is"),
     "form 4 points as lists": (lambda: ppo_cv.recoverPose(P1.tolist(), P2, [1] * 9, None, K, None),
                                ValueError, "cameraMatrix1 must be a 3x3 matrix"),
     # pose's public helpers: AttributeError, ZeroDivisionError, numpy's unpacking messages
