@@ -50,6 +50,9 @@ MAX_NOISE = 50.0
 MAX_BLUR = 50.0
 MAX_EXPOSURE_EV = 3.0
 MAX_VIGNETTING = 0.9
+MAX_GAIN = 2.0**16
+"""Largest exposure gain of :func:`expose`, 16 stops (its reciprocal the smallest): beyond, the
+image is white (black) long before, and a gain past float32's range overflowed."""
 GAMMA = 2.2
 """Power law between the stored grey levels and linear light (close to sRGB's curve)."""
 DIVISION_SERIES = (1.0, 2.0, 5.0)
@@ -68,8 +71,10 @@ def division_dist(k1: float) -> np.ndarray:
     [-0.1, 0.02, 0.0, 0.0, -0.005]
     """
     k = as_number(k1, "k1")
-    if not math.isfinite(k):
-        raise ValueError(f"k1 must be finite, got {k}")
+    if not abs(k) <= MAX_K1:  # the series holds for small k1 only; 1e300 overflowed
+        raise ValueError(
+            f"k1 must be finite, within +-{MAX_K1} (as Imperfections draws it), got {k}"
+        )
     first, second, third = (c * k ** (i + 1) for i, c in enumerate(DIVISION_SERIES))
     return np.array([first, second, 0.0, 0.0, third])
 
@@ -355,10 +360,8 @@ def expose(image: np.ndarray, gain: float = 1.0, vignetting: float = 0.0) -> np.
     if image.dtype != np.uint8 or image.ndim not in (2, 3):
         raise ValueError(f"image must be uint8 of shape (H, W) or (H, W, C), got {image.dtype} "
                          f"{image.shape}")  # fmt: skip
-    gain = _scalar("gain", gain, 0.0, math.inf)
+    gain = _scalar("gain", gain, 1.0 / MAX_GAIN, MAX_GAIN)
     vignetting = _scalar("vignetting", vignetting, 0.0, MAX_VIGNETTING)
-    if gain == 0.0:
-        raise ValueError("gain must be > 0")
     if gain == 1.0 and vignetting == 0.0:
         return image
     height, width = image.shape[:2]

@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import stat
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -29,6 +30,7 @@ import cv2
 import numpy as np
 
 from ppo_cv.atomic import linked_output, staging_folder, worker_count, worker_pool
+from ppo_cv.calib import read_text_file
 from ppo_cv.checks import (
     as_camera_matrix,
     as_finite_rows,
@@ -38,6 +40,7 @@ from ppo_cv.checks import (
     require_instance,
     shown,
 )
+from ppo_cv.images import file_mode
 
 from .imperfect import Imperfections
 from .motion import DEFAULT_SCENE, MAX_BASELINE_RATIO, MOTIONS, check_pivot_offset, sample_motion
@@ -202,9 +205,16 @@ def pairs_line(
 
 
 def read_pairs(path: str | os.PathLike) -> list[dict]:
-    """Parse a pairs file into dicts with keys name1, name2, K1, K2, R, t (float64)."""
+    """Parse a pairs file into dicts with keys name1, name2, K1, K2, R, t (float64).
+
+    A path that is no readable text file is a ValueError naming it, as for a calibration file
+    (:func:`ppo_cv.calib.load_calibration`).
+    """
+    path = os.fspath(as_path(path, "path"))
+    if not stat.S_ISREG(file_mode(path, "pairs file")):  # a FIFO would block the reader
+        raise ValueError(f"pairs file {path} is not a regular file")
     records = []
-    for number, line in enumerate(Path(path).read_text(encoding="utf-8-sig").splitlines(), start=1):
+    for number, line in enumerate(read_text_file(path, "pairs file").splitlines(), start=1):
         fields = line.split()
         if not fields:
             continue

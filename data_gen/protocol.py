@@ -27,6 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ppo_cv.checks import as_finite_array
+
 __all__ = [
     "PAPER_K",
     "PAPER_T_MAX",
@@ -93,14 +95,14 @@ def euler_to_matrix(angles_deg: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     angles_deg : array_like, shape (..., 3)
-        Angles ``(gx, gy, gz)`` in degrees about the X, Y and Z axes.
+        Finite angles ``(gx, gy, gz)`` in degrees about the X, Y and Z axes.
 
     Returns
     -------
     ndarray, shape (..., 3, 3)
         Proper rotation matrices (float64).
     """
-    a = np.deg2rad(np.asarray(angles_deg, dtype=np.float64))
+    a = np.deg2rad(as_finite_array(angles_deg, "angles_deg"))
     if a.shape[-1:] != (3,):
         raise ValueError(f"angles_deg must have shape (..., 3), got {a.shape}")
     c, s = np.cos(a), np.sin(a)

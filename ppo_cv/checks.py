@@ -13,6 +13,7 @@ __all__ = [
     "MIN_POINTS",
     "as_points",
     "as_finite_rows",
+    "as_finite_array",
     "as_point_pair",
     "as_homogeneous_pair",
     "as_camera_matrix",
@@ -167,12 +168,22 @@ def _point_rows(value: Any, name: str) -> np.ndarray:
     return array
 
 
-def as_finite_rows(value: Any, name: str, width: int) -> np.ndarray:
-    """Real numbers as float64 (N, ``width``), all finite; ValueError or TypeError naming
+def as_finite_rows(value: Any, name: str, width: int | tuple[int, ...]) -> np.ndarray:
+    """Real numbers as float64 (N, ``width``), all finite, ``width`` one of a tuple of widths
+    if given one; ValueError or TypeError naming ``name`` otherwise."""
+    array = _as_real_array(value, name)
+    widths = width if isinstance(width, tuple) else (width,)
+    if array.ndim != 2 or array.shape[1] not in widths:
+        shapes = " or ".join(f"(N, {side})" for side in widths)
+        raise ValueError(f"{name} must have shape {shapes}, got {array.shape}")
+    require_finite(array, name)
+    return array
+
+
+def as_finite_array(value: Any, name: str) -> np.ndarray:
+    """Real numbers of any shape as float64, all finite; ValueError or TypeError naming
     ``name`` otherwise."""
     array = _as_real_array(value, name)
-    if array.ndim != 2 or array.shape[1] != width:
-        raise ValueError(f"{name} must have shape (N, {width}), got {array.shape}")
     require_finite(array, name)
     return array
 

@@ -730,15 +730,16 @@ def write_outputs(
 
     ``image1`` and ``image2`` are the images the result was computed on (arrays or paths),
     ``names`` two distinct names for the COLMAP model. ``extra`` entries are added to
-    ``result.json``. Everything is written into a temporary
-    sibling folder renamed to ``directory`` once complete (:func:`ppo_cv.atomic.atomic_directory`):
-    a failure or an interrupt leaves no partial output. An existing non-empty ``directory`` is a
-    ValueError unless ``overwrite``, which replaces it as a whole; so is a camera or an image name
-    that the COLMAP model cannot hold (:func:`check_colmap_camera`, :func:`check_colmap_names`),
-    and any argument that cannot make its files (an image of another size than the result's,
-    ``extra`` holding NaN, which JSON cannot), before anything is written. Images given as
-    paths are inputs: a ``directory`` that is one or holds one is a ValueError even with
-    ``overwrite`` (:func:`ppo_cv.atomic.check_apart`).
+    ``result.json`` (numpy numbers and arrays of numbers as Python numbers and lists).
+    Everything is written into a temporary sibling folder renamed to ``directory`` once complete
+    (:func:`ppo_cv.atomic.atomic_directory`): a failure or an interrupt leaves no partial
+    output. An existing non-empty ``directory`` is a ValueError unless ``overwrite``, which
+    replaces it as a whole; so is a camera or an image name that the COLMAP model cannot hold
+    (:func:`check_colmap_camera`, :func:`check_colmap_names`), and any argument that cannot make
+    its files (an image of another size than the result's, ``extra`` holding NaN, which JSON
+    cannot), before anything is written. Images given as paths are inputs: a ``directory`` that
+    is one or holds one is a ValueError even with ``overwrite``
+    (:func:`ppo_cv.atomic.check_apart`).
     """
     import cv2
 
@@ -746,7 +747,7 @@ def write_outputs(
 
     as_path(directory, "directory")
     paths = [image for image in (image1, image2) if isinstance(image, (str, os.PathLike))]
-    image1, image2 = _checked_output_arguments(result, (image1, image2), names, extra)
+    image1, image2, extra = _checked_output_arguments(result, (image1, image2), names, extra)
     check_apart(directory, paths, "directory ")
     dists = _colmap_model_inputs(result, names, dists)
     with atomic_directory(directory, overwrite, API_REPLACE_HINT) as staging:
@@ -763,8 +764,9 @@ def write_outputs(
 
 def _checked_output_arguments(
     result: Any, images: tuple[Any, Any], names: Any, extra: Any
-) -> tuple[np.ndarray, np.ndarray]:
-    """The two images of :func:`write_outputs` as 8-bit arrays (a path is read); TypeError or
+) -> tuple[np.ndarray, np.ndarray, dict | None]:
+    """The two images of :func:`write_outputs` as 8-bit arrays (a path is read) and ``extra``
+    as JSON values (:func:`_json_number`); TypeError or
     ValueError naming the argument that cannot make its files: not a PairResult, an image not
     of the size the result describes, names that are not two distinct, non-empty texts (COLMAP
     names each image once), ``extra`` that JSON cannot hold (NaN and infinity are no JSON) or
@@ -777,11 +779,19 @@ def _checked_output_arguments(
     if key is not None:
         raise TypeError(f"extra's keys must be texts, got {type(key).__name__} {shown(key)}")
     try:
-        json.dumps(extra, allow_nan=False)
+        extra = json.loads(json.dumps(extra, allow_nan=False, default=_json_number))
     except (TypeError, ValueError) as exc:
         raise type(exc)(f"extra cannot be written as JSON: {exc}") from None
     result_to_dict(result, **(extra or {}))
-    return arrays
+    return (*arrays, extra)
+
+
+def _json_number(value: Any) -> Any:
+    """A numpy number (``np.int64(3)``, ``np.float32(1.5)``, ``np.bool_``) or array of numbers
+    as the Python number or list JSON writes; TypeError for anything else, as ``json`` says."""
+    if isinstance(value, (np.generic, np.ndarray)) and value.dtype.kind in "biuf":
+        return value.tolist()
+    raise TypeError(f"Object of type {type(value).__name__} is not JSON serializable")
 
 
 def _checked_images(result: Any, images: tuple[Any, Any]) -> tuple[np.ndarray, np.ndarray]:

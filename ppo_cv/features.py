@@ -7,11 +7,19 @@ root), under which the Euclidean distance is the Hellinger kernel distance of th
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
 
-from .checks import MAX_WHOLE_NUMBER, as_flag, as_number, as_whole_number, require_instance
+from .checks import (
+    MAX_WHOLE_NUMBER,
+    as_flag,
+    as_number,
+    as_whole_number,
+    require_instance,
+    shown,
+)
 
 __all__ = [
     "FEATURE_TYPES",
@@ -116,12 +124,12 @@ def to_uint8(image: np.ndarray, name: str = "image") -> np.ndarray:
     return np.rint(shifted * work(255.0 / (high - low))).astype(np.uint8)
 
 
-def to_gray(image: np.ndarray) -> np.ndarray:
+def to_gray(image: np.ndarray, name: str = "image") -> np.ndarray:
     """An 8-bit single-channel copy of an image of shape (H, W), (H, W, 3) BGR or (H, W, 4),
-    of any depth (scaled by :func:`to_uint8`)."""
+    of any depth (scaled by :func:`to_uint8`); errors name the image ``name``."""
     import cv2
 
-    image = to_uint8(image)
+    image = to_uint8(image, name)
     if image.ndim == 2:
         return image
     if image.ndim == 3 and image.shape[2] == 1:
@@ -129,7 +137,7 @@ def to_gray(image: np.ndarray) -> np.ndarray:
     if image.ndim == 3 and image.shape[2] in (3, 4):
         code = cv2.COLOR_BGR2GRAY if image.shape[2] == 3 else cv2.COLOR_BGRA2GRAY
         return cv2.cvtColor(image, code)
-    raise ValueError(f"image must have shape (H, W), (H, W, 3) or (H, W, 4), got {image.shape}")
+    raise ValueError(f"{name} must have shape (H, W), (H, W, 3) or (H, W, 4), got {image.shape}")
 
 
 def require_detectable(shape: tuple, name: str, max_image_size: int | None = None) -> None:
@@ -239,7 +247,14 @@ def detect_features(
         max_image_size = as_whole_number(max_image_size, "max_image_size", 32, MAX_WHOLE_NUMBER)
     if not 0 < as_number(threshold_scale, "threshold_scale") < np.inf:
         raise ValueError(f"threshold_scale must be a positive number, got {threshold_scale}")
-    gray = to_gray(image)
+    if image is None:
+        raise TypeError(f"{name} is required: an image array (H, W) or (H, W, 3), got None")
+    if isinstance(image, (str, bytes, os.PathLike)):
+        raise TypeError(
+            f"{name} must be an image array (H, W) or (H, W, 3), got a path {shown(image)}: "
+            "read it with ppo_cv.images.load_image"
+        )
+    gray = to_gray(image, name)
     require_detectable(gray.shape, name, max_image_size)
     size = detection_size(gray.shape, max_image_size)
     scale = detection_scale(gray.shape, max_image_size)

@@ -141,9 +141,9 @@ from .rotation import (
     PRINCIPAL_WIDE_BOUND,
     TRACK_FOCAL_CHANGE,
     LensRotationFit,
-    correct_points,
-    fit_rotation_lens,
-    lens_rotation_residuals,
+    _correct_points,
+    _fit_rotation_lens,
+    _lens_rotation_residuals,
     ransac_rotation,
 )
 
@@ -684,13 +684,15 @@ def _settled_lens_fit(
     last fit only."""
     x1, x2, noise, threshold = context.x1, context.x2, context.noise, context.threshold
     last = partial(_settled, used=None, threshold=threshold, final=False)
-    lens = fit_rotation_lens(x1, x2, start_inliers, start_R, noise=noise, deviations=last, **priors)
+    lens = _fit_rotation_lens(
+        x1, x2, start_inliers, start_R, noise=noise, deviations=last, **priors
+    )
     rotation_inliers = lens.residuals < threshold
     for attempt in range(4):
         if np.count_nonzero(rotation_inliers) < MIN_LENS_MATCHES:
             break
         last = partial(_settled, used=rotation_inliers, threshold=threshold, final=attempt == 3)
-        lens = fit_rotation_lens(
+        lens = _fit_rotation_lens(
             x1, x2, rotation_inliers, lens.R, noise=noise, deviations=last, **priors
         )
         within = lens.residuals < threshold
@@ -825,7 +827,7 @@ def _rotation_residual_field(
     that move with their neighbour (:func:`ppo_cv.model_selection.coherent_share`)."""
     if len(x1) < 3:
         return float("nan"), 0.0
-    transfers = lens_rotation_residuals(
+    transfers = _lens_rotation_residuals(
         lens.R, lens.focal_scale, lens.k1, x1, x2, lens.principal_offset, lens.focal_ratio,
         vectors=True,
     )  # fmt: skip
@@ -839,8 +841,8 @@ def _rotation_translation(lens: LensRotationFit, x1, x2, used, t_fallback):
     ``t_fallback`` and inf with fewer than 5 matches."""
     if np.count_nonzero(used) < 5:
         return np.asarray(t_fallback, dtype=np.float64), float("inf")
-    c1 = correct_points(x1[used], lens.focal_scale, lens.k1, lens.principal_offset)
-    c2 = correct_points(x2[used], lens.focal_scale2, lens.k1, lens.principal_offset)
+    c1 = _correct_points(x1[used], lens.focal_scale, lens.k1, lens.principal_offset)
+    c2 = _correct_points(x2[used], lens.focal_scale2, lens.k1, lens.principal_offset)
     t = translation_for_rotation(lens.R, c1, c2)
     pri = ppo.pure_rotation_indicator(ppo.intersection_scores(c1, c2, lens.R, t))
     return t, float(pri)
@@ -879,7 +881,7 @@ def with_rotation(
     -------
     MotionDecision
     """
-    residuals = lens_rotation_residuals(
+    residuals = _lens_rotation_residuals(
         lens.R, lens.focal_scale, lens.k1, x1, x2, lens.principal_offset, lens.focal_ratio
     )
     lens = replace(lens, residuals=residuals)

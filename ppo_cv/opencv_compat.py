@@ -284,8 +284,8 @@ def _essential(value: Any) -> np.ndarray:
 def _recover_from_points(bound: dict) -> tuple:
     """Form 4: undistort, estimate E with OpenCV's robust estimator, then choose by PPO."""
     p1, p2 = as_point_pair(bound.get("points1"), bound.get("points2"))
-    K1 = as_camera_matrix(bound.get("cameraMatrix1"), "cameraMatrix1")
-    K2 = as_camera_matrix(bound.get("cameraMatrix2"), "cameraMatrix2")
+    K1 = as_camera_matrix(_required_camera(bound, "cameraMatrix1"), "cameraMatrix1")
+    K2 = as_camera_matrix(_required_camera(bound, "cameraMatrix2"), "cameraMatrix2")
     n1 = _undistort(p1, K1, bound.get("distCoeffs1"), "distCoeffs1")
     n2 = _undistort(p2, K2, bound.get("distCoeffs2"), "distCoeffs2")
     threshold = _threshold(bound.get("threshold", 1.0))
@@ -303,6 +303,26 @@ def _recover_from_points(bound: dict) -> tuple:
     retval, R, t, mask = _outputs(*results[best], {**bound, "mask": used})
     mask = _write_mask(bound.get("mask"), mask)
     return retval, _out_matrix(bound.get("E"), candidates[best].copy()), R, t, mask
+
+
+_POINT_FORMS = (
+    "the form with points is recoverPose(points1, points2, cameraMatrix1, distCoeffs1, "
+    "cameraMatrix2, distCoeffs2), recoverPose(p1, p2, K, None, K, None) for one camera without "
+    "distortion; with an essential matrix, recoverPose(E, points1, points2, cameraMatrix)"
+)
+
+
+def _required_camera(bound: dict, name: str) -> Any:
+    """The camera matrix ``name`` of the form with points; TypeError naming it when missing,
+    with the call forms, and a 3x3 matrix given in the place of ``distCoeffs1``
+    (``recoverPose(p1, p2, K1, K2)``)."""
+    value = bound.get(name)
+    if value is not None:
+        return value
+    place = ":"
+    if name == "cameraMatrix2" and _is_3x3(bound.get("distCoeffs1")):
+        place = ", and distCoeffs1 is a 3x3 matrix: the second camera's in its place?"
+    raise TypeError(f"{name} is required, got None{place} {_POINT_FORMS}")
 
 
 def _write_mask(buffer: Any, mask: np.ndarray) -> np.ndarray:

@@ -84,9 +84,9 @@ from .rotation import (
     MAX_FOCAL_CHANGE,
     PRINCIPAL_BOUND,
     LensRotationFit,
-    correct_points,
-    fit_rotation_lens,
-    transfer_points,
+    _correct_points,
+    _fit_rotation_lens,
+    _transfer_points,
 )
 
 __all__ = [
@@ -1033,7 +1033,7 @@ def _fit_tracks(y1, y2, valid, R, focal, priors):
             return None
         start = R if fit is None else fit.R
         last = partial(_last_track_fit, used=used, valid=valid, final=attempt == 4)
-        fit = fit_rotation_lens(
+        fit = _fit_rotation_lens(
             y1, y2, used, start, noise=noise, lens_start=fit, deviations=last, **priors
         )
         if on_clipped is not None and np.isinf(fit.rotation_sigma_deg):
@@ -1214,7 +1214,7 @@ def _best_window_refit(
 
     def transfer_with(model) -> Callable[[np.ndarray], np.ndarray]:
         return lambda pixels: normalized_to_pixels(
-            transfer_points(pixels_to_normalized(pixels, K1, dist1), *model), K2, dist2
+            _transfer_points(pixels_to_normalized(pixels, K1, dist1), *model), K2, dist2
         )
 
     shift = max(3.0 * np.radians(min(rotation_sigma_deg, MAX_SEARCH_SIGMA_DEG)) * focal, 1.0)
@@ -1338,8 +1338,8 @@ def _plane_parallax(refined: PhotometricRotation, K1, K2, dist1, dist2) -> Plane
     points1, points2 = refined.tracks.points1[used], refined.tracks.points2[used]
     y1 = pixels_to_normalized(points1, K1, dist1)
     y2 = pixels_to_normalized(points2, K2, dist2)
-    q1 = correct_points(y1, fit.focal_scale, fit.k1, fit.principal_offset)
-    q2 = correct_points(y2, fit.focal_scale2, fit.k1, fit.principal_offset)
+    q1 = _correct_points(y1, fit.focal_scale, fit.k1, fit.principal_offset)
+    q2 = _correct_points(y2, fit.focal_scale2, fit.k1, fit.principal_offset)
     found = fit_plane_parallax(q1, q2)
     inflation = np.sqrt(window_overlap(points1, refined.window))
     return replace(found, sigma=found.sigma * inflation)

@@ -32,11 +32,26 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .checks import as_positive
+from .checks import (
+    MAX_COORDINATE,
+    MAX_RADIAL,
+    MAX_WHOLE_NUMBER,
+    as_finite_array,
+    as_finite_rows,
+    as_flag,
+    as_nonnegative,
+    as_number,
+    as_positive,
+    as_rotation,
+    as_whole_number,
+    require_instance,
+    shown,
+)
 from .lsq import (
     cross_matrix,
     gauss_newton_covariance,
@@ -293,16 +308,16 @@ def _triads(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def rotations_from_two_rays(
-    a1: np.ndarray, a2: np.ndarray, b1: np.ndarray, b2: np.ndarray
+    a1: ArrayLike, a2: ArrayLike, b1: ArrayLike, b2: ArrayLike
 ) -> np.ndarray:
     """Rotations mapping the ray pair ``(a1, a2)`` of view 1 onto ``(b1, b2)`` of view 2.
 
     Parameters
     ----------
-    a1, a2 : ndarray, shape (K, 3)
-        Unit bearings of two matches in view 1.
-    b1, b2 : ndarray, shape (K, 3)
-        Their unit bearings in view 2.
+    a1, a2 : array_like, shape (K, 3) or (K, 2)
+        Bearings (made unit) or normalised points of two matches in view 1.
+    b1, b2 : array_like, shape (K, 3) or (K, 2)
+        Their bearings or normalised points in view 2.
 
     Returns
     -------
@@ -310,14 +325,52 @@ def rotations_from_two_rays(
         ``R_k = T(b1_k, b2_k) T(a1_k, a2_k)^T`` with ``T`` the triad of bisector and normal;
         ``b_j = R a_j`` exactly when the angle between the two rays is the same in both views.
     """
+    named = {"a1": a1, "a2": a2, "b1": b1, "b2": b2}
+    rays = [_bearings(_checked_rows(x, name)) for name, x in named.items()]
+    if len({len(ray) for ray in rays}) > 1:
+        lengths = ", ".join(f"{name} {len(ray)}" for name, ray in zip(named, rays, strict=True))
+        raise ValueError(f"a1, a2, b1 and b2 must have the same length, got {lengths}")
+    return _two_ray_rotations(*rays)
+
+
+def _two_ray_rotations(a1, a2, b1, b2) -> np.ndarray:
+    """:func:`rotations_from_two_rays` of unit bearings (K, 3), unchecked."""
     return _triads(b1, b2) @ np.swapaxes(_triads(a1, a2), -1, -2)
 
 
-def rotation_residuals(R: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
+def _checked_rows(value: Any, name: str) -> np.ndarray:
+    """Normalised points (N, 2) or rays (N, 3) as finite float64 of magnitude at most
+    :data:`ppo_cv.checks.MAX_COORDINATE`; ValueError or TypeError naming ``name`` otherwise."""
+    rows = as_finite_rows(value, name, (2, 3))
+    if rows.size and not -MAX_COORDINATE <= rows.min() <= rows.max() <= MAX_COORDINATE:
+        raise ValueError(
+            f"{name} has coordinates up to {float(np.abs(rows).max()):.3g}, beyond "
+            f"{MAX_COORDINATE:.0e}: not normalised points or rays"
+        )
+    return rows
+
+
+def _checked_matches(x1: Any, x2: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Matches ``x1``, ``x2`` checked by :func:`_checked_rows`, of one length."""
+    x1, x2 = _checked_rows(x1, "x1"), _checked_rows(x2, "x2")
+    if len(x1) != len(x2):
+        raise ValueError(f"x1 and x2 must have the same length, got {len(x1)} and {len(x2)}")
+    return x1, x2
+
+
+def rotation_residuals(R: ArrayLike, x1: ArrayLike, x2: ArrayLike) -> np.ndarray:
     """Angle (radians) between ``b2_i`` and ``R b1_i`` for every match, shape (N,).
 
-    ``x1, x2`` are normalised points (N, 2), homogeneous points or bearings (N, 3).
+    ``R`` is a rotation (3, 3); ``x1, x2`` are normalised points (N, 2), homogeneous points or
+    bearings (N, 3).
     """
+    R = as_rotation(R, "R")
+    x1, x2 = _checked_matches(x1, x2)
+    return _angles(R, x1, x2)
+
+
+def _angles(R: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
+    """:func:`rotation_residuals`, unchecked."""
     b1, b2 = _bearings(x1) @ np.asarray(R).T, _bearings(x2)
     cross = np.linalg.norm(_cross(b1, b2), axis=1)
     return np.arctan2(cross, np.einsum("ij,ij->i", b1, b2))
@@ -347,7 +400,7 @@ def _required_trials(inlier_ratio: float, confidence: float) -> float:
 def _least_squares(b1, b2, used, threshold, rounds: int = 10):
     R = rotation_from_rays(b1[used], b2[used])
     for _ in range(rounds):
-        within = rotation_residuals(R, b1, b2) < threshold
+        within = _angles(R, b1, b2) < threshold
         if np.count_nonzero(within) < 2 or np.array_equal(within, used):
             break
         used = within
@@ -356,8 +409,8 @@ def _least_squares(b1, b2, used, threshold, rounds: int = 10):
 
 
 def ransac_rotation(
-    x1: np.ndarray,
-    x2: np.ndarray,
+    x1: ArrayLike,
+    x2: ArrayLike,
     threshold: float,
     *,
     confidence: float = 0.9999,
@@ -369,23 +422,34 @@ def ransac_rotation(
 
     Parameters
     ----------
-    x1, x2 : ndarray, shape (N, 2) or (N, 3)
+    x1, x2 : array_like, shape (N, 2) or (N, 3)
         Normalised (undistorted) points or bearings of the matches, N >= 2.
     threshold : float
-        Inlier bound on the angle between ``b2`` and ``R b1``, radians (pixels over focal).
+        Inlier bound on the angle between ``b2`` and ``R b1``, radians (pixels over focal), > 0.
     confidence : float
-        Stop once a better hypothesis is this unlikely to be missed.
+        Stop once a better hypothesis is this unlikely to be missed, in (0, 1].
     min_trials, max_trials : int
-        Bounds on the number of hypotheses.
+        Bounds on the number of hypotheses, >= 0.
     seed : int
-        Seed of the sampler; the result is a function of the inputs and the seed.
+        Seed of the sampler, >= 0; the result is a function of the inputs and the seed.
 
     Returns
     -------
     RotationFit or None
         None when fewer than two matches are given.
     """
-    b1, b2 = _bearings(x1), _bearings(x2)
+    x1, x2 = _checked_matches(x1, x2)
+    threshold = as_positive(threshold, "threshold")
+    confidence = as_positive(confidence, "confidence")
+    if confidence > 1:
+        raise ValueError(f"confidence must be in (0, 1], got {confidence}")
+    counts = {"min_trials": min_trials, "max_trials": max_trials, "seed": seed}
+    counts = [as_whole_number(value, name, 0, MAX_WHOLE_NUMBER) for name, value in counts.items()]
+    return _ransac(_bearings(x1), _bearings(x2), threshold, confidence, *counts)
+
+
+def _ransac(b1, b2, threshold, confidence, min_trials, max_trials, seed) -> RotationFit | None:
+    """:func:`ransac_rotation` of checked bearings ``b1``, ``b2`` (N, 3) and settings."""
     n = len(b1)
     if n < 2:
         return None
@@ -395,26 +459,63 @@ def ransac_rotation(
     while trials < max(min_trials, min(needed, max_trials)):
         first = rng.integers(0, n, _BATCH)
         second = (first + rng.integers(1, n, _BATCH)) % n
-        Rs = rotations_from_two_rays(b1[first], b1[second], b2[first], b2[second])
+        Rs = _two_ray_rotations(b1[first], b1[second], b2[first], b2[second])
         counts = _count_inliers(Rs, b1, b2, cos_threshold)
         trials += _BATCH
         k = int(np.argmax(counts))
         if counts[k] > best_count:
             best_R, best_count = Rs[k], int(counts[k])
             needed = _required_trials(best_count / n, confidence)
-    used = rotation_residuals(best_R, b1, b2) < threshold
+    used = _angles(best_R, b1, b2) < threshold
     R = _least_squares(b1, b2, used, threshold) if np.count_nonzero(used) >= 2 else best_R
-    residuals = rotation_residuals(R, b1, b2)
+    residuals = _angles(R, b1, b2)
     return RotationFit(R=R, inliers=residuals < threshold, residuals=residuals, trials=trials)
 
 
 def correct_points(
-    x: np.ndarray, focal_scale: float, k1: float, principal_offset: ArrayLike = (0.0, 0.0)
+    x: ArrayLike, focal_scale: float, k1: float, principal_offset: ArrayLike = (0.0, 0.0)
 ) -> np.ndarray:
     """Normalised points of the given camera (N, 2 or 3) to homogeneous true rays (N, 3).
 
-    The inverse of ``s x = p + q (1 + k1 |q|^2)``: the lens terms of :func:`fit_rotation_lens`.
+    The inverse of ``s x = p + q (1 + k1 |q|^2)``: the lens terms of :func:`fit_rotation_lens`
+    (``focal_scale`` ``s`` in [0.001, 1000], ``|k1| <= 10``, ``principal_offset`` ``p`` (2,)).
     """
+    scale, k1, offset, _ = _checked_lens_terms(focal_scale, k1, principal_offset, 1.0)
+    return _correct_points(_checked_rows(x, "x"), scale, k1, offset)
+
+
+_SCALE_RANGE = (1e-3, 1e3)
+"""Accepted focal scales and focal ratios of the public lens maps: beyond, the lens terms
+mean no lens, and the maps would overflow."""
+
+
+def _checked_lens_terms(focal_scale, k1, principal_offset, focal_ratio) -> tuple:
+    """``(focal_scale, k1, principal_offset (2,), focal_ratio)`` of the lens maps checked;
+    ValueError or TypeError naming the argument."""
+    scale, ratio = as_number(focal_scale, "focal_scale"), as_number(focal_ratio, "focal_ratio")
+    for value, name in ((scale, "focal_scale"), (ratio, "focal_ratio")):
+        if not _SCALE_RANGE[0] <= value <= _SCALE_RANGE[1]:
+            raise ValueError(
+                f"{name} must be a number in [{_SCALE_RANGE[0]:g}, {_SCALE_RANGE[1]:g}] (a given "
+                f"focal length over the true one), got {value}"
+            )
+    k1 = as_number(k1, "k1")
+    if not abs(k1) <= MAX_RADIAL:
+        raise ValueError(f"k1 must be a finite number within +-{MAX_RADIAL:g}, got {k1}")
+    if principal_offset is None or np.shape(principal_offset) not in ((), (2,)):
+        raise TypeError(
+            f"principal_offset must be two numbers (x, y), got {shown(principal_offset)}"
+        )
+    offset = as_finite_array(np.broadcast_to(principal_offset, (2,)), "principal_offset")
+    if np.abs(offset).max() > MAX_COORDINATE:
+        raise ValueError(
+            f"principal_offset must be within {MAX_COORDINATE:.0e}, got {offset.tolist()}"
+        )
+    return scale, k1, offset, ratio
+
+
+def _correct_points(x: np.ndarray, focal_scale, k1, principal_offset) -> np.ndarray:
+    """:func:`correct_points`, unchecked."""
     xy = np.asarray(x, dtype=np.float64)[:, :2]
     offset = np.broadcast_to(np.asarray(principal_offset, dtype=np.float64), (2,))[:, None]
     q = np.empty_like(xy)  # laid out as the given points, which the products of the rays follow
@@ -422,10 +523,33 @@ def correct_points(
     return np.column_stack([q, np.ones(len(q))])
 
 
-def seen_through_lens(ray: np.ndarray, scale, k1, offset, ratio) -> np.ndarray:
+def seen_through_lens(ray: ArrayLike, scale, k1, offset, ratio) -> np.ndarray:
     """Given normalised points (..., N, 2) where view 2 sees rays (..., N, 3) of its frame
     through the lens of :func:`fit_rotation_lens`: ``x2 = (p + q2 (1 + k1 |q2|^2)) / (s rho)``,
-    ``q2`` the ray's projection; the lens terms broadcast against ``q2``."""
+    ``q2`` the ray's projection; the lens terms (finite, ``scale`` and ``ratio`` > 0) broadcast
+    against ``q2``."""
+    ray = as_finite_array(ray, "ray")
+    if ray.ndim < 2 or ray.shape[-1] != 3:
+        raise ValueError(f"ray must have shape (..., N, 3), got {ray.shape}")
+    names = ("scale", "k1", "offset", "ratio")
+    terms = [as_finite_array(value, name)
+             for value, name in zip((scale, k1, offset, ratio), names, strict=True)]  # fmt: skip
+    for value, name in ((terms[0], "scale"), (terms[3], "ratio")):
+        if value.size and value.min() <= 0:
+            raise ValueError(f"{name} must be > 0, got {value.min()}")
+    try:
+        np.broadcast_shapes(ray.shape[:-1] + (2,), *(term.shape for term in terms))
+    except ValueError:
+        shapes = ", ".join(f"{name} {term.shape}" for name, term in zip(names, terms, strict=True))
+        raise ValueError(
+            f"the lens terms ({shapes}) do not broadcast against the points "
+            f"{ray.shape[:-1] + (2,)} of ray {ray.shape}"
+        ) from None
+    return _seen_through_lens(ray, *terms)
+
+
+def _seen_through_lens(ray: np.ndarray, scale, k1, offset, ratio) -> np.ndarray:
+    """:func:`seen_through_lens`, unchecked."""
     z = np.where(np.abs(ray[..., 2:]) > 1e-9, ray[..., 2:], 1e-9)
     q2 = ray[..., :2] / z
     distorted = q2 * (1.0 + k1 * (q2[..., :1] * q2[..., :1] + q2[..., 1:] * q2[..., 1:])) + offset
@@ -448,8 +572,8 @@ def _lens_params(
 
 
 def transfer_points(
-    x1: np.ndarray,
-    R: np.ndarray,
+    x1: ArrayLike,
+    R: ArrayLike,
     focal_scale: float,
     k1: float,
     principal_offset: ArrayLike = (0.0, 0.0),
@@ -457,28 +581,47 @@ def transfer_points(
 ) -> np.ndarray:
     """Where the lens rotation of :func:`fit_rotation_lens` takes normalised points of view 1.
 
-    ``x1`` (N, 2 or 3, given camera) is corrected to the true ray ``q1``, rotated by ``R`` and
-    put back through the lens: ``x2 = (p + q2 (1 + k1 |q2|^2)) / (s rho)``. Returns ``x2``,
-    (N, 2).
+    ``x1`` (N, 2 or 3, given camera) is corrected to the true ray ``q1``, rotated by ``R``
+    (3, 3) and put back through the lens: ``x2 = (p + q2 (1 + k1 |q2|^2)) / (s rho)``, the
+    lens terms as :func:`correct_points` takes them (``rho`` as ``s``). Returns ``x2``, (N, 2).
     """
+    R = as_rotation(R, "R")
+    terms = _checked_lens_terms(focal_scale, k1, principal_offset, focal_ratio)
+    return _transfer_points(_checked_rows(x1, "x1"), R, *terms)
+
+
+def _transfer_points(x1, R, focal_scale, k1, principal_offset, focal_ratio) -> np.ndarray:
+    """:func:`transfer_points`, unchecked."""
     xy1 = np.asarray(x1, float)[:, :2]
     params = _lens_params(focal_scale, k1, principal_offset, focal_ratio)
     return _lens_transfer(params, np.asarray(R, float), xy1, np.zeros_like(xy1))
 
 
 def lens_rotation_residuals(
-    R: np.ndarray,
+    R: ArrayLike,
     focal_scale: float,
     k1: float,
-    x1: np.ndarray,
-    x2: np.ndarray,
+    x1: ArrayLike,
+    x2: ArrayLike,
     principal_offset: ArrayLike = (0.0, 0.0),
     focal_ratio: float = 1.0,
     *,
     vectors: bool = False,
 ) -> np.ndarray:
     """Transfer error (N,) of matches under :func:`fit_rotation_lens`'s model, normalised units
-    of view 2; with ``vectors`` the error vectors (N, 2), ``x2`` minus the transfer of ``x1``."""
+    of view 2; with ``vectors`` the error vectors (N, 2), ``x2`` minus the transfer of ``x1``
+    (N, 2 or 3), the rotation (3, 3) and lens terms as :func:`transfer_points` takes them."""
+    R = as_rotation(R, "R")
+    terms = _checked_lens_terms(focal_scale, k1, principal_offset, focal_ratio)
+    x1, x2 = _checked_matches(x1, x2)
+    vectors = as_flag(vectors, "vectors")
+    return _lens_rotation_residuals(R, terms[0], terms[1], x1, x2, *terms[2:], vectors=vectors)
+
+
+def _lens_rotation_residuals(
+    R, focal_scale, k1, x1, x2, principal_offset=(0.0, 0.0), focal_ratio=1.0, *, vectors=False
+) -> np.ndarray:
+    """:func:`lens_rotation_residuals`, unchecked."""
     params = _lens_params(focal_scale, k1, principal_offset, focal_ratio)
     xy1, xy2 = np.asarray(x1, float)[:, :2], np.asarray(x2, float)[:, :2]
     transfers = _lens_transfer(params, np.asarray(R, float), xy1, xy2)
@@ -508,7 +651,7 @@ def focal_ratio_prior(given_ratio: float) -> tuple[float, float] | None:
     >>> round(mean, 4), round(sigma, 4)
     (1.005, 0.005)
     """
-    gap = abs(float(given_ratio) - 1.0)
+    gap = abs(as_positive(given_ratio, "given_ratio") - 1.0)
     if not 1e-6 < gap <= FOCAL_RATIO_GAP:
         return None
     return (1.0 + float(given_ratio)) / 2.0, gap / 2.0
@@ -526,15 +669,20 @@ def focal_ratio_keywords(prior: tuple[float, float] | None) -> dict:
     """
     if prior is None:
         return {}
-    mean, deviation = prior
-    return {"focal_ratio_mean": float(mean), "focal_ratio_prior": float(deviation)}
+    if isinstance(prior, (str, bytes)) or not hasattr(prior, "__len__") or len(prior) != 2:
+        raise TypeError(
+            f"prior must be None or (mean, deviation), as focal_ratio_prior returns it, got "
+            f"{shown(prior)}"
+        )
+    mean, deviation = as_positive(prior[0], "prior mean"), as_positive(prior[1], "prior deviation")
+    return {"focal_ratio_mean": mean, "focal_ratio_prior": deviation}
 
 
 def fit_rotation_lens(
-    x1: np.ndarray,
-    x2: np.ndarray,
-    used: np.ndarray,
-    R: np.ndarray,
+    x1: ArrayLike,
+    x2: ArrayLike,
+    used: ArrayLike,
+    R: ArrayLike,
     *,
     iterations: int = 15,
     max_focal_change: float = MAX_FOCAL_CHANGE,
@@ -623,6 +771,94 @@ def fit_rotation_lens(
     >>> round(fit.focal_ratio, 4), bool(np.allclose(fit.R, R, atol=1e-6))
     (1.03, True)
     """
+    x1, x2 = _checked_matches(x1, x2)
+    used, R = _checked_used(used, len(x1)), as_rotation(R, "R")
+    keywords = _checked_fit_keywords(
+        iterations, max_k1, noise, focal_prior, k1_prior, principal_prior, focal_ratio_prior,
+        focal_ratio_mean, lens_start, deviations, max_focal_change, principal_bound,
+    )  # fmt: skip
+    return _fit_rotation_lens(x1, x2, used, R, **keywords)
+
+
+def _checked_used(used: Any, count: int) -> np.ndarray:
+    """``used`` as a boolean mask (``count``,); TypeError or ValueError naming it otherwise
+    (an integer array would index the matches, not select them)."""
+    if used is None:
+        raise TypeError("used is required, got None")
+    mask = np.asarray(used)
+    if mask.dtype != np.bool_:
+        raise TypeError(f"used must be a boolean mask of the matches, got dtype {mask.dtype}")
+    if mask.shape != (count,):
+        raise ValueError(f"used must have one entry per match ({count}), got shape {mask.shape}")
+    return mask
+
+
+def _checked_fit_keywords(
+    iterations, max_k1, noise, focal_prior, k1_prior, principal_prior, focal_ratio_prior,
+    focal_ratio_mean, lens_start, deviations, max_focal_change, principal_bound,
+) -> dict:  # fmt: skip
+    """The keywords of :func:`fit_rotation_lens` checked (``max_focal_change`` and
+    ``principal_bound`` where they are used); ValueError or TypeError naming each."""
+    if lens_start is not None:
+        require_instance(lens_start, LensRotationFit, "lens_start")
+    if not (isinstance(deviations, (bool, np.bool_)) or callable(deviations)):
+        raise TypeError(
+            f"deviations must be True, False or a callable taking the fit, got "
+            f"{type(deviations).__name__} {shown(deviations)}"
+        )
+    max_k1 = as_number(max_k1, "max_k1")
+    if not max_k1 > 0:  # infinite: k1 unbounded
+        raise ValueError(f"max_k1 must be a number > 0 (inf for no bound), got {max_k1}")
+    optional = {"noise": noise, "focal_ratio_prior": focal_ratio_prior}
+    optional = {name: None if value is None else as_nonnegative(value, name)
+                for name, value in optional.items()}  # fmt: skip
+    return {
+        "iterations": as_whole_number(iterations, "iterations", 0, 10_000),
+        "max_k1": max_k1,
+        "focal_prior": as_nonnegative(focal_prior, "focal_prior"),
+        "k1_prior": as_positive(k1_prior, "k1_prior"),
+        "principal_prior": _checked_principal_prior(principal_prior),
+        "focal_ratio_mean": as_positive(focal_ratio_mean, "focal_ratio_mean"),
+        "lens_start": lens_start, "deviations": deviations, **optional,
+        "max_focal_change": max_focal_change, "principal_bound": principal_bound,
+    }  # fmt: skip
+
+
+def _checked_principal_prior(value: Any) -> Any:
+    """A ``principal_prior`` of :func:`fit_rotation_lens`: None, or one or two finite numbers
+    >= 0, returned as given."""
+    if value is None:
+        return None
+    if np.shape(value) not in ((), (2,)):
+        raise ValueError(
+            f"principal_prior must be one number or two (x, y), got shape {np.shape(value)}"
+        )
+    prior = as_finite_array(value, "principal_prior")
+    if prior.min() < 0:
+        raise ValueError(f"principal_prior must be >= 0, got {prior.tolist()}")
+    return value
+
+
+def _fit_rotation_lens(
+    x1: np.ndarray,
+    x2: np.ndarray,
+    used: np.ndarray,
+    R: np.ndarray,
+    *,
+    iterations: int = 15,
+    max_focal_change: float = MAX_FOCAL_CHANGE,
+    max_k1: float = MAX_K1,
+    noise: float | None = None,
+    focal_prior: float = FOCAL_PRIOR,
+    k1_prior: float = K1_PRIOR,
+    principal_prior: float | np.ndarray | None = None,
+    focal_ratio_prior: float | None = None,
+    focal_ratio_mean: float = 1.0,
+    principal_bound: float = PRINCIPAL_BOUND,
+    lens_start: LensRotationFit | None = None,
+    deviations: bool | Callable[[LensRotationFit], bool] = True,
+) -> LensRotationFit:
+    """:func:`fit_rotation_lens`, unchecked."""
     free, prior, centre, bounds, offset_bound = _lens_terms_setup(
         noise, focal_prior, k1_prior, principal_prior, focal_ratio_prior, focal_ratio_mean,
         principal_bound, max_focal_change, max_k1,

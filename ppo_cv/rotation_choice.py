@@ -160,10 +160,10 @@ from .rotation import (
     MAX_FOCAL_CHANGE,
     MIN_LENS_MATCHES,
     LensRotationFit,
-    correct_points,
-    fit_rotation_lens,
-    lens_rotation_residuals,
-    seen_through_lens,
+    _correct_points,
+    _fit_rotation_lens,
+    _lens_rotation_residuals,
+    _seen_through_lens,
 )
 
 __all__ = [
@@ -535,9 +535,9 @@ def _focal_excess(
 def _translation_flow(lens: LensRotationFit, x1: np.ndarray, axis: int, step: float):
     """Change (2N,) of view 2's given normalised points under :func:`fit_rotation_lens`'s
     model when the camera moves by ``step`` depths along ``axis``, per unit."""
-    q1 = correct_points(x1, lens.focal_scale, lens.k1, lens.principal_offset)
+    q1 = _correct_points(x1, lens.focal_scale, lens.k1, lens.principal_offset)
     terms = (lens.focal_scale, lens.k1, np.asarray(lens.principal_offset), lens.focal_ratio)
-    seen = lambda ray: seen_through_lens(ray, *terms)  # noqa: E731
+    seen = lambda ray: _seen_through_lens(ray, *terms)  # noqa: E731
     ray = q1 @ np.asarray(lens.R, float).T
     return ((seen(ray + step * np.eye(3)[axis]) - seen(ray)) / step).ravel()
 
@@ -551,7 +551,7 @@ def _lens_jacobian(lens: LensRotationFit, x1, x2, used, step: float):
         return None
 
     def residuals(p: np.ndarray) -> np.ndarray:
-        errors = lens_rotation_residuals(
+        errors = _lens_rotation_residuals(
             rotation_increment(p[:3]) @ lens.R, lens.focal_scale + p[3], lens.k1 + p[4],
             a, b, lens.principal_offset, lens.focal_ratio, vectors=True,
         )  # fmt: skip
@@ -673,7 +673,7 @@ def given_focal_fit(
     """
     if np.count_nonzero(used) < MIN_LENS_MATCHES:
         return lens
-    return fit_rotation_lens(
+    return _fit_rotation_lens(
         x1, x2, used, lens.R, noise=_transfer_noise(lens, x1, x2, used), focal_prior=0.0,
         max_k1=np.inf,
     )  # fmt: skip
@@ -744,7 +744,7 @@ def wanted_focal_fit(
     if np.count_nonzero(used) < MIN_LENS_MATCHES:
         return lens
     start = LensRotationFit(lens.R, scale, lens.k1, float("inf"), np.empty(0))
-    return fit_rotation_lens(
+    return _fit_rotation_lens(
         x1, x2, used, lens.R, noise=_transfer_noise(lens, x1, x2, used),
         max_focal_change=1.0 / FOCAL_ERROR_RANGE[0] - 1.0, focal_prior=GROSS_FOCAL_ERROR,
         lens_start=start,
@@ -758,7 +758,7 @@ GROSS_FOCAL_ERROR = 0.3
 
 def _transfer_noise(lens: LensRotationFit, x1, x2, used) -> float:
     """Robust deviation of a coordinate of ``lens``'s transfer errors on the ``used`` matches."""
-    transfers = lens_rotation_residuals(
+    transfers = _lens_rotation_residuals(
         lens.R, lens.focal_scale, lens.k1, x1[used], x2[used], lens.principal_offset,
         lens.focal_ratio,
     )  # fmt: skip
@@ -810,8 +810,8 @@ def matches_parallax(
     matches."""
     if np.count_nonzero(used) < 8:
         return None
-    q1 = correct_points(x1[used], lens.focal_scale, lens.k1, lens.principal_offset)
-    q2 = correct_points(x2[used], lens.focal_scale2, lens.k1, lens.principal_offset)
+    q1 = _correct_points(x1[used], lens.focal_scale, lens.k1, lens.principal_offset)
+    q2 = _correct_points(x2[used], lens.focal_scale2, lens.k1, lens.principal_offset)
     return fit_plane_parallax(q1, q2)
 
 

@@ -35,6 +35,15 @@ CASES = {  # name: (call, error type, words of its message)
     "look_at_straight_down": (lambda: dg.look_at([0, 0, 0], [0, 2, 0]), ValueError, "world Y"),
     "division_dist_nan": (lambda: dg.division_dist(NAN), ValueError, "k1"),
     "division_dist_text": (lambda: dg.division_dist("0.1"), TypeError, "k1"),
+    # an OverflowError; RuntimeWarnings from float32; NaN rotations without a word
+    "division_dist_huge": (lambda: dg.division_dist(1e300), ValueError,
+                           "k1 must be finite, within .+0.5 .as Imperfections draws it."),
+    "expose_huge_gain": (lambda: dg.expose(RGB, 1e300), ValueError,
+                         "gain must be in .1.52587890625e-05, 65536.0., got 1e.300"),
+    "euler_to_matrix_nan": (lambda: dg.euler_to_matrix([NAN, 0.0, 0.0]), ValueError,
+                            "angles_deg has 1 NaN"),
+    "euler_to_matrix_none": (lambda: dg.euler_to_matrix(None), TypeError,
+                             "angles_deg is required"),
     "given_intrinsics_none": (lambda: dg.given_intrinsics(None, 1.0), TypeError, "K"),
     "given_intrinsics_nan_K": (
         lambda: dg.given_intrinsics(np.full((3, 3), NAN), 1.0), ValueError, "K",
@@ -132,6 +141,10 @@ OUTPUT_CASES = {  # name: (call on tmp_path, error type, words of its message)
     ),
     "read_pairs_nan": (lambda d: dg.read_pairs(_pairs_file(d, "nan")), ValueError, "finite"),
     "read_pairs_word": (lambda d: dg.read_pairs(_pairs_file(d, "one")), ValueError, "numbers"),
+    # FileNotFoundError and IsADirectoryError: the calibration reader's ValueError now
+    "read_pairs_missing": (lambda d: dg.read_pairs(d / "pairs.txt"), ValueError,
+                           "pairs file not found: "),
+    "read_pairs_folder": (lambda d: dg.read_pairs(d), ValueError, "is not a regular file"),
     "write_pair_none": (lambda d: dg.write_pair(None, d, "p"), TypeError, "RenderedPair"),
     "write_pair_name_with_folder": (
         lambda d: dg.write_pair(dg.make_pair(size=(16, 16), supersample=1), d, "../p"),

@@ -321,6 +321,23 @@ def test_write_outputs_names_a_bad_argument_and_writes_nothing(demo, demo_result
     assert list(tmp_path.iterdir()) == []
 
 
+def test_write_outputs_writes_numpy_numbers_in_extra_as_json_numbers(demo, demo_result, tmp_path):
+    # np.int64 and np.float32 were refused as "not JSON serializable"
+    extra = {"gain": np.float64(1.5), "count": np.int64(3), "scale": np.float32(0.5),
+             "kept": np.bool_(True), "sizes": [np.int32(4), np.uint8(2)],
+             "K": np.eye(2)}  # fmt: skip
+    write_outputs(tmp_path / "out", demo_result, demo[0], demo[1], extra=extra)
+    written = json.loads((tmp_path / "out" / "result.json").read_text(encoding="utf-8"))
+    assert {key: written[key] for key in extra} == {
+        "gain": 1.5, "count": 3, "scale": 0.5, "kept": True, "sizes": [4, 2],
+        "K": [[1.0, 0.0], [0.0, 1.0]],
+    }  # fmt: skip
+    with pytest.raises(TypeError, match="extra cannot be written as JSON: Object of type"):
+        write_outputs(tmp_path / "complex", demo_result, demo[0], demo[1],
+                      extra={"z": np.complex128(1j)})  # fmt: skip
+    assert not (tmp_path / "complex").exists()
+
+
 def test_write_outputs_reads_images_given_as_paths(demo_result, tmp_path):
     data = resources.files("ppo_cv.data")
     write_outputs(tmp_path / "out", demo_result, data / "demo1.png", data / "demo2.png")

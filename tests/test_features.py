@@ -71,10 +71,16 @@ def _sift(count: int = 4):
      (lambda f: features.detect_features(_GREY, max_image_size=0), ValueError,
       "max_image_size must be a whole number in 32.."),
      (lambda f: features.detect_features(_GREY, threshold_scale="2"), TypeError,
-      "threshold_scale must be a number, got str")],
+      "threshold_scale must be a number, got str"),
+     # "image must hold numbers, got dtype object": no word that no image was given
+     (lambda f: features.detect_features(None, name="image2"), TypeError,
+      "image2 is required: an image array (H, W) or (H, W, 3), got None"),
+     (lambda f: features.detect_features("a.png"), TypeError,
+      "image must be an image array (H, W) or (H, W, 3), got a path 'a.png': read it with "
+      "ppo_cv.images.load_image")],
     ids=["features None", "ratio text", "ratio True", "mutual text", "unique 0",
          "threshold None", "features tuple", "max_features 1.5", "max_features text",
-         "max_image_size 0", "threshold_scale text"],
+         "max_image_size 0", "threshold_scale text", "image None", "image path"],
 )  # fmt: skip
 def test_detection_and_matching_name_a_bad_argument(call, error, words):
     # an AttributeError ("'NoneType' object has no attribute 'kind'"), Python's "'<' not

@@ -103,6 +103,24 @@ def _robust_fit(model, **changes):
     return fit(arguments.pop("x1"), arguments.pop("x2"), arguments.pop("focal"), **arguments)
 
 
+def _rotation():
+    from ppo_cv import rotation
+
+    return rotation
+
+
+def _nan_row(rays):
+    rays = rays.copy()
+    rays[7, 0] = np.nan
+    return rays
+
+
+def _lens_fit(**changes):
+    arguments = {"x1": RAYS, "x2": RAYS2, "used": np.ones(40, bool), "R": np.eye(3), **changes}
+    fixed = [arguments.pop(name) for name in ("x1", "x2", "used", "R")]
+    return _rotation().fit_rotation_lens(*fixed, **arguments)
+
+
 CASES = {
     # negative, zero, tiny, huge, non-finite focal lengths (issue section 4)
     "recoverPose negative fx": (lambda: ppo_cv.recoverPose(E, P1, P2, _K(fx=-800)), ValueError,
@@ -403,6 +421,20 @@ CASES = {
         "cameraMatrix1 must be a 3x3 matrix, got shape (9,)"),
     "form 4 camera matrix None": (lambda: ppo_cv.recoverPose(P1, P2, None, None, K, None),
                                   TypeError, "cameraMatrix1 is required"),
+    # one camera matrix and no E, as recoverPose(E, points1, points2, K) without E: OpenCV 5
+    # reads the points as E and fails on an assertion; "cameraMatrix2 is required" gave no form
+    "form 4 one camera matrix": (
+        lambda: ppo_cv.recoverPose(P1, P2, K), TypeError,
+        "cameraMatrix2 is required, got None: the form with points is recoverPose(points1, "
+        "points2, cameraMatrix1, distCoeffs1, cameraMatrix2, distCoeffs2), recoverPose(p1, p2, K, "
+        "None, K, None) for one camera without distortion; with an essential matrix, "
+        "recoverPose(E, points1, points2, cameraMatrix)"),
+    "form 4 second camera matrix for distCoeffs1": (
+        lambda: ppo_cv.recoverPose(P1, P2, K, K), TypeError,
+        "cameraMatrix2 is required, got None, and distCoeffs1 is a 3x3 matrix: the second "
+        "camera's in its place?"),
+    "form 4 points alone": (lambda: ppo_cv.recoverPose(P1, P2), TypeError,
+                            "cameraMatrix1 is required, got None: the form with points is"),
     "form 4 points as lists": (lambda: ppo_cv.recoverPose(P1.tolist(), P2, [1] * 9, None, K, None),
                                ValueError, "cameraMatrix1 must be a 3x3 matrix"),
     # pose's public helpers: AttributeError, ZeroDivisionError, numpy's unpacking messages
@@ -443,6 +475,107 @@ CASES = {
     "homography_rotation_focal text": (
         lambda: _sfm_module().homography_rotation_focal(RAYS, "x", 800.0, 640), TypeError,
         "x2 must be an array of real numbers, got str"),
+    # the rotation-only fits: IndexError of None or two lengths, numpy's matmul message, a
+    # threshold of 0, NaN or a text read as one, an integer mask indexing the matches
+    "ransac_rotation x1 None": (lambda: _rotation().ransac_rotation(None, RAYS, 0.01), TypeError,
+                                "x1 is required"),
+    "ransac_rotation two lengths": (lambda: _rotation().ransac_rotation(RAYS, RAYS2[:10], 0.01),
+                                    ValueError, "x1 and x2 must have the same length, got 40 "
+                                    "and 10"),
+    "ransac_rotation threshold 0": (lambda: _rotation().ransac_rotation(RAYS, RAYS2, 0), ValueError,
+                                    "threshold must be a finite number > 0"),
+    "ransac_rotation threshold NaN": (lambda: _rotation().ransac_rotation(RAYS, RAYS2, np.nan),
+                                      ValueError, "threshold must be a finite number > 0"),
+    "ransac_rotation threshold text": (lambda: _rotation().ransac_rotation(RAYS, RAYS2, "0.01"),
+                                       TypeError, "threshold must be a number, got str"),
+    "ransac_rotation NaN point": (lambda: _rotation().ransac_rotation(RAYS, _nan_row(RAYS2), 0.01),
+                                  ValueError, "x2 has 1 NaN"),
+    "ransac_rotation (N, 4)": (lambda: _rotation().ransac_rotation(np.ones((5, 4)), RAYS, 0.01),
+                               ValueError, "x1 must have shape (N, 2) or (N, 3), got (5, 4)"),
+    "ransac_rotation max_trials -1": (
+        lambda: _rotation().ransac_rotation(RAYS, RAYS2, 0.01, max_trials=-1), ValueError,
+        "max_trials must be a whole number in 0.."),
+    "ransac_rotation confidence 2": (
+        lambda: _rotation().ransac_rotation(RAYS, RAYS2, 0.01, confidence=2), ValueError,
+        "confidence must be in (0, 1]"),
+    "ransac_rotation seed text": (lambda: _rotation().ransac_rotation(RAYS, RAYS2, 0.01, seed="1"),
+                                  TypeError, "seed must be a whole number, got str"),
+    "rotation_residuals R None": (lambda: _rotation().rotation_residuals(None, RAYS, RAYS2),
+                                  TypeError, "R is required"),
+    "rotation_residuals R 2x2": (lambda: _rotation().rotation_residuals(np.eye(2), RAYS, RAYS2),
+                                 ValueError, "R must be a 3x3 rotation matrix"),
+    "rotation_residuals two lengths": (
+        lambda: _rotation().rotation_residuals(np.eye(3), RAYS, RAYS2[:3]), ValueError,
+        "x1 and x2 must have the same length"),
+    "rotations_from_two_rays None": (
+        lambda: _rotation().rotations_from_two_rays(None, RAYS, RAYS, RAYS), TypeError,
+        "a1 is required"),
+    "rotations_from_two_rays two lengths": (
+        lambda: _rotation().rotations_from_two_rays(RAYS, RAYS, RAYS, RAYS[:3]), ValueError,
+        "a1, a2, b1 and b2 must have the same length, got a1 40, a2 40, b1 40, b2 3"),
+    "fit_rotation_lens x2 None": (lambda: _lens_fit(x2=None), TypeError, "x2 is required"),
+    "fit_rotation_lens used of ints": (lambda: _lens_fit(used=np.ones(40, int)), TypeError,
+                                       "used must be a boolean mask of the matches, got dtype "
+                                       "int64"),
+    "fit_rotation_lens used short": (lambda: _lens_fit(used=np.ones(5, bool)), ValueError,
+                                     "used must have one entry per match (40), got shape (5,)"),
+    "fit_rotation_lens R None": (lambda: _lens_fit(R=None), TypeError, "R is required"),
+    "fit_rotation_lens noise text": (lambda: _lens_fit(noise="a"), TypeError,
+                                     "noise must be a number, got str"),
+    "fit_rotation_lens noise -1": (lambda: _lens_fit(noise=-1.0), ValueError,
+                                   "noise must be a finite number >= 0"),
+    "fit_rotation_lens iterations 1.5": (lambda: _lens_fit(iterations=1.5), ValueError,
+                                         "iterations must be a whole number"),
+    "fit_rotation_lens k1_prior 0": (lambda: _lens_fit(k1_prior=0.0), ValueError,
+                                     "k1_prior must be a finite number > 0"),
+    "fit_rotation_lens principal_prior NaN": (lambda: _lens_fit(principal_prior=np.nan),
+                                              ValueError, "principal_prior has 1 NaN"),
+    "fit_rotation_lens lens_start text": (lambda: _lens_fit(lens_start="fit"), TypeError,
+                                          "lens_start must be a ppo_cv.rotation.LensRotationFit"),
+    "fit_rotation_lens deviations 'no'": (lambda: _lens_fit(deviations="no"), TypeError,
+                                          "deviations must be True, False or a callable"),
+    "correct_points x None": (lambda: _rotation().correct_points(None, 1.0, 0.0), TypeError,
+                              "x is required"),
+    "correct_points focal_scale 0": (lambda: _rotation().correct_points(RAYS, 0.0, 0.0), ValueError,
+                                     "focal_scale must be a number in [0.001, 1000]"),
+    "correct_points focal_scale NaN": (lambda: _rotation().correct_points(RAYS, np.nan, 0.0),
+                                       ValueError, "focal_scale must be a number in"),
+    "correct_points k1 text": (lambda: _rotation().correct_points(RAYS, 1.0, "0.1"), TypeError,
+                               "k1 must be a number, got str"),
+    "correct_points offset of three": (
+        lambda: _rotation().correct_points(RAYS, 1.0, 0.0, (0, 0, 0)), TypeError,
+        "principal_offset must be two numbers (x, y)"),
+    "transfer_points focal_ratio -1": (
+        lambda: _rotation().transfer_points(RAYS, np.eye(3), 1.0, 0.0, focal_ratio=-1.0),
+        ValueError, "focal_ratio must be a number in [0.001, 1000]"),
+    "transfer_points R None": (lambda: _rotation().transfer_points(RAYS, None, 1.0, 0.0),
+                               TypeError, "R is required"),
+    "lens_rotation_residuals two lengths": (
+        lambda: _rotation().lens_rotation_residuals(np.eye(3), 1.0, 0.0, RAYS, RAYS2[:3]),
+        ValueError, "x1 and x2 must have the same length"),
+    "lens_rotation_residuals vectors 'no'": (
+        lambda: _rotation().lens_rotation_residuals(np.eye(3), 1.0, 0.0, RAYS, RAYS2,
+                                                    vectors="no"),
+        TypeError, "vectors must be True or False, got str"),
+    "seen_through_lens ray None": (
+        lambda: _rotation().seen_through_lens(None, 1.0, 0.0, 0.0, 1.0), TypeError,
+        "ray is required"),
+    "seen_through_lens scale 0": (
+        lambda: _rotation().seen_through_lens(RAYS, 0.0, 0.0, 0.0, 1.0), ValueError,
+        "scale must be > 0"),
+    "seen_through_lens terms of another shape": (
+        lambda: _rotation().seen_through_lens(RAYS, np.ones(3), 0.0, 0.0, 1.0), ValueError,
+        "the lens terms (scale (3,), k1 (), offset (), ratio ()) do not broadcast"),
+    "focal_ratio_prior None": (lambda: _rotation().focal_ratio_prior(None), TypeError,
+                               "given_ratio must be a number, got NoneType"),
+    "focal_ratio_prior NaN": (lambda: _rotation().focal_ratio_prior(np.nan), ValueError,
+                              "given_ratio must be a finite number > 0"),
+    "focal_ratio_prior text": (lambda: _rotation().focal_ratio_prior("1.01"), TypeError,
+                               "given_ratio must be a number, got str"),
+    "focal_ratio_keywords text": (lambda: _rotation().focal_ratio_keywords("ab"), TypeError,
+                                  "prior must be None or (mean, deviation)"),
+    "focal_ratio_keywords NaN": (lambda: _rotation().focal_ratio_keywords((1.0, np.nan)),
+                                 ValueError, "prior deviation must be a finite number > 0"),
 }  # fmt: skip
 
 
