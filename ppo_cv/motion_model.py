@@ -142,8 +142,8 @@ from .rotation import (
     TRACK_FOCAL_CHANGE,
     LensRotationFit,
     _correct_points,
-    _fit_rotation_lens,
     _lens_rotation_residuals,
+    fit_rotation_lens,
     ransac_rotation,
 )
 
@@ -684,17 +684,18 @@ def _settled_lens_fit(
     last fit only."""
     x1, x2, noise, threshold = context.x1, context.x2, context.noise, context.threshold
     last = partial(_settled, used=None, threshold=threshold, final=False)
-    lens = _fit_rotation_lens(
-        x1, x2, start_inliers, start_R, noise=noise, deviations=last, **priors
+    lens = fit_rotation_lens(
+        x1, x2, start_inliers, start_R, noise=noise, deviations=last, check_input=False, **priors
     )
     rotation_inliers = lens.residuals < threshold
     for attempt in range(4):
         if np.count_nonzero(rotation_inliers) < MIN_LENS_MATCHES:
             break
         last = partial(_settled, used=rotation_inliers, threshold=threshold, final=attempt == 3)
-        lens = _fit_rotation_lens(
-            x1, x2, rotation_inliers, lens.R, noise=noise, deviations=last, **priors
-        )
+        lens = fit_rotation_lens(
+            x1, x2, rotation_inliers, lens.R, noise=noise, deviations=last, check_input=False,
+            **priors,
+        )  # fmt: skip
         within = lens.residuals < threshold
         if np.array_equal(within, rotation_inliers):
             break

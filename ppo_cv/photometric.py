@@ -85,8 +85,8 @@ from .rotation import (
     PRINCIPAL_BOUND,
     LensRotationFit,
     _correct_points,
-    _fit_rotation_lens,
     _transfer_points,
+    fit_rotation_lens,
 )
 
 __all__ = [
@@ -1033,9 +1033,10 @@ def _fit_tracks(y1, y2, valid, R, focal, priors):
             return None
         start = R if fit is None else fit.R
         last = partial(_last_track_fit, used=used, valid=valid, final=attempt == 4)
-        fit = _fit_rotation_lens(
-            y1, y2, used, start, noise=noise, lens_start=fit, deviations=last, **priors
-        )
+        fit = fit_rotation_lens(
+            y1, y2, used, start, noise=noise, lens_start=fit, deviations=last, check_input=False,
+            **priors,
+        )  # fmt: skip
         if on_clipped is not None and np.isinf(fit.rotation_sigma_deg):
             on_clipped()
         noise, within = _track_inliers(fit, used, valid)

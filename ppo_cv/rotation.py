@@ -696,26 +696,21 @@ def fit_rotation_lens(
     principal_bound: float = PRINCIPAL_BOUND,
     lens_start: LensRotationFit | None = None,
     deviations: bool | Callable[[LensRotationFit], bool] = True,
+    check_input: bool = True,
 ) -> LensRotationFit:
     """Rotation, focal scale, radial coefficient (principal point, focal ratio) by Gauss-Newton.
 
-    The model is ``(q2, 1) ~ R (q1, 1)`` with ``s x1 = p + q1 (1 + k1 |q1|^2)`` and
-    ``s rho x2 = p + q2 (1 + k1 |q2|^2)`` on the given normalised coordinates (one lens, its
-    focal length given with one error, or two with errors ``s`` and ``s rho``): rotation
-    increments ``R = exp([w]_x) R0``, the focal scale ``s``, ``k1``, when ``principal_prior``
-    is given the offset ``p`` of the true principal point from the given one (normalised units
-    of the true camera), and when ``focal_ratio_prior`` is given ``rho`` (else 1). The
-    least-squares cost is the squared transfer error in view 2. The lens terms must land in a
-    box of plausible lenses (``|s - 1|, |rho - 1| <= max_focal_change``,
-    ``|k1| <= max_k1``), else they are clipped to it and the rotation alone is re-fitted, and
-    an offset beyond ``principal_bound`` priors on either coordinate, by more than
-    :data:`PRINCIPAL_SIGNIFICANCE` of its posterior deviations, is dropped (the given
-    principal point is kept): a translation's parallax must not be explained away by an
-    implausible lens. Given the ``noise`` of a transfer-error coordinate, the lens terms also
-    get Gaussian priors ``s - 1 ~ N(0, focal_prior^2)``, ``k1 ~ N(0, k1_prior^2)``,
-    ``p ~ N(0, principal_prior^2 I)`` and ``rho ~ N(focal_ratio_mean, focal_ratio_prior^2)``
-    (a few matches, or matches near the centre, do not determine them); a ratio beyond
-    :data:`FOCAL_RATIO_BOUND` priors from its mean is dropped (``rho = 1``).
+    The model of the module docstring (``s x1 = p + q1 (1 + k1 |q1|^2)``, ``s rho x2 = ...``,
+    ``(q2, 1) ~ R (q1, 1)``, ``R = exp([w]_x) R0``) minimising the squared transfer error in
+    view 2. Lens terms outside the box of plausible lenses (``|s - 1|, |rho - 1| <=
+    max_focal_change``, ``|k1| <= max_k1``) are clipped to it and the rotation alone refitted;
+    an offset beyond ``principal_bound`` priors on either coordinate by more than
+    :data:`PRINCIPAL_SIGNIFICANCE` posterior deviations, and a ratio beyond
+    :data:`FOCAL_RATIO_BOUND` priors from its mean, are dropped: a translation's parallax must
+    not be explained away by an implausible lens. Given the ``noise`` of a transfer-error
+    coordinate the lens terms get Gaussian priors ``s - 1 ~ N(0, focal_prior^2)``, ``k1 ~ N(0,
+    k1_prior^2)``, ``p ~ N(0, principal_prior^2 I)``, ``rho ~ N(focal_ratio_mean,
+    focal_ratio_prior^2)`` (a few matches, or matches near the centre, do not determine them).
 
     Parameters
     ----------
@@ -727,28 +722,25 @@ def fit_rotation_lens(
         Starting rotation (e.g. :func:`ransac_rotation`'s).
     iterations : int
         Gauss-Newton steps (each a Levenberg-damped solve, the transfer's Jacobian analytic).
-    max_focal_change, max_k1 : float
-        Bounds on ``|s - 1|`` (and ``|rho - 1|``) and ``|k1|``.
+    max_focal_change, max_k1, principal_bound : float
+        Bounds on ``|s - 1|`` (and ``|rho - 1|``), ``|k1|`` and the offset ``p`` kept (in
+        ``principal_prior`` deviations per coordinate).
     noise : float, optional
-        Standard deviation of one coordinate of the transfer error (normalised units); None
-        fits without the priors.
+        Deviation of a transfer-error coordinate (normalised units); None fits without priors.
     focal_prior, k1_prior : float
         Deviations of the priors on ``s - 1`` and ``k1`` (a ``focal_prior`` of 0 holds ``s`` at 1).
     principal_prior : float or array_like of 2 floats, optional
-        Standard deviation of each coordinate of ``p`` (normalised units: pixels over the focal
-        length), one for both or ``(x, y)``; None keeps the given principal point (``p = 0``).
-        Needs ``noise``.
+        Deviation of each coordinate of ``p`` (pixels over the focal length), one for both or
+        ``(x, y)``; None keeps the given principal point (``p = 0``). Needs ``noise``.
     focal_ratio_prior, focal_ratio_mean : float
-        Standard deviation (:func:`focal_ratio_prior`; None keeps ``rho = 1``, needs ``noise``)
-        and mean of the prior on ``rho``.
-    principal_bound : float
-        Largest offset kept, in ``principal_prior`` deviations per coordinate.
+        Deviation (None keeps ``rho = 1``; needs ``noise``) and mean of the prior on ``rho``.
     lens_start : LensRotationFit, optional
-        A fit of nearly the same matches (e.g. before its outliers were dropped) whose lens
-        terms the steps start from, not the priors' means: fewer steps to the same minimum.
+        A fit of nearly the same matches whose lens terms the steps start from (fewer steps).
     deviations : bool or callable
-        Compute the deviations and ``lens_excess`` (a Jacobian at the minimum; else NaN, inf
-        when clipped), or as a callable given the fit without them say whether to.
+        Compute the deviations and ``lens_excess`` (else NaN, inf when clipped), or a callable
+        given the fit without them that says whether to.
+    check_input : bool
+        False skips the checks, for callers of checked arrays (the refit's outlier loops).
 
     Returns
     -------
@@ -771,13 +763,21 @@ def fit_rotation_lens(
     >>> round(fit.focal_ratio, 4), bool(np.allclose(fit.R, R, atol=1e-6))
     (1.03, True)
     """
-    x1, x2 = _checked_matches(x1, x2)
-    used, R = _checked_used(used, len(x1)), as_rotation(R, "R")
-    keywords = _checked_fit_keywords(
-        iterations, max_k1, noise, focal_prior, k1_prior, principal_prior, focal_ratio_prior,
-        focal_ratio_mean, lens_start, deviations, max_focal_change, principal_bound,
+    if check_input:
+        x1, x2 = _checked_matches(x1, x2)
+        used, R = _checked_used(used, len(x1)), as_rotation(R, "R")
+        keywords = _checked_fit_keywords(
+            iterations, max_k1, noise, focal_prior, k1_prior, principal_prior, focal_ratio_prior,
+            focal_ratio_mean, lens_start, deviations, max_focal_change, principal_bound,
+        )  # fmt: skip
+        return fit_rotation_lens(x1, x2, used, R, **keywords, check_input=False)
+    free, prior, centre, bounds, offset_bound = _lens_terms_setup(
+        noise, focal_prior, k1_prior, principal_prior, focal_ratio_prior, focal_ratio_mean,
+        principal_bound, max_focal_change, max_k1,
     )  # fmt: skip
-    return _fit_rotation_lens(x1, x2, used, R, **keywords)
+    problem, rows1, rows2 = _problem(x1, x2, used, R, prior, free, centre)
+    limits = bounds, offset_bound, noise, focal_ratio_prior
+    return _solve_rotation_lens(problem, rows1, rows2, *limits, iterations, lens_start, deviations)
 
 
 def _checked_used(used: Any, count: int) -> np.ndarray:
@@ -837,35 +837,6 @@ def _checked_principal_prior(value: Any) -> Any:
     if prior.min() < 0:
         raise ValueError(f"principal_prior must be >= 0, got {prior.tolist()}")
     return value
-
-
-def _fit_rotation_lens(
-    x1: np.ndarray,
-    x2: np.ndarray,
-    used: np.ndarray,
-    R: np.ndarray,
-    *,
-    iterations: int = 15,
-    max_focal_change: float = MAX_FOCAL_CHANGE,
-    max_k1: float = MAX_K1,
-    noise: float | None = None,
-    focal_prior: float = FOCAL_PRIOR,
-    k1_prior: float = K1_PRIOR,
-    principal_prior: float | np.ndarray | None = None,
-    focal_ratio_prior: float | None = None,
-    focal_ratio_mean: float = 1.0,
-    principal_bound: float = PRINCIPAL_BOUND,
-    lens_start: LensRotationFit | None = None,
-    deviations: bool | Callable[[LensRotationFit], bool] = True,
-) -> LensRotationFit:
-    """:func:`fit_rotation_lens`, unchecked."""
-    free, prior, centre, bounds, offset_bound = _lens_terms_setup(
-        noise, focal_prior, k1_prior, principal_prior, focal_ratio_prior, focal_ratio_mean,
-        principal_bound, max_focal_change, max_k1,
-    )  # fmt: skip
-    problem, rows1, rows2 = _problem(x1, x2, used, R, prior, free, centre)
-    limits = bounds, offset_bound, noise, focal_ratio_prior
-    return _solve_rotation_lens(problem, rows1, rows2, *limits, iterations, lens_start, deviations)
 
 
 def _problem(x1, x2, used, R, prior, free, centre) -> tuple:

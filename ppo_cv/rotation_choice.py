@@ -161,9 +161,9 @@ from .rotation import (
     MIN_LENS_MATCHES,
     LensRotationFit,
     _correct_points,
-    _fit_rotation_lens,
     _lens_rotation_residuals,
     _seen_through_lens,
+    fit_rotation_lens,
 )
 
 __all__ = [
@@ -673,9 +673,9 @@ def given_focal_fit(
     """
     if np.count_nonzero(used) < MIN_LENS_MATCHES:
         return lens
-    return _fit_rotation_lens(
+    return fit_rotation_lens(
         x1, x2, used, lens.R, noise=_transfer_noise(lens, x1, x2, used), focal_prior=0.0,
-        max_k1=np.inf,
+        max_k1=np.inf, check_input=False,
     )  # fmt: skip
 
 
@@ -744,10 +744,10 @@ def wanted_focal_fit(
     if np.count_nonzero(used) < MIN_LENS_MATCHES:
         return lens
     start = LensRotationFit(lens.R, scale, lens.k1, float("inf"), np.empty(0))
-    return _fit_rotation_lens(
+    return fit_rotation_lens(
         x1, x2, used, lens.R, noise=_transfer_noise(lens, x1, x2, used),
         max_focal_change=1.0 / FOCAL_ERROR_RANGE[0] - 1.0, focal_prior=GROSS_FOCAL_ERROR,
-        lens_start=start,
+        lens_start=start, check_input=False,
     )  # fmt: skip
 
 

@@ -98,17 +98,16 @@ def test_a_clipped_fit_without_deviations_still_says_it_was_clipped():
 
 
 def _recorded(monkeypatch, module):
-    """The fits ``module`` makes through ``fit_rotation_lens``'s unchecked body, each with its
-    arguments."""
+    """The fits ``module`` makes through ``fit_rotation_lens``, each with its arguments."""
     calls = []
-    unchecked = rotation._fit_rotation_lens
+    fit_rotation_lens = rotation.fit_rotation_lens
 
     def recording(*args, **kwargs):
-        fit = unchecked(*args, **kwargs)
+        fit = fit_rotation_lens(*args, **kwargs)
         calls.append((args, kwargs, fit))
         return fit
 
-    monkeypatch.setattr(module, "_fit_rotation_lens", recording)
+    monkeypatch.setattr(module, "fit_rotation_lens", recording)
     return calls
 
 
