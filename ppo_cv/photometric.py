@@ -71,6 +71,7 @@ from .checks import (
     as_callback,
     as_camera_matrix,
     as_distortion,
+    as_number,
     as_points,
     as_positive,
     as_rotation,
@@ -1156,11 +1157,20 @@ def refine_rotation_photometric(
         focal_ratio_prior, focal_ratio_mean, principal_bound, max_focal_change,
     )  # fmt: skip
     priors.update(keep_clipped=bool(keep_clipped), on_clipped=as_callback(on_clipped, "on_clipped"))
-    start = (R, float(focal_scale), float(k1), _as_offset(principal_offset), focal_ratio)
+    start = _start_model(R, focal_scale, k1, principal_offset, focal_ratio)
     windows, count = _as_windows(window), _as_count(max_corners)
     return _best_window_refit(
         image1, image2, cameras, start, priors, rotation_sigma_deg, windows, count
     )
+
+
+def _start_model(R, focal_scale, k1, principal_offset, focal_ratio) -> tuple:
+    """The lens rotation the refit starts from, as :func:`_model` gives one, its lens terms
+    checked."""
+    if not np.isfinite(k1 := as_number(k1, "k1")):
+        raise ValueError(f"k1 must be a finite number, got {k1}")
+    offset = _as_offset(principal_offset)
+    return (R, as_positive(focal_scale, "focal_scale"), k1, offset, focal_ratio)
 
 
 def _checked_inputs(

@@ -290,6 +290,11 @@ def test_bad_arguments_are_named():
     for count in ("600", True):
         with pytest.raises(TypeError, match="max_corners"):
             refine_rotation_photometric(image, image, K, K, np.eye(3), max_corners=count)
+    for name, value, error in [("focal_scale", "1.0", TypeError), ("focal_scale", 0.0, ValueError),
+                               ("k1", "0", TypeError), ("k1", np.nan, ValueError)]:  # fmt: skip
+        # a text failed in Python's float() with a message naming neither
+        with pytest.raises(error, match=name):
+            refine_rotation_photometric(image, image, K, K, np.eye(3), **{name: value})
 
 
 def _good_features_corners(gray, count, window, transfer):
