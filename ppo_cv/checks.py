@@ -23,6 +23,7 @@ __all__ = [
     "require_essential_spread",
     "as_mask",
     "as_positive",
+    "as_ransac_settings",
     "as_nonnegative",
     "as_pri_threshold",
     "as_number",
@@ -503,6 +504,21 @@ def as_number(value: Any, name: str) -> float:
     if isinstance(value, (bool, np.bool_)):
         raise TypeError(f"{name} must be a number, got {value!r}")
     return _as_float(value, name)
+
+
+def as_ransac_settings(
+    threshold: Any, confidence: Any, min_trials: Any, max_trials: Any, seed: Any
+) -> tuple[float, float, int, int, int]:
+    """``(threshold, confidence, min_trials, max_trials, seed)`` of a RANSAC fit checked: a
+    positive threshold, a confidence in (0, 1], whole trial counts and seed from 0 (a negative
+    count ran pycolmap's sampler without end); ValueError or TypeError naming the argument."""
+    threshold = as_positive(threshold, "threshold")
+    confidence = as_positive(confidence, "confidence")
+    if confidence > 1:
+        raise ValueError(f"confidence must be in (0, 1], got {confidence}")
+    counts = {"min_trials": min_trials, "max_trials": max_trials, "seed": seed}
+    counts = [as_whole_number(value, name, 0, MAX_WHOLE_NUMBER) for name, value in counts.items()]
+    return (threshold, confidence, *counts)
 
 
 def as_whole_number(value: Any, name: str, low: int, high: int) -> int:

@@ -36,10 +36,9 @@ from typing import Any
 import numpy as np
 
 from .checks import (
-    MAX_WHOLE_NUMBER,
     as_finite_rows,
     as_positive,
-    as_whole_number,
+    as_ransac_settings,
 )
 from .lsq import cross_matrix
 from .significance import (
@@ -200,17 +199,10 @@ def checked_fit_settings(
     focal: Any, threshold: Any, confidence: Any, min_trials: Any, max_trials: Any, seed: Any
 ) -> tuple[float, float, float, int, int, int]:
     """``(focal, threshold, confidence, min_trials, max_trials, seed)`` of a robust fit checked:
-    positive focal length and threshold, a confidence in (0, 1], whole trial counts and seed
-    from 0 (a negative count ran pycolmap's sampler without end); ValueError or TypeError
-    naming the argument."""
-    focal, threshold = as_positive(focal, "focal"), as_positive(threshold, "threshold")
-    confidence = as_positive(confidence, "confidence")
-    if confidence > 1:
-        raise ValueError(f"confidence must be in (0, 1], got {confidence}")
-    trials = [as_whole_number(value, name, 0, MAX_WHOLE_NUMBER)
-              for name, value in (("min_trials", min_trials), ("max_trials", max_trials),
-                                  ("seed", seed))]  # fmt: skip
-    return (focal, threshold, confidence, *trials)
+    a positive focal length, the rest as :func:`ppo_cv.checks.as_ransac_settings` checks them;
+    ValueError or TypeError naming the argument."""
+    focal = as_positive(focal, "focal")
+    return (focal, *as_ransac_settings(threshold, confidence, min_trials, max_trials, seed))
 
 
 def ransac_options(threshold, confidence, min_trials, max_trials, seed, multiplier=3.0):

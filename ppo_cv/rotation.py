@@ -40,13 +40,13 @@ from numpy.typing import ArrayLike
 from .checks import (
     MAX_COORDINATE,
     MAX_RADIAL,
-    MAX_WHOLE_NUMBER,
     as_finite_array,
     as_finite_rows,
     as_flag,
     as_nonnegative,
     as_number,
     as_positive,
+    as_ransac_settings,
     as_rotation,
     as_whole_number,
     require_instance,
@@ -439,13 +439,8 @@ def ransac_rotation(
         None when fewer than two matches are given.
     """
     x1, x2 = _checked_matches(x1, x2)
-    threshold = as_positive(threshold, "threshold")
-    confidence = as_positive(confidence, "confidence")
-    if confidence > 1:
-        raise ValueError(f"confidence must be in (0, 1], got {confidence}")
-    counts = {"min_trials": min_trials, "max_trials": max_trials, "seed": seed}
-    counts = [as_whole_number(value, name, 0, MAX_WHOLE_NUMBER) for name, value in counts.items()]
-    return _ransac(_bearings(x1), _bearings(x2), threshold, confidence, *counts)
+    settings = as_ransac_settings(threshold, confidence, min_trials, max_trials, seed)
+    return _ransac(_bearings(x1), _bearings(x2), *settings)
 
 
 def _ransac(b1, b2, threshold, confidence, min_trials, max_trials, seed) -> RotationFit | None:
