@@ -1254,7 +1254,7 @@ def homography_rotation_focal(
         and ``log(sigma_1 / sigma_3)`` of the homography conjugated by ``s`` (0 for an exact
         rotation); None with fewer than 8 matches, no homography or no such ``s``.
     """
-    x1, x2 = _match_rows(x1, "x1"), _match_rows(x2, "x2")
+    x1, x2 = as_finite_rows(x1, "x1", (2, 3)), as_finite_rows(x2, "x2", (2, 3))
     focal, size = as_positive(focal, "focal"), as_positive(size, "size")
     if len(x1) != len(x2):
         raise ValueError(f"x1 and x2 must have the same length, got {len(x1)} and {len(x2)}")
@@ -1268,11 +1268,6 @@ def homography_rotation_focal(
     if scale is None:
         return None
     return scale, float(rotation_spread(homography.H, np.array([np.log(scale)]))[0])
-
-
-def _match_rows(value: Any, name: str) -> np.ndarray:
-    """Normalized coordinates (N, 2), or homogeneous (N, 3), as finite float64 rows."""
-    return as_finite_rows(value, name, 2 if np.shape(value)[-1:] == (2,) else 3)
 
 
 FIELD_RANGE_DEG = (5.0, 150.0)
