@@ -33,10 +33,10 @@ from ppo_cv.atomic import linked_output, staging_folder, worker_count, worker_po
 from ppo_cv.calib import read_text_file
 from ppo_cv.checks import (
     as_camera_matrix,
-    as_finite_rows,
     as_number,
     as_path,
     as_rotation,
+    as_vector3,
     require_instance,
     shown,
 )
@@ -195,9 +195,8 @@ def pairs_line(
             )
     K1, K2 = as_camera_matrix(K1, "K1"), as_camera_matrix(K2, "K2")
     T = np.eye(4)
-    if np.size(t) != 3:
-        raise ValueError(f"t must be 3 numbers, got shape {np.shape(t)}")
-    T[:3, :3], T[:3, 3] = as_rotation(R, "R"), as_finite_rows(np.reshape(t, (1, 3)), "t", 3)[0]
+    t = as_vector3(t, "t")
+    T[:3, :3], T[:3, 3] = as_rotation(R, "R"), t
     return " ".join(
         [name1, name2, "0", "0", _matrix_text(K1, "%.6f"), _matrix_text(K2, "%.6f"),
          _matrix_text(T, "%.12f")]

@@ -11,10 +11,10 @@ import numpy as np
 
 from ppo_cv.checks import (
     MAX_WHOLE_NUMBER,
-    as_finite_rows,
     as_number,
     as_path,
     as_rotation,
+    as_vector3,
     as_whole_number,
 )
 
@@ -104,9 +104,7 @@ def render_tripod_then_move(
 def _checked_pose(pose: Any, name: str) -> tuple[np.ndarray, np.ndarray]:
     if not (isinstance(pose, (tuple, list)) and len(pose) == 2):
         raise TypeError(f"{name} must be a pair (R, t), got {type(pose).__name__}")
-    if np.size(pose[1]) != 3:
-        raise ValueError(f"{name} t must be 3 numbers, got shape {np.shape(pose[1])}")
-    t = as_finite_rows(np.reshape(pose[1], (1, 3)), f"{name} t", 3)[0]
+    t = as_vector3(pose[1], f"{name} t")
     return as_rotation(pose[0], f"{name} R"), t
 
 

@@ -24,6 +24,7 @@ __all__ = [
     "as_mask",
     "as_positive",
     "as_ransac_settings",
+    "as_vector3",
     "as_nonnegative",
     "as_pri_threshold",
     "as_number",
@@ -179,6 +180,14 @@ def as_finite_rows(value: Any, name: str, width: int | tuple[int, ...]) -> np.nd
         raise ValueError(f"{name} must have shape {shapes}, got {array.shape}")
     require_finite(array, name)
     return array
+
+
+def as_vector3(value: Any, name: str) -> np.ndarray:
+    """Three finite numbers (a row, a column or a flat triple) as float64 (3,); ValueError or
+    TypeError naming ``name`` otherwise."""
+    if np.size(value) != 3:
+        raise ValueError(f"{name} must be 3 numbers, got shape {np.shape(value)}")
+    return as_finite_rows(np.reshape(value, (1, 3)), name, 3)[0]
 
 
 def as_finite_array(value: Any, name: str) -> np.ndarray:

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import as_camera_matrix, as_essential, as_finite_rows, as_points
+from .checks import as_camera_matrix, as_essential, as_finite_rows, as_points, as_vector3
 
 __all__ = [
     "W1",
@@ -135,23 +135,27 @@ def _checked_rays(x: Any, name: str) -> np.ndarray:
     return _planar(as_finite_rows(x, name, 2 if np.shape(x)[-1:] == (2,) else 3))
 
 
+def _checked_ray_pair(x1: Any, x2: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Matched rays (3, N) of one length (:func:`_checked_rays`); ValueError otherwise."""
+    X1, X2 = _checked_rays(x1, "x1"), _checked_rays(x2, "x2")
+    if X1.shape != X2.shape:
+        raise ValueError(
+            f"x1 and x2 must have the same length, got {X1.shape[1]} and {X2.shape[1]}"
+        )
+    return X1, X2
+
+
 def _checked_pose_rays(
     x1: Any, x2: Any, R: Any, t: Any = (0.0, 0.0, 1.0)
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(X1, X2, R, e_t)``: matched rays (3, N) of one length, a finite 3x3 ``R`` and the unit
     direction of a finite nonzero ``t`` (3 numbers); ValueError or TypeError naming the
     argument otherwise."""
-    X1, X2 = _checked_rays(x1, "x1"), _checked_rays(x2, "x2")
-    if X1.shape != X2.shape:
-        raise ValueError(
-            f"x1 and x2 must have the same length, got {X1.shape[1]} and {X2.shape[1]}"
-        )
+    X1, X2 = _checked_ray_pair(x1, x2)
     if np.shape(R) != (3, 3):
         raise ValueError(f"R must be a 3x3 matrix, got shape {np.shape(R)}")
     R = as_finite_rows(R, "R", 3)
-    if np.size(t) != 3:
-        raise ValueError(f"t must be 3 numbers, got shape {np.shape(t)}")
-    t = as_finite_rows(np.reshape(t, (1, 3)), "t", 3)[0]
+    t = as_vector3(t, "t")
     if not t.any():
         raise ValueError("t is zero: it has no direction")
     return X1, X2, R, _unit(t)
@@ -334,11 +338,7 @@ def select_pose(
     >>> np.allclose(sel.R, np.eye(3)), sel.t.round(6).tolist(), sel.support_R, sel.support_t
     (True, [1.0, 0.0, 0.0], 20, 20)
     """
-    X1, X2 = _checked_rays(x1, "x1"), _checked_rays(x2, "x2")
-    if X1.shape != X2.shape:
-        raise ValueError(
-            f"x1 and x2 must have the same length, got {X1.shape[1]} and {X2.shape[1]}"
-        )
+    X1, X2 = _checked_ray_pair(x1, x2)
     if used is not None:
         used = np.asarray(used)
         if used.dtype != bool or used.shape != (X1.shape[1],):
