@@ -712,8 +712,8 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
             state.inputs, motion, state.priors, keep_clipped=True,
             sigma_deg=rotation_only.fit_sigma_deg, max_image_size=state.options.max_image_size,
         )  # fmt: skip
-        parallax = state.feature_parallax if tracks is None else None
-        rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used, to_beat, parallax)
+        if tracks is not None:  # none aligned: the estimate above stands
+            rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used, to_beat)
     chosen = choose_rotation([moving, rotation_only])
     if chosen is rotation_only and tracks is None:
         return through_given_focal(chosen, motion, x1, x2)
