@@ -28,6 +28,7 @@ __all__ = [
     "rotation_increment",
     "rotation_increments",
     "row_chunks",
+    "stack_by_chunks",
     "stacked_jacobian",
     "tangent_basis",
 ]
@@ -114,6 +115,13 @@ def row_chunks(count: int, width: int) -> list[slice]:
     :data:`CHUNK_VALUES` values, at least one row each."""
     size = max(1, CHUNK_VALUES // max(int(width), 1))
     return [slice(start, start + size) for start in range(0, count, size)]
+
+
+def stack_by_chunks(evaluate: Callable[[slice], np.ndarray], count: int, width: int) -> np.ndarray:
+    """``evaluate(s)`` of each slice ``s`` of :func:`row_chunks` ``(count, width)``, stacked
+    along the first axis: a stacked evaluation of ``count`` rows computed chunk by chunk."""
+    parts = [evaluate(rows) for rows in row_chunks(count, width)]
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
 def forward_jacobian(

@@ -27,7 +27,7 @@ from .lsq import (
     levenberg_marquardt_batched,
     pose_increment,
     rotation_increments,
-    row_chunks,
+    stack_by_chunks,
     tangent_basis,
 )
 from .model_selection import robust_sigma
@@ -341,7 +341,7 @@ def _radial_residuals(R0, t0, basis, scale, k1_prior, k1_start):
     6) about ``(R0, t0)`` (``basis`` the tangent basis of ``t0``), on the ``points`` of the
     two views (:class:`_RadialPoints`, of their sets ``rows`` when given), the prior row
     weighted by ``weight`` (a float or (K,)); the rows evaluated by chunks
-    (:func:`ppo_cv.lsq.row_chunks`), each row's figures those of the row alone."""
+    (:func:`ppo_cv.lsq.stack_by_chunks`), each row's figures those of the row alone."""
 
     def chunk(P, points, weight, rows):
         Rp = rotation_increments(P[:, :3]) @ R0
@@ -353,9 +353,8 @@ def _radial_residuals(R0, t0, basis, scale, k1_prior, k1_start):
 
     def residuals(P, points, weight, rows=None):
         weight = np.broadcast_to(weight, (len(P),))
-        parts = [chunk(P[s], points, weight[s], None if rows is None else rows[s])
-                 for s in row_chunks(len(P), points[0].r2.shape[-1])]  # fmt: skip
-        return parts[0] if len(parts) == 1 else np.concatenate(parts)
+        evaluate = lambda s: chunk(P[s], points, weight[s], None if rows is None else rows[s])  # noqa: E731
+        return stack_by_chunks(evaluate, len(P), points[0].r2.shape[-1])
 
     return residuals
 
@@ -1007,7 +1006,7 @@ def _calibrated_residuals(R: np.ndarray, t: np.ndarray):
     A row is (rotation increment ``w`` (3), tangent step ``v`` (2), focal scale ``s - 1``,
     ``k1``, principal-point offset ``p`` (2)); row ``p`` is evaluated on the points of row
     ``p`` (or on shared points). The rows are evaluated by chunks
-    (:func:`ppo_cv.lsq.row_chunks`), each row's figures those of the row alone.
+    (:func:`ppo_cv.lsq.stack_by_chunks`), each row's figures those of the row alone.
     """
     U = tangent_basis(t)
 
@@ -1029,9 +1028,8 @@ def _calibrated_residuals(R: np.ndarray, t: np.ndarray):
         return _sampson_by_coordinate(Rp, tp, lens(a, p), lens(b, p))
 
     def residuals(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        parts = [chunk(p[s], a if len(a) == 1 else a[s], b if len(b) == 1 else b[s])
-                 for s in row_chunks(len(p), a.shape[1])]  # fmt: skip
-        return parts[0] if len(parts) == 1 else np.concatenate(parts)
+        evaluate = lambda s: chunk(p[s], a if len(a) == 1 else a[s], b if len(b) == 1 else b[s])  # noqa: E731
+        return stack_by_chunks(evaluate, len(p), a.shape[1])
 
     return residuals
 
