@@ -48,7 +48,10 @@ image 1 lands in image 2, and the intensities fix it far better:
    milliseconds for both sides), the polish the accurate one (on the demo frame warped by a
    rotation the rotation error of the search alone was 0.02-0.05 degrees, 0.001-0.04
    polished); on the sets of ``benchmarks/pure_rotation.py`` checked (56 pairs) one side was
-   polished every time.
+   polished every time. A caller that reads only whether the refit could change its own
+   decision may skip this step (``settled`` of :func:`refine_rotation_photometric`): each
+   side's searched refit is then measured first, and where no polish could change that
+   decision, the least uncertain searched refit is returned.
 
 On renders and warped photos with the imperfections of real ones (distortion, focal 3 % off,
 JPEG) this brings the median rotation error of each set of exact pure rotations in full overlap
@@ -1065,8 +1068,7 @@ def _last_track_fit(fit, used, valid, final) -> bool:
 def refine_rotation_photometric(
     image1: np.ndarray,
     image2: np.ndarray,
-    K1: np.ndarray,
-    K2: np.ndarray,
+    K1: np.ndarray, K2: np.ndarray,
     R: np.ndarray,
     *,
     focal_scale: float = 1.0,
@@ -1074,15 +1076,14 @@ def refine_rotation_photometric(
     principal_offset: Sequence[float] = (0.0, 0.0),
     principal_prior: float | Sequence[float] | None = None,
     focal_ratio: float = 1.0,
-    focal_ratio_prior: float | None = None,
-    focal_ratio_mean: float = 1.0,
+    focal_ratio_prior: float | None = None, focal_ratio_mean: float = 1.0,
     principal_bound: float = PRINCIPAL_BOUND,
     max_focal_change: float = MAX_FOCAL_CHANGE,
     rotation_sigma_deg: float = 1.0,
-    dist1: np.ndarray | None = None,
-    dist2: np.ndarray | None = None,
+    dist1: np.ndarray | None = None, dist2: np.ndarray | None = None,
     window: int | Sequence[int] = WINDOWS, max_corners: int | None = None,
     keep_clipped: bool = False, on_clipped: Callable[[], None] | None = None,
+    settled: Callable[[PhotometricRotation], bool] | None = None,
 ) -> PhotometricRotation | None:
     """Refit a pure rotation's lens rotation on windows aligned by intensity.
 
@@ -1105,10 +1106,8 @@ def refine_rotation_photometric(
     principal_bound : float
         Largest principal-point offset, in ``principal_prior`` deviations (that of the matches).
     max_focal_change : float
-        Box of the refit's focal scale (and focal ratio), ``|s - 1| <= max_focal_change``:
-        the pipeline passes :data:`ppo_cv.rotation.TRACK_FOCAL_CHANGE` for a pure rotation
-        whose matches' fit was clipped at :data:`ppo_cv.rotation.MAX_FOCAL_CHANGE`
-        (:attr:`ppo_cv.motion_model.MotionDecision.track_focal_change`).
+        Box of the refit's focal scale (and focal ratio), ``|s - 1| <= max_focal_change``
+        (in the pipeline :attr:`ppo_cv.motion_model.MotionDecision.track_focal_change`).
     rotation_sigma_deg : float
         Its uncertainty: how far (three times this) the first alignment must search, and the
         bound on the change: a refit further than ``4 rotation_sigma_deg + 0.1`` degrees from
@@ -1124,6 +1123,9 @@ def refine_rotation_photometric(
         ``k1`` held by its prior alone, a clipped focal scale returned (rotation-only refits).
     on_clipped : callable, optional
         Called per lens fit clipped to its box: only those fits depend on ``keep_clipped``.
+    settled : callable, optional
+        Called with each side's searched refit, its ``parallax`` measured; True for all (no
+        polish could change the caller's decision): the least uncertain returned unpolished.
 
     Returns
     -------
@@ -1157,10 +1159,11 @@ def refine_rotation_photometric(
         focal_ratio_prior, focal_ratio_mean, principal_bound, max_focal_change,
     )  # fmt: skip
     priors.update(keep_clipped=bool(keep_clipped), on_clipped=as_callback(on_clipped, "on_clipped"))
+    settled = as_callback(settled, "settled", "a callable taking a PhotometricRotation")
     start = _start_model(R, focal_scale, k1, principal_offset, focal_ratio)
     windows, count = _as_windows(window), _as_count(max_corners)
     return _best_window_refit(
-        image1, image2, cameras, start, priors, rotation_sigma_deg, windows, count
+        image1, image2, cameras, start, priors, rotation_sigma_deg, windows, count, settled
     )
 
 
@@ -1213,11 +1216,13 @@ def refit_reach_deg(rotation_sigma_deg: float) -> float:
 
 
 def _best_window_refit(
-    image1, image2, cameras, start, priors: dict, rotation_sigma_deg: float, windows, count: int
-) -> PhotometricRotation | None:
+    image1, image2, cameras, start, priors: dict, rotation_sigma_deg: float, windows, count: int,
+    settled: Callable[[PhotometricRotation], bool] | None = None,
+) -> PhotometricRotation | None:  # fmt: skip
     """The refit of least ``rotation_sigma_deg`` among the window sides that give one within
     ``4 rotation_sigma_deg + 0.1`` degrees of the start, each side on at most ``count`` windows,
-    with the parallax of its tracks; None when none does."""
+    with the parallax of its tracks; None when none does. The searched refits are polished
+    unless ``settled`` holds for each (:func:`_settled_search`)."""
     K1, K2, dist1, dist2 = cameras
     R = start[0]
     focal = float(np.mean([K2[0, 0], K2[1, 1]]))
@@ -1261,6 +1266,10 @@ def _best_window_refit(
     results = [refined for refined in found if refined is not None]
     if not results:
         return None
+    if settled is not None:
+        measured = _settled_search(results, settled, cameras)
+        if measured is not None:
+            return measured
     sigma = lambda refined: refined.fit.rotation_sigma_deg  # noqa: E731
     polished = []
     for searched in sorted(results, key=sigma):
@@ -1274,6 +1283,22 @@ def _best_window_refit(
         return None
     best = min(polished, key=sigma)
     return replace(best, parallax=_plane_parallax(best, K1, K2, dist1, dist2))
+
+
+def _settled_search(
+    results: list[PhotometricRotation], settled: Callable[[PhotometricRotation], bool], cameras
+) -> PhotometricRotation | None:
+    """The searched refit of least ``rotation_sigma_deg`` among ``results`` (one a window
+    side), with the parallax of its tracks, when ``settled`` holds for every one of them, each
+    with its parallax measured: the polish of any side, whichever one it keeps, could not
+    change what the caller decides; None otherwise (the first side that fails ends the
+    test)."""
+    measured = []
+    for refined in sorted(results, key=lambda refined: refined.fit.rotation_sigma_deg):
+        measured.append(replace(refined, parallax=_plane_parallax(refined, *cameras)))
+        if not settled(measured[-1]):
+            return None
+    return measured[0]
 
 
 def _search_side(

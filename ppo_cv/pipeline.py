@@ -70,7 +70,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from functools import cached_property
+from functools import cached_property, partial
 from typing import Any
 
 import numpy as np
@@ -162,6 +162,7 @@ from .rotation_choice import (
     released_lens_shift_deg,
     rotation_only_estimate,
     rotation_only_fit,
+    settled_before_polish,
     through_given_focal,
     tracks_could_win,
     translation_bias,
@@ -472,12 +473,14 @@ def _align_tracks(
     inputs: PairInputs, motion: MotionDecision, priors: _LensPriors, keep_clipped: bool = False,
     sigma_deg: float | None = None, on_clipped: Callable[[], None] | None = None,
     max_image_size: int | None = None,
+    settled: Callable[[PhotometricRotation], bool] | None = None,
 ) -> PhotometricRotation | None:  # fmt: skip
     """The rotation-only fit refitted on intensity-aligned windows around ``motion.R``
     (:func:`refine_rotation_photometric`, ``on_clipped`` called for each lens fit clipped to
-    its box), None when too few windows align; searched over ``sigma_deg``, by default the
-    fit's own deviation (both capped); on the images reduced as the features were
-    (``PairOptions.max_image_size``, :func:`~ppo_cv.camera.reduced_view`)."""
+    its box; the searched windows returned unpolished where ``settled`` holds), None when too
+    few windows align; searched over ``sigma_deg``, by default the fit's own deviation (both
+    capped); on the images reduced as the features were (``PairOptions.max_image_size``,
+    :func:`~ppo_cv.camera.reduced_view`)."""
     sigma_deg = motion.rotation_sigma_deg if sigma_deg is None else sigma_deg
     img1, K1 = reduced_view(inputs.img1, inputs.K1, max_image_size)
     img2, K2 = reduced_view(inputs.img2, inputs.K2, max_image_size)
@@ -489,7 +492,7 @@ def _align_tracks(
         principal_bound=motion.principal_bound,
         max_focal_change=motion.track_focal_change, keep_clipped=keep_clipped,
         rotation_sigma_deg=min(sigma_deg, MAX_SEARCH_SIGMA_DEG),
-        dist1=inputs.dist1, dist2=inputs.dist2, on_clipped=on_clipped,
+        dist1=inputs.dist1, dist2=inputs.dist2, on_clipped=on_clipped, settled=settled,
     )  # fmt: skip
 
 
@@ -691,7 +694,9 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
     on intensity-aligned tracks, searched over the fit's own deviation, when that deviation is
     below the moving model's expected error and the two rotations are near enough for the
     refit to win (:func:`~ppo_cv.rotation_choice.tracks_could_win`), and on the feature matches
-    when no tracks were aligned."""
+    when no tracks were aligned. Where the feature matches' estimate loses, the searched
+    windows are not polished when the tracks' estimate would lose however the polish read them
+    (:func:`~ppo_cv.rotation_choice.settled_before_polish`)."""
     motion = state.motion
     if motion.pure_rotation:
         return RotationEstimate("rotation", part.R, 0.0, part.rotation_sigma_deg)
@@ -708,9 +713,13 @@ def _choose_rotation(state: _Finishing, part: _ModelPart) -> RotationEstimate:
         and tracks_could_win(moving, rotation_only)
         and not _misses_again(state, rotation_only.fit_sigma_deg)
     ):
+        settled = None
+        if choose_rotation([moving, rotation_only]) is moving:
+            settled = partial(settled_before_polish, moving, focal_free=motion.lens_clipped)
         tracks = _align_tracks(
             state.inputs, motion, state.priors, keep_clipped=True,
             sigma_deg=rotation_only.fit_sigma_deg, max_image_size=state.options.max_image_size,
+            settled=settled,
         )  # fmt: skip
         if tracks is not None:  # none aligned: the estimate above stands
             rotation_only = rotation_only_estimate(motion, tracks, x1, x2, used, to_beat)

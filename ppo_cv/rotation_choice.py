@@ -170,6 +170,7 @@ __all__ = [
     "FOCAL_ERROR_RANGE",
     "GROSS_FOCAL_ERROR",
     "ROTATION_SOURCES",
+    "SETTLED_DEVIATIONS",
     "RotationEstimate",
     "across_normal_parallax",
     "choose_rotation",
@@ -186,6 +187,7 @@ __all__ = [
     "through_given_focal",
     "tracks_could_win",
     "rotation_fit_sigma_deg",
+    "settled_before_polish",
     "translation_bias",
     "unbiased_bias_deg",
     "wanted_focal_fit",
@@ -852,3 +854,75 @@ def tracks_could_win(moving: RotationEstimate, rotation_only: RotationEstimate) 
     apart = float(rotation_error_deg(rotation_only.R, moving.R))
     reach = refit_reach_deg(min(rotation_only.fit_sigma_deg, MAX_SEARCH_SIGMA_DEG))
     return apart - reach < 2.0 * moving.expected_error_deg
+
+
+SETTLED_DEVIATIONS = 3.0
+"""Deviations of the searched tracks' parallax by which :func:`settled_before_polish` lowers
+their bias at its most favourable reading. On the pano_dev and ``tiny-baseline`` pairs whose
+windows the rotation choice searched, the polish moved the bias of a searched fit whose lens
+lay inside its box by -2.3 to +3.6 of those deviations (see that function)."""
+
+
+def settled_before_polish(
+    moving: RotationEstimate, searched: PhotometricRotation, focal_free: bool = False
+) -> bool:
+    """Whether the moving model keeps the choice whatever the polish of the searched tracks
+    does: the rotation-only estimate loses even at its most favourable reading.
+
+    That reading is the bias :func:`rotation_only_estimate` would read on the tracks
+    (:func:`translation_bias` of ``searched.parallax``; where ``focal_free``, the decision's lens
+    clipped, the smaller of that and the reading with the focal length freed,
+    :func:`focal_free_parallax`, to which the focal-length charge only adds) less
+    :data:`SETTLED_DEVIATIONS` of its deviations, at least 0, plus the fit's deviation
+    (``searched.fit.rotation_sigma_deg``): the estimate's expected error ``|bias| + deviation``
+    is at least that. When it exceeds the moving model's expected error,
+    :func:`choose_rotation` keeps the moving model's rotation, and the windows need no polish.
+
+    A searched fit whose lens was clipped to its box (no deviation) settles nothing: the
+    tracks are corrected by that lens before their plane is fitted, so its error reads as
+    parallax (see the module docstring), and the polish, which fits the lens again, moved such
+    readings by -6.8 to +16 of their deviations (pano_dev book DSC04219: 0.33 to 0.12 degree;
+    ``tiny-baseline`` seed 0 index 1 at 480 x 360: 2.0 to 3.1).
+
+    Parameters
+    ----------
+    moving : RotationEstimate
+        The moving model's estimate.
+    searched : PhotometricRotation
+        The tracks as searched, their ``parallax`` measured
+        (``settled`` of :func:`ppo_cv.photometric.refine_rotation_photometric`).
+    focal_free : bool
+        Whether the bias may be read with the focal length freed
+        (:attr:`ppo_cv.motion_model.MotionDecision.lens_clipped`).
+
+    Returns
+    -------
+    bool
+        False where the parallax or the fit's deviation is not measured or not finite.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from ppo_cv.parallax import PlaneParallax
+    >>> from ppo_cv.photometric import PhotometricRotation, WindowTracks
+    >>> from ppo_cv.rotation import LensRotationFit
+    >>> fit = LensRotationFit(np.eye(3), 1.0, 0.0, 0.01, np.empty(0), rotation_sigma_deg=0.1)
+    >>> none = np.empty((0, 2))
+    >>> sideways = np.eye(3) + np.outer([0.02, 0.0, 0.0], [0.0, 0.0, 1.0])  # 1.15 degrees
+    >>> plane = PlaneParallax(sideways, 0.02, 0.001, np.empty(0))
+    >>> searched = PhotometricRotation(fit, WindowTracks(none, none, none[:, 0] > 0, none[:, 0]),
+    ...                                np.empty(0, bool), 0.1, parallax=plane)
+    >>> essential = RotationEstimate("essential", np.eye(3), 0.0, 0.5)
+    >>> settled_before_polish(essential, searched)  # 1.15 - 3 x 0.057 + 0.1 > 0.5
+    True
+    """
+    parallax, fit_sigma = searched.parallax, float(searched.fit.rotation_sigma_deg)
+    if parallax is None:
+        return False
+    if not np.all(np.isfinite([*np.ravel(parallax.H), parallax.parallax, parallax.sigma,
+                               fit_sigma])):  # fmt: skip
+        return False
+    readings = [parallax, focal_free_parallax(parallax)[0]] if focal_free else [parallax]
+    bias = min(_parallax_bias(reading) for reading in readings)
+    least_bias = np.degrees(max(bias - SETTLED_DEVIATIONS * parallax.sigma, 0.0))
+    return bool(least_bias + fit_sigma > moving.expected_error_deg)

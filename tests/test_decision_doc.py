@@ -32,6 +32,7 @@ MODULES = {
     "options": None,
     "homography": ("MIRROR_MIN_INLIERS",),
     "valley": None,
+    "rotation_choice": ("SETTLED_DEVIATIONS",),
 }
 CONSTANT = re.compile(r"_?[A-Z][A-Z0-9_]*")
 ROW = re.compile(r"^\| `(\w+)\.(\w+)` \| (.*?) \|")

@@ -297,6 +297,38 @@ def test_bad_arguments_are_named():
             refine_rotation_photometric(image, image, K, K, np.eye(3), **{name: value})
 
 
+def test_a_settled_search_is_returned_without_its_polish(monkeypatch):
+    """``settled`` sees each window side's searched refit with its parallax; where it holds for
+    every side, the refit of least deviation is returned as searched, no window polished;
+    where it does not, the refit is the one without ``settled``."""
+    pair = warped_rotation_pair(_demo_photo(), K_DEMO, 0, angle_range=(10.0, 15.0))
+    args = (pair.image1, pair.image2, pair.K_given, pair.K_given, pair.R)
+    polished, seen = [], []
+    polish = photometric._polish
+    monkeypatch.setattr(photometric, "_polish", lambda *a: polished.append(1) or polish(*a))
+    full = refine_rotation_photometric(*args, rotation_sigma_deg=0.2)
+    assert full is not None and polished
+    polished.clear()
+    unsettled = refine_rotation_photometric(
+        *args, rotation_sigma_deg=0.2, settled=lambda refined: seen.append(refined) or False
+    )
+    assert polished and len(seen) == 1 and seen[0].parallax is not None
+    assert np.array_equal(unsettled.fit.R, full.fit.R)
+    assert np.array_equal(unsettled.parallax.H, full.parallax.H)
+    polished.clear()
+    seen.clear()
+    searched = refine_rotation_photometric(
+        *args, rotation_sigma_deg=0.2, settled=lambda refined: seen.append(refined) or True
+    )
+    assert not polished and len(seen) == len(photometric.WINDOWS)
+    least = min(seen, key=lambda refined: refined.fit.rotation_sigma_deg)
+    assert searched is least and searched.parallax is not None
+    assert not np.array_equal(searched.fit.R, full.fit.R)
+    assert rotation_error_deg(searched.fit.R, pair.R) < 0.1
+    with pytest.raises(TypeError, match="settled must be a callable"):
+        refine_rotation_photometric(*args, settled=True)
+
+
 def _good_features_corners(gray, count, window, transfer):
     """The corners of a window side as ``cv2.goodFeaturesToTrack`` selects them."""
     found = cv2.goodFeaturesToTrack(gray, 4 * count, 0.003, max(window // 4, 3))

@@ -16,6 +16,7 @@ from ppo_cv.rotation_choice import (
     given_focal_fit,
     released_lens_shift_deg,
     rotation_fit_sigma_deg,
+    settled_before_polish,
     translation_bias,
 )
 
@@ -488,3 +489,120 @@ def test_a_clipped_lens_measures_the_feature_matches_parallax_once(monkeypatch):
     result = estimate_pair(image1, image2, K, options=PairOptions(photometric=False))
     assert result.model == "general" and result.rotation_source == "essential"
     assert clipped == [True] and len(measured) == 1
+
+
+def _searched(H, sigma: float, fit_sigma_deg: float, parallax: float | None = None):
+    """Searched tracks whose plane has the homography ``H`` with deviation ``sigma`` (radians)
+    and whose fit has the deviation ``fit_sigma_deg``."""
+    from ppo_cv.photometric import PhotometricRotation, WindowTracks
+    from ppo_cv.rotation import LensRotationFit
+
+    fit = LensRotationFit(np.eye(3), 1.0, 0.0, float("inf"), np.empty(0),
+                          rotation_sigma_deg=fit_sigma_deg)  # fmt: skip
+    tracks = WindowTracks(np.empty((0, 2)), np.empty((0, 2)), np.empty(0, bool), np.empty(0))
+    read = homography_parallax(H) if parallax is None else parallax
+    plane = PlaneParallax(np.asarray(H, float), read, sigma, np.empty(0))
+    return PhotometricRotation(fit, tracks, np.empty(0, bool), 0.1, parallax=plane)
+
+
+_SIDEWAYS = np.eye(3) + np.outer([0.02, 0.0, 0.0], [0.0, 0.0, 1.0])  # 1.146 degrees of bias
+_FOCAL_OFF = np.diag([0.8, 0.8, 1.0]) @ _turn(8.0) @ np.diag([1.25, 1.25, 1.0])
+
+
+@pytest.mark.parametrize(
+    ("H", "sigma", "fit_sigma_deg", "focal_free", "moving", "settled"),
+    [
+        (_SIDEWAYS, 0.001, 0.1, False, (0.0, 0.5), True),  # 1.146 - 0.172 + 0.1 > 0.5
+        (_SIDEWAYS, 0.004, 0.1, False, (0.0, 0.5), True),  # 1.146 - 0.688 + 0.1 = 0.558
+        (_SIDEWAYS, 0.004, 0.02, False, (0.0, 0.5), False),  # 0.478: the fit's deviation counts
+        (_SIDEWAYS, 0.001, float("inf"), False, (0.0, 0.5), False),  # a lens clipped to its box
+        (_SIDEWAYS, 0.008, 0.1, False, (0.0, 0.5), False),  # the bias may read 0
+        (_SIDEWAYS, 0.001, 0.1, False, (0.5, 0.6), False),  # 1.07 < 1.1 of a biased moving model
+        (_SIDEWAYS, 0.001, 0.1, False, (0.0, float("inf")), False),  # moving model unknown
+        (_FOCAL_OFF, 0.001, 0.1, False, (0.0, 0.5), True),  # 3.6 degrees read as parallax
+        (_FOCAL_OFF, 0.001, 0.1, True, (0.0, 0.5), False),  # a focal length given off: none
+    ],
+)
+def test_the_choice_is_settled_before_the_polish_where_the_tracks_cannot_win(
+    H, sigma, fit_sigma_deg, focal_free, moving, settled
+):
+    """The rotation-only estimate at its most favourable reading (the bias less
+    SETTLED_DEVIATIONS of its deviations, at least 0, plus the fit's deviation; with the focal
+    length freed where the decision's lens was clipped) against the moving model's expected
+    error; a fit whose lens was clipped (no deviation) settles nothing."""
+    essential = RotationEstimate("essential", np.eye(3), *moving)
+    searched = _searched(H, sigma, fit_sigma_deg)
+    assert settled_before_polish(essential, searched, focal_free=focal_free) is settled
+
+
+def test_tracks_without_a_measured_plane_never_settle_the_choice():
+    from dataclasses import replace
+
+    essential = RotationEstimate("essential", np.eye(3), 0.0, 0.01)
+    searched = _searched(_SIDEWAYS, 0.001, 0.1)
+    assert settled_before_polish(essential, searched)
+    assert not settled_before_polish(essential, replace(searched, parallax=None))
+    for unread in (_searched(_SIDEWAYS, 0.001, 0.1, parallax=np.nan),
+                   _searched(_SIDEWAYS, float("inf"), 0.1),
+                   _searched(np.full((3, 3), np.nan), 0.001, 0.1, parallax=0.02)):  # fmt: skip
+        assert not settled_before_polish(essential, unread, focal_free=True)
+
+
+def _decision_run(pair_or_images, monkeypatch, stop: bool = True):
+    """The result of a pair and the polishes run by the rotation choice's alignment (that of
+    ``keep_clipped``), ``settled_before_polish`` as it is or (``stop`` False) never holding;
+    with what it answered."""
+    import ppo_cv.photometric as photometric
+    import ppo_cv.pipeline as pipeline
+    from ppo_cv import estimate_pair
+
+    polished, answers, choosing = [], [], [False]
+    polish, settled, align = photometric._polish, settled_before_polish, pipeline._align_tracks
+
+    def aligning(*args, keep_clipped=False, **keywords):
+        choosing[0] = keep_clipped
+        return align(*args, keep_clipped=keep_clipped, **keywords)
+
+    monkeypatch.setattr(pipeline, "_align_tracks", aligning)
+    monkeypatch.setattr(
+        photometric, "_polish", lambda *a: polished.append(choosing[0]) or polish(*a)
+    )
+
+    def answering(*args, **keywords):
+        answers.append(stop and settled(*args, **keywords))
+        return answers[-1]
+
+    monkeypatch.setattr(pipeline, "settled_before_polish", answering)
+    return estimate_pair(*pair_or_images), sum(polished), answers
+
+
+def test_a_translating_pair_whose_tracks_cannot_win_skips_their_polish(monkeypatch):
+    """tiny-baseline seed 0 index 4 (480 x 360): the rotation-only fit could win until its
+    windows are searched; their plane then reads a bias that loses to the essential matrix
+    whatever the polish does. The polish is not run and the answer is the one with it."""
+    from ppo_cv.data_gen import make_pair
+
+    pair = make_pair("tiny-baseline", seed=0, index=4, size=(480, 360))
+    inputs = (pair.image1, pair.image2, pair.K1_given, pair.K2_given)
+    result, polishes, answers = _decision_run(inputs, monkeypatch)
+    assert polishes == 0 and answers and all(answers)
+    full, polishes, answers = _decision_run(inputs, monkeypatch, stop=False)
+    assert polishes >= 1 and answers == [False]
+    assert result.model == full.model == "general"
+    assert result.rotation_source == full.rotation_source == "essential"
+    assert np.array_equal(result.R, full.R) and np.array_equal(result.t, full.t)
+    assert result.uncertainty == full.uncertainty
+    assert rotation_error_deg(result.R, pair.R) < 0.1
+
+
+def test_a_tripod_pair_whose_tracks_may_win_is_polished(pano_dev, monkeypatch):
+    """bookshelf DSC04166 -> DSC04167, called general: the searched tracks' bias, less three
+    of its deviations, leaves the rotation-only fit a chance, so the windows are polished, and
+    the rotation-only fit wins."""
+    names = ("bookshelf_DSC04166.JPG", "bookshelf_DSC04167.JPG")
+    K1, K2, R_ref = _pairs_file_line(pano_dev, names)
+    images = [str(pano_dev / "images" / name) for name in names]
+    result, polishes, answers = _decision_run((*images, K1, K2), monkeypatch)
+    assert polishes >= 1 and answers == [False]
+    assert not result.pure_rotation and result.rotation_source == "rotation"
+    assert rotation_error_deg(result.R, R_ref) < 1.0
