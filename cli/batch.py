@@ -381,12 +381,21 @@ def auc_table(results: list[dict]) -> str:
     )
 
 
-def _require_one_size(rows: list[dict], image_dir: Path, pairs_file: Path) -> None:
-    """ValueError naming the first line whose images, of two sizes by their headers, would
-    share the one camera matrix of ``--K`` (as :func:`ppo_cv.pipeline.estimate_pair` refuses
-    it); images whose size cannot be read are left to their pair's error."""
-    from .common import image_size
+def _require_one_size(
+    rows: list[dict], image_dir: Path, pairs_file: Path, calib, exif_orientation: bool
+) -> None:
+    """ValueError naming the first line whose images, of two sizes as they are read (by their
+    headers, turned where the EXIF orientation turns them and ``exif_orientation``), would
+    share one camera matrix (``--K``, or a calibration ``calib`` that states no image size:
+    one that states it is scaled to each image; as :func:`ppo_cv.pipeline.estimate_pair`
+    refuses it); images whose size cannot be read are left to their pair's error."""
+    from ppo_cv.calib import load_calibration
 
+    from .common import read_size
+
+    if calib is not None and any(c.image_size is not None for c in load_calibration(calib)):
+        return
+    given = "--K" if calib is None else f"--calib {calib}"
     for row in rows:
         if not row["shared_K"]:
             continue
@@ -394,12 +403,13 @@ def _require_one_size(rows: list[dict], image_dir: Path, pairs_file: Path) -> No
         paths = [image_dir / name for name in names]
         if not all(path.is_file() for path in paths):
             continue
-        sizes = [image_size(path) for path in paths]
+        sizes = [read_size(path, exif_orientation) for path in paths]
         if None not in sizes and sizes[0] != sizes[1]:
             (w1, h1), (w2, h2) = sizes
             raise ValueError(
                 f"{pairs_file}:{row['line']}: {names[0]} is {w1}x{h1} and {names[1]} {w2}x{h2} "
-                "pixels: one camera matrix (--K) cannot fit both sizes; give K1 and K2 on the line"
+                f"pixels: one camera matrix ({given}) cannot fit both sizes; give K1 and K2 on "
+                "the line"
             )
 
 
@@ -839,7 +849,7 @@ def run_pairs(
     if not Path(image_dir).is_dir():
         raise ValueError(f"image folder {image_dir} is not a folder")
     _require_some_image(rows, Path(image_dir), Path(pairs_file))
-    _require_one_size(rows, Path(image_dir), Path(pairs_file))
+    _require_one_size(rows, Path(image_dir), Path(pairs_file), calib, exif_orientation)
     if output is not None:
         images = {Path(image_dir) / r[k] for r in rows for k in ("image1", "image2")}
         check_apart(output, sorted(images), "-o ")

@@ -561,6 +561,17 @@ def image_size(path: str | os.PathLike) -> tuple[int, int] | None:
         return None
 
 
+def read_size(path: str | os.PathLike, exif_orientation: bool = True) -> tuple[int, int] | None:
+    """``(width, height)`` of the image as the commands read it: by its header, turned where
+    its EXIF orientation turns it a quarter and ``exif_orientation``; None when unknown."""
+    from ppo_cv.images import exif_layout
+
+    size = image_size(path)
+    if size is not None and exif_orientation and exif_layout(path).turned:
+        return size[1], size[0]
+    return size
+
+
 class ProgressReport:
     """Progress of ``total`` steps on stderr: a rich bar on a terminal, plain lines otherwise.
 

@@ -105,6 +105,47 @@ def test_pairs_takes_a_calibration_file_and_a_second_camera(tmp_path):
     assert done.returncode == 2 and "--K2 needs --K" in done.stderr
 
 
+def test_pairs_takes_one_camera_for_a_photo_stored_turned_as_pair_does(tmp_path):
+    """A photo stored sideways with an EXIF orientation is read upright, the size of its
+    partner: ``pairs --K`` runs it, as ``pair --K`` does, rather than refuse two sizes."""
+    photo(DEMO1, tmp_path / "a.jpg")
+    photo(DEMO2, tmp_path / "b.jpg", orientation=6)
+    (tmp_path / "pairs.txt").write_text("a.jpg b.jpg\n")
+    done = ppo_cv("pairs", tmp_path / "pairs.txt", tmp_path, "--K", K_TEXT, "--workers", "1",
+                  "-q")  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    (row,) = [json.loads(line) for line in done.stdout.splitlines()]
+    check_demo_pose(row)
+    stored = ppo_cv("pairs", tmp_path / "pairs.txt", tmp_path, "--K", K_TEXT,
+                    "--no-exif-orientation")  # fmt: skip
+    assert stored.returncode == 2
+    assert "b.jpg 480x640 pixels: one camera matrix (--K) cannot fit" in stored.stderr
+
+
+def test_pairs_scales_a_calibration_that_states_its_size_as_pair_does(tmp_path):
+    """A calibration stating its image size is scaled to each image of its aspect ratio (a
+    half-size copy here) in ``pairs`` as in ``pair``; one that states none is refused for two
+    sizes, the message naming the file rather than ``--K``."""
+    cv2.imwrite(str(tmp_path / "a.png"), cv2.imread(str(DEMO1)))
+    half = cv2.resize(cv2.imread(str(DEMO2)), (320, 240), interpolation=cv2.INTER_AREA)
+    cv2.imwrite(str(tmp_path / "b.png"), half)
+    (tmp_path / "pairs.txt").write_text("a.png b.png\n")
+    sized = tmp_path / "cameras.txt"
+    sized.write_text("1 PINHOLE 640 480 " + K_TEXT.replace(",", " ") + "\n")
+    done = ppo_cv("pairs", tmp_path / "pairs.txt", tmp_path, "--calib", sized, "-q")
+    assert done.returncode == 0, done.stderr
+    (row,) = [json.loads(line) for line in done.stdout.splitlines()]
+    single = ppo_cv("pair", tmp_path / "a.png", tmp_path / "b.png", "--calib", sized, "--json")
+    assert single.returncode == 0, single.stderr
+    np.testing.assert_allclose(row["cameras"]["K2"], json.loads(single.stdout)["cameras"]["K2"])
+    np.testing.assert_allclose(np.array(row["cameras"]["K2"])[0, 0], FX / 2)
+    unsized = tmp_path / "camera.json"
+    unsized.write_text(json.dumps({"K": DEMO["intrinsics"]}))
+    refused = ppo_cv("pairs", tmp_path / "pairs.txt", tmp_path, "--calib", unsized)
+    assert refused.returncode == 2
+    assert f"one camera matrix (--calib {unsized}) cannot fit both sizes" in refused.stderr
+
+
 def test_pairs_help_documents_the_file_format():
     done = ppo_cv("pairs", "--help")
     assert done.returncode == 0
