@@ -185,7 +185,11 @@ K2Option = Annotated[
 ]
 CalibOption = Annotated[
     Path | None,
-    typer.Option("--calib", help="OpenCV YAML/XML, COLMAP cameras.txt or JSON calibration file."),
+    typer.Option(
+        "--calib",
+        help="Calibration file: OpenCV YAML/XML, COLMAP cameras.txt, JSON, or a text of the 9 "
+        "numbers of K (as numpy.savetxt writes it).",
+    ),
 ]
 ExifOrientation = Annotated[
     bool,
