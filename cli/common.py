@@ -576,6 +576,26 @@ def read_size(path: str | os.PathLike, exif_orientation: bool = True) -> tuple[i
     return size
 
 
+def upright_model_warning(paths, exif_orientation: bool, model: str) -> list[str]:
+    """The warning that the COLMAP ``model`` describes images shown turned or flipped by their
+    EXIF orientation (``exif_orientation``), whose pixels COLMAP reads as stored; none when no
+    image of ``paths`` has such an orientation."""
+    from ppo_cv.images import exif_layout
+
+    if not exif_orientation:
+        return []
+    names = [Path(p).name for p in paths if exif_layout(p).orientation not in (None, 1)]
+    if not names:
+        return []
+    listed = ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
+    its, it = ("its", "it") if len(names) == 1 else ("their", "them")
+    return [
+        f"{model} describes {listed} as {its} EXIF orientation turns {it} upright, but COLMAP "
+        "reads the pixels as stored: give COLMAP upright copies, or pass --no-exif-orientation "
+        "(with the intrinsics of the stored pixels) for a model of the files as they are"
+    ]
+
+
 class ProgressReport:
     """Progress of ``total`` steps on stderr: a rich bar on a terminal, plain lines otherwise.
 

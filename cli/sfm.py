@@ -28,6 +28,7 @@ from .common import (
     image_size,
     implausible_intrinsics,
     print_result,
+    upright_model_warning,
     warn,
 )
 
@@ -208,6 +209,9 @@ def register(app: typer.Typer) -> None:
             _fail(error_message(exc))
         except RuntimeError as exc:
             _fail(f"pycolmap failed: {exc}", code=NO_RESULT)
+        paths = [Path(image_dir) / name for name in sfm.list_images(image_dir)]
+        for message in upright_model_warning(paths, exif_orientation, f"the model {out_dir}"):
+            warn("sfm", message)
         print_result("sfm", _summary(result, out_dir, as_json))
 
 

@@ -307,16 +307,43 @@ def test_sfm_reconstructs_photos_upright_unless_told_not_to(tmp_path):
     images.mkdir()
     for source, name in ((DEMO1, "a.jpg"), (DEMO2, "b.jpg")):
         photo(source, images / name, orientation=6)
-    sizes = {}
+    sizes, warned = {}, {}
     for flag in ("--exif-orientation", "--no-exif-orientation"):
         out = tmp_path / flag.strip("-")
         done = ppo_cv("sfm", images, out, flag, "--threads", "1", "--quiet")
         assert done.returncode == 0, done.stderr
+        warned[flag] = " ".join(warnings_of(done))
         model = pycolmap.Reconstruction(out)
         assert model.num_reg_images() == 2
         sizes[flag] = {(c.width, c.height) for c in model.cameras.values()}
     assert sizes == {"--exif-orientation": {(640, 480)}, "--no-exif-orientation": {(480, 640)}}
     assert sorted(p.name for p in images.iterdir()) == ["a.jpg", "b.jpg"]
+    assert "COLMAP reads the pixels as stored" in warned["--exif-orientation"]
+    assert "--no-exif-orientation" in warned["--exif-orientation"]
+    assert "COLMAP reads" not in warned["--no-exif-orientation"]
+
+
+def test_pair_out_says_its_colmap_model_is_of_photos_turned_upright(tmp_path):
+    """The model's camera is the upright 640x480 one, while COLMAP (``pycolmap.Bitmap``) reads
+    the stored 480x640 pixels: the model, read with the photos, was silently inconsistent."""
+    import pycolmap
+
+    photo(DEMO1, tmp_path / "a.jpg", orientation=6)
+    photo(DEMO2, tmp_path / "b.jpg")
+    done = ppo_cv("pair", tmp_path / "a.jpg", tmp_path / "b.jpg", "--K", K_TEXT,
+                  "--out", tmp_path / "out", "-q")  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    model = pycolmap.Reconstruction(tmp_path / "out" / "colmap")
+    assert {(c.width, c.height) for c in model.cameras.values()} == {(640, 480)}
+    stored = pycolmap.Bitmap.read(str(tmp_path / "a.jpg"), False)
+    assert (stored.width, stored.height) == (480, 640)
+    (warning,) = warnings_of(done)
+    model_name = f"the COLMAP model {tmp_path / 'out'}/colmap"
+    assert warning.startswith(f"ppo-cv pair: warning: {model_name} describes a.jpg as its EXIF "
+                              "orientation turns it upright")  # fmt: skip
+    assert "pass --no-exif-orientation" in warning
+    without_out = ppo_cv("pair", tmp_path / "a.jpg", tmp_path / "b.jpg", "--K", K_TEXT, "-q")
+    assert without_out.returncode == 0 and warnings_of(without_out) == []
 
 
 # --- 5. a camera matrix of another image size ------------------------------------------------
