@@ -216,6 +216,8 @@ def register(app: typer.Typer) -> None:
 
 
 def _summary(result, out_dir: Path, as_json: bool) -> str:
+    from ppo_cv import sfm
+
     pair = list(result.initial_pair) if result.initial_pair else None
     error = result.mean_reprojection_error
     summary = {
@@ -231,7 +233,7 @@ def _summary(result, out_dir: Path, as_json: bool) -> str:
     }
     if as_json:
         return json.dumps(summary)
-    pair_text = " ".join(pair) if pair else "-"
+    pair_text = sfm.pair_text(*pair) if pair else "-"
     return (
         f"registered {result.num_registered}/{result.num_images} images, "
         f"{result.num_points3D} points, mean reprojection error {error:.3f} px, "

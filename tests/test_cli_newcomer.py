@@ -323,6 +323,20 @@ def test_sfm_reconstructs_photos_upright_unless_told_not_to(tmp_path):
     assert "COLMAP reads" not in warned["--no-exif-orientation"]
 
 
+def test_sfm_quotes_image_names_holding_spaces_in_its_summary(tmp_path):
+    """``initial pair a b.png c.png`` read as three names; quoted as in initial_pairs.txt."""
+    images = tmp_path / "images"
+    images.mkdir()
+    shutil.copy(DEMO1, images / "a b.png")
+    shutil.copy(DEMO2, images / "c.png")
+    done = ppo_cv("sfm", images, tmp_path / "model", "--K", K_TEXT, "--threads", "1")
+    assert done.returncode == 0, done.stderr
+    assert 'initial pair "a b.png" c.png (ppo)' in done.stdout
+    assert 'ppo-cv sfm: seeding with "a b.png" c.png (two-view)' in done.stderr.splitlines()
+    initial = (tmp_path / "model" / "initial_pairs.txt").read_text().splitlines()
+    assert initial[1].startswith('"a b.png" c.png ')
+
+
 def test_pair_out_says_its_colmap_model_is_of_photos_turned_upright(tmp_path):
     """The model's camera is the upright 640x480 one, while COLMAP (``pycolmap.Bitmap``) reads
     the stored 480x640 pixels: the model, read with the photos, was silently inconsistent."""
