@@ -799,15 +799,28 @@ _OTHER_FORMATS = {
 }  # fmt: skip
 """Suffixes of ``pairs -o`` that name a format other than the JSON lines it writes."""
 
+_COMPRESSED = {
+    ".gz": "gzip", ".bz2": "bzip2", ".xz": "xz", ".lzma": "lzma", ".zst": "zstd",
+    ".zip": "zip", ".7z": "7-Zip", ".tgz": "gzip",
+}  # fmt: skip
+"""Suffixes of ``pairs -o`` that promise compressed data: readers (pandas, ``gzip.open``)
+decompress by the name, and the plain text written fails them."""
+
 
 def _require_json_lines_name(output: Path) -> None:
     """ValueError for a ``pairs -o`` name whose suffix promises another format than the JSON
-    lines written (``poses.csv`` would hold one JSON object per line)."""
-    other = _OTHER_FORMATS.get(output.suffix.lower())
+    lines written (``poses.csv`` would hold one JSON object per line, ``poses.jsonl.gz``
+    plain text); the message names the ``.jsonl`` name to give."""
+    suffix, base = output.suffix.lower(), output
+    other = _OTHER_FORMATS.get(suffix)
+    if suffix in _COMPRESSED:
+        other = f"{_COMPRESSED[suffix]}-compressed data (compress the file after the run)"
+        base = output.with_suffix("")
     if other is not None:
+        name = base if base.suffix.lower() == ".jsonl" else base.with_suffix(".jsonl")
         raise ValueError(
             f"-o {output}: pairs writes JSON lines (one JSON object per pair and line), not "
-            f"{other}; name the file {output.with_suffix('.jsonl').name}"
+            f"{other}; name the file {name.name}"
         )
 
 
