@@ -360,10 +360,7 @@ def _opencv_matrices(path: str) -> tuple:
                         if not node.isSeq():
                             raise ValueError(f"{key} in {path} has no dt and no list of data")
                     if node.isSeq():
-                        items = [node.at(i) for i in range(node.size())]
-                        if not all(item.isReal() or item.isInt() for item in items):
-                            raise ValueError(f"{key} in {path} must be a list of numbers")
-                        return np.array([item.real() for item in items], dtype=np.float64)
+                        return _sequence_values(node, f"{key} in {path}")
                     value = node.mat()
                     if value is not None:
                         return np.asarray(value, dtype=np.float64)
@@ -384,6 +381,17 @@ def _opencv_matrices(path: str) -> tuple:
     finally:
         storage.release()
     return K1, D1, K2, D2, size
+
+
+def _sequence_values(node, where: str) -> np.ndarray:
+    """The numbers of a YAML list, flat or of rows (``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]``,
+    as a JSON camera may give them)."""
+    items = [node.at(i) for i in range(node.size())]
+    if items and all(item.isSeq() for item in items):
+        items = [row.at(j) for row in items for j in range(row.size())]
+    if not all(item.isReal() or item.isInt() for item in items):
+        raise ValueError(f"{where} must be a list of numbers, flat or of rows")
+    return np.array([item.real() for item in items], dtype=np.float64)
 
 
 def _require_both(keys: tuple[str, str], missing: tuple[bool, bool], where: str) -> None:

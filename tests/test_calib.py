@@ -216,6 +216,29 @@ def test_colmap_errors(tmp_path, text, message):
 
 
 @pytest.mark.parametrize(
+    "text",
+    [
+        "camera_matrix: [[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, 1]]\n",
+        "camera_matrix:\n  - [535.4, 0, 320.1]\n  - [0, 539.2, 247.6]\n  - [0, 0, 1]\n",
+        "camera_matrix: [535.4, 0, 320.1, 0, 539.2, 247.6, 0, 0, 1]\n",
+    ],
+)
+def test_a_yaml_camera_matrix_may_be_given_as_rows(tmp_path, text):
+    """A 3x3 list of rows was refused as "must be a list of numbers"; JSON takes it."""
+    path = tmp_path / "camera.yaml"
+    path.write_text(text)
+    (camera,) = load_calibration(path)
+    np.testing.assert_allclose(camera.K, K_FREIBURG)
+
+
+def test_a_yaml_row_holding_text_is_named(tmp_path):
+    path = tmp_path / "camera.yaml"
+    path.write_text('camera_matrix: [[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, "a"]]\n')
+    with pytest.raises(ValueError, match="camera_matrix in .* must be a list of numbers, flat or"):
+        load_calibration(path)
+
+
+@pytest.mark.parametrize(
     "write, K",
     [
         (lambda path: np.savetxt(path, K_FREIBURG), K_FREIBURG),
