@@ -262,6 +262,11 @@ def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
     focal length near zero or a principal point beyond ``MAX_COORDINATE`` overflows: all are
     errors naming ``name``.
     """
+    if value is None:
+        raise TypeError(
+            f"{name} is required, got None (no calibration? ppo_cv.camera_from_exif(image)[0].K "
+            "is the camera of the image's EXIF focal length, as ppo-cv guesses it)"
+        )
     K = _as_real_array(value, name, _PARSE_INTRINSICS)
     if K.shape != (3, 3):
         raise ValueError(f"{name} must be a 3x3 matrix, got shape {K.shape}"
