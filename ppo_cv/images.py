@@ -153,7 +153,7 @@ def image_size(path: str | os.PathLike) -> tuple[int, int] | None:
     Image.MAX_IMAGE_PIXELS = None  # only the header is read: the real size, however large
     try:
         with _pillow_warnings_held(), Image.open(path) as image:
-            return tuple(int(v) for v in image.size)
+            return _stored_tiff_size(image) or tuple(int(v) for v in image.size)
     except Exception:  # not a format Pillow knows: OpenCV may still read it
         return None
     finally:
@@ -243,6 +243,16 @@ class ExifLayout:
 _ORIENTATION_TAG, _EXIF_IFD, _PIXEL_X_TAG, _PIXEL_Y_TAG = 0x0112, 0x8769, 0xA002, 0xA003
 _FOCAL_35MM_TAG = 0xA405
 _PLANE_X_TAG, _PLANE_UNIT_TAG, _PLANE_UNITS = 0xA20E, 0xA210, (2, 3, 4, 5)
+
+
+def _stored_tiff_size(image: Any) -> tuple[int, int] | None:
+    """A TIFF's stored ``(width, height)`` by its tags, None for another format: Pillow reports
+    a TIFF's size turned as its orientation turns it, other formats' as stored."""
+    tags = getattr(image, "tag_v2", None)
+    width, height = (tags.get(tag) for tag in (256, 257)) if tags is not None else (None, None)
+    if isinstance(width, int) and isinstance(height, int):
+        return width, height
+    return None
 
 
 def exif_layout(path: str | os.PathLike) -> ExifLayout:

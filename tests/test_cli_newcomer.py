@@ -122,6 +122,28 @@ def test_pairs_takes_one_camera_for_a_photo_stored_turned_as_pair_does(tmp_path)
     assert "b.jpg 480x640 pixels: one camera matrix (--K) cannot fit" in stored.stderr
 
 
+@pytest.mark.parametrize("suffix", [".jpg", ".png", ".tif"])
+def test_the_header_size_is_the_stored_one_whatever_the_format(tmp_path, suffix):
+    """Pillow reports a TIFF's size turned by its orientation tag, other formats' as stored:
+    turned once more as EXIF says, the TIFF's size came out sideways and ``pairs --K`` refused
+    a TIFF stored turned beside a PNG of the same view."""
+    from PIL import Image
+
+    from ppo_cv.images import image_size
+
+    tags = Image.Exif()
+    tags[0x0112] = 6
+    turned = Image.open(DEMO1).convert("RGB").transpose(Image.Transpose.ROTATE_90)
+    turned.save(tmp_path / f"a{suffix}", exif=tags.tobytes())
+    assert image_size(tmp_path / f"a{suffix}") == (480, 640)
+    shutil.copy(DEMO2, tmp_path / "b.png")
+    (tmp_path / "pairs.txt").write_text(f"a{suffix} b.png\n")
+    done = ppo_cv("pairs", tmp_path / "pairs.txt", tmp_path, "--K", K_TEXT, "-q")
+    assert done.returncode == 0, done.stderr
+    (row,) = [json.loads(line) for line in done.stdout.splitlines()]
+    check_demo_pose(row)
+
+
 def test_pairs_scales_a_calibration_that_states_its_size_as_pair_does(tmp_path):
     """A calibration stating its image size is scaled to each image of its aspect ratio (a
     half-size copy here) in ``pairs`` as in ``pair``; one that states none is refused for two
