@@ -204,12 +204,10 @@ def _require_some_image(rows: list[dict], image_dir: Path, pairs_file: Path) -> 
     wrong folder, not pairs that each fail."""
     names = dict.fromkeys(row[key] for row in rows for key in ("image1", "image2"))
     if not any((image_dir / name).exists() for name in names):
-        from ppo_cv.images import case_alike
+        from ppo_cv.images import alike_remedy
 
         first = next(iter(names))
-        alike = case_alike(image_dir / first)
-        remedy = (f"{alike} exists: names are case-sensitive" if alike
-                  else "names are relative to the image folder")  # fmt: skip
+        remedy = alike_remedy(image_dir / first) or "names are relative to the image folder"
         raise ValueError(
             f"image folder {image_dir} holds none of the {len(names)} images {pairs_file} names "
             f"(the first: {first}); {remedy}"

@@ -520,6 +520,25 @@ def test_the_readme_explains_every_line_of_the_demo_summary():
         assert re.search(rf"^\|[^|]*`{re.escape(label)}`", table, re.M), label
 
 
+def test_a_name_whose_accents_are_encoded_otherwise_says_so(tmp_path):
+    """A file named on macOS (``e`` and a combining accent) and a pairs line typed elsewhere
+    (``é``) print alike: "image not found: café.png" beside a listed café.png said nothing."""
+    import unicodedata
+
+    stored, typed = (unicodedata.normalize(form, "café.png") for form in ("NFD", "NFC"))
+    shutil.copy(DEMO1, tmp_path / stored)
+    shutil.copy(DEMO2, tmp_path / "b.png")
+    remedy = ("('cafe\\u0301.png' exists: the same name with its accents encoded otherwise "
+              "than 'caf\\xe9.png' (Unicode NFD, as macOS writes names, or NFC)")  # fmt: skip
+    done = ppo_cv("pair", tmp_path / typed, tmp_path / "b.png", "--K", K_TEXT)
+    assert done.returncode == 2
+    assert done.stderr.startswith(f"ppo-cv pair: image not found: {tmp_path / typed} {remedy}")
+    (tmp_path / "pairs.txt").write_text(f"{typed} b.png\n", encoding="utf-8")
+    done = ppo_cv("pairs", tmp_path / "pairs.txt", tmp_path, "--K", K_TEXT, "-q")
+    assert done.returncode == 1
+    assert remedy in json.loads(done.stdout)["error"]
+
+
 def test_pairs_whose_names_differ_from_the_files_in_case_say_so(tmp_path):
     """A list naming ``.jpg`` what the camera wrote ``.JPG``: no image of it is found."""
     (tmp_path / "images").mkdir()
