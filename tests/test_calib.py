@@ -272,6 +272,12 @@ def test_a_text_file_of_numbers_that_are_no_camera_matrix_says_so(tmp_path, text
         load_calibration(path)
 
 
+@pytest.mark.parametrize("text", ["-0.1", "-0.1,0.01", "-0.1,0.01,0"])
+def test_a_radial_term_alone_is_told_how_to_give_the_four_coefficients(text):
+    with pytest.raises(ValueError, match=r"got \d \(k1 alone, or k1,k2: give k1,0,0,0 or k1,k2,"):
+        parse_distortion(text, "--dist")
+
+
 @pytest.mark.parametrize("text", ["535", "535,539", "535,320,240"])
 def test_a_focal_length_alone_is_told_how_to_give_the_principal_point(text):
     with pytest.raises(ValueError, match=r"got \d \(a focal length alone, or f,cx,cy: give "
