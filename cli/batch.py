@@ -81,7 +81,8 @@ PAIRS_FILE_FORMAT = (
     "One pair a line: 'name1 name2', optionally followed by '0 0', the 9 numbers of K1 and "
     "the 9 of K2 (row-major), optionally followed by the 16 numbers of the ground-truth "
     "motion T_1to2 (row-major 4x4, X2 = R X1 + t). The '0 0' are the EXIF orientations of "
-    "the two images in the format of the SuperGlue / LoFTR pair lists, read and ignored. "
+    "the two images in the format of the SuperGlue / LoFTR pair lists: they must be 0 (turn "
+    "a rotated image upright rather than say so). "
     "Names are relative to IMAGE_DIR; a name with spaces goes in double quotes; '#' starts a "
     "comment, on its own line or after the fields."
 )
