@@ -81,7 +81,8 @@ PAIRS_FILE_FORMAT = (
     "One pair a line: 'name1 name2', optionally followed by '0 0', the 9 numbers of K1 and "
     "the 9 of K2 (row-major), optionally followed by the 16 numbers of the ground-truth "
     "motion T_1to2 (row-major 4x4, X2 = R X1 + t). The '0 0' are the EXIF orientations of "
-    "the two images in the format of the SuperGlue / LoFTR pair lists, read and ignored. "
+    "the two images in the format of the SuperGlue / LoFTR pair lists: they must be 0 (turn "
+    "a rotated image upright rather than say so). "
     "Names are relative to IMAGE_DIR; a name with spaces goes in double quotes; '#' starts a "
     "comment, on its own line or after the fields."
 )
@@ -204,12 +205,10 @@ def _require_some_image(rows: list[dict], image_dir: Path, pairs_file: Path) -> 
     wrong folder, not pairs that each fail."""
     names = dict.fromkeys(row[key] for row in rows for key in ("image1", "image2"))
     if not any((image_dir / name).exists() for name in names):
-        from ppo_cv.images import case_alike
+        from ppo_cv.images import alike_remedy
 
         first = next(iter(names))
-        alike = case_alike(image_dir / first)
-        remedy = (f"{alike} exists: names are case-sensitive" if alike
-                  else "names are relative to the image folder")  # fmt: skip
+        remedy = alike_remedy(image_dir / first) or "names are relative to the image folder"
         raise ValueError(
             f"image folder {image_dir} holds none of the {len(names)} images {pairs_file} names "
             f"(the first: {first}); {remedy}"
@@ -381,12 +380,21 @@ def auc_table(results: list[dict]) -> str:
     )
 
 
-def _require_one_size(rows: list[dict], image_dir: Path, pairs_file: Path) -> None:
-    """ValueError naming the first line whose images, of two sizes by their headers, would
-    share the one camera matrix of ``--K`` (as :func:`ppo_cv.pipeline.estimate_pair` refuses
-    it); images whose size cannot be read are left to their pair's error."""
-    from .common import image_size
+def _require_one_size(
+    rows: list[dict], image_dir: Path, pairs_file: Path, calib, exif_orientation: bool
+) -> None:
+    """ValueError naming the first line whose images, of two sizes as they are read (by their
+    headers, turned where the EXIF orientation turns them and ``exif_orientation``), would
+    share one camera matrix (``--K``, or a calibration ``calib`` that states no image size:
+    one that states it is scaled to each image; as :func:`ppo_cv.pipeline.estimate_pair`
+    refuses it); images whose size cannot be read are left to their pair's error."""
+    from ppo_cv.calib import load_calibration
 
+    from .common import read_size
+
+    if calib is not None and any(c.image_size is not None for c in load_calibration(calib)):
+        return
+    given = "--K" if calib is None else f"--calib {calib}"
     for row in rows:
         if not row["shared_K"]:
             continue
@@ -394,12 +402,13 @@ def _require_one_size(rows: list[dict], image_dir: Path, pairs_file: Path) -> No
         paths = [image_dir / name for name in names]
         if not all(path.is_file() for path in paths):
             continue
-        sizes = [image_size(path) for path in paths]
+        sizes = [read_size(path, exif_orientation) for path in paths]
         if None not in sizes and sizes[0] != sizes[1]:
             (w1, h1), (w2, h2) = sizes
             raise ValueError(
                 f"{pairs_file}:{row['line']}: {names[0]} is {w1}x{h1} and {names[1]} {w2}x{h2} "
-                "pixels: one camera matrix (--K) cannot fit both sizes; give K1 and K2 on the line"
+                f"pixels: one camera matrix ({given}) cannot fit both sizes; give K1 and K2 on "
+                "the line"
             )
 
 
@@ -789,15 +798,28 @@ _OTHER_FORMATS = {
 }  # fmt: skip
 """Suffixes of ``pairs -o`` that name a format other than the JSON lines it writes."""
 
+_COMPRESSED = {
+    ".gz": "gzip", ".bz2": "bzip2", ".xz": "xz", ".lzma": "lzma", ".zst": "zstd",
+    ".zip": "zip", ".7z": "7-Zip", ".tgz": "gzip",
+}  # fmt: skip
+"""Suffixes of ``pairs -o`` that promise compressed data: readers (pandas, ``gzip.open``)
+decompress by the name, and the plain text written fails them."""
+
 
 def _require_json_lines_name(output: Path) -> None:
     """ValueError for a ``pairs -o`` name whose suffix promises another format than the JSON
-    lines written (``poses.csv`` would hold one JSON object per line)."""
-    other = _OTHER_FORMATS.get(output.suffix.lower())
+    lines written (``poses.csv`` would hold one JSON object per line, ``poses.jsonl.gz``
+    plain text); the message names the ``.jsonl`` name to give."""
+    suffix, base = output.suffix.lower(), output
+    other = _OTHER_FORMATS.get(suffix)
+    if suffix in _COMPRESSED:
+        other = f"{_COMPRESSED[suffix]}-compressed data (compress the file after the run)"
+        base = output.with_suffix("")
     if other is not None:
+        name = base if base.suffix.lower() == ".jsonl" else base.with_suffix(".jsonl")
         raise ValueError(
             f"-o {output}: pairs writes JSON lines (one JSON object per pair and line), not "
-            f"{other}; name the file {output.with_suffix('.jsonl').name}"
+            f"{other}; name the file {name.name}"
         )
 
 
@@ -839,7 +861,7 @@ def run_pairs(
     if not Path(image_dir).is_dir():
         raise ValueError(f"image folder {image_dir} is not a folder")
     _require_some_image(rows, Path(image_dir), Path(pairs_file))
-    _require_one_size(rows, Path(image_dir), Path(pairs_file))
+    _require_one_size(rows, Path(image_dir), Path(pairs_file), calib, exif_orientation)
     if output is not None:
         images = {Path(image_dir) / r[k] for r in rows for k in ("image1", "image2")}
         check_apart(output, sorted(images), "-o ")

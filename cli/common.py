@@ -185,7 +185,11 @@ K2Option = Annotated[
 ]
 CalibOption = Annotated[
     Path | None,
-    typer.Option("--calib", help="OpenCV YAML/XML, COLMAP cameras.txt or JSON calibration file."),
+    typer.Option(
+        "--calib",
+        help="Calibration file: OpenCV YAML/XML, COLMAP cameras.txt, JSON, or a text of the 9 "
+        "numbers of K (as numpy.savetxt writes it).",
+    ),
 ]
 ExifOrientation = Annotated[
     bool,
@@ -559,6 +563,37 @@ def image_size(path: str | os.PathLike) -> tuple[int, int] | None:
         return header_size(path)
     except OSError:
         return None
+
+
+def read_size(path: str | os.PathLike, exif_orientation: bool = True) -> tuple[int, int] | None:
+    """``(width, height)`` of the image as the commands read it: by its header, turned where
+    its EXIF orientation turns it a quarter and ``exif_orientation``; None when unknown."""
+    from ppo_cv.images import exif_layout
+
+    size = image_size(path)
+    if size is not None and exif_orientation and exif_layout(path).turned:
+        return size[1], size[0]
+    return size
+
+
+def upright_model_warning(paths, exif_orientation: bool, model: str) -> list[str]:
+    """The warning that the COLMAP ``model`` describes images shown turned or flipped by their
+    EXIF orientation (``exif_orientation``), whose pixels COLMAP reads as stored; none when no
+    image of ``paths`` has such an orientation."""
+    from ppo_cv.images import exif_layout
+
+    if not exif_orientation:
+        return []
+    names = [Path(p).name for p in paths if exif_layout(p).orientation not in (None, 1)]
+    if not names:
+        return []
+    listed = ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
+    its, it = ("its", "it") if len(names) == 1 else ("their", "them")
+    return [
+        f"{model} describes {listed} as {its} EXIF orientation turns {it} upright, but COLMAP "
+        "reads the pixels as stored: give COLMAP upright copies, or pass --no-exif-orientation "
+        "(with the intrinsics of the stored pixels) for a model of the files as they are"
+    ]
 
 
 class ProgressReport:

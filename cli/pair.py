@@ -43,6 +43,7 @@ from .common import (
     one_line,
     pipeline_options,
     print_result,
+    upright_model_warning,
     warn,
 )
 
@@ -475,6 +476,9 @@ def _run_pair(
         d1, d2 = cameras.dist1, cameras.dist2
         if out is not None:
             _check_colmap_cameras(cameras)
+            warnings += upright_model_warning(
+                (image1, image2), exif_orientation, f"the COLMAP model {out}/colmap"
+            )
         with StageReport(command, quiet) as report:
             try:
                 result = estimate_pair(

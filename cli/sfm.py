@@ -28,6 +28,7 @@ from .common import (
     image_size,
     implausible_intrinsics,
     print_result,
+    upright_model_warning,
     warn,
 )
 
@@ -208,10 +209,15 @@ def register(app: typer.Typer) -> None:
             _fail(error_message(exc))
         except RuntimeError as exc:
             _fail(f"pycolmap failed: {exc}", code=NO_RESULT)
+        paths = [Path(image_dir) / name for name in sfm.list_images(image_dir)]
+        for message in upright_model_warning(paths, exif_orientation, f"the model {out_dir}"):
+            warn("sfm", message)
         print_result("sfm", _summary(result, out_dir, as_json))
 
 
 def _summary(result, out_dir: Path, as_json: bool) -> str:
+    from ppo_cv import sfm
+
     pair = list(result.initial_pair) if result.initial_pair else None
     error = result.mean_reprojection_error
     summary = {
@@ -227,7 +233,7 @@ def _summary(result, out_dir: Path, as_json: bool) -> str:
     }
     if as_json:
         return json.dumps(summary)
-    pair_text = " ".join(pair) if pair else "-"
+    pair_text = sfm.pair_text(*pair) if pair else "-"
     return (
         f"registered {result.num_registered}/{result.num_images} images, "
         f"{result.num_points3D} points, mean reprojection error {error:.3f} px, "

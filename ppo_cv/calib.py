@@ -158,8 +158,11 @@ def _matrix_from_values(values: np.ndarray, name: str) -> np.ndarray:
     elif values.size == 9:
         K = values.reshape(3, 3)
     else:
+        hint = (" (a focal length alone, or f,cx,cy: give f,f,cx,cy, the principal point at "
+                "the image centre, width/2,height/2, when it is not known)")  # fmt: skip
         raise ValueError(
             f"{name} must be 4 numbers fx,fy,cx,cy or the 9 entries of K, got {values.size}"
+            + (hint if values.size < 4 else "")
         )
     K = as_camera_matrix(K, name)
     if K[0, 0] < 0 or K[1, 1] < 0:
@@ -357,10 +360,7 @@ def _opencv_matrices(path: str) -> tuple:
                         if not node.isSeq():
                             raise ValueError(f"{key} in {path} has no dt and no list of data")
                     if node.isSeq():
-                        items = [node.at(i) for i in range(node.size())]
-                        if not all(item.isReal() or item.isInt() for item in items):
-                            raise ValueError(f"{key} in {path} must be a list of numbers")
-                        return np.array([item.real() for item in items], dtype=np.float64)
+                        return _sequence_values(node, f"{key} in {path}")
                     value = node.mat()
                     if value is not None:
                         return np.asarray(value, dtype=np.float64)
@@ -381,6 +381,17 @@ def _opencv_matrices(path: str) -> tuple:
     finally:
         storage.release()
     return K1, D1, K2, D2, size
+
+
+def _sequence_values(node, where: str) -> np.ndarray:
+    """The numbers of a YAML list, flat or of rows (``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]``,
+    as a JSON camera may give them)."""
+    items = [node.at(i) for i in range(node.size())]
+    if items and all(item.isSeq() for item in items):
+        items = [row.at(j) for row in items for j in range(row.size())]
+    if not all(item.isReal() or item.isInt() for item in items):
+        raise ValueError(f"{where} must be a list of numbers, flat or of rows")
+    return np.array([item.real() for item in items], dtype=np.float64)
 
 
 def _require_both(keys: tuple[str, str], missing: tuple[bool, bool], where: str) -> None:
@@ -627,7 +638,9 @@ def load_calibration(path: str | os.PathLike) -> list[Camera]:
 
     The format follows the extension: ``.yml``/``.yaml``/``.xml`` OpenCV FileStorage, ``.json``
     (OpenCV FileStorage too when its matrices are ``opencv-matrix`` objects), anything else a
-    COLMAP ``cameras.txt``. A JSON key the reader does not know is refused unless it holds text.
+    COLMAP ``cameras.txt``, or, when it holds numbers only, the 9 entries of ``K`` (as
+    ``numpy.savetxt`` writes it) or ``fx fy cx cy``. A JSON key the reader does not know is
+    refused unless it holds text.
     """
     from .images import file_mode
 
@@ -642,9 +655,23 @@ def load_calibration(path: str | os.PathLike) -> list[Camera]:
         raise ValueError(f"calibration file {path} is empty")
     if '"opencv-matrix"' in text:  # cv2.FileStorage's JSON, as calibrateCamera's YAML
         return _read_opencv(path)
+    plain = _read_plain_matrix(path, text) if extension != ".json" else None
+    if plain is not None:
+        return [plain]
     if extension == ".json" or text.lstrip().startswith(("{", "[")):
         return _one_or_two(_read_json(path, text), path)
     return _one_or_two(_read_colmap(path, text), path)
+
+
+def _read_plain_matrix(path: str, text: str) -> Camera | None:
+    """The camera of a text file holding numbers only, as ``numpy.savetxt`` writes ``K``: its
+    9 entries (or ``fx fy cx cy``), read as ``--K`` reads them, ``#`` lines left out; None
+    for a text with any other word (a COLMAP ``cameras.txt`` names its camera models)."""
+    body = " ".join(line for line in text.splitlines() if not line.lstrip().startswith("#"))
+    fields = [p for p in re.split(r"[,\s;\[\]()]+", body) if p]
+    if not fields or not all(_is_number(field) for field in fields):
+        return None
+    return Camera(parse_intrinsics(body, f"camera matrix in {path}"))
 
 
 def _one_or_two(cameras: list[Camera], path: str) -> list[Camera]:

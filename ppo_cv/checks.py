@@ -262,6 +262,11 @@ def as_camera_matrix(value: Any, name: str = "cameraMatrix") -> np.ndarray:
     focal length near zero or a principal point beyond ``MAX_COORDINATE`` overflows: all are
     errors naming ``name``.
     """
+    if value is None:
+        raise TypeError(
+            f"{name} is required, got None (no calibration? ppo_cv.camera_from_exif(image)[0].K "
+            "is the camera of the image's EXIF focal length, as ppo-cv guesses it)"
+        )
     K = _as_real_array(value, name, _PARSE_INTRINSICS)
     if K.shape != (3, 3):
         raise ValueError(f"{name} must be a 3x3 matrix, got shape {K.shape}"
@@ -336,9 +341,10 @@ def as_distortion(value: Any, name: str) -> np.ndarray | None:
         )
     coefficients = coefficients.reshape(-1)
     if coefficients.size not in (4, 5, 8, 12, 14):
+        hint = " (k1 alone, or k1,k2: give k1,0,0,0 or k1,k2,0,0)" if coefficients.size < 4 else ""
         raise ValueError(
             f"{name} must be OpenCV distortion coefficients k1,k2,p1,p2[,k3] (4 or 5 numbers; "
-            f"8, 12 or 14 for the rational models), got {coefficients.size}"
+            f"8, 12 or 14 for the rational models), got {coefficients.size}{hint}"
         )
     require_finite(coefficients, name)
     _require_physical_distortion(coefficients, name)

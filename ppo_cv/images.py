@@ -24,6 +24,7 @@ import os
 import stat
 import struct
 import sys
+import unicodedata
 import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -39,6 +40,7 @@ __all__ = [
     "MAX_PIXELS_ENV",
     "ExifLayout",
     "as_image",
+    "alike_remedy",
     "case_alike",
     "check_decodes",
     "check_header",
@@ -93,21 +95,43 @@ def file_mode(path: str | os.PathLike, what: str) -> int:
 
 
 def case_alike(path: str | os.PathLike) -> str | None:
-    """The name in the folder of ``path``, a name not found, that differs from it in case only
-    (``IMG_1.JPG`` for ``IMG_1.jpg``, as a list written on a system that ignores case gives
-    it), or None."""
+    """The name in the folder of ``path``, a name not found, that differs from it in case or in
+    the Unicode encoding of its accents only (``IMG_1.JPG`` for ``IMG_1.jpg``, as a list
+    written on a system that ignores case gives it; ``e`` and a combining accent for ``é``, as
+    macOS writes names), or None."""
     folder, name = os.path.split(os.fspath(path))
     try:
         names = os.listdir(folder or ".")
     except (OSError, ValueError):
         return None
-    alike = sorted(other for other in names if other.casefold() == name.casefold())
+    alike = sorted(other for other in names if _loose(other) == _loose(name))
     return alike[0] if alike else None
 
 
-def _case_hint(path: str | os.PathLike) -> str:
+def _loose(name: str) -> str:
+    return unicodedata.normalize("NFC", name).casefold()
+
+
+def alike_remedy(path: str | os.PathLike) -> str | None:
+    """What to tell of the name :func:`case_alike` finds for ``path``: that names are
+    case-sensitive, or, for one that looks the same, that its accents are encoded otherwise
+    (its code points shown); None when it finds none."""
     alike = case_alike(path)
-    return f" ({alike} exists: names are case-sensitive)" if alike else ""
+    if alike is None:
+        return None
+    name = os.path.basename(os.fspath(path))
+    if unicodedata.normalize("NFC", alike) != unicodedata.normalize("NFC", name):
+        return f"{alike} exists: names are case-sensitive"
+    return (
+        f"{ascii(alike)} exists: the same name with its accents encoded otherwise than "
+        f"{ascii(name)} (Unicode NFD, as macOS writes names, or NFC); names must match code "
+        "point for code point"
+    )
+
+
+def _case_hint(path: str | os.PathLike) -> str:
+    remedy = alike_remedy(path)
+    return f" ({remedy})" if remedy else ""
 
 
 def check_regular_file(path: str | os.PathLike) -> None:
@@ -153,7 +177,7 @@ def image_size(path: str | os.PathLike) -> tuple[int, int] | None:
     Image.MAX_IMAGE_PIXELS = None  # only the header is read: the real size, however large
     try:
         with _pillow_warnings_held(), Image.open(path) as image:
-            return tuple(int(v) for v in image.size)
+            return _stored_tiff_size(image) or tuple(int(v) for v in image.size)
     except Exception:  # not a format Pillow knows: OpenCV may still read it
         return None
     finally:
@@ -243,6 +267,16 @@ class ExifLayout:
 _ORIENTATION_TAG, _EXIF_IFD, _PIXEL_X_TAG, _PIXEL_Y_TAG = 0x0112, 0x8769, 0xA002, 0xA003
 _FOCAL_35MM_TAG = 0xA405
 _PLANE_X_TAG, _PLANE_UNIT_TAG, _PLANE_UNITS = 0xA20E, 0xA210, (2, 3, 4, 5)
+
+
+def _stored_tiff_size(image: Any) -> tuple[int, int] | None:
+    """A TIFF's stored ``(width, height)`` by its tags, None for another format: Pillow reports
+    a TIFF's size turned as its orientation turns it, other formats' as stored."""
+    tags = getattr(image, "tag_v2", None)
+    width, height = (tags.get(tag) for tag in (256, 257)) if tags is not None else (None, None)
+    if isinstance(width, int) and isinstance(height, int):
+        return width, height
+    return None
 
 
 def exif_layout(path: str | os.PathLike) -> ExifLayout:

@@ -101,6 +101,7 @@ __all__ = [
     "require_database_outside",
     "require_no_images",
     "format_pairs",
+    "pair_text",
     "write_model",
     "pose_errors",
 ]
@@ -936,7 +937,7 @@ def _run_pipeline(
         reconstruction = manager.get(manager.size() - 1)
         names = _initial_pair_names(reconstruction, candidate)
         seeds.append(names)
-        _say(progress, f"initial pair {names[0]} {names[1]}")
+        _say(progress, f"initial pair {pair_text(*names)}")
 
     def on_next_image() -> None:
         reconstruction = manager.get(manager.size() - 1)
@@ -1046,7 +1047,7 @@ def reconstruct(
             options = _pipeline_options(image_dir, fix_intrinsics, num_threads, seed)
             manager = pycolmap.ReconstructionManager()
             if candidate is not None:
-                _say(progress, f"seeding with {candidate.name1} {candidate.name2} ({seeding})")
+                _say(progress, f"seeding with {_names_of(candidate)} ({seeding})")
                 if seeding == "pair-options":
                     _seed_options(options, candidate)
                 else:
@@ -1097,14 +1098,14 @@ def _checked_candidates(
     refuse on their images (the first :data:`MAX_IMAGE_CHECKS` accepted pairs are checked,
     as they are needed); the refused ones, rejection rewritten, are appended to ``refused``."""
     for pair in [p for p in pairs if p.accepted][:MAX_IMAGE_CHECKS]:
-        _say(progress, f"checking {pair.name1} {pair.name2} on the images")
+        _say(progress, f"checking {_names_of(pair)} on the images")
         rejection = _image_rejection(
             database_path, image_dir, pair, pri_threshold, fit_focal=fit_focal
         )
         if not rejection:
             yield pair
             continue
-        _say(progress, f"refused {pair.name1} {pair.name2}: {rejection}")
+        _say(progress, f"refused {_names_of(pair)}: {rejection}")
         pure = rejection.startswith("pure rotation")
         refused.append(
             replace(
@@ -1626,6 +1627,21 @@ def format_pairs(pairs: Sequence[PairScore]) -> str:
             f"{p.pri:.4f} {p.tri_angle:.2f} {verdict}"
         )
     return "\n".join(lines) + "\n"
+
+
+def pair_text(name1: str, name2: str) -> str:
+    """Two image names as one line shows them, each in double quotes where it holds whitespace
+    or starts with ``#`` (as in a pairs file), so that ``a b.png c.png`` reads as one pair.
+
+    >>> pair_text("a b.png", "c.png")
+    '"a b.png" c.png'
+    """
+    return f"{_pairs_file_name(name1)} {_pairs_file_name(name2)}"
+
+
+def _names_of(pair: PairScore) -> str:
+    """The pair's two image names as :func:`pair_text` shows them."""
+    return pair_text(pair.name1, pair.name2)
 
 
 def _pairs_file_name(name: str) -> str:

@@ -216,6 +216,76 @@ def test_colmap_errors(tmp_path, text, message):
 
 
 @pytest.mark.parametrize(
+    "text",
+    [
+        "camera_matrix: [[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, 1]]\n",
+        "camera_matrix:\n  - [535.4, 0, 320.1]\n  - [0, 539.2, 247.6]\n  - [0, 0, 1]\n",
+        "camera_matrix: [535.4, 0, 320.1, 0, 539.2, 247.6, 0, 0, 1]\n",
+    ],
+)
+def test_a_yaml_camera_matrix_may_be_given_as_rows(tmp_path, text):
+    """A 3x3 list of rows was refused as "must be a list of numbers"; JSON takes it."""
+    path = tmp_path / "camera.yaml"
+    path.write_text(text)
+    (camera,) = load_calibration(path)
+    np.testing.assert_allclose(camera.K, K_FREIBURG)
+
+
+def test_a_yaml_row_holding_text_is_named(tmp_path):
+    path = tmp_path / "camera.yaml"
+    path.write_text('camera_matrix: [[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, "a"]]\n')
+    with pytest.raises(ValueError, match="camera_matrix in .* must be a list of numbers, flat or"):
+        load_calibration(path)
+
+
+@pytest.mark.parametrize(
+    "write, K",
+    [
+        (lambda path: np.savetxt(path, K_FREIBURG), K_FREIBURG),
+        (lambda path: np.savetxt(path, K_FREIBURG, delimiter=",", header="K"), K_FREIBURG),
+        (lambda path: path.write_text("535.4 539.2 320.1 247.6\n"), K_FREIBURG),
+        (lambda path: path.write_text(str(K_FREIBURG) + "\n"), K_FREIBURG),
+    ],
+)
+def test_a_text_file_of_numbers_only_is_the_camera_matrix(tmp_path, write, K):
+    """``K.txt`` as numpy writes it was read as a COLMAP ``cameras.txt`` and refused with
+    ``expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS...``."""
+    path = tmp_path / "K.txt"
+    write(path)
+    (camera,) = load_calibration(path)
+    np.testing.assert_allclose(camera.K, K)
+    assert camera.dist is None and camera.image_size is None
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("1 2 3 4 5\n", r"camera matrix in .*K.txt must be 4 numbers fx,fy,cx,cy or the 9 "),
+        ("535 0 320\n0 535 240\n0 0 1\nnan\n", "camera matrix in .*K.txt has NaN"),
+        ("1 PINHOLE\n", "expected CAMERA_ID"),
+    ],
+)
+def test_a_text_file_of_numbers_that_are_no_camera_matrix_says_so(tmp_path, text, message):
+    path = tmp_path / "K.txt"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=message):
+        load_calibration(path)
+
+
+@pytest.mark.parametrize("text", ["-0.1", "-0.1,0.01", "-0.1,0.01,0"])
+def test_a_radial_term_alone_is_told_how_to_give_the_four_coefficients(text):
+    with pytest.raises(ValueError, match=r"got \d \(k1 alone, or k1,k2: give k1,0,0,0 or k1,k2,"):
+        parse_distortion(text, "--dist")
+
+
+@pytest.mark.parametrize("text", ["535", "535,539", "535,320,240"])
+def test_a_focal_length_alone_is_told_how_to_give_the_principal_point(text):
+    with pytest.raises(ValueError, match=r"got \d \(a focal length alone, or f,cx,cy: give "
+                       r"f,f,cx,cy, the principal point at the image centre"):  # fmt: skip
+        parse_intrinsics(text, "--K")
+
+
+@pytest.mark.parametrize(
     "lines, cameras",
     [
         (["1 PINHOLE 640 480 500 500 320 240"] * 3, 1),  # one camera per image, all alike

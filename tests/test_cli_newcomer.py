@@ -105,6 +105,69 @@ def test_pairs_takes_a_calibration_file_and_a_second_camera(tmp_path):
     assert done.returncode == 2 and "--K2 needs --K" in done.stderr
 
 
+def test_pairs_takes_one_camera_for_a_photo_stored_turned_as_pair_does(tmp_path):
+    """A photo stored sideways with an EXIF orientation is read upright, the size of its
+    partner: ``pairs --K`` runs it, as ``pair --K`` does, rather than refuse two sizes."""
+    photo(DEMO1, tmp_path / "a.jpg")
+    photo(DEMO2, tmp_path / "b.jpg", orientation=6)
+    (tmp_path / "pairs.txt").write_text("a.jpg b.jpg\n")
+    done = ppo_cv("pairs", tmp_path / "pairs.txt", tmp_path, "--K", K_TEXT, "--workers", "1",
+                  "-q")  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    (row,) = [json.loads(line) for line in done.stdout.splitlines()]
+    check_demo_pose(row)
+    stored = ppo_cv("pairs", tmp_path / "pairs.txt", tmp_path, "--K", K_TEXT,
+                    "--no-exif-orientation")  # fmt: skip
+    assert stored.returncode == 2
+    assert "b.jpg 480x640 pixels: one camera matrix (--K) cannot fit" in stored.stderr
+
+
+@pytest.mark.parametrize("suffix", [".jpg", ".png", ".tif"])
+def test_the_header_size_is_the_stored_one_whatever_the_format(tmp_path, suffix):
+    """Pillow reports a TIFF's size turned by its orientation tag, other formats' as stored:
+    turned once more as EXIF says, the TIFF's size came out sideways and ``pairs --K`` refused
+    a TIFF stored turned beside a PNG of the same view."""
+    from PIL import Image
+
+    from ppo_cv.images import image_size
+
+    tags = Image.Exif()
+    tags[0x0112] = 6
+    turned = Image.open(DEMO1).convert("RGB").transpose(Image.Transpose.ROTATE_90)
+    turned.save(tmp_path / f"a{suffix}", exif=tags.tobytes())
+    assert image_size(tmp_path / f"a{suffix}") == (480, 640)
+    shutil.copy(DEMO2, tmp_path / "b.png")
+    (tmp_path / "pairs.txt").write_text(f"a{suffix} b.png\n")
+    done = ppo_cv("pairs", tmp_path / "pairs.txt", tmp_path, "--K", K_TEXT, "-q")
+    assert done.returncode == 0, done.stderr
+    (row,) = [json.loads(line) for line in done.stdout.splitlines()]
+    check_demo_pose(row)
+
+
+def test_pairs_scales_a_calibration_that_states_its_size_as_pair_does(tmp_path):
+    """A calibration stating its image size is scaled to each image of its aspect ratio (a
+    half-size copy here) in ``pairs`` as in ``pair``; one that states none is refused for two
+    sizes, the message naming the file rather than ``--K``."""
+    cv2.imwrite(str(tmp_path / "a.png"), cv2.imread(str(DEMO1)))
+    half = cv2.resize(cv2.imread(str(DEMO2)), (320, 240), interpolation=cv2.INTER_AREA)
+    cv2.imwrite(str(tmp_path / "b.png"), half)
+    (tmp_path / "pairs.txt").write_text("a.png b.png\n")
+    sized = tmp_path / "cameras.txt"
+    sized.write_text("1 PINHOLE 640 480 " + K_TEXT.replace(",", " ") + "\n")
+    done = ppo_cv("pairs", tmp_path / "pairs.txt", tmp_path, "--calib", sized, "-q")
+    assert done.returncode == 0, done.stderr
+    (row,) = [json.loads(line) for line in done.stdout.splitlines()]
+    single = ppo_cv("pair", tmp_path / "a.png", tmp_path / "b.png", "--calib", sized, "--json")
+    assert single.returncode == 0, single.stderr
+    np.testing.assert_allclose(row["cameras"]["K2"], json.loads(single.stdout)["cameras"]["K2"])
+    np.testing.assert_allclose(np.array(row["cameras"]["K2"])[0, 0], FX / 2)
+    unsized = tmp_path / "camera.json"
+    unsized.write_text(json.dumps({"K": DEMO["intrinsics"]}))
+    refused = ppo_cv("pairs", tmp_path / "pairs.txt", tmp_path, "--calib", unsized)
+    assert refused.returncode == 2
+    assert f"one camera matrix (--calib {unsized}) cannot fit both sizes" in refused.stderr
+
+
 def test_pairs_help_documents_the_file_format():
     done = ppo_cv("pairs", "--help")
     assert done.returncode == 0
@@ -266,16 +329,57 @@ def test_sfm_reconstructs_photos_upright_unless_told_not_to(tmp_path):
     images.mkdir()
     for source, name in ((DEMO1, "a.jpg"), (DEMO2, "b.jpg")):
         photo(source, images / name, orientation=6)
-    sizes = {}
+    sizes, warned = {}, {}
     for flag in ("--exif-orientation", "--no-exif-orientation"):
         out = tmp_path / flag.strip("-")
         done = ppo_cv("sfm", images, out, flag, "--threads", "1", "--quiet")
         assert done.returncode == 0, done.stderr
+        warned[flag] = " ".join(warnings_of(done))
         model = pycolmap.Reconstruction(out)
         assert model.num_reg_images() == 2
         sizes[flag] = {(c.width, c.height) for c in model.cameras.values()}
     assert sizes == {"--exif-orientation": {(640, 480)}, "--no-exif-orientation": {(480, 640)}}
     assert sorted(p.name for p in images.iterdir()) == ["a.jpg", "b.jpg"]
+    assert "COLMAP reads the pixels as stored" in warned["--exif-orientation"]
+    assert "--no-exif-orientation" in warned["--exif-orientation"]
+    assert "COLMAP reads" not in warned["--no-exif-orientation"]
+
+
+def test_sfm_quotes_image_names_holding_spaces_in_its_summary(tmp_path):
+    """``initial pair a b.png c.png`` read as three names; quoted as in initial_pairs.txt."""
+    images = tmp_path / "images"
+    images.mkdir()
+    shutil.copy(DEMO1, images / "a b.png")
+    shutil.copy(DEMO2, images / "c.png")
+    done = ppo_cv("sfm", images, tmp_path / "model", "--K", K_TEXT, "--threads", "1")
+    assert done.returncode == 0, done.stderr
+    assert 'initial pair "a b.png" c.png (ppo)' in done.stdout
+    assert 'ppo-cv sfm: seeding with "a b.png" c.png (two-view)' in done.stderr.splitlines()
+    initial = (tmp_path / "model" / "initial_pairs.txt").read_text().splitlines()
+    assert initial[1].startswith('"a b.png" c.png ')
+
+
+def test_pair_out_says_its_colmap_model_is_of_photos_turned_upright(tmp_path):
+    """The model's camera is the upright 640x480 one, while COLMAP (``pycolmap.Bitmap``) reads
+    the stored 480x640 pixels: the model, read with the photos, was silently inconsistent."""
+    import pycolmap
+
+    photo(DEMO1, tmp_path / "a.jpg", orientation=6)
+    photo(DEMO2, tmp_path / "b.jpg")
+    done = ppo_cv("pair", tmp_path / "a.jpg", tmp_path / "b.jpg", "--K", K_TEXT,
+                  "--out", tmp_path / "out", "-q")  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    model = pycolmap.Reconstruction(tmp_path / "out" / "colmap")
+    assert {(c.width, c.height) for c in model.cameras.values()} == {(640, 480)}
+    stored = pycolmap.Bitmap.read(str(tmp_path / "a.jpg"), False)
+    assert (stored.width, stored.height) == (480, 640)
+    (warning,) = warnings_of(done)
+    model_name = f"the COLMAP model {tmp_path / 'out'}/colmap"
+    assert warning.startswith(f"ppo-cv pair: warning: {model_name} describes a.jpg as its EXIF "
+                              "orientation turns it upright")  # fmt: skip
+    assert "pass --no-exif-orientation" in warning
+    without_out = ppo_cv("pair", tmp_path / "a.jpg", tmp_path / "b.jpg", "--K", K_TEXT, "-q")
+    assert without_out.returncode == 0 and warnings_of(without_out) == []
 
 
 # --- 5. a camera matrix of another image size ------------------------------------------------
@@ -414,6 +518,25 @@ def test_the_readme_explains_every_line_of_the_demo_summary():
     for label in (found[1] for found in labels):
         assert f"\n  {label} " in sample, label
         assert re.search(rf"^\|[^|]*`{re.escape(label)}`", table, re.M), label
+
+
+def test_a_name_whose_accents_are_encoded_otherwise_says_so(tmp_path):
+    """A file named on macOS (``e`` and a combining accent) and a pairs line typed elsewhere
+    (``é``) print alike: "image not found: café.png" beside a listed café.png said nothing."""
+    import unicodedata
+
+    stored, typed = (unicodedata.normalize(form, "café.png") for form in ("NFD", "NFC"))
+    shutil.copy(DEMO1, tmp_path / stored)
+    shutil.copy(DEMO2, tmp_path / "b.png")
+    remedy = ("('cafe\\u0301.png' exists: the same name with its accents encoded otherwise "
+              "than 'caf\\xe9.png' (Unicode NFD, as macOS writes names, or NFC)")  # fmt: skip
+    done = ppo_cv("pair", tmp_path / typed, tmp_path / "b.png", "--K", K_TEXT)
+    assert done.returncode == 2
+    assert done.stderr.startswith(f"ppo-cv pair: image not found: {tmp_path / typed} {remedy}")
+    (tmp_path / "pairs.txt").write_text(f"{typed} b.png\n", encoding="utf-8")
+    done = ppo_cv("pairs", tmp_path / "pairs.txt", tmp_path, "--K", K_TEXT, "-q")
+    assert done.returncode == 1
+    assert remedy in json.loads(done.stdout)["error"]
 
 
 def test_pairs_whose_names_differ_from_the_files_in_case_say_so(tmp_path):

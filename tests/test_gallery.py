@@ -115,3 +115,15 @@ CHECKS = {
 @pytest.mark.parametrize("name", SCRIPTS)
 def test_gallery_script(name, tmp_path):
     CHECKS[name](run(name, tmp_path), tmp_path)
+
+
+def test_sfm_init_replaces_the_files_of_a_previous_run(tmp_path):
+    """The README says a second run replaces the first's files; it stopped on a traceback
+    (FileExistsError: sfm_example/images holds files) instead."""
+    images = tmp_path / "sfm_example" / "images"
+    images.mkdir(parents=True)
+    (images / "00_pan.png").write_bytes(b"a view of the previous run")
+    (tmp_path / "sfm_example" / "database.db").write_bytes(b"its database")
+    check_sfm_init(run("sfm_init", tmp_path), tmp_path)
+    assert sorted(p.name for p in images.iterdir())[0] == "00_pan.png"
+    assert (images / "00_pan.png").read_bytes()[:4] == b"\x89PNG"

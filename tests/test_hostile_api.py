@@ -253,6 +253,10 @@ CASES = {
     "estimate_pair NaN pixel": (_pair(image1=_image_with_nan()), ValueError,
                                 "image1 has 1 NaN or infinite pixel"),
     "estimate_pair image None": (_pair(image2=None), TypeError, "image2 is required"),
+    # no calibration: the message names the EXIF camera ppo-cv itself would guess
+    "estimate_pair K1 None": (_pair(K1=None), TypeError,
+                              "K1 is required, got None (no calibration? "
+                              "ppo_cv.camera_from_exif(image)[0].K is the camera"),
     "estimate_pair image bytes": (_pair(image1=b"img1.png"), TypeError,
                                   "image1 must be an image array or a path (str or "),
     "estimate_pair sizes differ without K2": (_pair(image2=GREY[:40]), ValueError,

@@ -202,6 +202,23 @@ def test_pairs_refuses_an_output_named_for_another_format(tmp_path, name, format
     )
 
 
+@pytest.mark.parametrize(
+    ("name", "compression", "wanted"),
+    [("poses.jsonl.gz", "gzip", "poses.jsonl"), ("poses.csv.bz2", "bzip2", "poses.jsonl"),
+     ("poses.xz", "xz", "poses.jsonl"), ("poses.jsonl.ZIP", "zip", "poses.jsonl")],
+)
+def test_pairs_refuses_an_output_named_compressed(tmp_path, name, compression, wanted):
+    # poses.jsonl.gz was written as plain text, exit 0: gzip.open and pandas, which take the
+    # compression from the name, then failed on it
+    done = _pairs_of_the_demo_pair(tmp_path, name)
+    assert done.returncode == 2 and not (tmp_path / name).exists()
+    assert done.stderr == (
+        f"ppo-cv pairs: -o {name}: pairs writes JSON lines (one JSON object per pair and line), "
+        f"not {compression}-compressed data (compress the file after the run); name the file "
+        f"{wanted}\n"
+    )
+
+
 def test_pairs_writes_json_lines_to_a_plain_name(tmp_path):
     done = _pairs_of_the_demo_pair(tmp_path, "poses.txt")
     assert done.returncode == 0, done.stderr

@@ -24,6 +24,7 @@ folder = Path(sys.argv[1] if len(sys.argv) > 1 else "sfm_example")
 images, database, model = folder / "images", folder / "database.db", folder / "model"
 database.unlink(missing_ok=True)
 shutil.rmtree(model, ignore_errors=True)
+shutil.rmtree(images, ignore_errors=True)
 
 names, K, poses = render_tripod_then_move(images, n_pan=3, n_move=3, size=(480, 360))
 sfm.prepare_database(images, database, K=K)  # pycolmap: SIFT, exhaustive matching, verification
