@@ -1205,9 +1205,13 @@ def test_a_camera_matrix_of_another_number_type_is_its_values_exactly(dtype):
      ((K, None, 640), TypeError, "Camera.image_size must be (width, height) or None, got 640"),
      ((K, None, (640, -1)), ValueError, "Camera.image_size: image width and height must be"),
      # (True, True) was a 1x1 image
-     ((K, None, (True, True)), ValueError, "Camera.image_size: image width and height must be")],
+     ((K, None, (True, True)), ValueError, "Camera.image_size: image width and height must be"),
+     # texts were read as numbers (b"640" too), and 10**400 failed in float(): OverflowError
+     ((K, None, ("640", "480")), TypeError, "Camera.image_size must be two whole numbers"),
+     ((K, None, (b"640", 480)), TypeError, "Camera.image_size must be two whole numbers"),
+     ((K, None, (10**400, 480)), ValueError, "got <401-digit integer> and 480")],
     ids=["K text", "K 2x3", "K negative", "dist of 3", "size a number", "size negative",
-         "size of flags"],
+         "size of flags", "size of texts", "size of bytes", "size beyond a float"],
 )  # fmt: skip
 def test_a_camera_is_checked_when_made(fields, exception, words):
     with pytest.raises(exception, match=re.escape(words)):
