@@ -139,6 +139,11 @@ CASES = {
                            ValueError, "pp must be two finite numbers"),
     "recoverPose pp wrong size": (lambda: ppo_cv.recoverPose(E, P1, P2, focal=800.0, pp=(1, 2, 3)),
                                   TypeError, "pp must be two numbers"),
+    # (True, False) was the principal point (1, 0), texts were read as numbers: OpenCV refuses
+    "recoverPose pp flags": (lambda: ppo_cv.recoverPose(E, P1, P2, focal=800.0, pp=(True, False)),
+                             TypeError, "pp must be two numbers"),
+    "recoverPose pp texts": (lambda: ppo_cv.recoverPose(E, P1, P2, focal=800.0, pp=("320", "240")),
+                             TypeError, "pp must be two numbers"),
     "recover_pose negative K1": (lambda: ppo_cv.recover_pose(E, P1, P2, _K(fy=-800)), ValueError,
                                  "K1 has a negative focal length"),
     "recover_pose zero K2": (lambda: ppo_cv.recover_pose(E, P1, P2, K, _K(fx=0)), ValueError,
