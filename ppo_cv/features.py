@@ -20,6 +20,7 @@ from .checks import (
     require_instance,
     shown,
 )
+from .limits import MAX_KEYPOINTS
 
 __all__ = [
     "FEATURE_TYPES",
@@ -223,7 +224,8 @@ def detect_features(
     kind : {"sift", "orb", "akaze"}
         Detector and descriptor.
     max_features : int
-        Keep at most this many keypoints, the strongest first.
+        Keep at most this many keypoints, the strongest first (at most
+        :data:`ppo_cv.limits.MAX_KEYPOINTS`).
     max_image_size : int, optional
         Detect on a copy whose longer side is at most this many pixels; keypoints are mapped back
         to full resolution (``u_full = (u + 0.5) * s - 0.5``).
@@ -242,7 +244,7 @@ def detect_features(
 
     if kind not in FEATURE_TYPES:
         raise ValueError(f"unknown feature type {kind!r}; choose one of {', '.join(FEATURE_TYPES)}")
-    max_features = as_whole_number(max_features, "max_features", 1, MAX_WHOLE_NUMBER)
+    max_features = as_whole_number(max_features, "max_features", 1, MAX_KEYPOINTS)
     if max_image_size is not None:
         max_image_size = as_whole_number(max_image_size, "max_image_size", 32, MAX_WHOLE_NUMBER)
     if not 0 < as_number(threshold_scale, "threshold_scale") < np.inf:

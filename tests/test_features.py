@@ -68,6 +68,9 @@ def _sift(count: int = 4):
       "max_features must be a whole number in 1.."),
      (lambda f: features.detect_features(_GREY, max_features="800"), TypeError,
       "max_features must be a whole number, got str"),
+     # ORB failed in OpenCV with std::bad_alloc
+     (lambda f: features.detect_features(_GREY, "orb", max_features=2**31 - 1), ValueError,
+      "max_features must be a whole number in 1..1000000, got 2147483647"),
      (lambda f: features.detect_features(_GREY, max_image_size=0), ValueError,
       "max_image_size must be a whole number in 32.."),
      (lambda f: features.detect_features(_GREY, threshold_scale="2"), TypeError,
@@ -80,6 +83,7 @@ def _sift(count: int = 4):
       "ppo_cv.images.load_image")],
     ids=["features None", "ratio text", "ratio True", "mutual text", "unique 0",
          "threshold None", "features tuple", "max_features 1.5", "max_features text",
+         "max_features beyond ORB",
          "max_image_size 0", "threshold_scale text", "image None", "image path"],
 )  # fmt: skip
 def test_detection_and_matching_name_a_bad_argument(call, error, words):

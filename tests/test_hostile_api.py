@@ -236,6 +236,10 @@ CASES = {
     "PairOptions max_image_size 0": (lambda: PairOptions(max_image_size=0), ValueError,
                                      "max_image_size must be a whole number in 32..2147483647, "
                                      "got 0 (None: full size)"),
+    # ORB failed on it in OpenCV with std::bad_alloc, mid-run
+    "PairOptions max_features beyond ORB": (
+        lambda: PairOptions(features="orb", max_features=2**31 - 1), ValueError,
+        "max_features must be a whole number in 8..1000000, got 2147483647"),
     "PairOptions threshold inf": (lambda: PairOptions(ransac_threshold=np.inf), ValueError,
                                   "ransac_threshold must be in (0, 100]"),
     "PairOptions threshold nan": (lambda: PairOptions(ransac_threshold=np.nan), ValueError,
