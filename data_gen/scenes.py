@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ppo_cv.checks import as_positive, as_whole_number, shown
+from ppo_cv.checks import MAX_WHOLE_NUMBER, as_positive, as_whole_number, shown
 
 from .names import SCENES
 from .textures import Texture, checker_texture, texture_pool, texture_set_photos
@@ -271,7 +271,9 @@ def make_scene(
     if texture_set is not None:
         with _textures_from(texture_set):
             return make_scene(name, seed)
-    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    if not isinstance(seed, np.random.Generator):
+        seed = np.random.default_rng(as_whole_number(seed, "seed", 0, MAX_WHOLE_NUMBER))
+    rng = seed
     if name in ("room", "clutter"):
         quads, params = _room(rng)
         if name == "clutter":

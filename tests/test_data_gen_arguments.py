@@ -114,6 +114,39 @@ CASES = {  # name: (call, error type, words of its message)
                                                        (2 * np.eye(3), np.zeros(3))]),
         ValueError, r"poses\[1\] R is not a rotation matrix",
     ),
+    # Python's and numpy's messages naming nothing ("cannot unpack non-iterable NoneType
+    # object", "'<' not supported", "cannot reshape array of size 1 into shape (3)"), a NaN
+    # texture without a word, a seed True read as 1, an OverflowError
+    "intrinsics_no_size": (lambda: dg.intrinsics(None, 60.0), TypeError,
+                           "size must be .width, height., got None"),
+    "intrinsics_text_field": (lambda: dg.intrinsics((64, 48), "60"), TypeError,
+                              "hfov_deg must be a number, got str"),
+    "intrinsics_one_offset": (lambda: dg.intrinsics((64, 48), 60.0, (1.0,)), ValueError,
+                              "principal_offset must be two numbers .dx, dy., got .1.0,."),
+    "intrinsics_nan_offset": (lambda: dg.intrinsics((64, 48), 60.0, (NAN, 0)), ValueError,
+                              "principal_offset has 1 NaN"),
+    "checker_texture_nan_dark": (lambda: dg.checker_texture(dark=NAN), ValueError,
+                                 "dark must be a reflectance in .0, 1., got nan"),
+    "checker_texture_text_light": (lambda: dg.checker_texture(light="1"), TypeError,
+                                   "light must be a number, got str"),
+    "checker_texture_no_squares": (lambda: dg.checker_texture(None), TypeError,
+                                   "squares must be .width, height., got None"),
+    "checker_texture_fractional_texels": (
+        lambda: dg.checker_texture(texels_per_square=1.5), ValueError,
+        "texels_per_square must be a whole number"),
+    "project_points_none": (lambda: dg.project_points(None, K), TypeError, "X is required"),
+    "project_points_of_two": (lambda: dg.project_points(np.ones((4, 2)), K), ValueError,
+                              "X must have shape .m, 3., got .4, 2."),
+    "project_points_nan": (lambda: dg.project_points([[0, 0, NAN]], K), ValueError,
+                           "X has 1 NaN"),
+    "project_points_short_t": (lambda: dg.project_points([[0, 0, 5]], K, None, [1, 0]),
+                               ValueError, "t must be 3 numbers"),
+    "make_scene_true_seed": (lambda: dg.make_scene("room", True), TypeError,
+                             "seed must be a whole number, got bool True"),
+    "make_scene_nan_seed": (lambda: dg.make_scene("room", NAN), ValueError,
+                            "seed must be a whole number in 0.."),
+    "expose_integer_beyond_a_float": (lambda: dg.expose(RGB, 10**400), ValueError,
+                                      "gain must be in .+, got <401-digit integer>"),
 }  # fmt: skip
 
 
