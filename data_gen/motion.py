@@ -55,7 +55,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ppo_cv.checks import MAX_COORDINATE, as_finite_rows, as_image_size, as_number, shown
+from ppo_cv.checks import (
+    MAX_COORDINATE,
+    as_finite_rows,
+    as_flag,
+    as_image_size,
+    as_number,
+    shown,
+)
 
 from .names import MAX_BASELINE_RATIO, MAX_PIVOT_OFFSET, MOTIONS
 from .protocol import euler_to_matrix
@@ -231,9 +238,13 @@ def sample_motion(
     """
     if name not in MOTIONS:
         raise ValueError(f"unknown motion {name!r}; choose one of {', '.join(MOTIONS)}")
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+    same_intrinsics = as_flag(same_intrinsics, "same_intrinsics")
+    alpha = None if alpha is None else as_number(alpha, "alpha")
     if alpha is not None and (not np.isfinite(alpha) or not 0.0 < alpha <= 1.0):
         raise ValueError(f"alpha must be in (0, 1], got {alpha}")
-    ratio = baseline_ratio
+    ratio = None if baseline_ratio is None else as_number(baseline_ratio, "baseline_ratio")
     if ratio is not None and not (np.isfinite(ratio) and 0.0 <= ratio <= MAX_BASELINE_RATIO):
         raise ValueError(f"baseline_ratio must be in [0, {MAX_BASELINE_RATIO}], got {ratio}")
     check_pivot_offset(name, pivot_offset)

@@ -415,6 +415,8 @@ def median_depth(
     The same ray casting as :func:`render_view` (one sample per pixel centre). Raises
     ValueError if the camera sees no surface at a finite distance.
     """
+    if not isinstance(scene, Scene):
+        raise TypeError(f"scene must be a Scene, got {type(scene).__name__}")
     grid = _Grid(_check_intrinsics("K", K), _check_size(size), 1, _check_dist("dist", dist))
     w = _trace(scene, grid, np.eye(3), np.zeros(3))[1]
     seen = w[w > TINY_W]

@@ -145,8 +145,7 @@ def photo_texture(
     low-frequency fractal noise and enriched with fine procedural grain so that magnified
     surfaces keep detail.
     """
-    if width < 8 or height < 8:
-        raise ValueError(f"texture size must be at least 8x8, got {width}x{height}")
+    width, height = as_image_size((width, height), "texture", 8, MAX_TEXTURE_SIDE)
     tile = int(min(rng.integers(192, 384), max(width, height)))
     nx, ny = -(-width // tile), -(-height // tile)
     rows = [np.hstack([_photo_tile(rng, tile, photos) for _ in range(nx)]) for _ in range(ny)]

@@ -185,6 +185,8 @@ def as_finite_rows(value: Any, name: str, width: int | tuple[int, ...]) -> np.nd
 def as_vector3(value: Any, name: str) -> np.ndarray:
     """Three finite numbers (a row, a column or a flat triple) as float64 (3,); ValueError or
     TypeError naming ``name`` otherwise."""
+    if value is None:
+        raise TypeError(f"{name} is required, got None")
     if np.size(value) != 3:
         raise ValueError(f"{name} must be 3 numbers, got shape {np.shape(value)}")
     return as_finite_rows(np.reshape(value, (1, 3)), name, 3)[0]

@@ -147,6 +147,34 @@ CASES = {  # name: (call, error type, words of its message)
                             "seed must be a whole number in 0.."),
     "expose_integer_beyond_a_float": (lambda: dg.expose(RGB, 10**400), ValueError,
                                       "gain must be in .+, got <401-digit integer>"),
+    # AttributeErrors ("'NoneType' object has no attribute 'uniform'", "... 'quads'"),
+    # numpy's ufunc messages, an IndexError; a shared_points of NaN "cannot convert float NaN
+    # to integer", of "no" read as true
+    "sample_motion_no_rng": (lambda: dg.sample_motion("general", dg.checker_plane(), None),
+                             TypeError, "rng must be a numpy.random.Generator, got NoneType"),
+    "sample_motion_text_alpha": (
+        lambda: dg.sample_motion("small-parallax", dg.checker_plane(), np.random.default_rng(),
+                                 alpha="0.5"), TypeError, "alpha must be a number, got str"),
+    "sample_motion_text_flag": (
+        lambda: dg.sample_motion("general", dg.checker_plane(), np.random.default_rng(),
+                                 same_intrinsics="no"), TypeError, "same_intrinsics must be True"),
+    "median_depth_no_scene": (lambda: dg.median_depth(None, K, (64, 48)), TypeError,
+                              "scene must be a Scene, got NoneType"),
+    "warp_pair_no_focal_factor": (
+        lambda: dg.warp_pair(RGB, dg.intrinsics((16, 16), 60.0), np.eye(3), focal_factor=None),
+        TypeError, "focal_factor must be a number, got NoneType"),
+    "box_quads_no_size": (lambda: dg.box_quads(np.random.default_rng(), [0, 0, 5], None, 0.0),
+                          TypeError, "size is required"),
+    "box_quads_text_yaw": (lambda: dg.box_quads(np.random.default_rng(), [0, 0, 5], [1, 1, 1],
+                                                "30"), TypeError, "yaw_deg must be a number"),
+    "photo_texture_no_width": (lambda: dg.photo_texture(np.random.default_rng(), None, 64),
+                               TypeError, "texture width must be a whole number, got NoneType"),
+    "paper_protocol_nan_flag": (lambda: dg.paper_protocol(3, 20, 0.5, 0.5, shared_points=NAN),
+                                TypeError, "points must be True or False"),
+    "paper_protocol_text_flag": (lambda: dg.paper_protocol(3, 20, 0.5, 0.5, shared_points="no"),
+                                 TypeError, "points must be True or False"),
+    "paper_protocol_alpha_beyond_a_float": (lambda: dg.paper_protocol(3, 20, 10**400, 0.5),
+                                            ValueError, "alpha must be finite"),
 }  # fmt: skip
 
 
