@@ -508,7 +508,10 @@ _BEYOND_FULL_OPENCV = {
 
 def check_colmap_camera(K: np.ndarray, dist: np.ndarray | None, name: str) -> None:
     """ValueError naming what COLMAP's camera models cannot hold: a skew in ``K`` or OpenCV's
-    thin-prism and tilt distortion terms (``FULL_OPENCV`` ends at k6)."""
+    thin-prism and tilt distortion terms (``FULL_OPENCV`` ends at k6); what is no camera
+    matrix or no distortion at all is an error naming ``name`` too."""
+    K = as_camera_matrix(K, name)
+    as_distortion(dist, name)
     if K[0, 1] != 0:
         raise ValueError(
             f"{name} has skew {K[0, 1]}, which no COLMAP camera model holds; the COLMAP model "
@@ -526,7 +529,12 @@ def check_colmap_camera(K: np.ndarray, dist: np.ndarray | None, name: str) -> No
 def check_colmap_names(names: tuple[str, str]) -> None:
     """ValueError naming an image name that is not valid UTF-8 (a file name of other bytes, as
     Python gives it with surrogate escapes) or holds a NUL character (the end of a name in
-    COLMAP's binary files), which a COLMAP model cannot hold."""
+    COLMAP's binary files), which a COLMAP model cannot hold; TypeError for anything but two
+    texts."""
+    if not (isinstance(names, (tuple, list)) and len(names) == 2) or not all(
+        isinstance(name, str) for name in names
+    ):
+        raise TypeError(f"names must be two image names (texts), got {shown(names)}")
     for name in names:
         if "\0" in name:
             raise ValueError(

@@ -551,6 +551,29 @@ def test_a_division_term_that_is_no_lens_is_refused_by_the_composed_lens(k1, err
     assert words in str(info.value)
 
 
+@pytest.mark.parametrize(
+    "call, error, words",
+    [(lambda e: e.check_colmap_names(np.array(["a.png", "b.png"])), TypeError,
+      "names must be two image names (texts), got array("),
+     (lambda e: e.check_colmap_names("ab"), TypeError, "names must be two image names"),
+     (lambda e: e.check_colmap_camera(2 * np.eye(3), None, "camera 1"), ValueError,
+      "camera 1 must be upper triangular with last row (0, 0, 1)"),
+     (lambda e: e.check_colmap_camera(np.full((3, 3), np.nan), None, "camera 1"), ValueError,
+      "camera 1 has 9 NaN"),
+     (lambda e: e.check_colmap_camera(_K_NORMAL, [0.1, 0.0, 0.0], "camera 2"), ValueError,
+      "camera 2 must be OpenCV distortion coefficients")],
+    ids=["names array", "names one text", "K scaled", "K nan", "dist of 3"],
+)  # fmt: skip
+def test_the_colmap_checks_name_what_is_no_name_or_camera(call, error, words):
+    # an AttributeError ("'numpy.ndarray' object has no attribute 'encode'"), "ab" passed as
+    # two names, a camera matrix of last row (0, 0, 2) passed and a NaN one "has skew nan"
+    from ppo_cv import export
+
+    with pytest.raises(error) as info:
+        call(export)
+    assert words in str(info.value)
+
+
 def test_a_nan_division_term_is_refused_by_the_composed_lens():
     # it hung numpy's least squares in LAPACK (holding the interpreter: run apart, with a timeout)
     code = (
