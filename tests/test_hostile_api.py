@@ -383,6 +383,11 @@ CASES = {
     "score_pose motion text": (
         lambda: _sfm_module().score_pose(ppo_cv.recover_pose(E, P1, P2, K), motion="rotation"),
         TypeError, "motion must be a ppo_cv.motion_model.MotionDecision, got str"),
+    # Python's OverflowError
+    "rotation_focal_scale H beyond a float": (
+        lambda: _sfm_module().rotation_focal_scale([[10**400, 0, 0], [0, 1, 0], [0, 0, 1]], 500.0,
+                                                   640), ValueError,
+        "H holds a number beyond the range of a float"),
     "rotation_focal_scale negative focal": (
         lambda: _sfm_module().rotation_focal_scale(np.eye(3), -500.0, 640), ValueError,
         "focal must be a finite number > 0, got -500.0"),
