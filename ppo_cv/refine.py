@@ -15,9 +15,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
+from .checks import as_finite_rows, as_rotation, as_vector3
 from .lsq import (
     cross_matrices,
     cross_matrix,
@@ -37,6 +39,7 @@ from .robust import sampson_signed, sampson_signed_rows, virtual_camera
 from .rotation import FOCAL_PRIOR, K1_PRIOR
 
 __all__ = [
+    "require_pose_matches",
     "HUBER_NOISE_FACTOR",
     "K1_BIAS_REPLICATES",
     "K1_MIN",
@@ -59,6 +62,25 @@ __all__ = [
     "pose_sigmas_deg",
     "translation_sigma_deg",
 ]
+
+
+def require_pose_matches(R: Any, t: Any, x1: Any, x2: Any, inliers: Any = None) -> None:
+    """ValueError or TypeError naming the argument unless ``R`` is a rotation, ``t`` three
+    finite numbers, ``x1`` and ``x2`` finite (N, 3) rows of one length and ``inliers`` (when
+    given) a bool mask of N: the pose functions of this module failed on NaN in numpy's SVD
+    (LinAlgError) and read a mask of indices as one of flags."""
+    as_rotation(R, "R")
+    as_vector3(t, "t")
+    a, b = as_finite_rows(x1, "x1", 3), as_finite_rows(x2, "x2", 3)
+    if a.shape[0] != b.shape[0]:
+        raise ValueError(f"x1 and x2 must have the same length, got {a.shape[0]} and {b.shape[0]}")
+    if inliers is None:
+        return
+    mask = np.asarray(inliers)
+    if mask.dtype != bool:
+        raise TypeError(f"inliers must be a mask of bool, got dtype {mask.dtype}")
+    if mask.shape != (a.shape[0],):
+        raise ValueError(f"inliers must have one flag per match ({a.shape[0]}), got {mask.shape}")
 
 
 def refine_pose(
@@ -93,6 +115,7 @@ def refine_pose(
     """
     import pycolmap
 
+    require_pose_matches(R, t, x1, x2, inliers)
     t = np.asarray(t, dtype=np.float64).reshape(3)
     if np.count_nonzero(inliers) < 5:
         return R, t / np.linalg.norm(t)
@@ -249,6 +272,7 @@ def refine_pose_radial(
     -------
     RadialPose
     """
+    require_pose_matches(R, t, x1, x2, inliers)
     R0 = np.asarray(R, dtype=np.float64)
     t0 = np.asarray(t, dtype=np.float64).reshape(3)
     t0 = t0 / np.linalg.norm(t0)
@@ -435,6 +459,7 @@ def k1_noise_bias(
     sigma : float
         Standard deviation of that mean.
     """
+    require_pose_matches(R, t, x1, x2)
     R = np.asarray(R, dtype=np.float64)
     t = np.asarray(t, dtype=np.float64).reshape(3)
     t = t / np.linalg.norm(t)
@@ -538,6 +563,7 @@ def released_lens_shift_deg(
     shift_deg, sigma_deg : float
         ``(0, 0)`` with fewer than 12 inliers or no noise.
     """
+    require_pose_matches(R, t, x1, x2, inliers)
     a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
     if len(a) < 12:
         return 0.0, 0.0
@@ -891,6 +917,7 @@ def pose_information(
     :func:`pose_sigmas_deg` takes (its parameters of the same names), whose
     :meth:`PoseInformation.sigmas_deg` gives the deviations under each set of priors without
     the Jacobians again."""
+    require_pose_matches(R, t, x1, x2, inliers)
     a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
     a, b = a / a[:, 2:], b / b[:, 2:]
     t = np.asarray(t, float).reshape(3) / np.linalg.norm(t)
@@ -966,6 +993,7 @@ def checked_inliers(
     ndarray of bool, shape (N,)
         A subset of ``inliers``; ``inliers`` itself with fewer than 6 of them.
     """
+    require_pose_matches(R, t, x1, x2, inliers)
     inliers = np.asarray(inliers, dtype=bool)
     a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
     if len(a) < 6:

@@ -54,6 +54,23 @@ def _mask(value, selected=40):
     return mask
 
 
+_ALL = np.ones(40, bool)
+
+
+def _refine():
+    from ppo_cv import refine
+
+    return refine
+
+
+def _rays(nan_entry=None):
+    """Image 1's matches as normalized homogeneous rows (40, 3), one entry NaN if asked."""
+    rays = np.column_stack([P1, np.ones(40)]) @ np.linalg.inv(K).T
+    if nan_entry is not None:
+        rays[3, 0] = nan_entry
+    return rays
+
+
 def _points(index, value):
     points = P2.copy()
     points[index] = value
@@ -383,6 +400,29 @@ CASES = {
     "score_pose motion text": (
         lambda: _sfm_module().score_pose(ppo_cv.recover_pose(E, P1, P2, K), motion="rotation"),
         TypeError, "motion must be a ppo_cv.motion_model.MotionDecision, got str"),
+    # the pose functions of ppo_cv.refine: numpy's "SVD did not converge" (LinAlgError) for a
+    # NaN match, an IndexError or a silent misreading for a mask of indices
+    "refine pose_sigmas_deg NaN match": (
+        lambda: _refine().pose_sigmas_deg(R_TRUE, T_TRUE, _rays(np.nan), _rays(), _ALL),
+        ValueError, "x1 has 1 NaN or infinite value(s)"),
+    "refine refine_pose_radial NaN match": (
+        lambda: _refine().refine_pose_radial(R_TRUE, T_TRUE, _rays(np.nan), _rays(), _ALL,
+                                             scale=1e-3), ValueError, "x1 has 1 NaN"),
+    "refine checked_inliers NaN match": (
+        lambda: _refine().checked_inliers(R_TRUE, T_TRUE, _rays(np.nan), _rays(), _ALL),
+        ValueError, "x1 has 1 NaN"),
+    "refine pose_information index mask": (
+        lambda: _refine().pose_information(R_TRUE, T_TRUE, _rays(), _rays(), np.arange(40)),
+        TypeError, "inliers must be a mask of bool, got dtype int64"),
+    "refine refine_pose points of two": (
+        lambda: _refine().refine_pose(R_TRUE, T_TRUE, P1, P2, _ALL, 800.0), ValueError,
+        "x1 must have shape (N, 3), got (40, 2)"),
+    "refine translation_sigma_deg no rotation": (
+        lambda: _refine().translation_sigma_deg(2 * R_TRUE, T_TRUE, _rays(), _rays(), _ALL),
+        ValueError, "R is not a rotation matrix"),
+    "refine k1_noise_bias NaN t": (
+        lambda: _refine().k1_noise_bias(R_TRUE, [np.nan, 0, 1], _rays(), _rays(), 1e-3),
+        ValueError, "t has 1 NaN"),
     # Python's OverflowError
     "rotation_focal_scale H beyond a float": (
         lambda: _sfm_module().rotation_focal_scale([[10**400, 0, 0], [0, 1, 0], [0, 0, 1]], 500.0,
