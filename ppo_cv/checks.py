@@ -25,6 +25,7 @@ __all__ = [
     "as_positive",
     "as_ransac_settings",
     "as_vector3",
+    "require_pose_matches",
     "as_nonnegative",
     "as_pri_threshold",
     "as_number",
@@ -190,6 +191,26 @@ def as_vector3(value: Any, name: str) -> np.ndarray:
     if np.size(value) != 3:
         raise ValueError(f"{name} must be 3 numbers, got shape {np.shape(value)}")
     return as_finite_rows(np.reshape(value, (1, 3)), name, 3)[0]
+
+
+def require_pose_matches(R: Any, t: Any, x1: Any, x2: Any, inliers: Any = None) -> None:
+    """ValueError or TypeError naming the argument unless ``R`` is a rotation, ``t`` three
+    finite numbers, ``x1`` and ``x2`` finite (N, 3) rows of one length and ``inliers`` (when
+    given) a bool mask of N; validates without converting. The pose functions of
+    :mod:`ppo_cv.refine` and :mod:`ppo_cv.valley` failed on NaN in numpy's SVD (LinAlgError)
+    and read a mask of indices as one of flags."""
+    as_rotation(R, "R")
+    as_vector3(t, "t")
+    a, b = as_finite_rows(x1, "x1", 3), as_finite_rows(x2, "x2", 3)
+    if a.shape[0] != b.shape[0]:
+        raise ValueError(f"x1 and x2 must have the same length, got {a.shape[0]} and {b.shape[0]}")
+    if inliers is None:
+        return
+    mask = np.asarray(inliers)
+    if mask.dtype != bool:
+        raise TypeError(f"inliers must be a mask of bool, got dtype {mask.dtype}")
+    if mask.shape != (a.shape[0],):
+        raise ValueError(f"inliers must have one flag per match ({a.shape[0]}), got {mask.shape}")
 
 
 def as_finite_array(value: Any, name: str) -> np.ndarray:

@@ -15,11 +15,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
-from .checks import as_finite_rows, as_rotation, as_vector3
+from .checks import require_pose_matches
 from .lsq import (
     cross_matrices,
     cross_matrix,
@@ -39,7 +38,6 @@ from .robust import sampson_signed, sampson_signed_rows, virtual_camera
 from .rotation import FOCAL_PRIOR, K1_PRIOR
 
 __all__ = [
-    "require_pose_matches",
     "HUBER_NOISE_FACTOR",
     "K1_BIAS_REPLICATES",
     "K1_MIN",
@@ -62,25 +60,6 @@ __all__ = [
     "pose_sigmas_deg",
     "translation_sigma_deg",
 ]
-
-
-def require_pose_matches(R: Any, t: Any, x1: Any, x2: Any, inliers: Any = None) -> None:
-    """ValueError or TypeError naming the argument unless ``R`` is a rotation, ``t`` three
-    finite numbers, ``x1`` and ``x2`` finite (N, 3) rows of one length and ``inliers`` (when
-    given) a bool mask of N: the pose functions of this module failed on NaN in numpy's SVD
-    (LinAlgError) and read a mask of indices as one of flags."""
-    as_rotation(R, "R")
-    as_vector3(t, "t")
-    a, b = as_finite_rows(x1, "x1", 3), as_finite_rows(x2, "x2", 3)
-    if a.shape[0] != b.shape[0]:
-        raise ValueError(f"x1 and x2 must have the same length, got {a.shape[0]} and {b.shape[0]}")
-    if inliers is None:
-        return
-    mask = np.asarray(inliers)
-    if mask.dtype != bool:
-        raise TypeError(f"inliers must be a mask of bool, got dtype {mask.dtype}")
-    if mask.shape != (a.shape[0],):
-        raise ValueError(f"inliers must have one flag per match ({a.shape[0]}), got {mask.shape}")
 
 
 def refine_pose(

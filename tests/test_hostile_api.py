@@ -423,6 +423,9 @@ CASES = {
     "refine k1_noise_bias NaN t": (
         lambda: _refine().k1_noise_bias(R_TRUE, [np.nan, 0, 1], _rays(), _rays(), 1e-3),
         ValueError, "t has 1 NaN"),
+    "valley valley_minima NaN match": (
+        lambda: __import__("ppo_cv.valley").valley.valley_minima(
+            R_TRUE, T_TRUE, _rays(np.nan), _rays(), 1e-3), ValueError, "x1 has 1 NaN"),
     # Python's OverflowError
     "rotation_focal_scale H beyond a float": (
         lambda: _sfm_module().rotation_focal_scale([[10**400, 0, 0], [0, 1, 0], [0, 0, 1]], 500.0,
