@@ -426,6 +426,19 @@ CASES = {
     "valley valley_minima NaN match": (
         lambda: __import__("ppo_cv.valley").valley.valley_minima(
             R_TRUE, T_TRUE, _rays(np.nan), _rays(), 1e-3), ValueError, "x1 has 1 NaN"),
+    # a pose of the identity without a word for a NaN match (plane), "SVD did not converge"
+    "plane planar_pose NaN match": (
+        lambda: __import__("ppo_cv.plane").plane.planar_pose(np.eye(3), _rays(np.nan), _rays()),
+        ValueError, "x1 has 1 NaN"),
+    "plane refine_planar_pose NaN match": (
+        lambda: __import__("ppo_cv.plane").plane.refine_planar_pose(
+            R_TRUE, T_TRUE, [0, 0, 1], _rays(np.nan), _rays()), ValueError, "x1 has 1 NaN"),
+    "plane planar_pose NaN H": (
+        lambda: __import__("ppo_cv.plane").plane.planar_pose(np.full((3, 3), np.nan), _rays(),
+                                                             _rays()), ValueError, "H has 9 NaN"),
+    "motion_model translation_for_rotation NaN match": (
+        lambda: __import__("ppo_cv.motion_model").motion_model.translation_for_rotation(
+            R_TRUE, _rays(np.nan), _rays()), ValueError, "x1 has 1 NaN"),
     # Python's OverflowError
     "rotation_focal_scale H beyond a float": (
         lambda: _sfm_module().rotation_focal_scale([[10**400, 0, 0], [0, 1, 0], [0, 0, 1]], 500.0,
