@@ -192,6 +192,8 @@ def detection_size(shape: tuple, max_image_size: int | None) -> tuple[int, int] 
     :func:`detect_features` detects on, its longer side reduced to ``max_image_size``; None
     when the image is no larger (or ``max_image_size`` is None) and is detected as it is."""
     height, width = int(shape[0]), int(shape[1])
+    if max_image_size is not None:
+        max_image_size = as_whole_number(max_image_size, "max_image_size", 1, MAX_WHOLE_NUMBER)
     if max_image_size is None or max(height, width) <= max_image_size:
         return None
     scale = max(height, width) / float(max_image_size)

@@ -439,6 +439,21 @@ CASES = {
     "motion_model translation_for_rotation NaN match": (
         lambda: __import__("ppo_cv.motion_model").motion_model.translation_for_rotation(
             R_TRUE, _rays(np.nan), _rays()), ValueError, "x1 has 1 NaN"),
+    # os.stat's "path should be string, bytes, os.PathLike or integer" naming no argument, an
+    # AttributeError for bytes, a ZeroDivisionError for a size of 0, a size of -1 computed on
+    "images exif_layout None": (lambda: ppo_cv.images.exif_layout(None), TypeError,
+                                "path must be a path (str or os.PathLike), got NoneType"),
+    "images case_alike bytes": (lambda: ppo_cv.images.case_alike(b"IMG_1.jpg"), TypeError,
+                                "path must be a path (str or os.PathLike), got bytes"),
+    "images decoded_transposed width 0": (
+        lambda: ppo_cv.images.decoded_transposed("a.jpg", 0, 480), ValueError,
+        "stored size width must be a whole number in 1.."),
+    "features detection_size 0": (
+        lambda: ppo_cv.features.detection_size((480, 640), 0), ValueError,
+        "max_image_size must be a whole number in 1.."),
+    "features detection_scale -1": (
+        lambda: ppo_cv.features.detection_scale((480, 640), -1), ValueError,
+        "max_image_size must be a whole number in 1.."),
     # Python's OverflowError
     "rotation_focal_scale H beyond a float": (
         lambda: _sfm_module().rotation_focal_scale([[10**400, 0, 0], [0, 1, 0], [0, 0, 1]], 500.0,
