@@ -57,6 +57,12 @@ def _mask(value, selected=40):
 _ALL = np.ones(40, bool)
 
 
+def _significance():
+    from ppo_cv import significance
+
+    return significance
+
+
 def _refine():
     from ppo_cv import refine
 
@@ -454,6 +460,29 @@ CASES = {
     "features detection_scale -1": (
         lambda: ppo_cv.features.detection_scale((480, 640), -1), ValueError,
         "max_image_size must be a whole number in 1.."),
+    # significance: IndexErrors for a negative count ("index 11 is out of bounds"), NaN read as
+    # an answer (101), a RuntimeWarning for a negative threshold, AttributeErrors for lists
+    "significance log10_binomial k beyond n": (
+        lambda: _significance().log10_binomial(10, -1), ValueError,
+        "log10_binomial needs 0 <= k <= n, got n=array(10) and k=array(-1)"),
+    "significance log10_binomial fractions": (
+        lambda: _significance().log10_binomial(10.5, 3), TypeError,
+        "n and k must be integers, got dtypes float64 and int64"),
+    "significance smallest consensus NaN threshold": (
+        lambda: _significance().smallest_significant_consensus(100, (640, 480), np.nan, 5.0),
+        ValueError, "threshold must be a finite number > 0, got nan"),
+    "significance smallest consensus negative threshold": (
+        lambda: _significance().smallest_significant_consensus(100, (640, 480), -1.0, 5.0),
+        ValueError, "threshold must be a finite number > 0, got -1.0"),
+    "significance smallest consensus NaN bar": (
+        lambda: _significance().smallest_significant_consensus(100, (640, 480), 1.0, np.nan),
+        ValueError, "max_log10_nfa must be a number (inf: every consensus), got nan"),
+    "significance smallest consensus no size": (
+        lambda: _significance().smallest_significant_consensus(100, None, 1.0, 5.0), TypeError,
+        "image_size2 must be (width, height), got None"),
+    "significance distinctiveness index mask": (
+        lambda: _significance().distinctiveness(np.array([0.5, 0.7, 0.9]), np.array([0, 1, 1])),
+        TypeError, "consistent must be a mask of bool, got dtype int64"),
     # Python's OverflowError
     "rotation_focal_scale H beyond a float": (
         lambda: _sfm_module().rotation_focal_scale([[10**400, 0, 0], [0, 1, 0], [0, 0, 1]], 500.0,
@@ -721,6 +750,16 @@ def test_shown_quotes_a_value_in_at_most_its_width(value, quoted):
     from ppo_cv.checks import shown
 
     assert shown(value) == quoted and len(shown(value)) <= 40
+
+
+def test_distinctiveness_takes_its_ratios_as_a_list():
+    # "'list' object has no attribute 'shape'"
+    from ppo_cv.significance import distinctiveness
+
+    consistent = np.array([True, True, False, False, False])
+    ratios = [0.3, 0.4, 0.8, 0.85, 0.9]
+    assert distinctiveness(ratios, consistent) == distinctiveness(np.array(ratios), consistent)
+    assert distinctiveness(ratios, consistent) < 0.1
 
 
 @pytest.mark.filterwarnings("ignore::ppo_cv.calib.ImplausibleCameraWarning")  # 800 px on 64x48
