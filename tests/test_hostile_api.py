@@ -483,6 +483,20 @@ CASES = {
     "significance distinctiveness index mask": (
         lambda: _significance().distinctiveness(np.array([0.5, 0.7, 0.9]), np.array([0, 1, 1])),
         TypeError, "consistent must be a mask of bool, got dtype int64"),
+    # homography errors: AttributeErrors ("'NoneType' object has no attribute 'T'"), numpy's
+    # LinAlgError "Singular matrix", NaN errors for a NaN homography without a word
+    "homography transfer_errors None": (
+        lambda: ppo_cv.homography.transfer_errors(None, _rays(), _rays()), TypeError,
+        "H is required, got None"),
+    "homography symmetric singular": (
+        lambda: ppo_cv.homography.symmetric_transfer_errors(np.zeros((3, 3)), _rays(), _rays()),
+        ValueError, "H is singular"),
+    "homography sampson NaN H": (
+        lambda: ppo_cv.homography.homography_sampson_errors(np.full((3, 3), np.nan), _rays(),
+                                                            _rays()), ValueError, "H has 9 NaN"),
+    "homography sampson points of two": (
+        lambda: ppo_cv.homography.homography_sampson_errors(np.eye(3), P1, P2), ValueError,
+        "x1 must have shape (N, 3), got (40, 2)"),
     # Python's OverflowError
     "rotation_focal_scale H beyond a float": (
         lambda: _sfm_module().rotation_focal_scale([[10**400, 0, 0], [0, 1, 0], [0, 0, 1]], 500.0,
