@@ -14,6 +14,7 @@ __all__ = [
     "as_points",
     "as_finite_rows",
     "as_finite_array",
+    "as_real_array",
     "as_point_pair",
     "as_homogeneous_pair",
     "as_camera_matrix",
@@ -211,6 +212,12 @@ def require_pose_matches(R: Any, t: Any, x1: Any, x2: Any, inliers: Any = None) 
         raise TypeError(f"inliers must be a mask of bool, got dtype {mask.dtype}")
     if mask.shape != (a.shape[0],):
         raise ValueError(f"inliers must have one flag per match ({a.shape[0]}), got {mask.shape}")
+
+
+def as_real_array(value: Any, name: str) -> np.ndarray:
+    """Real numbers of any shape as float64, NaN and infinities kept (a residual may be
+    infinite); TypeError naming ``name`` for None, text, complex or bool values."""
+    return _as_real_array(value, name)
 
 
 def as_finite_array(value: Any, name: str) -> np.ndarray:

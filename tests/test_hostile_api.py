@@ -497,6 +497,26 @@ CASES = {
     "homography sampson points of two": (
         lambda: ppo_cv.homography.homography_sampson_errors(np.eye(3), P1, P2), ValueError,
         "x1 must have shape (N, 3), got (40, 2)"),
+    # model_selection: int("5") read a text as a codimension of 5, True as 1; IndexErrors and
+    # Python's operator messages naming nothing
+    "model_selection robust_sigma text codimension": (
+        lambda: ppo_cv.model_selection.robust_sigma(np.ones(10), "2"), TypeError,
+        "codimension must be a whole number, got str '2'"),
+    "model_selection robust_sigma codimension 0": (
+        lambda: ppo_cv.model_selection.robust_sigma(np.ones(10), 0), ValueError,
+        "codimension must be a whole number in 1..4, got 0"),
+    "model_selection gric no sigma": (
+        lambda: ppo_cv.model_selection.gric(np.ones(10), None, 2, 3), TypeError,
+        "sigma must be a number, got NoneType"),
+    "model_selection gric dimension beyond": (
+        lambda: ppo_cv.model_selection.gric(np.ones(10), 1.0, 7, 3), ValueError,
+        "dimension must be a whole number in 0..4, got 7"),
+    "model_selection nearest_neighbours one point": (
+        lambda: ppo_cv.model_selection.nearest_neighbours(np.zeros((1, 2))), ValueError,
+        "points must have shape (N, 2) with N >= 2, got (1, 2)"),
+    "model_selection nearest_neighbours NaN": (
+        lambda: ppo_cv.model_selection.nearest_neighbours(np.full((4, 2), np.nan)), ValueError,
+        "points has 8 NaN"),
     # Python's OverflowError
     "rotation_focal_scale H beyond a float": (
         lambda: _sfm_module().rotation_focal_scale([[10**400, 0, 0], [0, 1, 0], [0, 0, 1]], 500.0,
