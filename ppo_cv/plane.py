@@ -36,7 +36,14 @@ from typing import Any
 import numpy as np
 
 from . import ppo
-from .checks import as_finite_array, as_finite_rows, as_rotation, as_vector3
+from .checks import (
+    as_finite_array,
+    as_finite_rows,
+    as_number,
+    as_real_array,
+    as_rotation,
+    as_vector3,
+)
 from .lsq import (
     forward_jacobian,
     gauss_newton_covariance,
@@ -567,8 +574,8 @@ def undistort_division(x: np.ndarray, k1: float) -> np.ndarray:
     ``x`` are normalized points ``K^-1 (u, v, 1)`` with the distortion unmodelled; to first
     order ``k1`` equals OpenCV's radial ``k1`` of the lens. Returns homogeneous rows.
     """
-    X = _homogeneous(x)
-    scale = 1.0 + k1 * np.sum(X[:, :2] ** 2, axis=1)
+    X = _homogeneous(as_real_array(x, "x"))
+    scale = 1.0 + as_number(k1, "k1") * np.sum(X[:, :2] ** 2, axis=1)
     return np.column_stack([X[:, :2] / scale[:, None], np.ones(len(X))])
 
 
@@ -734,7 +741,7 @@ def held_k1_deviation(k1_fitted: float, k1_sigma: float) -> float:
     >>> round(held_k1_deviation(0.03, 0.04), 4)
     0.05
     """
-    return float(np.hypot(k1_fitted, k1_sigma))
+    return float(np.hypot(as_number(k1_fitted, "k1_fitted"), as_number(k1_sigma, "k1_sigma")))
 
 
 def rms_rotation_angle_deg(covariance: np.ndarray) -> float:

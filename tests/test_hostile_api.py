@@ -517,6 +517,17 @@ CASES = {
     "model_selection nearest_neighbours NaN": (
         lambda: ppo_cv.model_selection.nearest_neighbours(np.full((4, 2), np.nan)), ValueError,
         "points has 8 NaN"),
+    # plane helpers: Python's operator messages ("unsupported operand type(s) for *"), an
+    # AttributeError ("'NoneType' object has no attribute 'hypot'")
+    "plane undistort_division text k1": (
+        lambda: __import__("ppo_cv.plane").plane.undistort_division(_rays(), "0.1"), TypeError,
+        "k1 must be a number, got str '0.1'"),
+    "plane undistort_division no points": (
+        lambda: __import__("ppo_cv.plane").plane.undistort_division(None, 0.1), TypeError,
+        "x is required, got None"),
+    "plane held_k1_deviation None": (
+        lambda: __import__("ppo_cv.plane").plane.held_k1_deviation(None, 0.1), TypeError,
+        "k1_fitted must be a number, got NoneType"),
     # Python's OverflowError
     "rotation_focal_scale H beyond a float": (
         lambda: _sfm_module().rotation_focal_scale([[10**400, 0, 0], [0, 1, 0], [0, 0, 1]], 500.0,
