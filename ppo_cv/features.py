@@ -9,14 +9,19 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from .checks import (
     MAX_WHOLE_NUMBER,
+    as_finite_array,
+    as_finite_rows,
     as_flag,
     as_number,
+    as_positive,
     as_whole_number,
+    require_finite,
     require_instance,
     shown,
 )
@@ -74,6 +79,12 @@ class Features:
     responses: np.ndarray | None = None
     threshold_scale: float = 1.0
 
+    def __post_init__(self) -> None:
+        for name in ("keypoints", "descriptors"):  # lists are taken as arrays
+            if not isinstance(getattr(self, name), np.ndarray):
+                object.__setattr__(self, name, _as_array(getattr(self, name), name))
+        _require_features(self)
+
     @property
     def binary(self) -> bool:
         """Whether the descriptors compare by Hamming distance."""
@@ -81,6 +92,50 @@ class Features:
 
     def __len__(self) -> int:
         return int(self.keypoints.shape[0])
+
+
+def _as_array(value: Any, name: str) -> np.ndarray:
+    if value is None:
+        raise TypeError(f"Features.{name} is required, got None")
+    try:
+        return np.asarray(value)
+    except (TypeError, ValueError) as exc:  # a ragged list
+        raise TypeError(f"Features.{name} must be an array: {exc}") from None
+
+
+def _require_features(features: Features) -> None:
+    """ValueError or TypeError naming the field of ``features`` that no detection gives: an
+    unknown kind, keypoints that are not finite (N, 2) pixels, descriptors not one row of the
+    kind's type per keypoint (float for SIFT, uint8 for ORB and AKAZE), responses not one
+    finite number per keypoint, a threshold scale that is no positive number. The pipeline read
+    NaN keypoints, (N, 3) rows and mismatched lengths without a word or failed on them deep
+    inside (an IndexError)."""
+    if features.kind not in FEATURE_TYPES:
+        raise ValueError(
+            f"Features.kind must be one of {', '.join(FEATURE_TYPES)}, got {shown(features.kind)}"
+        )
+    n = len(as_finite_rows(features.keypoints, "Features.keypoints", 2))
+    descriptors = features.descriptors
+    wanted = "f" if features.kind == "sift" else "u"
+    if descriptors.ndim != 2 or len(descriptors) != n or descriptors.shape[1] == 0:
+        raise ValueError(
+            f"Features.descriptors must have one row per keypoint ({n}, D), got {descriptors.shape}"
+        )
+    if descriptors.dtype.kind != wanted or (wanted == "u" and descriptors.dtype != np.uint8):
+        kind = "floats" if wanted == "f" else "uint8 (binary)"
+        raise TypeError(
+            f"Features.descriptors of {features.kind} must be {kind}, got dtype {descriptors.dtype}"
+        )
+    if wanted == "f":
+        require_finite(descriptors, "Features.descriptors")
+    if features.responses is not None and np.shape(features.responses) != (n,):
+        raise ValueError(
+            f"Features.responses must have one per keypoint ({n},), got "
+            f"{np.shape(features.responses)}"
+        )
+    if features.responses is not None:
+        as_finite_array(features.responses, "Features.responses")
+    as_positive(features.threshold_scale, "Features.threshold_scale")
 
 
 MIN_FLOAT_LEVELS = 16.0
@@ -496,6 +551,11 @@ def match_features_scored(
     mutual, unique = as_flag(mutual, "mutual"), as_flag(unique, "unique")
     flann = None if flann is None else as_flag(flann, "flann")
     d1, d2 = features1.descriptors, features2.descriptors
+    if d1.shape[1] != d2.shape[1]:
+        raise ValueError(
+            f"features1 and features2 have descriptors of {d1.shape[1]} and {d2.shape[1]} values: "
+            "they were not computed alike"
+        )
     if len(d1) < 2 or len(d2) < 2:
         return np.zeros((0, 2), dtype=np.int64), np.zeros(0)
     binary = features1.binary
