@@ -31,7 +31,8 @@ five points, mask values other than 0..255 whole numbers, non-positive focal len
 ``E`` far from every essential matrix (a fundamental matrix in pixels, the identity) are errors
 rather than silent zeros, mirrored poses or poses of no meaning; so is a camera matrix given
 with ``focal`` or ``pp`` (it stands in the place of the ``R`` output, and OpenCV writes the
-rotation over it).
+rotation over it). A ``cameraMatrix`` of None (``recoverPose(E, p1, p2, None)``) is refused as
+OpenCV refuses it; normalized points take the form without it, ``recoverPose(E, p1, p2)``.
 """
 
 from __future__ import annotations
