@@ -27,6 +27,7 @@ if TYPE_CHECKING:  # typer brings click, or its own copy of it in recent release
 
 from ppo_cv.calib import implausible_intrinsics
 from ppo_cv.checks import shown
+from ppo_cv.limits import MAX_KEYPOINTS
 
 __all__ = [
     "NO_RESULT",
@@ -61,7 +62,7 @@ NO_RESULT = 1
 """Exit code of a run whose input was accepted but gave no pose (``pair``, every pair of
 ``pairs``) or no model (``sfm``); bad input is 2, an interrupt 130 (SIGINT) or 143 (SIGTERM)."""
 SEED_MAX = 2**31 - 1  # pycolmap and OpenCV take the seed as a 32-bit signed integer
-MAX_FEATURES_MAX = 1_000_000
+MAX_FEATURES_MAX = MAX_KEYPOINTS
 WORKERS_MAX = 256
 MAX_SIZE_MAX = 100_000
 RATIO_RANGE = (1e-6, 1.0)

@@ -29,7 +29,7 @@ from dataclasses import asdict, dataclass, replace
 import cv2
 import numpy as np
 
-from ppo_cv.checks import as_camera_matrix, as_number, as_positive, as_whole_number
+from ppo_cv.checks import as_camera_matrix, as_number, as_positive, as_whole_number, shown
 
 from .render import _check_size
 
@@ -92,9 +92,10 @@ def _pair(name: str, value, low: float, high: float) -> tuple[float, float]:
 def _scalar(name: str, value, low: float, high: float) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise ValueError(f"{name} must be a number, got {value!r}")
-    if not (math.isfinite(value) and low <= value <= high):
-        raise ValueError(f"{name} must be in [{low}, {high}], got {value!r}")
-    return float(value)
+    number = float(value) if abs(value) < 2**1024 else math.inf  # an int beyond a float
+    if not (math.isfinite(number) and low <= number <= high):
+        raise ValueError(f"{name} must be in [{low}, {high}], got {shown(value)}")
+    return number
 
 
 @dataclass(frozen=True)

@@ -55,7 +55,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ppo_cv.checks import as_finite_rows, as_number
+from ppo_cv.checks import (
+    MAX_COORDINATE,
+    as_finite_rows,
+    as_flag,
+    as_image_size,
+    as_number,
+    shown,
+)
 
 from .names import MAX_BASELINE_RATIO, MAX_PIVOT_OFFSET, MOTIONS
 from .protocol import euler_to_matrix
@@ -119,13 +126,26 @@ def intrinsics(size: tuple[int, int], hfov_deg: float, principal_offset=(0.0, 0.
 
     ``f = W / (2 tan(hfov / 2))``, principal point ``((W - 1) / 2, (H - 1) / 2) + offset``.
     """
-    width, height = size
-    if not 1.0 < hfov_deg < 179.0:
+    width, height = as_image_size(size, "size")
+    if not 1.0 < as_number(hfov_deg, "hfov_deg") < 179.0:
         raise ValueError(f"hfov_deg must be in (1, 179), got {hfov_deg}")
+    offset = _offset(principal_offset)
     f = width / (2.0 * np.tan(np.deg2rad(hfov_deg) / 2.0))
-    cx = (width - 1) / 2.0 + principal_offset[0]
-    cy = (height - 1) / 2.0 + principal_offset[1]
+    cx = (width - 1) / 2.0 + offset[0]
+    cy = (height - 1) / 2.0 + offset[1]
     return np.array([[f, 0.0, cx], [0.0, f, cy], [0.0, 0.0, 1.0]])
+
+
+def _offset(value) -> np.ndarray:
+    """A principal-point offset ``(dx, dy)``: two finite numbers within ``MAX_COORDINATE``."""
+    if np.size(value) != 2:
+        raise ValueError(f"principal_offset must be two numbers (dx, dy), got {shown(value)}")
+    offset = as_finite_rows(np.reshape(value, (1, 2)), "principal_offset", 2)[0]
+    if np.abs(offset).max() > MAX_COORDINATE:
+        raise ValueError(
+            f"principal_offset must be within {MAX_COORDINATE:.0e} px, got {shown(value)}"
+        )
+    return offset
 
 
 def _point(value, name: str) -> np.ndarray:
@@ -218,9 +238,13 @@ def sample_motion(
     """
     if name not in MOTIONS:
         raise ValueError(f"unknown motion {name!r}; choose one of {', '.join(MOTIONS)}")
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+    same_intrinsics = as_flag(same_intrinsics, "same_intrinsics")
+    alpha = None if alpha is None else as_number(alpha, "alpha")
     if alpha is not None and (not np.isfinite(alpha) or not 0.0 < alpha <= 1.0):
         raise ValueError(f"alpha must be in (0, 1], got {alpha}")
-    ratio = baseline_ratio
+    ratio = None if baseline_ratio is None else as_number(baseline_ratio, "baseline_ratio")
     if ratio is not None and not (np.isfinite(ratio) and 0.0 <= ratio <= MAX_BASELINE_RATIO):
         raise ValueError(f"baseline_ratio must be in [0, {MAX_BASELINE_RATIO}], got {ratio}")
     check_pivot_offset(name, pivot_offset)

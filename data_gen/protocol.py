@@ -23,11 +23,12 @@ directions, as in the paper's parameter grid, and ``mc_run`` selects the Monte-C
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from ppo_cv.checks import as_finite_array
+from ppo_cv.checks import as_finite_array, as_flag
 
 __all__ = [
     "PAPER_K",
@@ -125,7 +126,7 @@ def _check_count(name: str, value: int, minimum: int) -> int:
 def _check_real(name: str, value: float, minimum: float, strict: bool = False) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise TypeError(f"{name} must be a real number, got {type(value).__name__}")
-    value = float(value)
+    value = float(value) if abs(value) < 2**1024 else math.inf  # an int beyond a float
     if not np.isfinite(value) or value < minimum or (strict and value == minimum):
         op = ">" if strict else ">="
         raise ValueError(f"{name} must be finite and {op} {minimum}, got {value}")
@@ -191,6 +192,7 @@ def paper_protocol(
     depth = _check_real("depth", depth, 0.0, strict=True)
     seed = _check_count("seed", seed, 0)
     mc_run = _check_count("mc_run", mc_run, 0)
+    shared_points = as_flag(shared_points, "shared_points")
 
     rng_points = np.random.default_rng([seed, 0, int(shared_points)])
     rng_euler = np.random.default_rng([seed, 1])

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ppo_cv.checks import as_image_size
+from ppo_cv.checks import as_finite_array, as_image_size, as_vector3
 
 from .scenes import Quad, Scene
 
@@ -415,6 +415,8 @@ def median_depth(
     The same ray casting as :func:`render_view` (one sample per pixel centre). Raises
     ValueError if the camera sees no surface at a finite distance.
     """
+    if not isinstance(scene, Scene):
+        raise TypeError(f"scene must be a Scene, got {type(scene).__name__}")
     grid = _Grid(_check_intrinsics("K", K), _check_size(size), 1, _check_dist("dist", dist))
     w = _trace(scene, grid, np.eye(3), np.zeros(3))[1]
     seen = w[w > TINY_W]
@@ -522,9 +524,12 @@ def project_points(
     Uses ``cv2.projectPoints``, i.e. the same camera model as :func:`render_view`; returns
     shape (m, 2) float64.
     """
-    X = np.asarray(X, dtype=np.float64).reshape(-1, 3)
+    X = as_finite_array(X, "X")
+    if X.ndim not in (1, 2) or X.shape[-1] != 3:
+        raise ValueError(f"X must have shape (m, 3), got {X.shape}")
+    X = X.reshape(-1, 3)
     R = np.eye(3) if R is None else _check_rotation(R)
-    t = np.zeros(3) if t is None else np.asarray(t, dtype=np.float64).reshape(3)
+    t = np.zeros(3) if t is None else as_vector3(t, "t")
     rvec = cv2.Rodrigues(R)[0]
     dist = _check_dist("dist", dist)
     pts = cv2.projectPoints(X, rvec, t, _check_intrinsics("K", K), dist if dist.size else None)[0]

@@ -19,7 +19,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ppo_cv.checks import as_positive, as_whole_number, shown
+from ppo_cv.checks import (
+    MAX_WHOLE_NUMBER,
+    as_number,
+    as_positive,
+    as_vector3,
+    as_whole_number,
+    shown,
+)
 
 from .names import SCENES
 from .textures import Texture, checker_texture, texture_pool, texture_set_photos
@@ -146,10 +153,13 @@ def box_quads(
     yaw_deg : float
         Rotation of the box about the vertical (Y) axis, degrees.
     """
+    centre, size = as_vector3(centre, "centre"), as_vector3(size, "size")
+    if not (np.isfinite(as_number(yaw_deg, "yaw_deg")) and (size > 0).all()):
+        raise ValueError(f"need a finite yaw_deg and a size > 0, got {yaw_deg} and {size.tolist()}")
     c, s = np.cos(np.deg2rad(yaw_deg)), np.sin(np.deg2rad(yaw_deg))
-    axes = np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]]) * np.asarray(size)[:, None]
+    axes = np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]]) * size[:, None]
     ex, ey, ez = axes
-    lo = np.asarray(centre, float) - 0.5 * (ex + ey + ez)
+    lo = centre - 0.5 * (ex + ey + ez)
     hi = lo + ex + ey + ez
     faces = [
         (lo, ex, ey), (lo, ez, ey), (lo, ex, ez),
@@ -271,7 +281,9 @@ def make_scene(
     if texture_set is not None:
         with _textures_from(texture_set):
             return make_scene(name, seed)
-    rng = seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    if not isinstance(seed, np.random.Generator):
+        seed = np.random.default_rng(as_whole_number(seed, "seed", 0, MAX_WHOLE_NUMBER))
+    rng = seed
     if name in ("room", "clutter"):
         quads, params = _room(rng)
         if name == "clutter":

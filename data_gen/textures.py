@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from ppo_cv.checks import as_image_size, as_number, as_whole_number, shown
+
 __all__ = [
     "BUNDLED_PHOTOS",
     "TEXTURE_SETS",
@@ -26,6 +28,8 @@ __all__ = [
 ]
 
 MAX_LEVELS = 6
+MAX_TEXTURE_SIDE = 8192
+"""Largest side of a checkerboard texture, texels (as a render's largest side, pixels)."""
 
 BUNDLED_PHOTOS = (
     "astronaut",
@@ -141,8 +145,7 @@ def photo_texture(
     low-frequency fractal noise and enriched with fine procedural grain so that magnified
     surfaces keep detail.
     """
-    if width < 8 or height < 8:
-        raise ValueError(f"texture size must be at least 8x8, got {width}x{height}")
+    width, height = as_image_size((width, height), "texture", 8, MAX_TEXTURE_SIDE)
     tile = int(min(rng.integers(192, 384), max(width, height)))
     nx, ny = -(-width // tile), -(-height // tile)
     rows = [np.hstack([_photo_tile(rng, tile, photos) for _ in range(nx)]) for _ in range(ny)]
@@ -166,11 +169,17 @@ def checker_texture(
     coordinates ``s in [0, 1]`` the inner corners are at ``s = i / squares[0]`` and
     ``t = j / squares[1]``.
     """
-    nx, ny = squares
-    if nx < 2 or ny < 2 or texels_per_square < 1:
-        raise ValueError(f"need at least 2x2 squares and 1 texel per square, got {squares}")
+    nx, ny = as_image_size(squares, "squares", 2, MAX_TEXTURE_SIDE)
+    n = as_whole_number(texels_per_square, "texels_per_square", 1, MAX_TEXTURE_SIDE)
+    if max(nx, ny) * n > MAX_TEXTURE_SIDE:
+        raise ValueError(
+            f"a texture of {nx}x{ny} squares of {n} texels is beyond {MAX_TEXTURE_SIDE} texels"
+        )
+    for name, value in (("dark", dark), ("light", light)):
+        if not 0 <= as_number(value, name) <= 1:
+            raise ValueError(f"{name} must be a reflectance in [0, 1], got {shown(value)}")
     cells = (np.add.outer(np.arange(ny), np.arange(nx)) % 2).astype(np.float32)
-    board = np.kron(cells, np.ones((texels_per_square, texels_per_square), np.float32))
+    board = np.kron(cells, np.ones((n, n), np.float32))
     board = dark + (light - dark) * board
     return np.repeat(board[:, :, None], 3, axis=2)
 

@@ -25,6 +25,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from ppo_cv.checks import as_number
 from ppo_cv.images import check_header, load_image
 
 from .imperfect import REAL_PHOTO, Imperfections, given_intrinsics, jpeg_roundtrip
@@ -155,7 +156,7 @@ def warp_pair(
     size = photo.shape[1::-1] if size is None else _check_size(size)
     for name, value, high in (("noise_std", noise_std, 50.0), ("blur_sigma", blur_sigma, 50.0),
                               ("focal_factor", focal_factor, 2.0)):  # fmt: skip
-        if not (np.isfinite(value) and 0.0 <= value <= high):
+        if not (np.isfinite(as_number(value, name)) and 0.0 <= value <= high):
             raise ValueError(f"{name} must be in [0, {high}], got {value}")
     if focal_factor == 0.0:
         raise ValueError("focal_factor must be > 0")

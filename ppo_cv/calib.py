@@ -110,6 +110,8 @@ class Camera:
             size = tuple(size.tolist())
         if not (isinstance(size, (tuple, list)) and len(size) == 2):
             raise TypeError(f"Camera.image_size must be (width, height) or None, got {shown(size)}")
+        if any(isinstance(side, (str, bytes)) for side in size):  # texts are a file's to read
+            raise TypeError(f"Camera.image_size must be two whole numbers, got {shown(size)}")
         object.__setattr__(self, "image_size", _image_size(*size, "Camera.image_size"))
 
 
@@ -411,6 +413,8 @@ def _image_size(width, height, where: str) -> tuple[int, int]:
         if isinstance(width, (bool, np.bool_)) or isinstance(height, (bool, np.bool_)):
             raise TypeError("a flag is no size")
         size = float(width), float(height)
+    except OverflowError:  # an integer of more digits than a float holds
+        size = math.inf, math.inf
     except (TypeError, ValueError):
         raise ValueError(f"{where}: image width and height must be numbers") from None
     if not all(math.isfinite(v) and v == round(v) and 1 <= v <= 1e6 for v in size):
@@ -516,6 +520,8 @@ def _json_numbers(value: Any, where: str, key: str) -> np.ndarray:
     _require_no_booleans(value, where, key)
     try:
         return np.asarray(value, dtype=np.float64)
+    except OverflowError:  # an integer of more digits than a float holds
+        raise ValueError(f"{where}: {key} holds a number beyond the range of a float") from None
     except (TypeError, ValueError):
         raise ValueError(f"{where}: {key} must be numbers, got {cut(json.dumps(value))}") from None
 

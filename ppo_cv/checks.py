@@ -14,6 +14,7 @@ __all__ = [
     "as_points",
     "as_finite_rows",
     "as_finite_array",
+    "as_real_array",
     "as_point_pair",
     "as_homogeneous_pair",
     "as_camera_matrix",
@@ -25,6 +26,7 @@ __all__ = [
     "as_positive",
     "as_ransac_settings",
     "as_vector3",
+    "require_pose_matches",
     "as_nonnegative",
     "as_pri_threshold",
     "as_number",
@@ -185,9 +187,37 @@ def as_finite_rows(value: Any, name: str, width: int | tuple[int, ...]) -> np.nd
 def as_vector3(value: Any, name: str) -> np.ndarray:
     """Three finite numbers (a row, a column or a flat triple) as float64 (3,); ValueError or
     TypeError naming ``name`` otherwise."""
+    if value is None:
+        raise TypeError(f"{name} is required, got None")
     if np.size(value) != 3:
         raise ValueError(f"{name} must be 3 numbers, got shape {np.shape(value)}")
     return as_finite_rows(np.reshape(value, (1, 3)), name, 3)[0]
+
+
+def require_pose_matches(R: Any, t: Any, x1: Any, x2: Any, inliers: Any = None) -> None:
+    """ValueError or TypeError naming the argument unless ``R`` is a rotation, ``t`` three
+    finite numbers, ``x1`` and ``x2`` finite (N, 3) rows of one length and ``inliers`` (when
+    given) a bool mask of N; validates without converting. The pose functions of
+    :mod:`ppo_cv.refine` and :mod:`ppo_cv.valley` failed on NaN in numpy's SVD (LinAlgError)
+    and read a mask of indices as one of flags."""
+    as_rotation(R, "R")
+    as_vector3(t, "t")
+    a, b = as_finite_rows(x1, "x1", 3), as_finite_rows(x2, "x2", 3)
+    if a.shape[0] != b.shape[0]:
+        raise ValueError(f"x1 and x2 must have the same length, got {a.shape[0]} and {b.shape[0]}")
+    if inliers is None:
+        return
+    mask = np.asarray(inliers)
+    if mask.dtype != bool:
+        raise TypeError(f"inliers must be a mask of bool, got dtype {mask.dtype}")
+    if mask.shape != (a.shape[0],):
+        raise ValueError(f"inliers must have one flag per match ({a.shape[0]}), got {mask.shape}")
+
+
+def as_real_array(value: Any, name: str) -> np.ndarray:
+    """Real numbers of any shape as float64, NaN and infinities kept (a residual may be
+    infinite); TypeError naming ``name`` for None, text, complex or bool values."""
+    return _as_real_array(value, name)
 
 
 def as_finite_array(value: Any, name: str) -> np.ndarray:

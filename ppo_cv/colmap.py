@@ -34,6 +34,7 @@ from .checks import (
     as_pri_threshold,
     as_rotation,
     as_whole_number,
+    require_essential_spread,
     require_finite,
     require_instance,
     shown,
@@ -321,8 +322,33 @@ def recover_pose_from_geometry(
     E = geometry.E
     if E is None or not np.any(E):
         E = _essential_by_five_point(camera1, points1, camera2, points2)
+    _require_essential_geometry(E, matches)
     x1, x2 = rays_from_camera(camera1, points1), rays_from_camera(camera2, points2)
     return recover_pose(E, x1, x2, np.eye(3), pri_threshold=pri_threshold)
+
+
+def _require_essential_geometry(E: Any, matches: np.ndarray) -> None:
+    """ValueError naming the geometry when its ``E`` is far from an essential matrix
+    (:func:`ppo_cv.checks.require_essential_spread`), with the keypoint its inlier
+    ``matches`` (K, 2) share most: a degenerate estimate, such as pycolmap's from matches that
+    all reuse one keypoint, was refused as an ``E`` given by the caller ("pass E = K2^T F K1")."""
+    E = np.asarray(E, dtype=np.float64)
+    if E.shape != (3, 3) or not np.all(np.isfinite(E)):
+        raise ValueError(f"geometry.E must be a finite 3x3 matrix, got {shown(E)}")
+    try:
+        require_essential_spread(np.linalg.svd(E, compute_uv=False))
+    except ValueError as exc:
+        shared = ""
+        for image in (1, 2):
+            keys, counts = np.unique(matches[:, image - 1], return_counts=True)
+            if counts.size and counts.max() > 1:
+                shared += (f"; keypoint {keys[np.argmax(counts)]} of image {image} is in "
+                           f"{counts.max()} of them")  # fmt: skip
+        reason = str(exc).split(", and ", 1)[-1].split(" (a fundamental")[0]
+        raise ValueError(
+            f"the geometry's E, from its {len(matches)} inlier matches, is degenerate: {reason}"
+            f"{shared}"
+        ) from None
 
 
 def _keypoint_rows(keypoints: Any, image: int) -> np.ndarray:

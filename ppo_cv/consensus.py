@@ -34,6 +34,7 @@ __all__ = [
     "Consensus",
     "PairInputs",
     "best_consensus",
+    "require_features_of",
     "detect_both",
     "ransac_keywords",
 ]
@@ -259,6 +260,30 @@ def _robust_essential(
     return fit
 
 
+def require_features_of(f1: Features, f2: Features, shape1: tuple, shape2: tuple) -> None:
+    """ValueError unless the features ``f1``, ``f2`` can be those of images of ``shape1`` and
+    ``shape2`` (H, W[, C]): keypoints within the images (to a pixel) and descriptors of one
+    length. Given features of a resized copy, or of another detector's settings, failed their
+    first consensus and were replaced by a detection on the images without a word."""
+    for name, f, shape in (("features1", f1, shape1), ("features2", f2, shape2)):
+        height, width = int(shape[0]), int(shape[1])
+        if len(f) and not (
+            f.keypoints.min() >= -1.0
+            and f.keypoints[:, 0].max() <= width
+            and f.keypoints[:, 1].max() <= height
+        ):
+            raise ValueError(
+                f"{name} has keypoints outside its {width}x{height} image (up to "
+                f"({f.keypoints[:, 0].max():.0f}, {f.keypoints[:, 1].max():.0f})): features "
+                "of another image, or of a resized copy?"
+            )
+    if f1.descriptors.shape[1] != f2.descriptors.shape[1]:
+        raise ValueError(
+            f"features1 and features2 have descriptors of {f1.descriptors.shape[1]} and "
+            f"{f2.descriptors.shape[1]} values: they were not computed alike"
+        )
+
+
 def best_consensus(
     f1: Features, f2: Features, inputs: PairInputs, options: PairOptions, lap: Callable
 ) -> Consensus:
@@ -276,6 +301,7 @@ def best_consensus(
     1 they are the given set), and the given features are fitted uniformly only when the
     denser ones give no significant consensus."""
     img1, img2 = inputs.img1, inputs.img2
+    require_features_of(f1, f2, img1.shape, img2.shape)
     camera = (
         inputs.K1, inputs.K2, inputs.dist1, inputs.dist2, inputs.focal, img2.shape, options, lap
     )  # fmt: skip

@@ -17,7 +17,18 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .checks import MAX_WHOLE_NUMBER, as_path, as_rotation, as_whole_number, shown
+from .checks import (
+    MAX_RADIAL,
+    MAX_WHOLE_NUMBER,
+    as_camera_matrix,
+    as_distortion,
+    as_image_size,
+    as_number,
+    as_path,
+    as_rotation,
+    as_whole_number,
+    shown,
+)
 from .result import (
     DecisionEvidence,
     LensTerms,
@@ -497,7 +508,10 @@ _BEYOND_FULL_OPENCV = {
 
 def check_colmap_camera(K: np.ndarray, dist: np.ndarray | None, name: str) -> None:
     """ValueError naming what COLMAP's camera models cannot hold: a skew in ``K`` or OpenCV's
-    thin-prism and tilt distortion terms (``FULL_OPENCV`` ends at k6)."""
+    thin-prism and tilt distortion terms (``FULL_OPENCV`` ends at k6); what is no camera
+    matrix or no distortion at all is an error naming ``name`` too."""
+    K = as_camera_matrix(K, name)
+    as_distortion(dist, name)
     if K[0, 1] != 0:
         raise ValueError(
             f"{name} has skew {K[0, 1]}, which no COLMAP camera model holds; the COLMAP model "
@@ -515,7 +529,12 @@ def check_colmap_camera(K: np.ndarray, dist: np.ndarray | None, name: str) -> No
 def check_colmap_names(names: tuple[str, str]) -> None:
     """ValueError naming an image name that is not valid UTF-8 (a file name of other bytes, as
     Python gives it with surrogate escapes) or holds a NUL character (the end of a name in
-    COLMAP's binary files), which a COLMAP model cannot hold."""
+    COLMAP's binary files), which a COLMAP model cannot hold; TypeError for anything but two
+    texts."""
+    if not (isinstance(names, (tuple, list)) and len(names) == 2) or not all(
+        isinstance(name, str) for name in names
+    ):
+        raise TypeError(f"names must be two image names (texts), got {shown(names)}")
     for name in names:
         if "\0" in name:
             raise ValueError(
@@ -543,7 +562,7 @@ def _colmap_camera(
     fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
     coefficients = np.zeros(0) if dist is None else np.asarray(dist, float).ravel()[:8]
     if k1 != 0.0:
-        coefficients = composed_distortion(K, dist, size, k1)
+        coefficients = _composed(K, dist, size, k1)
     if not np.any(coefficients):
         model, params = "PINHOLE", [fx, fy, cx, cy]
     elif coefficients.size <= 4:
@@ -604,11 +623,28 @@ def composed_distortion(
         ``(k1, k2, p1, p2, k3, k4, k5, k6)``.
     """
     from .camera import pixels_to_normalized
+
+    K, size = as_camera_matrix(K, "K"), as_image_size(size, "size")
+    as_distortion(dist, "dist")
+    _require_division_k1(k1, pixels_to_normalized(_composed_grid(size), K, dist))
+    return _composed(K, dist, size, k1)
+
+
+def _composed_grid(size: tuple[int, int]) -> np.ndarray:
+    """The ``COMPOSED_GRID`` square grid of pixels (M, 2) over an image of ``size``."""
+    u, v = np.meshgrid(*(np.linspace(0.0, n - 1.0, COMPOSED_GRID) for n in size))
+    return np.column_stack([u.ravel(), v.ravel()])
+
+
+def _composed(
+    K: np.ndarray, dist: np.ndarray | None, size: tuple[int, int], k1: float
+) -> np.ndarray:
+    """:func:`composed_distortion` of checked arguments (a fitted pose's ``k1``)."""
+    from .camera import pixels_to_normalized
     from .plane import undistort_division
 
     given = np.zeros(0) if dist is None else np.asarray(dist, float).ravel()
-    u, v = np.meshgrid(*(np.linspace(0.0, n - 1.0, COMPOSED_GRID) for n in size))
-    pixels = np.column_stack([u.ravel(), v.ravel()])
+    pixels = _composed_grid(size)
     seen = (pixels - K[:2, 2]) / np.diag(K)[:2]
     c = undistort_division(pixels_to_normalized(pixels, K, dist), k1)[:, :2]
     if given.size <= 4:
@@ -616,6 +652,20 @@ def composed_distortion(
         if np.max(np.abs(error) * np.diag(K)[:2]) <= COMPOSED_TOLERANCE_PX:
             return solved
     return _composed_fit(c, seen, given, full=True)[0]
+
+
+def _require_division_k1(k1: Any, normalized: np.ndarray) -> None:
+    """ValueError unless ``k1`` is a division term within OpenCV's radial range
+    (``checks.MAX_RADIAL``) keeping ``1 + k1 |x|^2`` positive over the points ``normalized``
+    (N, 2) of the image: NaN hung the least-squares fit in LAPACK, a lens folding the image
+    gave coefficients of nothing."""
+    k1 = as_number(k1, "k1")
+    reach = float(np.max(np.sum(normalized[:, :2] ** 2, axis=1)))
+    if not (abs(k1) <= MAX_RADIAL and 1.0 + k1 * reach > 0):
+        raise ValueError(
+            f"k1 must be a division term within +-{MAX_RADIAL:g} under which 1 + k1 |x|^2 "
+            f"stays positive over the image (|x|^2 up to {reach:.3g}), got {shown(k1)}"
+        )
 
 
 def _composed_fit(

@@ -9,17 +9,23 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from .checks import (
     MAX_WHOLE_NUMBER,
+    as_finite_array,
+    as_finite_rows,
     as_flag,
     as_number,
+    as_positive,
     as_whole_number,
+    require_finite,
     require_instance,
     shown,
 )
+from .limits import MAX_KEYPOINTS
 
 __all__ = [
     "FEATURE_TYPES",
@@ -73,6 +79,12 @@ class Features:
     responses: np.ndarray | None = None
     threshold_scale: float = 1.0
 
+    def __post_init__(self) -> None:
+        for name in ("keypoints", "descriptors"):  # lists are taken as arrays
+            if not isinstance(getattr(self, name), np.ndarray):
+                object.__setattr__(self, name, _as_array(getattr(self, name), name))
+        _require_features(self)
+
     @property
     def binary(self) -> bool:
         """Whether the descriptors compare by Hamming distance."""
@@ -80,6 +92,50 @@ class Features:
 
     def __len__(self) -> int:
         return int(self.keypoints.shape[0])
+
+
+def _as_array(value: Any, name: str) -> np.ndarray:
+    if value is None:
+        raise TypeError(f"Features.{name} is required, got None")
+    try:
+        return np.asarray(value)
+    except (TypeError, ValueError) as exc:  # a ragged list
+        raise TypeError(f"Features.{name} must be an array: {exc}") from None
+
+
+def _require_features(features: Features) -> None:
+    """ValueError or TypeError naming the field of ``features`` that no detection gives: an
+    unknown kind, keypoints that are not finite (N, 2) pixels, descriptors not one row of the
+    kind's type per keypoint (float for SIFT, uint8 for ORB and AKAZE), responses not one
+    finite number per keypoint, a threshold scale that is no positive number. The pipeline read
+    NaN keypoints, (N, 3) rows and mismatched lengths without a word or failed on them deep
+    inside (an IndexError)."""
+    if features.kind not in FEATURE_TYPES:
+        raise ValueError(
+            f"Features.kind must be one of {', '.join(FEATURE_TYPES)}, got {shown(features.kind)}"
+        )
+    n = len(as_finite_rows(features.keypoints, "Features.keypoints", 2))
+    descriptors = features.descriptors
+    wanted = "f" if features.kind == "sift" else "u"
+    if descriptors.ndim != 2 or len(descriptors) != n or descriptors.shape[1] == 0:
+        raise ValueError(
+            f"Features.descriptors must have one row per keypoint ({n}, D), got {descriptors.shape}"
+        )
+    if descriptors.dtype.kind != wanted or (wanted == "u" and descriptors.dtype != np.uint8):
+        kind = "floats" if wanted == "f" else "uint8 (binary)"
+        raise TypeError(
+            f"Features.descriptors of {features.kind} must be {kind}, got dtype {descriptors.dtype}"
+        )
+    if wanted == "f":
+        require_finite(descriptors, "Features.descriptors")
+    if features.responses is not None and np.shape(features.responses) != (n,):
+        raise ValueError(
+            f"Features.responses must have one per keypoint ({n},), got "
+            f"{np.shape(features.responses)}"
+        )
+    if features.responses is not None:
+        as_finite_array(features.responses, "Features.responses")
+    as_positive(features.threshold_scale, "Features.threshold_scale")
 
 
 MIN_FLOAT_LEVELS = 16.0
@@ -191,6 +247,8 @@ def detection_size(shape: tuple, max_image_size: int | None) -> tuple[int, int] 
     :func:`detect_features` detects on, its longer side reduced to ``max_image_size``; None
     when the image is no larger (or ``max_image_size`` is None) and is detected as it is."""
     height, width = int(shape[0]), int(shape[1])
+    if max_image_size is not None:
+        max_image_size = as_whole_number(max_image_size, "max_image_size", 1, MAX_WHOLE_NUMBER)
     if max_image_size is None or max(height, width) <= max_image_size:
         return None
     scale = max(height, width) / float(max_image_size)
@@ -223,7 +281,8 @@ def detect_features(
     kind : {"sift", "orb", "akaze"}
         Detector and descriptor.
     max_features : int
-        Keep at most this many keypoints, the strongest first.
+        Keep at most this many keypoints, the strongest first (at most
+        :data:`ppo_cv.limits.MAX_KEYPOINTS`).
     max_image_size : int, optional
         Detect on a copy whose longer side is at most this many pixels; keypoints are mapped back
         to full resolution (``u_full = (u + 0.5) * s - 0.5``).
@@ -242,7 +301,7 @@ def detect_features(
 
     if kind not in FEATURE_TYPES:
         raise ValueError(f"unknown feature type {kind!r}; choose one of {', '.join(FEATURE_TYPES)}")
-    max_features = as_whole_number(max_features, "max_features", 1, MAX_WHOLE_NUMBER)
+    max_features = as_whole_number(max_features, "max_features", 1, MAX_KEYPOINTS)
     if max_image_size is not None:
         max_image_size = as_whole_number(max_image_size, "max_image_size", 32, MAX_WHOLE_NUMBER)
     if not 0 < as_number(threshold_scale, "threshold_scale") < np.inf:
@@ -492,6 +551,11 @@ def match_features_scored(
     mutual, unique = as_flag(mutual, "mutual"), as_flag(unique, "unique")
     flann = None if flann is None else as_flag(flann, "flann")
     d1, d2 = features1.descriptors, features2.descriptors
+    if d1.shape[1] != d2.shape[1]:
+        raise ValueError(
+            f"features1 and features2 have descriptors of {d1.shape[1]} and {d2.shape[1]} values: "
+            "they were not computed alike"
+        )
     if len(d1) < 2 or len(d2) < 2:
         return np.zeros((0, 2), dtype=np.int64), np.zeros(0)
     binary = features1.binary

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .checks import as_finite_array, as_finite_rows
 from .plane import normalize_homography
 from .robust import checked_fit_settings, checked_rays, ransac_options
 
@@ -92,6 +93,7 @@ def homography_sampson_errors(H: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> 
     -------
     ndarray, shape (N,)
     """
+    H, x1, x2 = _checked_homography_matches(H, x1, x2)
     u2, v2 = x2[:, 0], x2[:, 1]
     a = x1 @ H.T
     e1 = v2 * a[:, 2] - a[:, 1]
@@ -111,6 +113,7 @@ def transfer_errors(H: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray
 
     Points mapped to infinity get an infinite error.
     """
+    H, x1, x2 = _checked_homography_matches(H, x1, x2)
     with np.errstate(divide="ignore", invalid="ignore"):
         mapped = x1 @ H.T
         errors = np.linalg.norm(mapped[:, :2] / mapped[:, 2:] - x2[:, :2], axis=1)
@@ -122,7 +125,24 @@ def symmetric_transfer_errors(H: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> 
 
     Points mapped to infinity get an infinite error.
     """
-    return np.hypot(transfer_errors(H, x1, x2), transfer_errors(np.linalg.inv(H), x2, x1))
+    H, x1, x2 = _checked_homography_matches(H, x1, x2)
+    try:
+        H_inverse = np.linalg.inv(H)
+    except np.linalg.LinAlgError:
+        raise ValueError("H is singular: it maps image 1 onto a line or a point") from None
+    return np.hypot(transfer_errors(H, x1, x2), transfer_errors(H_inverse, x2, x1))
+
+
+def _checked_homography_matches(H, x1, x2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``H`` (3, 3) and ``x1``, ``x2`` (N, 3) as float64, finite and of one length; ValueError or
+    TypeError naming the argument otherwise (numpy's AttributeError for a list or None)."""
+    H = as_finite_array(H, "H")
+    if H.shape != (3, 3):
+        raise ValueError(f"H must be a 3x3 matrix, got shape {H.shape}")
+    x1, x2 = as_finite_rows(x1, "x1", 3), as_finite_rows(x2, "x2", 3)
+    if len(x1) != len(x2):
+        raise ValueError(f"x1 and x2 must have the same length, got {len(x1)} and {len(x2)}")
+    return H, x1, x2
 
 
 def _pycolmap(p1, p2, threshold, confidence, min_trials, max_trials, seed):

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from .checks import as_flag, as_path, shown
+from .checks import as_flag, as_image_size, as_path, shown
 from .features import to_uint8
 
 __all__ = [
@@ -99,7 +99,7 @@ def case_alike(path: str | os.PathLike) -> str | None:
     the Unicode encoding of its accents only (``IMG_1.JPG`` for ``IMG_1.jpg``, as a list
     written on a system that ignores case gives it; ``e`` and a combining accent for ``é``, as
     macOS writes names), or None."""
-    folder, name = os.path.split(os.fspath(path))
+    folder, name = os.path.split(os.fspath(as_path(path, "path")))
     try:
         names = os.listdir(folder or ".")
     except (OSError, ValueError):
@@ -283,7 +283,7 @@ def exif_layout(path: str | os.PathLike) -> ExifLayout:
     """The EXIF orientation, pixel dimensions and focal length tags of an image file (empty
     when it has none, Pillow cannot read it or it is no regular file: a FIFO is
     never opened)."""
-    if not _is_regular_file(path):
+    if not _is_regular_file(as_path(path, "path")):
         return ExifLayout()
     try:
         from PIL import Image
@@ -323,6 +323,7 @@ def decoded_transposed(path: str | os.PathLike, width: int, height: int) -> bool
     """
     import cv2
 
+    path, (width, height) = as_path(path, "path"), as_image_size((width, height), "stored size")
     if width == height or width * height > _max_pixels(None) or not _is_regular_file(path):
         return False
     data = np.fromfile(os.fspath(path), dtype=np.uint8)

@@ -4,7 +4,7 @@ nothing: the command line builds its help without importing :mod:`ppo_cv.sfm` (a
 
 from __future__ import annotations
 
-__all__ = ["MAX_THREADS", "MAX_FEATURES"]
+__all__ = ["MAX_THREADS", "MAX_FEATURES", "MAX_KEYPOINTS"]
 
 MAX_THREADS = 256
 """Upper bound of ``num_threads`` (``sfm --threads``): a million threads makes pycolmap abort
@@ -12,3 +12,8 @@ the process."""
 
 MAX_FEATURES = 100_000
 """Upper bound of ``max_num_features`` (``sfm --max-features``), SIFT features per image."""
+
+MAX_KEYPOINTS = 1_000_000
+"""Upper bound of ``max_features`` (``PairOptions``, ``detect_features``, ``--max-features``),
+keypoints per image: OpenCV's ORB reserves room for that many per pyramid level, and 2^31 - 1
+failed in it with ``std::bad_alloc``."""

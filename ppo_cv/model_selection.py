@@ -54,6 +54,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .checks import (
+    MAX_WHOLE_NUMBER,
+    as_number,
+    as_real_array,
+    as_whole_number,
+    require_finite,
+)
+
 __all__ = [
     "COHERENT_AGREEMENT",
     "JOINT_DIMENSION",
@@ -159,10 +167,11 @@ def robust_sigma(residuals: np.ndarray, codimension: int) -> float:
     ``e^2 / sigma^2`` follows chi2 with ``codimension`` degrees of freedom for inliers, so
     ``sigma = median(e) / sqrt(median chi2)``; the median ignores up to half outliers.
     """
-    e = np.abs(np.asarray(residuals, dtype=np.float64))
+    e = np.abs(as_real_array(residuals, "residuals"))
+    codimension = as_whole_number(codimension, "codimension", 1, JOINT_DIMENSION)
     if e.size == 0:
         return float("nan")
-    return float(np.median(e) / np.sqrt(_chi2_median(int(codimension))))
+    return float(np.median(e) / np.sqrt(_chi2_median(codimension)))
 
 
 def nearest_neighbours(points: np.ndarray) -> np.ndarray:
@@ -179,7 +188,11 @@ def nearest_neighbours(points: np.ndarray) -> np.ndarray:
     >>> nearest_neighbours(np.array([[0.0, 0.0], [10.0, 0.0], [1.0, 1.0], [10.0, 2.0]]))
     array([2, 3, 0, 1])
     """
-    p = np.asarray(points, dtype=np.float64)[:, :2]
+    p = as_real_array(points, "points")
+    if p.ndim != 2 or p.shape[1] < 2 or len(p) < 2:
+        raise ValueError(f"points must have shape (N, 2) with N >= 2, got {p.shape}")
+    require_finite(p[:, :2], "points")
+    p = p[:, :2]
     n = len(p)
     low = p.min(axis=0)
     extent = np.maximum(p.max(axis=0) - low, 1e-12)
@@ -328,7 +341,10 @@ def gric(residuals: np.ndarray, sigma: float, dimension: int, num_params: int) -
     dimension, num_params : int
         ``d`` and ``k``.
     """
-    e = np.asarray(residuals, dtype=np.float64)
+    e = as_real_array(residuals, "residuals")
+    sigma = as_number(sigma, "sigma")
+    dimension = as_whole_number(dimension, "dimension", 0, JOINT_DIMENSION)
+    num_params = as_whole_number(num_params, "num_params", 0, MAX_WHOLE_NUMBER)
     n = e.size
     r = JOINT_DIMENSION
     rho = np.minimum((e / sigma) ** 2, _LAMBDA3 * (r - dimension))

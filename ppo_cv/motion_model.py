@@ -116,6 +116,7 @@ from functools import partial
 import numpy as np
 
 from . import ppo
+from .checks import require_pose_matches
 from .homography import HomographyEstimate
 from .metrics import rotation_error_deg
 from .model_selection import (
@@ -515,6 +516,7 @@ def translation_for_rotation(R: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> n
     -------
     ndarray, shape (3,)
     """
+    require_pose_matches(R, np.zeros(3), x1, x2)
     normals = np.cross(x1 @ R.T, x2)
     normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
     t = np.linalg.svd(normals, full_matrices=False)[2][-1]

@@ -31,7 +31,8 @@ five points, mask values other than 0..255 whole numbers, non-positive focal len
 ``E`` far from every essential matrix (a fundamental matrix in pixels, the identity) are errors
 rather than silent zeros, mirrored poses or poses of no meaning; so is a camera matrix given
 with ``focal`` or ``pp`` (it stands in the place of the ``R`` output, and OpenCV writes the
-rotation over it).
+rotation over it). A ``cameraMatrix`` of None (``recoverPose(E, p1, p2, None)``) is refused as
+OpenCV refuses it; normalized points take the form without it, ``recoverPose(E, p1, p2)``.
 """
 
 from __future__ import annotations
@@ -173,6 +174,8 @@ def _form(args: tuple, kwargs: dict) -> tuple[str, ...]:
         return _FORM4
     if "focal" in kwargs or "pp" in kwargs:
         return _FORM2
+    if len(args) in (4, 5) and args[3] is None:  # OpenCV reads it as the camera matrix
+        return _FORM1
     has_camera = "cameraMatrix" in kwargs or (len(args) > 3 and args[3] is not None)
     if not has_camera:
         return _FORM2
@@ -235,6 +238,8 @@ def _camera_from_focal(focal: Any, pp: Any) -> np.ndarray:
     if not MIN_FOCAL <= f <= MAX_FOCAL:
         raise ValueError(f"focal must be in [{MIN_FOCAL:g}, {MAX_FOCAL:g}] pixels, got {f}")
     try:
+        if pp is not None and np.asarray(pp).dtype.kind in "bSU":  # True is no coordinate
+            raise TypeError
         cx, cy = (0.0, 0.0) if pp is None else np.asarray(pp, dtype=np.float64).reshape(2)
     except (TypeError, ValueError):
         raise TypeError(f"pp must be two numbers (cx, cy), got {shown(pp)}") from None
@@ -323,6 +328,18 @@ def _required_camera(bound: dict, name: str) -> Any:
     if name == "cameraMatrix2" and _is_3x3(bound.get("distCoeffs1")):
         place = ", and distCoeffs1 is a 3x3 matrix: the second camera's in its place?"
     raise TypeError(f"{name} is required, got None{place} {_POINT_FORMS}")
+
+
+def _required_camera_matrix(K: Any) -> Any:
+    """``cameraMatrix`` of the forms with ``E``; TypeError for None, as OpenCV refuses it,
+    saying how normalized points are passed (a camera matrix that failed to load, taken for
+    the focal length 1 of those points, gave a pose of pixels read as normalized points)."""
+    if K is None:
+        raise TypeError(
+            "cameraMatrix is required, got None: for normalized points leave it out, "
+            "recoverPose(E, points1, points2), or pass focal=1.0"
+        )
+    return K
 
 
 def _write_mask(buffer: Any, mask: np.ndarray) -> np.ndarray:
@@ -442,7 +459,7 @@ def _recover_pose(args: tuple, kwargs: dict) -> tuple:
         _require_no_camera_as_R(bound.get("R"))
         K = _camera_from_focal(bound.get("focal", 1.0), bound.get("pp"))
     else:
-        K = bound.get("cameraMatrix")
+        K = _required_camera_matrix(bound.get("cameraMatrix"))
     E = _essential(bound.get("E"))
     points = as_homogeneous_pair(bound.get("points1"), bound.get("points2"))
     K_inv = _inverse_camera_matrix(K)

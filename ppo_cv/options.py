@@ -14,6 +14,7 @@ from .checks import (
     shown,
 )
 from .features import FEATURE_TYPES
+from .limits import MAX_KEYPOINTS
 from .ppo import DEFAULT_PRI_THRESHOLD
 from .robust import ROBUST_BACKENDS
 from .significance import DEFAULT_MAX_LOG10_NFA
@@ -42,7 +43,7 @@ class PairOptions:
     features : {"sift", "orb", "akaze"}
         Detector and descriptor.
     max_features : int
-        Keypoints kept per image, strongest first.
+        Keypoints kept per image, strongest first (8 to :data:`ppo_cv.limits.MAX_KEYPOINTS`).
     max_image_size : int or None
         Detect on a copy whose longer side is at most this (pixels), and align the
         photometric refit's windows on such copies; None keeps full size, at a cost growing
@@ -165,7 +166,8 @@ class PairOptions:
             put(name, as_flag(getattr(self, name), name))
         for name, low in (("max_features", 8), ("min_trials", 1), ("max_trials", 1),
                           ("redetect_below", 0), ("min_inliers", 5), ("seed", 0)):  # fmt: skip
-            put(name, as_whole_number(getattr(self, name), name, low, MAX_WHOLE_NUMBER))
+            high = MAX_KEYPOINTS if name == "max_features" else MAX_WHOLE_NUMBER
+            put(name, as_whole_number(getattr(self, name), name, low, high))
         size = self.max_image_size
         if size is not None:
             try:

@@ -31,10 +31,19 @@ matrix, to homographies; see ``docs/homography.md``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from . import ppo
+from .checks import (
+    as_finite_array,
+    as_finite_rows,
+    as_number,
+    as_real_array,
+    as_rotation,
+    as_vector3,
+)
 from .lsq import (
     forward_jacobian,
     gauss_newton_covariance,
@@ -478,6 +487,10 @@ def planar_pose(
     >>> np.allclose(pose.R, np.eye(3)), np.allclose(pose.t, [1, 0, 0]), pose.n.round(6) + 0.0
     (True, True, array([0., 0., 1.]))
     """
+    if np.shape(H) != (3, 3):
+        raise ValueError(f"H must be a 3x3 matrix, got shape {np.shape(H)}")
+    as_finite_array(H, "H")
+    _require_matches(x1, x2)
     X1, X2 = _homogeneous(x1), _homogeneous(x2)
     used = None if inliers is None else np.asarray(inliers, bool).reshape(-1)
     if used is not None and used.shape != (len(X1),):
@@ -488,6 +501,24 @@ def planar_pose(
     return select_plane_pose(
         decompose_homography(Hn), X1, X2, used, off_plane=off_plane, threshold=threshold
     )
+
+
+def _require_matches(x1: Any, x2: Any) -> None:
+    """ValueError or TypeError naming ``x1`` or ``x2`` unless both are finite normalized points
+    (N, 2) or (N, 3) of one length: a NaN match gave a pose of the identity without a word."""
+    a, b = as_finite_rows(x1, "x1", (2, 3)), as_finite_rows(x2, "x2", (2, 3))
+    if a.shape[0] != b.shape[0]:
+        raise ValueError(f"x1 and x2 must have the same length, got {a.shape[0]} and {b.shape[0]}")
+
+
+def _require_plane_pose(R: Any, T: Any, n: Any, x1: Any, x2: Any) -> None:
+    """ValueError or TypeError naming the argument unless ``R`` is a rotation, ``T`` three
+    finite numbers, ``n`` a nonzero normal and the matches as :func:`_require_matches` wants."""
+    as_rotation(R, "R")
+    as_vector3(T, "T")
+    if not np.any(as_vector3(n, "n")):
+        raise ValueError("n must be a plane's normal, got (0, 0, 0)")
+    _require_matches(x1, x2)
 
 
 @dataclass(frozen=True)
@@ -543,8 +574,8 @@ def undistort_division(x: np.ndarray, k1: float) -> np.ndarray:
     ``x`` are normalized points ``K^-1 (u, v, 1)`` with the distortion unmodelled; to first
     order ``k1`` equals OpenCV's radial ``k1`` of the lens. Returns homogeneous rows.
     """
-    X = _homogeneous(x)
-    scale = 1.0 + k1 * np.sum(X[:, :2] ** 2, axis=1)
+    X = _homogeneous(as_real_array(x, "x"))
+    scale = 1.0 + as_number(k1, "k1") * np.sum(X[:, :2] ** 2, axis=1)
     return np.column_stack([X[:, :2] / scale[:, None], np.ones(len(X))])
 
 
@@ -636,6 +667,7 @@ def refine_planar_pose(
     RefinedPlanarPose
         The start is kept when the refined cost is not lower.
     """
+    _require_plane_pose(R, T, n, x1, x2)
     X1, X2 = _homogeneous(x1), _homogeneous(x2)
     used = np.ones(len(X1), bool) if used is None else np.asarray(used, bool).reshape(-1)
     if used.shape != (len(X1),):
@@ -709,7 +741,7 @@ def held_k1_deviation(k1_fitted: float, k1_sigma: float) -> float:
     >>> round(held_k1_deviation(0.03, 0.04), 4)
     0.05
     """
-    return float(np.hypot(k1_fitted, k1_sigma))
+    return float(np.hypot(as_number(k1_fitted, "k1_fitted"), as_number(k1_sigma, "k1_sigma")))
 
 
 def rms_rotation_angle_deg(covariance: np.ndarray) -> float:

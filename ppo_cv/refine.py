@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .checks import require_pose_matches
 from .lsq import (
     cross_matrices,
     cross_matrix,
@@ -93,6 +94,7 @@ def refine_pose(
     """
     import pycolmap
 
+    require_pose_matches(R, t, x1, x2, inliers)
     t = np.asarray(t, dtype=np.float64).reshape(3)
     if np.count_nonzero(inliers) < 5:
         return R, t / np.linalg.norm(t)
@@ -249,6 +251,7 @@ def refine_pose_radial(
     -------
     RadialPose
     """
+    require_pose_matches(R, t, x1, x2, inliers)
     R0 = np.asarray(R, dtype=np.float64)
     t0 = np.asarray(t, dtype=np.float64).reshape(3)
     t0 = t0 / np.linalg.norm(t0)
@@ -435,6 +438,7 @@ def k1_noise_bias(
     sigma : float
         Standard deviation of that mean.
     """
+    require_pose_matches(R, t, x1, x2)
     R = np.asarray(R, dtype=np.float64)
     t = np.asarray(t, dtype=np.float64).reshape(3)
     t = t / np.linalg.norm(t)
@@ -538,6 +542,7 @@ def released_lens_shift_deg(
     shift_deg, sigma_deg : float
         ``(0, 0)`` with fewer than 12 inliers or no noise.
     """
+    require_pose_matches(R, t, x1, x2, inliers)
     a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
     if len(a) < 12:
         return 0.0, 0.0
@@ -891,6 +896,7 @@ def pose_information(
     :func:`pose_sigmas_deg` takes (its parameters of the same names), whose
     :meth:`PoseInformation.sigmas_deg` gives the deviations under each set of priors without
     the Jacobians again."""
+    require_pose_matches(R, t, x1, x2, inliers)
     a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
     a, b = a / a[:, 2:], b / b[:, 2:]
     t = np.asarray(t, float).reshape(3) / np.linalg.norm(t)
@@ -966,6 +972,7 @@ def checked_inliers(
     ndarray of bool, shape (N,)
         A subset of ``inliers``; ``inliers`` itself with fewer than 6 of them.
     """
+    require_pose_matches(R, t, x1, x2, inliers)
     inliers = np.asarray(inliers, dtype=bool)
     a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
     if len(a) < 6:

@@ -1312,6 +1312,8 @@ def rotation_focal_scale(H: Any, focal: float, size: float) -> float | None:
     focal, size = as_positive(focal, "focal"), as_positive(size, "size")
     try:
         H = np.asarray(H, dtype=np.float64)
+    except OverflowError:  # an integer of more digits than a float holds
+        raise ValueError("H holds a number beyond the range of a float") from None
     except (TypeError, ValueError):
         raise TypeError(f"H must be a 3x3 array of numbers, got {shown(H)}") from None
     if H.shape != (3, 3):

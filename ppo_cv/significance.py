@@ -60,6 +60,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .checks import (
+    MAX_WHOLE_NUMBER,
+    as_finite_array,
+    as_image_size,
+    as_number,
+    as_positive,
+    as_whole_number,
+    shown,
+)
 from .metrics import direction_error_deg
 
 __all__ = [
@@ -156,7 +165,12 @@ class Significance:
 
 def log10_binomial(n: np.ndarray | int, k: np.ndarray | int) -> np.ndarray:
     """``log10 C(n, k)`` for integers ``0 <= k <= n`` (broadcast), exact sums of logarithms."""
-    n, k = np.asarray(n, dtype=np.int64), np.asarray(k, dtype=np.int64)
+    n, k = np.asarray(n), np.asarray(k)
+    if n.dtype.kind not in "iu" or k.dtype.kind not in "iu":
+        raise TypeError(f"n and k must be integers, got dtypes {n.dtype} and {k.dtype}")
+    if not np.all((0 <= k) & (k <= n)):
+        raise ValueError(f"log10_binomial needs 0 <= k <= n, got n={shown(n)} and k={shown(k)}")
+    n, k = n.astype(np.int64), k.astype(np.int64)
     log_factorial = np.concatenate([[0.0], np.cumsum(np.log10(np.arange(1, int(n.max()) + 1)))])
     return log_factorial[n] - log_factorial[k] - log_factorial[n - k]
 
@@ -291,6 +305,15 @@ def distinctiveness(ratios: np.ndarray, consistent: np.ndarray) -> float:
     """
     from math import erfc, sqrt
 
+    ratios = as_finite_array(ratios, "ratios")
+    if ratios.ndim != 1 or np.shape(consistent) != ratios.shape:
+        raise ValueError(
+            f"ratios and consistent must be (n,) of one length, got shapes {ratios.shape} and "
+            f"{np.shape(consistent)}"
+        )
+    if np.asarray(consistent).dtype != bool:
+        kind = np.asarray(consistent).dtype
+        raise TypeError(f"consistent must be a mask of bool, got dtype {kind}")
     k = int(np.count_nonzero(consistent))
     n = int(ratios.shape[0])
     m = n - k
@@ -337,8 +360,13 @@ def smallest_significant_consensus(
     int
         The smallest such ``k``; ``num_matches + 1`` when no consensus can be significant.
     """
-    width, height = image_size2
-    n = int(num_matches)
+    width, height = as_image_size(image_size2, "image_size2")
+    n = as_whole_number(num_matches, "num_matches", 0, MAX_WHOLE_NUMBER)
+    threshold = as_positive(threshold, "threshold")
+    if as_number(max_log10_nfa, "max_log10_nfa") != max_log10_nfa:
+        raise ValueError("max_log10_nfa must be a number (inf: every consensus), got nan")
+    for name, value in (("sample_size", sample_size), ("models_per_sample", models_per_sample)):
+        as_whole_number(value, name, 1, MAX_WHOLE_NUMBER)
     k = np.arange(sample_size + 1, n + 1)
     if k.size == 0:
         return n + 1

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .checks import require_pose_matches
 from .lsq import (
     cross_matrices,
     cross_matrix,
@@ -176,6 +177,7 @@ def valley_minima(
         On each side, the profile's lowest step polished when it is a local minimum away
         from the start (at most two); empty with fewer than 12 matches.
     """
+    require_pose_matches(R, t, x1, x2)
     R = np.asarray(R, dtype=np.float64)
     t = np.asarray(t, dtype=np.float64).reshape(3) / np.linalg.norm(t)
     if len(x1) < 12:

@@ -581,6 +581,27 @@ def test_unparseable_calibration_files_are_value_errors(tmp_path, name, text, me
         load_calibration(tmp_path / name)
 
 
+_HUGE = "1" + "0" * 400  # an integer JSON reads whole, beyond float64
+
+
+@pytest.mark.parametrize(
+    "entry, message",
+    [(f'"fx": {_HUGE}, "fy": 500, "cx": 320, "cy": 240', "fx holds a number beyond the range"),
+     (f'"K": [[{_HUGE}, 0, 320], [0, 500, 240], [0, 0, 1]]', "K holds a number beyond the range"),
+     (f'"fx": 500, "fy": 500, "cx": 320, "cy": 240, "dist": [{_HUGE}, 0, 0, 0]',
+      "dist holds a number beyond the range"),
+     (f'"fx": 500, "fy": 500, "cx": 320, "cy": 240, "width": {_HUGE}, "height": 480',
+      "whole numbers from 1 to 1e6, got <401-digit integer> and 480")],
+    ids=["fx", "K", "dist", "width"],
+)  # fmt: skip
+def test_a_json_integer_beyond_a_float_is_named(tmp_path, entry, message):
+    # Python's OverflowError escaped load_calibration, and ppo-cv pair --calib ended in it
+    path = tmp_path / "camera.json"
+    path.write_text("{" + entry + "}")
+    with pytest.raises(ValueError, match=re.escape(message)):
+        load_calibration(path)
+
+
 def test_a_plain_list_of_nine_numbers_reads_as_K(tmp_path):
     path = tmp_path / "list.yml"
     path.write_text("%YAML:1.0\n---\ncamera_matrix: [500, 0, 320, 0, 510, 240, 0, 0, 1]\n")

@@ -207,6 +207,18 @@ def test_estimate_two_view_geometry_without_enough_matches(camera):
         colmap.estimate_two_view_geometry(camera, p1, camera, p2[:5])
 
 
+def test_a_degenerate_geometry_is_named_for_its_matches_not_for_a_given_E(camera):
+    # every match reusing keypoint 0 of image 1: pycolmap's E of them was refused as if the
+    # caller had given it ("E is not an essential matrix ... pass E = K2^T F K1")
+    p1, p2 = scene(6, rotation([0.0, 1.0, 0.0], 5.0), np.array([1.0, 0.0, 0.0]), n=60)
+    matches = np.stack([np.zeros(60, int), np.arange(60)], 1)
+    with pytest.raises(ValueError) as info:
+        colmap.estimate_two_view_geometry(camera, p1, camera, p2, matches)
+    message = str(info.value)
+    assert message.startswith("the geometry's E, from its ") and "is degenerate" in message
+    assert "keypoint 0 of image 1 is in " in message and "pass E =" not in message
+
+
 def test_two_view_reconstruction_from_analytic_points():
     R_gt = rotation([0.1, 1.0, 0.0], 8.0)
     t_gt = np.array([1.0, 0.1, 0.0]) / np.linalg.norm([1.0, 0.1, 0.0])

@@ -114,6 +114,67 @@ CASES = {  # name: (call, error type, words of its message)
                                                        (2 * np.eye(3), np.zeros(3))]),
         ValueError, r"poses\[1\] R is not a rotation matrix",
     ),
+    # Python's and numpy's messages naming nothing ("cannot unpack non-iterable NoneType
+    # object", "'<' not supported", "cannot reshape array of size 1 into shape (3)"), a NaN
+    # texture without a word, a seed True read as 1, an OverflowError
+    "intrinsics_no_size": (lambda: dg.intrinsics(None, 60.0), TypeError,
+                           "size must be .width, height., got None"),
+    "intrinsics_text_field": (lambda: dg.intrinsics((64, 48), "60"), TypeError,
+                              "hfov_deg must be a number, got str"),
+    "intrinsics_one_offset": (lambda: dg.intrinsics((64, 48), 60.0, (1.0,)), ValueError,
+                              "principal_offset must be two numbers .dx, dy., got .1.0,."),
+    "intrinsics_nan_offset": (lambda: dg.intrinsics((64, 48), 60.0, (NAN, 0)), ValueError,
+                              "principal_offset has 1 NaN"),
+    "checker_texture_nan_dark": (lambda: dg.checker_texture(dark=NAN), ValueError,
+                                 "dark must be a reflectance in .0, 1., got nan"),
+    "checker_texture_text_light": (lambda: dg.checker_texture(light="1"), TypeError,
+                                   "light must be a number, got str"),
+    "checker_texture_no_squares": (lambda: dg.checker_texture(None), TypeError,
+                                   "squares must be .width, height., got None"),
+    "checker_texture_fractional_texels": (
+        lambda: dg.checker_texture(texels_per_square=1.5), ValueError,
+        "texels_per_square must be a whole number"),
+    "project_points_none": (lambda: dg.project_points(None, K), TypeError, "X is required"),
+    "project_points_of_two": (lambda: dg.project_points(np.ones((4, 2)), K), ValueError,
+                              "X must have shape .m, 3., got .4, 2."),
+    "project_points_nan": (lambda: dg.project_points([[0, 0, NAN]], K), ValueError,
+                           "X has 1 NaN"),
+    "project_points_short_t": (lambda: dg.project_points([[0, 0, 5]], K, None, [1, 0]),
+                               ValueError, "t must be 3 numbers"),
+    "make_scene_true_seed": (lambda: dg.make_scene("room", True), TypeError,
+                             "seed must be a whole number, got bool True"),
+    "make_scene_nan_seed": (lambda: dg.make_scene("room", NAN), ValueError,
+                            "seed must be a whole number in 0.."),
+    "expose_integer_beyond_a_float": (lambda: dg.expose(RGB, 10**400), ValueError,
+                                      "gain must be in .+, got <401-digit integer>"),
+    # AttributeErrors ("'NoneType' object has no attribute 'uniform'", "... 'quads'"),
+    # numpy's ufunc messages, an IndexError; a shared_points of NaN "cannot convert float NaN
+    # to integer", of "no" read as true
+    "sample_motion_no_rng": (lambda: dg.sample_motion("general", dg.checker_plane(), None),
+                             TypeError, "rng must be a numpy.random.Generator, got NoneType"),
+    "sample_motion_text_alpha": (
+        lambda: dg.sample_motion("small-parallax", dg.checker_plane(), np.random.default_rng(),
+                                 alpha="0.5"), TypeError, "alpha must be a number, got str"),
+    "sample_motion_text_flag": (
+        lambda: dg.sample_motion("general", dg.checker_plane(), np.random.default_rng(),
+                                 same_intrinsics="no"), TypeError, "same_intrinsics must be True"),
+    "median_depth_no_scene": (lambda: dg.median_depth(None, K, (64, 48)), TypeError,
+                              "scene must be a Scene, got NoneType"),
+    "warp_pair_no_focal_factor": (
+        lambda: dg.warp_pair(RGB, dg.intrinsics((16, 16), 60.0), np.eye(3), focal_factor=None),
+        TypeError, "focal_factor must be a number, got NoneType"),
+    "box_quads_no_size": (lambda: dg.box_quads(np.random.default_rng(), [0, 0, 5], None, 0.0),
+                          TypeError, "size is required"),
+    "box_quads_text_yaw": (lambda: dg.box_quads(np.random.default_rng(), [0, 0, 5], [1, 1, 1],
+                                                "30"), TypeError, "yaw_deg must be a number"),
+    "photo_texture_no_width": (lambda: dg.photo_texture(np.random.default_rng(), None, 64),
+                               TypeError, "texture width must be a whole number, got NoneType"),
+    "paper_protocol_nan_flag": (lambda: dg.paper_protocol(3, 20, 0.5, 0.5, shared_points=NAN),
+                                TypeError, "points must be True or False"),
+    "paper_protocol_text_flag": (lambda: dg.paper_protocol(3, 20, 0.5, 0.5, shared_points="no"),
+                                 TypeError, "points must be True or False"),
+    "paper_protocol_alpha_beyond_a_float": (lambda: dg.paper_protocol(3, 20, 10**400, 0.5),
+                                            ValueError, "alpha must be finite"),
 }  # fmt: skip
 
 

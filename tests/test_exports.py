@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import json
 import re
+import subprocess
+import sys
 from importlib import resources
 
 import numpy as np
@@ -527,6 +529,64 @@ def test_the_composed_lens_takes_k3_where_four_coefficients_miss_it(focal, k1, s
     ideal = undistort_division(pixels_to_normalized(pixels, K_wide, None), k1)[:, :2]
     back = normalized_to_pixels(ideal, K_wide, coefficients)
     assert coefficients.size == size and np.abs(back - pixels).max() < worst_px
+
+
+_K_NORMAL = np.array([[500.0, 0.0, 320.0], [0.0, 500.0, 240.0], [0.0, 0.0, 1.0]])
+
+
+@pytest.mark.parametrize(
+    "k1, error, words",
+    [(-5.0, ValueError, "(|x|^2 up to 0.64), got -5.0"),
+     (1e300, ValueError, "within +-10 under which"),
+     (None, TypeError, "k1 must be a number, got NoneType")],
+    ids=["folding the image", "huge", "none"],
+)  # fmt: skip
+def test_a_division_term_that_is_no_lens_is_refused_by_the_composed_lens(k1, error, words):
+    # -5 folds a 640x480 image at 500 px (1 + k1 |x|^2 reaches 0 inside it), 1e300 squeezes it
+    # to a point: both gave coefficients of nothing; None failed in numpy
+    from ppo_cv.export import composed_distortion
+
+    with pytest.raises(error) as info:
+        composed_distortion(_K_NORMAL, None, (640, 480), k1)
+    assert words in str(info.value)
+
+
+@pytest.mark.parametrize(
+    "call, error, words",
+    [(lambda e: e.check_colmap_names(np.array(["a.png", "b.png"])), TypeError,
+      "names must be two image names (texts), got array("),
+     (lambda e: e.check_colmap_names("ab"), TypeError, "names must be two image names"),
+     (lambda e: e.check_colmap_camera(2 * np.eye(3), None, "camera 1"), ValueError,
+      "camera 1 must be upper triangular with last row (0, 0, 1)"),
+     (lambda e: e.check_colmap_camera(np.full((3, 3), np.nan), None, "camera 1"), ValueError,
+      "camera 1 has 9 NaN"),
+     (lambda e: e.check_colmap_camera(_K_NORMAL, [0.1, 0.0, 0.0], "camera 2"), ValueError,
+      "camera 2 must be OpenCV distortion coefficients")],
+    ids=["names array", "names one text", "K scaled", "K nan", "dist of 3"],
+)  # fmt: skip
+def test_the_colmap_checks_name_what_is_no_name_or_camera(call, error, words):
+    # an AttributeError ("'numpy.ndarray' object has no attribute 'encode'"), "ab" passed as
+    # two names, a camera matrix of last row (0, 0, 2) passed and a NaN one "has skew nan"
+    from ppo_cv import export
+
+    with pytest.raises(error) as info:
+        call(export)
+    assert words in str(info.value)
+
+
+def test_a_nan_division_term_is_refused_by_the_composed_lens():
+    # it hung numpy's least squares in LAPACK (holding the interpreter: run apart, with a timeout)
+    code = (
+        "import numpy as np\n"
+        "from ppo_cv.export import composed_distortion\n"
+        "K = np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]])\n"
+        "try:\n"
+        "    composed_distortion(K, None, (640, 480), float('nan'))\n"
+        "except ValueError as error:\n"
+        "    print(error)\n"
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert "k1 must be a division term" in run.stdout and "got nan" in run.stdout
 
 
 def test_a_moving_pair_given_the_rotation_only_fit_exports_points_of_that_rotation(tmp_path):

@@ -68,6 +68,9 @@ def _sift(count: int = 4):
       "max_features must be a whole number in 1.."),
      (lambda f: features.detect_features(_GREY, max_features="800"), TypeError,
       "max_features must be a whole number, got str"),
+     # ORB failed in OpenCV with std::bad_alloc
+     (lambda f: features.detect_features(_GREY, "orb", max_features=2**31 - 1), ValueError,
+      "max_features must be a whole number in 1..1000000, got 2147483647"),
      (lambda f: features.detect_features(_GREY, max_image_size=0), ValueError,
       "max_image_size must be a whole number in 32.."),
      (lambda f: features.detect_features(_GREY, threshold_scale="2"), TypeError,
@@ -80,6 +83,7 @@ def _sift(count: int = 4):
       "ppo_cv.images.load_image")],
     ids=["features None", "ratio text", "ratio True", "mutual text", "unique 0",
          "threshold None", "features tuple", "max_features 1.5", "max_features text",
+         "max_features beyond ORB",
          "max_image_size 0", "threshold_scale text", "image None", "image path"],
 )  # fmt: skip
 def test_detection_and_matching_name_a_bad_argument(call, error, words):
@@ -88,3 +92,63 @@ def test_detection_and_matching_name_a_bad_argument(call, error, words):
     with pytest.raises(error) as info:
         call(_sift())
     assert words in str(info.value)
+
+
+def _fields(**changed):
+    f = _sift(6)
+    fields = {"keypoints": f.keypoints, "descriptors": f.descriptors, "kind": f.kind,
+              "responses": f.responses, "threshold_scale": 1.0}  # fmt: skip
+    return {**fields, **changed}
+
+
+_NAN_KEYPOINT = np.where(np.arange(12).reshape(6, 2) == 3, np.nan, 1.0)
+
+
+@pytest.mark.parametrize(
+    "changed, error, words",
+    [({"keypoints": _NAN_KEYPOINT}, ValueError, "Features.keypoints has 1 NaN"),
+     ({"keypoints": np.ones((6, 3))}, ValueError, "Features.keypoints must have shape (N, 2)"),
+     ({"keypoints": np.ones((4, 2))}, ValueError,
+      "Features.descriptors must have one row per keypoint (4, D), got (6, 128)"),
+     ({"descriptors": np.zeros((6, 128), np.uint8)}, TypeError,
+      "Features.descriptors of sift must be floats, got dtype uint8"),
+     ({"descriptors": np.full((6, 128), np.nan, np.float32)}, ValueError,
+      "Features.descriptors has 768 NaN"),
+     ({"responses": np.ones(3)}, ValueError, "Features.responses must have one per keypoint"),
+     ({"kind": "surf"}, ValueError, "Features.kind must be one of sift, orb, akaze"),
+     ({"threshold_scale": float("nan")}, ValueError, "Features.threshold_scale must be a finite"),
+     ({"keypoints": None}, TypeError, "Features.keypoints is required, got None")],
+    ids=["NaN keypoint", "keypoints of 3", "fewer keypoints", "uint8 SIFT", "NaN descriptors",
+         "responses short", "unknown kind", "NaN threshold scale", "no keypoints"],
+)  # fmt: skip
+def test_features_are_checked_when_made(changed, error, words):
+    # given to estimate_pair, they ran: NaN keypoints and (N, 3) rows without a word, fewer
+    # keypoints than descriptors failed with an IndexError deep inside the pipeline
+    from ppo_cv.features import Features
+
+    with pytest.raises(error) as info:
+        Features(**_fields(**changed))
+    assert words in str(info.value)
+
+
+def test_features_take_their_keypoints_as_a_list():
+    # "'list' object has no attribute 'shape'"
+    from ppo_cv.features import Features
+
+    given = Features(**_fields(keypoints=_sift(6).keypoints.tolist()))
+    assert isinstance(given.keypoints, np.ndarray) and len(given) == 6
+
+
+def test_given_features_of_another_size_or_detector_are_named():
+    # they failed their first consensus and a detection on the images replaced them silently
+    from ppo_cv.consensus import require_features_of
+    from ppo_cv.features import Features
+
+    f = _sift(6)
+    with pytest.raises(ValueError, match=r"features2 has keypoints outside its 64x48 image"):
+        require_features_of(f, f, (480, 640), (48, 64))
+    shorter = Features(**_fields(descriptors=np.ones((6, 64), np.float32)))
+    with pytest.raises(ValueError, match="descriptors of 128 and 64 values"):
+        require_features_of(f, shorter, (480, 640), (480, 640))
+    with pytest.raises(ValueError, match="descriptors of 128 and 64 values"):
+        features.match_features(f, shorter)

@@ -54,6 +54,29 @@ def _mask(value, selected=40):
     return mask
 
 
+_ALL = np.ones(40, bool)
+
+
+def _significance():
+    from ppo_cv import significance
+
+    return significance
+
+
+def _refine():
+    from ppo_cv import refine
+
+    return refine
+
+
+def _rays(nan_entry=None):
+    """Image 1's matches as normalized homogeneous rows (40, 3), one entry NaN if asked."""
+    rays = np.column_stack([P1, np.ones(40)]) @ np.linalg.inv(K).T
+    if nan_entry is not None:
+        rays[3, 0] = nan_entry
+    return rays
+
+
 def _points(index, value):
     points = P2.copy()
     points[index] = value
@@ -139,6 +162,11 @@ CASES = {
                            ValueError, "pp must be two finite numbers"),
     "recoverPose pp wrong size": (lambda: ppo_cv.recoverPose(E, P1, P2, focal=800.0, pp=(1, 2, 3)),
                                   TypeError, "pp must be two numbers"),
+    # (True, False) was the principal point (1, 0), texts were read as numbers: OpenCV refuses
+    "recoverPose pp flags": (lambda: ppo_cv.recoverPose(E, P1, P2, focal=800.0, pp=(True, False)),
+                             TypeError, "pp must be two numbers"),
+    "recoverPose pp texts": (lambda: ppo_cv.recoverPose(E, P1, P2, focal=800.0, pp=("320", "240")),
+                             TypeError, "pp must be two numbers"),
     "recover_pose negative K1": (lambda: ppo_cv.recover_pose(E, P1, P2, _K(fy=-800)), ValueError,
                                  "K1 has a negative focal length"),
     "recover_pose zero K2": (lambda: ppo_cv.recover_pose(E, P1, P2, K, _K(fx=0)), ValueError,
@@ -231,6 +259,10 @@ CASES = {
     "PairOptions max_image_size 0": (lambda: PairOptions(max_image_size=0), ValueError,
                                      "max_image_size must be a whole number in 32..2147483647, "
                                      "got 0 (None: full size)"),
+    # ORB failed on it in OpenCV with std::bad_alloc, mid-run
+    "PairOptions max_features beyond ORB": (
+        lambda: PairOptions(features="orb", max_features=2**31 - 1), ValueError,
+        "max_features must be a whole number in 8..1000000, got 2147483647"),
     "PairOptions threshold inf": (lambda: PairOptions(ransac_threshold=np.inf), ValueError,
                                   "ransac_threshold must be in (0, 100]"),
     "PairOptions threshold nan": (lambda: PairOptions(ransac_threshold=np.nan), ValueError,
@@ -378,6 +410,133 @@ CASES = {
     "score_pose motion text": (
         lambda: _sfm_module().score_pose(ppo_cv.recover_pose(E, P1, P2, K), motion="rotation"),
         TypeError, "motion must be a ppo_cv.motion_model.MotionDecision, got str"),
+    # the pose functions of ppo_cv.refine: numpy's "SVD did not converge" (LinAlgError) for a
+    # NaN match, an IndexError or a silent misreading for a mask of indices
+    "refine pose_sigmas_deg NaN match": (
+        lambda: _refine().pose_sigmas_deg(R_TRUE, T_TRUE, _rays(np.nan), _rays(), _ALL),
+        ValueError, "x1 has 1 NaN or infinite value(s)"),
+    "refine refine_pose_radial NaN match": (
+        lambda: _refine().refine_pose_radial(R_TRUE, T_TRUE, _rays(np.nan), _rays(), _ALL,
+                                             scale=1e-3), ValueError, "x1 has 1 NaN"),
+    "refine checked_inliers NaN match": (
+        lambda: _refine().checked_inliers(R_TRUE, T_TRUE, _rays(np.nan), _rays(), _ALL),
+        ValueError, "x1 has 1 NaN"),
+    "refine pose_information index mask": (
+        lambda: _refine().pose_information(R_TRUE, T_TRUE, _rays(), _rays(), np.arange(40)),
+        TypeError, "inliers must be a mask of bool, got dtype int64"),
+    "refine refine_pose points of two": (
+        lambda: _refine().refine_pose(R_TRUE, T_TRUE, P1, P2, _ALL, 800.0), ValueError,
+        "x1 must have shape (N, 3), got (40, 2)"),
+    "refine translation_sigma_deg no rotation": (
+        lambda: _refine().translation_sigma_deg(2 * R_TRUE, T_TRUE, _rays(), _rays(), _ALL),
+        ValueError, "R is not a rotation matrix"),
+    "refine k1_noise_bias NaN t": (
+        lambda: _refine().k1_noise_bias(R_TRUE, [np.nan, 0, 1], _rays(), _rays(), 1e-3),
+        ValueError, "t has 1 NaN"),
+    "valley valley_minima NaN match": (
+        lambda: __import__("ppo_cv.valley").valley.valley_minima(
+            R_TRUE, T_TRUE, _rays(np.nan), _rays(), 1e-3), ValueError, "x1 has 1 NaN"),
+    # a pose of the identity without a word for a NaN match (plane), "SVD did not converge"
+    "plane planar_pose NaN match": (
+        lambda: __import__("ppo_cv.plane").plane.planar_pose(np.eye(3), _rays(np.nan), _rays()),
+        ValueError, "x1 has 1 NaN"),
+    "plane refine_planar_pose NaN match": (
+        lambda: __import__("ppo_cv.plane").plane.refine_planar_pose(
+            R_TRUE, T_TRUE, [0, 0, 1], _rays(np.nan), _rays()), ValueError, "x1 has 1 NaN"),
+    "plane planar_pose NaN H": (
+        lambda: __import__("ppo_cv.plane").plane.planar_pose(np.full((3, 3), np.nan), _rays(),
+                                                             _rays()), ValueError, "H has 9 NaN"),
+    "motion_model translation_for_rotation NaN match": (
+        lambda: __import__("ppo_cv.motion_model").motion_model.translation_for_rotation(
+            R_TRUE, _rays(np.nan), _rays()), ValueError, "x1 has 1 NaN"),
+    # os.stat's "path should be string, bytes, os.PathLike or integer" naming no argument, an
+    # AttributeError for bytes, a ZeroDivisionError for a size of 0, a size of -1 computed on
+    "images exif_layout None": (lambda: ppo_cv.images.exif_layout(None), TypeError,
+                                "path must be a path (str or os.PathLike), got NoneType"),
+    "images case_alike bytes": (lambda: ppo_cv.images.case_alike(b"IMG_1.jpg"), TypeError,
+                                "path must be a path (str or os.PathLike), got bytes"),
+    "images decoded_transposed width 0": (
+        lambda: ppo_cv.images.decoded_transposed("a.jpg", 0, 480), ValueError,
+        "stored size width must be a whole number in 1.."),
+    "features detection_size 0": (
+        lambda: ppo_cv.features.detection_size((480, 640), 0), ValueError,
+        "max_image_size must be a whole number in 1.."),
+    "features detection_scale -1": (
+        lambda: ppo_cv.features.detection_scale((480, 640), -1), ValueError,
+        "max_image_size must be a whole number in 1.."),
+    # significance: IndexErrors for a negative count ("index 11 is out of bounds"), NaN read as
+    # an answer (101), a RuntimeWarning for a negative threshold, AttributeErrors for lists
+    "significance log10_binomial k beyond n": (
+        lambda: _significance().log10_binomial(10, -1), ValueError,
+        "log10_binomial needs 0 <= k <= n, got n=array(10) and k=array(-1)"),
+    "significance log10_binomial fractions": (
+        lambda: _significance().log10_binomial(10.5, 3), TypeError,
+        "n and k must be integers, got dtypes float64 and int64"),
+    "significance smallest consensus NaN threshold": (
+        lambda: _significance().smallest_significant_consensus(100, (640, 480), np.nan, 5.0),
+        ValueError, "threshold must be a finite number > 0, got nan"),
+    "significance smallest consensus negative threshold": (
+        lambda: _significance().smallest_significant_consensus(100, (640, 480), -1.0, 5.0),
+        ValueError, "threshold must be a finite number > 0, got -1.0"),
+    "significance smallest consensus NaN bar": (
+        lambda: _significance().smallest_significant_consensus(100, (640, 480), 1.0, np.nan),
+        ValueError, "max_log10_nfa must be a number (inf: every consensus), got nan"),
+    "significance smallest consensus no size": (
+        lambda: _significance().smallest_significant_consensus(100, None, 1.0, 5.0), TypeError,
+        "image_size2 must be (width, height), got None"),
+    "significance distinctiveness index mask": (
+        lambda: _significance().distinctiveness(np.array([0.5, 0.7, 0.9]), np.array([0, 1, 1])),
+        TypeError, "consistent must be a mask of bool, got dtype int64"),
+    # homography errors: AttributeErrors ("'NoneType' object has no attribute 'T'"), numpy's
+    # LinAlgError "Singular matrix", NaN errors for a NaN homography without a word
+    "homography transfer_errors None": (
+        lambda: ppo_cv.homography.transfer_errors(None, _rays(), _rays()), TypeError,
+        "H is required, got None"),
+    "homography symmetric singular": (
+        lambda: ppo_cv.homography.symmetric_transfer_errors(np.zeros((3, 3)), _rays(), _rays()),
+        ValueError, "H is singular"),
+    "homography sampson NaN H": (
+        lambda: ppo_cv.homography.homography_sampson_errors(np.full((3, 3), np.nan), _rays(),
+                                                            _rays()), ValueError, "H has 9 NaN"),
+    "homography sampson points of two": (
+        lambda: ppo_cv.homography.homography_sampson_errors(np.eye(3), P1, P2), ValueError,
+        "x1 must have shape (N, 3), got (40, 2)"),
+    # model_selection: int("5") read a text as a codimension of 5, True as 1; IndexErrors and
+    # Python's operator messages naming nothing
+    "model_selection robust_sigma text codimension": (
+        lambda: ppo_cv.model_selection.robust_sigma(np.ones(10), "2"), TypeError,
+        "codimension must be a whole number, got str '2'"),
+    "model_selection robust_sigma codimension 0": (
+        lambda: ppo_cv.model_selection.robust_sigma(np.ones(10), 0), ValueError,
+        "codimension must be a whole number in 1..4, got 0"),
+    "model_selection gric no sigma": (
+        lambda: ppo_cv.model_selection.gric(np.ones(10), None, 2, 3), TypeError,
+        "sigma must be a number, got NoneType"),
+    "model_selection gric dimension beyond": (
+        lambda: ppo_cv.model_selection.gric(np.ones(10), 1.0, 7, 3), ValueError,
+        "dimension must be a whole number in 0..4, got 7"),
+    "model_selection nearest_neighbours one point": (
+        lambda: ppo_cv.model_selection.nearest_neighbours(np.zeros((1, 2))), ValueError,
+        "points must have shape (N, 2) with N >= 2, got (1, 2)"),
+    "model_selection nearest_neighbours NaN": (
+        lambda: ppo_cv.model_selection.nearest_neighbours(np.full((4, 2), np.nan)), ValueError,
+        "points has 8 NaN"),
+    # plane helpers: Python's operator messages ("unsupported operand type(s) for *"), an
+    # AttributeError ("'NoneType' object has no attribute 'hypot'")
+    "plane undistort_division text k1": (
+        lambda: __import__("ppo_cv.plane").plane.undistort_division(_rays(), "0.1"), TypeError,
+        "k1 must be a number, got str '0.1'"),
+    "plane undistort_division no points": (
+        lambda: __import__("ppo_cv.plane").plane.undistort_division(None, 0.1), TypeError,
+        "x is required, got None"),
+    "plane held_k1_deviation None": (
+        lambda: __import__("ppo_cv.plane").plane.held_k1_deviation(None, 0.1), TypeError,
+        "k1_fitted must be a number, got NoneType"),
+    # Python's OverflowError
+    "rotation_focal_scale H beyond a float": (
+        lambda: _sfm_module().rotation_focal_scale([[10**400, 0, 0], [0, 1, 0], [0, 0, 1]], 500.0,
+                                                   640), ValueError,
+        "H holds a number beyond the range of a float"),
     "rotation_focal_scale negative focal": (
         lambda: _sfm_module().rotation_focal_scale(np.eye(3), -500.0, 640), ValueError,
         "focal must be a finite number > 0, got -500.0"),
@@ -640,6 +799,16 @@ def test_shown_quotes_a_value_in_at_most_its_width(value, quoted):
     from ppo_cv.checks import shown
 
     assert shown(value) == quoted and len(shown(value)) <= 40
+
+
+def test_distinctiveness_takes_its_ratios_as_a_list():
+    # "'list' object has no attribute 'shape'"
+    from ppo_cv.significance import distinctiveness
+
+    consistent = np.array([True, True, False, False, False])
+    ratios = [0.3, 0.4, 0.8, 0.85, 0.9]
+    assert distinctiveness(ratios, consistent) == distinctiveness(np.array(ratios), consistent)
+    assert distinctiveness(ratios, consistent) < 0.1
 
 
 @pytest.mark.filterwarnings("ignore::ppo_cv.calib.ImplausibleCameraWarning")  # 800 px on 64x48
@@ -1209,9 +1378,13 @@ def test_a_camera_matrix_of_another_number_type_is_its_values_exactly(dtype):
      ((K, None, 640), TypeError, "Camera.image_size must be (width, height) or None, got 640"),
      ((K, None, (640, -1)), ValueError, "Camera.image_size: image width and height must be"),
      # (True, True) was a 1x1 image
-     ((K, None, (True, True)), ValueError, "Camera.image_size: image width and height must be")],
+     ((K, None, (True, True)), ValueError, "Camera.image_size: image width and height must be"),
+     # texts were read as numbers (b"640" too), and 10**400 failed in float(): OverflowError
+     ((K, None, ("640", "480")), TypeError, "Camera.image_size must be two whole numbers"),
+     ((K, None, (b"640", 480)), TypeError, "Camera.image_size must be two whole numbers"),
+     ((K, None, (10**400, 480)), ValueError, "got <401-digit integer> and 480")],
     ids=["K text", "K 2x3", "K negative", "dist of 3", "size a number", "size negative",
-         "size of flags"],
+         "size of flags", "size of texts", "size of bytes", "size beyond a float"],
 )  # fmt: skip
 def test_a_camera_is_checked_when_made(fields, exception, words):
     with pytest.raises(exception, match=re.escape(words)):

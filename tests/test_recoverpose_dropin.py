@@ -77,6 +77,17 @@ def test_form_focal_and_principal_point(scene):
     _check_pose(positional, scene, reference)
 
 
+@pytest.mark.parametrize("extra", [(), (None,)], ids=["K None", "K None, R None"])
+def test_a_camera_matrix_of_none_is_refused_as_opencv_refuses_it(scene, extra):
+    # read as the focal, pp form with its R output None: pixels were taken for normalized
+    # points (focal 1, principal point 0) without a word; OpenCV fails on the camera matrix
+    args = (scene["E"], scene["p1"], scene["p2"], None, *extra)
+    with pytest.raises(cv2.error):
+        OPENCV_RECOVER_POSE(*args)
+    with pytest.raises(ppo_cv.RecoverPoseTypeError, match=r"^cameraMatrix is required, got None"):
+        ppo_cv.recoverPose(*args)
+
+
 def test_form_focal_defaults_to_normalized_points(scene):
     x1 = cv2.undistortPoints(scene["p1"].reshape(-1, 1, 2), scene["K"], None)
     x2 = cv2.undistortPoints(scene["p2"].reshape(-1, 1, 2), scene["K"], None)
