@@ -167,6 +167,7 @@ _JACOBIANS = 2  # of the polish: at the start, and where its steps led
 _REGATHER = 0.01  # pixels a window moves from where image 2 was read for another read
 _RETAKE = 0.02  # pixels a window moves with the first Jacobian of the polish for a second
 
+_DENSE_STEPS = 0.4  # share of a chunk's windows still moving above which all are stepped
 _DAMPING = 0.7  # of each Gauss-Newton step: the sampled gradients overshoot by about 1.4
 _OUTLIER_SIGMAS = 3.0
 _CONTRAST_BOX = 31  # pixels
@@ -343,9 +344,10 @@ def _cells(plane: _Plane, x: np.ndarray, y: np.ndarray, planes: int) -> _Cells:
     hundredths of a pixel sought here)."""
 
     x0, y0 = np.floor(x), np.floor(y)
-    first = y0.astype(np.intp)
+    index = np.int32 if plane.cells.shape[1] < 2**31 else np.intp  # a narrower pass
+    first = y0.astype(index)
     first *= plane.width
-    first += x0.astype(np.intp)
+    first += x0.astype(index)
     coefficients = np.take(plane.cells[:planes], first, axis=1, mode="clip")
     return _Cells(coefficients, x - x0, y - y0)
 
@@ -440,13 +442,14 @@ def _align_level(template, template_clear, positions, d, plane2, ramp, iteration
             for gradient in plane2.gradients
         )
         weight = cells.clear * template_clear[windows]
-        target = template[windows] * weight
+        target = template[windows]
         intensity = cells.values()
         jacobian_t, brightness, normal = _jacobian_t(
             intensity, gradients, weight, target, ramp_columns, brightness
         )
-        steps = _GaussNewton(template[windows], _normal_inverse(normal), jacobian_t,
-                             ramp_columns, iterations)  # fmt: skip
+        row_sums = normal[:, :, 5].astype(np.float64)
+        steps = _GaussNewton(target, _normal_inverse(normal), jacobian_t, row_sums, ramp_columns,
+                             iterations)  # fmt: skip
         intensity = steps.run(cells, reread, shifts, brightness, intensity)
         return shifts, brightness, intensity, *gradients, weight
 
@@ -492,7 +495,8 @@ def _jacobian_t(
 
 def _brightness_of(jacobian_t, normal, target) -> np.ndarray:
     """Gain ramp and offset (n, 4) float64 fitted in closed form to image 2 as it was read
-    (rows 2-5 of ``jacobian_t``, whose normal matrices (n, 4, 4) are ``normal``)."""
+    (rows 2-5 of ``jacobian_t``, whose normal matrices (n, 4, 4) are ``normal``) against
+    ``target`` (n, k), image 1 (the rows carry the pixels' weights)."""
     columns = jacobian_t[:, 2:]
     normal = _regularised(normal.astype(np.float64))
     return np.linalg.solve(normal, (columns @ target[..., None]).astype(np.float64))[..., 0]
@@ -514,16 +518,20 @@ def _regularised(normal: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class _GaussNewton:
     """Damped Gauss-Newton steps of windows' shifts and brightness with a fixed Jacobian:
-    ``template`` (n, k) image 1, the inverse normal matrices of :func:`_normal_inverse` and
-    the transposed Jacobians of :func:`_jacobian_t`.
+    ``template`` (n, k) image 1, the inverse normal matrices of :func:`_normal_inverse`, the
+    transposed Jacobians (n, 6, k) of :func:`_jacobian_t` and their row sums (n, 6) float64.
 
     Every row of the Jacobian carries the pixels' weights (0 or 1), so its product with the
     residual ``w (g I2 + b - I1)`` is its product with ``g I2 - I1`` plus ``b`` times its
-    row sums: the weights and the offset are not applied pixel by pixel."""
+    row sums: the weights and the offset are not applied pixel by pixel. Its last row is the
+    weights, so the row sums are the last column of the normal matrices. While more than
+    :data:`_DENSE_STEPS` of the windows still move, a step is computed for all of them and
+    kept for those (gathering their rows of the Jacobian costs more than the others' product)."""
 
     template: np.ndarray
     inverse: np.ndarray
     jacobian_t: np.ndarray
+    row_sums: np.ndarray
     ramp_columns: np.ndarray
     iterations: int
 
@@ -536,30 +544,31 @@ class _GaussNewton:
         shifts)``, which returns image 2 there). Image 2 at the last shifts (n, k)."""
         d, level, read_at = shifts, brightness, shifts.copy()
         active = np.ones(len(d), dtype=bool)
-        row_sums = self.jacobian_t.sum(axis=2, dtype=np.float64)
         for iteration in range(self.iterations):
-            if not active.any():
+            rows = np.flatnonzero(active)
+            if not len(rows):
                 break
-            part = slice(None) if active.all() else np.flatnonzero(active)
             if iteration:
-                windows = np.arange(len(d))[part]
-                far = np.abs(d[part] - read_at[part]).max(axis=1) > _REGATHER
-                far, near = windows[far], windows[~far]
+                far = np.abs(d[rows] - read_at[rows]).max(axis=1) > _REGATHER
+                far, near = rows[far], rows[~far]
                 if len(far):
                     intensity[far] = reread(cells, far, d[far])
                     read_at[far] = d[far]
                 if len(near):
                     intensity[near] = cells.values(d[near] - read_at[near], near)
+            part = slice(None) if len(rows) > _DENSE_STEPS * len(d) else rows
             gain = level[part, :3].astype(np.float32) @ self.ramp_columns.T
             difference = np.multiply(gain, intensity[part], out=gain)
             difference -= self.template[part]
             gradient = (self.jacobian_t[part] @ difference[..., None])[..., 0]
-            gradient = gradient + level[part, 3:] * row_sums[part]
+            gradient = gradient + level[part, 3:] * self.row_sums[part]
             step = -_DAMPING * (self.inverse[part] @ gradient[..., None])[..., 0]
+            if isinstance(part, slice):
+                step = step[rows]
             shift = np.minimum(np.maximum(step[:, :2], -2.0), 2.0)
-            d[part] += shift
-            level[part] += step[:, 2:]
-            active[part] = np.abs(shift).max(axis=1) > _CONVERGED
+            d[rows] += shift
+            level[rows] += step[:, 2:]
+            active[rows] = np.abs(shift).max(axis=1) > _CONVERGED
         return cells.values(d - read_at)
 
 

@@ -400,3 +400,20 @@ def test_a_second_radial_term_nobody_models_does_not_break_the_refit(index):
     result = estimate_pair(image1, image2, pair.K1_given, pair.K2_given)
     assert result.pure_rotation and result.uncertainty.rotation_tracks > 100
     assert rotation_error_deg(result.R, pair.R) < 0.06
+
+
+def test_the_polish_steps_a_chunk_whole_or_only_its_moving_windows_alike(monkeypatch):
+    """While most of a chunk's windows still move, the polish steps all of them and keeps the
+    steps of the moving ones; the windows that stopped stay where they stopped."""
+    photo = cv2.cvtColor(_demo_photo(), cv2.COLOR_BGR2GRAY)
+    image2 = cv2.warpPerspective(photo, H_DEMO, photo.shape[::-1], flags=cv2.INTER_CUBIC)
+    found = cv2.goodFeaturesToTrack(photo, 300, 0.01, 8).reshape(-1, 2)
+    points = np.round(found[np.all((found > 40) & (found < (600, 440)), axis=1)])
+    tracks = []
+    for share in (0.0, 2.0):  # every step over the whole chunk, or over the moving windows
+        monkeypatch.setattr(photometric, "_DENSE_STEPS", share)
+        transfer = lambda p: _through_demo_homography(p) + np.array([0.4, -0.3])  # noqa: E731
+        tracks.append(align_windows(photo, image2, points, transfer, window=31, levels=1))
+    assert np.count_nonzero(tracks[0].valid) > 100
+    for name in ("points2", "valid", "ncc"):
+        np.testing.assert_array_equal(getattr(tracks[0], name), getattr(tracks[1], name))

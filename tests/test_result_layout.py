@@ -5,7 +5,8 @@ renders (``tests/result_layout.py``). Recorded first with the flat layout of 0.1
 the nested records bit for bit equal to it; it is recorded again, on purpose, when a change of
 behaviour moves a value (the rotation with the smallest expected error gave every model a
 ``rotation_sigma_deg``; the refit polishing one window side moved the pure rotation by 1e-6; the
-rotation's wider lens box moved the rotation fit's residuals and lens excess, not the answers).
+rotation's wider lens box moved the rotation fit's residuals and lens excess, not the answers;
+the polish's row sums taken from its normal matrices moved the pure rotation by 1e-10).
 Each field, read through its current path, holds the recorded value (to 1e-9, where another BLAS
 may round differently).
 """
