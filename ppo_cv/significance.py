@@ -69,6 +69,7 @@ from .checks import (
     as_whole_number,
     shown,
 )
+from .limits import MAX_MATCHES
 from .metrics import direction_error_deg
 
 __all__ = [
@@ -88,16 +89,9 @@ __all__ = [
     "require_significance",
     "epipolar_lines",
     "log10_binomial",
-    "MAX_MATCHES",
     "epipolar_significance",
     "smallest_significant_consensus",
 ]
-
-MAX_MATCHES = 10_000_000
-"""Largest match count the consensus test takes (:func:`log10_binomial`'s ``n``,
-:func:`smallest_significant_consensus`'s ``num_matches``): it tabulates one logarithm per match,
-80 MB at this bound, ten times the matches of images of
-:data:`ppo_cv.limits.MAX_KEYPOINTS` keypoints; a count of 2^31 asked for 17 GB."""
 
 DEFAULT_MAX_LOG10_NFA = 5.0
 """Default bar on ``log10 NFA``. The textbook bar is 0 (at most one consensus this good expected
@@ -171,8 +165,8 @@ class Significance:
 
 
 def log10_binomial(n: np.ndarray | int, k: np.ndarray | int) -> np.ndarray:
-    """``log10 C(n, k)`` for integers ``0 <= k <= n <=`` :data:`MAX_MATCHES` (broadcast), exact
-    sums of logarithms."""
+    """``log10 C(n, k)`` for integers ``0 <= k <= n <=`` :data:`ppo_cv.limits.MAX_MATCHES`
+    (broadcast), exact sums of logarithms."""
     n, k = np.asarray(n), np.asarray(k)
     if n.dtype.kind not in "iu" or k.dtype.kind not in "iu":
         raise TypeError(f"n and k must be integers, got dtypes {n.dtype} and {k.dtype}")

@@ -18,6 +18,7 @@ import ppo_cv
 from ppo_cv import photometric, refine, robust, rotation_choice, significance, valley
 from ppo_cv.data_gen import given_intrinsics, paper_protocol
 from ppo_cv.data_gen.protocol import MAX_ALPHA
+from ppo_cv.limits import MAX_MATCHES
 from ppo_cv.parallax import PlaneParallax
 from ppo_cv.rotation import fit_rotation_lens
 
@@ -279,7 +280,7 @@ def test_a_huge_bias_is_measured_without_overflow():
 
 def test_the_consensus_test_takes_empty_counts():
     assert significance.log10_binomial(np.array([], int), np.array([], int)).shape == (0,)
-    bound = significance.MAX_MATCHES
+    bound = MAX_MATCHES
     assert significance.log10_binomial(np.array([10, 20]), 3).shape == (2,)
     with pytest.raises(ValueError, match=f"takes n up to {bound}"):
         significance.log10_binomial(np.array([10, bound + 1]), 3)
