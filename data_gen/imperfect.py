@@ -29,7 +29,15 @@ from dataclasses import asdict, dataclass, replace
 import cv2
 import numpy as np
 
-from ppo_cv.checks import as_camera_matrix, as_number, as_positive, as_whole_number, shown
+from ppo_cv.checks import (
+    MAX_FOCAL,
+    MIN_FOCAL,
+    as_camera_matrix,
+    as_number,
+    as_positive,
+    as_whole_number,
+    shown,
+)
 
 from .render import _check_size
 
@@ -333,10 +341,18 @@ def given_intrinsics(
     """``K`` with ``fx``, ``fy`` (and the skew) scaled by ``focal_factor``, shape (3, 3).
 
     With ``centre_of = (width, height)`` the principal point is that image's centre
-    ``((width - 1) / 2, (height - 1) / 2)`` instead of ``K``'s.
+    ``((width - 1) / 2, (height - 1) / 2)`` instead of ``K``'s. A factor that takes a focal
+    length out of ``[MIN_FOCAL, MAX_FOCAL]`` (:mod:`ppo_cv.checks`) is a ValueError: no camera
+    matrix the estimator takes.
     """
     K_given = as_camera_matrix(K, "K").copy()
     K_given[:2, :2] *= as_positive(focal_factor, "focal_factor")
+    focal = K_given[0, 0], K_given[1, 1]
+    if not MIN_FOCAL <= min(focal) <= max(focal) <= MAX_FOCAL:
+        raise ValueError(
+            f"focal_factor {shown(focal_factor)} takes the focal lengths to "
+            f"({focal[0]:.3g}, {focal[1]:.3g}), outside [{MIN_FOCAL:g}, {MAX_FOCAL:g}] pixels"
+        )
     if centre_of is not None:
         width, height = _check_size(centre_of)
         K_given[:2, 2] = (width - 1) / 2.0, (height - 1) / 2.0

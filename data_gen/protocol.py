@@ -33,6 +33,10 @@ from ppo_cv.checks import as_finite_array, as_flag
 __all__ = [
     "PAPER_K",
     "PAPER_T_MAX",
+    "MAX_ALPHA",
+    "MAX_NOISE_PX",
+    "DEPTH_RANGE",
+    "MAX_PROTOCOL_POINTS",
     "ProtocolSample",
     "euler_to_matrix",
     "paper_protocol",
@@ -46,6 +50,16 @@ PAPER_T_MAX = 4.2
 
 PAPER_EULER_SIGMA_DEG = (5.0, 5.0, 20.0)
 PAPER_BOX = (30.0, 30.0)
+MAX_ALPHA = 100.0
+"""Largest parallax factor: a translation of 420 m, 14 times the paper's nearest scene depth
+(the paper's factors end at 1); 1e300 overflowed the projections."""
+MAX_NOISE_PX = 1024.0
+"""Largest noise deviation, pixels: the side of the image of :data:`PAPER_K`."""
+DEPTH_RANGE = (1.0, 1e6)
+"""Scene depths accepted, metres (the paper's are 30, 50 and 80): nearer, the 30 m box of points
+projects ever farther outside the image (1e-300 gave coordinates of 1e303)."""
+MAX_PROTOCOL_POINTS = 10_000_000
+"""Largest ``n_poses * n_points``: the sample holds 11 numbers per point, 880 MB at the bound."""
 
 
 @dataclass(frozen=True)
@@ -123,13 +137,14 @@ def _check_count(name: str, value: int, minimum: int) -> int:
     return int(value)
 
 
-def _check_real(name: str, value: float, minimum: float, strict: bool = False) -> float:
+def _check_real(name: str, value: float, minimum: float, maximum: float) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise TypeError(f"{name} must be a real number, got {type(value).__name__}")
     value = float(value) if abs(value) < 2**1024 else math.inf  # an int beyond a float
-    if not np.isfinite(value) or value < minimum or (strict and value == minimum):
-        op = ">" if strict else ">="
-        raise ValueError(f"{name} must be finite and {op} {minimum}, got {value}")
+    if not np.isfinite(value) or value < minimum:
+        raise ValueError(f"{name} must be finite and >= {minimum:g}, got {value}")
+    if value > maximum:
+        raise ValueError(f"{name} must be at most {maximum:g}, got {value:g}")
     return value
 
 
@@ -156,14 +171,16 @@ def paper_protocol(
     n_poses : int
         Number of camera-2 poses ``N_s`` (>= 1).
     n_points : int
-        Number of 3D points ``N_pts`` per pose (>= 1).
+        Number of 3D points ``N_pts`` per pose (>= 1; ``n_poses * n_points`` at most
+        :data:`MAX_PROTOCOL_POINTS`).
     alpha : float
-        Parallax factor ``||t|| / ||t||max`` (>= 0; the paper uses 1e-3 ... 1, 0 is pure
-        rotation with ``t`` exactly zero).
+        Parallax factor ``||t|| / ||t||max`` (0 to :data:`MAX_ALPHA`; the paper uses 1e-3 ...
+        1, 0 is pure rotation with ``t`` exactly zero).
     noise_px : float
-        Standard deviation (pixels, >= 0) of the Gaussian noise added to every coordinate.
+        Standard deviation (pixels, 0 to :data:`MAX_NOISE_PX`) of the Gaussian noise added to
+        every coordinate.
     depth : float, default 30.0
-        Scene depth ``d`` in metres (> 0; the paper uses 30, 50 and 80).
+        Scene depth ``d`` in metres (in :data:`DEPTH_RANGE`; the paper uses 30, 50 and 80).
     seed : int, default 0
         Seed of points and poses (non-negative).
     mc_run : int, default 0
@@ -187,9 +204,13 @@ def paper_protocol(
     """
     n_poses = _check_count("n_poses", n_poses, 1)
     n_points = _check_count("n_points", n_points, 1)
-    alpha = _check_real("alpha", alpha, 0.0)
-    noise_px = _check_real("noise_px", noise_px, 0.0)
-    depth = _check_real("depth", depth, 0.0, strict=True)
+    if n_poses * n_points > MAX_PROTOCOL_POINTS:
+        raise ValueError(
+            f"n_poses * n_points must be at most {MAX_PROTOCOL_POINTS}, got {n_poses} * {n_points}"
+        )
+    alpha = _check_real("alpha", alpha, 0.0, MAX_ALPHA)
+    noise_px = _check_real("noise_px", noise_px, 0.0, MAX_NOISE_PX)
+    depth = _check_real("depth", depth, DEPTH_RANGE[0], DEPTH_RANGE[1])
     seed = _check_count("seed", seed, 0)
     mc_run = _check_count("mc_run", mc_run, 0)
     shared_points = as_flag(shared_points, "shared_points")

@@ -194,14 +194,18 @@ def as_vector3(value: Any, name: str) -> np.ndarray:
     return as_finite_rows(np.reshape(value, (1, 3)), name, 3)[0]
 
 
-def require_pose_matches(R: Any, t: Any, x1: Any, x2: Any, inliers: Any = None) -> None:
+def require_pose_matches(
+    R: Any, t: Any, x1: Any, x2: Any, inliers: Any = None, *, moving: bool = True
+) -> None:
     """ValueError or TypeError naming the argument unless ``R`` is a rotation, ``t`` three
-    finite numbers, ``x1`` and ``x2`` finite (N, 3) rows of one length and ``inliers`` (when
-    given) a bool mask of N; validates without converting. The pose functions of
-    :mod:`ppo_cv.refine` and :mod:`ppo_cv.valley` failed on NaN in numpy's SVD (LinAlgError)
-    and read a mask of indices as one of flags."""
+    finite numbers (not all zero when ``moving``), ``x1`` and ``x2`` finite (N, 3) rows of one
+    length and ``inliers`` (when given) a bool mask of N; validates without converting. The
+    pose functions of :mod:`ppo_cv.refine` and :mod:`ppo_cv.valley` failed on NaN in numpy's
+    SVD (LinAlgError), read a mask of indices as one of flags and answered NaN for a zero
+    ``t`` (the translation's direction is their unknown)."""
     as_rotation(R, "R")
-    as_vector3(t, "t")
+    if not as_vector3(t, "t").any() and moving:
+        raise ValueError("t is zero: these need a translation (a pure rotation has none)")
     a, b = as_finite_rows(x1, "x1", 3), as_finite_rows(x2, "x2", 3)
     if a.shape[0] != b.shape[0]:
         raise ValueError(f"x1 and x2 must have the same length, got {a.shape[0]} and {b.shape[0]}")

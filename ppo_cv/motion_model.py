@@ -133,7 +133,7 @@ from .model_selection import (
 )
 from .parallax import PlaneParallax
 from .plane import PlanarPose, planar_pose
-from .robust import essential_from_pose, sampson_errors
+from .robust import _essential_from_pose, _sampson_errors
 from .rotation import (
     MAX_FOCAL_CHANGE,
     MIN_LENS_MATCHES,
@@ -516,7 +516,7 @@ def translation_for_rotation(R: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> n
     -------
     ndarray, shape (3,)
     """
-    require_pose_matches(R, np.zeros(3), x1, x2)
+    require_pose_matches(R, np.zeros(3), x1, x2, moving=False)
     normals = np.cross(x1 @ R.T, x2)
     normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
     t = np.linalg.svd(normals, full_matrices=False)[2][-1]
@@ -587,7 +587,7 @@ def decide_motion(
     MotionDecision
     """
     threshold = TRANSFER_FACTOR * threshold_px / focal
-    general_all = sampson_errors(essential_from_pose(R, t), x1, x2)
+    general_all = _sampson_errors(_essential_from_pose(R, t), x1, x2)
     noise = robust_sigma(general_all[inliers], JOINT_DIMENSION - MODEL_DIMENSIONS["general"][0])
     noise *= np.sqrt(2.0)  # a transfer error coordinate carries the noise of both images
     fit = ransac_rotation(x1, x2, RANSAC_FACTOR * threshold, seed=seed)
@@ -987,7 +987,7 @@ def _epipolar_ratio(plane, x1, x2, general_px, threshold_px: float, focal: float
     if not float(np.linalg.norm(plane.t)) > 0:
         return float("inf")
     cap = (EPIPOLAR_CAP_FACTOR * threshold_px) ** 2
-    planar_px = sampson_errors(essential_from_pose(plane.R, plane.t), x1, x2) * focal
+    planar_px = _sampson_errors(_essential_from_pose(plane.R, plane.t), x1, x2) * focal
     rho = [np.mean(np.minimum(e**2, cap)) for e in (planar_px, general_px)]
     return float(rho[0] / max(rho[1], 1e-300))
 

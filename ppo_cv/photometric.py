@@ -67,6 +67,7 @@ from dataclasses import dataclass, replace
 from functools import partial
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .camera import normalized_to_pixels, pixels_to_normalized
 from .checks import (
@@ -970,7 +971,7 @@ def _within(xy: np.ndarray, width: int, height: int, margin: float) -> np.ndarra
     return (x >= margin) & (x <= width - 1 - margin) & (y >= margin) & (y <= height - 1 - margin)
 
 
-def window_overlap(points: np.ndarray, window: int = WINDOW) -> float:
+def window_overlap(points: ArrayLike, window: int = WINDOW) -> float:
     """How many windows cover a pixel of their union, on average: ``n window^2 / |union|``.
 
     The tracks' residuals are not independent where windows overlap (they are made from the
@@ -981,9 +982,10 @@ def window_overlap(points: np.ndarray, window: int = WINDOW) -> float:
     Parameters
     ----------
     points : ndarray, shape (N, 2)
-        Window centres, integer pixels.
+        Window centres, integer pixels (rounded), finite, spread with their windows over at
+        most :data:`ppo_cv.images.DEFAULT_MAX_PIXELS` pixels (the corners of one image).
     window : int
-        Window side, pixels.
+        Window side, pixels, at least 1.
 
     Examples
     --------
@@ -992,6 +994,22 @@ def window_overlap(points: np.ndarray, window: int = WINDOW) -> float:
     >>> window_overlap(np.array([[10.0, 10.0], [10.0, 10.0]]), 21)
     2.0
     """
+    from .images import DEFAULT_MAX_PIXELS
+
+    points = np.round(as_points(points, "points")).astype(np.int64)
+    window = as_whole_number(window, "window", 1, MAX_WHOLE_NUMBER)
+    if len(points):
+        width, height = (np.ptp(points, axis=0) + window).tolist()
+        if width * height > DEFAULT_MAX_PIXELS:
+            raise ValueError(
+                f"points and their windows span {width}x{height} pixels, beyond "
+                f"{DEFAULT_MAX_PIXELS}: not the corners of one image"
+            )
+    return _window_overlap(points, window)
+
+
+def _window_overlap(points: np.ndarray, window: int) -> float:
+    """:func:`window_overlap`, unchecked."""
     import cv2
 
     points = np.round(np.asarray(points, dtype=np.float64)).astype(np.int64).reshape(-1, 2)
@@ -1364,7 +1382,7 @@ def _fit_windows(tracks, y1, window, R, normalize2, focal, priors) -> Photometri
     if fitted is None:
         return None
     fit, used, noise_px = fitted
-    inflation = np.sqrt(window_overlap(tracks.points1[used], window))
+    inflation = np.sqrt(_window_overlap(tracks.points1[used], window))
     fit = replace(
         fit,
         focal_scale_sigma=fit.focal_scale_sigma * inflation,
@@ -1386,5 +1404,5 @@ def _plane_parallax(refined: PhotometricRotation, K1, K2, dist1, dist2) -> Plane
     q1 = _correct_points(y1, fit.focal_scale, fit.k1, fit.principal_offset)
     q2 = _correct_points(y2, fit.focal_scale2, fit.k1, fit.principal_offset)
     found = fit_plane_parallax(q1, q2)
-    inflation = np.sqrt(window_overlap(points1, refined.window))
+    inflation = np.sqrt(_window_overlap(points1, refined.window))
     return replace(found, sigma=found.sigma * inflation)

@@ -145,8 +145,8 @@ from .result import (
     TrackParallax,
 )
 from .robust import (
-    essential_from_pose,
-    sampson_errors,
+    _essential_from_pose,
+    _sampson_errors,
 )
 from .rotation import (
     K1_PRIOR,
@@ -218,7 +218,7 @@ def _refine(R, t, x1, x2, inliers, focal, options: PairOptions, rounds: int = 3)
     threshold = options.ransac_threshold / focal
     for _ in range(rounds):
         R, t = refine_pose(R, t, x1, x2, inliers, focal)
-        within = sampson_errors(essential_from_pose(R, t), x1, x2) < threshold
+        within = _sampson_errors(_essential_from_pose(R, t), x1, x2) < threshold
         if np.count_nonzero(within) < options.min_inliers or np.array_equal(within, inliers):
             break
         inliers = within
@@ -588,7 +588,7 @@ def _finish_general(state: _Finishing) -> _ModelPart:
     information = pose_information(R, t, c1, c2, inliers)
     valley = _valley(state, R, t, c1, c2, inliers, information.checked)
     final = _recover_normalized(
-        essential_from_pose(valley.R, valley.t), c1[:, :2], c2[:, :2], inliers, 0.0
+        _essential_from_pose(valley.R, valley.t), c1[:, :2], c2[:, :2], inliers, 0.0
     )
     if not _same_pose(final.R, final.t, R, t):
         information = pose_information(final.R, final.t, c1, c2, inliers)

@@ -312,10 +312,10 @@ def _epipolar_support(
     candidates: HomographyCandidates, X1: np.ndarray, X2: np.ndarray, threshold: float
 ) -> np.ndarray:
     """Matches within ``threshold`` (Sampson, normalized units) of each ``E = [t]x R``."""
-    from .robust import essential_from_pose, sampson_errors
+    from .robust import _essential_from_pose, _sampson_errors
 
     counts = [
-        np.count_nonzero(sampson_errors(essential_from_pose(R, t), X1, X2) < threshold)
+        np.count_nonzero(_sampson_errors(_essential_from_pose(R, t), X1, X2) < threshold)
         if t @ t > 0
         else 0
         for R, t in zip(candidates.R, candidates.t, strict=True)

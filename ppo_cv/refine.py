@@ -34,7 +34,8 @@ from .lsq import (
 from .model_selection import robust_sigma
 from .plane import K1_SIGNIFICANCE, rms_rotation_angle_deg, undistort_division
 from .ppo import rotation_from_rays
-from .robust import sampson_signed, sampson_signed_rows, virtual_camera
+from .robust import _sampson_signed as _essential_sampson_signed
+from .robust import _sampson_signed_rows, virtual_camera
 from .rotation import FOCAL_PRIOR, K1_PRIOR
 
 __all__ = [
@@ -398,7 +399,7 @@ def _sampson_by_coordinate(R: np.ndarray, t: np.ndarray, X1: np.ndarray, X2: np.
     """:func:`_sampson_signed` (K, N) of ``E = [t]_x R``, ``R`` (K, 3, 3) and ``t`` (K, 3), on
     points laid out by coordinate (K or 1, 3, N) (:func:`ppo_cv.robust.sampson_signed_rows`):
     the same figures."""
-    return sampson_signed_rows(cross_matrices(t) @ R, X1, X2)
+    return _sampson_signed_rows(cross_matrices(t) @ R, X1, X2)
 
 
 K1_BIAS_REPLICATES = 16
@@ -703,7 +704,7 @@ def _sampson_signed(R: np.ndarray, t: np.ndarray, x1: np.ndarray, x2: np.ndarray
     points (..., N, 3) broadcast to (..., N)."""
     t = np.asarray(t, dtype=np.float64)
     E = cross_matrices(t.reshape(-1, 3)).reshape(t.shape[:-1] + (3, 3)) @ R
-    return sampson_signed(E, x1, x2)
+    return _essential_sampson_signed(E, x1, x2)
 
 
 T_SIGMA_CAP_DEG = 90.0

@@ -34,11 +34,16 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .checks import (
+    MAX_COORDINATE,
+    as_finite_array,
     as_finite_rows,
     as_positive,
     as_ransac_settings,
+    as_rotation,
+    as_vector3,
 )
 from .lsq import cross_matrix
 from .significance import (
@@ -127,22 +132,83 @@ class RobustEstimate:
         return int(np.count_nonzero(self.inliers))
 
 
-def essential_from_pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """``E = [t]_x R`` normalised to unit Frobenius norm."""
+def essential_from_pose(R: ArrayLike, t: ArrayLike) -> np.ndarray:
+    """``E = [t]_x R`` (3, 3) normalised to unit Frobenius norm, of a rotation ``R`` (3, 3) and
+    a translation ``t`` (3,) of any nonzero finite length; ValueError or TypeError naming the
+    argument otherwise (a zero ``t``, a pure rotation, has no essential matrix).
+
+    ``t`` is first rescaled by a power of two, exactly: the same ``E`` for any length
+    (1e-310 or 1e300), whose norm would otherwise underflow or overflow.
+    """
+    R, t = as_rotation(R, "R"), as_vector3(t, "t")
+    largest = float(np.abs(t).max())
+    if largest == 0:
+        raise ValueError("t is zero: a pure rotation has no essential matrix")
+    return _essential_from_pose(R, np.ldexp(t, -math.frexp(largest)[1]))
+
+
+def _essential_from_pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """:func:`essential_from_pose`, unchecked (a zero ``t`` gives a zero ``E``)."""
     E = cross_matrix(t) @ R
     return E / max(np.linalg.norm(E), 1e-300)
 
 
-def sampson_signed(E: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
+def _checked_sampson(E: Any, x1: Any, x2: Any, by_coordinate: bool) -> tuple:
+    """``E`` (..., 3, 3) rescaled by powers of two to a largest entry in [0.5, 1), each matrix
+    of a stack on its own (exactly: the residuals do not depend on the scale of ``E``), and
+    the points (..., N, 3), or (..., 3, N) ``by_coordinate``, finite, of magnitude at most
+    :data:`ppo_cv.checks.MAX_COORDINATE` and as many in each image, the leading axes of all
+    three broadcasting; ValueError or TypeError naming the argument otherwise."""
+    E = as_finite_array(E, "E")
+    if E.ndim < 2 or E.shape[-2:] != (3, 3):
+        raise ValueError(f"E must be a 3x3 matrix or a stack (..., 3, 3), got shape {E.shape}")
+    largest = np.abs(E).max(axis=(-2, -1), keepdims=True)
+    if not largest.all():
+        raise ValueError("E is all zeros: it defines no epipolar geometry")
+    axis, (name1, name2) = (-2, "X1 X2".split()) if by_coordinate else (-1, "x1 x2".split())
+    x1, x2 = _checked_sampson_points(x1, name1, axis), _checked_sampson_points(x2, name2, axis)
+    n1, n2 = x1.shape[-1 if by_coordinate else -2], x2.shape[-1 if by_coordinate else -2]
+    if n1 != n2:
+        raise ValueError(f"{name1} and {name2} must hold as many matches, got {n1} and {n2}")
+    try:
+        np.broadcast_shapes(E.shape[:-2], x1.shape[:-2], x2.shape[:-2])
+    except ValueError:
+        raise ValueError(
+            f"the leading axes of E {E.shape}, {name1} {x1.shape} and {name2} {x2.shape} do "
+            "not broadcast"
+        ) from None
+    return np.ldexp(E, -np.frexp(largest)[1]), x1, x2
+
+
+def _checked_sampson_points(value: Any, name: str, axis: int) -> np.ndarray:
+    points = as_finite_array(value, name)
+    if points.ndim < 2 or points.shape[axis] != 3:
+        wanted = "(..., 3, N)" if axis == -2 else "(N, 3) or (..., N, 3)"
+        raise ValueError(f"{name} must have shape {wanted}, got {points.shape}")
+    if points.size and not -MAX_COORDINATE <= points.min() <= points.max() <= MAX_COORDINATE:
+        raise ValueError(
+            f"{name} has coordinates up to {float(np.abs(points).max()):.3g}, beyond "
+            f"{MAX_COORDINATE:.0e}: not normalized points"
+        )
+    return points
+
+
+def sampson_signed(E: ArrayLike, x1: ArrayLike, x2: ArrayLike) -> np.ndarray:
     """Signed Sampson residual (normalized units) of each match to ``E``.
 
     ``x2^T E x1 / sqrt((E x1)_1^2 + (E x1)_2^2 + (E^T x2)_1^2 + (E^T x2)_2^2)``, the first-order
     geometric distance of the match to the epipolar constraint with the sign of ``x2^T E x1``.
-    ``E`` (..., 3, 3) and the points (..., N, 3) broadcast to (..., N). The sums run over the
-    coordinate columns one by one, in the order a sum along the last axis takes them (the
-    same figures, a third of the time of ``np.sum`` over a length-3 axis: 500 matches 83 ->
-    27 us; the refinements call it for every step and Jacobian column).
+    ``E`` (..., 3, 3) and the points (..., N, 3) broadcast to (..., N); ValueError or TypeError
+    naming the argument for anything else, a non-finite entry or an all-zero ``E``.
     """
+    return _sampson_signed(*_checked_sampson(E, x1, x2, by_coordinate=False))
+
+
+def _sampson_signed(E: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
+    """:func:`sampson_signed`, unchecked. The sums run over the coordinate columns one by one,
+    in the order a sum along the last axis takes them (the same figures, a third of the time
+    of ``np.sum`` over a length-3 axis: 500 matches 83 -> 27 us; the refinements call it for
+    every step and Jacobian column)."""
     Ex1, Etx2 = x1 @ np.swapaxes(E, -1, -2), x2 @ E
     line1, line2 = Ex1[..., 0], Ex1[..., 1]
     back1, back2 = Etx2[..., 0], Etx2[..., 1]
@@ -151,15 +217,19 @@ def sampson_signed(E: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
     return residual / np.maximum(denominator, 1e-300)
 
 
-def sampson_signed_rows(E: np.ndarray, X1: np.ndarray, X2: np.ndarray) -> np.ndarray:
+def sampson_signed_rows(E: ArrayLike, X1: ArrayLike, X2: ArrayLike) -> np.ndarray:
     """:func:`sampson_signed` of points laid out by coordinate: ``E`` (..., 3, 3) and the
     points (..., 3, N), ``X[..., i, :]`` coordinate ``i`` of every match, broadcast to
-    (..., N).
-
-    The same figures (each product of ``E`` and a point is the same three-term sum, the rest
-    the same operations in the same order), faster where many ``E`` meet many points: the
-    products and every pass after them run along contiguous rows.
+    (..., N); checked as :func:`sampson_signed` checks its arguments.
     """
+    return _sampson_signed_rows(*_checked_sampson(E, X1, X2, by_coordinate=True))
+
+
+def _sampson_signed_rows(E: np.ndarray, X1: np.ndarray, X2: np.ndarray) -> np.ndarray:
+    """:func:`sampson_signed_rows`, unchecked. The same figures as :func:`_sampson_signed`
+    (each product of ``E`` and a point is the same three-term sum, the rest the same
+    operations in the same order), faster where many ``E`` meet many points: the products and
+    every pass after them run along contiguous rows."""
     Ex1, Etx2 = E @ X1, np.swapaxes(E, -1, -2) @ X2
     line1, line2 = Ex1[..., 0, :], Ex1[..., 1, :]
     back1, back2 = Etx2[..., 0, :], Etx2[..., 1, :]
@@ -168,10 +238,16 @@ def sampson_signed_rows(E: np.ndarray, X1: np.ndarray, X2: np.ndarray) -> np.nda
     return residual / np.maximum(denominator, 1e-300)
 
 
-def sampson_errors(E: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
-    """Sampson distance (normalized units) of each match to ``E``, shape (N,): the absolute
-    value of :func:`sampson_signed`; multiply by the focal length for pixels."""
+def sampson_errors(E: ArrayLike, x1: ArrayLike, x2: ArrayLike) -> np.ndarray:
+    """Sampson distance (normalized units) of each match to ``E``, shape (N,) (or (..., N)
+    for a stack): the absolute value of :func:`sampson_signed`, checked as it is; multiply by
+    the focal length for pixels."""
     return np.abs(sampson_signed(E, x1, x2))
+
+
+def _sampson_errors(E: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
+    """:func:`sampson_errors`, unchecked."""
+    return np.abs(_sampson_signed(E, x1, x2))
 
 
 def virtual_camera(focal: float, width: int = 0, height: int = 0):
@@ -230,9 +306,9 @@ def _pycolmap(x1, x2, focal, threshold, confidence, min_trials, max_trials, seed
     if found is None:
         return None
     pose = found["cam2_from_cam1"]
-    E = essential_from_pose(pose.rotation.matrix(), np.asarray(pose.translation).ravel())
+    E = _essential_from_pose(pose.rotation.matrix(), np.asarray(pose.translation).ravel())
     mask = np.asarray(found["inlier_mask"]).reshape(-1).astype(bool)
-    agree = np.count_nonzero(sampson_errors(E, x1[mask], x2[mask]) < threshold / focal)
+    agree = np.count_nonzero(_sampson_errors(E, x1[mask], x2[mask]) < threshold / focal)
     if agree < POSE_AGREEMENT * np.count_nonzero(mask):
         # the pose pycolmap decomposed its E into can disagree with it (seen with a principal
         # point 10 px off: none of the model's inliers fit the pose); then E itself
@@ -478,11 +554,11 @@ def _uniform_fit_to_evidence(x1, x2, focal, image_size, max_trials, max_log10_nf
 def _consensus_fit(E, x1, x2, focal, cap, settings) -> RobustEstimate | None:
     """Refit on the matches near ``E``; inliers over all matches within the threshold."""
     threshold = settings["threshold"] / focal
-    near = np.flatnonzero(sampson_errors(E, x1, x2) < CONSENSUS_FACTOR * threshold)
+    near = np.flatnonzero(_sampson_errors(E, x1, x2) < CONSENSUS_FACTOR * threshold)
     if near.size >= 5:
         again = estimate_essential(x1[near], x2[near], focal, max_trials=cap, **settings)
         E = E if again is None else again.E
-    inliers = sampson_errors(E, x1, x2) < threshold
+    inliers = _sampson_errors(E, x1, x2) < threshold
     if not inliers.any():
         return None
     return RobustEstimate(E, inliers, settings["backend"], "ordered")

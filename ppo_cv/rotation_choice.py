@@ -138,9 +138,19 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
+from .checks import (
+    as_finite_array,
+    as_flag,
+    as_nonnegative,
+    as_number,
+    as_positive,
+    as_real_array,
+    require_instance,
+)
 from .lsq import gauss_newton_covariance, rotation_increment
 from .metrics import rotation_error_deg
 from .model_selection import robust_sigma
@@ -160,6 +170,8 @@ from .rotation import (
     MAX_FOCAL_CHANGE,
     MIN_LENS_MATCHES,
     LensRotationFit,
+    _checked_matches,
+    _checked_used,
     _correct_points,
     _lens_rotation_residuals,
     _seen_through_lens,
@@ -244,6 +256,11 @@ class RotationEstimate:
                 f"unknown rotation source {self.source!r}; choose one of "
                 + ", ".join(ROTATION_SOURCES)
             )
+        if as_real_array(self.R, "R").shape != (3, 3):
+            raise ValueError(f"R must be a 3x3 rotation matrix, got shape {np.shape(self.R)}")
+        for name in ("bias_deg", "sigma_deg", "bias_sigma_deg"):
+            as_number(getattr(self, name), name)
+        as_flag(self.focal_error, "focal_error")
 
     @property
     def fit_sigma_deg(self) -> float:
@@ -264,6 +281,66 @@ class RotationEstimate:
         """``|bias_deg| + sigma_deg``; inf when either is not a number."""
         value = abs(float(self.bias_deg)) + float(self.sigma_deg)
         return value if value == value else float("inf")
+
+
+_MAX_STEP = 1e-2  # finite-difference steps beyond it measure no derivative (1e300 overflowed)
+
+
+def _checked_fit_matches(lens: Any, x1: Any, x2: Any, used: Any) -> tuple:
+    """``(x1, x2, used)`` of a rotation-only ``lens`` fit checked: ``lens`` a
+    :class:`~ppo_cv.rotation.LensRotationFit`, ``x1``, ``x2`` finite normalised points (N, 2)
+    or (N, 3) of one length, ``used`` a bool mask (N,); ValueError or TypeError naming the
+    argument."""
+    require_instance(lens, LensRotationFit, "lens", " (made by ppo_cv.rotation.fit_rotation_lens)")
+    x1, x2 = _checked_matches(x1, x2)
+    return x1, x2, _checked_used(used, len(x1))
+
+
+def _checked_step(step: Any) -> float:
+    """A finite-difference step in ``(0, _MAX_STEP]``."""
+    step = as_positive(step, "step")
+    if step > _MAX_STEP:
+        raise ValueError(f"step must be a finite difference in (0, {_MAX_STEP:g}], got {step:g}")
+    return step
+
+
+def _checked_homography(H: Any) -> np.ndarray:
+    """A finite 3x3 matrix as float64; ValueError or TypeError naming ``H``."""
+    H = as_finite_array(H, "H")
+    if H.shape != (3, 3):
+        raise ValueError(f"H must be a 3x3 homography, got shape {H.shape}")
+    return H
+
+
+def _require_parallax(parallax: Any, name: str, measured: bool = True) -> None:
+    """TypeError unless ``parallax`` is a :class:`~ppo_cv.parallax.PlaneParallax`; when
+    ``measured``, ValueError unless its ``H`` is a finite 3x3 matrix, else None is accepted
+    and so is a fit that failed (NaN)."""
+    if parallax is None and not measured:
+        return
+    require_instance(parallax, PlaneParallax, name, " (made by ppo_cv.parallax.fit_plane_parallax)")
+    if measured:
+        _checked_homography(parallax.H)
+
+
+def _require_estimates(estimates: Any, names: tuple[str, ...] | None = None) -> None:
+    """TypeError unless ``estimates`` is a sequence of :class:`RotationEstimate`, each named by
+    ``names`` (by its place in ``estimates`` otherwise)."""
+    if isinstance(estimates, (str, bytes)) or not isinstance(estimates, Sequence):
+        raise TypeError(
+            f"estimates must be a sequence of RotationEstimate, got {type(estimates).__name__}"
+        )
+    for index, estimate in enumerate(estimates):
+        name = names[index] if names else f"estimates[{index}]"
+        require_instance(estimate, RotationEstimate, name)
+
+
+def _require_motion(motion: Any, tracks: Any = None) -> None:
+    """TypeError unless ``motion`` is a :class:`~ppo_cv.motion_model.MotionDecision` and
+    ``tracks`` None or a :class:`~ppo_cv.photometric.PhotometricRotation`."""
+    require_instance(motion, MotionDecision, "motion", " (decide_motion makes one)")
+    if tracks is not None:
+        require_instance(tracks, PhotometricRotation, "tracks")
 
 
 def choose_rotation(estimates: Sequence[RotationEstimate]) -> RotationEstimate:
@@ -287,6 +364,7 @@ def choose_rotation(estimates: Sequence[RotationEstimate]) -> RotationEstimate:
     >>> choose_rotation([essential, rotation]).source
     'rotation'
     """
+    _require_estimates(estimates)
     if len(estimates) == 0:
         raise ValueError("choose_rotation needs at least one estimate")
     errors = np.array([estimate.expected_error_deg for estimate in estimates])
@@ -310,6 +388,7 @@ def across_normal_parallax(H: np.ndarray) -> float:
     >>> round(across_normal_parallax(H), 4)
     0.05
     """
+    H = _checked_homography(H)
     s = np.linalg.svd(np.asarray(H, dtype=np.float64), compute_uv=False)
     if not s[1] > 0:
         return float("inf")
@@ -321,6 +400,7 @@ def translation_bias(parallax: PlaneParallax | None) -> tuple[float, float]:
     """Bias of a rotation-only fit and its deviation (degrees) from the homography the tracks
     fit (see the module docstring): :func:`across_normal_parallax` of its ``H``, with the
     deviation of its parallax; ``(inf, 0)`` when it was not measured."""
+    _require_parallax(parallax, "parallax", measured=False)
     if parallax is None or not np.isfinite(parallax.parallax):
         return float("inf"), 0.0
     return float(np.degrees(_parallax_bias(parallax))), float(np.degrees(parallax.sigma))
@@ -352,6 +432,7 @@ def focal_free_parallax(parallax: PlaneParallax) -> tuple[PlaneParallax, float]:
     >>> round(freed.parallax, 6), round(across_normal_parallax(freed.H), 6), round(scale, 3)
     (0.0, 0.0, 1.333)
     """
+    _require_parallax(parallax, "parallax")
     H = np.asarray(parallax.H, dtype=np.float64)
     grid = np.linspace(*np.log(FOCAL_ERROR_RANGE), _FOCAL_GRID)
     log_scale, _, inside = nearest_rotation_log_scale(H, grid)
@@ -366,14 +447,21 @@ _FOCAL_GRID = 61  # focal scales tried, evenly in log scale, before the zooming 
 
 def unbiased_bias_deg(bias_deg: float, bias_sigma_deg: float) -> float:
     """``sqrt(max(bias^2 - bias_sigma^2, 0))``: the size of a bias measured as ``bias_deg``
-    with deviation ``bias_sigma_deg`` (degrees), its noise taken out; 0 when not measured
-    (inf).
+    with deviation ``bias_sigma_deg`` (degrees, at least 0, inf when unknown), its noise taken
+    out; 0 when not measured (inf). A NaN deviation is a ValueError, a text a TypeError.
 
     >>> unbiased_bias_deg(0.5, 0.3), unbiased_bias_deg(0.1, 0.2)
     (0.4, 0.0)
     """
+    bias_deg = as_number(bias_deg, "bias_deg")
+    bias_sigma_deg = as_number(bias_sigma_deg, "bias_sigma_deg")
+    if not bias_sigma_deg >= 0:
+        raise ValueError(f"bias_sigma_deg must be a number >= 0 or inf, got {bias_sigma_deg}")
     if not np.isfinite(bias_deg):
         return 0.0
+    if abs(bias_deg) > 1e150:  # the squares would overflow
+        share = min(bias_sigma_deg / abs(bias_deg), 1.0)
+        return float(abs(bias_deg) * np.sqrt(1.0 - share * share))
     return float(np.sqrt(max(bias_deg**2 - bias_sigma_deg**2, 0.0)))
 
 
@@ -390,6 +478,8 @@ def rotation_fit_sigma_deg(
     points, (N, 2) or (N, 3)) and the prior rows, ``v`` the robust variance of a coordinate of
     those errors. inf with fewer than 4 matches or a singular ``J``.
     """
+    x1, x2, used = _checked_fit_matches(lens, x1, x2, used)
+    step = _checked_step(step)
     found = _lens_jacobian(lens, x1, x2, used, step)
     if found is None:
         return float("inf")
@@ -452,6 +542,8 @@ def focal_bias_deg(
     >>> round(rotation_error_deg(fit.R, R), 2), round(bias, 2)
     (0.17, 0.15)
     """
+    x1, x2, used = _checked_fit_matches(lens, x1, x2, used)
+    step = _checked_step(step)
     excess, found = _focal_excess(lens, x1, x2, used, step)
     if excess == 0.0 or found is None:
         return 0.0 if excess == 0.0 else float("inf")
@@ -511,6 +603,8 @@ def focal_trade_deg(
     >>> round(focal_trade_deg(fit, q1, x2, used), 2), round(focal_bias_deg(fit, q1, x2, used), 2)
     (1.03, 0.28)
     """
+    x1, x2, used = _checked_fit_matches(lens, x1, x2, used)
+    step = _checked_step(step)
     excess, found = _focal_excess(lens, x1, x2, used, step)
     if excess == 0.0 or found is None:
         return 0.0 if excess == 0.0 else float("inf")
@@ -616,6 +710,11 @@ def rotation_only_estimate(
         (:func:`focal_bias_deg` of :func:`wanted_focal_fit`), unless the parallax left there
         refuses that reading (:func:`freed_parallax_refused`).
     """
+    _require_motion(motion, tracks)
+    _require_parallax(parallax, "parallax", measured=False)
+    x1, x2 = _checked_matches(x1, x2)
+    used = _checked_used(used, len(x1))
+    to_beat = as_number(to_beat, "to_beat")
     lens = rotation_only_fit(motion, tracks)
     if tracks is not None and tracks.parallax is not None:
         parallax = tracks.parallax
@@ -650,6 +749,8 @@ def through_given_focal(
     scale took part of a translation, which the given focal length does not undo: through it
     the rotation takes the whole of the sideways translation (a ``tiny-baseline`` render at
     0.02, seed 0 index 9, 1.29 degrees off against 0.94 at the edge of the box)."""
+    _require_estimates([estimate], ("estimate",))
+    _require_motion(motion)
     if not (motion.lens_clipped and estimate.focal_error):
         return estimate
     lens = rotation_only_fit(motion, None)
@@ -673,6 +774,7 @@ def given_focal_fit(
     its bound is, the given one kept and the rest fitted again: the rotation a user of the
     given calibration stitches with.
     """
+    x1, x2, used = _checked_fit_matches(lens, x1, x2, used)
     if np.count_nonzero(used) < MIN_LENS_MATCHES:
         return lens
     return fit_rotation_lens(
@@ -732,6 +834,8 @@ def freed_parallax_refused(freed: PlaneParallax, bound: float) -> bool:
     >>> freed_parallax_refused(PlaneParallax(np.eye(3), 0.0, 0.001, np.empty(0)), 0.003)
     False
     """
+    _require_parallax(freed, "freed")
+    bound = as_nonnegative(bound, "bound")
     return parallax_refuses_rotation(_parallax_bias(freed), freed.sigma, bound)
 
 
@@ -743,6 +847,8 @@ def wanted_focal_fit(
     started from ``lens`` at the focal scale ``scale``: the rotation through the focal length
     the matches want; ``lens`` with fewer than :data:`ppo_cv.rotation.MIN_LENS_MATCHES`
     matches."""
+    x1, x2, used = _checked_fit_matches(lens, x1, x2, used)
+    scale = as_positive(scale, "scale")
     if np.count_nonzero(used) < MIN_LENS_MATCHES:
         return lens
     start = LensRotationFit(lens.R, scale, lens.k1, float("inf"), np.empty(0))
@@ -783,6 +889,8 @@ def wanted_focal_scale(
     length would make the pair a rotation, not that it is one. ``parallax``, that homography's
     :func:`feature_parallax` when already measured, is measured here when None.
     """
+    _require_motion(motion)
+    _require_parallax(parallax, "parallax", measured=False)
     if not motion.lens_clipped:
         return float("nan")
     lens = rotation_only_fit(motion, None)
@@ -800,6 +908,7 @@ def feature_parallax(
     rotation inliers among the matches ``x1``, ``x2`` (normalised points of all matches, lens
     not corrected): what :func:`rotation_only_estimate` reads without tracks and
     :func:`wanted_focal_scale` conjugates, measured once for both."""
+    _require_motion(motion)
     return matches_parallax(rotation_only_fit(motion, None), x1, x2, motion.rotation_inliers)
 
 
@@ -810,6 +919,7 @@ def matches_parallax(
     the rotation-only fit's ``lens``: the bias of a fit whose tracks were not aligned, measured
     less precisely than on tracks (its deviation says how much less); None with fewer than 8
     matches."""
+    x1, x2, used = _checked_fit_matches(lens, x1, x2, used)
     if np.count_nonzero(used) < 8:
         return None
     q1 = _correct_points(x1[used], lens.focal_scale, lens.k1, lens.principal_offset)
@@ -823,6 +933,7 @@ def rotation_only_fit(
     """The rotation-only fit of a pair: refitted on intensity-aligned ``tracks`` when there are
     some, otherwise the decision's (:func:`ppo_cv.motion_model.decide_motion`) as a
     :class:`ppo_cv.rotation.LensRotationFit` without residuals."""
+    _require_motion(motion, tracks)
     if tracks is not None:
         return tracks.fit
     return LensRotationFit(
@@ -851,6 +962,7 @@ def tracks_could_win(moving: RotationEstimate, rotation_only: RotationEstimate) 
     more than its own budget) and cannot win; its windows are not aligned. A moving model of
     infinite expected error keeps them aligned.
     """
+    _require_estimates([moving, rotation_only], ("moving", "rotation_only"))
     apart = float(rotation_error_deg(rotation_only.R, moving.R))
     reach = refit_reach_deg(min(rotation_only.fit_sigma_deg, MAX_SEARCH_SIGMA_DEG))
     return apart - reach < 2.0 * moving.expected_error_deg
@@ -916,6 +1028,9 @@ def settled_before_polish(
     >>> settled_before_polish(essential, searched)  # 1.15 - 3 x 0.057 + 0.1 > 0.5
     True
     """
+    _require_estimates([moving], ("moving",))
+    require_instance(searched, PhotometricRotation, "searched")
+    focal_free = as_flag(focal_free, "focal_free")
     parallax, fit_sigma = searched.parallax, float(searched.fit.rotation_sigma_deg)
     if parallax is None:
         return False

@@ -75,7 +75,7 @@ from .metrics import direction_error_deg, rotation_error_deg
 from .motion_model import MotionDecision, decide_motion, plane_ransac_trials
 from .parallax import nearest_rotation_log_scale, rotation_spread
 from .pose import _recover_normalized
-from .robust import essential_from_pose
+from .robust import _essential_from_pose
 from .rotation import focal_ratio_keywords, focal_ratio_prior
 
 __all__ = [
@@ -903,7 +903,7 @@ def _motion_decision(geometry, camera1, keypoints1, camera2, keypoints2, pose, p
     if motion.model != "plane":
         return motion, pose
     plane = motion.plane
-    E = essential_from_pose(plane.R, plane.t)
+    E = _essential_from_pose(plane.R, plane.t)
     return motion, _recover_normalized(E, x1[:, :2], x2[:, :2], plane.inliers, pri_threshold)
 
 

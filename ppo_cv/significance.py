@@ -69,6 +69,7 @@ from .checks import (
     as_whole_number,
     shown,
 )
+from .limits import MAX_MATCHES
 from .metrics import direction_error_deg
 
 __all__ = [
@@ -164,12 +165,17 @@ class Significance:
 
 
 def log10_binomial(n: np.ndarray | int, k: np.ndarray | int) -> np.ndarray:
-    """``log10 C(n, k)`` for integers ``0 <= k <= n`` (broadcast), exact sums of logarithms."""
+    """``log10 C(n, k)`` for integers ``0 <= k <= n <=`` :data:`ppo_cv.limits.MAX_MATCHES`
+    (broadcast), exact sums of logarithms."""
     n, k = np.asarray(n), np.asarray(k)
     if n.dtype.kind not in "iu" or k.dtype.kind not in "iu":
         raise TypeError(f"n and k must be integers, got dtypes {n.dtype} and {k.dtype}")
     if not np.all((0 <= k) & (k <= n)):
         raise ValueError(f"log10_binomial needs 0 <= k <= n, got n={shown(n)} and k={shown(k)}")
+    if n.size and n.max() > MAX_MATCHES:
+        raise ValueError(f"log10_binomial takes n up to {MAX_MATCHES}, got {shown(n.max())}")
+    if not n.size or not k.size:
+        return np.zeros(np.broadcast_shapes(n.shape, k.shape))
     n, k = n.astype(np.int64), k.astype(np.int64)
     log_factorial = np.concatenate([[0.0], np.cumsum(np.log10(np.arange(1, int(n.max()) + 1)))])
     return log_factorial[n] - log_factorial[k] - log_factorial[n - k]
@@ -361,7 +367,7 @@ def smallest_significant_consensus(
         The smallest such ``k``; ``num_matches + 1`` when no consensus can be significant.
     """
     width, height = as_image_size(image_size2, "image_size2")
-    n = as_whole_number(num_matches, "num_matches", 0, MAX_WHOLE_NUMBER)
+    n = as_whole_number(num_matches, "num_matches", 0, MAX_MATCHES)
     threshold = as_positive(threshold, "threshold")
     if as_number(max_log10_nfa, "max_log10_nfa") != max_log10_nfa:
         raise ValueError("max_log10_nfa must be a number (inf: every consensus), got nan")

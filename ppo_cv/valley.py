@@ -33,7 +33,7 @@ from .lsq import (
 )
 from .metrics import rotation_error_deg
 from .plane import K1_SIGNIFICANCE
-from .robust import sampson_signed_rows
+from .robust import _sampson_signed_rows
 
 __all__ = [
     "VALLEY_STEPS_DEG",
@@ -98,7 +98,7 @@ def _cost(x1: np.ndarray, x2: np.ndarray, scale: float):
     X1, X2 = np.ascontiguousarray(x1.T), np.ascontiguousarray(x2.T)
 
     def residuals(E: np.ndarray) -> np.ndarray:
-        r = sampson_signed_rows(E, X1, X2)
+        r = _sampson_signed_rows(E, X1, X2)
         return huber_weights(np.abs(r), scale) * r
 
     return residuals
