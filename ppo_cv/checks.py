@@ -24,6 +24,7 @@ __all__ = [
     "require_essential_spread",
     "as_mask",
     "as_positive",
+    "as_positive_at_most",
     "as_ransac_settings",
     "as_vector3",
     "require_pose_matches",
@@ -506,6 +507,14 @@ def as_positive(value: Any, name: str) -> float:
     number = _as_float(value, name)
     if not np.isfinite(number) or number <= 0:
         raise ValueError(f"{name} must be a finite number > 0, got {number}")
+    return number
+
+
+def as_positive_at_most(value: Any, name: str, upper: float, unit: str = "") -> float:
+    """A finite number in ``(0, upper]``; the message names ``unit`` after the interval."""
+    number = as_positive(value, name)
+    if number > upper:
+        raise ValueError(f"{name} must be in (0, {upper:g}]{unit}, got {number:g}")
     return number
 
 

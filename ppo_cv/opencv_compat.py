@@ -59,6 +59,7 @@ from .checks import (
     as_mask,
     as_point_pair,
     as_positive,
+    as_positive_at_most,
     require_essential_spread,
     shown,
 )
@@ -270,10 +271,7 @@ def _probability(value: Any) -> float:
 
 
 def _threshold(value: Any) -> float:
-    threshold = as_positive(value, "threshold")
-    if threshold > _MAX_THRESHOLD:
-        raise ValueError(f"threshold must be in (0, {_MAX_THRESHOLD:g}] pixels, got {threshold}")
-    return threshold
+    return as_positive_at_most(value, "threshold", _MAX_THRESHOLD, " pixels")
 
 
 def _essential(value: Any) -> np.ndarray:

@@ -148,6 +148,7 @@ from .checks import (
     as_nonnegative,
     as_number,
     as_positive,
+    as_positive_at_most,
     as_real_array,
     require_instance,
 )
@@ -298,10 +299,7 @@ def _checked_fit_matches(lens: Any, x1: Any, x2: Any, used: Any) -> tuple:
 
 def _checked_step(step: Any) -> float:
     """A finite-difference step in ``(0, _MAX_STEP]``."""
-    step = as_positive(step, "step")
-    if step > _MAX_STEP:
-        raise ValueError(f"step must be a finite difference in (0, {_MAX_STEP:g}], got {step:g}")
-    return step
+    return as_positive_at_most(step, "step", _MAX_STEP, " (a finite difference)")
 
 
 def _checked_homography(H: Any) -> np.ndarray:

@@ -134,7 +134,7 @@ CASES = {
         "step must be a finite number > 0, got nan"),
     "focal_bias_deg step 1e300": (
         lambda: rotation_choice.focal_bias_deg(LENS, X1, X2, USED, 1e300), ValueError,
-        "step must be a finite difference in (0, 0.01]"),
+        "step must be in (0, 0.01] (a finite difference)"),
     "given_focal_fit x2 text": (lambda: rotation_choice.given_focal_fit(LENS, X1, "x2", USED),
                                 TypeError, "x2 must be an array of real numbers, got str"),
     "matches_parallax points 1e300": (
