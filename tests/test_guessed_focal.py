@@ -18,6 +18,15 @@ from ppo_cv.data_gen.render import render_pair
 from ppo_cv.metrics import rotation_error_deg
 
 COMMAND = [sys.executable, "-m", "ppo_cv.cli.main"]
+
+
+def pair_json(image1, image2) -> tuple[dict, str]:
+    """``ppo-cv pair IMAGE1 IMAGE2 --json`` without a camera: its JSON and its stderr."""
+    done = subprocess.run(
+        [*COMMAND, "pair", image1, image2, "--json"], capture_output=True, text=True, timeout=300
+    )
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout), done.stderr
 SIZE = (640, 480)
 GUESS = 1.2 * max(SIZE)  # the focal length ppo-cv guesses for an image without EXIF
 TRUE_FOCAL = GUESS / 0.92  # the guess is 8 % short
@@ -47,17 +56,12 @@ def rendered(tmp_path_factory):
 def test_pair_decides_a_guessed_camera_with_the_focal_length_of_its_homography(
     rendered, motion, pure_rotation, focal, max_error_deg
 ):
-    done = subprocess.run(
-        [*COMMAND, "pair", rendered / f"{motion}1.png", rendered / f"{motion}2.png", "--json"],
-        capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
-    assert done.returncode == 0, done.stderr
-    data = json.loads(done.stdout)
+    data, stderr = pair_json(rendered / f"{motion}1.png", rendered / f"{motion}2.png")
     assert data["pure_rotation"] is pure_rotation
     assert rotation_error_deg(np.array(data["R"]), ROTATION) < max_error_deg
     assert data["cameras"]["K1"][0][0] == pytest.approx(focal, rel=0.005)
-    refitted = [line for line in done.stderr.splitlines() if "fitted to the homography" in line]
-    assert len(refitted) == (1 if pure_rotation else 0), done.stderr
+    refitted = [line for line in stderr.splitlines() if "fitted to the homography" in line]
+    assert len(refitted) == (1 if pure_rotation else 0), stderr
     if pure_rotation:
         assert refitted[0].startswith(
             "ppo-cv pair: warning: the guessed focal length 768.0 px calls this pair a "
@@ -83,16 +87,11 @@ def test_the_book_pair_with_its_exif_focal_length_is_a_rotation(pano_dev):
     reference 996.9 px (autostitch's); the fitted one (976 px) is within 3 % of it, and the
     rotation within 0.6 deg of the reference, which inherits the reference's focal length."""
     names = ("book_DSC04214.JPG", "book_DSC04215.JPG")
-    done = subprocess.run(
-        [*COMMAND, "pair", *(pano_dev / "images" / name for name in names), "--json"],
-        capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
-    assert done.returncode == 0, done.stderr
-    data = json.loads(done.stdout)
+    data, stderr = pair_json(*(pano_dev / "images" / name for name in names))
     fields = (pano_dev / "pairs_with_gt.txt").read_text().splitlines()[0].split()
     assert fields[:2] == list(names)
     reference_R = np.array(fields[22:38], dtype=float).reshape(4, 4)[:3, :3]
-    assert data["pure_rotation"] and "fitted to the homography" in done.stderr
+    assert data["pure_rotation"] and "fitted to the homography" in stderr
     assert data["cameras"]["K1"][0][0] == pytest.approx(float(fields[4]), rel=0.03)
     assert rotation_error_deg(np.array(data["R"]), reference_R) < 0.6
 
@@ -123,13 +122,8 @@ def test_a_guessed_camera_through_a_distorting_lens_is_refitted_with_its_radial_
     lens's ``k1`` of 0.08, is 9 % short of it, a rotation through which was called general
     motion 8.9 deg off. The fit with the radial term comes within 5 %: a pure rotation."""
     root, rotations = real_photo_pairs
-    done = subprocess.run(
-        [*COMMAND, "pair", root / f"{motion}1.png", root / f"{motion}2.png", "--json"],
-        capture_output=True, text=True, timeout=300,
-    )  # fmt: skip
-    assert done.returncode == 0, done.stderr
-    data = json.loads(done.stdout)
+    data, stderr = pair_json(root / f"{motion}1.png", root / f"{motion}2.png")
     assert data["pure_rotation"] is pure_rotation
     assert rotation_error_deg(np.array(data["R"]), rotations[motion]) < max_error_deg
-    refitted = "then with its lens's radial term, calls it a pure rotation" in done.stderr
-    assert refitted is pure_rotation, done.stderr
+    refitted = "then with its lens's radial term, calls it a pure rotation" in stderr
+    assert refitted is pure_rotation, stderr
