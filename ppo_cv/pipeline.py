@@ -59,8 +59,10 @@ on (a side below :data:`~ppo_cv.features.MIN_IMAGE_SIDE` pixels), images of diff
 without ``K2``, identical images, too few features, matches or inliers, a consensus that chance
 could explain (``PairOptions.max_log10_nfa``: "no reliable two-view geometry" with the
 figures) or a moving pose that has its inliers seen from directions too far apart for their
-descriptors to have matched (:func:`~ppo_cv.significance.require_matchable_viewpoints`), and
-one image a mirror image of the other
+descriptors to have matched (:func:`~ppo_cv.significance.require_matchable_viewpoints`), a
+general pose that too few of its inliers test
+(:func:`~ppo_cv.significance.require_checked_consensus`), and one image a mirror image of the
+other
 (:func:`~ppo_cv.homography.require_unmirrored` says what is and is not caught).
 """
 
@@ -169,7 +171,11 @@ from .rotation_choice import (
     unbiased_bias_deg,
     wanted_focal_scale,
 )
-from .significance import DEFAULT_MAX_LOG10_NFA, require_matchable_viewpoints
+from .significance import (
+    DEFAULT_MAX_LOG10_NFA,
+    require_checked_consensus,
+    require_matchable_viewpoints,
+)
 from .valley import ValleyOutcome, valley_minima, valley_outcome
 
 __all__ = [
@@ -302,7 +308,8 @@ class _Finishing:
 @dataclass(frozen=True)
 class _ModelPart:
     """The part of the result a model's finisher gives: the pose, its inliers and points, its
-    uncertainty and the model's own lens or plane terms."""
+    uncertainty and the model's own lens or plane terms; for a general pose the inliers the
+    others check (``checked``, (N,) bool, :class:`~ppo_cv.refine.PoseInformation`)."""
 
     R: np.ndarray
     t: np.ndarray
@@ -315,6 +322,7 @@ class _ModelPart:
     radial_k1: float = float("nan")
     plane: PlaneGeometry | None = None
     radial: RadialPose | None = None
+    checked: np.ndarray | None = None
 
 
 def _load_inputs(image1, image2, K1, K2, dist1, dist2, detect: bool, options) -> PairInputs:
@@ -613,6 +621,7 @@ def _finish_general(state: _Finishing) -> _ModelPart:
         rotation_sigma_deg=float(np.hypot(rotation_deg, valley.spread_deg)),
         radial_k1=radial_k1,
         radial=radial,
+        checked=information.checked,
     )
 
 
@@ -813,10 +822,13 @@ def _assemble(
 ) -> PairResult:  # fmt: skip
     """The :class:`PairResult` of a finished model with its chosen rotation; ValueError when a
     moving pose has its inliers seen from directions no descriptor matches across
-    (:func:`~ppo_cv.significance.require_matchable_viewpoints`)."""
+    (:func:`~ppo_cv.significance.require_matchable_viewpoints`) or a general pose is tested by
+    too few of its inliers (:func:`~ppo_cv.significance.require_checked_consensus`)."""
     inputs, found, motion = state.inputs, state.found, state.motion
     if not motion.pure_rotation:
         require_matchable_viewpoints(found.x1[part.inliers], found.x2[part.inliers], rotation.R)
+    if part.checked is not None:
+        require_checked_consensus(part.inliers, part.checked)
     img1, img2 = inputs.img1, inputs.img2
     cameras = PairCameras(
         inputs.K1, inputs.K2, inputs.dist1, inputs.dist2,

@@ -37,6 +37,7 @@ from .ppo import rotation_from_rays
 from .robust import _sampson_signed as _essential_sampson_signed
 from .robust import _sampson_signed_rows, virtual_camera
 from .rotation import FOCAL_PRIOR, K1_PRIOR
+from .significance import MIN_CHECKED_INLIERS
 
 __all__ = [
     "HUBER_NOISE_FACTOR",
@@ -905,7 +906,7 @@ def pose_information(
     kept, a, b, J, noise_info = _checked_jacobian_and_noise(residuals, a, b, step)
     checked = np.asarray(inliers, dtype=bool).copy()
     checked[np.flatnonzero(checked)[~kept]] = False
-    if len(a) < 6:
+    if len(a) < MIN_CHECKED_INLIERS:
         return PoseInformation(None, float("nan"), checked)
     r0 = residuals(np.zeros((1, _NPARAMS)), a[None], b[None])[0]
     variance = float(r0 @ r0) / (len(a) - _NPOSE) if noise is None else float(noise) ** 2

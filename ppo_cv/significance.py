@@ -84,7 +84,9 @@ __all__ = [
     "chord_lengths",
     "distinctiveness",
     "MAX_MEDIAN_RAY_ANGLE_DEG",
+    "MIN_CHECKED_INLIERS",
     "ray_angles_deg",
+    "require_checked_consensus",
     "require_matchable_viewpoints",
     "require_significance",
     "epipolar_lines",
@@ -121,6 +123,20 @@ degrees, poses within 15 degrees at most 62; ten renders of five presets at 0.02
 
 ESSENTIAL_SAMPLE_SIZE = 5
 ESSENTIAL_MODELS_PER_SAMPLE = 10
+MIN_CHECKED_INLIERS = ESSENTIAL_SAMPLE_SIZE + 1
+"""Fewest inliers of a general pose whose residual the other inliers check
+(:func:`require_checked_consensus`): one more than the pose's five parameters. The count of
+the NFA assumes a model drawn from ``s`` matches and tested by the ``k - s`` others; the pose
+returned is fitted to all ``k``, and a match of leverage above one half
+(:data:`ppo_cv.refine.LEVERAGE_MAX`, Huber's bound) sets a direction of it more than the others
+together: the fit moved to it, and its residual tests the pose little. With fewer checked
+inliers than this the pose's deviations are undetermined
+(:func:`ppo_cv.refine.pose_information`: ``rotation_sigma_deg`` inf, ``t_sigma_deg`` at its
+cap). Measured (640 x 480, demo camera, 150 random-noise pairs): the 23 chance consensus of
+8-9 of 23-42 matches that reach a pose, at ``log10 NFA`` +1.4..+3.9, hold 1-5 checked inliers
+(8 were answered before); the nine freiburg pairs answered with 13-20 inliers (``log10 NFA``
+-2.3..+4.4) hold 10-18 (``docs/decision.md``). A chance consensus of a dozen or more matches
+is not caught here (``docs/limits.md``, "Significance")."""
 MAX_CONSENSUS_THRESHOLD_PX = 16.0
 """Largest ``eps_k`` tried, pixels: a wider band is no epipolar consensus at these thresholds."""
 MIN_CONSENSUS_BAND = 0.25
@@ -412,6 +428,31 @@ def require_significance(
             f"{significance.threshold:.2f} px)"
         )
     return significance
+
+
+def require_checked_consensus(inliers: np.ndarray, checked: np.ndarray) -> int:
+    """ValueError "no reliable two-view geometry" when fewer than :data:`MIN_CHECKED_INLIERS` of
+    a general pose's ``inliers`` (N,) bool are ``checked`` (N,) bool, the subset whose residual
+    the other inliers check (:func:`ppo_cv.refine.checked_inliers`): the pose rests on the
+    matches it was fitted to and is tested by too few, as a chance consensus of a few matches.
+    Returns the number checked."""
+    for name, mask in (("inliers", inliers), ("checked", checked)):
+        if np.asarray(mask).dtype != bool or np.ndim(mask) != 1:
+            raise TypeError(f"{name} must be a mask of bool, shape (N,), got {shown(mask)}")
+    if np.shape(inliers) != np.shape(checked):
+        raise ValueError(
+            f"inliers and checked must be of one length, got {np.size(inliers)} and "
+            f"{np.size(checked)}"
+        )
+    count, total = int(np.count_nonzero(checked)), int(np.count_nonzero(inliers))
+    if count < MIN_CHECKED_INLIERS:
+        raise ValueError(
+            f"no reliable two-view geometry: {count} of the pose's {total} inliers are checked "
+            f"by the others (at least {MIN_CHECKED_INLIERS}; the rest hold it at leverage above "
+            "one half): the pose is fitted to its matches, not tested by them, as a chance "
+            "consensus may be"
+        )
+    return count
 
 
 def ray_angles_deg(x1: np.ndarray, x2: np.ndarray, R: np.ndarray) -> np.ndarray:
