@@ -511,13 +511,21 @@ def _recorded_size_doubt(layout: Any, size: tuple[int, int], focal: float) -> st
     """What the EXIF's recorded pixel size, when it is not the image's ``size`` (width,
     height), says of the focal length ``focal`` (pixels) read from it: a resized copy's was
     scaled (:func:`ppo_cv.calib.exif_focal_scale`) or, from a 35 mm equivalent or pycolmap's
-    table of sensor widths, fits as it is (None); a crop's may not fit."""
+    table of sensor widths, fits as it is (None); a crop's may not fit. The recorded size is
+    the camera's (:attr:`ppo_cv.images.ExifLayout.camera_size`), named by its tags where it is
+    the interoperability tags' and not ``PixelXDimension``'s."""
     from ppo_cv.calib import resize_scale
 
-    recorded = layout.pixel_size
+    recorded = layout.camera_size
     if recorded is None or sorted(recorded) == sorted(size):
         return None
     said = f"the EXIF says the photo was {recorded[0]}x{recorded[1]} pixels, the image is "
+    if recorded != layout.pixel_size:
+        said = (
+            f"the EXIF's RelatedImageWidth and RelatedImageLength say the camera wrote "
+            f"{recorded[0]}x{recorded[1]} pixels ({_pixel_dimensions(layout.pixel_size)}), the "
+            "image is "
+        )
     scale = resize_scale(recorded, size)
     if scale is None:
         return (
@@ -531,6 +539,13 @@ def _recorded_size_doubt(layout: Any, size: tuple[int, int], focal: float) -> st
         f"pixels, is scaled by {scale:.4g} to f={focal:.1f} px (not right if it was cropped "
         "too; pass --K or --calib)"
     )
+
+
+def _pixel_dimensions(size: tuple[int, int] | None) -> str:
+    """What ``PixelXDimension`` x ``PixelYDimension`` say beside a larger related size."""
+    if size is None:
+        return "PixelXDimension and PixelYDimension are missing"
+    return f"PixelXDimension and PixelYDimension say {size[0]}x{size[1]}, rewritten by a resizer"
 
 
 def exif_note(focals: tuple[float, float], found: tuple[bool, bool], names=("", "")) -> str:

@@ -843,9 +843,14 @@ def exif_focal_scale(layout: Any, size: tuple[int, int]) -> float:
     phone's sharing at 1600 px, a download for the web) keeps those tags and the size the
     camera wrote, ``PixelXDimension`` x ``PixelYDimension``: its focal length is that one times
     its size over the recorded size (a 4000 px photo shared at 1600 px: 0.4; unscaled, the field
-    of view came out 2.5 times too narrow). The factor is 1 when
+    of view came out 2.5 times too narrow). A resizer that rewrites those two to the copy's own
+    size leaves the interoperability tags' ``RelatedImageWidth`` x ``RelatedImageLength``, the
+    size of the file the camera wrote: the larger of the two sizes is the camera's
+    (``layout.camera_size``; a Canon PowerShot S45's 2272 x 1704 photo shared at 720 x 540 with
+    its own size in ``PixelXDimension``: 0.317, where 1 left its focal length 3.2 times too
+    long). The factor is 1 when
 
-    - the EXIF records no size, or the image's own;
+    - the EXIF records no size, or the image's own in both places;
     - it has a 35 mm equivalent (``FocalLengthIn35mmFilm``), which pycolmap reads first and
       multiplies by the image's own diagonal: a resized copy keeps the ratio of focal length to
       diagonal, so this focal length fits it as it is;
@@ -868,9 +873,9 @@ def exif_focal_scale(layout: Any, size: tuple[int, int]) -> float:
     float
         The ratio of the image's larger side to the recorded larger side, or 1.
     """
-    if layout.pixel_size is None or not layout.focal_in_recorded_pixels:
+    if layout.camera_size is None or not layout.focal_in_recorded_pixels:
         return 1.0
-    scale = resize_scale(layout.pixel_size, size)
+    scale = resize_scale(layout.camera_size, size)
     return 1.0 if scale is None else scale
 
 

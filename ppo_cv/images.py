@@ -244,12 +244,17 @@ class ExifLayout:
         (``FocalPlaneResolutionUnit`` inch, cm, mm or um): pycolmap then reads ``FocalLength``
         through it, in the pixels the camera wrote, rather than through its table of sensor
         widths, which it multiplies by the image's own size.
+    related_size : tuple of (int, int) or None
+        ``(RelatedImageWidth, RelatedImageLength)`` of the interoperability tags: the size of
+        the image file the camera wrote, which a resizer that rewrites :attr:`pixel_size` to
+        the copy's own size leaves; None without them.
     """
 
     orientation: int | None = None
     pixel_size: tuple[int, int] | None = None
     focal_35mm: float | None = None
     sensor_resolution: bool = False
+    related_size: tuple[int, int] | None = None
 
     @property
     def turned(self) -> bool:
@@ -263,9 +268,19 @@ class ExifLayout:
         it), which a resized copy must scale; else in the image's own."""
         return self.focal_35mm is None and self.sensor_resolution
 
+    @property
+    def camera_size(self) -> tuple[int, int] | None:
+        """The size the camera wrote, ``(width, height)``: :attr:`related_size` where its
+        larger side exceeds :attr:`pixel_size`'s (a copy whose resizer rewrote those to its own
+        size, or dropped them), else :attr:`pixel_size`; None without either. A resizer only
+        shrinks: the larger of the two is the camera's."""
+        sizes = [size for size in (self.pixel_size, self.related_size) if size is not None]
+        return max(sizes, key=max, default=None)
+
 
 _ORIENTATION_TAG, _EXIF_IFD, _PIXEL_X_TAG, _PIXEL_Y_TAG = 0x0112, 0x8769, 0xA002, 0xA003
 _FOCAL_35MM_TAG = 0xA405
+_INTEROP_IFD, _RELATED_TAGS = 0xA005, (0x1001, 0x1002)  # RelatedImageWidth, RelatedImageLength
 _PLANE_X_TAG, _PLANE_UNIT_TAG, _PLANE_UNITS = 0xA20E, 0xA210, (2, 3, 4, 5)
 
 
@@ -295,12 +310,31 @@ def exif_layout(path: str | os.PathLike) -> ExifLayout:
             width, height = _positive(sub.get(_PIXEL_X_TAG)), _positive(sub.get(_PIXEL_Y_TAG))
             focal_35mm = _positive(sub.get(_FOCAL_35MM_TAG))
             plane = sub.get(_PLANE_X_TAG) is not None and sub.get(_PLANE_UNIT_TAG) in _PLANE_UNITS
+            related = _related_size(exif)
     except Exception:  # no Pillow, not an image Pillow knows, a damaged EXIF block
         return ExifLayout()
-    whole = width is not None and height is not None and width >= 1 and height >= 1
-    size = (int(width), int(height)) if whole else None
     known = isinstance(orientation, int) and 1 <= orientation <= 8
-    return ExifLayout(orientation if known else None, size, focal_35mm, plane)
+    return ExifLayout(
+        orientation if known else None, _whole_size(width, height), focal_35mm, plane,
+        related,
+    )  # fmt: skip
+
+
+def _related_size(exif: Any) -> tuple[int, int] | None:
+    """The interoperability tags' ``(RelatedImageWidth, RelatedImageLength)`` of Pillow's
+    ``exif``, None without them or where that block is damaged (the other tags still count)."""
+    try:
+        interop = exif.get_ifd(_INTEROP_IFD)
+        return _whole_size(*(_positive(interop.get(tag)) for tag in _RELATED_TAGS))
+    except Exception:  # an offset past the end, a block of another type
+        return None
+
+
+def _whole_size(width: float | None, height: float | None) -> tuple[int, int] | None:
+    """``(width, height)`` as whole numbers when both are at least 1, else None."""
+    if width is None or height is None or width < 1 or height < 1:
+        return None
+    return int(width), int(height)
 
 
 def _positive(value: Any) -> float | None:

@@ -1113,6 +1113,9 @@ def test_exif_focal_scale_and_resize_scale():
     assert scale(ExifLayout(None, (4000, 3000), None, False), (1600, 1200)) == 1.0
     assert scale(ExifLayout(None, None, None, True), (1600, 1200)) == 1.0
     assert scale(ExifLayout(None, (4000, 3000), None, True), (1600, 1600)) == 1.0
+    assert scale(ExifLayout(None, (720, 540), None, True, (2272, 1704)), (540, 720)) == 720 / 2272
+    assert scale(ExifLayout(None, None, None, True, (2272, 1704)), (720, 540)) == 720 / 2272
+    assert scale(ExifLayout(None, (4000, 3000), None, True, (640, 480)), (1600, 1200)) == 0.4
 
 
 def test_a_focal_length_from_pycolmaps_table_of_sensors_is_never_scaled(tmp_path):
@@ -1155,3 +1158,79 @@ def test_the_size_helpers_name_a_size_that_is_none(call, error, words):
     with pytest.raises(error) as info:
         call()
     assert words in str(info.value)
+
+
+# A Canon PowerShot S45's photo (2272x1704, 12.28 mm at 8114.29 px per inch of its sensor: f =
+# 3923 px) resized to 720x540 by a resizer that wrote the copy's own size in PixelXDimension and
+# PixelYDimension and left the interoperability tags' RelatedImageWidth and RelatedImageLength.
+S45_FOCAL_MM, S45_PX_PER_INCH, S45_SIZE = 12.28125, 8114.285714, (2272, 1704)
+S45_FOCAL_PX = S45_FOCAL_MM * S45_PX_PER_INCH / 25.4
+
+
+def _s45_photo(path, size=(720, 540), *, recorded=(720, 540), related=S45_SIZE,
+               focal_35mm=None) -> None:  # fmt: skip
+    """A black JPEG of ``size`` (width, height) with the EXIF of a resized S45 photo."""
+    from PIL import Image
+    from PIL.TiffImagePlugin import IFDRational
+
+    exif = Image.Exif()
+    exif[0x010F], exif[0x0110] = "Canon", "Canon PowerShot S45"
+    sub = exif.get_ifd(0x8769)
+    resolution = IFDRational(S45_PX_PER_INCH)
+    sub[0x920A], sub[0xA20E], sub[0xA20F], sub[0xA210] = (IFDRational(S45_FOCAL_MM),
+                                                          resolution, resolution, 2)  # fmt: skip
+    if recorded is not None:
+        sub[0xA002], sub[0xA003] = recorded  # PixelXDimension, PixelYDimension
+    if focal_35mm is not None:
+        sub[0xA405] = focal_35mm
+    if related is not None:
+        sub[0xA005] = {0x1001: related[0], 0x1002: related[1]}  # RelatedImageWidth, Length
+    Image.fromarray(np.zeros((size[1], size[0], 3), np.uint8)).save(path, exif=exif)
+
+
+@pytest.mark.parametrize("recorded", [(720, 540), (540, 720), None],
+                         ids=["rewritten", "rewritten turned", "dropped"])  # fmt: skip
+def test_a_resized_photo_whose_pixel_dimensions_were_rewritten_is_scaled_by_its_related_size(
+    tmp_path, recorded
+):
+    # the copy's own size in PixelXDimension left the original's 3923 px, a 10.5 deg field for a
+    # 32 deg one; the interoperability tags keep the 2272 px the camera wrote
+    from ppo_cv.cli.common import exif_camera
+    from ppo_cv.images import exif_layout
+
+    path = tmp_path / "csie.jpg"
+    _s45_photo(path, recorded=recorded)
+    camera, from_exif = camera_from_exif(path)
+    assert from_exif
+    np.testing.assert_allclose(camera.K[0, 0], S45_FOCAL_PX * 720 / 2272, rtol=1e-4)  # 1243.3
+    layout = exif_layout(path)
+    assert layout.related_size == S45_SIZE and layout.camera_size == S45_SIZE
+    K, found, doubts = exif_camera(path)
+    written = "say 720x540, rewritten by a resizer" if recorded == (720, 540) else (
+        "say 540x720, rewritten by a resizer" if recorded else "are missing")  # fmt: skip
+    assert found and doubts == [
+        f"{path}: the EXIF's RelatedImageWidth and RelatedImageLength say the camera wrote "
+        f"2272x1704 pixels (PixelXDimension and PixelYDimension {written}), the image is "
+        f"720x540, a resized copy: its EXIF focal length, in the original's pixels, is scaled by "
+        f"0.3169 to f={K[0, 0]:.1f} px (not right if it was cropped too; pass --K or --calib)"
+    ]
+
+
+@pytest.mark.parametrize(
+    "size, recorded, related, focal_35mm, expected",
+    [(S45_SIZE, S45_SIZE, S45_SIZE, None, S45_FOCAL_PX),
+     (S45_SIZE, S45_SIZE, None, None, S45_FOCAL_PX),
+     ((720, 540), S45_SIZE, (720, 540), None, S45_FOCAL_PX * 720 / 2272),
+     ((720, 540), (720, 540), S45_SIZE, 38, 38 / np.hypot(36, 24) * 900)],
+    ids=["the camera's file", "no related size", "a smaller related size", "35 mm equivalent"],
+)  # fmt: skip
+def test_a_related_size_that_tells_no_resize_leaves_the_focal_length(
+    tmp_path, size, recorded, related, focal_35mm, expected
+):
+    from ppo_cv.cli.common import exif_camera
+
+    path = tmp_path / "photo.jpg"
+    _s45_photo(path, size, recorded=recorded, related=related, focal_35mm=focal_35mm)
+    np.testing.assert_allclose(camera_from_exif(path)[0].K[0, 0], expected, rtol=1e-4)
+    doubts = exif_camera(path)[2]
+    assert not any("RelatedImageWidth" in doubt for doubt in doubts)

@@ -524,15 +524,19 @@ def test_the_databases_camera_of_a_resized_photo_has_the_focal_length_of_its_pix
     images = tmp_path / "images"
     images.mkdir()
     texture = np.random.default_rng(0).integers(0, 256, (480, 640, 3), dtype=np.uint8)
-    for name, recorded in (("a.jpg", (4000, 3000)), ("b.jpg", (640, 480))):
+    for name, recorded, related in (("a.jpg", (4000, 3000), None), ("b.jpg", (640, 480), None),
+                                    ("c.jpg", (640, 480), (4000, 3000))):  # fmt: skip
         exif = Image.Exif()
         sub = exif.get_ifd(0x8769)
         sub[0x920A], sub[0xA20E], sub[0xA210] = IFDRational(4.0), IFDRational(6250.0), 3
         sub[0xA002], sub[0xA003] = recorded  # 4 mm at 625 px/mm, the size the camera wrote
+        if related is not None:  # a resizer rewrote PixelXDimension, left RelatedImageWidth
+            sub[0xA005] = {0x1001: related[0], 0x1002: related[1]}
         Image.fromarray(texture).save(images / name, exif=exif)
     cameras = _database_cameras(images, tmp_path / "db.db")
     assert cameras["a.jpg"].mean_focal_length() == pytest.approx(400.0, rel=1e-4)
     assert cameras["b.jpg"].mean_focal_length() == pytest.approx(2500.0, rel=1e-4)
+    assert cameras["c.jpg"].mean_focal_length() == pytest.approx(400.0, rel=1e-4)
     assert all(camera.has_prior_focal_length for camera in cameras.values())
     assert ppo_cv.camera_from_exif(images / "a.jpg")[0].K[0, 0] == pytest.approx(400.0, rel=1e-4)
 
