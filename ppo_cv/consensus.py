@@ -22,7 +22,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .camera import pixels_to_normalized
-from .features import Features, at_threshold, detect_features, match_features_scored
+from .features import (
+    Features,
+    _require_same_descriptors,
+    at_threshold,
+    detect_features,
+    match_features_scored,
+)
 from .options import PairOptions
 from .robust import RobustEstimate, estimate_essential, estimate_essential_ordered
 from .significance import Significance, require_significance
@@ -277,11 +283,7 @@ def require_features_of(f1: Features, f2: Features, shape1: tuple, shape2: tuple
                 f"({f.keypoints[:, 0].max():.0f}, {f.keypoints[:, 1].max():.0f})): features "
                 "of another image, or of a resized copy?"
             )
-    if f1.descriptors.shape[1] != f2.descriptors.shape[1]:
-        raise ValueError(
-            f"features1 and features2 have descriptors of {f1.descriptors.shape[1]} and "
-            f"{f2.descriptors.shape[1]} values: they were not computed alike"
-        )
+    _require_same_descriptors(f1, f2)
 
 
 def best_consensus(

@@ -103,6 +103,16 @@ def _as_array(value: Any, name: str) -> np.ndarray:
         raise TypeError(f"Features.{name} must be an array: {exc}") from None
 
 
+def _require_same_descriptors(features1: Features, features2: Features) -> None:
+    """ValueError unless the two sets' descriptors have one length (computed alike)."""
+    length1, length2 = features1.descriptors.shape[1], features2.descriptors.shape[1]
+    if length1 != length2:
+        raise ValueError(
+            f"features1 and features2 have descriptors of {length1} and {length2} values: "
+            "they were not computed alike"
+        )
+
+
 def _require_features(features: Features) -> None:
     """ValueError or TypeError naming the field of ``features`` that no detection gives: an
     unknown kind, keypoints that are not finite (N, 2) pixels, descriptors not one row of the
@@ -550,12 +560,8 @@ def match_features_scored(
         raise ValueError(f"ratio must be in (0, 1], got {ratio}")
     mutual, unique = as_flag(mutual, "mutual"), as_flag(unique, "unique")
     flann = None if flann is None else as_flag(flann, "flann")
+    _require_same_descriptors(features1, features2)
     d1, d2 = features1.descriptors, features2.descriptors
-    if d1.shape[1] != d2.shape[1]:
-        raise ValueError(
-            f"features1 and features2 have descriptors of {d1.shape[1]} and {d2.shape[1]} values: "
-            "they were not computed alike"
-        )
     if len(d1) < 2 or len(d2) < 2:
         return np.zeros((0, 2), dtype=np.int64), np.zeros(0)
     binary = features1.binary
