@@ -76,6 +76,7 @@ def test_rigid3d_is_cam2_from_cam1():
 
 
 def test_relative_pose_of_reconstruction_maps_camera1_points_to_camera2():
+    pycolmap.set_random_seed(0)
     options = pycolmap.SyntheticDatasetOptions()
     options.num_rigs, options.num_cameras_per_rig, options.num_frames_per_rig = 1, 1, 3
     options.num_points3D = 60
