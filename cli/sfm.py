@@ -112,8 +112,9 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
         warn(
             "sfm",
             "no intrinsics given: pycolmap guesses the focal length from EXIF or the image "
-            "size, and pure rotations are found with a focal length fitted to each checked "
-            "pair; pass --K fx,fy,cx,cy for accurate poses",
+            "size, and each checked pair is decided as ppo-cv pair decides it without --K, "
+            "again with focal lengths fitted to its matches; pass --K fx,fy,cx,cy for accurate "
+            "poses",
         )
         _exif_warnings(Path(image_dir), names, exif_orientation)
         return None
@@ -151,7 +152,8 @@ def register(app: typer.Typer) -> None:
                 "--K",
                 help="Intrinsics fx,fy,cx,cy, held fixed (all images of one size). Give them "
                 "when known: without them pycolmap guesses a focal length, and the initial "
-                "pairs are checked for a pure rotation with one fitted to each pair.",
+                "pairs are checked for a pure rotation as ppo-cv pair checks them without "
+                "--K, with focal lengths fitted to each pair.",
             ),
         ] = None,
         init: Annotated[

@@ -4,15 +4,17 @@ Without a calibration the focal length is guessed (EXIF, or 1.2 times the larger
 A guess a few percent off leaves a rotation's matches a residual that a translation explains
 better, so a tripod pair is called general motion: on ``pano_dev``'s ``book`` pairs the EXIF
 focal length is 8 % short. The homography of the inliers tells the focal length that makes it
-a rotation (:func:`ppo_cv.sfm.homography_rotation_focal`, Hartley & Zisserman 8.8 / 19.3); where
+a rotation (:func:`homography_rotation_focal`, Hartley & Zisserman 8.8 / 19.3); where
 that homography is then close to a rotation (:data:`GUESSED_FOCAL_SPREAD`) and the focal
 length moves (:data:`MIN_FOCAL_REFIT`), the pair is decided again with it
-(:func:`fitted_focal_scale` decides, :func:`decide_with_fitted_focal` runs it), and that
+(:func:`fitted_focal_scale` decides, :func:`decided_again` runs it), and that
 decision is reported only when it is a pure rotation. The homography has no lens: an unmodelled
 radial distortion moves its focal length by several percent, beyond the rotation-only fit's
 box (:data:`ppo_cv.rotation.MAX_FOCAL_CHANGE`) about it, so where that decision is no rotation
 the pair is decided a third time with the focal length of the rotation-only fit with its radial
-term, freed about the homography's (:func:`lens_focal_scale`).
+term, freed about the homography's (:func:`lens_focal_scale`). ``ppo-cv pair`` and ``pairs``
+report the rotation so found (:func:`decide_with_fitted_focal`), and ``ppo-cv sfm`` refuses
+it as an initial pair (:mod:`ppo_cv.sfm`).
 """
 
 from __future__ import annotations
@@ -24,22 +26,30 @@ from typing import Any
 import numpy as np
 
 from .camera import pixels_to_normalized
+from .checks import as_finite_rows, as_positive, shown
+from .homography import estimate_homography
+from .parallax import nearest_rotation_log_scale, rotation_spread
 from .result import PairResult
 
 __all__ = [
+    "FIELD_RANGE_DEG",
     "GUESSED_FOCAL_SPREAD",
+    "HOMOGRAPHY_CONFIDENCE",
     "LENS_FOCAL_BOX",
     "LENS_FOCAL_PRIOR",
     "LENS_START_THRESHOLD",
     "MIN_FOCAL_REFIT",
     "decide_with_fitted_focal",
+    "decided_again",
     "fitted_focal_scale",
+    "homography_rotation_focal",
     "lens_focal_scale",
+    "rotation_focal_scale",
 ]
 
 GUESSED_FOCAL_SPREAD = 0.05
 """Largest ``log(sigma_1 / sigma_3)`` of the matches' homography, conjugated by the focal length
-that makes it nearest a rotation (:func:`ppo_cv.sfm.homography_rotation_focal`), for which a
+that makes it nearest a rotation (:func:`homography_rotation_focal`), for which a
 pair decided with a guessed camera is decided again with that focal length: 0.002 to 0.029 on
 14 pano_dev tripod pairs under their EXIF focal lengths, 0.055 to 1.02 on 9 freiburg
 translating pairs under the 1.2 x image size guess, where the second run would only cost time."""
@@ -67,8 +77,6 @@ def fitted_focal_scale(result: PairResult) -> float | None:
     the one that makes the homography of its inliers a rotation, when that homography is then
     within :data:`GUESSED_FOCAL_SPREAD` of one and the scale departs from 1 by at least
     :data:`MIN_FOCAL_REFIT` (log); None otherwise, and for a pure rotation."""
-    from .sfm import homography_rotation_focal
-
     if result.pure_rotation:
         return None
     cameras, used = result.cameras, result.matches[result.inliers]
@@ -121,20 +129,22 @@ def lens_focal_scale(
     return float(scale / fit.focal_scale)
 
 
-def decide_with_fitted_focal(
+def decided_again(
     result: PairResult, images: Sequence[Any], options: Any, **features: Any
-) -> tuple[PairResult, str | None]:
-    """``(result, note)``: for a pair decided with a guessed camera, the decision with the
-    focal length of :func:`fitted_focal_scale`, or where that is no pure rotation the one with
-    :func:`lens_focal_scale`'s, when it is a pure rotation, and a note saying so; otherwise
-    ``result`` unchanged and None.
+) -> tuple[PairResult, float, str] | None:
+    """``(decision, focal, how)``: for a pair decided with a guessed camera, the decision with
+    the focal length of :func:`fitted_focal_scale`, or where that is no pure rotation the one
+    with :func:`lens_focal_scale`'s, when it is a pure rotation, that focal length (pixels,
+    of camera 1) and how it was found (``"fitted to the homography of its matches"``, then
+    ``" and then with its lens's radial term"``); None otherwise. These are the decisions
+    ``ppo-cv pair``, ``pairs`` and ``sfm`` make without intrinsics after the guessed camera's.
 
     ``images`` and ``options`` go to the later :func:`~ppo_cv.pipeline.estimate_pair` runs as
     to the first, with ``features`` (``features1``, ``features2``).
     """
     scale = fitted_focal_scale(result)
     if scale is None:
-        return result, None
+        return None
     again = _decided_at(result, scale, images, options, features)
     how = "fitted to the homography of its matches"
     if again is None or not again.pure_rotation:
@@ -142,12 +152,27 @@ def decide_with_fitted_focal(
         again = None if scale is None else _decided_at(result, scale, images, options, features)
         how = "fitted to the homography of its matches and then with its lens's radial term"
     if again is None or not again.pure_rotation:
+        return None
+    return again, scale * float(result.cameras.K1[0, 0]), how
+
+
+def decide_with_fitted_focal(
+    result: PairResult, images: Sequence[Any], options: Any, **features: Any
+) -> tuple[PairResult, str | None]:
+    """``(result, note)``: for a pair decided with a guessed camera, the pure rotation of
+    :func:`decided_again` and a note saying so; otherwise ``result`` unchanged and None.
+
+    ``images``, ``options`` and ``features`` as for :func:`decided_again`.
+    """
+    found = decided_again(result, images, options, **features)
+    if found is None:
         return result, None
+    again, fitted, how = found
     focal = float(result.cameras.K1[0, 0])
     words = {"general": "a general motion", "plane": "a plane", "rotation": "a rotation"}
     return again, (
         f"the guessed focal length {focal:.1f} px calls this pair {words[result.model]}; "
-        f"{scale * focal:.1f} px, {how}, calls it a pure rotation, which is reported; pass --K "
+        f"{fitted:.1f} px, {how}, calls it a pure rotation, which is reported; pass --K "
         "or --calib to decide"
     )
 
@@ -167,3 +192,105 @@ def _decided_at(
         )  # fmt: skip
     except ValueError:
         return None
+
+
+HOMOGRAPHY_CONFIDENCE = 0.9999
+"""Confidence of the robust homography of :func:`homography_rotation_focal`."""
+
+
+def homography_rotation_focal(
+    x1: np.ndarray, x2: np.ndarray, focal: float, size: float
+) -> tuple[float, float] | None:
+    """The focal-length scale that makes the homography of matches a rotation, and how far
+    from a rotation it then is.
+
+    Parameters
+    ----------
+    x1, x2 : ndarray, shape (N, 2)
+        Normalized coordinates of the matches under a guessed focal length, N >= 8.
+    focal : float
+        The guessed focal length, pixels.
+    size : float
+        The larger image side, pixels.
+
+    Returns
+    -------
+    tuple of float or None
+        ``(s, spread)``: :func:`rotation_focal_scale` of the robust homography of the matches
+        and ``log(sigma_1 / sigma_3)`` of the homography conjugated by ``s`` (0 for an exact
+        rotation); None with fewer than 8 matches, no homography or no such ``s``.
+    """
+    x1, x2 = as_finite_rows(x1, "x1", (2, 3)), as_finite_rows(x2, "x2", (2, 3))
+    focal, size = as_positive(focal, "focal"), as_positive(size, "size")
+    if len(x1) != len(x2):
+        raise ValueError(f"x1 and x2 must have the same length, got {len(x1)} and {len(x2)}")
+    if len(x1) < 8:
+        return None
+    x1, x2 = (np.column_stack([xy[:, :2], np.ones(len(xy))]) for xy in (x1, x2))
+    homography = estimate_homography(x1, x2, focal, confidence=HOMOGRAPHY_CONFIDENCE)
+    if homography is None:
+        return None
+    scale = rotation_focal_scale(homography.H, focal, size)
+    if scale is None:
+        return None
+    return scale, float(rotation_spread(homography.H, np.array([np.log(scale)]))[0])
+
+
+FIELD_RANGE_DEG = (5.0, 150.0)
+"""Fields of view, across the larger image side, within which :func:`rotation_focal_scale`
+looks for a focal length: a long telephoto to a wide lens short of a fisheye."""
+
+_SCALE_GRID = 401  # focal lengths tried, evenly in log scale, before the finer grids
+
+
+def rotation_focal_scale(H: Any, focal: float, size: float) -> float | None:
+    """The scale of the focal length for which a homography is nearest a rotation.
+
+    Between two views of a camera turning about its centre, with intrinsics ``K`` and a
+    centred principal point, the homography of the pixels is the conjugate rotation
+    ``K R K^-1``. On points normalized with a guessed focal length ``focal``, a true focal
+    length ``s * focal`` makes it ``S R S^-1`` with ``S = diag(s, s, 1)``: the scale ``s`` is
+    the one for which ``S^-1 H S`` is a rotation times a scalar, its three singular values
+    equal. It is found by minimising ``log(sigma_1 / sigma_3)`` of ``S^-1 H S`` over ``s``,
+    first on a grid, then by finer grids around the grid's best (Hartley and
+    Zisserman, *Multiple View Geometry*, 2nd ed., sec. 8.8 and 19.3: the homography of a
+    rotating camera is ``K R K^-1``, and its constraints on ``K``).
+
+    Parameters
+    ----------
+    H : array_like, shape (3, 3)
+        Homography ``x2 ~ H x1`` of normalized points.
+    focal : float
+        The focal length that normalized the points, pixels.
+    size : float
+        The larger image side, pixels: bounds the focal lengths tried to the fields of view of
+        :data:`FIELD_RANGE_DEG`.
+
+    Returns
+    -------
+    float or None
+        ``s``; None when ``H`` is not finite or singular, or the best scale lies on a bound of
+        the range (no focal length inside it makes ``H`` a rotation, or the rotation is about
+        the optical axis, which says nothing of the focal length). ``H`` of another shape is a
+        ValueError, one of no numbers a TypeError.
+    """
+    focal, size = as_positive(focal, "focal"), as_positive(size, "size")
+    try:
+        H = np.asarray(H, dtype=np.float64)
+    except OverflowError:  # an integer of more digits than a float holds
+        raise ValueError("H holds a number beyond the range of a float") from None
+    except (TypeError, ValueError):
+        raise TypeError(f"H must be a 3x3 array of numbers, got {shown(H)}") from None
+    if H.shape != (3, 3):
+        raise ValueError(f"H must have shape (3, 3), got {H.shape}")
+    if not np.all(np.isfinite(H)) or np.linalg.svd(H, compute_uv=False)[-1] == 0:
+        return None
+    low, high = (
+        np.log(0.5 * size / np.tan(np.radians(0.5 * field)) / focal)
+        for field in FIELD_RANGE_DEG[::-1]
+    )
+    log_scales = np.linspace(low, high, _SCALE_GRID)
+    log_scale, grid_spread, interior = nearest_rotation_log_scale(H, log_scales)
+    if not (interior and np.isfinite(grid_spread)):
+        return None
+    return float(np.exp(log_scale))

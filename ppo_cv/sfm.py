@@ -68,12 +68,17 @@ from .checks import (
     require_instance,
     shown,
 )
+from .guessed_camera import (
+    FIELD_RANGE_DEG,
+    decided_again,
+    homography_rotation_focal,
+    rotation_focal_scale,
+)
 from .homography import estimate_homography
 from .images import check_decodes, file_mode
 from .limits import MAX_FEATURES, MAX_THREADS
 from .metrics import direction_error_deg, rotation_error_deg
 from .motion_model import MotionDecision, decide_motion, plane_ransac_trials
-from .parallax import nearest_rotation_log_scale, rotation_spread
 from .pose import _recover_normalized
 from .robust import _essential_from_pose
 from .rotation import focal_ratio_keywords, focal_ratio_prior
@@ -1002,7 +1007,7 @@ def reconstruct(
         what the pair offers; pycolmap estimates the pair's pose itself.
     fix_intrinsics : bool
         Keep the database cameras fixed (known calibration); else the checks on the images
-        also try the focal length fitted to each pair (:func:`rotation_focal_scale`).
+        also try focal lengths fitted to each pair, as ``ppo-cv pair`` does without ``--K``.
     max_init_trials : int, >= 1
     num_threads, seed : int
         pycolmap threads and random seed.
@@ -1129,27 +1134,49 @@ def _image_rejection(
     """Why ``ppo-cv pair``'s decision refuses ``pair`` as an initial pair; empty when it does
     not. The images are read as pycolmap read them, with the database cameras (those
     ``ppo-cv pair`` guesses without ``--K``: the EXIF focal length or 1.2 times the larger
-    side). With ``fit_focal`` (guessed cameras) a pair it does not refuse is decided again
-    with the focal length of the conjugate rotation nearest the homography of its verified
-    matches (:func:`rotation_focal_scale`), when one lies in :data:`FIELD_RANGE_DEG`."""
+    side). With ``fit_focal`` (guessed cameras) a pair the guessed cameras do not call a pure
+    rotation is refused when the ranking's decision on its verified matches does with the
+    focal length of the conjugate rotation nearest their homography
+    (:func:`rotation_focal_scale`, in :data:`FIELD_RANGE_DEG`), and when ``ppo-cv pair``'s
+    later decisions, with the focal lengths fitted to the homography of its inliers and to
+    their lens, do (:func:`ppo_cv.guessed_camera.decided_again`)."""
     from .images import load_image
+    from .pipeline import PairOptions, estimate_pair
 
     with pycolmap.Database.open(database_path) as database:
         stored = _read_stored_pair(database, pair, with_matches=fit_focal)
-    scale = _fitted_focal_scale(stored) if fit_focal else None
-    ranking = "" if scale is None else _ranking_rejection(stored, scale, pri_threshold)
     images = [
         load_image(image_dir / name, exif_orientation=False) for name in (pair.name1, pair.name2)
     ]
     (K1, dist1), (K2, dist2) = (_pipeline_camera(camera) for camera in stored.cameras)
-    rejection = _pair_decision(images, K1, K2, dist1, dist2, pri_threshold, "")
-    if rejection or scale is None:
-        return rejection
-    focal = f"focal length {scale * K1[0, 0]:.1f} px fitted to the homography"
+    options = PairOptions(pri_threshold=pri_threshold)
+    try:
+        result = estimate_pair(*images, K1, K2, dist1, dist2, options=options)
+    except ValueError as exc:
+        return f"no reliable geometry on the images ({exc})"
+    if result.pure_rotation or not fit_focal:
+        return _rotation_refusal(result, "")
+    scale = _fitted_focal_scale(stored)
+    ranking = "" if scale is None else _ranking_rejection(stored, scale, pri_threshold)
     if ranking:
+        focal = f"focal length {scale * K1[0, 0]:.1f} px fitted to the homography"
         return f"pure rotation on the images ({focal}: {ranking})"
-    K1, K2 = _scaled_camera(K1, scale), _scaled_camera(K2, scale)
-    return _pair_decision(images, K1, K2, dist1, dist2, pri_threshold, f", {focal}")
+    again = decided_again(result, images, options)
+    if again is None:
+        return ""
+    decision, focal, how = again
+    return _rotation_refusal(decision, f", focal length {focal:.1f} px {how}")
+
+
+def _rotation_refusal(result: Any, focal_note: str) -> str:
+    """The rejection of :func:`_image_rejection` for a pair ``result`` calls a pure rotation;
+    empty for another."""
+    if not result.pure_rotation:
+        return ""
+    return (
+        f"pure rotation on the images (ppo-cv pair: PRI {result.pri:.4f}, {result.model}"
+        f"{focal_note})"
+    )
 
 
 @dataclass(frozen=True)
@@ -1197,24 +1224,6 @@ def _scaled_camera(K: np.ndarray, scale: float) -> np.ndarray:
     return K @ np.diag([scale, scale, 1.0])
 
 
-def _pair_decision(images, K1, K2, dist1, dist2, pri_threshold: float, focal_note: str) -> str:
-    """The rejection of :func:`_image_rejection` for one set of cameras."""
-    from .pipeline import PairOptions, estimate_pair
-
-    try:
-        result = estimate_pair(
-            *images, K1, K2, dist1, dist2, options=PairOptions(pri_threshold=pri_threshold)
-        )
-    except ValueError as exc:
-        return f"no reliable geometry on the images ({exc})"
-    if result.pure_rotation:
-        return (
-            f"pure rotation on the images (ppo-cv pair: PRI {result.pri:.4f}, {result.model}"
-            f"{focal_note})"
-        )
-    return ""
-
-
 def _fitted_focal_scale(stored: _StoredPair) -> float | None:
     """:func:`rotation_focal_scale` of the homography of the pair's verified matches, in the
     normalized coordinates of the database cameras; None with fewer than 8 matches, no
@@ -1231,104 +1240,6 @@ def _fitted_focal_scale(stored: _StoredPair) -> float | None:
         x1, x2, camera.mean_focal_length(), max(int(camera.width), int(camera.height))
     )
     return None if fit is None else fit[0]
-
-
-def homography_rotation_focal(
-    x1: np.ndarray, x2: np.ndarray, focal: float, size: float
-) -> tuple[float, float] | None:
-    """The focal-length scale that makes the homography of matches a rotation, and how far
-    from a rotation it then is.
-
-    Parameters
-    ----------
-    x1, x2 : ndarray, shape (N, 2)
-        Normalized coordinates of the matches under a guessed focal length, N >= 8.
-    focal : float
-        The guessed focal length, pixels.
-    size : float
-        The larger image side, pixels.
-
-    Returns
-    -------
-    tuple of float or None
-        ``(s, spread)``: :func:`rotation_focal_scale` of the robust homography of the matches
-        and ``log(sigma_1 / sigma_3)`` of the homography conjugated by ``s`` (0 for an exact
-        rotation); None with fewer than 8 matches, no homography or no such ``s``.
-    """
-    x1, x2 = as_finite_rows(x1, "x1", (2, 3)), as_finite_rows(x2, "x2", (2, 3))
-    focal, size = as_positive(focal, "focal"), as_positive(size, "size")
-    if len(x1) != len(x2):
-        raise ValueError(f"x1 and x2 must have the same length, got {len(x1)} and {len(x2)}")
-    if len(x1) < 8:
-        return None
-    x1, x2 = (np.column_stack([xy[:, :2], np.ones(len(xy))]) for xy in (x1, x2))
-    homography = estimate_homography(x1, x2, focal, confidence=_HOMOGRAPHY_CONFIDENCE)
-    if homography is None:
-        return None
-    scale = rotation_focal_scale(homography.H, focal, size)
-    if scale is None:
-        return None
-    return scale, float(rotation_spread(homography.H, np.array([np.log(scale)]))[0])
-
-
-FIELD_RANGE_DEG = (5.0, 150.0)
-"""Fields of view, across the larger image side, within which :func:`rotation_focal_scale`
-looks for a focal length: a long telephoto to a wide lens short of a fisheye."""
-
-_SCALE_GRID = 401  # focal lengths tried, evenly in log scale, before the finer grids
-
-
-def rotation_focal_scale(H: Any, focal: float, size: float) -> float | None:
-    """The scale of the focal length for which a homography is nearest a rotation.
-
-    Between two views of a camera turning about its centre, with intrinsics ``K`` and a
-    centred principal point, the homography of the pixels is the conjugate rotation
-    ``K R K^-1``. On points normalized with a guessed focal length ``focal``, a true focal
-    length ``s * focal`` makes it ``S R S^-1`` with ``S = diag(s, s, 1)``: the scale ``s`` is
-    the one for which ``S^-1 H S`` is a rotation times a scalar, its three singular values
-    equal. It is found by minimising ``log(sigma_1 / sigma_3)`` of ``S^-1 H S`` over ``s``,
-    first on a grid, then by finer grids around the grid's best (Hartley and
-    Zisserman, *Multiple View Geometry*, 2nd ed., sec. 8.8 and 19.3: the homography of a
-    rotating camera is ``K R K^-1``, and its constraints on ``K``).
-
-    Parameters
-    ----------
-    H : array_like, shape (3, 3)
-        Homography ``x2 ~ H x1`` of normalized points.
-    focal : float
-        The focal length that normalized the points, pixels.
-    size : float
-        The larger image side, pixels: bounds the focal lengths tried to the fields of view of
-        :data:`FIELD_RANGE_DEG`.
-
-    Returns
-    -------
-    float or None
-        ``s``; None when ``H`` is not finite or singular, or the best scale lies on a bound of
-        the range (no focal length inside it makes ``H`` a rotation, or the rotation is about
-        the optical axis, which says nothing of the focal length). ``H`` of another shape is a
-        ValueError, one of no numbers a TypeError.
-    """
-    focal, size = as_positive(focal, "focal"), as_positive(size, "size")
-    try:
-        H = np.asarray(H, dtype=np.float64)
-    except OverflowError:  # an integer of more digits than a float holds
-        raise ValueError("H holds a number beyond the range of a float") from None
-    except (TypeError, ValueError):
-        raise TypeError(f"H must be a 3x3 array of numbers, got {shown(H)}") from None
-    if H.shape != (3, 3):
-        raise ValueError(f"H must have shape (3, 3), got {H.shape}")
-    if not np.all(np.isfinite(H)) or np.linalg.svd(H, compute_uv=False)[-1] == 0:
-        return None
-    low, high = (
-        np.log(0.5 * size / np.tan(np.radians(0.5 * field)) / focal)
-        for field in FIELD_RANGE_DEG[::-1]
-    )
-    log_scales = np.linspace(low, high, _SCALE_GRID)
-    log_scale, grid_spread, interior = nearest_rotation_log_scale(H, log_scales)
-    if not (interior and np.isfinite(grid_spread)):
-        return None
-    return float(np.exp(log_scale))
 
 
 def _pipeline_camera(camera: pycolmap.Camera) -> tuple[np.ndarray, np.ndarray | None]:

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 import warnings
 
+import cv2
 import numpy as np
 import pycolmap
 import pytest
@@ -243,6 +245,63 @@ def test_real_tripod_panorama_exits_1_without_K(pano_dev, tmp_path):
     assert "the 4 images look like a panorama (pure rotations about one point)" in line
     assert "pure rotation on the images" in line
     assert "px fitted to the homography" in run.stderr
+    assert not (tmp_path / "model").exists()
+
+
+@pytest.fixture(scope="module")
+def real_photo_views(tmp_path_factory):
+    """Folders of two views, a tripod pan and a translation as a real camera renders them
+    (``REAL_PHOTO``: radial distortion, a 25-35 degree field, JPEG), PNGs without EXIF."""
+    from ppo_cv.data_gen import REAL_PHOTO, make_pair
+
+    root = tmp_path_factory.mktemp("real_photo_views")
+    for motion, index in (("panorama", 11), ("general", 0)):
+        pair = make_pair(motion, 0, index, imperfections=REAL_PHOTO)
+        (root / motion).mkdir()
+        for view, image in enumerate((pair.image1, pair.image2), 1):
+            pixels = np.clip(np.rint(image * 255), 0, 255).astype(np.uint8)
+            cv2.imwrite(str(root / motion / f"view{view}.png"), pixels[..., ::-1])
+    return root
+
+
+@pytest.mark.parametrize("motion, pure_rotation", [("panorama", True), ("general", False)])
+def test_sfm_refuses_the_pairs_pair_calls_rotations_with_a_guessed_camera(
+    real_photo_views, tmp_path, motion, pure_rotation
+):
+    """The pan's homography, without the lens's radial term, gives a focal length with which
+    ``ppo-cv pair`` still calls it general motion; the fit with that term calls it a pure
+    rotation. ``sfm`` checked the pair with the homography's focal length only, and seeded a
+    two-image model from it; it now decides it as ``pair`` does, with the same focal length."""
+    folder = real_photo_views / motion
+    done = subprocess.run(
+        [*COMMAND, "pair", folder / "view1.png", folder / "view2.png", "--json"],
+        capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr
+    decided = json.loads(done.stdout)
+    assert decided["pure_rotation"] is pure_rotation
+    run = subprocess.run(
+        [*COMMAND, "sfm", str(folder), "model", "--threads", "1"],
+        cwd=tmp_path, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    if not pure_rotation:
+        assert run.returncode == 0, run.stderr
+        assert run.stdout.startswith("registered 2/2 images"), run.stdout
+        assert "refused" not in run.stderr
+        return
+    assert run.returncode == 1, run.stdout
+    (refusal,) = [line for line in run.stderr.splitlines() if " refused " in line]
+    assert refusal.startswith(
+        "ppo-cv sfm: refused view1.png view2.png: pure rotation on the images (ppo-cv pair: PRI "
+    )
+    focal = decided["cameras"]["K1"][0][0]
+    assert refusal.endswith(
+        f"focal length {focal:.1f} px fitted to the homography of its matches and then with "
+        "its lens's radial term)"
+    )
+    line = run.stderr.strip().splitlines()[-1]
+    assert "the 2 images look like a panorama" in line
+    assert "1 pure rotation on the images" in line
     assert not (tmp_path / "model").exists()
 
 
