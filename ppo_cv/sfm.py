@@ -70,6 +70,7 @@ from .checks import (
 )
 from .guessed_camera import (
     FIELD_RANGE_DEG,
+    HOMOGRAPHY_CONFIDENCE,
     decided_again,
     homography_rotation_focal,
     rotation_focal_scale,
@@ -128,7 +129,6 @@ _UNUSABLE_CONFIGS = frozenset(
     )
 )
 _SQLITE_HEADER = b"SQLite format 3\x00"
-_HOMOGRAPHY_CONFIDENCE = 0.9999  # of the homography search on a pair's verified matches
 
 MAX_IMAGE_CHECKS = 5
 """Candidate initial pairs re-checked on their images, best first, before one seeds the mapper.
@@ -895,9 +895,9 @@ def _motion_decision(geometry, camera1, keypoints1, camera2, keypoints2, pose, p
     used = np.ones(len(matches), dtype=bool)
     # the verified matches are the inliers of COLMAP's two-view model: a plane worth calling
     # one is the bulk of them, as on the pipeline's essential-matrix inliers
-    trials = plane_ransac_trials(_HOMOGRAPHY_CONFIDENCE)
+    trials = plane_ransac_trials(HOMOGRAPHY_CONFIDENCE)
     homography = estimate_homography(
-        x1, x2, focal, confidence=_HOMOGRAPHY_CONFIDENCE, max_trials=trials
+        x1, x2, focal, confidence=HOMOGRAPHY_CONFIDENCE, max_trials=trials
     )
     motion = decide_motion(
         x1, x2, pose.R, pose.t, used, focal, pri_threshold=pri_threshold, homography=homography,
