@@ -251,7 +251,11 @@ def _lens_lines(result) -> list[str]:
             f"  parallax     the matches see a translation, but the intensity-aligned windows "
             f"fit a plane that moved {parallax:.4f} +- {sigma:.4f} of its distance: negligible"
         )
-    text = f"focal scale {lens.focal_scale:.4f} (given / true)"
+    fitted = result.cameras.K1[0, 0] / lens.focal_scale
+    text = (
+        f"focal scale {lens.focal_scale:.4f} (given over fitted: the matches fit fx "
+        f"{fitted:.2f} px)"
+    )
     ratio = lens.focal_ratio
     if ratio != 1.0:
         text += f", image 2 / image 1 {ratio:.4f}"
