@@ -141,6 +141,7 @@ def _plane_lines(result) -> list[str]:
     lines = [
         f"  homography   median residual {residual:.2f} px, GRIC difference plane - general "
         f"{selection.gric_plane_difference:+.3f} per match"
+        + (", as for any rotation: its matches fit a homography" if result.pure_rotation else "")
     ]
     plane = result.plane
     if plane is not None:
@@ -367,7 +368,8 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
         f"px, GRIC difference {selection.gric_difference:+.3f} per match",
         *_plane_lines(result),
         *_radial_lines(result),
-        f"  t sigma      {t_sigma:.2f} deg (direction of t, one standard deviation)",
+        f"  t sigma      {t_sigma:.2f} deg (direction of t, one standard deviation"
+        + ("; undetermined for a pure rotation)" if result.pure_rotation else ")"),
         *_rotation_sigma_lines(result),
         *_lens_lines(result),
         f"  log10 NFA    {log10_nfa:.1f} (consensus against chance; lower is stronger)",

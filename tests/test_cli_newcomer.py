@@ -250,6 +250,30 @@ def test_verdict_names_the_test_that_decided(options, pri_side, decided_by):
     assert "general motion" not in lines["PRI"]
 
 
+def test_a_pure_rotation_summary_says_why_t_and_the_homography_read_as_they_do(tmp_path):
+    """A pure rotation's summary showed ``t sigma 90.00 deg`` and a homography that a plane
+    "explains better" (negative GRIC difference) without a word: a newcomer read a plane and
+    an error of 90 degrees. Both lines now say that this is what a rotation gives."""
+    from ppo_cv.data_gen import make_pair
+
+    pair = make_pair("pure-rotation", seed=0, index=0, size=(320, 240))
+    names = [tmp_path / "1.png", tmp_path / "2.png"]
+    for name, image in zip(names, (pair.image1, pair.image2), strict=True):
+        cv2.imwrite(str(name), image[..., ::-1])
+    K = pair.K1
+    done = ppo_cv("pair", *names, "--K", f"{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]}", "--quiet")
+    assert done.returncode == 0, done.stderr
+    lines = _lines(done.stdout)
+    assert lines["verdict"].startswith("pure rotation (translation undetermined")
+    assert lines["t sigma"] == (
+        "90.00 deg (direction of t, one standard deviation; undetermined for a pure rotation)"
+    )
+    assert lines["homography"].endswith(", as for any rotation: its matches fit a homography")
+    general = _lines(ppo_cv("pair", DEMO1, DEMO2, "--K", K_TEXT, "--quiet").stdout)
+    assert general["t sigma"].endswith("deg (direction of t, one standard deviation)")
+    assert general["homography"].endswith(" per match")
+
+
 # --- 4. EXIF: orientation on or off, doubtful focal lengths, the wording -----------------------
 
 
