@@ -141,7 +141,11 @@ def _plane_lines(result) -> list[str]:
     lines = [
         f"  homography   median residual {residual:.2f} px, GRIC difference plane - general "
         f"{selection.gric_plane_difference:+.3f} per match"
-        + (", as for any rotation: its matches fit a homography" if result.pure_rotation else "")
+        + (
+            ", as for any rotation: its matches fit a homography"
+            if result.pure_rotation and selection.gric_plane_difference < 0
+            else ""
+        )
     ]
     plane = result.plane
     if plane is not None:

@@ -274,6 +274,21 @@ def test_a_pure_rotation_summary_says_why_t_and_the_homography_read_as_they_do(t
     assert general["homography"].endswith(" per match")
 
 
+def test_the_homography_remark_comes_only_where_the_plane_looks_better():
+    """A tripod pair whose homography GRIC rates worse than the essential matrix (positive
+    difference) needs no remark: the line is as for a general pair."""
+    import dataclasses
+
+    from ppo_cv import estimate_pair
+    from ppo_cv.cli.pair import _plane_lines
+
+    result = estimate_pair(str(DEMO1), str(DEMO2), K_MATRIX)
+    assert result.evidence.selection.gric_plane_difference > 0
+    called_rotation = dataclasses.replace(result, pure_rotation=True)
+    assert _plane_lines(called_rotation) == _plane_lines(result)
+    assert _plane_lines(result)[0].endswith(" per match")
+
+
 # --- 4. EXIF: orientation on or off, doubtful focal lengths, the wording -----------------------
 
 
