@@ -99,7 +99,18 @@ def __getattr__(name: str):
         value = getattr(importlib.import_module(f".{_EXPORTED_FROM[name]}", __name__), name)
         globals()[name] = value
         return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}" + _opencv_hint(name))
+
+
+def _opencv_hint(name: str) -> str:
+    """Where code that swapped ``cv2`` for ``ppo_cv`` wholesale finds ``name``: in OpenCV."""
+    if name.startswith("_") or importlib.util.find_spec(f"{__name__}.{name}") is not None:
+        return ""  # a submodule being imported (``from ppo_cv import cli``): OpenCV not loaded
+    import cv2
+
+    if not hasattr(cv2, name):
+        return ""
+    return f" (ppo_cv stands in for cv2.recoverPose only: use cv2.{name} as before)"
 
 
 def __dir__() -> list[str]:
