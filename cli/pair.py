@@ -448,6 +448,27 @@ def _require_folder_name(out) -> None:
         )
 
 
+_LIST_SUFFIXES = {".txt", ".lst", ".list", ""}
+"""Suffixes of a pairs file, as ``ppo-cv pairs`` reads one."""
+
+
+def _require_images_not_a_batch(image1, image2) -> None:
+    """ValueError naming ``ppo-cv pairs`` when the two arguments are a pairs file and a folder
+    (in either order): the arguments of ``pairs`` given to ``pair``."""
+    from pathlib import Path
+
+    first, second = Path(image1), Path(image2)
+    if first.is_dir() == second.is_dir():
+        return
+    listing, folder = (first, second) if second.is_dir() else (second, first)
+    if listing.is_file() and listing.suffix.lower() in _LIST_SUFFIXES:
+        raise ValueError(
+            f"{one_line(str(folder))} is a folder and {one_line(str(listing))} no image: "
+            "'pair' takes two images; a pairs file and an image folder are run by "
+            f"ppo-cv pairs {one_line(str(listing))} {one_line(str(folder))}"
+        )
+
+
 def _run_pair(
     image1, image2, K, K2, dist, dist2, calib, as_json, out, options, note=None, reference=None,
     overwrite=False, command="pair", exif_orientation=True, quiet=False,
@@ -468,6 +489,7 @@ def _run_pair(
             check_target(out, "folder", overwrite, inputs, "--out ")
             _require_folder_name(out)
             _check_colmap_names(image1, image2)
+        _require_images_not_a_batch(image1, image2)
         for image in (image1, image2):
             check_image_file(image)
         img1, img2 = (load_image(i, exif_orientation=exif_orientation) for i in (image1, image2))

@@ -289,6 +289,21 @@ def test_the_homography_remark_comes_only_where_the_plane_looks_better():
     assert _plane_lines(result)[0].endswith(" per match")
 
 
+@pytest.mark.parametrize("order", [("pairs.txt", "images"), ("images", "pairs.txt")])
+def test_pair_given_a_pairs_file_and_a_folder_names_the_pairs_command(tmp_path, order):
+    """``ppo-cv pair pairs.txt images`` (the arguments of ``pairs``) answered only that
+    ``images`` is a directory."""
+    (tmp_path / "images").mkdir()
+    shutil.copy(DEMO1, tmp_path / "images")
+    (tmp_path / "pairs.txt").write_text(f"{DEMO1.name} {DEMO1.name}\n")
+    done = ppo_cv("pair", *order, "--K", K_TEXT, cwd=tmp_path)
+    assert (done.returncode, done.stdout) == (2, "")
+    assert done.stderr == (
+        "ppo-cv pair: images is a folder and pairs.txt no image: 'pair' takes two images; a "
+        "pairs file and an image folder are run by ppo-cv pairs pairs.txt images\n"
+    )
+
+
 # --- 4. EXIF: orientation on or off, doubtful focal lengths, the wording -----------------------
 
 
