@@ -83,13 +83,17 @@ def _calibrated_cameras(calib, images, sizes, K2, dist, dist2, exif_orientation=
     name = f"--calib {calib}"
     turned = [exif_orientation and exif_layout(image).turned for image in images]
     first, note1 = fit_to_image(cameras[0], sizes[0], name, str(images[0]), turned[0])
+    alike = len(cameras) == 1 and sizes[0] == sizes[1] and turned[0] == turned[1]
+    if note1 and alike and K2 is None:  # one warning for the two images
+        both = f"{images[0]} and {images[1]}"
+        note1 = fit_to_image(cameras[0], sizes[0], name, both, turned[0])[1]
     notes = [note1] if note1 else []
     if K2 is not None:
         K2v, d2 = parse_intrinsics(K2, "--K2"), None
     else:
         second, note2 = fit_to_image(cameras[-1], sizes[1], name, str(images[1]), turned[1])
         K2v, d2 = second.K, second.dist
-        notes += [note2] if note2 else []
+        notes += [note2] if note2 and not alike else []
     given1 = parse_distortion(dist, "--dist") if dist is not None else None
     given2 = parse_distortion(dist2, "--dist2") if dist2 is not None else None
     d2 = calibration_dist2(len(cameras), K2, given1, given2, d2)
