@@ -48,3 +48,21 @@ def test_pair_result_repr_shows_the_answer_and_the_arrays_by_shape(demo_result):
 )
 def test_compact_repr_of_each_kind(value, expected):
     assert compact_repr(value) == expected
+
+
+def test_rendered_pairs_and_protocol_samples_print_their_arrays_by_shape():
+    """A rendered pair printed 118 lines of numpy's summaries of its images and depth map, a
+    protocol sample 14,000 characters."""
+    from ppo_cv.data_gen import RenderedPair, paper_protocol
+
+    image = np.zeros((120, 160, 3), np.uint8)
+    pair = RenderedPair(image, image, np.eye(3), np.eye(3), np.eye(3), np.zeros(3),
+                        np.ones((120, 160), np.float32), params={"scene": "room"})  # fmt: skip
+    text = repr(pair)
+    assert "\n" not in text and len(text) < 800
+    assert "image1=<ndarray uint8, shape (120, 160, 3)>" in text
+    assert "depth1=<ndarray float32, shape (120, 160)>" in text and "'scene': 'room'" in text
+    sample = paper_protocol(n_poses=20, n_points=50, alpha=0.2, noise_px=1.0, seed=0)
+    text = repr(sample)
+    assert "\n" not in text and len(text) < 800
+    assert "points1=<ndarray float64, shape (20, 50, 2)>" in text and "seed=0, mc_run=0)" in text
