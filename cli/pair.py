@@ -462,10 +462,14 @@ def _require_images_not_a_batch(image1, image2) -> None:
     from pathlib import Path
 
     first, second = Path(image1), Path(image2)
-    if first.is_dir() == second.is_dir():
+    try:
+        if first.is_dir() == second.is_dir():
+            return
+        listing, folder = (first, second) if second.is_dir() else (second, first)
+        batch = listing.is_file() and listing.suffix.lower() in _LIST_SUFFIXES
+    except OSError:  # a name too long or unreadable: the image checks name it
         return
-    listing, folder = (first, second) if second.is_dir() else (second, first)
-    if listing.is_file() and listing.suffix.lower() in _LIST_SUFFIXES:
+    if batch:
         raise ValueError(
             f"{one_line(str(folder))} is a folder and {one_line(str(listing))} no image: "
             "'pair' takes two images; a pairs file and an image folder are run by "
