@@ -920,10 +920,25 @@ def run_pairs(
         print_result("pairs", auc_table(results))
     elif 0 < failed < len(results):
         warn("pairs", f"{failed} of {len(results)} pairs failed")
+    if rows[0]["T"] is None and output is not None and failed < len(results):
+        print_result("pairs", _written(results, output))
     if failed < len(results):
         return 0
     typer.echo(f"ppo-cv pairs: {_no_pose(results)}", err=True)
     return NO_RESULT
+
+
+def _written(results: list[dict], output) -> str:
+    """The line a run without ground truth ends with: the file and what its lines hold."""
+    posed = [r for r in results if "error" not in r]
+    kinds = {
+        "pure rotation": sum(r["pure_rotation"] for r in posed),
+        "general motion": sum(r["model"] == "general" and not r["pure_rotation"] for r in posed),
+        "plane": sum(r["model"] == "plane" and not r["pure_rotation"] for r in posed),
+        "failed": len(results) - len(posed),
+    }
+    counts = ", ".join(f"{n} {kind}" for kind, n in kinds.items() if n)
+    return f"wrote {len(results)} lines to {one_line(str(output))}: {counts}"
 
 
 def _no_pose(results: list[dict]) -> str:

@@ -83,13 +83,17 @@ def _calibrated_cameras(calib, images, sizes, K2, dist, dist2, exif_orientation=
     name = f"--calib {calib}"
     turned = [exif_orientation and exif_layout(image).turned for image in images]
     first, note1 = fit_to_image(cameras[0], sizes[0], name, str(images[0]), turned[0])
+    alike = len(cameras) == 1 and sizes[0] == sizes[1] and turned[0] == turned[1]
+    if note1 and alike and K2 is None:  # one warning for the two images
+        both = f"{images[0]} and {images[1]}"
+        note1 = fit_to_image(cameras[0], sizes[0], name, both, turned[0])[1]
     notes = [note1] if note1 else []
     if K2 is not None:
         K2v, d2 = parse_intrinsics(K2, "--K2"), None
     else:
         second, note2 = fit_to_image(cameras[-1], sizes[1], name, str(images[1]), turned[1])
         K2v, d2 = second.K, second.dist
-        notes += [note2] if note2 else []
+        notes += [note2] if note2 and not alike else []
     given1 = parse_distortion(dist, "--dist") if dist is not None else None
     given2 = parse_distortion(dist2, "--dist2") if dist2 is not None else None
     d2 = calibration_dist2(len(cameras), K2, given1, given2, d2)
@@ -141,6 +145,11 @@ def _plane_lines(result) -> list[str]:
     lines = [
         f"  homography   median residual {residual:.2f} px, GRIC difference plane - general "
         f"{selection.gric_plane_difference:+.3f} per match"
+        + (
+            ", as for any rotation: its matches fit a homography"
+            if result.pure_rotation and selection.gric_plane_difference < 0
+            else ""
+        )
     ]
     plane = result.plane
     if plane is not None:
@@ -251,7 +260,11 @@ def _lens_lines(result) -> list[str]:
             f"  parallax     the matches see a translation, but the intensity-aligned windows "
             f"fit a plane that moved {parallax:.4f} +- {sigma:.4f} of its distance: negligible"
         )
-    text = f"focal scale {lens.focal_scale:.4f} (given / true)"
+    fitted = result.cameras.K1[0, 0] / lens.focal_scale
+    text = (
+        f"focal scale {lens.focal_scale:.4f} (given over fitted: the matches fit fx "
+        f"{fitted:.2f} px)"
+    )
     ratio = lens.focal_ratio
     if ratio != 1.0:
         text += f", image 2 / image 1 {ratio:.4f}"
@@ -363,7 +376,8 @@ def _summary(result, name1: str, name2: str, note: str | None, reference=None) -
         f"px, GRIC difference {selection.gric_difference:+.3f} per match",
         *_plane_lines(result),
         *_radial_lines(result),
-        f"  t sigma      {t_sigma:.2f} deg (direction of t, one standard deviation)",
+        f"  t sigma      {t_sigma:.2f} deg (direction of t, one standard deviation"
+        + ("; undetermined for a pure rotation)" if result.pure_rotation else ")"),
         *_rotation_sigma_lines(result),
         *_lens_lines(result),
         f"  log10 NFA    {log10_nfa:.1f} (consensus against chance; lower is stronger)",
@@ -438,6 +452,31 @@ def _require_folder_name(out) -> None:
         )
 
 
+_LIST_SUFFIXES = {".txt", ".lst", ".list", ""}
+"""Suffixes of a pairs file, as ``ppo-cv pairs`` reads one."""
+
+
+def _require_images_not_a_batch(image1, image2) -> None:
+    """ValueError naming ``ppo-cv pairs`` when the two arguments are a pairs file and a folder
+    (in either order): the arguments of ``pairs`` given to ``pair``."""
+    from pathlib import Path
+
+    first, second = Path(image1), Path(image2)
+    try:
+        if first.is_dir() == second.is_dir():
+            return
+        listing, folder = (first, second) if second.is_dir() else (second, first)
+        batch = listing.is_file() and listing.suffix.lower() in _LIST_SUFFIXES
+    except OSError:  # a name too long or unreadable: the image checks name it
+        return
+    if batch:
+        raise ValueError(
+            f"{one_line(str(folder))} is a folder and {one_line(str(listing))} no image: "
+            "'pair' takes two images; a pairs file and an image folder are run by "
+            f"ppo-cv pairs {one_line(str(listing))} {one_line(str(folder))}"
+        )
+
+
 def _run_pair(
     image1, image2, K, K2, dist, dist2, calib, as_json, out, options, note=None, reference=None,
     overwrite=False, command="pair", exif_orientation=True, quiet=False,
@@ -458,6 +497,7 @@ def _run_pair(
             check_target(out, "folder", overwrite, inputs, "--out ")
             _require_folder_name(out)
             _check_colmap_names(image1, image2)
+        _require_images_not_a_batch(image1, image2)
         for image in (image1, image2):
             check_image_file(image)
         img1, img2 = (load_image(i, exif_orientation=exif_orientation) for i in (image1, image2))

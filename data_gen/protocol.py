@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ppo_cv.checks import as_finite_array, as_flag
+from ppo_cv.result import compact_repr
 
 __all__ = [
     "PAPER_K",
@@ -62,9 +63,11 @@ MAX_PROTOCOL_POINTS = 10_000_000
 """Largest ``n_poses * n_points``: the sample holds 11 numbers per point, 880 MB at the bound."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class ProtocolSample:
     """Point correspondences with exact ground truth for ``n_poses`` two-view problems.
+
+    Its ``repr`` is one line, the arrays by their shape (:func:`ppo_cv.result.compact_repr`).
 
     Attributes
     ----------
@@ -102,6 +105,9 @@ class ProtocolSample:
     depth: float
     seed: int
     mc_run: int
+
+    def __repr__(self) -> str:
+        return compact_repr(self)
 
 
 def euler_to_matrix(angles_deg: np.ndarray) -> np.ndarray:

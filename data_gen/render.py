@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 
 from ppo_cv.checks import as_finite_array, as_image_size, as_vector3
+from ppo_cv.result import compact_repr
 
 from .scenes import Quad, Scene
 
@@ -33,9 +34,12 @@ _REMAP_COLS = 4096
 _LATTICE = 33
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class RenderedPair:
     """Two rendered views with exact ground truth.
+
+    Its ``repr`` is one line, the images and depth map by their shape
+    (:func:`ppo_cv.result.compact_repr`).
 
     Attributes
     ----------
@@ -72,6 +76,9 @@ class RenderedPair:
     params: dict = field(default_factory=dict)
     K1_given: np.ndarray | None = None
     K2_given: np.ndarray | None = None
+
+    def __repr__(self) -> str:
+        return compact_repr(self)
 
     def __post_init__(self) -> None:
         for name, true in (("K1_given", self.K1), ("K2_given", self.K2)):

@@ -7,11 +7,17 @@
 * :mod:`ppo_cv.ppo` holds the paper's mathematics; :mod:`ppo_cv.colmap` and :mod:`ppo_cv.sfm`
   connect to pycolmap and load on first use.
 
-The subpackages ``ppo_cv.cli`` and ``ppo_cv.data_gen`` live in the top-level folders ``cli/``
-and ``data_gen/`` of the source tree, which installation maps into the package. When this
-package is imported from a source tree (no ``ppo_cv/cli`` beside this file, but ``../cli`` and
-a ``pyproject.toml``), a finder maps the two folders in the same way, so that
-``import ppo_cv.cli.main`` and ``python -m ppo_cv`` work from the root of a clone.
+``R`` and ``t`` map camera-1 coordinates to camera-2 coordinates, ``X2 = R X1 + t``, with
+``|t| = 1``; for a pure rotation (``result.pure_rotation``) ``t`` means nothing.
+
+>>> import ppo_cv
+>>> K = [[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, 1]]
+>>> result = ppo_cv.estimate_pair("img1.png", "img2.png", K)  # doctest: +SKIP
+>>> result.R, result.t, result.pure_rotation, result.model  # doctest: +SKIP
+
+The same from a shell: ``ppo-cv pair img1.png img2.png --K 535.4,539.2,320.1,247.6``
+(``ppo-cv --help`` lists the commands). The README and ``docs/python.md`` of the source
+repository describe every argument, result field and decision.
 """
 
 from __future__ import annotations
@@ -93,7 +99,18 @@ def __getattr__(name: str):
         value = getattr(importlib.import_module(f".{_EXPORTED_FROM[name]}", __name__), name)
         globals()[name] = value
         return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}" + _opencv_hint(name))
+
+
+def _opencv_hint(name: str) -> str:
+    """Where code that swapped ``cv2`` for ``ppo_cv`` wholesale finds ``name``: in OpenCV."""
+    if name.startswith("_") or importlib.util.find_spec(f"{__name__}.{name}") is not None:
+        return ""  # a submodule being imported (``from ppo_cv import cli``): OpenCV not loaded
+    import cv2
+
+    if not hasattr(cv2, name):
+        return ""
+    return f" (ppo_cv stands in for cv2.recoverPose only: use cv2.{name} as before)"
 
 
 def __dir__() -> list[str]:
@@ -101,7 +118,14 @@ def __dir__() -> list[str]:
 
 
 class _SourceTreeFinder:
-    """Meta path finder of ``ppo_cv.cli`` and ``ppo_cv.data_gen`` in a source tree."""
+    """Meta path finder of ``ppo_cv.cli`` and ``ppo_cv.data_gen`` in a source tree.
+
+    The two subpackages live in the top-level folders ``cli/`` and ``data_gen/`` of the source
+    tree, which installation maps into the package. Imported from a source tree (no
+    ``ppo_cv/cli`` beside this file, but ``../cli`` and a ``pyproject.toml``), this finder maps
+    the two folders in the same way, so that ``import ppo_cv.cli.main`` and
+    ``python -m ppo_cv`` work from the root of a clone.
+    """
 
     def __init__(self, folders: dict[str, str]) -> None:
         self.folders = folders

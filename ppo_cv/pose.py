@@ -17,13 +17,17 @@ from .checks import (
     as_points,
     as_pri_threshold,
 )
+from .result import compact_repr
 
 __all__ = ["PoseResult", "recover_pose", "pixel_rays", "inverse_camera"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class PoseResult:
     """The pose chosen by the PPO inequalities, with its evidence.
+
+    Its ``repr`` is one line, the per-point arrays by their shape
+    (:func:`ppo_cv.result.compact_repr`).
 
     Attributes
     ----------
@@ -78,6 +82,9 @@ class PoseResult:
     def num_inliers(self) -> int:
         """Number of points that satisfy both PPO inequalities."""
         return int(np.count_nonzero(self.inliers))
+
+    def __repr__(self) -> str:
+        return compact_repr(self)
 
 
 def inverse_camera(K: Any) -> np.ndarray:

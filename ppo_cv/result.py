@@ -12,8 +12,9 @@ release, with a :class:`DeprecationWarning` naming the new path (:data:`RENAMED_
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, is_dataclass
 from operator import attrgetter
+from typing import Any
 
 import numpy as np
 
@@ -28,7 +29,43 @@ __all__ = [
     "DecisionEvidence",
     "PlaneGeometry",
     "RENAMED_FIELDS",
+    "compact_repr",
 ]
+
+ARRAY_SHOWN = 16
+"""Arrays of at most this many entries are shown in full by :func:`compact_repr`."""
+
+
+def compact_repr(value: Any) -> str:
+    """The ``repr`` of a result on one line, its large arrays by their type and shape.
+
+    Parameters
+    ----------
+    value : object
+        A result record (a dataclass instance), an array, a dict, a tuple or a scalar.
+
+    Returns
+    -------
+    str
+        ``Name(field=value, ...)`` for a record, its nested records alike; an array of at most
+        :data:`ARRAY_SHOWN` entries (``R``, ``t``, ``K``) as ``array([[...], ...])`` rounded to
+        6 decimals, a larger one (keypoints, matches, points) as
+        ``<ndarray float64, shape (1210, 2)>``.
+    """
+    if is_dataclass(value) and not isinstance(value, type):
+        shown = (f for f in fields(value) if f.repr)
+        body = ", ".join(f"{f.name}={compact_repr(getattr(value, f.name))}" for f in shown)
+        return f"{type(value).__name__}({body})"
+    if isinstance(value, np.ndarray):
+        if value.size > ARRAY_SHOWN:
+            return f"<ndarray {value.dtype}, shape {value.shape}>"
+        listed = (np.round(value, 6) if value.dtype.kind == "f" else value).tolist()
+        return f"array({listed!r})"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k!r}: {compact_repr(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, tuple):
+        return "(" + ", ".join(map(compact_repr, value)) + ("," if len(value) == 1 else "") + ")"
+    return repr(value.item() if isinstance(value, np.generic) else value)
 
 
 @dataclass(frozen=True)
@@ -353,9 +390,12 @@ _NO_PLANE = {"plane.normal": None, "plane.distance": float("nan"), "plane.ambigu
 """What the flat ``plane_*`` fields held when the model was not a plane."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class PairResult:
     """Relative pose of two images and its evidence.
+
+    Its ``repr`` is one line, the keypoints, matches and points by their shape
+    (:func:`compact_repr`).
 
     Attributes
     ----------
@@ -459,6 +499,9 @@ class PairResult:
         """Pixel coordinates (I, 2) of the inlier matches in image 1 and image 2."""
         m = self.matches[self.inliers]
         return self.keypoints1[m[:, 0]], self.keypoints2[m[:, 1]]
+
+    def __repr__(self) -> str:
+        return compact_repr(self)
 
     def __getattr__(self, name: str):
         path = RENAMED_FIELDS.get(name)

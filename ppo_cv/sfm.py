@@ -37,7 +37,7 @@ import stat
 import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -205,9 +205,11 @@ class PairScore:
         return not self.rejection
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class SfmResult:
     """An incremental reconstruction and how it was initialised.
+
+    Its ``repr`` counts the ranked pairs rather than listing them (``result.pairs`` holds them).
 
     Attributes
     ----------
@@ -244,6 +246,15 @@ class SfmResult:
     mean_reprojection_error: float
     num_models: int
     elapsed: float
+
+    def __repr__(self) -> str:
+        shown = (
+            f"{f.name}=<{len(self.pairs)} PairScore, best first>"
+            if f.name == "pairs"
+            else f"{f.name}={getattr(self, f.name)!r}"
+            for f in fields(self)
+        )
+        return f"SfmResult({', '.join(shown)})"
 
     @property
     def all_registered(self) -> bool:

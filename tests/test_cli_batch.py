@@ -619,3 +619,23 @@ def test_pairs_with_its_two_arguments_the_other_way_round_says_which_comes_first
         f"{tmp_path / 'pairs.txt'} a file: the pairs file comes first, ppo-cv pairs PAIRS_FILE "
         "IMAGE_DIR\n"
     )
+
+
+def test_a_run_without_ground_truth_ends_by_saying_what_it_wrote(tmp_path):
+    """With ``-o`` and no ground truth ``pairs`` ended without a word on stdout, where ``pair
+    --out``, ``sfm`` and ``synth`` say what they wrote and a run with ground truth prints its
+    AUC: a newcomer could not tell whether the file held poses or errors."""
+    (tmp_path / "images").mkdir()
+    for name in (NAME1, NAME2):
+        (tmp_path / "images" / name).write_bytes((DATA / name).read_bytes())
+    lines = [f"{NAME1} {NAME2}", f"{NAME2} {NAME1}", f"{NAME1} absent.png"]
+    (tmp_path / "pairs.txt").write_text("\n".join(lines) + "\n")
+    args = [*COMMAND, "pairs", "pairs.txt", "images", "--K", K_TEXT, "--quiet", "--workers", "1"]
+    out = subprocess.run([*args, "-o", "out.jsonl"], capture_output=True, text=True,
+                         timeout=120, cwd=tmp_path)  # fmt: skip
+    assert out.returncode == 0, out.stderr
+    assert out.stdout == "wrote 3 lines to out.jsonl: 2 general motion, 1 failed\n"
+    assert out.stderr == "ppo-cv pairs: warning: 1 of 3 pairs failed\n"
+    assert len((tmp_path / "out.jsonl").read_text().splitlines()) == 3
+    to_stdout = subprocess.run(args, capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert [line[0] for line in to_stdout.stdout.splitlines()] == ["{"] * 3  # JSON lines only

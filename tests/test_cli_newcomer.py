@@ -250,6 +250,60 @@ def test_verdict_names_the_test_that_decided(options, pri_side, decided_by):
     assert "general motion" not in lines["PRI"]
 
 
+def test_a_pure_rotation_summary_says_why_t_and_the_homography_read_as_they_do(tmp_path):
+    """A pure rotation's summary showed ``t sigma 90.00 deg`` and a homography that a plane
+    "explains better" (negative GRIC difference) without a word: a newcomer read a plane and
+    an error of 90 degrees. Both lines now say that this is what a rotation gives."""
+    from ppo_cv.data_gen import make_pair
+
+    pair = make_pair("pure-rotation", seed=0, index=0, size=(320, 240))
+    names = [tmp_path / "1.png", tmp_path / "2.png"]
+    for name, image in zip(names, (pair.image1, pair.image2), strict=True):
+        cv2.imwrite(str(name), image[..., ::-1])
+    K = pair.K1
+    done = ppo_cv("pair", *names, "--K", f"{K[0, 0]},{K[1, 1]},{K[0, 2]},{K[1, 2]}", "--quiet")
+    assert done.returncode == 0, done.stderr
+    lines = _lines(done.stdout)
+    assert lines["verdict"].startswith("pure rotation (translation undetermined")
+    assert lines["t sigma"] == (
+        "90.00 deg (direction of t, one standard deviation; undetermined for a pure rotation)"
+    )
+    assert lines["homography"].endswith(", as for any rotation: its matches fit a homography")
+    general = _lines(ppo_cv("pair", DEMO1, DEMO2, "--K", K_TEXT, "--quiet").stdout)
+    assert general["t sigma"].endswith("deg (direction of t, one standard deviation)")
+    assert general["homography"].endswith(" per match")
+
+
+def test_the_homography_remark_comes_only_where_the_plane_looks_better():
+    """A tripod pair whose homography GRIC rates worse than the essential matrix (positive
+    difference) needs no remark: the line is as for a general pair."""
+    import dataclasses
+
+    from ppo_cv import estimate_pair
+    from ppo_cv.cli.pair import _plane_lines
+
+    result = estimate_pair(str(DEMO1), str(DEMO2), K_MATRIX)
+    assert result.evidence.selection.gric_plane_difference > 0
+    called_rotation = dataclasses.replace(result, pure_rotation=True)
+    assert _plane_lines(called_rotation) == _plane_lines(result)
+    assert _plane_lines(result)[0].endswith(" per match")
+
+
+@pytest.mark.parametrize("order", [("pairs.txt", "images"), ("images", "pairs.txt")])
+def test_pair_given_a_pairs_file_and_a_folder_names_the_pairs_command(tmp_path, order):
+    """``ppo-cv pair pairs.txt images`` (the arguments of ``pairs``) answered only that
+    ``images`` is a directory."""
+    (tmp_path / "images").mkdir()
+    shutil.copy(DEMO1, tmp_path / "images")
+    (tmp_path / "pairs.txt").write_text(f"{DEMO1.name} {DEMO1.name}\n")
+    done = ppo_cv("pair", *order, "--K", K_TEXT, cwd=tmp_path)
+    assert (done.returncode, done.stdout) == (2, "")
+    assert done.stderr == (
+        "ppo-cv pair: images is a folder and pairs.txt no image: 'pair' takes two images; a "
+        "pairs file and an image folder are run by ppo-cv pairs pairs.txt images\n"
+    )
+
+
 # --- 4. EXIF: orientation on or off, doubtful focal lengths, the wording -----------------------
 
 

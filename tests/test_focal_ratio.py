@@ -9,6 +9,7 @@ them).
 from __future__ import annotations
 
 import json
+import re
 
 import cv2
 import numpy as np
@@ -177,3 +178,14 @@ def test_bad_ratio_settings_are_named():
         refine_rotation_photometric(
             image, image, K, K, np.eye(3), focal_ratio_prior=0.01, focal_ratio_mean=float("nan")
         )
+
+
+def test_the_lens_fit_line_names_the_focal_length_the_matches_fit(per_photo_pan):
+    """The summary said ``focal scale 0.9950 (given / true)``: a newcomer read of a true focal
+    length nobody had given. It names the fitted focal length in pixels, near the true one."""
+    pair, result = per_photo_pan
+    line = _lens_lines(result)[0]
+    fitted = float(re.search(r"the matches fit fx ([\d.]+) px", line).group(1))
+    assert fitted == pytest.approx(pair.K1[0, 0], rel=0.005)
+    assert fitted == pytest.approx(pair.K1_given[0, 0] / result.lens.focal_scale, abs=0.006)
+    assert "given over fitted" in line and "true" not in line

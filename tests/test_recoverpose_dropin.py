@@ -286,3 +286,20 @@ def test_a_camera_matrix_given_with_focal_is_refused_not_overwritten(scene):
                                  pp=(320.0, 240.0))  # fmt: skip
         assert out[1] is buffer
         _check_pose(out, scene, OPENCV_RECOVER_POSE(*args[:3], scene["K"]))
+
+
+@pytest.mark.parametrize("name", ["findEssentialMat", "RANSAC", "SIFT_create"])
+def test_a_wholesale_swap_of_cv2_is_told_what_ppo_cv_stands_in_for(name):
+    """Code that replaced ``cv2`` by ``ppo_cv`` everywhere, not only in its ``recoverPose``
+    calls, met a bare ``has no attribute 'findEssentialMat'``."""
+    with pytest.raises(AttributeError, match=rf"has no attribute '{name}' \(ppo_cv stands in "
+                       rf"for cv2.recoverPose only: use cv2.{name} as before\)$"):  # fmt: skip
+        getattr(ppo_cv, name)
+    assert not hasattr(ppo_cv, name)
+
+
+def test_names_opencv_lacks_and_private_names_get_no_hint():
+    for name in ("no_such_function", "_private", "__wrapped__"):
+        with pytest.raises(AttributeError) as error:
+            getattr(ppo_cv, name)
+        assert str(error.value) == f"module 'ppo_cv' has no attribute {name!r}"
