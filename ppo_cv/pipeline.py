@@ -36,7 +36,8 @@ Stages (each timed in ``PairResult.timings``, seconds):
     (:func:`ppo_cv.plane.refine_planar_pose`; not on ``E``: plane matches leave the essential
     matrix nearly degenerate), and the analytic points (Prop. 3) of its inliers;
     otherwise the PPO pose of ``E`` refined with a radial distortion term when one is
-    significant (:func:`ppo_cv.refine.refine_pose_radial`) and its analytic points. The
+    significant (:func:`ppo_cv.refine.refine_pose_radial`), or else on the same Huber cost
+    without it (:func:`ppo_cv.refine.refine_pose_huber`), and its analytic points. The
     uncertainty of the direction of ``t`` comes from the Sampson cost of ``E = [t]x R`` at the
     reported pose in both moving cases.
 
@@ -133,6 +134,7 @@ from .refine import (
     pose_information,
     pose_sigmas_deg,
     refine_pose,
+    refine_pose_huber,
     refine_pose_radial,
 )
 from .result import (
@@ -582,7 +584,12 @@ def _finish_plane(state: _Finishing) -> _ModelPart:
 
 def _finish_general(state: _Finishing) -> _ModelPart:
     """A general motion: the essential matrix's pose refined with a radial term when one is
-    significant, and the analytic points of its inliers."""
+    significant, otherwise on the same Huber cost without it (:func:`refine_pose_huber`), and
+    the analytic points of its inliers. That cost runs over every inlier: a match that sets a
+    direction of the pose by itself (:func:`checked_inliers`) is left in, for the valley
+    (:func:`_valley`) to weigh the pose without it by its significance; dropped here, the pose
+    moved along a valley it alone had held (``t`` 24 degrees on a tripod pan whose focal
+    ratio was held, and a rotation choice on a released lens shift not yet converged)."""
     options, x1, x2 = state.options, state.found.x1, state.found.x2
     R, t, inliers, radial_k1, radial = state.pose.R, state.pose.t, state.pose.inliers, 0.0, None
     if options.refine:
@@ -592,6 +599,8 @@ def _finish_general(state: _Finishing) -> _ModelPart:
             principal_prior=state.priors.principal,
         )  # fmt: skip
         R, t, radial_k1 = radial.R, radial.t, radial.k1
+        if radial_k1 == 0.0:
+            R, t = refine_pose_huber(R, t, x1, x2, inliers, scale=bound / state.focal)
     c1, c2 = undistort_division(x1, radial_k1), undistort_division(x2, radial_k1)
     information = pose_information(R, t, c1, c2, inliers)
     valley = _valley(state, R, t, c1, c2, inliers, information.checked)

@@ -94,6 +94,15 @@ CASES = {
     "refine_pose_radial zero t": (_zero_t("refine_pose_radial", USED, scale=1e-3), ValueError,
                                   "t is zero"),
     "k1_noise_bias zero t": (_zero_t("k1_noise_bias", scale=1e-3), ValueError, "t is zero"),
+    "refine_pose_huber zero t": (_zero_t("refine_pose_huber", USED, scale=1e-3), ValueError,
+                                 "t is zero"),
+    "refine_pose_huber NaN scale": (
+        lambda: refine.refine_pose_huber(np.eye(3), [1.0, 0, 0], X1, X2, USED, scale=np.nan),
+        ValueError, "scale must be a finite number > 0, got nan"),
+    "refine_pose_huber no iterations": (
+        lambda: refine.refine_pose_huber(np.eye(3), [1.0, 0, 0], X1, X2, USED, scale=1e-3,
+                                         iterations=0),
+        ValueError, "iterations"),
     "released_lens_shift_deg zero t": (
         lambda: refine.released_lens_shift_deg(np.eye(3), np.zeros(3), 0.0, X1, X2, USED, 1e-3),
         ValueError, "t is zero"),
