@@ -350,7 +350,8 @@ def _max_lines(value: Any) -> int | None:
     ):
         raise TypeError(f"max_lines must be a whole number or None, got {type(value).__name__} "
                         f"{shown(value)}")  # fmt: skip
-    if not (value >= 0 and float(value).is_integer()):
+    whole = isinstance(value, (int, np.integer)) or float(value).is_integer()
+    if not (value >= 0 and whole):  # an int beyond float's range compares, whole
         raise ValueError(f"max_lines must be a whole number >= 0 or None, got {shown(value)}")
     return int(value)
 
@@ -709,13 +710,18 @@ def write_colmap_model(
     composed after ``dists`` (:func:`composed_distortion`, an ``OPENCV`` or ``FULL_OPENCV``
     camera), so the points reproject onto their pixels. A camera no COLMAP
     model holds (:func:`check_colmap_camera`), ``names`` that are not two distinct non-empty
-    texts or ``dists`` that are not two distortions is a ValueError or TypeError.
+    texts, ``dists`` that are not two distortions, or a ``directory`` that is no path or names
+    a file is a ValueError or TypeError; an existing folder keeps its other files.
     """
     import pycolmap
 
+    from .atomic import API_REPLACE_HINT, check_target
+
+    as_path(directory, "directory")
     require_result(result)
     cameras = result.cameras
     dists = _colmap_model_inputs(result, names, dists)
+    check_target(directory, "folder", overwrite=True, replace_hint=API_REPLACE_HINT)
     reconstruction = pycolmap.Reconstruction()
     same = (
         np.allclose(cameras.K1, cameras.K2)

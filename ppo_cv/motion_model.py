@@ -516,7 +516,7 @@ def translation_for_rotation(R: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> n
     -------
     ndarray, shape (3,)
     """
-    require_pose_matches(R, np.zeros(3), x1, x2, moving=False)
+    require_pose_matches(R, np.zeros(3), x1, x2, moving=False, bearings=True)
     normals = np.cross(x1 @ R.T, x2)
     normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
     t = np.linalg.svd(normals, full_matrices=False)[2][-1]

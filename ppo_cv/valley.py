@@ -177,9 +177,9 @@ def valley_minima(
         On each side, the profile's lowest step polished when it is a local minimum away
         from the start (at most two); empty with fewer than 12 matches.
     """
-    require_pose_matches(R, t, x1, x2)
+    t = require_pose_matches(R, t, x1, x2)
     R = np.asarray(R, dtype=np.float64)
-    t = np.asarray(t, dtype=np.float64).reshape(3) / np.linalg.norm(t)
+    t = t / np.linalg.norm(t)
     if len(x1) < 12:
         return []
     cost = _cost(np.asarray(x1, float), np.asarray(x2, float), scale)

@@ -77,6 +77,9 @@ def _rays(nan_entry=None):
     return rays
 
 
+RAYS2 = np.column_stack([P2, np.ones(40)]) @ np.linalg.inv(K).T
+
+
 def _points(index, value):
     points = P2.copy()
     points[index] = value
@@ -433,6 +436,98 @@ CASES = {
     "refine k1_noise_bias NaN t": (
         lambda: _refine().k1_noise_bias(R_TRUE, [np.nan, 0, 1], _rays(), _rays(), 1e-3),
         ValueError, "t has 1 NaN"),
+    # pycolmap stopped the process (a failed Ceres check) for a focal length of 0, NaN or
+    # 1e300, a t of 1e300 and rays far out; NaN and RuntimeWarnings for a t of 1e-300, priors
+    # and counts read as given (a negative iteration count, a NaN prior), numpy's own errors
+    "refine refine_pose zero focal": (
+        lambda: _refine().refine_pose(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, 0.0), ValueError,
+        "focal must be a finite number > 0, got 0.0"),
+    "refine refine_pose NaN focal": (
+        lambda: _refine().refine_pose(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, np.nan),
+        ValueError, "focal must be a finite number > 0, got nan"),
+    "refine refine_pose huge focal": (
+        lambda: _refine().refine_pose(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, 1e300), ValueError,
+        "focal must be in (0, 1e+08] pixels, got 1e+300"),
+    "refine refine_pose rays at infinity": (
+        lambda: _refine().refine_pose(R_TRUE, T_TRUE, _rays() * [1, 1, 0], _rays(), _ALL, 800.0),
+        ValueError, "x1 has 40 row(s) with w = 0 or |(x, y)| beyond 1e+06 |w|"),
+    "refine refine_pose rays near the image plane": (
+        lambda: _refine().refine_pose(R_TRUE, T_TRUE, _rays(), _rays() * [1e8, 1e8, 1], _ALL,
+                                      800.0), ValueError, "x2 has 40 row(s) with w = 0"),
+    "refine refine_pose_radial zero scale": (
+        lambda: _refine().refine_pose_radial(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, scale=0.0),
+        ValueError, "scale must be a finite number > 0, got 0.0"),
+    "refine refine_pose_radial zero k1_prior": (
+        lambda: _refine().refine_pose_radial(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, scale=1e-3,
+                                             k1_prior=0.0), ValueError, "k1_prior must be"),
+    "refine refine_pose_radial negative iterations": (
+        lambda: _refine().refine_pose_radial(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, scale=1e-3,
+                                             iterations=-1), ValueError,
+        "iterations must be a whole number in 0.."),
+    "refine refine_pose_radial NaN max_k1": (
+        lambda: _refine().refine_pose_radial(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, scale=1e-3,
+                                             max_k1=np.nan), ValueError,
+        "max_k1 must be a finite number >= 0, got nan"),
+    "refine refine_pose_radial NaN focal_prior": (
+        lambda: _refine().refine_pose_radial(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, scale=1e-3,
+                                             focal_prior=np.nan), ValueError,
+        "focal_prior must be a finite number >= 0, got nan"),
+    "refine refine_pose_radial principal_prior of three": (
+        lambda: _refine().refine_pose_radial(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, scale=1e-3,
+                                             principal_prior=np.ones(3)), ValueError,
+        "principal_prior must be one number or two (x, y), got shape (3,)"),
+    "refine pose_sigmas_deg zero step": (
+        lambda: _refine().pose_sigmas_deg(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, step=0.0),
+        ValueError, "step must be a finite number > 0, got 0.0"),
+    "refine pose_sigmas_deg negative noise": (
+        lambda: _refine().pose_sigmas_deg(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, noise=-1.0),
+        ValueError, "noise must be a finite number >= 0, got -1.0"),
+    "refine pose_sigmas_deg NaN held_k1_prior": (
+        lambda: _refine().pose_sigmas_deg(R_TRUE, T_TRUE, _rays(), _rays(), _ALL,
+                                          held_k1_prior=np.nan), ValueError,
+        "held_k1_prior must be a finite number >= 0, got nan"),
+    "refine pose_sigmas_deg negative k1_prior": (
+        lambda: _refine().pose_sigmas_deg(R_TRUE, T_TRUE, _rays(), _rays(), _ALL,
+                                          k1_prior=-1.0), ValueError,
+        "k1_prior must be a finite number > 0, got -1.0"),
+    "refine k1_noise_bias one replicate": (
+        lambda: _refine().k1_noise_bias(R_TRUE, T_TRUE, _rays(), _rays(), 1e-3, replicates=1),
+        ValueError, "replicates must be a whole number in 2.."),
+    "refine released_lens_shift_deg NaN k1": (
+        lambda: _refine().released_lens_shift_deg(R_TRUE, T_TRUE, np.nan, _rays(), _rays(),
+                                                  _ALL, 1e-3), ValueError,
+        "k1 must be a finite number in [-10, 10], got nan"),
+    "refine released_lens_shift_deg negative replicates": (
+        lambda: _refine().released_lens_shift_deg(R_TRUE, T_TRUE, 0.1, _rays(), _rays(), _ALL,
+                                                  1e-3, replicates=-1), ValueError,
+        "replicates must be a whole number in 0.."),
+    "refine fit_rotation matches of two lengths": (
+        lambda: _refine().fit_rotation(_rays(), _rays()[:30], _ALL, 1e-3), ValueError,
+        "x1 and x2 must have the same length, got 40 and 30"),
+    "refine fit_rotation index mask": (
+        lambda: _refine().fit_rotation(_rays(), _rays(), np.arange(40), 1e-3), TypeError,
+        "inliers must be a mask of bool, got dtype int64"),
+    "refine fit_rotation no match allowed": (
+        lambda: _refine().fit_rotation(_rays(), _rays(), ~_ALL, 1e-3), ValueError,
+        "inliers selects 0 matches: a rotation needs at least 2"),
+    "refine fit_rotation NaN threshold": (
+        lambda: _refine().fit_rotation(_rays(), _rays(), _ALL, np.nan), ValueError,
+        "threshold must be a finite number > 0, got nan"),
+    "refine fit_rotation a zero row": (
+        lambda: _refine().fit_rotation(_rays() * (np.arange(40) > 0)[:, None], _rays(), _ALL,
+                                       1e-3), ValueError, "x1 has a zero row"),
+    "refine rotation_residuals points of two": (
+        lambda: _refine().rotation_residuals(R_TRUE, P1, P2), ValueError,
+        "x1 must have shape (N, 3), got (40, 2)"),
+    "refine checked_matches flat J": (
+        lambda: _refine().checked_matches(np.ones(3)), ValueError,
+        "J must have shape (N, P), got (3,)"),
+    "refine checked_matches NaN J": (
+        lambda: _refine().checked_matches(np.full((10, 3), np.nan)), ValueError,
+        "J has 30 NaN or infinite value(s)"),
+    "refine huber_bound_px negative threshold": (
+        lambda: _refine().huber_bound_px(-1.0, 0.5), ValueError,
+        "threshold_px must be a finite number > 0, got -1.0"),
     "valley valley_minima NaN match": (
         lambda: __import__("ppo_cv.valley").valley.valley_minima(
             R_TRUE, T_TRUE, _rays(np.nan), _rays(), 1e-3), ValueError, "x1 has 1 NaN"),
@@ -472,6 +567,12 @@ CASES = {
     "significance log10_binomial fractions": (
         lambda: _significance().log10_binomial(10.5, 3), TypeError,
         "n and k must be integers, got dtypes float64 and int64"),
+    "significance log10_binomial shapes that do not broadcast": (
+        lambda: _significance().log10_binomial(np.array([10, 20, 30]), np.array([1, 2])),
+        ValueError, "n and k must broadcast together, got shapes (3,) and (2,)"),
+    "significance log10_binomial no n for some k": (
+        lambda: _significance().log10_binomial(np.array([], int), np.array([1, 2])),
+        ValueError, "n and k must broadcast together, got shapes (0,) and (2,)"),
     "significance smallest consensus NaN threshold": (
         lambda: _significance().smallest_significant_consensus(100, (640, 480), np.nan, 5.0),
         ValueError, "threshold must be a finite number > 0, got nan"),
@@ -850,6 +951,26 @@ def test_any_finite_scale_of_E_gives_the_same_pose(scale):
     np.testing.assert_allclose(t.ravel(), T_TRUE, atol=1e-9)
     result = ppo_cv.recover_pose(E * scale, P1, P2, K)
     np.testing.assert_allclose(result.R, R_TRUE, atol=1e-9)
+
+
+@pytest.mark.parametrize("scale", [1e300, 1e-300, 5e-324, -1e200])
+def test_any_finite_scale_of_t_gives_the_same_refined_pose(scale):
+    refine = _refine()
+    R, t = refine.refine_pose(R_TRUE, T_TRUE, _rays(), RAYS2, _ALL, 800.0)
+    R_scaled, t_scaled = refine.refine_pose(R_TRUE, T_TRUE * scale, _rays(), RAYS2, _ALL, 800.0)
+    np.testing.assert_allclose(R_scaled, R, atol=1e-9)
+    np.testing.assert_allclose(t_scaled, np.sign(scale) * t, atol=1e-9)
+    radial = refine.refine_pose_radial(R_TRUE, T_TRUE * scale, _rays(), RAYS2, _ALL, scale=1e-3)
+    assert np.all(np.isfinite(radial.t)) and abs(np.linalg.norm(radial.t) - 1) < 1e-12
+
+
+def test_refine_pose_reads_rows_as_homogeneous_points():
+    refine = _refine()
+    R, t = refine.refine_pose(R_TRUE, T_TRUE, _rays(), RAYS2, _ALL, 800.0)
+    w = np.linspace(0.5, 4.0, 40)[:, None]
+    R_w, t_w = refine.refine_pose(R_TRUE, T_TRUE, _rays() * w, RAYS2 / w, _ALL, 800.0)
+    np.testing.assert_allclose(R_w, R, atol=1e-9)
+    np.testing.assert_allclose(t_w, t, atol=1e-9)
 
 
 @pytest.mark.parametrize("noise_px", [0.5, 2.0, 5.0])
