@@ -996,6 +996,22 @@ def test_dropin_reads_E_of_nine_entries_as_opencv_does(shape):
     np.testing.assert_allclose(ours[1], reference[1], atol=1e-9)
 
 
+@pytest.mark.parametrize(
+    "call, r_index",
+    [(lambda f, K3: f(E, P1, P2, K3), 1), (lambda f, K3: f(E, P1, P2, K3, 50.0), 1),
+     (lambda f, K3: f(P1, P2, K3, None, K3, None), 2),
+     (lambda f, K3: f(P1, P2, cameraMatrix1=K3, distCoeffs1=None, cameraMatrix2=K3,
+                      distCoeffs2=None), 2)],
+    ids=["form 1", "form 3", "form 4", "form 4 keywords"],
+)  # fmt: skip
+def test_dropin_reads_a_camera_matrix_of_one_channel_as_opencv_does(call, r_index):
+    # refused as "cameraMatrix must be a 3x3 matrix, got shape (3, 3, 1)"
+    reference = call(OPENCV_RECOVER_POSE, K.reshape(3, 3, 1))
+    ours = call(ppo_cv.recoverPose, K.reshape(3, 3, 1))
+    assert ours[0] == reference[0] == 40
+    np.testing.assert_allclose(ours[r_index], reference[r_index], atol=1e-6)
+
+
 def test_umat_inputs_give_umat_outputs_with_the_same_pose():
     ours = ppo_cv.recoverPose(cv2.UMat(E), cv2.UMat(P1), cv2.UMat(P2), cv2.UMat(K))
     reference = OPENCV_RECOVER_POSE(cv2.UMat(E), cv2.UMat(P1), cv2.UMat(P2), cv2.UMat(K))
