@@ -38,6 +38,7 @@ from .checks import (
     as_distortion,
     as_flag,
     as_image_size,
+    as_number,
     as_path,
     cut,
     require_instance,
@@ -873,6 +874,9 @@ def exif_focal_scale(layout: Any, size: tuple[int, int]) -> float:
     float
         The ratio of the image's larger side to the recorded larger side, or 1.
     """
+    from .images import ExifLayout
+
+    require_instance(layout, ExifLayout, "layout", " (ppo_cv.images.exif_layout(path))")
     if layout.camera_size is None or not layout.focal_in_recorded_pixels:
         return 1.0
     scale = resize_scale(layout.camera_size, size)
@@ -886,7 +890,7 @@ def fitted_exif_focal(focal: float, layout: Any, size: tuple[int, int]) -> tuple
     (:func:`unusable_exif_focal`), COLMAP's guess for an image without one
     (:data:`GUESSED_FOCAL_FACTOR` times its larger side); with why it was replaced, None when
     it is the EXIF's."""
-    focal = float(focal) * exif_focal_scale(layout, size)
+    focal = as_number(focal, "focal") * exif_focal_scale(layout, size)
     doubt = unusable_exif_focal(focal, max(size))
     return (focal, None) if doubt is None else (GUESSED_FOCAL_FACTOR * max(size), doubt)
 

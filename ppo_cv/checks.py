@@ -707,5 +707,9 @@ def as_callback(value: Any, name: str, wanted: str = "callable") -> Any:
 
 
 def _public_name(kind: type) -> str:
+    if kind is type(None):
+        return "None"
+    if kind.__module__ == "builtins":
+        return kind.__qualname__
     modules = [part for part in kind.__module__.split(".") if not part.startswith("_")]
     return ".".join([*modules, kind.__qualname__])

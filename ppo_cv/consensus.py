@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .camera import pixels_to_normalized
+from .checks import require_instance
 from .features import (
     Features,
     _require_same_descriptors,
@@ -165,6 +166,7 @@ def _thinned(features: Features, threshold_scale: float) -> Features:
 def ransac_keywords(options: PairOptions) -> dict:
     """The robust fits' settings in ``options``, as :func:`ppo_cv.robust.estimate_essential`
     and :func:`ppo_cv.homography.estimate_homography` take them."""
+    require_instance(options, PairOptions, "options", " (ppo_cv.PairOptions(...))")
     return {
         "backend": options.backend,
         "threshold": options.ransac_threshold,

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from .camera import pixels_to_normalized
+from .checks import MAX_WHOLE_NUMBER, as_positive, as_whole_number, require_instance
 from .result import PairResult
 
 __all__ = [
@@ -69,6 +70,8 @@ def fitted_focal_scale(result: PairResult) -> float | None:
     :data:`MIN_FOCAL_REFIT` (log); None otherwise, and for a pure rotation."""
     from .sfm import homography_rotation_focal
 
+    _require_result(result)
+
     if result.pure_rotation:
         return None
     cameras, used = result.cameras, result.matches[result.inliers]
@@ -98,6 +101,9 @@ def lens_focal_scale(
     """
     from .rotation import MIN_LENS_MATCHES, fit_rotation_lens, ransac_rotation
 
+    scale, threshold_px = as_positive(scale, "scale"), as_positive(threshold_px, "threshold_px")
+    seed = as_whole_number(seed, "seed", 0, MAX_WHOLE_NUMBER)
+    _require_result(result)
     cameras, used = result.cameras, result.matches[result.inliers]
     focal = scale * float(cameras.K1[0, 0])
     noise, bound = result.evidence.selection.noise_sigma_px / focal, threshold_px / focal
@@ -119,6 +125,10 @@ def lens_focal_scale(
     if abs(fit.focal_scale - 1.0) >= LENS_FOCAL_BOX * (1.0 - 1e-9) or change < MIN_FOCAL_REFIT:
         return None
     return float(scale / fit.focal_scale)
+
+
+def _require_result(result: Any) -> None:
+    require_instance(result, PairResult, "result", " (estimate_pair)")
 
 
 def decide_with_fitted_focal(

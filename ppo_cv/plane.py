@@ -43,6 +43,7 @@ from .checks import (
     as_real_array,
     as_rotation,
     as_vector3,
+    require_instance,
 )
 from .lsq import (
     forward_jacobian,
@@ -367,6 +368,7 @@ def frontality(candidates: HomographyCandidates) -> np.ndarray:
     interpretations exchange the directions of ``t`` and ``n`` (to first order) and so tilt the
     plane of the false one towards the baseline, i.e. obliquely to both views.
     """
+    require_instance(candidates, HomographyCandidates, "candidates")
     return candidates.n[:, 2] + np.einsum("kj,kij->ki", candidates.n, candidates.R)[:, 2]
 
 

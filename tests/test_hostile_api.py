@@ -77,9 +77,6 @@ def _rays(nan_entry=None):
     return rays
 
 
-RAYS2 = np.column_stack([P2, np.ones(40)]) @ np.linalg.inv(K).T
-
-
 def _points(index, value):
     points = P2.copy()
     points[index] = value
@@ -528,6 +525,77 @@ CASES = {
     "refine huber_bound_px negative threshold": (
         lambda: _refine().huber_bound_px(-1.0, 0.5), ValueError,
         "threshold_px must be a finite number > 0, got -1.0"),
+    # AttributeErrors ("'NoneType' object has no attribute 'pure_rotation'", "... 'n'",
+    # "... 'R'", "... 'num_inliers'", "... 'backend'", "... 'dimension'", "... 'camera_size'"),
+    # a count of 10**400 chunked without end, a scale of 0 divided by
+    "guessed_camera fitted_focal_scale None": (
+        lambda: __import__("ppo_cv.guessed_camera").guessed_camera.fitted_focal_scale(None),
+        TypeError, "result must be a ppo_cv.result.PairResult, got NoneType (estimate_pair)"),
+    "guessed_camera decide_with_fitted_focal text": (
+        lambda: __import__("ppo_cv.guessed_camera").guessed_camera.decide_with_fitted_focal(
+            "result.json", [GREY, GREY], PairOptions()), TypeError,
+        "result must be a ppo_cv.result.PairResult, got str (estimate_pair)"),
+    "guessed_camera lens_focal_scale zero scale": (
+        lambda: __import__("ppo_cv.guessed_camera").guessed_camera.lens_focal_scale(
+            None, 0.0, 1.0), ValueError, "scale must be a finite number > 0, got 0.0"),
+    "plane frontality None": (
+        lambda: __import__("ppo_cv.plane").plane.frontality(None), TypeError,
+        "candidates must be a ppo_cv.plane.HomographyCandidates, got NoneType"),
+    "motion_model with_rotation None": (
+        lambda: __import__("ppo_cv.motion_model").motion_model.with_rotation(
+            None, None, RAYS, RAYS2, 800.0), TypeError,
+        "motion must be a ppo_cv.motion_model.MotionDecision, got NoneType"),
+    "motion_model with_tracks None": (
+        lambda: __import__("ppo_cv.motion_model").motion_model.with_tracks(
+            None, None, None, RAYS, RAYS2, 800.0), TypeError,
+        "motion must be a ppo_cv.motion_model.MotionDecision, got NoneType"),
+    "homography require_unmirrored text": (
+        lambda: __import__("ppo_cv.homography").homography.require_unmirrored("H"), TypeError,
+        "homography must be a ppo_cv.homography.HomographyEstimate or None, got str"),
+    "consensus ransac_keywords dict": (
+        lambda: __import__("ppo_cv.consensus").consensus.ransac_keywords({"backend": "x"}),
+        TypeError, "options must be a ppo_cv.options.PairOptions, got dict"),
+    "model_selection model_noise None": (
+        lambda: ppo_cv.model_selection.model_noise(None), TypeError,
+        "candidates must be a list of ModelResiduals, got NoneType"),
+    "model_selection select_model texts": (
+        lambda: ppo_cv.model_selection.select_model(["rotation", "general"]), TypeError,
+        "each of candidates must be a ppo_cv.model_selection.ModelResiduals, got str"),
+    "model_selection select_model empty": (
+        lambda: ppo_cv.model_selection.select_model([]), ValueError,
+        "candidates is empty: at least one candidate model is needed"),
+    "calib exif_focal_scale None": (
+        lambda: ppo_cv.calib.exif_focal_scale(None, (640, 480)), TypeError,
+        "layout must be a ppo_cv.images.ExifLayout, got NoneType"),
+    "calib fitted_exif_focal text focal": (
+        lambda: ppo_cv.calib.fitted_exif_focal("500", None, (640, 480)), TypeError,
+        "focal must be a number, got str"),
+    "lsq row_chunks huge count": (
+        lambda: __import__("ppo_cv.lsq").lsq.row_chunks(10**400, 3), ValueError,
+        "count must be a whole number in 0..2147483647, got <401-digit integer>"),
+    # parallax: IndexErrors ("invalid index to scalar variable") for None or a number as the
+    # scales, numpy's LinAlgError for None as H, "could not convert string to float"; a
+    # scale of 1e3 overflowed exp into NaN spreads
+    "parallax focal_conjugates scalar scales": (
+        lambda: __import__("ppo_cv.parallax").parallax.focal_conjugates(np.eye(3), 0.1), ValueError,
+        "log_scales must be a sequence of numbers, got shape ()"),
+    "parallax rotation_spread None H": (
+        lambda: __import__("ppo_cv.parallax").parallax.rotation_spread(None, [0.0, 0.1]), TypeError,
+        "H is required, got None"),
+    "parallax nearest_rotation_log_scale huge scales": (
+        lambda: __import__("ppo_cv.parallax").parallax.nearest_rotation_log_scale(
+            np.eye(3), [-1e3, 0.0, 1e3]),
+        ValueError, "log_scales must ascend within +-50"),
+    "parallax nearest_rotation_log_scale unsorted": (
+        lambda: __import__("ppo_cv.parallax").parallax.nearest_rotation_log_scale(
+            np.eye(3), [0.1, 0.0, -0.1]),
+        ValueError, "log_scales must ascend within +-50, got [0.1, 0.0, -0.1]"),
+    "parallax homography_parallax H of two rows": (
+        lambda: __import__("ppo_cv.parallax").parallax.homography_parallax(np.eye(3)[:2]),
+        ValueError, "H must be a 3x3 homography, got shape (2, 3)"),
+    "parallax fit_plane_parallax text": (
+        lambda: __import__("ppo_cv.parallax").parallax.fit_plane_parallax("x1", RAYS), TypeError,
+        "x1 must be an array of real numbers, got str"),
     "valley valley_minima NaN match": (
         lambda: __import__("ppo_cv.valley").valley.valley_minima(
             R_TRUE, T_TRUE, _rays(np.nan), _rays(), 1e-3), ValueError, "x1 has 1 NaN"),
