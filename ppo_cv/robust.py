@@ -38,12 +38,15 @@ from numpy.typing import ArrayLike
 
 from .checks import (
     MAX_COORDINATE,
+    MAX_WHOLE_NUMBER,
     as_finite_array,
     as_finite_rows,
+    as_number,
     as_positive,
     as_ransac_settings,
     as_rotation,
     as_vector3,
+    as_whole_number,
 )
 from .lsq import cross_matrix
 from .significance import (
@@ -526,7 +529,10 @@ def trials_for_consensus(
     >>> trials_for_consensus(20, 100, 0.05)
     14546.0
     """
-    if not 0.0 < miss_probability < 1.0:
+    consensus, num_matches = (as_whole_number(value, name, 0, MAX_WHOLE_NUMBER) for name, value
+                              in (("consensus", consensus), ("num_matches", num_matches)))
+    sample_size = as_whole_number(sample_size, "sample_size", 1, MAX_WHOLE_NUMBER)
+    if not 0.0 < as_number(miss_probability, "miss_probability") < 1.0:
         raise ValueError(f"miss_probability must lie in (0, 1), got {miss_probability}")
     if min(consensus, num_matches) < sample_size:
         return math.inf

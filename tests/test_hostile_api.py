@@ -596,6 +596,17 @@ CASES = {
     "parallax fit_plane_parallax text": (
         lambda: __import__("ppo_cv.parallax").parallax.fit_plane_parallax("x1", RAYS), TypeError,
         "x1 must be an array of real numbers, got str"),
+    # '<' not supported for None; a fractional consensus, a negative one and no sample read as
+    # given (a count of trials for 20.5 matches; inf; 1 trial)
+    "robust trials_for_consensus None": (
+        lambda: ppo_cv.robust.trials_for_consensus(None, 100, 0.05), TypeError,
+        "consensus must be a whole number, got NoneType None"),
+    "robust trials_for_consensus fraction": (
+        lambda: ppo_cv.robust.trials_for_consensus(20.5, 100, 0.05), ValueError,
+        "consensus must be a whole number in 0..2147483647, got 20.5"),
+    "robust trials_for_consensus no sample": (
+        lambda: ppo_cv.robust.trials_for_consensus(20, 100, 0.05, 0), ValueError,
+        "sample_size must be a whole number in 1..2147483647, got 0"),
     "valley valley_minima NaN match": (
         lambda: __import__("ppo_cv.valley").valley.valley_minima(
             R_TRUE, T_TRUE, _rays(np.nan), _rays(), 1e-3), ValueError, "x1 has 1 NaN"),
