@@ -20,7 +20,15 @@ from typing import Any
 
 import numpy as np
 
-from .checks import as_camera_matrix, as_essential, as_finite_rows, as_points, as_vector3
+from .checks import (
+    as_camera_matrix,
+    as_essential,
+    as_finite_array,
+    as_finite_rows,
+    as_points,
+    as_vector3,
+    shown,
+)
 
 __all__ = [
     "W1",
@@ -210,14 +218,29 @@ def decompose_essential(E: np.ndarray) -> Candidates:
     """
     as_essential(E, check_spread=False)  # a finite, nonzero 3x3 matrix, decomposed unscaled
     U, s, Vt = np.linalg.svd(np.asarray(E, dtype=np.float64))
-    return candidates_from_svd(U, s, Vt)
+    return _candidates_from_svd(U, s, Vt)
 
 
 def candidates_from_svd(U: np.ndarray, s: np.ndarray, Vt: np.ndarray) -> Candidates:
     """:func:`decompose_essential` from a precomputed SVD ``E = U diag(s) Vt``.
 
-    Any SVD routine will do (signs of singular vectors are arbitrary and fixed here).
+    Any SVD routine will do (signs of singular vectors are arbitrary and fixed here). ``U``
+    and ``Vt`` must be orthogonal 3x3 matrices, ``s`` three singular values >= 0 not all zero;
+    ValueError or TypeError naming the argument otherwise.
     """
+    for name, matrix in (("U", U), ("Vt", Vt)):
+        orthogonal = as_finite_array(matrix, name)
+        if orthogonal.shape != (3, 3) or not np.allclose(
+            orthogonal @ orthogonal.T, np.eye(3), atol=1e-6
+        ):
+            raise ValueError(f"{name} must be an orthogonal 3x3 matrix (of an SVD)")
+    values = as_finite_array(s, "s")
+    if values.size != 3 or (values < 0).any() or not values.any():
+        raise ValueError(f"s must be three singular values >= 0, not all zero, got {shown(s)}")
+    return _candidates_from_svd(np.asarray(U, float), values, np.asarray(Vt, float))
+
+
+def _candidates_from_svd(U: np.ndarray, s: np.ndarray, Vt: np.ndarray) -> Candidates:
     Vt = _proper_svd(U, Vt)
     s = np.ravel(s)
     return Candidates(

@@ -607,6 +607,17 @@ CASES = {
     "robust trials_for_consensus no sample": (
         lambda: ppo_cv.robust.trials_for_consensus(20, 100, 0.05, 0), ValueError,
         "sample_size must be a whole number in 1..2147483647, got 0"),
+    # an AttributeError for None ("'NoneType' object has no attribute 'tolist'"); matrices that
+    # are no SVD's gave "rotations" that are none, zero singular values NaN
+    "ppo candidates_from_svd None": (
+        lambda: ppo_cv.ppo.candidates_from_svd(None, [1.0, 1.0, 0.0], np.eye(3)), TypeError,
+        "U is required, got None"),
+    "ppo candidates_from_svd not orthogonal": (
+        lambda: ppo_cv.ppo.candidates_from_svd(np.eye(3), [1.0, 1.0, 0.0], np.ones((3, 3))),
+        ValueError, "Vt must be an orthogonal 3x3 matrix (of an SVD)"),
+    "ppo candidates_from_svd zero singular values": (
+        lambda: ppo_cv.ppo.candidates_from_svd(np.eye(3), np.zeros(3), np.eye(3)), ValueError,
+        "s must be three singular values >= 0, not all zero"),
     "valley valley_minima NaN match": (
         lambda: __import__("ppo_cv.valley").valley.valley_minima(
             R_TRUE, T_TRUE, _rays(np.nan), _rays(), 1e-3), ValueError, "x1 has 1 NaN"),
