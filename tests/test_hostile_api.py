@@ -618,6 +618,30 @@ CASES = {
     "ppo candidates_from_svd zero singular values": (
         lambda: ppo_cv.ppo.candidates_from_svd(np.eye(3), np.zeros(3), np.eye(3)), ValueError,
         "s must be three singular values >= 0, not all zero"),
+    # unique_pixel_pairs: a negative index wrapped to the last keypoint, five distances for ten
+    # matches kept five rows, a step of 0 raised RuntimeWarnings, NaN keypoints a cast warning;
+    # require_detectable: "'NoneType' object is not subscriptable", "tuple index out of range"
+    "features unique_pixel_pairs negative index": (
+        lambda: ppo_cv.features.unique_pixel_pairs(np.c_[np.arange(40), np.arange(40)] - 1, P1,
+                                                   P2, np.ones(40)), ValueError,
+        "matches column 0 must index keypoints1 (0..39)"),
+    "features unique_pixel_pairs distances short": (
+        lambda: ppo_cv.features.unique_pixel_pairs(np.c_[np.arange(40), np.arange(40)], P1, P2,
+                                                   np.ones(5)), ValueError,
+        "distances must have one per match (40,), got (5,)"),
+    "features unique_pixel_pairs zero step": (
+        lambda: ppo_cv.features.unique_pixel_pairs(np.c_[np.arange(40), np.arange(40)], P1, P2,
+                                                   np.ones(40), 0.0), ValueError,
+        "resolution must be a finite number > 0, got 0.0"),
+    "features unique_pixel_pairs float matches": (
+        lambda: ppo_cv.features.unique_pixel_pairs(np.ones((40, 2)), P1, P2, np.ones(40)),
+        TypeError, "matches must be index pairs of integers, got dtype float64"),
+    "features require_detectable None": (
+        lambda: ppo_cv.features.require_detectable(None, "image"), TypeError,
+        "shape must be an image's shape (H, W[, C]), got None"),
+    "features require_detectable one side": (
+        lambda: ppo_cv.features.require_detectable((5,), "image"), TypeError,
+        "shape must be an image's shape (H, W[, C]), got (5,)"),
     "valley valley_minima NaN match": (
         lambda: __import__("ppo_cv.valley").valley.valley_minima(
             R_TRUE, T_TRUE, _rays(np.nan), _rays(), 1e-3), ValueError, "x1 has 1 NaN"),
