@@ -352,6 +352,15 @@ def support_ties(in_front: np.ndarray) -> np.ndarray:
     >>> support_ties(in_front).tolist()
     [True, True, False]
     """
+    flags = np.asarray(in_front)
+    if flags.dtype != bool or flags.ndim != 2:
+        raise TypeError(
+            f"in_front must be a (K, N) array of bool, got {flags.dtype} of shape {flags.shape}"
+        )
+    return _support_ties(flags)
+
+
+def _support_ties(in_front: np.ndarray) -> np.ndarray:
     in_front = np.asarray(in_front, dtype=bool)
     best = int(np.argmax(np.count_nonzero(in_front, axis=1)))
     only_best = np.count_nonzero(in_front[best] & ~in_front, axis=1)
@@ -419,7 +428,7 @@ def select_plane_pose(
     if used_mask.shape != (len(X1),):
         raise ValueError(f"used must have shape ({len(X1)},), got {used_mask.shape}")
     m1, m2, supports = candidate_supports(candidates, X1, X2, used_mask)
-    tied = support_ties((m1 > 0) & (m2 > 0) & used_mask[None, :])
+    tied = _support_ties((m1 > 0) & (m2 > 0) & used_mask[None, :])
     epipolar = np.zeros(4, int)
     if off_plane is not None and threshold is not None:
         off = np.asarray(off_plane, bool).reshape(-1)
@@ -755,6 +764,13 @@ def rms_rotation_angle_deg(covariance: np.ndarray) -> float:
     >>> round(rms_rotation_angle_deg(np.diag([3e-6, 1e-6, 0.0])), 4)
     0.1146
     """
+    covariance = as_finite_array(covariance, "covariance")
+    if covariance.shape != (3, 3):
+        raise ValueError(f"covariance must be a 3x3 matrix, got shape {covariance.shape}")
+    return _rms_rotation_angle_deg(covariance)
+
+
+def _rms_rotation_angle_deg(covariance: np.ndarray) -> float:
     return float(np.degrees(np.sqrt(max(float(np.trace(covariance)), 0.0))))
 
 
@@ -803,7 +819,7 @@ def _plane_covariance(model, p, scale, k1_prior):
 
 def _rotation_deg(cov: np.ndarray | None) -> float:
     """:func:`rms_rotation_angle_deg` of the rotation block; inf for None."""
-    return float("inf") if cov is None else rms_rotation_angle_deg(cov[:3, :3])
+    return float("inf") if cov is None else _rms_rotation_angle_deg(cov[:3, :3])
 
 
 def _scaled_model(model: _PlaneModel, focal_error: float) -> _PlaneModel:

@@ -45,7 +45,7 @@ from .lsq import (
     tangent_basis,
 )
 from .model_selection import robust_sigma
-from .plane import K1_SIGNIFICANCE, rms_rotation_angle_deg, undistort_division
+from .plane import K1_SIGNIFICANCE, _rms_rotation_angle_deg, undistort_division
 from .ppo import rotation_from_rays
 from .robust import _sampson_signed as _essential_sampson_signed
 from .robust import _sampson_signed_rows, virtual_camera
@@ -1197,6 +1197,6 @@ def _pose_sigmas_deg(
 
     worst = np.linalg.eigvalsh(cov[_TRANSLATION, _TRANSLATION])[-1]
     return PoseSigmas(
-        rotation_deg=rms_rotation_angle_deg(cov[_ROTATION, _ROTATION]),
+        rotation_deg=_rms_rotation_angle_deg(cov[_ROTATION, _ROTATION]),
         translation_deg=min(float(np.degrees(np.sqrt(max(worst, 0.0)))), T_SIGMA_CAP_DEG),
     )

@@ -642,6 +642,25 @@ CASES = {
     "features require_detectable one side": (
         lambda: ppo_cv.features.require_detectable((5,), "image"), TypeError,
         "shape must be an image's shape (H, W[, C]), got (5,)"),
+    # AttributeErrors: "'NoneType' object has no attribute 'backend'", "... 'img1'"; numpy's
+    # "diag requires an array of at least two dimensions", AxisError; a NaN covariance gave a
+    # NaN angle and flags of 0.5 read as True
+    "consensus detect_both no options": (
+        lambda: __import__("ppo_cv.consensus").consensus.detect_both(GREY, GREY, None),
+        TypeError, "options must be a ppo_cv.options.PairOptions, got NoneType"),
+    "consensus best_consensus no inputs": (
+        lambda: __import__("ppo_cv.consensus").consensus.best_consensus(
+            None, None, None, PairOptions(), print), TypeError,
+        "inputs must be a ppo_cv.consensus.PairInputs, got NoneType"),
+    "plane rms_rotation_angle_deg NaN": (
+        lambda: __import__("ppo_cv.plane").plane.rms_rotation_angle_deg(np.full((3, 3), np.nan)),
+        ValueError, "covariance has 9 NaN or infinite value(s)"),
+    "plane rms_rotation_angle_deg None": (
+        lambda: __import__("ppo_cv.plane").plane.rms_rotation_angle_deg(None), TypeError,
+        "covariance is required, got None"),
+    "plane support_ties fractions": (
+        lambda: __import__("ppo_cv.plane").plane.support_ties(np.full((2, 5), 0.5)), TypeError,
+        "in_front must be a (K, N) array of bool, got float64 of shape (2, 5)"),
     "valley valley_minima NaN match": (
         lambda: __import__("ppo_cv.valley").valley.valley_minima(
             R_TRUE, T_TRUE, _rays(np.nan), _rays(), 1e-3), ValueError, "x1 has 1 NaN"),
