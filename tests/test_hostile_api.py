@@ -1236,6 +1236,20 @@ def test_uninstall_restores_what_install_replaced():
         cv2.recoverPose = saved
 
 
+@pytest.mark.parametrize("shape", [(1, 1), (7, 7), (1, 100)])
+def test_an_image_narrower_than_eight_pixels_is_checked_whole(tmp_path, shape):
+    # OpenCV's reduced decode of such a PNG raised cv2.error ("inv_scale_x > 0") from
+    # camera_from_exif
+    path = tmp_path / "small.png"
+    cv2.imwrite(str(path), np.zeros(shape, np.uint8))
+    ppo_cv.images.check_decodes(path)
+    camera, _ = ppo_cv.camera_from_exif(path)
+    assert camera.K[0, 2] == shape[1] / 2 and camera.K[1, 2] == shape[0] / 2
+    path.write_bytes(path.read_bytes()[:40])
+    with pytest.raises(ValueError, match="not a readable image"):
+        ppo_cv.images.check_decodes(path)
+
+
 def test_decompression_bomb_is_refused_from_the_header(tmp_path, monkeypatch):
     bomb = tmp_path / "bomb.png"
     bomb.write_bytes(png_header(30000, 30000))
