@@ -367,8 +367,8 @@ def _identify(
     """
     w, U, Vt = cv2.SVDecomp(E)  # several times faster than numpy's for one 3x3 matrix
     require_essential_spread(w)
-    maps = ppo.frame_maps(U, ppo._proper_svd(U, Vt))
-    m1, m2 = ppo.frame_scores(maps @ K_inv, points)
+    maps = ppo._frame_maps(U, ppo._proper_svd(U, Vt))
+    m1, m2 = ppo._blocked_frame_scores(maps @ K_inv, points)
     keep_R1, same_side, _, _ = ppo._vote(m1, used)
     keep_t, intersecting, _, _ = ppo._vote(m2, used)
     inliers = same_side & intersecting

@@ -661,6 +661,18 @@ CASES = {
     "plane support_ties fractions": (
         lambda: __import__("ppo_cv.plane").plane.support_ties(np.full((2, 5), 0.5)), TypeError,
         "in_front must be a (K, N) array of bool, got float64 of shape (2, 5)"),
+    "ppo frame_scores None": (
+        lambda: ppo_cv.ppo.frame_scores(None, np.ones((2, 3, 5))), TypeError,
+        "F is required, got None"),
+    "ppo frame_scores points of one view": (
+        lambda: ppo_cv.ppo.frame_scores(np.ones((2, 3, 3)), np.ones((3, 5))), ValueError,
+        "points must have shape (2, 3, N), got (3, 5)"),
+    "ppo frame_scores NaN point": (
+        lambda: ppo_cv.ppo.frame_scores(np.ones((2, 3, 3)), np.full((2, 3, 5), np.nan)),
+        ValueError, "points has 30 NaN or infinite value(s)"),
+    "ppo frame_maps not orthogonal": (
+        lambda: ppo_cv.ppo.frame_maps(np.ones((3, 3)), np.eye(3)), ValueError,
+        "U must be an orthogonal 3x3 matrix (of an SVD)"),
     "valley valley_minima NaN match": (
         lambda: __import__("ppo_cv.valley").valley.valley_minima(
             R_TRUE, T_TRUE, _rays(np.nan), _rays(), 1e-3), ValueError, "x1 has 1 NaN"),
