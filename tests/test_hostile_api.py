@@ -673,6 +673,23 @@ CASES = {
     "ppo frame_maps not orthogonal": (
         lambda: ppo_cv.ppo.frame_maps(np.ones((3, 3)), np.eye(3)), ValueError,
         "U must be an orthogonal 3x3 matrix (of an SVD)"),
+    # estimate_essential_ordered: "'NoneType' object is not subscriptable", LinAlgError for a
+    # singular K2, the text "no" read as true and a NaN bar as no bar
+    "robust estimate_essential_ordered no image size": (
+        lambda: ppo_cv.robust.estimate_essential_ordered(RAYS, RAYS2, 800.0, np.ones(40), None),
+        TypeError, "image_size must be (width, height), got None"),
+    "robust estimate_essential_ordered singular K2": (
+        lambda: ppo_cv.robust.estimate_essential_ordered(
+            RAYS, RAYS2, 800.0, np.ones(40), (640, 480), K2=np.ones((3, 3))), ValueError,
+        "K2 must be upper triangular"),
+    "robust estimate_essential_ordered flag text": (
+        lambda: ppo_cv.robust.estimate_essential_ordered(
+            RAYS, RAYS2, 800.0, np.ones(40), (640, 480), uniform_when_weak="no"), TypeError,
+        "uniform_when_weak must be True or False, got str 'no'"),
+    "robust estimate_essential_ordered NaN bar": (
+        lambda: ppo_cv.robust.estimate_essential_ordered(
+            RAYS, RAYS2, 800.0, np.ones(40), (640, 480), max_log10_nfa=np.nan), ValueError,
+        "max_log10_nfa must be a number (inf: every consensus), got nan"),
     "valley valley_minima NaN match": (
         lambda: __import__("ppo_cv.valley").valley.valley_minima(
             R_TRUE, T_TRUE, _rays(np.nan), _rays(), 1e-3), ValueError, "x1 has 1 NaN"),
