@@ -838,6 +838,8 @@ def _checked_output_arguments(
         extra = json.loads(json.dumps(extra, allow_nan=False, default=_json_number))
     except (TypeError, ValueError) as exc:
         raise type(exc)(f"extra cannot be written as JSON: {exc}") from None
+    except RecursionError:
+        raise ValueError("extra cannot be written as JSON: it is nested too deeply") from None
     result_to_dict(result, **(extra or {}))
     return (*arrays, extra)
 
@@ -846,7 +848,8 @@ def _json_number(value: Any) -> Any:
     """A numpy number (``np.int64(3)``, ``np.float32(1.5)``, ``np.bool_``) or array of numbers
     as the Python number or list JSON writes; TypeError for anything else, as ``json`` says."""
     if isinstance(value, (np.generic, np.ndarray)) and value.dtype.kind in "biuf":
-        return value.tolist()
+        # a long double's tolist() is itself, which json would hand back here without end
+        return (value.astype(np.float64) if value.dtype.kind == "f" else value).tolist()
     raise TypeError(f"Object of type {type(value).__name__} is not JSON serializable")
 
 

@@ -427,6 +427,23 @@ def test_a_colmap_model_into_a_file_is_refused_and_the_file_kept(demo_result, tm
     assert path.read_text() == "notes"
 
 
+def test_extra_of_long_doubles_is_written_and_one_nested_too_deeply_refused(
+    demo_result, demo, tmp_path
+):
+    # a long double's tolist() is itself: json asked for it again until a RecursionError, as
+    # it did for a list nested 100000 deep
+    out = write_outputs(tmp_path / "out", demo_result, *demo[:2],
+                        extra={"scale": np.longdouble(1.5), "scales": np.ones(2, np.longdouble)})
+    data = json.loads((out / "result.json").read_text(encoding="utf-8"))
+    assert data["scale"] == 1.5 and data["scales"] == [1.0, 1.0]
+    deep = []
+    for _ in range(100_000):
+        deep = [deep]
+    with pytest.raises(ValueError, match="extra cannot be written as JSON: it is nested too deep"):
+        write_outputs(tmp_path / "deep", demo_result, *demo[:2], extra={"deep": deep})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
 def test_max_lines_beyond_a_float_draws_every_match():
     # float(10**400) raised OverflowError
     assert matches_to_draw(np.ones(200, bool), 10**400).tolist() == list(range(200))
