@@ -620,7 +620,13 @@ def read_text_file(path: str | os.PathLike, what: str) -> str:
     """The text of ``path`` as UTF-8, a byte-order mark dropped; ValueError naming ``what`` and
     the file when it cannot be read or holds other bytes (Python's decoding error alone named
     neither what was read nor that it was no text); a NUL byte, which no text holds, is named
-    with its line (a name holding it reached the file system as 'embedded null byte')."""
+    with its line (a name holding it reached the file system as 'embedded null byte'). A
+    ``path`` that is no path is a TypeError; one that is no regular file (a FIFO, whose reader
+    would wait for a writer) a ValueError."""
+    from .images import file_mode
+
+    if not stat.S_ISREG(file_mode(path, what)):
+        raise ValueError(f"{what} {os.fspath(path)} is not a regular file")
     try:
         with open(path, encoding="utf-8-sig") as handle:
             text = handle.read()

@@ -1324,6 +1324,24 @@ def test_jpeg_size_is_read_from_the_header_too(tmp_path):
 
 
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+def test_read_text_file_refuses_a_fifo_and_names_a_path_that_is_none(tmp_path):
+    # it opened the FIFO and waited for a writer; None failed in open(), naming nothing
+    fifo = tmp_path / "pairs.txt"
+    os.mkfifo(fifo)
+    with ThreadPoolExecutor(1) as pool:
+        future = pool.submit(ppo_cv.calib.read_text_file, fifo, "pairs file")
+        try:
+            with pytest.raises(ValueError, match="pairs file .* is not a regular file"):
+                future.result(timeout=10)
+        except FutureTimeout:
+            with open(fifo, "w"):  # release the reader
+                pass
+            raise
+    with pytest.raises(TypeError, match="path must be a path"):
+        ppo_cv.calib.read_text_file(None, "pairs file")
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
 def test_a_fifo_is_refused_without_blocking(tmp_path):
     fifo = tmp_path / "pipe.png"
     os.mkfifo(fifo)
