@@ -200,16 +200,16 @@ def as_vector3(value: Any, name: str) -> np.ndarray:
 
 def require_pose_matches(
     R: Any, t: Any, x1: Any, x2: Any, inliers: Any = None, *, moving: bool = True,
-    bearings: bool = False,
+    bearings: bool = False, max_slope: float = math.inf,
 ) -> np.ndarray:
     """ValueError or TypeError naming the argument unless ``R`` is a rotation, ``t`` three
     finite numbers (not all zero when ``moving``), ``x1`` and ``x2`` finite (N, 3) rows of one
     length and ``inliers`` (when given) a bool mask of N. Unless ``bearings``, the rows are
-    homogeneous image points: ``w`` nonzero and ``|(x, y)| <= MAX_RAY_SLOPE |w|``. The pose
+    homogeneous image points: ``w`` nonzero and ``|(x, y)| <= max_slope |w|``. The pose
     functions of :mod:`ppo_cv.refine` and :mod:`ppo_cv.valley` failed on NaN in numpy's SVD
     (LinAlgError), read a mask of indices as one of flags, answered NaN for a zero ``t`` (the
-    translation's direction is their unknown) and stopped the process in pycolmap's refinement
-    for rays all beyond :data:`MAX_RAY_SLOPE`.
+    translation's direction is their unknown) and divided by a zero ``w``; pycolmap's
+    refinement stopped the process for rays all beyond :data:`MAX_RAY_SLOPE`.
 
     Returns
     -------
@@ -229,8 +229,8 @@ def require_pose_matches(
     if a.shape[0] != b.shape[0]:
         raise ValueError(f"x1 and x2 must have the same length, got {a.shape[0]} and {b.shape[0]}")
     if not bearings:
-        _require_rays(a, "x1")
-        _require_rays(b, "x2")
+        _require_rays(a, "x1", max_slope)
+        _require_rays(b, "x2", max_slope)
     if inliers is not None:
         mask = np.asarray(inliers)
         if mask.dtype != bool:
@@ -248,16 +248,19 @@ from the optical axis: 1e6 is a ray a microradian from the image plane. pycolmap
 refinement stops the process (a failed check in Ceres) where all rays lie beyond about 1e7."""
 
 
-def _require_rays(rows: np.ndarray, name: str) -> None:
+def _require_rays(rows: np.ndarray, name: str, max_slope: float) -> None:
     """ValueError naming ``name`` unless every homogeneous row (N, 3) has ``w`` nonzero and
-    ``|(x, y)| <= MAX_RAY_SLOPE |w|``."""
-    slope = np.abs(rows[:, :2]).max(axis=1, initial=0.0)
-    bad = slope > MAX_RAY_SLOPE * np.abs(rows[:, 2])
+    ``|(x, y)| <= max_slope |w|``."""
+    w = np.abs(rows[:, 2])
+    bad = w == 0
+    if math.isfinite(max_slope):
+        bad |= np.abs(rows[:, :2]).max(axis=1, initial=0.0) > max_slope * w
     if bad.any():
+        beyond = f" or |(x, y)| beyond {max_slope:.0e} |w|" if math.isfinite(max_slope) else ""
         raise ValueError(
-            f"{name} has {int(bad.sum())} row(s) with w = 0 or |(x, y)| beyond "
-            f"{MAX_RAY_SLOPE:.0e} |w| (a point at or near infinity), e.g. "
-            f"{rows[np.flatnonzero(bad)[0]].tolist()}: not normalised image points"
+            f"{name} has {int(bad.sum())} row(s) with w = 0{beyond} (a point at or near "
+            f"infinity), e.g. {rows[np.flatnonzero(bad)[0]].tolist()}: not normalised image "
+            "points"
         )
 
 

@@ -21,6 +21,7 @@ import numpy as np
 from .checks import (
     MAX_FOCAL,
     MAX_RADIAL,
+    MAX_RAY_SLOPE,
     MAX_WHOLE_NUMBER,
     as_deviation,
     as_deviation_pair,
@@ -109,7 +110,7 @@ def refine_pose(
     """
     import pycolmap
 
-    t = require_pose_matches(R, t, x1, x2, inliers)
+    t = require_pose_matches(R, t, x1, x2, inliers, max_slope=MAX_RAY_SLOPE)
     focal = as_positive_at_most(focal, "focal", MAX_FOCAL, " pixels")
     if np.count_nonzero(inliers) < 5:
         return R, t / np.linalg.norm(t)
