@@ -30,6 +30,7 @@ matrix, to homographies; see ``docs/homography.md``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -221,8 +222,16 @@ def normalize_homography(
 
 
 def homography_from_pose(R: np.ndarray, t: np.ndarray, n: np.ndarray, d: float) -> np.ndarray:
-    """``Hn = R + t n^T / d``, the homography of the plane ``n^T X1 = d`` (``x2 ~ Hn x1``)."""
-    return np.asarray(R, float) + np.outer(t, n) / float(d)
+    """``Hn = R + t n^T / d``, the homography of the plane ``n^T X1 = d`` (``x2 ~ Hn x1``): a
+    rotation ``R``, three finite numbers ``t``, a normal ``n`` not zero and a finite distance
+    ``d`` not zero; ValueError or TypeError naming the argument otherwise."""
+    R, t, n = as_rotation(R, "R"), as_vector3(t, "t"), as_vector3(n, "n")
+    distance = as_number(d, "d")
+    if not n.any():
+        raise ValueError("n is zero: a plane needs a normal")
+    if not (math.isfinite(distance) and distance != 0.0):
+        raise ValueError(f"d must be a finite distance other than 0, got {distance}")
+    return R + np.outer(t, n) / distance
 
 
 def decompose_homography(H: np.ndarray) -> HomographyCandidates:
@@ -250,6 +259,8 @@ def decompose_homography(H: np.ndarray) -> HomographyCandidates:
     """
     H = _as_homography(H)
     _, s, Vt = np.linalg.svd(H)  # Hn^T Hn = V diag(s^2) V^T
+    if not s[1] > 0:
+        raise ValueError("H has rank below 2: not a homography between two views")
     V = Vt.T * np.sign(np.linalg.det(Vt))
     s1, s3 = s[0] ** 2 / s[1] ** 2, s[2] ** 2 / s[1] ** 2  # squared, middle value taken as 1
     v1, v2, v3 = V.T

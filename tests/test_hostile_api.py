@@ -690,6 +690,30 @@ CASES = {
         lambda: ppo_cv.robust.estimate_essential_ordered(
             RAYS, RAYS2, 800.0, np.ones(40), (640, 480), max_log10_nfa=np.nan), ValueError,
         "max_log10_nfa must be a number (inf: every consensus), got nan"),
+    # ZeroDivisionError for a Huber bound of 0, LinAlgError for NaN; "Value after * must be an
+    # iterable" and AttributeErrors for minima that are none; a RuntimeWarning for a plane at
+    # distance 0 and a zero normal read as a plane; RuntimeWarnings for a zero homography
+    "valley valley_minima zero scale": (
+        lambda: __import__("ppo_cv.valley").valley.valley_minima(R_TRUE, T_TRUE, _rays(), RAYS2,
+                                                                0.0), ValueError,
+        "scale must be a finite number > 0, got 0.0"),
+    "valley valley_outcome minima None": (
+        lambda: __import__("ppo_cv.valley").valley.valley_outcome(R_TRUE, T_TRUE, None),
+        TypeError, "minima must be a list of ValleyMinimum, got NoneType"),
+    "valley valley_outcome minima texts": (
+        lambda: __import__("ppo_cv.valley").valley.valley_outcome(R_TRUE, T_TRUE, ["a"]),
+        TypeError, "each of minima must be a ppo_cv.valley.ValleyMinimum, got str"),
+    "plane homography_from_pose zero distance": (
+        lambda: __import__("ppo_cv.plane").plane.homography_from_pose(R_TRUE, T_TRUE, [0, 0, 1],
+                                                                      0.0), ValueError,
+        "d must be a finite distance other than 0, got 0.0"),
+    "plane homography_from_pose zero normal": (
+        lambda: __import__("ppo_cv.plane").plane.homography_from_pose(R_TRUE, T_TRUE, [0, 0, 0],
+                                                                      1.0), ValueError,
+        "n is zero: a plane needs a normal"),
+    "plane decompose_homography zeros": (
+        lambda: __import__("ppo_cv.plane").plane.decompose_homography(np.zeros((3, 3))),
+        ValueError, "H has rank below 2: not a homography between two views"),
     "valley valley_minima NaN match": (
         lambda: __import__("ppo_cv.valley").valley.valley_minima(
             R_TRUE, T_TRUE, _rays(np.nan), _rays(), 1e-3), ValueError, "x1 has 1 NaN"),
