@@ -642,12 +642,12 @@ def _composed(
 ) -> np.ndarray:
     """:func:`composed_distortion` of checked arguments (a fitted pose's ``k1``)."""
     from .camera import pixels_to_normalized
-    from .plane import undistort_division
+    from .plane import _undistort_division
 
     given = np.zeros(0) if dist is None else np.asarray(dist, float).ravel()
     pixels = _composed_grid(size)
     seen = (pixels - K[:2, 2]) / np.diag(K)[:2]
-    c = undistort_division(pixels_to_normalized(pixels, K, dist), k1)[:, :2]
+    c = _undistort_division(pixels_to_normalized(pixels, K, dist), k1)[:, :2]
     if given.size <= 4:
         solved, error = _composed_fit(c, seen, given, full=False)
         if np.max(np.abs(error) * np.diag(K)[:2]) <= COMPOSED_TOLERANCE_PX:

@@ -594,8 +594,24 @@ def undistort_division(x: np.ndarray, k1: float) -> np.ndarray:
     """One-parameter division model (Fitzgibbon, 2001): ``q = x / (1 + k1 |x|^2)``, (N, 3).
 
     ``x`` are normalized points ``K^-1 (u, v, 1)`` with the distortion unmodelled; to first
-    order ``k1`` equals OpenCV's radial ``k1`` of the lens. Returns homogeneous rows.
+    order ``k1`` equals OpenCV's radial ``k1`` of the lens. Returns homogeneous rows. Finite
+    points and a finite ``k1`` under which ``1 + k1 |x|^2 > 0`` at every point (else the model
+    folds the image over itself); ValueError or TypeError naming the argument otherwise.
     """
+    X = _homogeneous(as_finite_array(x, "x"))
+    coefficient = as_number(k1, "k1")
+    if not math.isfinite(coefficient):
+        raise ValueError(f"k1 must be a finite number, got {coefficient}")
+    folded = 1.0 + coefficient * np.sum(X[:, :2] ** 2, axis=1) <= 0
+    if folded.any():
+        raise ValueError(
+            f"k1 = {coefficient:g} folds {int(folded.sum())} of the points over "
+            "(1 + k1 |x|^2 <= 0): no lens's division model"
+        )
+    return _undistort_division(X, coefficient)
+
+
+def _undistort_division(x: np.ndarray, k1: float) -> np.ndarray:
     X = _homogeneous(as_real_array(x, "x"))
     scale = 1.0 + as_number(k1, "k1") * np.sum(X[:, :2] ** 2, axis=1)
     return np.column_stack([X[:, :2] / scale[:, None], np.ones(len(X))])
@@ -625,7 +641,7 @@ class _PlaneModel:
     def residuals(self, p: np.ndarray) -> np.ndarray:
         R, T, n = self.pose(p)
         k1 = p[8] if len(p) > 8 else 0.0
-        q1, q2 = undistort_division(self.x1, k1), undistort_division(self.x2, k1)
+        q1, q2 = _undistort_division(self.x1, k1), _undistort_division(self.x2, k1)
         return _transfer(R + np.outer(T, n), q1, q2)
 
 
@@ -714,7 +730,8 @@ def refine_planar_pose(
     Rr, Tr, nr = model.pose(p)
     k1 = float(p[8]) if len(p) > 8 else 0.0
     norm = float(np.linalg.norm(Tr))
-    full = _transfer(Rr + np.outer(Tr, nr), undistort_division(X1, k1), undistort_division(X2, k1))
+    q1, q2 = _undistort_division(X1, k1), _undistort_division(X2, k1)
+    full = _transfer(Rr + np.outer(Tr, nr), q1, q2)
     rotation_sigma, fit_sigma = _rotation_sigmas_deg(
         model, np.append(p[:8], k1), scale, k1_prior, count,
         held_k1_sigma=None if len(p) > 8 else held_k1_deviation(k1_fitted, k1_sigma),

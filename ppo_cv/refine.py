@@ -46,7 +46,7 @@ from .lsq import (
     tangent_basis,
 )
 from .model_selection import robust_sigma
-from .plane import K1_SIGNIFICANCE, _rms_rotation_angle_deg, undistort_division
+from .plane import K1_SIGNIFICANCE, _rms_rotation_angle_deg, _undistort_division
 from .ppo import rotation_from_rays
 from .robust import _sampson_signed as _essential_sampson_signed
 from .robust import _sampson_signed_rows, virtual_camera
@@ -492,7 +492,7 @@ def _k1_noise_bias(R, t, x1, x2, p, scale, k1_prior, iterations, replicates) -> 
     themselves (``t`` a unit vector), whose residuals size the simulated noise."""
     E = cross_matrix(t) @ R
     sizes = np.abs(
-        _sampson_signed(*pose_increment(R, t, p), *(undistort_division(x, p[5]) for x in (x1, x2)))
+        _sampson_signed(*pose_increment(R, t, p), *(_undistort_division(x, p[5]) for x in (x1, x2)))
     )
     A, B = _stacked_sets(noise_replicates(E, x1, x2, sizes, replicates))
     fitted = _radial_fits(R, t, A, B, scale, k1_prior, iterations)[:, 5]
@@ -517,7 +517,7 @@ def noise_replicates(
     x1, x2 : ndarray, shape (N, 3)
         ``count`` times.
     """
-    a, b = (undistort_division(np.asarray(x, float) / np.asarray(x, float)[:, 2:], k1)
+    a, b = (_undistort_division(np.asarray(x, float) / np.asarray(x, float)[:, 2:], k1)
             for x in (x1, x2))  # fmt: skip
     a, b = _sampson_corrected(E, a, b)
     rng = np.random.default_rng(0)
@@ -619,11 +619,11 @@ def _released_move(R, t, k1, a, b, scale, iterations) -> tuple | None:
     """Rotation increment (3,) of :func:`released_lens_shift_deg`'s refit of the matches ``a,
     b`` and the sizes (N,) of their Sampson residuals there (``k1`` fitted); None without
     noise."""
-    noise = robust_sigma(_sampson_signed(R, t, *(undistort_division(x, k1) for x in (a, b))), 1)
+    noise = robust_sigma(_sampson_signed(R, t, *(_undistort_division(x, k1) for x in (a, b))), 1)
     if not noise > 0:
         return None
     fit = _radial_fit(R, t, a, b, scale, K1_PRIOR, iterations, k1_start=k1, prior_weight=noise)
-    fitted = (undistort_division(x, k1 + fit.p[5]) for x in (a, b))
+    fitted = (_undistort_division(x, k1 + fit.p[5]) for x in (a, b))
     return fit.p[:3], np.abs(_sampson_signed(*fit.pose(fit.p), *fitted))
 
 
@@ -631,7 +631,7 @@ def _released_moves(R, t, k1, A, B, scale, iterations) -> np.ndarray:
     """The rotation increments (S', 3) of :func:`_released_move` on the match sets ``A``,
     ``B`` (S, N, 3), fitted together, of the S' sets that have noise."""
     noise = np.array([
-        robust_sigma(_sampson_signed(R, t, *(undistort_division(x, k1) for x in (a, b))), 1)
+        robust_sigma(_sampson_signed(R, t, *(_undistort_division(x, k1) for x in (a, b))), 1)
         for a, b in zip(A, B, strict=True)
     ])  # fmt: skip
     has = noise > 0

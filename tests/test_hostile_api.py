@@ -714,6 +714,17 @@ CASES = {
     "plane decompose_homography zeros": (
         lambda: __import__("ppo_cv.plane").plane.decompose_homography(np.zeros((3, 3))),
         ValueError, "H has rank below 2: not a homography between two views"),
+    # NaN points out for a NaN k1 or NaN points in; a k1 folding points over divided by zero
+    # or turned them about the centre without a word
+    "plane undistort_division NaN k1": (
+        lambda: __import__("ppo_cv.plane").plane.undistort_division(_rays(), np.nan), ValueError,
+        "k1 must be a finite number, got nan"),
+    "plane undistort_division NaN point": (
+        lambda: __import__("ppo_cv.plane").plane.undistort_division(_rays(np.nan), 0.1),
+        ValueError, "x has 1 NaN or infinite value(s)"),
+    "plane undistort_division folding k1": (
+        lambda: __import__("ppo_cv.plane").plane.undistort_division(_rays() * [10, 10, 1], -1.0),
+        ValueError, "k1 = -1 folds"),
     "valley valley_minima NaN match": (
         lambda: __import__("ppo_cv.valley").valley.valley_minima(
             R_TRUE, T_TRUE, _rays(np.nan), _rays(), 1e-3), ValueError, "x1 has 1 NaN"),
