@@ -335,8 +335,14 @@ def pose_errors(R, t, T) -> dict:
     """
     import numpy as np
 
+    from ppo_cv.checks import as_finite_array, as_vector3
     from ppo_cv.metrics import direction_error_deg, rotation_error_deg
 
+    T = as_finite_array(T, "T")
+    if T.shape not in ((4, 4), (3, 4)):
+        raise ValueError(f"T must be a 4x4 (or 3x4) motion [R | t], got shape {T.shape}")
+    if not as_vector3(t, "t").any():
+        raise ValueError("t is zero: it has no direction to compare")
     R_gt, t_gt = T[:3, :3], T[:3, 3]
     r_err = rotation_error_deg(R, R_gt)
     if float(np.linalg.norm(t_gt)) <= _ZERO_TRANSLATION:
@@ -346,10 +352,20 @@ def pose_errors(R, t, T) -> dict:
 
 
 def pose_auc(errors, thresholds=(5.0, 10.0, 20.0)) -> list[float]:
-    """Area under the recall curve of pose errors (degrees) up to each threshold, in [0, 1]."""
+    """Area under the recall curve of pose errors (degrees) up to each threshold, in [0, 1]:
+    ``errors`` a sequence of finite numbers >= 0 (a failure counted as 180), ``thresholds``
+    positive; ValueError or TypeError naming the argument otherwise."""
     import numpy as np
 
-    errors = np.sort(np.asarray(errors, dtype=np.float64))
+    from ppo_cv.checks import as_finite_array, as_positive
+
+    errors = as_finite_array(errors, "errors")
+    if errors.ndim != 1:
+        raise ValueError(f"errors must be a sequence of numbers, got shape {errors.shape}")
+    if (errors < 0).any():
+        raise ValueError(f"errors must be angles >= 0, got {errors.min():g}")
+    thresholds = [as_positive(threshold, "thresholds") for threshold in thresholds]
+    errors = np.sort(errors)
     recall = np.arange(1, errors.size + 1) / errors.size
     errors, recall = np.r_[0.0, errors], np.r_[0.0, recall]
     areas = []

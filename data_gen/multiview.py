@@ -16,6 +16,7 @@ from ppo_cv.checks import (
     as_rotation,
     as_vector3,
     as_whole_number,
+    shown,
 )
 
 from .render import _check_size, render_view
@@ -114,8 +115,15 @@ def relative_gt_from_poses(
     """Ground-truth ``cam2_from_cam1`` of every pair of views from their ``cam_from_world``.
 
     ``poses`` holds one ``(R (3, 3), t (3,))`` per name; a ValueError or TypeError names a
-    count that differs, a pose that is no pair, a rotation or translation that is not one.
+    count that differs, a pose that is no pair, a rotation or translation that is not one,
+    names that are not distinct texts.
     """
+    if not isinstance(names, (list, tuple)) or not all(isinstance(n, str) for n in names):
+        raise TypeError(f"names must be a list of texts, got {shown(names)}")
+    if len(set(names)) != len(names):
+        raise ValueError(f"names must differ, one per view, got {shown(names)}")
+    if not isinstance(poses, (list, tuple)):
+        raise TypeError(f"poses must be a list of (R, t), got {type(poses).__name__}")
     if len(names) != len(poses):
         raise ValueError(f"names and poses must have one entry per view, got {len(names)} "
                          f"names and {len(poses)} poses")  # fmt: skip

@@ -38,6 +38,7 @@ from .checks import (
     as_distortion,
     as_flag,
     as_image_size,
+    as_number,
     as_path,
     cut,
     require_instance,
@@ -619,7 +620,13 @@ def read_text_file(path: str | os.PathLike, what: str) -> str:
     """The text of ``path`` as UTF-8, a byte-order mark dropped; ValueError naming ``what`` and
     the file when it cannot be read or holds other bytes (Python's decoding error alone named
     neither what was read nor that it was no text); a NUL byte, which no text holds, is named
-    with its line (a name holding it reached the file system as 'embedded null byte')."""
+    with its line (a name holding it reached the file system as 'embedded null byte'). A
+    ``path`` that is no path is a TypeError; one that is no regular file (a FIFO, whose reader
+    would wait for a writer) a ValueError."""
+    from .images import file_mode
+
+    if not stat.S_ISREG(file_mode(path, what)):
+        raise ValueError(f"{what} {os.fspath(path)} is not a regular file")
     try:
         with open(path, encoding="utf-8-sig") as handle:
             text = handle.read()
@@ -873,6 +880,9 @@ def exif_focal_scale(layout: Any, size: tuple[int, int]) -> float:
     float
         The ratio of the image's larger side to the recorded larger side, or 1.
     """
+    from .images import ExifLayout
+
+    require_instance(layout, ExifLayout, "layout", " (ppo_cv.images.exif_layout(path))")
     if layout.camera_size is None or not layout.focal_in_recorded_pixels:
         return 1.0
     scale = resize_scale(layout.camera_size, size)
@@ -886,7 +896,7 @@ def fitted_exif_focal(focal: float, layout: Any, size: tuple[int, int]) -> tuple
     (:func:`unusable_exif_focal`), COLMAP's guess for an image without one
     (:data:`GUESSED_FOCAL_FACTOR` times its larger side); with why it was replaced, None when
     it is the EXIF's."""
-    focal = float(focal) * exif_focal_scale(layout, size)
+    focal = as_number(focal, "focal") * exif_focal_scale(layout, size)
     doubt = unusable_exif_focal(focal, max(size))
     return (focal, None) if doubt is None else (GUESSED_FOCAL_FACTOR * max(size), doubt)
 

@@ -28,6 +28,9 @@ __all__ = [
     "as_ransac_settings",
     "as_vector3",
     "require_pose_matches",
+    "MAX_RAY_SLOPE",
+    "as_deviation",
+    "as_deviation_pair",
     "as_nonnegative",
     "as_pri_threshold",
     "as_number",
@@ -196,27 +199,69 @@ def as_vector3(value: Any, name: str) -> np.ndarray:
 
 
 def require_pose_matches(
-    R: Any, t: Any, x1: Any, x2: Any, inliers: Any = None, *, moving: bool = True
-) -> None:
+    R: Any, t: Any, x1: Any, x2: Any, inliers: Any = None, *, moving: bool = True,
+    bearings: bool = False, max_slope: float = math.inf,
+) -> np.ndarray:
     """ValueError or TypeError naming the argument unless ``R`` is a rotation, ``t`` three
     finite numbers (not all zero when ``moving``), ``x1`` and ``x2`` finite (N, 3) rows of one
-    length and ``inliers`` (when given) a bool mask of N; validates without converting. The
-    pose functions of :mod:`ppo_cv.refine` and :mod:`ppo_cv.valley` failed on NaN in numpy's
-    SVD (LinAlgError), read a mask of indices as one of flags and answered NaN for a zero
-    ``t`` (the translation's direction is their unknown)."""
+    length and ``inliers`` (when given) a bool mask of N. Unless ``bearings``, the rows are
+    homogeneous image points: ``w`` nonzero and ``|(x, y)| <= max_slope |w|``. The pose
+    functions of :mod:`ppo_cv.refine` and :mod:`ppo_cv.valley` failed on NaN in numpy's SVD
+    (LinAlgError), read a mask of indices as one of flags, answered NaN for a zero ``t`` (the
+    translation's direction is their unknown) and divided by a zero ``w``; pycolmap's
+    refinement stopped the process for rays all beyond :data:`MAX_RAY_SLOPE`.
+
+    Returns
+    -------
+    ndarray, shape (3,)
+        ``t`` as float64, divided by a power of two (exactly) when its largest entry is
+        beyond ``[1e-100, 1e100]``: its norm would under- or overflow, and any scale of ``t``
+        is the same direction. Otherwise ``t`` unchanged.
+    """
     as_rotation(R, "R")
-    if not as_vector3(t, "t").any() and moving:
+    translation = as_vector3(t, "t")
+    largest = float(np.abs(translation).max())
+    if largest == 0 and moving:
         raise ValueError("t is zero: these need a translation (a pure rotation has none)")
+    if largest and not 1e-100 <= largest <= 1e100:
+        translation = np.ldexp(translation, -math.frexp(largest)[1])
     a, b = as_finite_rows(x1, "x1", 3), as_finite_rows(x2, "x2", 3)
     if a.shape[0] != b.shape[0]:
         raise ValueError(f"x1 and x2 must have the same length, got {a.shape[0]} and {b.shape[0]}")
-    if inliers is None:
-        return
-    mask = np.asarray(inliers)
-    if mask.dtype != bool:
-        raise TypeError(f"inliers must be a mask of bool, got dtype {mask.dtype}")
-    if mask.shape != (a.shape[0],):
-        raise ValueError(f"inliers must have one flag per match ({a.shape[0]}), got {mask.shape}")
+    if not bearings:
+        _require_rays(a, "x1", max_slope)
+        _require_rays(b, "x2", max_slope)
+    if inliers is not None:
+        mask = np.asarray(inliers)
+        if mask.dtype != bool:
+            raise TypeError(f"inliers must be a mask of bool, got dtype {mask.dtype}")
+        if mask.shape != (a.shape[0],):
+            raise ValueError(
+                f"inliers must have one flag per match ({a.shape[0]}), got {mask.shape}"
+            )
+    return translation
+
+
+MAX_RAY_SLOPE = 1e6
+"""Largest normalised coordinate ``|(x, y) / w|`` of an image point, the tangent of its angle
+from the optical axis: 1e6 is a ray a microradian from the image plane. pycolmap's relative-pose
+refinement stops the process (a failed check in Ceres) where all rays lie beyond about 1e7."""
+
+
+def _require_rays(rows: np.ndarray, name: str, max_slope: float) -> None:
+    """ValueError naming ``name`` unless every homogeneous row (N, 3) has ``w`` nonzero and
+    ``|(x, y)| <= max_slope |w|``."""
+    w = np.abs(rows[:, 2])
+    bad = w == 0
+    if math.isfinite(max_slope):
+        bad |= np.abs(rows[:, :2]).max(axis=1, initial=0.0) > max_slope * w
+    if bad.any():
+        beyond = f" or |(x, y)| beyond {max_slope:.0e} |w|" if math.isfinite(max_slope) else ""
+        raise ValueError(
+            f"{name} has {int(bad.sum())} row(s) with w = 0{beyond} (a point at or near "
+            f"infinity), e.g. {rows[np.flatnonzero(bad)[0]].tolist()}: not normalised image "
+            "points"
+        )
 
 
 def as_real_array(value: Any, name: str) -> np.ndarray:
@@ -535,6 +580,27 @@ def as_nonnegative(value: Any, name: str) -> float:
     return number
 
 
+def as_deviation(value: Any, name: str, *, positive: bool = False) -> float | None:
+    """None, or the deviation of a prior: a finite number >= 0 (> 0 when ``positive``, for a
+    prior that weighs a parameter by its inverse)."""
+    if value is None:
+        return None
+    return as_positive(value, name) if positive else as_nonnegative(value, name)
+
+
+def as_deviation_pair(value: Any, name: str) -> np.ndarray | None:
+    """None, or deviations ``(x, y)``: one finite number >= 0 for both or two, as float64
+    (2,)."""
+    if value is None:
+        return None
+    pair = as_finite_array(value, name)
+    if pair.size not in (1, 2) or pair.ndim > 1:
+        raise ValueError(f"{name} must be one number or two (x, y), got shape {pair.shape}")
+    if (pair < 0).any():
+        raise ValueError(f"{name} must be deviations >= 0, got {pair.tolist()}")
+    return np.broadcast_to(pair, (2,)).copy()
+
+
 def as_pri_threshold(value: Any, name: str = "pri_threshold") -> float:
     """A pure-rotation threshold on PRI in ``[0, 1]``: the paper's is 0.015, and one above 1
     would call nearly every pair a pure rotation."""
@@ -644,5 +710,9 @@ def as_callback(value: Any, name: str, wanted: str = "callable") -> Any:
 
 
 def _public_name(kind: type) -> str:
+    if kind is type(None):
+        return "None"
+    if kind.__module__ == "builtins":
+        return kind.__qualname__
     modules = [part for part in kind.__module__.split(".") if not part.startswith("_")]
     return ".".join([*modules, kind.__qualname__])

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .camera import pixels_to_normalized
+from .checks import require_instance
 from .features import (
     Features,
     _require_same_descriptors,
@@ -128,6 +129,8 @@ def detect_both(
     """
     from concurrent.futures import ThreadPoolExecutor
 
+    require_instance(options, PairOptions, "options", " (ppo_cv.PairOptions(...))")
+
     def run(image):
         if threshold_scale is None:
             return _first_detection(image, options), time.perf_counter()
@@ -165,6 +168,7 @@ def _thinned(features: Features, threshold_scale: float) -> Features:
 def ransac_keywords(options: PairOptions) -> dict:
     """The robust fits' settings in ``options``, as :func:`ppo_cv.robust.estimate_essential`
     and :func:`ppo_cv.homography.estimate_homography` take them."""
+    require_instance(options, PairOptions, "options", " (ppo_cv.PairOptions(...))")
     return {
         "backend": options.backend,
         "threshold": options.ransac_threshold,
@@ -302,6 +306,10 @@ def best_consensus(
     features, the denser ones are fitted first (they hold the given ones: thinned to threshold
     1 they are the given set), and the given features are fitted uniformly only when the
     denser ones give no significant consensus."""
+    require_instance(inputs, PairInputs, "inputs")
+    require_instance(options, PairOptions, "options", " (ppo_cv.PairOptions(...))")
+    if not callable(lap):
+        raise TypeError(f"lap must be a callable taking a stage name, got {type(lap).__name__}")
     img1, img2 = inputs.img1, inputs.img2
     require_features_of(f1, f2, img1.shape, img2.shape)
     camera = (

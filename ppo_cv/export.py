@@ -350,7 +350,8 @@ def _max_lines(value: Any) -> int | None:
     ):
         raise TypeError(f"max_lines must be a whole number or None, got {type(value).__name__} "
                         f"{shown(value)}")  # fmt: skip
-    if not (value >= 0 and float(value).is_integer()):
+    whole = isinstance(value, (int, np.integer)) or float(value).is_integer()
+    if not (value >= 0 and whole):  # an int beyond float's range compares, whole
         raise ValueError(f"max_lines must be a whole number >= 0 or None, got {shown(value)}")
     return int(value)
 
@@ -641,12 +642,12 @@ def _composed(
 ) -> np.ndarray:
     """:func:`composed_distortion` of checked arguments (a fitted pose's ``k1``)."""
     from .camera import pixels_to_normalized
-    from .plane import undistort_division
+    from .plane import _undistort_division
 
     given = np.zeros(0) if dist is None else np.asarray(dist, float).ravel()
     pixels = _composed_grid(size)
     seen = (pixels - K[:2, 2]) / np.diag(K)[:2]
-    c = undistort_division(pixels_to_normalized(pixels, K, dist), k1)[:, :2]
+    c = _undistort_division(pixels_to_normalized(pixels, K, dist), k1)[:, :2]
     if given.size <= 4:
         solved, error = _composed_fit(c, seen, given, full=False)
         if np.max(np.abs(error) * np.diag(K)[:2]) <= COMPOSED_TOLERANCE_PX:
@@ -709,13 +710,18 @@ def write_colmap_model(
     composed after ``dists`` (:func:`composed_distortion`, an ``OPENCV`` or ``FULL_OPENCV``
     camera), so the points reproject onto their pixels. A camera no COLMAP
     model holds (:func:`check_colmap_camera`), ``names`` that are not two distinct non-empty
-    texts or ``dists`` that are not two distortions is a ValueError or TypeError.
+    texts, ``dists`` that are not two distortions, or a ``directory`` that is no path or names
+    a file is a ValueError or TypeError; an existing folder keeps its other files.
     """
     import pycolmap
 
+    from .atomic import API_REPLACE_HINT, check_target
+
+    as_path(directory, "directory")
     require_result(result)
     cameras = result.cameras
     dists = _colmap_model_inputs(result, names, dists)
+    check_target(directory, "folder", overwrite=True, replace_hint=API_REPLACE_HINT)
     reconstruction = pycolmap.Reconstruction()
     same = (
         np.allclose(cameras.K1, cameras.K2)
@@ -832,6 +838,8 @@ def _checked_output_arguments(
         extra = json.loads(json.dumps(extra, allow_nan=False, default=_json_number))
     except (TypeError, ValueError) as exc:
         raise type(exc)(f"extra cannot be written as JSON: {exc}") from None
+    except RecursionError:
+        raise ValueError("extra cannot be written as JSON: it is nested too deeply") from None
     result_to_dict(result, **(extra or {}))
     return (*arrays, extra)
 
@@ -840,7 +848,8 @@ def _json_number(value: Any) -> Any:
     """A numpy number (``np.int64(3)``, ``np.float32(1.5)``, ``np.bool_``) or array of numbers
     as the Python number or list JSON writes; TypeError for anything else, as ``json`` says."""
     if isinstance(value, (np.generic, np.ndarray)) and value.dtype.kind in "biuf":
-        return value.tolist()
+        # a long double's tolist() is itself, which json would hand back here without end
+        return (value.astype(np.float64) if value.dtype.kind == "f" else value).tolist()
     raise TypeError(f"Object of type {type(value).__name__} is not JSON serializable")
 
 

@@ -19,6 +19,7 @@ from .checks import (
     as_finite_rows,
     as_flag,
     as_number,
+    as_points,
     as_positive,
     as_whole_number,
     require_finite,
@@ -210,7 +211,11 @@ def require_detectable(shape: tuple, name: str, max_image_size: int | None = Non
     """ValueError naming ``name`` and its size when an image of ``shape`` (H, W[, C]) is too
     small or too thin to detect features on: a side below :data:`MIN_IMAGE_SIDE`, also on the
     copy whose longer side is reduced to ``max_image_size``."""
-    height, width = int(shape[0]), int(shape[1])
+    if isinstance(shape, (str, bytes)) or not hasattr(shape, "__len__") or len(shape) < 2:
+        raise TypeError(f"shape must be an image's shape (H, W[, C]), got {shown(shape)}")
+    height, width = (as_whole_number(side, "shape", 0, MAX_WHOLE_NUMBER) for side in shape[:2])
+    if max_image_size is not None:
+        max_image_size = as_whole_number(max_image_size, "max_image_size", 1, MAX_WHOLE_NUMBER)
     shorter = min(height, width)
     if max_image_size is not None and max(height, width) > max_image_size:
         shorter = shorter * max_image_size / max(height, width)
@@ -610,7 +615,35 @@ def unique_pixel_pairs(
     ndarray of int, shape (U, 2)
         The kept rows of ``matches``, in their original order.
     """
-    return matches[_unique_rows(matches, keypoints1, keypoints2, distances, resolution)]
+    checked = _checked_pixel_pairs(matches, keypoints1, keypoints2, distances, resolution)
+    return np.asarray(matches)[_unique_rows(*checked)]
+
+
+def _checked_pixel_pairs(matches, keypoints1, keypoints2, distances, resolution) -> tuple:
+    """:func:`unique_pixel_pairs`'s arguments checked: index pairs (M, 2) of whole numbers
+    within the keypoints, image points, one finite distance per match, a step of at least
+    1e-6 pixels; ValueError or TypeError naming the argument otherwise."""
+    keypoints = [as_points(k, name) for k, name in ((keypoints1, "keypoints1"),
+                                                    (keypoints2, "keypoints2"))]  # fmt: skip
+    pairs = np.asarray(matches)
+    if pairs.dtype.kind not in "iu":
+        raise TypeError(f"matches must be index pairs of integers, got dtype {pairs.dtype}")
+    if pairs.ndim != 2 or pairs.shape[1] != 2:
+        raise ValueError(f"matches must have shape (M, 2), got {pairs.shape}")
+    for column, points in enumerate(keypoints):
+        indices = pairs[:, column]
+        if indices.size and not (0 <= indices.min() and indices.max() < len(points)):
+            raise ValueError(
+                f"matches column {column} must index keypoints{column + 1} (0..{len(points) - 1})"
+            )
+    distances = as_finite_array(distances, "distances")
+    if distances.shape != (len(pairs),):
+        raise ValueError(
+            f"distances must have one per match ({len(pairs)},), got {distances.shape}"
+        )
+    if resolution is not None and as_positive(resolution, "resolution") < 1e-6:
+        raise ValueError(f"resolution must be at least 1e-6 pixels, got {resolution}")
+    return pairs, *keypoints, distances, resolution
 
 
 def _unique_rows(matches, keypoints1, keypoints2, distances, resolution=None) -> np.ndarray:

@@ -26,7 +26,14 @@ from typing import Any
 import numpy as np
 
 from .camera import pixels_to_normalized
-from .checks import as_finite_rows, as_positive, shown
+from .checks import (
+    MAX_WHOLE_NUMBER,
+    as_finite_rows,
+    as_positive,
+    as_whole_number,
+    require_instance,
+    shown,
+)
 from .homography import estimate_homography
 from .parallax import nearest_rotation_log_scale, rotation_spread
 from .result import PairResult
@@ -77,6 +84,7 @@ def fitted_focal_scale(result: PairResult) -> float | None:
     the one that makes the homography of its inliers a rotation, when that homography is then
     within :data:`GUESSED_FOCAL_SPREAD` of one and the scale departs from 1 by at least
     :data:`MIN_FOCAL_REFIT` (log); None otherwise, and for a pure rotation."""
+    _require_result(result)
     if result.pure_rotation:
         return None
     cameras, used = result.cameras, result.matches[result.inliers]
@@ -106,6 +114,9 @@ def lens_focal_scale(
     """
     from .rotation import MIN_LENS_MATCHES, fit_rotation_lens, ransac_rotation
 
+    scale, threshold_px = as_positive(scale, "scale"), as_positive(threshold_px, "threshold_px")
+    seed = as_whole_number(seed, "seed", 0, MAX_WHOLE_NUMBER)
+    _require_result(result)
     cameras, used = result.cameras, result.matches[result.inliers]
     focal = scale * float(cameras.K1[0, 0])
     noise, bound = result.evidence.selection.noise_sigma_px / focal, threshold_px / focal
@@ -127,6 +138,10 @@ def lens_focal_scale(
     if abs(fit.focal_scale - 1.0) >= LENS_FOCAL_BOX * (1.0 - 1e-9) or change < MIN_FOCAL_REFIT:
         return None
     return float(scale / fit.focal_scale)
+
+
+def _require_result(result: Any) -> None:
+    require_instance(result, PairResult, "result", " (estimate_pair)")
 
 
 def decided_again(

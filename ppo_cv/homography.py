@@ -23,7 +23,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .checks import as_finite_array, as_finite_rows
+from .checks import (
+    MAX_WHOLE_NUMBER,
+    as_finite_array,
+    as_finite_rows,
+    as_whole_number,
+    require_instance,
+)
 from .plane import normalize_homography
 from .robust import checked_fit_settings, checked_rays, ransac_options
 
@@ -272,6 +278,8 @@ def require_unmirrored(
     rigid scene: the pose returned is the mirror image of the true one); a mirror inside the
     scene.
     """
+    require_instance(homography, (HomographyEstimate, type(None)), "homography")
+    min_inliers = as_whole_number(min_inliers, "min_inliers", 0, MAX_WHOLE_NUMBER)
     if homography is None or homography.num_inliers < min_inliers:
         return
     determinant = float(np.linalg.det(homography.H))

@@ -214,14 +214,25 @@ def check_decodes(path: str | os.PathLike, max_pixels: int | None = None) -> Non
     """:func:`check_header`, then a decode at 1/8 scale (cheaper than a full one, and still a
     read of all the data): ValueError naming ``path`` when the file is not a readable image,
     e.g. truncated."""
-    import cv2
-
     check_header(path, max_pixels)
     data = np.fromfile(os.fspath(path), dtype=np.uint8)
     with native_messages_silenced():
-        image = cv2.imdecode(data, cv2.IMREAD_REDUCED_GRAYSCALE_8) if data.size else None
+        image = _reduced_gray(data)
     if image is None:
         raise ValueError(f"not a readable image: {path}")
+
+
+def _reduced_gray(data: np.ndarray) -> np.ndarray | None:
+    """The encoded image ``data`` decoded grey at 1/8 scale, None when it does not decode;
+    whole where OpenCV cannot reduce it (a PNG narrower than 8 pixels raises ``cv2.error``)."""
+    import cv2
+
+    if not data.size:
+        return None
+    try:
+        return cv2.imdecode(data, cv2.IMREAD_REDUCED_GRAYSCALE_8)
+    except cv2.error:
+        return cv2.imdecode(data, cv2.IMREAD_GRAYSCALE)
 
 
 @dataclass(frozen=True)
@@ -355,13 +366,10 @@ def decoded_transposed(path: str | os.PathLike, width: int, height: int) -> bool
     OpenCV decodes them upright). Decides by the aspect of a decode at 1/8 scale; False for
     square images, unreadable files, files above the pixel limit and what is no regular file.
     """
-    import cv2
-
     path, (width, height) = as_path(path, "path"), as_image_size((width, height), "stored size")
     if width == height or width * height > _max_pixels(None) or not _is_regular_file(path):
         return False
-    data = np.fromfile(os.fspath(path), dtype=np.uint8)
-    shown = cv2.imdecode(data, cv2.IMREAD_REDUCED_GRAYSCALE_8) if data.size else None
+    shown = _reduced_gray(np.fromfile(os.fspath(path), dtype=np.uint8))
     if shown is None:
         return False
     aspect = shown.shape[1] / shown.shape[0]

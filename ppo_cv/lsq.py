@@ -14,6 +14,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .checks import MAX_WHOLE_NUMBER, as_whole_number
+
 __all__ = [
     "cross_matrix",
     "cross_matrices",
@@ -113,7 +115,9 @@ matches' residuals for 96 parameter rows (450 KB each) do not."""
 def row_chunks(count: int, width: int) -> list[slice]:
     """Slices that cut ``count`` stacked rows of ``width`` values each into chunks of about
     :data:`CHUNK_VALUES` values, at least one row each."""
-    size = max(1, CHUNK_VALUES // max(int(width), 1))
+    count = as_whole_number(count, "count", 0, MAX_WHOLE_NUMBER)
+    width = as_whole_number(width, "width", 0, MAX_WHOLE_NUMBER)
+    size = max(1, CHUNK_VALUES // max(width, 1))
     return [slice(start, start + size) for start in range(0, count, size)]
 
 

@@ -51,6 +51,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -60,6 +61,7 @@ from .checks import (
     as_real_array,
     as_whole_number,
     require_finite,
+    require_instance,
 )
 
 __all__ = [
@@ -354,12 +356,26 @@ def gric(residuals: np.ndarray, sigma: float, dimension: int, num_params: int) -
 def model_noise(candidates: Sequence[ModelResiduals]) -> float:
     """Noise (pixels) of the candidate of largest dimension: :func:`robust_sigma` of its
     residuals times ``sqrt(n / (n - k))`` for the ``k`` parameters it fitted to them."""
+    _require_candidates(candidates)
     general = max(candidates, key=lambda c: (c.dimension, c.num_params))
     sigma = robust_sigma(general.residuals, JOINT_DIMENSION - general.dimension)
     n = np.asarray(general.residuals).size
     if n > general.num_params:
         sigma *= float(np.sqrt(n / (n - general.num_params)))
     return sigma
+
+
+def _require_candidates(candidates: Any) -> None:
+    """TypeError unless ``candidates`` is a non-empty list or tuple of
+    :class:`ModelResiduals` (ValueError when empty)."""
+    if not isinstance(candidates, (list, tuple)):
+        raise TypeError(
+            f"candidates must be a list of ModelResiduals, got {type(candidates).__name__}"
+        )
+    if not candidates:
+        raise ValueError("candidates is empty: at least one candidate model is needed")
+    for candidate in candidates:
+        require_instance(candidate, ModelResiduals, "each of candidates")
 
 
 def select_model(
@@ -383,8 +399,7 @@ def select_model(
     -------
     ModelSelection
     """
-    if not candidates:
-        raise ValueError("select_model needs at least one candidate model")
+    _require_candidates(candidates)
     sizes = {np.asarray(c.residuals).size for c in candidates}
     if len(sizes) != 1:
         raise ValueError(f"candidates must score the same matches, got sizes {sorted(sizes)}")

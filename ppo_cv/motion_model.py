@@ -116,7 +116,13 @@ from functools import partial
 import numpy as np
 
 from . import ppo
-from .checks import require_pose_matches
+from .checks import (
+    MAX_FOCAL,
+    as_positive,
+    as_positive_at_most,
+    require_instance,
+    require_pose_matches,
+)
 from .homography import HomographyEstimate
 from .metrics import rotation_error_deg
 from .model_selection import (
@@ -516,7 +522,7 @@ def translation_for_rotation(R: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> n
     -------
     ndarray, shape (3,)
     """
-    require_pose_matches(R, np.zeros(3), x1, x2, moving=False)
+    require_pose_matches(R, np.zeros(3), x1, x2, moving=False, bearings=True)
     normals = np.cross(x1 @ R.T, x2)
     normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
     t = np.linalg.svd(normals, full_matrices=False)[2][-1]
@@ -884,6 +890,7 @@ def with_rotation(
     -------
     MotionDecision
     """
+    focal, threshold_px = _require_revisit(motion, lens, None, x1, x2, focal, threshold_px)
     residuals = _lens_rotation_residuals(
         lens.R, lens.focal_scale, lens.k1, x1, x2, lens.principal_offset, lens.focal_ratio
     )
@@ -910,6 +917,20 @@ def parallax_refuses_rotation(parallax: float, sigma: float, bound: float) -> bo
     :data:`PARALLAX_SIGNIFICANCE` deviations, refusing the pure rotation it was measured for
     (False for NaN)."""
     return bool(parallax - PARALLAX_SIGNIFICANCE * sigma > bound)
+
+
+def _require_revisit(motion, lens, parallax, x1, x2, focal, threshold_px) -> tuple[float, float]:
+    """TypeError or ValueError naming the argument of :func:`with_rotation` or
+    :func:`with_tracks` that is not of its kind: a decision, a lens fit, a parallax or None,
+    matches as :func:`translation_for_rotation` takes them, a focal length and a threshold
+    (positive, pixels); the last two checked."""
+    require_instance(motion, MotionDecision, "motion")
+    require_instance(lens, LensRotationFit, "lens")
+    require_instance(parallax, (PlaneParallax, type(None)), "parallax")
+    require_pose_matches(lens.R, np.zeros(3), x1, x2, moving=False, bearings=True)
+    return as_positive_at_most(focal, "focal", MAX_FOCAL, " pixels"), as_positive(
+        threshold_px, "threshold_px"
+    )
 
 
 def with_tracks(
@@ -957,6 +978,7 @@ def with_tracks(
     MotionDecision
         With ``track_parallax`` and ``track_parallax_sigma`` set.
     """
+    _require_revisit(motion, lens, parallax, x1, x2, focal, threshold_px)
     value = float("nan") if parallax is None else parallax.parallax
     sigma = float("nan") if parallax is None else parallax.sigma
     motion = replace(motion, track_parallax=value, track_parallax_sigma=sigma)

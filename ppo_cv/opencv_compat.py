@@ -21,8 +21,8 @@ As in OpenCV, a positional number after ``cameraMatrix`` is the ``R`` output buf
 form, four outputs); ``distanceThresh`` selects the third form by keyword (or with eight or nine
 positional arguments), and so does a ``triangulatedPoints`` keyword, which only the third form
 has (the number after ``cameraMatrix`` is then ``distanceThresh``). ``E`` may have any shape
-of nine entries (``(9,)``, ``(1, 9)``, ...), and ``cv2.UMat`` inputs give ``cv2.UMat``
-outputs.
+of nine entries (``(9,)``, ``(1, 9)``, ...), a camera matrix the shape (3, 3, 1) OpenCV also
+reads, and ``cv2.UMat`` inputs give ``cv2.UMat`` outputs.
 
 Bad input raises :class:`RecoverPoseError` (a ``ValueError``) or :class:`RecoverPoseTypeError`
 (a ``TypeError``), both subclasses of ``cv2.error``, so code written for OpenCV that catches
@@ -321,7 +321,7 @@ def _required_camera(bound: dict, name: str) -> Any:
     (``recoverPose(p1, p2, K1, K2)``)."""
     value = bound.get(name)
     if value is not None:
-        return value
+        return _one_channel(value)
     place = ":"
     if name == "cameraMatrix2" and _is_3x3(bound.get("distCoeffs1")):
         place = ", and distCoeffs1 is a 3x3 matrix: the second camera's in its place?"
@@ -337,7 +337,13 @@ def _required_camera_matrix(K: Any) -> Any:
             "cameraMatrix is required, got None: for normalized points leave it out, "
             "recoverPose(E, points1, points2), or pass focal=1.0"
         )
-    return K
+    return _one_channel(K)
+
+
+def _one_channel(K: Any) -> Any:
+    """A camera matrix of shape (3, 3, 1) as (3, 3): OpenCV reads that array as a 3x3
+    one-channel matrix and takes it."""
+    return K.reshape(3, 3) if isinstance(K, np.ndarray) and K.shape == (3, 3, 1) else K
 
 
 def _write_mask(buffer: Any, mask: np.ndarray) -> np.ndarray:
@@ -361,8 +367,8 @@ def _identify(
     """
     w, U, Vt = cv2.SVDecomp(E)  # several times faster than numpy's for one 3x3 matrix
     require_essential_spread(w)
-    maps = ppo.frame_maps(U, ppo._proper_svd(U, Vt))
-    m1, m2 = ppo.frame_scores(maps @ K_inv, points)
+    maps = ppo._frame_maps(U, ppo._proper_svd(U, Vt))
+    m1, m2 = ppo._blocked_frame_scores(maps @ K_inv, points)
     keep_R1, same_side, _, _ = ppo._vote(m1, used)
     keep_t, intersecting, _, _ = ppo._vote(m2, used)
     inliers = same_side & intersecting

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .checks import as_positive
+from .checks import as_finite_array, as_finite_rows, as_positive, shown
 from .lsq import forward_jacobian, gauss_newton_covariance, levenberg_marquardt
 from .model_selection import robust_sigma
 
@@ -77,6 +77,10 @@ def homography_parallax(H: np.ndarray) -> float:
     >>> round(homography_parallax(H), 4)
     0.02
     """
+    return _homography_parallax(_checked_homography(H))
+
+
+def _homography_parallax(H: np.ndarray) -> float:
     s = np.linalg.svd(np.asarray(H, dtype=np.float64), compute_uv=False)
     if not s[2] > 0:
         return float("inf")
@@ -87,6 +91,34 @@ def focal_conjugates(H: np.ndarray, log_scales: np.ndarray) -> np.ndarray:
     """``S^-1 H S`` (K, 3, 3) of a homography ``H`` (3, 3) for each ``S = diag(s, s, 1)``,
     ``s = exp(log_scales)`` (K,): ``H`` on points normalised with a focal length ``s`` times
     the one that normalised them."""
+    return _focal_conjugates(_checked_homography(H), _checked_log_scales(log_scales))
+
+
+_MAX_LOG_SCALE = 50.0
+"""Largest ``|log_scales|`` of :func:`focal_conjugates` and its callers: a focal scale beyond
+``e^50`` (5e21) is no camera's, and ``exp`` overflows past 709."""
+
+
+def _checked_homography(H: np.ndarray) -> np.ndarray:
+    H = as_finite_array(H, "H")
+    if H.shape != (3, 3):
+        raise ValueError(f"H must be a 3x3 homography, got shape {H.shape}")
+    return H
+
+
+def _checked_log_scales(log_scales: np.ndarray) -> np.ndarray:
+    """One or more finite log focal scales in ascending order, at most :data:`_MAX_LOG_SCALE`."""
+    scales = as_finite_array(log_scales, "log_scales")
+    if scales.ndim != 1 or not scales.size:
+        raise ValueError(f"log_scales must be a sequence of numbers, got shape {scales.shape}")
+    if np.abs(scales).max() > _MAX_LOG_SCALE or (np.diff(scales) < 0).any():
+        raise ValueError(
+            f"log_scales must ascend within +-{_MAX_LOG_SCALE:g}, got {shown(scales.tolist())}"
+        )
+    return scales
+
+
+def _focal_conjugates(H: np.ndarray, log_scales: np.ndarray) -> np.ndarray:
     s = np.exp(np.asarray(log_scales, dtype=np.float64))[:, None]
     ones = np.ones_like(s)
     rows = np.hstack([1.0 / s, 1.0 / s, ones])
@@ -113,7 +145,11 @@ def rotation_spread(H: np.ndarray, log_scales: np.ndarray) -> np.ndarray:
     >>> np.round(rotation_spread(H, np.log([0.8, 1.0])), 4)
     array([0.    , 0.0894])
     """
-    singular = np.linalg.svd(focal_conjugates(H, log_scales), compute_uv=False)
+    return _rotation_spread(_checked_homography(H), _checked_log_scales(log_scales))
+
+
+def _rotation_spread(H: np.ndarray, log_scales: np.ndarray) -> np.ndarray:
+    singular = np.linalg.svd(_focal_conjugates(H, log_scales), compute_uv=False)
     with np.errstate(divide="ignore"):
         return np.log(singular[:, 0] / singular[:, 2])
 
@@ -133,13 +169,14 @@ def nearest_rotation_log_scale(H: np.ndarray, log_scales: np.ndarray) -> tuple[f
         Whether the grid's best lies inside the grid, not on one of its ends (where no scale in
         the range makes ``H`` a rotation).
     """
-    spreads = rotation_spread(H, log_scales)
+    H, log_scales = _checked_homography(H), _checked_log_scales(log_scales)
+    spreads = _rotation_spread(H, log_scales)
     best = int(np.argmin(spreads))
     last = len(log_scales) - 1
     low, high = log_scales[max(best - 1, 0)], log_scales[min(best + 1, last)]
     for _ in range(_ZOOM_ROUNDS):
         scales = np.linspace(low, high, _ZOOM_POINTS)
-        nearest = int(np.argmin(rotation_spread(H, scales)))
+        nearest = int(np.argmin(_rotation_spread(H, scales)))
         low, high = scales[max(nearest - 1, 0)], scales[min(nearest + 1, _ZOOM_POINTS - 1)]
     return float(scales[nearest]), float(spreads[best]), 0 < best < last
 
@@ -239,7 +276,7 @@ def fit_plane_parallax(x1: np.ndarray, x2: np.ndarray, noise: float | None = Non
 
     p, J = levenberg_marquardt(residuals, np.zeros(8), _ITERATIONS, many=many)
     H = _unit_determinant(_perturbed(H0, p))
-    parallax = homography_parallax(H)
+    parallax = _homography_parallax(H)
     errors = np.linalg.norm(_transfer(H, xy1, xy2), axis=1)
     if noise is None:
         noise = robust_sigma(errors, 2)
@@ -247,16 +284,12 @@ def fit_plane_parallax(x1: np.ndarray, x2: np.ndarray, noise: float | None = Non
     sigma = float("inf")
     if covariance is not None:
         g = forward_jacobian(
-            lambda q: np.array([homography_parallax(_perturbed(H0, q))]), p, np.array([parallax])
+            lambda q: np.array([_homography_parallax(_perturbed(H0, q))]), p, np.array([parallax])
         )[0]
         sigma = float(np.sqrt(max(g @ covariance @ g, 0.0)))
     return PlaneParallax(H=H, parallax=parallax, sigma=sigma, residuals=errors)
 
 
 def _as_points(x: np.ndarray, name: str) -> np.ndarray:
-    x = np.asarray(x, dtype=np.float64)
-    if x.ndim != 2 or x.shape[1] not in (2, 3):
-        raise ValueError(f"{name} must have shape (N, 2) or (N, 3), got {x.shape}")
-    if not np.all(np.isfinite(x)):
-        raise ValueError(f"{name} has non-finite values")
+    x = as_finite_rows(x, name, (2, 3))
     return x[:, :2] / x[:, 2:] if x.shape[1] == 3 else x

@@ -122,7 +122,7 @@ from .photometric import (
     PhotometricRotation,
     refine_rotation_photometric,
 )
-from .plane import held_k1_deviation, refine_planar_pose, undistort_division
+from .plane import _undistort_division, held_k1_deviation, refine_planar_pose
 from .pose import _recover_normalized
 from .refine import (
     K1_BIAS_REPLICATES,
@@ -563,7 +563,7 @@ def _finish_plane(state: _Finishing) -> _ModelPart:
         scale=state.options.ransac_threshold / state.focal, fit_k1=True,
     )  # fmt: skip
     R, t, k1 = refined.R, refined.t, refined.k1
-    c1, c2 = undistort_division(x1, k1), undistort_division(x2, k1)
+    c1, c2 = _undistort_division(x1, k1), _undistort_division(x2, k1)
     pri = ppo.pure_rotation_indicator(ppo.intersection_scores(c1[inliers], c2[inliers], R, t))
     points3d = ppo.analytic_points(c1, c2, R, t)
     keep = plane.inliers & np.all(np.isfinite(points3d), axis=1)
@@ -601,7 +601,7 @@ def _finish_general(state: _Finishing) -> _ModelPart:
         R, t, radial_k1 = radial.R, radial.t, radial.k1
         if radial_k1 == 0.0:
             R, t = refine_pose_huber(R, t, x1, x2, inliers, scale=bound / state.focal)
-    c1, c2 = undistort_division(x1, radial_k1), undistort_division(x2, radial_k1)
+    c1, c2 = _undistort_division(x1, radial_k1), _undistort_division(x2, radial_k1)
     information = pose_information(R, t, c1, c2, inliers)
     valley = _valley(state, R, t, c1, c2, inliers, information.checked)
     final = _recover_normalized(
@@ -643,8 +643,8 @@ def _with_points_of(state: _Finishing, part: _ModelPart, rotation: RotationEstim
     R = rotation.R
     k1 = part.radial_k1 if part.plane is None else part.plane.k1
     k1 = float(k1) if np.isfinite(k1) else 0.0
-    c1 = undistort_division(state.found.x1, k1)
-    c2 = undistort_division(state.found.x2, k1)
+    c1 = _undistort_division(state.found.x1, k1)
+    c2 = _undistort_division(state.found.x2, k1)
     points3d = ppo.analytic_points(c1, c2, R, part.t)
     keep = np.zeros(len(points3d), bool)
     keep[part.point_matches] = np.all(np.isfinite(points3d[part.point_matches]), axis=1)

@@ -30,6 +30,7 @@ matrix, to homographies; see ``docs/homography.md``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -43,6 +44,7 @@ from .checks import (
     as_real_array,
     as_rotation,
     as_vector3,
+    require_instance,
 )
 from .lsq import (
     forward_jacobian,
@@ -220,8 +222,16 @@ def normalize_homography(
 
 
 def homography_from_pose(R: np.ndarray, t: np.ndarray, n: np.ndarray, d: float) -> np.ndarray:
-    """``Hn = R + t n^T / d``, the homography of the plane ``n^T X1 = d`` (``x2 ~ Hn x1``)."""
-    return np.asarray(R, float) + np.outer(t, n) / float(d)
+    """``Hn = R + t n^T / d``, the homography of the plane ``n^T X1 = d`` (``x2 ~ Hn x1``): a
+    rotation ``R``, three finite numbers ``t``, a normal ``n`` not zero and a finite distance
+    ``d`` not zero; ValueError or TypeError naming the argument otherwise."""
+    R, t, n = as_rotation(R, "R"), as_vector3(t, "t"), as_vector3(n, "n")
+    distance = as_number(d, "d")
+    if not n.any():
+        raise ValueError("n is zero: a plane needs a normal")
+    if not (math.isfinite(distance) and distance != 0.0):
+        raise ValueError(f"d must be a finite distance other than 0, got {distance}")
+    return R + np.outer(t, n) / distance
 
 
 def decompose_homography(H: np.ndarray) -> HomographyCandidates:
@@ -249,6 +259,8 @@ def decompose_homography(H: np.ndarray) -> HomographyCandidates:
     """
     H = _as_homography(H)
     _, s, Vt = np.linalg.svd(H)  # Hn^T Hn = V diag(s^2) V^T
+    if not s[1] > 0:
+        raise ValueError("H has rank below 2: not a homography between two views")
     V = Vt.T * np.sign(np.linalg.det(Vt))
     s1, s3 = s[0] ** 2 / s[1] ** 2, s[2] ** 2 / s[1] ** 2  # squared, middle value taken as 1
     v1, v2, v3 = V.T
@@ -351,6 +363,15 @@ def support_ties(in_front: np.ndarray) -> np.ndarray:
     >>> support_ties(in_front).tolist()
     [True, True, False]
     """
+    flags = np.asarray(in_front)
+    if flags.dtype != bool or flags.ndim != 2:
+        raise TypeError(
+            f"in_front must be a (K, N) array of bool, got {flags.dtype} of shape {flags.shape}"
+        )
+    return _support_ties(flags)
+
+
+def _support_ties(in_front: np.ndarray) -> np.ndarray:
     in_front = np.asarray(in_front, dtype=bool)
     best = int(np.argmax(np.count_nonzero(in_front, axis=1)))
     only_best = np.count_nonzero(in_front[best] & ~in_front, axis=1)
@@ -367,6 +388,7 @@ def frontality(candidates: HomographyCandidates) -> np.ndarray:
     interpretations exchange the directions of ``t`` and ``n`` (to first order) and so tilt the
     plane of the false one towards the baseline, i.e. obliquely to both views.
     """
+    require_instance(candidates, HomographyCandidates, "candidates")
     return candidates.n[:, 2] + np.einsum("kj,kij->ki", candidates.n, candidates.R)[:, 2]
 
 
@@ -417,7 +439,7 @@ def select_plane_pose(
     if used_mask.shape != (len(X1),):
         raise ValueError(f"used must have shape ({len(X1)},), got {used_mask.shape}")
     m1, m2, supports = candidate_supports(candidates, X1, X2, used_mask)
-    tied = support_ties((m1 > 0) & (m2 > 0) & used_mask[None, :])
+    tied = _support_ties((m1 > 0) & (m2 > 0) & used_mask[None, :])
     epipolar = np.zeros(4, int)
     if off_plane is not None and threshold is not None:
         off = np.asarray(off_plane, bool).reshape(-1)
@@ -572,8 +594,24 @@ def undistort_division(x: np.ndarray, k1: float) -> np.ndarray:
     """One-parameter division model (Fitzgibbon, 2001): ``q = x / (1 + k1 |x|^2)``, (N, 3).
 
     ``x`` are normalized points ``K^-1 (u, v, 1)`` with the distortion unmodelled; to first
-    order ``k1`` equals OpenCV's radial ``k1`` of the lens. Returns homogeneous rows.
+    order ``k1`` equals OpenCV's radial ``k1`` of the lens. Returns homogeneous rows. Finite
+    points and a finite ``k1`` under which ``1 + k1 |x|^2 > 0`` at every point (else the model
+    folds the image over itself); ValueError or TypeError naming the argument otherwise.
     """
+    X = _homogeneous(as_finite_array(x, "x"))
+    coefficient = as_number(k1, "k1")
+    if not math.isfinite(coefficient):
+        raise ValueError(f"k1 must be a finite number, got {coefficient}")
+    folded = 1.0 + coefficient * np.sum(X[:, :2] ** 2, axis=1) <= 0
+    if folded.any():
+        raise ValueError(
+            f"k1 = {coefficient:g} folds {int(folded.sum())} of the points over "
+            "(1 + k1 |x|^2 <= 0): no lens's division model"
+        )
+    return _undistort_division(X, coefficient)
+
+
+def _undistort_division(x: np.ndarray, k1: float) -> np.ndarray:
     X = _homogeneous(as_real_array(x, "x"))
     scale = 1.0 + as_number(k1, "k1") * np.sum(X[:, :2] ** 2, axis=1)
     return np.column_stack([X[:, :2] / scale[:, None], np.ones(len(X))])
@@ -603,7 +641,7 @@ class _PlaneModel:
     def residuals(self, p: np.ndarray) -> np.ndarray:
         R, T, n = self.pose(p)
         k1 = p[8] if len(p) > 8 else 0.0
-        q1, q2 = undistort_division(self.x1, k1), undistort_division(self.x2, k1)
+        q1, q2 = _undistort_division(self.x1, k1), _undistort_division(self.x2, k1)
         return _transfer(R + np.outer(T, n), q1, q2)
 
 
@@ -692,7 +730,8 @@ def refine_planar_pose(
     Rr, Tr, nr = model.pose(p)
     k1 = float(p[8]) if len(p) > 8 else 0.0
     norm = float(np.linalg.norm(Tr))
-    full = _transfer(Rr + np.outer(Tr, nr), undistort_division(X1, k1), undistort_division(X2, k1))
+    q1, q2 = _undistort_division(X1, k1), _undistort_division(X2, k1)
+    full = _transfer(Rr + np.outer(Tr, nr), q1, q2)
     rotation_sigma, fit_sigma = _rotation_sigmas_deg(
         model, np.append(p[:8], k1), scale, k1_prior, count,
         held_k1_sigma=None if len(p) > 8 else held_k1_deviation(k1_fitted, k1_sigma),
@@ -753,6 +792,13 @@ def rms_rotation_angle_deg(covariance: np.ndarray) -> float:
     >>> round(rms_rotation_angle_deg(np.diag([3e-6, 1e-6, 0.0])), 4)
     0.1146
     """
+    covariance = as_finite_array(covariance, "covariance")
+    if covariance.shape != (3, 3):
+        raise ValueError(f"covariance must be a 3x3 matrix, got shape {covariance.shape}")
+    return _rms_rotation_angle_deg(covariance)
+
+
+def _rms_rotation_angle_deg(covariance: np.ndarray) -> float:
     return float(np.degrees(np.sqrt(max(float(np.trace(covariance)), 0.0))))
 
 
@@ -801,7 +847,7 @@ def _plane_covariance(model, p, scale, k1_prior):
 
 def _rotation_deg(cov: np.ndarray | None) -> float:
     """:func:`rms_rotation_angle_deg` of the rotation block; inf for None."""
-    return float("inf") if cov is None else rms_rotation_angle_deg(cov[:3, :3])
+    return float("inf") if cov is None else _rms_rotation_angle_deg(cov[:3, :3])
 
 
 def _scaled_model(model: _PlaneModel, focal_error: float) -> _PlaneModel:

@@ -20,7 +20,15 @@ from typing import Any
 
 import numpy as np
 
-from .checks import as_camera_matrix, as_essential, as_finite_rows, as_points, as_vector3
+from .checks import (
+    as_camera_matrix,
+    as_essential,
+    as_finite_array,
+    as_finite_rows,
+    as_points,
+    as_vector3,
+    shown,
+)
 
 __all__ = [
     "W1",
@@ -210,14 +218,35 @@ def decompose_essential(E: np.ndarray) -> Candidates:
     """
     as_essential(E, check_spread=False)  # a finite, nonzero 3x3 matrix, decomposed unscaled
     U, s, Vt = np.linalg.svd(np.asarray(E, dtype=np.float64))
-    return candidates_from_svd(U, s, Vt)
+    return _candidates_from_svd(U, s, Vt)
 
 
 def candidates_from_svd(U: np.ndarray, s: np.ndarray, Vt: np.ndarray) -> Candidates:
     """:func:`decompose_essential` from a precomputed SVD ``E = U diag(s) Vt``.
 
-    Any SVD routine will do (signs of singular vectors are arbitrary and fixed here).
+    Any SVD routine will do (signs of singular vectors are arbitrary and fixed here). ``U``
+    and ``Vt`` must be orthogonal 3x3 matrices, ``s`` three singular values >= 0 not all zero;
+    ValueError or TypeError naming the argument otherwise.
     """
+    _require_orthogonal(U, "U")
+    _require_orthogonal(Vt, "Vt")
+    values = as_finite_array(s, "s")
+    if values.size != 3 or (values < 0).any() or not values.any():
+        raise ValueError(f"s must be three singular values >= 0, not all zero, got {shown(s)}")
+    return _candidates_from_svd(np.asarray(U, float), values, np.asarray(Vt, float))
+
+
+def _require_orthogonal(matrix: Any, name: str) -> None:
+    """ValueError or TypeError naming ``name`` unless ``matrix`` is an orthogonal 3x3 matrix,
+    a factor of an SVD."""
+    orthogonal = as_finite_array(matrix, name)
+    if orthogonal.shape != (3, 3) or not np.allclose(
+        orthogonal @ orthogonal.T, np.eye(3), atol=1e-6
+    ):
+        raise ValueError(f"{name} must be an orthogonal 3x3 matrix (of an SVD)")
+
+
+def _candidates_from_svd(U: np.ndarray, s: np.ndarray, Vt: np.ndarray) -> Candidates:
     Vt = _proper_svd(U, Vt)
     s = np.ravel(s)
     return Candidates(
@@ -373,6 +402,15 @@ def frame_scores(F: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndar
     -------
     m1, m2 : ndarray, shape (N,)
     """
+    F, points = as_finite_array(F, "F"), as_finite_array(points, "points")
+    if F.shape != (2, 3, 3):
+        raise ValueError(f"F must have shape (2, 3, 3), got {F.shape}")
+    if points.ndim != 3 or points.shape[:2] != (2, 3):
+        raise ValueError(f"points must have shape (2, 3, N), got {points.shape}")
+    return _blocked_frame_scores(F, points)
+
+
+def _blocked_frame_scores(F: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n = points.shape[2]
     if n <= _BLOCK:
         return _frame_scores(F @ points)
@@ -389,6 +427,12 @@ def frame_maps(U: np.ndarray, Vt: np.ndarray) -> np.ndarray:
     ``U``, ``Vt`` as in :attr:`Candidates.U`, :attr:`Candidates.Vt` (``det(U Vt) = +1``).
     ``U @ maps[0]`` is ``R1``. Returns shape (2, 3, 3), the ``F`` of :func:`frame_scores`.
     """
+    _require_orthogonal(U, "U")
+    _require_orthogonal(Vt, "Vt")
+    return _frame_maps(np.asarray(U, float), np.asarray(Vt, float))
+
+
+def _frame_maps(U: np.ndarray, Vt: np.ndarray) -> np.ndarray:
     return np.array((_W1T @ Vt, U.T))
 
 
@@ -399,7 +443,7 @@ def _frame_scores(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _select(cand: Candidates, X1: np.ndarray, X2: np.ndarray, used: np.ndarray | None) -> Selection:
-    m1, m2 = frame_scores(frame_maps(cand.U, cand.Vt), np.array((X1, X2)))
+    m1, m2 = _blocked_frame_scores(_frame_maps(cand.U, cand.Vt), np.array((X1, X2)))
     keep_R1, _, s1_R1, s1_R2 = _vote(m1, used)
     keep_t, _, s2_plus, s2_minus = _vote(m2, used)
     return Selection(

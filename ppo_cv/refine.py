@@ -20,7 +20,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .checks import MAX_WHOLE_NUMBER, as_positive, as_whole_number, require_pose_matches
+from .checks import (
+    MAX_FOCAL,
+    MAX_RADIAL,
+    MAX_RAY_SLOPE,
+    MAX_WHOLE_NUMBER,
+    as_deviation,
+    as_deviation_pair,
+    as_finite_array,
+    as_nonnegative,
+    as_number,
+    as_positive,
+    as_positive_at_most,
+    as_whole_number,
+    require_pose_matches,
+)
 from .lsq import (
     cross_matrices,
     cross_matrix,
@@ -35,7 +49,7 @@ from .lsq import (
     tangent_basis,
 )
 from .model_selection import robust_sigma
-from .plane import K1_SIGNIFICANCE, rms_rotation_angle_deg, undistort_division
+from .plane import K1_SIGNIFICANCE, _rms_rotation_angle_deg, _undistort_division
 from .ppo import rotation_from_rays
 from .robust import _sampson_signed as _essential_sampson_signed
 from .robust import _sampson_signed_rows, virtual_camera
@@ -100,18 +114,20 @@ def refine_pose(
     """
     import pycolmap
 
-    require_pose_matches(R, t, x1, x2, inliers)
-    t = np.asarray(t, dtype=np.float64).reshape(3)
+    t = require_pose_matches(R, t, x1, x2, inliers, max_slope=MAX_RAY_SLOPE)
+    focal = as_positive_at_most(focal, "focal", MAX_FOCAL, " pixels")
     if np.count_nonzero(inliers) < 5:
         return R, t / np.linalg.norm(t)
+    x1, x2 = (np.asarray(x, dtype=np.float64) for x in (x1, x2))
+    x1, x2 = x1[:, :2] / x1[:, 2:], x2[:, :2] / x2[:, 2:]
     camera = virtual_camera(focal)
     start = pycolmap.Rigid3d(pycolmap.Rotation3d(np.asarray(R, dtype=np.float64)), t)
     refined = pycolmap.refine_relative_pose(
         start,
         camera,
-        np.ascontiguousarray(focal * x1[:, :2]),
+        np.ascontiguousarray(focal * x1),
         camera,
-        np.ascontiguousarray(focal * x2[:, :2]),
+        np.ascontiguousarray(focal * x2),
         np.asarray(inliers, dtype=bool),
     )
     if refined is None:
@@ -139,7 +155,8 @@ def huber_bound_px(threshold_px: float, noise_px: float) -> float:
     """Huber bound of :func:`refine_pose_radial` (pixels): :data:`HUBER_NOISE_FACTOR`
     deviations of the measured image noise ``noise_px``, at most the RANSAC threshold
     ``threshold_px``, which is kept when the noise was not measured (NaN or 0)."""
-    bound = HUBER_NOISE_FACTOR * noise_px
+    threshold_px = as_positive(threshold_px, "threshold_px")
+    bound = HUBER_NOISE_FACTOR * as_number(noise_px, "noise_px")
     return min(threshold_px, bound) if bound > 0 else threshold_px
 
 
@@ -258,9 +275,10 @@ def refine_pose_radial(
     -------
     RadialPose
     """
-    require_pose_matches(R, t, x1, x2, inliers)
+    t0 = require_pose_matches(R, t, x1, x2, inliers)
+    scale, k1_prior, iterations = _radial_settings(scale, k1_prior, iterations)
+    max_k1, focal_prior, principal_prior = _lens_bounds(max_k1, focal_prior, principal_prior)
     R0 = np.asarray(R, dtype=np.float64)
-    t0 = np.asarray(t, dtype=np.float64).reshape(3)
     t0 = t0 / np.linalg.norm(t0)
     start = RadialPose(R0, t0, 0.0, float("inf"))
     a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
@@ -360,6 +378,26 @@ def refine_pose_huber(
 
     p, _ = levenberg_marquardt_stacked(residuals, np.zeros(5), iterations)
     return pose_increment(R0, t0, p, basis)
+
+
+def _radial_settings(scale: float, k1_prior: float, iterations: int) -> tuple[float, float, int]:
+    """The Huber bound and the prior deviation (both > 0) and the step count (a whole number
+    >= 0) of :func:`refine_pose_radial`'s cost, checked; ValueError or TypeError naming each."""
+    return (
+        as_positive(scale, "scale"),
+        as_positive(k1_prior, "k1_prior"),
+        as_whole_number(iterations, "iterations", 0, MAX_WHOLE_NUMBER),
+    )
+
+
+def _lens_bounds(max_k1: float, focal_prior: float | None, principal_prior) -> tuple:
+    """:func:`refine_pose_radial`'s bound on ``|k1|`` (>= 0) and the deviations of its
+    considered intrinsics (None or >= 0), checked."""
+    return (
+        as_nonnegative(max_k1, "max_k1"),
+        as_deviation(focal_prior, "focal_prior"),
+        as_deviation_pair(principal_prior, "principal_prior"),
+    )
 
 
 @dataclass(frozen=True)
@@ -518,9 +556,10 @@ def k1_noise_bias(
     sigma : float
         Standard deviation of that mean.
     """
-    require_pose_matches(R, t, x1, x2)
+    t = require_pose_matches(R, t, x1, x2)
+    scale, k1_prior, iterations = _radial_settings(scale, k1_prior, iterations)
+    replicates = as_whole_number(replicates, "replicates", 2, MAX_WHOLE_NUMBER)
     R = np.asarray(R, dtype=np.float64)
-    t = np.asarray(t, dtype=np.float64).reshape(3)
     t = t / np.linalg.norm(t)
     p = _radial_fit(R, t, x1, x2, scale, k1_prior, iterations).p
     return _k1_noise_bias(R, t, x1, x2, p, scale, k1_prior, iterations, replicates)
@@ -531,7 +570,7 @@ def _k1_noise_bias(R, t, x1, x2, p, scale, k1_prior, iterations, replicates) -> 
     themselves (``t`` a unit vector), whose residuals size the simulated noise."""
     E = cross_matrix(t) @ R
     sizes = np.abs(
-        _sampson_signed(*pose_increment(R, t, p), *(undistort_division(x, p[5]) for x in (x1, x2)))
+        _sampson_signed(*pose_increment(R, t, p), *(_undistort_division(x, p[5]) for x in (x1, x2)))
     )
     A, B = _stacked_sets(noise_replicates(E, x1, x2, sizes, replicates))
     fitted = _radial_fits(R, t, A, B, scale, k1_prior, iterations)[:, 5]
@@ -556,7 +595,7 @@ def noise_replicates(
     x1, x2 : ndarray, shape (N, 3)
         ``count`` times.
     """
-    a, b = (undistort_division(np.asarray(x, float) / np.asarray(x, float)[:, 2:], k1)
+    a, b = (_undistort_division(np.asarray(x, float) / np.asarray(x, float)[:, 2:], k1)
             for x in (x1, x2))  # fmt: skip
     a, b = _sampson_corrected(E, a, b)
     rng = np.random.default_rng(0)
@@ -622,12 +661,14 @@ def released_lens_shift_deg(
     shift_deg, sigma_deg : float
         ``(0, 0)`` with fewer than 12 inliers or no noise.
     """
-    require_pose_matches(R, t, x1, x2, inliers)
+    t = require_pose_matches(R, t, x1, x2, inliers)
+    k1 = _as_coefficient(k1)
+    scale, _, iterations = _radial_settings(scale, 1.0, iterations)
+    replicates = as_whole_number(replicates, "replicates", 0, MAX_WHOLE_NUMBER)
     a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
     if len(a) < 12:
         return 0.0, 0.0
     R = np.asarray(R, dtype=np.float64)
-    t = np.asarray(t, dtype=np.float64).reshape(3)
     t = t / np.linalg.norm(t)
     released = _released_move(R, t, k1, a, b, scale, iterations)
     if released is None:
@@ -643,15 +684,24 @@ def released_lens_shift_deg(
     return float(np.degrees(np.linalg.norm(move - moves.mean(axis=0)))), float(np.degrees(spread))
 
 
+def _as_coefficient(k1: float) -> float:
+    """A division coefficient: a finite number of magnitude at most :data:`MAX_RADIAL`."""
+    number = as_number(k1, "k1")
+    if not abs(number) <= MAX_RADIAL:
+        raise ValueError(f"k1 must be a finite number in [-{MAX_RADIAL:g}, {MAX_RADIAL:g}], "
+                         f"got {number}")  # fmt: skip
+    return number
+
+
 def _released_move(R, t, k1, a, b, scale, iterations) -> tuple | None:
     """Rotation increment (3,) of :func:`released_lens_shift_deg`'s refit of the matches ``a,
     b`` and the sizes (N,) of their Sampson residuals there (``k1`` fitted); None without
     noise."""
-    noise = robust_sigma(_sampson_signed(R, t, *(undistort_division(x, k1) for x in (a, b))), 1)
+    noise = robust_sigma(_sampson_signed(R, t, *(_undistort_division(x, k1) for x in (a, b))), 1)
     if not noise > 0:
         return None
     fit = _radial_fit(R, t, a, b, scale, K1_PRIOR, iterations, k1_start=k1, prior_weight=noise)
-    fitted = (undistort_division(x, k1 + fit.p[5]) for x in (a, b))
+    fitted = (_undistort_division(x, k1 + fit.p[5]) for x in (a, b))
     return fit.p[:3], np.abs(_sampson_signed(*fit.pose(fit.p), *fitted))
 
 
@@ -659,7 +709,7 @@ def _released_moves(R, t, k1, A, B, scale, iterations) -> np.ndarray:
     """The rotation increments (S', 3) of :func:`_released_move` on the match sets ``A``,
     ``B`` (S, N, 3), fitted together, of the S' sets that have noise."""
     noise = np.array([
-        robust_sigma(_sampson_signed(R, t, *(undistort_division(x, k1) for x in (a, b))), 1)
+        robust_sigma(_sampson_signed(R, t, *(_undistort_division(x, k1) for x in (a, b))), 1)
         for a, b in zip(A, B, strict=True)
     ])  # fmt: skip
     has = noise > 0
@@ -713,7 +763,22 @@ def _bearings(x: np.ndarray) -> np.ndarray:
 
 
 def rotation_residuals(R: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
-    """Angle (radians) between ``b2_i`` and ``R b1_i`` for each match, shape (N,)."""
+    """Angle (radians) between ``b2_i`` and ``R b1_i`` for each match, shape (N,), of
+    homogeneous points or bearings ``x1``, ``x2`` (N, 3)."""
+    require_pose_matches(R, np.zeros(3), x1, x2, moving=False, bearings=True)
+    R, x1, x2 = (np.asarray(v, dtype=np.float64) for v in (R, x1, x2))
+    _require_directions(x1, x2)
+    return _rotation_residuals(R, x1, x2)
+
+
+def _require_directions(x1: np.ndarray, x2: np.ndarray) -> None:
+    """ValueError naming the argument holding a zero row, which has no direction."""
+    for name, rows in (("x1", x1), ("x2", x2)):
+        if len(rows) and not np.abs(rows).max(axis=1).all():
+            raise ValueError(f"{name} has a zero row, which has no direction")
+
+
+def _rotation_residuals(R: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> np.ndarray:
     b1, b2 = _bearings(x1), _bearings(x2)
     cross = np.linalg.norm(np.cross(b1 @ R.T, b2), axis=1)
     dot = np.einsum("ij,ij->i", b1 @ R.T, b2)
@@ -761,16 +826,26 @@ def fit_rotation(
     >>> bool(np.allclose(R, R_true)), int(used.sum())
     (True, 20)
     """
+    require_pose_matches(
+        np.eye(3) if R is None else R, np.zeros(3), x1, x2, inliers, moving=False, bearings=True
+    )
+    threshold = as_positive(threshold, "threshold")
+    iterations = as_whole_number(iterations, "iterations", 0, MAX_WHOLE_NUMBER)
+    _require_directions(*(np.asarray(x, float) for x in (x1, x2)))
     b1, b2 = _bearings(np.asarray(x1, float)), _bearings(np.asarray(x2, float))
     allowed = np.asarray(inliers, dtype=bool)
+    if np.count_nonzero(allowed) < 2:
+        raise ValueError(
+            f"inliers selects {np.count_nonzero(allowed)} matches: a rotation needs at least 2"
+        )
     used = allowed.copy()
     if R is not None:
-        used &= rotation_residuals(R, b1, b2) < threshold
+        used &= _rotation_residuals(np.asarray(R, float), b1, b2) < threshold
     if np.count_nonzero(used) < 2:
         used = allowed.copy()
     R = rotation_from_rays(b1[used], b2[used])
     for _ in range(iterations):
-        keep = allowed & (rotation_residuals(R, b1, b2) < threshold)
+        keep = allowed & (_rotation_residuals(R, b1, b2) < threshold)
         if np.count_nonzero(keep) < 2 or np.array_equal(keep, used):
             break
         used = keep
@@ -948,6 +1023,10 @@ class PoseInformation:
         held_k1_prior: float | None = None,
     ) -> PoseSigmas:
         """:func:`pose_sigmas_deg` of this information under the given priors (its keywords)."""
+        focal_prior = as_deviation(focal_prior, "focal_prior")
+        k1_prior = as_deviation(k1_prior, "k1_prior", positive=True)
+        principal_prior = as_deviation_pair(principal_prior, "principal_prior")
+        held_k1_prior = as_deviation(held_k1_prior, "held_k1_prior")
         if self.info is None:
             return _UNDETERMINED
         info = self.info.copy()
@@ -976,10 +1055,12 @@ def pose_information(
     :func:`pose_sigmas_deg` takes (its parameters of the same names), whose
     :meth:`PoseInformation.sigmas_deg` gives the deviations under each set of priors without
     the Jacobians again."""
-    require_pose_matches(R, t, x1, x2, inliers)
+    t = require_pose_matches(R, t, x1, x2, inliers)
+    noise = as_deviation(noise, "noise")
+    step = as_positive_at_most(step, "step", 1e-2)
     a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
     a, b = a / a[:, 2:], b / b[:, 2:]
-    t = np.asarray(t, float).reshape(3) / np.linalg.norm(t)
+    t = t / np.linalg.norm(t)
     residuals = _calibrated_residuals(R, t)
     kept, a, b, J, noise_info = _checked_jacobian_and_noise(residuals, a, b, step)
     checked = np.asarray(inliers, dtype=bool).copy()
@@ -1025,7 +1106,10 @@ def checked_matches(J: np.ndarray, leverage_max: float = LEVERAGE_MAX) -> np.nda
     -------
     ndarray of bool, shape (N,)
     """
-    J = np.asarray(J, dtype=np.float64)
+    J = as_finite_array(J, "J")
+    if J.ndim != 2:
+        raise ValueError(f"J must have shape (N, P), got {J.shape}")
+    leverage_max = as_positive_at_most(leverage_max, "leverage_max", 1.0)
     leverage = np.einsum("ij,jk,ik->i", J, np.linalg.pinv(J.T @ J), J)
     return leverage <= leverage_max
 
@@ -1052,12 +1136,12 @@ def checked_inliers(
     ndarray of bool, shape (N,)
         A subset of ``inliers``; ``inliers`` itself with fewer than 6 of them.
     """
-    require_pose_matches(R, t, x1, x2, inliers)
+    t = require_pose_matches(R, t, x1, x2, inliers)
     inliers = np.asarray(inliers, dtype=bool)
     a, b = np.asarray(x1, float)[inliers], np.asarray(x2, float)[inliers]
     if len(a) < 6:
         return inliers
-    t = np.asarray(t, float).reshape(3) / np.linalg.norm(t)
+    t = t / np.linalg.norm(t)
     J = _jacobian(_calibrated_residuals(R, t), a / a[:, 2:], b / b[:, 2:], 1e-6)
     checked = inliers.copy()
     checked[np.flatnonzero(inliers)[~checked_matches(J[:, :_NPOSE])]] = False
@@ -1192,6 +1276,6 @@ def _pose_sigmas_deg(
 
     worst = np.linalg.eigvalsh(cov[_TRANSLATION, _TRANSLATION])[-1]
     return PoseSigmas(
-        rotation_deg=rms_rotation_angle_deg(cov[_ROTATION, _ROTATION]),
+        rotation_deg=_rms_rotation_angle_deg(cov[_ROTATION, _ROTATION]),
         translation_deg=min(float(np.degrees(np.sqrt(max(worst, 0.0)))), T_SIGMA_CAP_DEG),
     )

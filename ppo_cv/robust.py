@@ -38,12 +38,21 @@ from numpy.typing import ArrayLike
 
 from .checks import (
     MAX_COORDINATE,
+    MAX_FOCAL,
+    MAX_WHOLE_NUMBER,
+    as_camera_matrix,
     as_finite_array,
     as_finite_rows,
+    as_flag,
+    as_image_size,
+    as_number,
     as_positive,
+    as_positive_at_most,
     as_ransac_settings,
+    as_real_array,
     as_rotation,
     as_vector3,
+    as_whole_number,
 )
 from .lsq import cross_matrix
 from .significance import (
@@ -457,6 +466,7 @@ def estimate_essential_ordered(
         sampling is weak and ``uniform_when_weak`` is False.
     """
     x1, x2, scores = _scored_matches(x1, x2, scores)
+    image_size, K2 = _ordered_fit_settings(image_size, K2, focal, uniform_when_weak, max_log10_nfa)
     settings = {
         "backend": backend,
         "threshold": threshold,
@@ -464,8 +474,6 @@ def estimate_essential_ordered(
         "min_trials": min_trials,
         "seed": seed,
     }
-    if K2 is None:
-        K2 = np.array([[focal, 0.0, image_size[0] / 2], [0.0, focal, image_size[1] / 2], [0, 0, 1]])
     n = x1.shape[0]
     size = min(n, max(ORDERED_MIN_MATCHES, int(np.ceil(ORDERED_FRACTION * n))))
     best = np.argsort(scores, kind="stable")[:size]
@@ -493,12 +501,26 @@ def estimate_essential_ordered(
     return fit
 
 
+def _ordered_fit_settings(image_size, K2, focal, uniform_when_weak, max_log10_nfa) -> tuple:
+    """:func:`estimate_essential_ordered`'s image size and ``K2`` checked (by default
+    ``focal`` with the principal point at the image's centre), with its flag and its
+    significance bar (a number, not NaN); ValueError or TypeError naming each."""
+    as_flag(uniform_when_weak, "uniform_when_weak")
+    if as_number(max_log10_nfa, "max_log10_nfa") != max_log10_nfa:
+        raise ValueError("max_log10_nfa must be a number (inf: every consensus), got nan")
+    width, height = as_image_size(image_size, "image_size")
+    if K2 is None:
+        f = as_positive_at_most(focal, "focal", MAX_FOCAL, " pixels")
+        K2 = np.array([[f, 0.0, width / 2], [0.0, f, height / 2], [0.0, 0.0, 1.0]])
+    return (width, height), as_camera_matrix(K2, "K2")
+
+
 def _scored_matches(x1, x2, scores) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``x1``, ``x2`` as contiguous float64 and ``scores`` as a flat float64 array; ValueError
     unless there is one finite score per match."""
     x1 = np.ascontiguousarray(x1, dtype=np.float64)
     x2 = np.ascontiguousarray(x2, dtype=np.float64)
-    scores = np.asarray(scores, dtype=np.float64).reshape(-1)
+    scores = as_real_array(scores, "scores").reshape(-1)
     if scores.shape[0] != x1.shape[0] or x1.shape != x2.shape:
         raise ValueError(
             f"need one score per match: x1 {x1.shape}, x2 {x2.shape}, scores {scores.shape}"
@@ -526,7 +548,10 @@ def trials_for_consensus(
     >>> trials_for_consensus(20, 100, 0.05)
     14546.0
     """
-    if not 0.0 < miss_probability < 1.0:
+    consensus, num_matches = (as_whole_number(value, name, 0, MAX_WHOLE_NUMBER) for name, value
+                              in (("consensus", consensus), ("num_matches", num_matches)))
+    sample_size = as_whole_number(sample_size, "sample_size", 1, MAX_WHOLE_NUMBER)
+    if not 0.0 < as_number(miss_probability, "miss_probability") < 1.0:
         raise ValueError(f"miss_probability must lie in (0, 1), got {miss_probability}")
     if min(consensus, num_matches) < sample_size:
         return math.inf

@@ -186,12 +186,18 @@ def log10_binomial(n: np.ndarray | int, k: np.ndarray | int) -> np.ndarray:
     n, k = np.asarray(n), np.asarray(k)
     if n.dtype.kind not in "iu" or k.dtype.kind not in "iu":
         raise TypeError(f"n and k must be integers, got dtypes {n.dtype} and {k.dtype}")
+    try:
+        shape = np.broadcast_shapes(n.shape, k.shape)
+    except ValueError:
+        raise ValueError(
+            f"n and k must broadcast together, got shapes {n.shape} and {k.shape}"
+        ) from None
     if not np.all((0 <= k) & (k <= n)):
         raise ValueError(f"log10_binomial needs 0 <= k <= n, got n={shown(n)} and k={shown(k)}")
     if n.size and n.max() > MAX_MATCHES:
         raise ValueError(f"log10_binomial takes n up to {MAX_MATCHES}, got {shown(n.max())}")
     if not n.size or not k.size:
-        return np.zeros(np.broadcast_shapes(n.shape, k.shape))
+        return np.zeros(shape)
     n, k = n.astype(np.int64), k.astype(np.int64)
     log_factorial = np.concatenate([[0.0], np.cumsum(np.log10(np.arange(1, int(n.max()) + 1)))])
     return log_factorial[n] - log_factorial[k] - log_factorial[n - k]

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .checks import require_pose_matches
+from .checks import as_positive, as_rotation, as_vector3, require_instance, require_pose_matches
 from .lsq import (
     cross_matrices,
     cross_matrix,
@@ -177,9 +177,10 @@ def valley_minima(
         On each side, the profile's lowest step polished when it is a local minimum away
         from the start (at most two); empty with fewer than 12 matches.
     """
-    require_pose_matches(R, t, x1, x2)
+    t = require_pose_matches(R, t, x1, x2)
+    scale = as_positive(scale, "scale")
     R = np.asarray(R, dtype=np.float64)
-    t = np.asarray(t, dtype=np.float64).reshape(3) / np.linalg.norm(t)
+    t = t / np.linalg.norm(t)
     if len(x1) < 12:
         return []
     cost = _cost(np.asarray(x1, float), np.asarray(x2, float), scale)
@@ -202,7 +203,12 @@ def valley_outcome(R: np.ndarray, t: np.ndarray, minima: list[ValleyMinimum]) ->
     """The pose: the lowest of ``minima`` when its cost is below the start's ``(R, t)``
     (excess 0) by more than :data:`VALLEY_SIGNIFICANCE`, else the start; and the spread of the
     rotations of the minima within :data:`VALLEY_SIGNIFICANCE` of the pose's cost."""
-    candidates = [ValleyMinimum(np.asarray(R, float), np.asarray(t, float), 0.0), *minima]
+    R, t = as_rotation(R, "R"), as_vector3(t, "t")
+    if not isinstance(minima, (list, tuple)):
+        raise TypeError(f"minima must be a list of ValleyMinimum, got {type(minima).__name__}")
+    for minimum in minima:
+        require_instance(minimum, ValleyMinimum, "each of minima", " (valley_minima)")
+    candidates = [ValleyMinimum(R, t, 0.0), *minima]
     lowest = min(candidates, key=lambda m: m.excess)
     chosen = lowest if lowest.excess < -VALLEY_SIGNIFICANCE else candidates[0]
     near = [m for m in candidates if m.excess - chosen.excess < VALLEY_SIGNIFICANCE]

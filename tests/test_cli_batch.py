@@ -168,6 +168,40 @@ def test_pose_error_of_a_pure_rotation_is_the_rotation_error():
     assert moved["t_err_deg"] == pytest.approx(90.0) == moved["pose_err_deg"]
 
 
+_T_MOVING = np.r_[np.c_[np.eye(3), [1.0, 0.0, 0.0]], [[0.0, 0.0, 0.0, 1.0]]]
+
+
+@pytest.mark.parametrize(
+    "call, exception, words",
+    [(lambda: batch.pose_errors(np.eye(3), [0.0, 0.0, 0.0], _T_MOVING), ValueError,
+      "t is zero: it has no direction to compare"),
+     (lambda: batch.pose_errors(np.eye(3), [1.0, 0.0, 0.0], _T_MOVING * np.nan), ValueError,
+      "T has 16 NaN or infinite value(s)"),
+     (lambda: batch.pose_errors(np.eye(3), [1.0, 0.0, 0.0], _T_MOVING.tolist()[:2]), ValueError,
+      "T must be a 4x4 (or 3x4) motion [R | t], got shape (2, 4)"),
+     (lambda: batch.pose_auc([np.nan, 1.0]), ValueError, "errors has 1 NaN or infinite value(s)"),
+     (lambda: batch.pose_auc([-5.0, 1.0]), ValueError, "errors must be angles >= 0, got -5"),
+     (lambda: batch.pose_auc([[1.0, 2.0]]), ValueError,
+      "errors must be a sequence of numbers, got shape (1, 2)"),
+     (lambda: batch.pose_auc([1.0], thresholds=(0.0,)), ValueError,
+      "thresholds must be a finite number > 0, got 0.0")],
+    ids=["zero t", "NaN T", "T of two rows", "NaN error", "negative error", "errors 2-D",
+         "zero threshold"],
+)  # fmt: skip
+def test_pose_errors_and_auc_refuse_what_has_no_error(call, exception, words):
+    # a zero t scored as a perfect pose (max(0, NaN) is 0), a NaN T as NaN, a list T failed on
+    # its indexing; a NaN or negative error gave an AUC of 0.45 or 1.45, a zero threshold a
+    # RuntimeWarning and NaN, 2-D errors numpy's message
+    with pytest.raises(exception) as info:
+        call()
+    assert words in str(info.value)
+
+
+def test_pose_errors_take_a_list_T():
+    errors = batch.pose_errors(np.eye(3), [2.0, 0.0, 0.0], _T_MOVING.tolist())
+    assert errors == {"R_err_deg": 0.0, "t_err_deg": 0.0, "pose_err_deg": 0.0}
+
+
 @pytest.fixture(scope="module")
 def rotation_pairs(tmp_path_factory):
     """Two exact pure rotations of the demo images (warped by K R K^-1), with ground truth."""

@@ -109,6 +109,20 @@ CASES = {  # name: (call, error type, words of its message)
         lambda: dg.relative_gt_from_poses(["a", "b"], [(np.eye(3), np.zeros(3))] * 3),
         ValueError, "got 2 names and 3 poses",
     ),
+    # a text of names was read letter by letter, a repeated name overwrote its pairs, None
+    # failed on len()
+    "relative_gt_names_text": (
+        lambda: dg.relative_gt_from_poses("ab", [(np.eye(3), np.zeros(3))] * 2), TypeError,
+        "names must be a list of texts, got 'ab'",
+    ),
+    "relative_gt_repeated_name": (
+        lambda: dg.relative_gt_from_poses(["a", "a", "b"], [(np.eye(3), np.zeros(3))] * 3),
+        ValueError, r"names must differ, one per view, got \['a', 'a', 'b'\]",
+    ),
+    "relative_gt_poses_none": (
+        lambda: dg.relative_gt_from_poses(["a", "b"], None), TypeError,
+        "poses must be a list of .R, t., got NoneType",
+    ),
     "relative_gt_scaled_rotation": (
         lambda: dg.relative_gt_from_poses(["a", "b"], [(np.eye(3), np.zeros(3)),
                                                        (2 * np.eye(3), np.zeros(3))]),

@@ -418,6 +418,37 @@ def test_the_export_helpers_refuse_what_they_cannot_write(tmp_path, call, except
     assert not (tmp_path / "points.ply").exists()
 
 
+def test_a_colmap_model_into_a_file_is_refused_and_the_file_kept(demo_result, tmp_path):
+    # os.makedirs's FileExistsError
+    path = tmp_path / "model"
+    path.write_text("notes")
+    with pytest.raises(ValueError, match="model is a file, not a folder"):
+        write_colmap_model(path, demo_result)
+    assert path.read_text() == "notes"
+
+
+def test_extra_of_long_doubles_is_written_and_one_nested_too_deeply_refused(
+    demo_result, demo, tmp_path
+):
+    # a long double's tolist() is itself: json asked for it again until a RecursionError, as
+    # it did for a list nested 100000 deep
+    out = write_outputs(tmp_path / "out", demo_result, *demo[:2],
+                        extra={"scale": np.longdouble(1.5), "scales": np.ones(2, np.longdouble)})
+    data = json.loads((out / "result.json").read_text(encoding="utf-8"))
+    assert data["scale"] == 1.5 and data["scales"] == [1.0, 1.0]
+    deep = []
+    for _ in range(100_000):
+        deep = [deep]
+    with pytest.raises(ValueError, match="extra cannot be written as JSON: it is nested too deep"):
+        write_outputs(tmp_path / "deep", demo_result, *demo[:2], extra={"deep": deep})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+
+
+def test_max_lines_beyond_a_float_draws_every_match():
+    # float(10**400) raised OverflowError
+    assert matches_to_draw(np.ones(200, bool), 10**400).tolist() == list(range(200))
+
+
 def test_write_ply_replaces_a_file_whole(tmp_path):
     path = tmp_path / "points.ply"
     path.write_bytes(b"old")
@@ -453,10 +484,16 @@ def test_write_ply_replaces_a_file_whole(tmp_path):
      (lambda r, i, p: ppo_cv.export.result_to_dict(r, R=1), ValueError,
       "extra would replace the result's own field(s) 'R'"),
      (lambda r, i, p: write_outputs(p, r, *i, extra={"t": [0, 0, 1], "model": "x"}), ValueError,
-      "extra would replace the result's own field(s) 'model', 't'")],
+      "extra would replace the result's own field(s) 'model', 't'"),
+     # os.makedirs's "expected str, bytes or os.PathLike object, not NoneType" and "No such
+     # file or directory: ''"
+     (lambda r, i, p: write_colmap_model(None, r), TypeError,
+      "directory must be a path (str or os.PathLike), got NoneType"),
+     (lambda r, i, p: write_colmap_model("", r), ValueError,
+      "directory is an empty path, not a file or folder name")],
     ids=["same names", "names text", "one name", "NaN dist", "dists text", "draw NaN",
          "draw other size", "draw None", "inliers None", "inliers 2-D", "seed text",
-         "extra R", "write extra t"],
+         "extra R", "write extra t", "colmap folder None", "colmap folder empty"],
 )  # fmt: skip
 def test_the_writers_check_what_write_outputs_checks(demo_result, demo, tmp_path, call,
                                                      exception, words):  # fmt: skip

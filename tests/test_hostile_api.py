@@ -433,6 +433,298 @@ CASES = {
     "refine k1_noise_bias NaN t": (
         lambda: _refine().k1_noise_bias(R_TRUE, [np.nan, 0, 1], _rays(), _rays(), 1e-3),
         ValueError, "t has 1 NaN"),
+    # pycolmap stopped the process (a failed Ceres check) for a focal length of 0, NaN or
+    # 1e300, a t of 1e300 and rays far out; NaN and RuntimeWarnings for a t of 1e-300, priors
+    # and counts read as given (a negative iteration count, a NaN prior), numpy's own errors
+    "refine refine_pose zero focal": (
+        lambda: _refine().refine_pose(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, 0.0), ValueError,
+        "focal must be a finite number > 0, got 0.0"),
+    "refine refine_pose NaN focal": (
+        lambda: _refine().refine_pose(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, np.nan),
+        ValueError, "focal must be a finite number > 0, got nan"),
+    "refine refine_pose huge focal": (
+        lambda: _refine().refine_pose(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, 1e300), ValueError,
+        "focal must be in (0, 1e+08] pixels, got 1e+300"),
+    "refine refine_pose rays at infinity": (
+        lambda: _refine().refine_pose(R_TRUE, T_TRUE, _rays() * [1, 1, 0], _rays(), _ALL, 800.0),
+        ValueError, "x1 has 40 row(s) with w = 0 or |(x, y)| beyond 1e+06 |w|"),
+    "refine refine_pose rays near the image plane": (
+        lambda: _refine().refine_pose(R_TRUE, T_TRUE, _rays(), _rays() * [1e8, 1e8, 1], _ALL,
+                                      800.0), ValueError, "x2 has 40 row(s) with w = 0"),
+    "refine refine_pose_radial zero scale": (
+        lambda: _refine().refine_pose_radial(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, scale=0.0),
+        ValueError, "scale must be a finite number > 0, got 0.0"),
+    "refine refine_pose_radial zero k1_prior": (
+        lambda: _refine().refine_pose_radial(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, scale=1e-3,
+                                             k1_prior=0.0), ValueError, "k1_prior must be"),
+    "refine refine_pose_radial negative iterations": (
+        lambda: _refine().refine_pose_radial(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, scale=1e-3,
+                                             iterations=-1), ValueError,
+        "iterations must be a whole number in 0.."),
+    "refine refine_pose_radial NaN max_k1": (
+        lambda: _refine().refine_pose_radial(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, scale=1e-3,
+                                             max_k1=np.nan), ValueError,
+        "max_k1 must be a finite number >= 0, got nan"),
+    "refine refine_pose_radial NaN focal_prior": (
+        lambda: _refine().refine_pose_radial(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, scale=1e-3,
+                                             focal_prior=np.nan), ValueError,
+        "focal_prior must be a finite number >= 0, got nan"),
+    "refine refine_pose_radial principal_prior of three": (
+        lambda: _refine().refine_pose_radial(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, scale=1e-3,
+                                             principal_prior=np.ones(3)), ValueError,
+        "principal_prior must be one number or two (x, y), got shape (3,)"),
+    "refine pose_sigmas_deg zero step": (
+        lambda: _refine().pose_sigmas_deg(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, step=0.0),
+        ValueError, "step must be a finite number > 0, got 0.0"),
+    "refine pose_sigmas_deg negative noise": (
+        lambda: _refine().pose_sigmas_deg(R_TRUE, T_TRUE, _rays(), _rays(), _ALL, noise=-1.0),
+        ValueError, "noise must be a finite number >= 0, got -1.0"),
+    "refine pose_sigmas_deg NaN held_k1_prior": (
+        lambda: _refine().pose_sigmas_deg(R_TRUE, T_TRUE, _rays(), _rays(), _ALL,
+                                          held_k1_prior=np.nan), ValueError,
+        "held_k1_prior must be a finite number >= 0, got nan"),
+    "refine pose_sigmas_deg negative k1_prior": (
+        lambda: _refine().pose_sigmas_deg(R_TRUE, T_TRUE, _rays(), _rays(), _ALL,
+                                          k1_prior=-1.0), ValueError,
+        "k1_prior must be a finite number > 0, got -1.0"),
+    "refine k1_noise_bias one replicate": (
+        lambda: _refine().k1_noise_bias(R_TRUE, T_TRUE, _rays(), _rays(), 1e-3, replicates=1),
+        ValueError, "replicates must be a whole number in 2.."),
+    "refine released_lens_shift_deg NaN k1": (
+        lambda: _refine().released_lens_shift_deg(R_TRUE, T_TRUE, np.nan, _rays(), _rays(),
+                                                  _ALL, 1e-3), ValueError,
+        "k1 must be a finite number in [-10, 10], got nan"),
+    "refine released_lens_shift_deg negative replicates": (
+        lambda: _refine().released_lens_shift_deg(R_TRUE, T_TRUE, 0.1, _rays(), _rays(), _ALL,
+                                                  1e-3, replicates=-1), ValueError,
+        "replicates must be a whole number in 0.."),
+    "refine fit_rotation matches of two lengths": (
+        lambda: _refine().fit_rotation(_rays(), _rays()[:30], _ALL, 1e-3), ValueError,
+        "x1 and x2 must have the same length, got 40 and 30"),
+    "refine fit_rotation index mask": (
+        lambda: _refine().fit_rotation(_rays(), _rays(), np.arange(40), 1e-3), TypeError,
+        "inliers must be a mask of bool, got dtype int64"),
+    "refine fit_rotation no match allowed": (
+        lambda: _refine().fit_rotation(_rays(), _rays(), ~_ALL, 1e-3), ValueError,
+        "inliers selects 0 matches: a rotation needs at least 2"),
+    "refine fit_rotation NaN threshold": (
+        lambda: _refine().fit_rotation(_rays(), _rays(), _ALL, np.nan), ValueError,
+        "threshold must be a finite number > 0, got nan"),
+    "refine fit_rotation a zero row": (
+        lambda: _refine().fit_rotation(_rays() * (np.arange(40) > 0)[:, None], _rays(), _ALL,
+                                       1e-3), ValueError, "x1 has a zero row"),
+    "refine rotation_residuals points of two": (
+        lambda: _refine().rotation_residuals(R_TRUE, P1, P2), ValueError,
+        "x1 must have shape (N, 3), got (40, 2)"),
+    "refine checked_matches flat J": (
+        lambda: _refine().checked_matches(np.ones(3)), ValueError,
+        "J must have shape (N, P), got (3,)"),
+    "refine checked_matches NaN J": (
+        lambda: _refine().checked_matches(np.full((10, 3), np.nan)), ValueError,
+        "J has 30 NaN or infinite value(s)"),
+    "refine huber_bound_px negative threshold": (
+        lambda: _refine().huber_bound_px(-1.0, 0.5), ValueError,
+        "threshold_px must be a finite number > 0, got -1.0"),
+    # AttributeErrors ("'NoneType' object has no attribute 'pure_rotation'", "... 'n'",
+    # "... 'R'", "... 'num_inliers'", "... 'backend'", "... 'dimension'", "... 'camera_size'"),
+    # a count of 10**400 chunked without end, a scale of 0 divided by
+    "guessed_camera fitted_focal_scale None": (
+        lambda: __import__("ppo_cv.guessed_camera").guessed_camera.fitted_focal_scale(None),
+        TypeError, "result must be a ppo_cv.result.PairResult, got NoneType (estimate_pair)"),
+    "guessed_camera decide_with_fitted_focal text": (
+        lambda: __import__("ppo_cv.guessed_camera").guessed_camera.decide_with_fitted_focal(
+            "result.json", [GREY, GREY], PairOptions()), TypeError,
+        "result must be a ppo_cv.result.PairResult, got str (estimate_pair)"),
+    "guessed_camera lens_focal_scale zero scale": (
+        lambda: __import__("ppo_cv.guessed_camera").guessed_camera.lens_focal_scale(
+            None, 0.0, 1.0), ValueError, "scale must be a finite number > 0, got 0.0"),
+    "plane frontality None": (
+        lambda: __import__("ppo_cv.plane").plane.frontality(None), TypeError,
+        "candidates must be a ppo_cv.plane.HomographyCandidates, got NoneType"),
+    "motion_model with_rotation None": (
+        lambda: __import__("ppo_cv.motion_model").motion_model.with_rotation(
+            None, None, RAYS, RAYS2, 800.0), TypeError,
+        "motion must be a ppo_cv.motion_model.MotionDecision, got NoneType"),
+    "motion_model with_tracks None": (
+        lambda: __import__("ppo_cv.motion_model").motion_model.with_tracks(
+            None, None, None, RAYS, RAYS2, 800.0), TypeError,
+        "motion must be a ppo_cv.motion_model.MotionDecision, got NoneType"),
+    "homography require_unmirrored text": (
+        lambda: __import__("ppo_cv.homography").homography.require_unmirrored("H"), TypeError,
+        "homography must be a ppo_cv.homography.HomographyEstimate or None, got str"),
+    "consensus ransac_keywords dict": (
+        lambda: __import__("ppo_cv.consensus").consensus.ransac_keywords({"backend": "x"}),
+        TypeError, "options must be a ppo_cv.options.PairOptions, got dict"),
+    "model_selection model_noise None": (
+        lambda: ppo_cv.model_selection.model_noise(None), TypeError,
+        "candidates must be a list of ModelResiduals, got NoneType"),
+    "model_selection select_model texts": (
+        lambda: ppo_cv.model_selection.select_model(["rotation", "general"]), TypeError,
+        "each of candidates must be a ppo_cv.model_selection.ModelResiduals, got str"),
+    "model_selection select_model empty": (
+        lambda: ppo_cv.model_selection.select_model([]), ValueError,
+        "candidates is empty: at least one candidate model is needed"),
+    "calib exif_focal_scale None": (
+        lambda: ppo_cv.calib.exif_focal_scale(None, (640, 480)), TypeError,
+        "layout must be a ppo_cv.images.ExifLayout, got NoneType"),
+    "calib fitted_exif_focal text focal": (
+        lambda: ppo_cv.calib.fitted_exif_focal("500", None, (640, 480)), TypeError,
+        "focal must be a number, got str"),
+    "lsq row_chunks huge count": (
+        lambda: __import__("ppo_cv.lsq").lsq.row_chunks(10**400, 3), ValueError,
+        "count must be a whole number in 0..2147483647, got <401-digit integer>"),
+    # parallax: IndexErrors ("invalid index to scalar variable") for None or a number as the
+    # scales, numpy's LinAlgError for None as H, "could not convert string to float"; a
+    # scale of 1e3 overflowed exp into NaN spreads
+    "parallax focal_conjugates scalar scales": (
+        lambda: __import__("ppo_cv.parallax").parallax.focal_conjugates(np.eye(3), 0.1), ValueError,
+        "log_scales must be a sequence of numbers, got shape ()"),
+    "parallax rotation_spread None H": (
+        lambda: __import__("ppo_cv.parallax").parallax.rotation_spread(None, [0.0, 0.1]), TypeError,
+        "H is required, got None"),
+    "parallax nearest_rotation_log_scale huge scales": (
+        lambda: __import__("ppo_cv.parallax").parallax.nearest_rotation_log_scale(
+            np.eye(3), [-1e3, 0.0, 1e3]),
+        ValueError, "log_scales must ascend within +-50"),
+    "parallax nearest_rotation_log_scale unsorted": (
+        lambda: __import__("ppo_cv.parallax").parallax.nearest_rotation_log_scale(
+            np.eye(3), [0.1, 0.0, -0.1]),
+        ValueError, "log_scales must ascend within +-50, got [0.1, 0.0, -0.1]"),
+    "parallax homography_parallax H of two rows": (
+        lambda: __import__("ppo_cv.parallax").parallax.homography_parallax(np.eye(3)[:2]),
+        ValueError, "H must be a 3x3 homography, got shape (2, 3)"),
+    "parallax fit_plane_parallax text": (
+        lambda: __import__("ppo_cv.parallax").parallax.fit_plane_parallax("x1", RAYS), TypeError,
+        "x1 must be an array of real numbers, got str"),
+    # '<' not supported for None; a fractional consensus, a negative one and no sample read as
+    # given (a count of trials for 20.5 matches; inf; 1 trial)
+    "robust trials_for_consensus None": (
+        lambda: ppo_cv.robust.trials_for_consensus(None, 100, 0.05), TypeError,
+        "consensus must be a whole number, got NoneType None"),
+    "robust trials_for_consensus fraction": (
+        lambda: ppo_cv.robust.trials_for_consensus(20.5, 100, 0.05), ValueError,
+        "consensus must be a whole number in 0..2147483647, got 20.5"),
+    "robust trials_for_consensus no sample": (
+        lambda: ppo_cv.robust.trials_for_consensus(20, 100, 0.05, 0), ValueError,
+        "sample_size must be a whole number in 1..2147483647, got 0"),
+    # an AttributeError for None ("'NoneType' object has no attribute 'tolist'"); matrices that
+    # are no SVD's gave "rotations" that are none, zero singular values NaN
+    "ppo candidates_from_svd None": (
+        lambda: ppo_cv.ppo.candidates_from_svd(None, [1.0, 1.0, 0.0], np.eye(3)), TypeError,
+        "U is required, got None"),
+    "ppo candidates_from_svd not orthogonal": (
+        lambda: ppo_cv.ppo.candidates_from_svd(np.eye(3), [1.0, 1.0, 0.0], np.ones((3, 3))),
+        ValueError, "Vt must be an orthogonal 3x3 matrix (of an SVD)"),
+    "ppo candidates_from_svd zero singular values": (
+        lambda: ppo_cv.ppo.candidates_from_svd(np.eye(3), np.zeros(3), np.eye(3)), ValueError,
+        "s must be three singular values >= 0, not all zero"),
+    # unique_pixel_pairs: a negative index wrapped to the last keypoint, five distances for ten
+    # matches kept five rows, a step of 0 raised RuntimeWarnings, NaN keypoints a cast warning;
+    # require_detectable: "'NoneType' object is not subscriptable", "tuple index out of range"
+    "features unique_pixel_pairs negative index": (
+        lambda: ppo_cv.features.unique_pixel_pairs(np.c_[np.arange(40), np.arange(40)] - 1, P1,
+                                                   P2, np.ones(40)), ValueError,
+        "matches column 0 must index keypoints1 (0..39)"),
+    "features unique_pixel_pairs distances short": (
+        lambda: ppo_cv.features.unique_pixel_pairs(np.c_[np.arange(40), np.arange(40)], P1, P2,
+                                                   np.ones(5)), ValueError,
+        "distances must have one per match (40,), got (5,)"),
+    "features unique_pixel_pairs zero step": (
+        lambda: ppo_cv.features.unique_pixel_pairs(np.c_[np.arange(40), np.arange(40)], P1, P2,
+                                                   np.ones(40), 0.0), ValueError,
+        "resolution must be a finite number > 0, got 0.0"),
+    "features unique_pixel_pairs float matches": (
+        lambda: ppo_cv.features.unique_pixel_pairs(np.ones((40, 2)), P1, P2, np.ones(40)),
+        TypeError, "matches must be index pairs of integers, got dtype float64"),
+    "features require_detectable None": (
+        lambda: ppo_cv.features.require_detectable(None, "image"), TypeError,
+        "shape must be an image's shape (H, W[, C]), got None"),
+    "features require_detectable one side": (
+        lambda: ppo_cv.features.require_detectable((5,), "image"), TypeError,
+        "shape must be an image's shape (H, W[, C]), got (5,)"),
+    # AttributeErrors: "'NoneType' object has no attribute 'backend'", "... 'img1'"; numpy's
+    # "diag requires an array of at least two dimensions", AxisError; a NaN covariance gave a
+    # NaN angle and flags of 0.5 read as True
+    "consensus detect_both no options": (
+        lambda: __import__("ppo_cv.consensus").consensus.detect_both(GREY, GREY, None),
+        TypeError, "options must be a ppo_cv.options.PairOptions, got NoneType"),
+    "consensus best_consensus no inputs": (
+        lambda: __import__("ppo_cv.consensus").consensus.best_consensus(
+            None, None, None, PairOptions(), print), TypeError,
+        "inputs must be a ppo_cv.consensus.PairInputs, got NoneType"),
+    "plane rms_rotation_angle_deg NaN": (
+        lambda: __import__("ppo_cv.plane").plane.rms_rotation_angle_deg(np.full((3, 3), np.nan)),
+        ValueError, "covariance has 9 NaN or infinite value(s)"),
+    "plane rms_rotation_angle_deg None": (
+        lambda: __import__("ppo_cv.plane").plane.rms_rotation_angle_deg(None), TypeError,
+        "covariance is required, got None"),
+    "plane support_ties fractions": (
+        lambda: __import__("ppo_cv.plane").plane.support_ties(np.full((2, 5), 0.5)), TypeError,
+        "in_front must be a (K, N) array of bool, got float64 of shape (2, 5)"),
+    "ppo frame_scores None": (
+        lambda: ppo_cv.ppo.frame_scores(None, np.ones((2, 3, 5))), TypeError,
+        "F is required, got None"),
+    "ppo frame_scores points of one view": (
+        lambda: ppo_cv.ppo.frame_scores(np.ones((2, 3, 3)), np.ones((3, 5))), ValueError,
+        "points must have shape (2, 3, N), got (3, 5)"),
+    "ppo frame_scores NaN point": (
+        lambda: ppo_cv.ppo.frame_scores(np.ones((2, 3, 3)), np.full((2, 3, 5), np.nan)),
+        ValueError, "points has 30 NaN or infinite value(s)"),
+    "ppo frame_maps not orthogonal": (
+        lambda: ppo_cv.ppo.frame_maps(np.ones((3, 3)), np.eye(3)), ValueError,
+        "U must be an orthogonal 3x3 matrix (of an SVD)"),
+    # estimate_essential_ordered: "'NoneType' object is not subscriptable", LinAlgError for a
+    # singular K2, the text "no" read as true and a NaN bar as no bar
+    "robust estimate_essential_ordered no image size": (
+        lambda: ppo_cv.robust.estimate_essential_ordered(RAYS, RAYS2, 800.0, np.ones(40), None),
+        TypeError, "image_size must be (width, height), got None"),
+    "robust estimate_essential_ordered singular K2": (
+        lambda: ppo_cv.robust.estimate_essential_ordered(
+            RAYS, RAYS2, 800.0, np.ones(40), (640, 480), K2=np.ones((3, 3))), ValueError,
+        "K2 must be upper triangular"),
+    "robust estimate_essential_ordered flag text": (
+        lambda: ppo_cv.robust.estimate_essential_ordered(
+            RAYS, RAYS2, 800.0, np.ones(40), (640, 480), uniform_when_weak="no"), TypeError,
+        "uniform_when_weak must be True or False, got str 'no'"),
+    "robust estimate_essential_ordered NaN bar": (
+        lambda: ppo_cv.robust.estimate_essential_ordered(
+            RAYS, RAYS2, 800.0, np.ones(40), (640, 480), max_log10_nfa=np.nan), ValueError,
+        "max_log10_nfa must be a number (inf: every consensus), got nan"),
+    # ZeroDivisionError for a Huber bound of 0, LinAlgError for NaN; "Value after * must be an
+    # iterable" and AttributeErrors for minima that are none; a RuntimeWarning for a plane at
+    # distance 0 and a zero normal read as a plane; RuntimeWarnings for a zero homography
+    "valley valley_minima zero scale": (
+        lambda: __import__("ppo_cv.valley").valley.valley_minima(R_TRUE, T_TRUE, _rays(), RAYS2,
+                                                                0.0), ValueError,
+        "scale must be a finite number > 0, got 0.0"),
+    "valley valley_outcome minima None": (
+        lambda: __import__("ppo_cv.valley").valley.valley_outcome(R_TRUE, T_TRUE, None),
+        TypeError, "minima must be a list of ValleyMinimum, got NoneType"),
+    "valley valley_outcome minima texts": (
+        lambda: __import__("ppo_cv.valley").valley.valley_outcome(R_TRUE, T_TRUE, ["a"]),
+        TypeError, "each of minima must be a ppo_cv.valley.ValleyMinimum, got str"),
+    "plane homography_from_pose zero distance": (
+        lambda: __import__("ppo_cv.plane").plane.homography_from_pose(R_TRUE, T_TRUE, [0, 0, 1],
+                                                                      0.0), ValueError,
+        "d must be a finite distance other than 0, got 0.0"),
+    "plane homography_from_pose zero normal": (
+        lambda: __import__("ppo_cv.plane").plane.homography_from_pose(R_TRUE, T_TRUE, [0, 0, 0],
+                                                                      1.0), ValueError,
+        "n is zero: a plane needs a normal"),
+    "plane decompose_homography zeros": (
+        lambda: __import__("ppo_cv.plane").plane.decompose_homography(np.zeros((3, 3))),
+        ValueError, "H has rank below 2: not a homography between two views"),
+    # NaN points out for a NaN k1 or NaN points in; a k1 folding points over divided by zero
+    # or turned them about the centre without a word
+    "plane undistort_division NaN k1": (
+        lambda: __import__("ppo_cv.plane").plane.undistort_division(_rays(), np.nan), ValueError,
+        "k1 must be a finite number, got nan"),
+    "plane undistort_division NaN point": (
+        lambda: __import__("ppo_cv.plane").plane.undistort_division(_rays(np.nan), 0.1),
+        ValueError, "x has 1 NaN or infinite value(s)"),
+    "plane undistort_division folding k1": (
+        lambda: __import__("ppo_cv.plane").plane.undistort_division(_rays() * [10, 10, 1], -1.0),
+        ValueError, "k1 = -1 folds"),
     "valley valley_minima NaN match": (
         lambda: __import__("ppo_cv.valley").valley.valley_minima(
             R_TRUE, T_TRUE, _rays(np.nan), _rays(), 1e-3), ValueError, "x1 has 1 NaN"),
@@ -472,6 +764,12 @@ CASES = {
     "significance log10_binomial fractions": (
         lambda: _significance().log10_binomial(10.5, 3), TypeError,
         "n and k must be integers, got dtypes float64 and int64"),
+    "significance log10_binomial shapes that do not broadcast": (
+        lambda: _significance().log10_binomial(np.array([10, 20, 30]), np.array([1, 2])),
+        ValueError, "n and k must broadcast together, got shapes (3,) and (2,)"),
+    "significance log10_binomial no n for some k": (
+        lambda: _significance().log10_binomial(np.array([], int), np.array([1, 2])),
+        ValueError, "n and k must broadcast together, got shapes (0,) and (2,)"),
     "significance smallest consensus NaN threshold": (
         lambda: _significance().smallest_significant_consensus(100, (640, 480), np.nan, 5.0),
         ValueError, "threshold must be a finite number > 0, got nan"),
@@ -852,6 +1150,26 @@ def test_any_finite_scale_of_E_gives_the_same_pose(scale):
     np.testing.assert_allclose(result.R, R_TRUE, atol=1e-9)
 
 
+@pytest.mark.parametrize("scale", [1e300, 1e-300, 5e-324, -1e200])
+def test_any_finite_scale_of_t_gives_the_same_refined_pose(scale):
+    refine = _refine()
+    R, t = refine.refine_pose(R_TRUE, T_TRUE, _rays(), RAYS2, _ALL, 800.0)
+    R_scaled, t_scaled = refine.refine_pose(R_TRUE, T_TRUE * scale, _rays(), RAYS2, _ALL, 800.0)
+    np.testing.assert_allclose(R_scaled, R, atol=1e-9)
+    np.testing.assert_allclose(t_scaled, np.sign(scale) * t, atol=1e-9)
+    radial = refine.refine_pose_radial(R_TRUE, T_TRUE * scale, _rays(), RAYS2, _ALL, scale=1e-3)
+    assert np.all(np.isfinite(radial.t)) and abs(np.linalg.norm(radial.t) - 1) < 1e-12
+
+
+def test_refine_pose_reads_rows_as_homogeneous_points():
+    refine = _refine()
+    R, t = refine.refine_pose(R_TRUE, T_TRUE, _rays(), RAYS2, _ALL, 800.0)
+    w = np.linspace(0.5, 4.0, 40)[:, None]
+    R_w, t_w = refine.refine_pose(R_TRUE, T_TRUE, _rays() * w, RAYS2 / w, _ALL, 800.0)
+    np.testing.assert_allclose(R_w, R, atol=1e-9)
+    np.testing.assert_allclose(t_w, t, atol=1e-9)
+
+
 @pytest.mark.parametrize("noise_px", [0.5, 2.0, 5.0])
 def test_a_linear_eight_point_E_of_noisy_points_is_still_read(noise_px):
     rng = np.random.default_rng(3)
@@ -873,6 +1191,22 @@ def test_dropin_reads_E_of_nine_entries_as_opencv_does(shape):
     ours = ppo_cv.recoverPose(E.reshape(shape), P1, P2, K)
     assert ours[0] == reference[0] == 40
     np.testing.assert_allclose(ours[1], reference[1], atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "call, r_index",
+    [(lambda f, K3: f(E, P1, P2, K3), 1), (lambda f, K3: f(E, P1, P2, K3, 50.0), 1),
+     (lambda f, K3: f(P1, P2, K3, None, K3, None), 2),
+     (lambda f, K3: f(P1, P2, cameraMatrix1=K3, distCoeffs1=None, cameraMatrix2=K3,
+                      distCoeffs2=None), 2)],
+    ids=["form 1", "form 3", "form 4", "form 4 keywords"],
+)  # fmt: skip
+def test_dropin_reads_a_camera_matrix_of_one_channel_as_opencv_does(call, r_index):
+    # refused as "cameraMatrix must be a 3x3 matrix, got shape (3, 3, 1)"
+    reference = call(OPENCV_RECOVER_POSE, K.reshape(3, 3, 1))
+    ours = call(ppo_cv.recoverPose, K.reshape(3, 3, 1))
+    assert ours[0] == reference[0] == 40
+    np.testing.assert_allclose(ours[r_index], reference[r_index], atol=1e-6)
 
 
 def test_umat_inputs_give_umat_outputs_with_the_same_pose():
@@ -966,6 +1300,20 @@ def test_uninstall_restores_what_install_replaced():
         cv2.recoverPose = saved
 
 
+@pytest.mark.parametrize("shape", [(1, 1), (7, 7), (1, 100)])
+def test_an_image_narrower_than_eight_pixels_is_checked_whole(tmp_path, shape):
+    # OpenCV's reduced decode of such a PNG raised cv2.error ("inv_scale_x > 0") from
+    # camera_from_exif
+    path = tmp_path / "small.png"
+    cv2.imwrite(str(path), np.zeros(shape, np.uint8))
+    ppo_cv.images.check_decodes(path)
+    camera, _ = ppo_cv.camera_from_exif(path)
+    assert camera.K[0, 2] == shape[1] / 2 and camera.K[1, 2] == shape[0] / 2
+    path.write_bytes(path.read_bytes()[:40])
+    with pytest.raises(ValueError, match="not a readable image"):
+        ppo_cv.images.check_decodes(path)
+
+
 def test_decompression_bomb_is_refused_from_the_header(tmp_path, monkeypatch):
     bomb = tmp_path / "bomb.png"
     bomb.write_bytes(png_header(30000, 30000))
@@ -1008,6 +1356,24 @@ def test_jpeg_size_is_read_from_the_header_too(tmp_path):
     cv2.imwrite(str(path), np.zeros((300, 200, 3), np.uint8))
     with pytest.raises(ValueError, match="declares 200x300 pixels"):
         load_image(path, max_pixels=59_999)
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+def test_read_text_file_refuses_a_fifo_and_names_a_path_that_is_none(tmp_path):
+    # it opened the FIFO and waited for a writer; None failed in open(), naming nothing
+    fifo = tmp_path / "pairs.txt"
+    os.mkfifo(fifo)
+    with ThreadPoolExecutor(1) as pool:
+        future = pool.submit(ppo_cv.calib.read_text_file, fifo, "pairs file")
+        try:
+            with pytest.raises(ValueError, match="pairs file .* is not a regular file"):
+                future.result(timeout=10)
+        except FutureTimeout:
+            with open(fifo, "w"):  # release the reader
+                pass
+            raise
+    with pytest.raises(TypeError, match="path must be a path"):
+        ppo_cv.calib.read_text_file(None, "pairs file")
 
 
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")

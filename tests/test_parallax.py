@@ -64,7 +64,7 @@ def test_the_deviation_grows_in_a_narrow_strip_and_with_few_points():
         (np.zeros((7, 2)), np.zeros((7, 2)), None, "at least 8"),
         (np.zeros((9, 2)), np.zeros((8, 2)), None, "same shape"),
         (np.zeros((9, 4)), np.zeros((9, 4)), None, "shape"),
-        (np.full((9, 2), np.nan), np.zeros((9, 2)), None, "non-finite"),
+        (np.full((9, 2), np.nan), np.zeros((9, 2)), None, "x1 has 18 NaN or infinite"),
         (np.ones((9, 2)), np.ones((9, 2)), -1.0, "noise"),
     ],
 )
