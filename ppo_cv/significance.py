@@ -169,7 +169,7 @@ cap). Measured (640 x 480, demo camera, 150 random-noise pairs): the 23 chance c
 8-9 of 23-42 matches that reach a pose, at ``log10 NFA`` +1.4..+3.9, hold 1-5 checked inliers
 (8 were answered before); the nine freiburg pairs answered with 13-20 inliers (``log10 NFA``
 -2.3..+4.4) hold 10-18 (``docs/decision.md``). A chance consensus of a dozen or more matches
-is not caught here (``docs/limits.md``, "Significance")."""
+is not caught here, but by :func:`local_consistency` (``docs/limits.md``, "Significance")."""
 MAX_LOCAL_P = 0.01
 """Largest :func:`local_consistency` p-value of a consensus with ``log10 NFA`` above
 :data:`LOCAL_CHECK_LOG10_NFA` (module docstring): the 1 % level. Measured: the weak real pairs
