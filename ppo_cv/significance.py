@@ -561,14 +561,14 @@ def require_significance(
     ``K2``), for a weak consensus (``log10 NFA`` above :data:`CONFIDENT_LOG10_NFA`) the
     distinctiveness of its matches by their Lowe ``ratios`` (N,) (:func:`distinctiveness`):
     ``log10 NFA + log10 p <= CONFIDENT_LOG10_NFA``, and above :data:`LOCAL_CHECK_LOG10_NFA`
-    (unless ``max_log10_nfa`` is inf) its :func:`local_consistency` at most
-    :data:`MAX_LOCAL_P`. Returns the :class:`Significance`; ValueError "no reliable two-view
+    its :func:`local_consistency` at most :data:`MAX_LOCAL_P`; ``max_log10_nfa`` inf turns
+    all three off. Returns the :class:`Significance`; ValueError "no reliable two-view
     geometry" with the figures when the consensus may be chance (``log10 NFA`` above
     ``max_log10_nfa``, not distinctive enough, or not locally consistent)."""
     significance = epipolar_significance(E, x1, x2, K2, size2)
     refused = not significance.log10_nfa <= max_log10_nfa
     detail = f"log10 NFA {significance.log10_nfa:.1f} > {max_log10_nfa:g}"
-    if not refused and CONFIDENT_LOG10_NFA < significance.log10_nfa < np.inf:
+    if not refused and CONFIDENT_LOG10_NFA < significance.log10_nfa and max_log10_nfa < np.inf:
         p_value = distinctiveness(ratios, significance.consistent)
         joint = significance.log10_nfa + np.log10(max(p_value, 1e-300))
         refused = not joint <= CONFIDENT_LOG10_NFA

@@ -10,6 +10,7 @@ import pytest
 import ppo_cv
 from ppo_cv.metrics import rotation_error_deg
 from ppo_cv.significance import (
+    LOCAL_CHECK_LOG10_NFA,
     LOCAL_CONSISTENCY_DRAWS,
     MAX_LOCAL_P,
     _chords,
@@ -119,3 +120,27 @@ def test_a_point_at_the_epipole_keeps_its_place_under_the_background_hypothesis(
     lines[0] = [0.0, 0.0, 1.0]  # epipolar_lines' line of a point at the epipole
     p = local_consistency(x1, points2, lines, (640, 480), 1.0)
     assert p == pytest.approx(1.0 / (1 + LOCAL_CONSISTENCY_DRAWS))
+
+
+def test_an_infinite_bar_turns_every_test_of_the_consensus_off(freiburg):
+    """``PairOptions.max_log10_nfa`` inf switches the significance test off: the distinctiveness
+    of a weak consensus refused freiburg pair 43 (16 of 96 matches at log10 NFA +4.2, p 0.42)
+    under it before, and the local consistency refuses the unrelated photographs."""
+    options = ppo_cv.PairOptions(max_log10_nfa=np.inf)
+    chance = ppo_cv.estimate_pair(
+        _photo("immunohistochemistry"), _photo("retina"), K_DEMO, options=options
+    )
+    assert chance.evidence.significance.log10_nfa > LOCAL_CHECK_LOG10_NFA
+    rows = (freiburg / "pairs_with_gt.txt").read_text().splitlines()
+    fields = next(r.split() for r in rows if r.split()[:2] == list(UNDISTINCTIVE_FREIBURG))
+    K1, K2 = (np.array(fields[i : i + 9], float).reshape(3, 3) for i in (4, 13))
+    images = freiburg / "images"
+    names = UNDISTINCTIVE_FREIBURG
+    with pytest.raises(ValueError, match="distinctiveness"):
+        ppo_cv.estimate_pair(images / names[0], images / names[1], K1, K2)
+    # Past the significance test, the pose (123 degrees of ray angle) meets the later guards.
+    with pytest.raises(ValueError, match="the pose has its 12 inliers seen from"):
+        ppo_cv.estimate_pair(images / names[0], images / names[1], K1, K2, options=options)
+
+
+UNDISTINCTIVE_FREIBURG = ("1341847985.746954.png", "1341847991.814748.png")
