@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import ppo_cv.pipeline as pipeline
+from ppo_cv import significance
 from ppo_cv.calib import ImplausibleCameraWarning
 from ppo_cv.significance import (
     MAX_MEDIAN_RAY_ANGLE_DEG,
@@ -63,11 +64,12 @@ def _demo():
     return str(DATA / info["image1"]), str(DATA / info["image2"]), K
 
 
-def test_estimate_pair_refuses_a_pose_whose_inliers_it_cannot_have_matched():
+def test_estimate_pair_refuses_a_pose_whose_inliers_it_cannot_have_matched(monkeypatch):
     """The demo pair cut to the left 47 % of image 1 and the right 47 % of image 2 (a sliver of
     overlap) left a chance consensus of 11 matches that passes the significance bar, whose
     pose, 119 deg off, sees them from directions a median 135 deg apart; uncut, the pair's pose
-    sees its inliers from a few degrees apart."""
+    sees its inliers from a few degrees apart. The significance test now refuses it as not
+    locally consistent; set that aside, the viewpoints do."""
     image1, image2, K = _demo()
     whole = pipeline.estimate_pair(image1, image2, K)
     x1, x2 = _normalized(whole, K, K)
@@ -76,6 +78,10 @@ def test_estimate_pair_refuses_a_pose_whose_inliers_it_cannot_have_matched():
     keep = round(0.47 * a.shape[1])
     K2 = K.copy()
     K2[0, 2] -= a.shape[1] - keep
+    chance = pytest.raises(ValueError, match="no reliable two-view geometry: the consensus")
+    with chance, pytest.warns(ImplausibleCameraWarning, match="principal point"):
+        pipeline.estimate_pair(a[:, :keep].copy(), b[:, -keep:].copy(), K, K2)
+    monkeypatch.setattr(significance, "MAX_LOCAL_P", 1.0)
     refused = pytest.raises(ValueError, match="no reliable two-view geometry: the pose has its 11 ")
     with refused, pytest.warns(ImplausibleCameraWarning, match="principal point"):
         pipeline.estimate_pair(a[:, :keep].copy(), b[:, -keep:].copy(), K, K2)
