@@ -39,7 +39,7 @@ from .checks import (
     require_instance,
     shown,
 )
-from .lsq import cross_matrix
+from .lsq import _cross_matrix
 from .metrics import direction_error_deg
 from .pose import PoseResult, recover_pose
 from .result import PairResult
@@ -378,7 +378,7 @@ def _essential_by_five_point(
     if result is None:
         raise ValueError("no essential matrix could be estimated from the inlier matches")
     R, t = pose_from_rigid3d(result["cam2_from_cam1"])
-    return cross_matrix(t) @ R
+    return _cross_matrix(t) @ R
 
 
 def estimate_two_view_geometry(

@@ -296,9 +296,9 @@ def best_consensus(
     """The consensus of the features ``f1``, ``f2`` of the images of ``inputs``, or of features
     detected at :data:`REDETECT_THRESHOLD_SCALE` when that one is weak
     (``PairOptions.redetect_below``) and chance explains the denser one less (lower ``log10``
-    NFA, which counts the matches each was drawn from); the first failure's ValueError when
-    neither holds. ``lap`` is called with each stage's name as it ends (``features`` for a
-    second detection, ``matching``, ``undistort``, ``ransac``).
+    NFA, which counts the matches each was drawn from); when neither holds, a ValueError
+    giving why each was refused (one line). ``lap`` is called with each stage's name as it
+    ends (``features`` for a second detection, ``matching``, ``undistort``, ``ransac``).
 
     The denser features are ``f1`` and ``f2`` themselves when they hold those of
     :data:`REDETECT_THRESHOLD_SCALE` (:func:`_first_detection`), else detected on the images.
@@ -325,12 +325,13 @@ def best_consensus(
     redetect = options.redetect_below > 0
     found, failure = attempt(f1, f2, 1.0, settle=not redetect)
     unsettled = found is None and failure is None
+    refused = None
     if redetect and (found is None or found.fit.num_inliers < options.redetect_below):
         d1, d2 = f1, f2
         if not all(_thins_to(f, REDETECT_THRESHOLD_SCALE) for f in (f1, f2)):
             d1, d2, _ = detect_both(img1, img2, options, REDETECT_THRESHOLD_SCALE)
         lap("features")
-        denser, _ = attempt(d1, d2, REDETECT_THRESHOLD_SCALE)
+        denser, refused = attempt(d1, d2, REDETECT_THRESHOLD_SCALE)
         if unsettled and denser is None:
             found, failure = attempt(f1, f2, 1.0)
         if denser is not None and (
@@ -338,8 +339,20 @@ def best_consensus(
         ):
             found = denser
     if found is None:
-        raise failure
+        raise failure if refused is None else _both_refused(failure, refused)
     return found
+
+
+def _both_refused(first: ValueError, denser: ValueError) -> ValueError:
+    """One ValueError, on one line, giving why the consensus of the given features (``first``)
+    and that of the denser ones (``denser``) were refused; ``first`` when the two say the same."""
+    if str(denser) == str(first):
+        return first
+    prefix, reason = "no reliable two-view geometry: ", str(denser)
+    if str(first).startswith(prefix) and reason.startswith(prefix):
+        reason = reason[len(prefix):]
+    scale = f"{REDETECT_THRESHOLD_SCALE:g}"
+    return ValueError(f"{first}; with denser features (threshold scale {scale}): {reason}")
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,16 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .checks import MAX_WHOLE_NUMBER, as_whole_number
+from .checks import (
+    MAX_WHOLE_NUMBER,
+    as_finite_array,
+    as_finite_rows,
+    as_nonnegative,
+    as_positive,
+    as_real_array,
+    as_vector3,
+    as_whole_number,
+)
 
 __all__ = [
     "cross_matrix",
@@ -51,12 +60,39 @@ def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     )
 
 
+def _as_callable(value, name: str):
+    """``value``, a callable; TypeError naming ``name`` otherwise (None included)."""
+    if not callable(value):
+        raise TypeError(f"{name} must be a callable, got {type(value).__name__}")
+    return value
+
+
+def _as_start(p, ndim: int) -> np.ndarray:
+    """The start ``p`` of a fit, finite float64 of ``ndim`` dimensions (one vector or a stack of
+    them), the same object when it is one already; ValueError or TypeError naming it."""
+    p = as_finite_array(p, "p")
+    if p.ndim != ndim or p.size == 0:
+        shape = "(P,)" if ndim == 1 else "(S, P)"
+        raise ValueError(f"p must be parameters of shape {shape}, got {p.shape}")
+    return p
+
+
+def _as_iterations(iterations) -> int:
+    return as_whole_number(iterations, "iterations", 0, MAX_WHOLE_NUMBER)
+
+
 def rotation_increment(w: np.ndarray) -> np.ndarray:
     """``exp([w]x)`` (3, 3): the rotation by ``|w|`` radians about ``w / |w|`` (Rodrigues), to
-    first order ``I + [w]x`` below 1e-12 rad; the figures of :func:`rotation_increments`."""
+    first order ``I + [w]x`` below 1e-12 rad; the figures of :func:`rotation_increments`.
+    ``w`` three finite numbers; ValueError or TypeError naming it otherwise."""
+    return _rotation_increment(as_vector3(w, "w"))
+
+
+def _rotation_increment(w: np.ndarray) -> np.ndarray:
+    """:func:`rotation_increment`, unchecked."""
     w = np.asarray(w, dtype=np.float64)
     theta = np.sqrt(np.add.reduce(w * w))
-    K = cross_matrix(w)
+    K = _cross_matrix(w)
     if theta < 1e-12:
         return np.eye(3) + K
     a, b = np.sin(theta) / theta, (1.0 - np.cos(theta)) / (theta * theta)
@@ -64,22 +100,40 @@ def rotation_increment(w: np.ndarray) -> np.ndarray:
 
 
 def cross_matrix(v: np.ndarray) -> np.ndarray:
-    """``[v]_x`` (3, 3) of one vector ``v`` (3,): ``[v]_x u = v x u``."""
+    """``[v]_x`` (3, 3) of one vector ``v`` (3,): ``[v]_x u = v x u``; ValueError or TypeError
+    naming ``v`` for anything but three finite numbers."""
+    return _cross_matrix(as_vector3(v, "v"))
+
+
+def _cross_matrix(v: np.ndarray) -> np.ndarray:
+    """:func:`cross_matrix`, unchecked."""
     v = np.asarray(v, dtype=np.float64).reshape(3)
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def cross_matrices(v: np.ndarray) -> np.ndarray:
-    """``[v]_x`` (P, 3, 3) of each row of ``v`` (P, 3): ``[v]_x u = v x u``."""
+    """``[v]_x`` (P, 3, 3) of each row of ``v`` (P, 3): ``[v]_x u = v x u``; ValueError or
+    TypeError naming ``v`` for anything but finite rows of three."""
+    return _cross_matrices(as_finite_rows(v, "v", 3))
+
+
+def _cross_matrices(v: np.ndarray) -> np.ndarray:
+    """:func:`cross_matrices`, unchecked."""
     K = np.zeros((len(v), 3, 3))
     K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
     return K - np.swapaxes(K, 1, 2)
 
 
 def rotation_increments(w: np.ndarray) -> np.ndarray:
-    """:func:`rotation_increment` of each row of ``w`` (P, 3), shape (P, 3, 3)."""
+    """:func:`rotation_increment` of each row of ``w`` (P, 3), shape (P, 3, 3); ValueError or
+    TypeError naming ``w`` for anything but finite rows of three."""
+    return _rotation_increments(as_finite_rows(w, "w", 3))
+
+
+def _rotation_increments(w: np.ndarray) -> np.ndarray:
+    """:func:`rotation_increments`, unchecked."""
     theta = np.linalg.norm(w, axis=1)[:, None, None]
-    K = cross_matrices(w)
+    K = _cross_matrices(w)
     small = theta < 1e-12
     safe = np.where(small, 1.0, theta)
     a = np.where(small, 1.0, np.sin(safe) / safe)
@@ -95,12 +149,22 @@ def pose_increment(
     tangent plane (:func:`tangent_basis` of ``t`` when None), then normalised."""
     basis = tangent_basis(t) if basis is None else basis
     tp = t + p[3:5] @ basis
-    return rotation_increment(p[:3]) @ R, tp / np.linalg.norm(tp)
+    return _rotation_increment(p[:3]) @ R, tp / np.linalg.norm(tp)
 
 
 def huber_weights(size: np.ndarray, scale: float) -> np.ndarray:
     """``sqrt(rho(s)) / s`` for residual sizes ``s`` (N,): the weighted squares sum to Huber's
-    cost ``rho(s) = s^2`` up to ``scale`` and ``2 scale s - scale^2`` beyond."""
+    cost ``rho(s) = s^2`` up to ``scale`` and ``2 scale s - scale^2`` beyond. ``size`` real
+    numbers (inf of weight 0), ``scale`` a finite number > 0; ValueError or TypeError naming
+    the argument otherwise."""
+    size = as_real_array(size, "size")
+    if size.ndim != 1 or np.isnan(size).any():
+        raise ValueError(f"size must be residual sizes (N,) without NaN, got {size.shape}")
+    return _huber_weights(size, as_positive(scale, "scale"))
+
+
+def _huber_weights(size: np.ndarray, scale: float) -> np.ndarray:
+    """:func:`huber_weights`, unchecked."""
     size = np.maximum(size, 1e-300)
     beyond = np.sqrt(np.maximum(2 * scale * size - scale**2, 0)) / size
     return np.where(size <= scale, 1.0, beyond)
@@ -146,8 +210,16 @@ def levenberg_marquardt_batched(
     ``many(P, rows)`` gives the residuals (K, M) of the parameter vectors ``P`` (K, P), row
     ``k`` one of problem ``rows[k]``; ``p`` (S, P) are the starts of the S problems. Each
     problem takes the steps, damping and stops it would take alone, up to the rounding of
-    the stacked products. Returns the minimisers (S, P).
+    the stacked products. Returns the minimisers (S, P). ValueError or TypeError naming an
+    argument of another kind or shape.
     """
+    many, p = _as_callable(many, "many"), _as_start(p, 2)
+    step = as_positive(step, "step")
+    return _levenberg_marquardt_batched(many, p, _as_iterations(iterations), step)
+
+
+def _levenberg_marquardt_batched(many, p, iterations: int, step: float = 1e-7) -> np.ndarray:
+    """:func:`levenberg_marquardt_batched`, unchecked."""
     p = np.array(p, dtype=np.float64)
     every = np.arange(len(p))
     r0 = many(p, every)
@@ -213,7 +285,16 @@ def forward_jacobian_stacked(
 
 def gauss_newton_covariance(J: np.ndarray, variance: float) -> np.ndarray | None:
     """Covariance ``variance (J^T J)^-1`` (P, P) of the parameters of a least-squares fit with
-    Jacobian ``J`` (M, P) at its minimum; None when ``J^T J`` is singular."""
+    Jacobian ``J`` (M, P) at its minimum; None when ``J^T J`` is singular. ValueError or
+    TypeError naming the argument for ``J`` not finite (M, P) or ``variance`` not >= 0."""
+    J = as_finite_array(J, "J")
+    if J.ndim != 2:
+        raise ValueError(f"J must be a Jacobian of shape (M, P), got {J.shape}")
+    return _gauss_newton_covariance(J, as_nonnegative(variance, "variance"))
+
+
+def _gauss_newton_covariance(J: np.ndarray, variance: float) -> np.ndarray | None:
+    """:func:`gauss_newton_covariance`, unchecked."""
     try:
         return variance * np.linalg.inv(J.T @ J)
     except np.linalg.LinAlgError:
@@ -254,7 +335,15 @@ def levenberg_marquardt(
     step is below 1e-10 or after ``iterations`` steps. ``many``, when given, is ``f`` of a
     stack of parameter vectors (K, P) -> (K, M): each Jacobian is then one call of it
     (:func:`forward_jacobian_stacked`), the same figures when its rows are ``f``'s.
+    ValueError or TypeError naming an argument of another kind or shape.
     """
+    f, p, iterations = _as_callable(f, "f"), _as_start(p, 1), _as_iterations(iterations)
+    many = None if many is None else _as_callable(many, "many")
+    return _levenberg_marquardt(f, p, iterations, many)
+
+
+def _levenberg_marquardt(f, p, iterations: int, many=None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`levenberg_marquardt`, unchecked."""
     if many is None:
         jacobian = lambda q, r: forward_jacobian(f, q, r)  # noqa: E731
     else:
@@ -269,7 +358,14 @@ def levenberg_marquardt_stacked(
 ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`levenberg_marquardt` (its steps, damping and stops) of a stacked ``f``
     (:func:`stacked_jacobian`): each trial is evaluated with the Jacobian at it, one call per
-    trial. Returns the minimiser and the residuals there."""
+    trial. Returns the minimiser and the residuals there; ValueError or TypeError naming an
+    argument of another kind or shape."""
+    f, p, iterations = _as_callable(f, "f"), _as_start(p, 1), _as_iterations(iterations)
+    return _levenberg_marquardt_stacked(f, p, iterations)
+
+
+def _levenberg_marquardt_stacked(f, p, iterations: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`levenberg_marquardt_stacked`, unchecked."""
     r0, J = stacked_jacobian(f, p)
     p, r0, _ = _damped_steps(lambda q: stacked_jacobian(f, q), None, p, r0, J, iterations)
     return p, r0

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .checks import as_finite_array, as_finite_rows, as_positive, shown
-from .lsq import forward_jacobian, gauss_newton_covariance, levenberg_marquardt
+from .lsq import _gauss_newton_covariance, _levenberg_marquardt, forward_jacobian
 from .model_selection import robust_sigma
 
 __all__ = [
@@ -274,13 +274,13 @@ def fit_plane_parallax(x1: np.ndarray, x2: np.ndarray, noise: float | None = Non
     def residuals(p: np.ndarray) -> np.ndarray:
         return _transfer(_perturbed(H0, p), xy1, xy2).ravel()
 
-    p, J = levenberg_marquardt(residuals, np.zeros(8), _ITERATIONS, many=many)
+    p, J = _levenberg_marquardt(residuals, np.zeros(8), _ITERATIONS, many=many)
     H = _unit_determinant(_perturbed(H0, p))
     parallax = _homography_parallax(H)
     errors = np.linalg.norm(_transfer(H, xy1, xy2), axis=1)
     if noise is None:
         noise = robust_sigma(errors, 2)
-    covariance = gauss_newton_covariance(J, noise**2) if noise > 0 else None
+    covariance = _gauss_newton_covariance(J, noise**2) if noise > 0 else None
     sigma = float("inf")
     if covariance is not None:
         g = forward_jacobian(

@@ -170,6 +170,7 @@ _RETAKE = 0.02  # pixels a window moves with the first Jacobian of the polish fo
 
 _DENSE_STEPS = 0.4  # share of a chunk's windows still moving above which all are stepped
 _DAMPING = 0.7  # of each Gauss-Newton step: the sampled gradients overshoot by about 1.4
+_MAX_BRIGHTNESS = 1e6  # gain or offset of a window's brightness beyond which its steps diverged
 _OUTLIER_SIGMAS = 3.0
 _CONTRAST_BOX = 31  # pixels
 _CORNER_QUALITY = 0.003  # of the strongest corner response, the weakest a corner may have
@@ -388,12 +389,13 @@ def _side(offsets: np.ndarray) -> int:
 class _Aligned:
     """Result of :func:`_align_level`: the shifts (n, 2); image 2's intensities (n, k) there,
     its derivatives and the weights of the pixels not near a clipped one where it was first
-    read."""
+    read; and which windows' steps diverged (n,) bool (:class:`_GaussNewton`), unusable."""
 
     shifts: np.ndarray
     intensity: np.ndarray
     gradients: tuple[np.ndarray, np.ndarray]
     weight: np.ndarray
+    diverged: np.ndarray
 
 
 def _align_level(template, template_clear, positions, d, plane2, ramp, iterations) -> _Aligned:
@@ -451,8 +453,12 @@ def _align_level(template, template_clear, positions, d, plane2, ramp, iteration
         row_sums = normal[:, :, 5].astype(np.float64)
         steps = _GaussNewton(target, _normal_inverse(normal), jacobian_t, row_sums, ramp_columns,
                              iterations)  # fmt: skip
-        intensity = steps.run(cells, reread, shifts, brightness, intensity)
+        lost = np.zeros(len(shifts), dtype=bool)
+        intensity = steps.run(cells, reread, shifts, brightness, intensity, lost)
+        diverged[windows] |= lost
         return shifts, brightness, intensity, *gradients, weight
+
+    diverged = np.zeros(len(d), dtype=bool)
 
     start = d.copy()
     solved = solve(slice(None), d, None)
@@ -466,7 +472,7 @@ def _align_level(template, template_clear, positions, d, plane2, ramp, iteration
             whole[moved] = part
     d, _, intensity, gradient_x, gradient_y, weight = solved
     gradients = (gradient_x, gradient_y)
-    return _Aligned(d, intensity, gradients, weight)
+    return _Aligned(d, intensity, gradients, weight, diverged)
 
 
 def _jacobian_t(
@@ -536,15 +542,19 @@ class _GaussNewton:
     ramp_columns: np.ndarray
     iterations: int
 
-    def run(self, cells: _Cells, reread, shifts, brightness, intensity) -> np.ndarray:
+    def run(self, cells: _Cells, reread, shifts, brightness, intensity, diverged) -> np.ndarray:
         """Steps from ``shifts`` (updating them and ``brightness`` in place) along the
         polynomials of ``cells``, read at ``shifts`` (``intensity``, their values there, is
         overwritten): the shift at most 2 pixels and damped by :data:`_DAMPING`, until it
         moves less than :data:`_CONVERGED`. A window that moved more than :data:`_REGATHER`
         pixels from where it was read is read again where it is (``reread(cells, windows,
-        shifts)``, which returns image 2 there). Image 2 at the last shifts (n, k)."""
+        shifts)``, which returns image 2 there). A window whose brightness would leave
+        :data:`_MAX_BRIGHTNESS` (its fixed Jacobian no longer describes it, and the steps grow
+        without bound) stops where it is, marked in ``diverged`` (n,) bool. Image 2 at the last
+        shifts (n, k)."""
         d, level, read_at = shifts, brightness, shifts.copy()
-        active = np.ones(len(d), dtype=bool)
+        active = np.abs(level).max(axis=1) <= _MAX_BRIGHTNESS
+        diverged |= ~active
         for iteration in range(self.iterations):
             rows = np.flatnonzero(active)
             if not len(rows):
@@ -567,9 +577,14 @@ class _GaussNewton:
             if isinstance(part, slice):
                 step = step[rows]
             shift = np.minimum(np.maximum(step[:, :2], -2.0), 2.0)
+            moved = level[rows] + step[:, 2:]
+            wild = ~(np.abs(moved).max(axis=1) <= _MAX_BRIGHTNESS)
+            if wild.any():
+                shift[wild], moved[wild] = 0.0, level[rows[wild]]
+                diverged[rows[wild]] = True
             d[rows] += shift
-            level[rows] += step[:, 2:]
-            active[rows] = np.abs(shift).max(axis=1) > _CONVERGED
+            level[rows] = moved
+            active[rows] = (np.abs(shift).max(axis=1) > _CONVERGED) & ~wild
         return cells.values(d - read_at)
 
 
@@ -848,6 +863,7 @@ def _align_chunk(images: _Images, points1, positions, start, offsets, iterations
     ncc = _ncc(template, aligned.intensity, weight)
     usable = (
         inside
+        & ~aligned.diverged
         & (weight.mean(axis=1) >= MIN_UNCLIPPED)
         & (smallest > 1e-3 * len(offsets))
     )  # fmt: skip
@@ -1234,11 +1250,20 @@ def _checked_inputs(
 def refit_reach_deg(rotation_sigma_deg: float) -> float:
     """Farthest (degrees) :func:`refine_rotation_photometric` lets a refit move the rotation from
     its start when searched over ``rotation_sigma_deg``: ``4 rotation_sigma_deg + 0.1``; a refit
-    beyond is refused.
+    beyond is refused. ``rotation_sigma_deg`` a number >= 0 (inf for no bound); ValueError or
+    TypeError otherwise.
 
     >>> refit_reach_deg(0.5)
     2.1
     """
+    sigma = as_number(rotation_sigma_deg, "rotation_sigma_deg")
+    if not sigma >= 0:
+        raise ValueError(f"rotation_sigma_deg must be a number >= 0 (inf for none), got {sigma}")
+    return _refit_reach_deg(sigma)
+
+
+def _refit_reach_deg(rotation_sigma_deg: float) -> float:
+    """:func:`refit_reach_deg`, unchecked."""
     return 4.0 * float(rotation_sigma_deg) + 0.1
 
 
@@ -1271,7 +1296,7 @@ def _best_window_refit(
     normalize2 = lambda pixels: pixels_to_normalized(pixels, K2, dist2)  # noqa: E731
     plausible = lambda refined: (  # noqa: E731
         refined is not None
-        and rotation_error_deg(refined.fit.R, R) <= refit_reach_deg(rotation_sigma_deg)
+        and rotation_error_deg(refined.fit.R, R) <= _refit_reach_deg(rotation_sigma_deg)
     )
 
     def searched(side: int) -> PhotometricRotation | None:

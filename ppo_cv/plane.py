@@ -47,11 +47,11 @@ from .checks import (
     require_instance,
 )
 from .lsq import (
+    _gauss_newton_covariance,
+    _huber_weights,
+    _levenberg_marquardt,
+    _rotation_increment,
     forward_jacobian,
-    gauss_newton_covariance,
-    huber_weights,
-    levenberg_marquardt,
-    rotation_increment,
     tangent_basis,
 )
 from .rotation import FOCAL_PRIOR
@@ -636,7 +636,7 @@ class _PlaneModel:
 
     def pose(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         n = self.n0 + p[6:8] @ self.basis
-        return rotation_increment(p[:3]) @ self.R0, self.T0 + p[3:6], n / np.linalg.norm(n)
+        return _rotation_increment(p[:3]) @ self.R0, self.T0 + p[3:6], n / np.linalg.norm(n)
 
     def residuals(self, p: np.ndarray) -> np.ndarray:
         R, T, n = self.pose(p)
@@ -717,10 +717,10 @@ def refine_planar_pose(
     p = np.zeros(8)
     cost_start = _huber(model.residuals(p), scale)
     if count >= 9:
-        p = _levenberg_marquardt(model, p, scale, k1_prior, iterations)
+        p = _fit_stacked(model, p, scale, k1_prior, iterations)
     k1_sigma, k1_fitted = float("inf"), 0.0
     if fit_k1 and count >= 10:
-        lens = _levenberg_marquardt(model, np.append(p, 0.0), scale, k1_prior, iterations)
+        lens = _fit_stacked(model, np.append(p, 0.0), scale, k1_prior, iterations)
         k1_sigma, k1_fitted = _k1_sigma(model, lens, scale, k1_prior), float(lens[8])
         if abs(lens[8]) <= max_k1 and abs(lens[8]) > K1_SIGNIFICANCE * k1_sigma:
             p = lens
@@ -755,7 +755,7 @@ def _stacked(model, p, scale, k1_prior):
     """Huber-weighted residuals of the used matches and the prior on ``k1``, flat."""
     r = model.residuals(p)
     extra = [scale / k1_prior * p[8:9]] if len(p) > 8 else []
-    weights = huber_weights(np.linalg.norm(r, axis=1), scale)
+    weights = _huber_weights(np.linalg.norm(r, axis=1), scale)
     return np.concatenate([(weights[:, None] * r).ravel(), *extra])
 
 
@@ -767,7 +767,7 @@ def _k1_sigma(model, p, scale, k1_prior) -> float:
     r = _stacked(model, p, scale, k1_prior)
     J = forward_jacobian(lambda q: _stacked(model, q, scale, k1_prior), p, r)
     dof = max(len(r) - len(p), 1)
-    cov = gauss_newton_covariance(J, 2.0 * float(r @ r) / dof)
+    cov = _gauss_newton_covariance(J, 2.0 * float(r @ r) / dof)
     return float("inf") if cov is None else float(np.sqrt(max(cov[8, 8], 0.0)))
 
 
@@ -842,7 +842,7 @@ def _plane_covariance(model, p, scale, k1_prior):
     Jacobian and residuals."""
     r = _stacked(model, p, scale, k1_prior)
     J = forward_jacobian(lambda q: _stacked(model, q, scale, k1_prior), p, r)
-    return gauss_newton_covariance(J, 2.0 * float(r @ r) / max(len(r) - len(p), 1)), J, r
+    return _gauss_newton_covariance(J, 2.0 * float(r @ r) / max(len(r) - len(p), 1)), J, r
 
 
 def _rotation_deg(cov: np.ndarray | None) -> float:
@@ -857,6 +857,6 @@ def _scaled_model(model: _PlaneModel, focal_error: float) -> _PlaneModel:
     return _PlaneModel(model.R0, model.T0, model.n0, model.x1 * factor, model.x2 * factor)
 
 
-def _levenberg_marquardt(model, p, scale, k1_prior, iterations):
+def _fit_stacked(model, p, scale, k1_prior, iterations):
     """:func:`ppo_cv.lsq.levenberg_marquardt` on :func:`_stacked`."""
-    return levenberg_marquardt(lambda q: _stacked(model, q, scale, k1_prior), p, iterations)[0]
+    return _levenberg_marquardt(lambda q: _stacked(model, q, scale, k1_prior), p, iterations)[0]

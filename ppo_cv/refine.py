@@ -36,15 +36,15 @@ from .checks import (
     require_pose_matches,
 )
 from .lsq import (
-    cross_matrices,
-    cross_matrix,
-    gauss_newton_covariance,
-    huber_weights,
-    levenberg_marquardt,
-    levenberg_marquardt_batched,
-    levenberg_marquardt_stacked,
+    _cross_matrices,
+    _cross_matrix,
+    _gauss_newton_covariance,
+    _huber_weights,
+    _levenberg_marquardt,
+    _levenberg_marquardt_batched,
+    _levenberg_marquardt_stacked,
+    _rotation_increments,
     pose_increment,
-    rotation_increments,
     stack_by_chunks,
     tangent_basis,
 )
@@ -287,7 +287,7 @@ def refine_pose_radial(
     fit = _radial_fit(R0, t0, a, b, scale, k1_prior, iterations)
     r_start = fit.residuals(np.zeros(6))
     r = fit.residuals(fit.p)
-    cov = gauss_newton_covariance(fit.J, float(r @ r) / max(len(r) - 6, 1))
+    cov = _gauss_newton_covariance(fit.J, float(r @ r) / max(len(r) - 6, 1))
     if cov is None:
         return start
     k1_variance = max(cov[5, 5], 0.0) + _considered_k1_variance(
@@ -373,10 +373,11 @@ def refine_pose_huber(
     def residuals(P: np.ndarray) -> np.ndarray:
         tp = t0 + P[:, 3:5] @ basis
         tp = tp / np.linalg.norm(tp, axis=1, keepdims=True)
-        r = _sampson_signed_rows(cross_matrices(tp) @ (rotation_increments(P[:, :3]) @ R0), X1, X2)
-        return huber_weights(np.abs(r), scale) * r
+        E = _cross_matrices(tp) @ (_rotation_increments(P[:, :3]) @ R0)
+        r = _sampson_signed_rows(E, X1, X2)
+        return _huber_weights(np.abs(r), scale) * r
 
-    p, _ = levenberg_marquardt_stacked(residuals, np.zeros(5), iterations)
+    p, _ = _levenberg_marquardt_stacked(residuals, np.zeros(5), iterations)
     return pose_increment(R0, t0, p, basis)
 
 
@@ -437,7 +438,7 @@ def _radial_fit(
     def stacked(p, focal_error=0.0, offset=(0.0, 0.0)):
         return many(p[None], focal_error, offset)[0]
 
-    p, J = levenberg_marquardt(stacked, np.zeros(6), iterations, many=many)
+    p, J = _levenberg_marquardt(stacked, np.zeros(6), iterations, many=many)
     return _RadialFit(p, J, stacked, pose)
 
 
@@ -454,7 +455,7 @@ def _radial_fits(
     def many(P, rows):
         return residuals(P, given, weights[rows], rows)
 
-    return levenberg_marquardt_batched(many, np.zeros((len(A), 6)), iterations)
+    return _levenberg_marquardt_batched(many, np.zeros((len(A), 6)), iterations)
 
 
 def _radial_residuals(R0, t0, basis, scale, k1_prior, k1_start):
@@ -465,12 +466,12 @@ def _radial_residuals(R0, t0, basis, scale, k1_prior, k1_start):
     (:func:`ppo_cv.lsq.stack_by_chunks`), each row's figures those of the row alone."""
 
     def chunk(P, points, weight, rows):
-        Rp = rotation_increments(P[:, :3]) @ R0
+        Rp = _rotation_increments(P[:, :3]) @ R0
         tp = t0 + P[:, 3:5] @ basis
         tp = tp / np.linalg.norm(tp, axis=1, keepdims=True)
         k1 = k1_start + P[:, 5]
         r = _sampson_by_coordinate(Rp, tp, *(view.undistorted(k1, rows) for view in points))
-        return np.column_stack([huber_weights(np.abs(r), scale) * r, weight * k1 / k1_prior])
+        return np.column_stack([_huber_weights(np.abs(r), scale) * r, weight * k1 / k1_prior])
 
     def residuals(P, points, weight, rows=None):
         weight = np.broadcast_to(weight, (len(P),))
@@ -516,7 +517,7 @@ def _sampson_by_coordinate(R: np.ndarray, t: np.ndarray, X1: np.ndarray, X2: np.
     """:func:`_sampson_signed` (K, N) of ``E = [t]_x R``, ``R`` (K, 3, 3) and ``t`` (K, 3), on
     points laid out by coordinate (K or 1, 3, N) (:func:`ppo_cv.robust.sampson_signed_rows`):
     the same figures."""
-    return _sampson_signed_rows(cross_matrices(t) @ R, X1, X2)
+    return _sampson_signed_rows(_cross_matrices(t) @ R, X1, X2)
 
 
 K1_BIAS_REPLICATES = 16
@@ -568,7 +569,7 @@ def k1_noise_bias(
 def _k1_noise_bias(R, t, x1, x2, p, scale, k1_prior, iterations, replicates) -> tuple:
     """:func:`k1_noise_bias` given the parameters ``p`` (6,) the fit reached on the matches
     themselves (``t`` a unit vector), whose residuals size the simulated noise."""
-    E = cross_matrix(t) @ R
+    E = _cross_matrix(t) @ R
     sizes = np.abs(
         _sampson_signed(*pose_increment(R, t, p), *(_undistort_division(x, p[5]) for x in (x1, x2)))
     )
@@ -676,7 +677,7 @@ def released_lens_shift_deg(
     move, sizes = released
     if replicates < 2:
         return float(np.degrees(np.linalg.norm(move))), 0.0
-    A, B = _stacked_sets(noise_replicates(cross_matrix(t) @ R, a, b, sizes, replicates, k1))
+    A, B = _stacked_sets(noise_replicates(_cross_matrix(t) @ R, a, b, sizes, replicates, k1))
     moves = _released_moves(R, t, k1, A, B, scale, iterations)
     if len(moves) < 2:
         return float(np.degrees(np.linalg.norm(move))), 0.0
@@ -857,7 +858,7 @@ def _sampson_signed(R: np.ndarray, t: np.ndarray, x1: np.ndarray, x2: np.ndarray
     """Signed Sampson residuals of ``E = [t]_x R``: ``R`` (..., 3, 3), ``t`` (..., 3) and the
     points (..., N, 3) broadcast to (..., N)."""
     t = np.asarray(t, dtype=np.float64)
-    E = cross_matrices(t.reshape(-1, 3)).reshape(t.shape[:-1] + (3, 3)) @ R
+    E = _cross_matrices(t.reshape(-1, 3)).reshape(t.shape[:-1] + (3, 3)) @ R
     return _essential_sampson_signed(E, x1, x2)
 
 
@@ -1195,7 +1196,7 @@ def _calibrated_residuals(R: np.ndarray, t: np.ndarray):
     def chunk(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         tp = t + p[:, 3:4] * U[0] + p[:, 4:5] * U[1]
         tp /= np.linalg.norm(tp, axis=1, keepdims=True)
-        Rp = rotation_increments(p[:, :3]) @ R
+        Rp = _rotation_increments(p[:, :3]) @ R
         return _sampson_by_coordinate(Rp, tp, lens(a, p), lens(b, p))
 
     def residuals(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -54,7 +54,7 @@ from .checks import (
     as_vector3,
     as_whole_number,
 )
-from .lsq import cross_matrix
+from .lsq import _cross_matrix
 from .significance import (
     ESSENTIAL_SAMPLE_SIZE,
     MISSED_CONSENSUS_PROBABILITY,
@@ -158,7 +158,7 @@ def essential_from_pose(R: ArrayLike, t: ArrayLike) -> np.ndarray:
 
 def _essential_from_pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
     """:func:`essential_from_pose`, unchecked (a zero ``t`` gives a zero ``E``)."""
-    E = cross_matrix(t) @ R
+    E = _cross_matrix(t) @ R
     return E / max(np.linalg.norm(E), 1e-300)
 
 

@@ -53,9 +53,9 @@ from .checks import (
     shown,
 )
 from .lsq import (
-    cross_matrix,
-    gauss_newton_covariance,
-    rotation_increment,
+    _cross_matrix,
+    _gauss_newton_covariance,
+    _rotation_increment,
 )
 from .ppo import rotation_from_rays
 
@@ -879,7 +879,7 @@ def _solve_rotation_lens(
         params[:3] = 0.0
         if count >= 2:
             params = _gauss_newton(params, (R0, a, b, prior, _ROTATION, centre), iterations)[0]
-    R_final = rotation_increment(params[:3]) @ R0
+    R_final = _rotation_increment(params[:3]) @ R0
     lens_only = np.r_[0.0, 0.0, 0.0, params[3:]]
     error = _transfer_rows(lens_only, R_final, rows1, rows2)
     unknown = np.inf if clipped else np.nan
@@ -909,7 +909,7 @@ def _deviations(params, problem, forward, bounds, noise) -> tuple[float, float, 
     (:func:`_lens_excess`, -inf without the ``noise``) of the minimum ``params`` of
     ``problem``, its :func:`_forward` pass ``forward``."""
     residual = _residual(params, problem, forward)
-    inverse = gauss_newton_covariance(_jacobian(params, problem, forward), 1.0)
+    inverse = _gauss_newton_covariance(_jacobian(params, problem, forward), 1.0)
     sigma, rotation_sigma = _sigmas(residual, inverse, problem)
     if noise is None:
         return sigma, rotation_sigma, float("-inf")
@@ -985,7 +985,7 @@ def _forward(params: np.ndarray, R0: np.ndarray, rows1: np.ndarray) -> tuple:
     """The transfer of view 1's points ``rows1`` (2, N) at ``params`` (8,): the rotation
     (3, 3), true points ``q1`` (2, N), rays (3, N), their depths (N,), projections ``q2``
     (2, N), ``|q2|^2`` (N,) and view 2's distorted points (2, N), before the focal scale."""
-    R = rotation_increment(params[:3]) @ R0
+    R = _rotation_increment(params[:3]) @ R0
     k1, offset = params[4], params[5:7, None]
     q1 = _true_rows(rows1, 1.0 + params[3], k1, offset)
     ray = R[:, :2] @ q1 + R[:, 2:]
@@ -1107,7 +1107,7 @@ def _distortion_solve(q: np.ndarray, k1: float, rows: np.ndarray) -> np.ndarray:
 def _left_jacobian(w: np.ndarray) -> np.ndarray:
     """``J(w)`` (3, 3) with ``exp([w + dw]x) = exp([J(w) dw]x) exp([w]x)`` to first order."""
     theta = float(np.linalg.norm(w))
-    K = cross_matrix(w)
+    K = _cross_matrix(w)
     if theta < 1e-8:
         return np.eye(3) + 0.5 * K
     a = (1.0 - np.cos(theta)) / theta**2
@@ -1136,7 +1136,7 @@ def _offset_beyond_bound(params, problem, bound, noise, forward) -> bool:
     excess = np.abs(params[5:7]) - bound
     if not np.any(excess > 0):
         return False
-    inverse = gauss_newton_covariance(_jacobian(params, problem, forward), 1.0)
+    inverse = _gauss_newton_covariance(_jacobian(params, problem, forward), 1.0)
     deviation = _posterior_deviations(inverse, problem, noise)
     deviation = np.zeros(2) if deviation is None else deviation[5:7]
     return bool(np.any(excess > PRINCIPAL_SIGNIFICANCE * deviation))

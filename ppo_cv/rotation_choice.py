@@ -152,7 +152,7 @@ from .checks import (
     as_real_array,
     require_instance,
 )
-from .lsq import gauss_newton_covariance, rotation_increment
+from .lsq import _gauss_newton_covariance, _rotation_increment
 from .metrics import rotation_error_deg
 from .model_selection import robust_sigma
 from .motion_model import MAX_TRACK_PARALLAX, MotionDecision, parallax_refuses_rotation
@@ -163,7 +163,7 @@ from .parallax import (
     homography_parallax,
     nearest_rotation_log_scale,
 )
-from .photometric import MAX_SEARCH_SIGMA_DEG, PhotometricRotation, refit_reach_deg
+from .photometric import MAX_SEARCH_SIGMA_DEG, PhotometricRotation, _refit_reach_deg
 from .refine import released_lens_shift_deg
 from .rotation import (
     FOCAL_PRIOR,
@@ -483,7 +483,7 @@ def rotation_fit_sigma_deg(
         return float("inf")
     J, noise = found
     prior = np.diag([0.0, 0.0, 0.0, noise / FOCAL_PRIOR, noise / K1_PRIOR])[3:]
-    cov = gauss_newton_covariance(np.vstack([J, prior]), noise**2)
+    cov = _gauss_newton_covariance(np.vstack([J, prior]), noise**2)
     if cov is None:
         return float("inf")
     return float(np.degrees(np.sqrt(max(float(np.trace(cov[:3, :3])), 0.0))))
@@ -646,7 +646,7 @@ def _lens_jacobian(lens: LensRotationFit, x1, x2, used, step: float):
 
     def residuals(p: np.ndarray) -> np.ndarray:
         errors = _lens_rotation_residuals(
-            rotation_increment(p[:3]) @ lens.R, lens.focal_scale + p[3], lens.k1 + p[4],
+            _rotation_increment(p[:3]) @ lens.R, lens.focal_scale + p[3], lens.k1 + p[4],
             a, b, lens.principal_offset, lens.focal_ratio, vectors=True,
         )  # fmt: skip
         return errors.ravel()
@@ -962,7 +962,7 @@ def tracks_could_win(moving: RotationEstimate, rotation_only: RotationEstimate) 
     """
     _require_estimates([moving, rotation_only], ("moving", "rotation_only"))
     apart = float(rotation_error_deg(rotation_only.R, moving.R))
-    reach = refit_reach_deg(min(rotation_only.fit_sigma_deg, MAX_SEARCH_SIGMA_DEG))
+    reach = _refit_reach_deg(min(rotation_only.fit_sigma_deg, MAX_SEARCH_SIGMA_DEG))
     return apart - reach < 2.0 * moving.expected_error_deg
 
 

@@ -375,6 +375,9 @@ def require_no_images(output_dir: str | os.PathLike, name: str, usage: str) -> N
     usage : str
         The call in the right order, for the message.
     """
+    require_instance(name, str, "name")
+    require_instance(usage, str, "usage")
+    output_dir = as_path(output_dir, name.strip() or "output_dir")
     try:
         held = sorted(p.name for p in Path(output_dir).iterdir()
                       if p.suffix.lower() in IMAGE_EXTENSIONS and p.is_file())  # fmt: skip
@@ -401,8 +404,8 @@ def require_database_outside(
     Symbolic links and ``..`` are resolved first; ``names`` are how the message calls the two
     arguments (the command line's ``--database`` and ``OUT_DIR``).
     """
-    database = Path(os.path.realpath(database_path))
-    folder = Path(os.path.realpath(output_dir))
+    database = Path(os.path.realpath(as_path(database_path, names[0])))
+    folder = Path(os.path.realpath(as_path(output_dir, names[1])))
     if database == folder or database.is_relative_to(folder):
         raise ValueError(
             f"{names[0]} {database_path} lies in {names[1]} {output_dir}, which the model "
@@ -418,7 +421,11 @@ def require_two_images(
     image_dir: str | os.PathLike, names: Sequence[str], skipped: dict[str, str]
 ) -> None:
     """ValueError when :func:`screen_images` kept fewer than two images, giving why the first
-    :data:`MAX_NAMED_SKIPS` skipped ones were skipped."""
+    :data:`MAX_NAMED_SKIPS` skipped ones were skipped; TypeError naming the argument of
+    another kind."""
+    image_dir = as_path(image_dir, "image_dir")
+    require_instance(names, (list, tuple), "names", " (of image names)")
+    require_instance(skipped, dict, "skipped", " (reason by image name)")
     if len(names) < 2:
         reasons = list(skipped.values())[:MAX_NAMED_SKIPS]
         more = f"; {len(skipped) - len(reasons)} more" if len(skipped) > len(reasons) else ""
@@ -1541,6 +1548,7 @@ def format_pairs(pairs: Sequence[PairScore]) -> str:
     """The ranking as text, one pair a line: names, score, inliers, PRI, angle, verdict; a
     name holding whitespace or starting with ``#`` (a comment) in double quotes, as in a pairs
     file."""
+    require_instance(pairs, (list, tuple), "pairs", " (of ppo_cv.sfm.PairScore, sfm.score_pairs)")
     lines = ["# name1 name2 score num_inliers num_matches pri tri_angle_deg verdict"]
     for p in pairs:
         require_instance(p, PairScore, "each pair", " (sfm.score_pairs)")
@@ -1560,6 +1568,8 @@ def pair_text(name1: str, name2: str) -> str:
     >>> pair_text("a b.png", "c.png")
     '"a b.png" c.png'
     """
+    require_instance(name1, str, "name1")
+    require_instance(name2, str, "name2")
     return f"{_pairs_file_name(name1)} {_pairs_file_name(name2)}"
 
 

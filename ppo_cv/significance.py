@@ -89,11 +89,14 @@ import numpy as np
 
 from .checks import (
     MAX_WHOLE_NUMBER,
+    as_camera_matrix,
     as_finite_array,
+    as_finite_rows,
     as_image_size,
     as_nonnegative,
     as_number,
     as_positive,
+    as_rotation,
     as_whole_number,
     shown,
 )
@@ -269,7 +272,31 @@ def epipolar_lines(E: np.ndarray, x1: np.ndarray, K2: np.ndarray) -> np.ndarray:
 
     ``l2 . (u, v, 1)`` is then the signed pixel distance of ``(u, v)`` to the line; a line of
     zero normal (``x1`` at the epipole) is returned as ``(0, 0, 1)``: no point lies on it.
+    ``E`` (3, 3), ``x1`` (N, 3) normalized, ``K2`` (3, 3) a camera matrix; ValueError or
+    TypeError naming the argument at fault.
     """
+    E, x1 = _as_matrix3(E, "E"), as_finite_rows(x1, "x1", 3)
+    return _epipolar_lines(E, x1, as_camera_matrix(K2, "K2"))
+
+
+def _as_matrix3(value, name: str) -> np.ndarray:
+    """``value`` as a finite float64 (3, 3); ValueError or TypeError naming ``name``."""
+    matrix = as_finite_array(value, name)
+    if matrix.shape != (3, 3):
+        raise ValueError(f"{name} must have shape (3, 3), got {matrix.shape}")
+    return matrix
+
+
+def _as_matches(x1, x2) -> tuple[np.ndarray, np.ndarray]:
+    """``x1``, ``x2`` as finite float64 (N, 3) of one N; ValueError or TypeError naming them."""
+    x1, x2 = as_finite_rows(x1, "x1", 3), as_finite_rows(x2, "x2", 3)
+    if x1.shape != x2.shape:
+        raise ValueError(f"x1 and x2 must have the same length, got {len(x1)} and {len(x2)}")
+    return x1, x2
+
+
+def _epipolar_lines(E: np.ndarray, x1: np.ndarray, K2: np.ndarray) -> np.ndarray:
+    """:func:`epipolar_lines`, unchecked."""
     lines = x1 @ (np.linalg.inv(K2).T @ E).T
     norm = np.hypot(lines[:, 0], lines[:, 1])
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -283,9 +310,12 @@ def chord_lengths(lines: np.ndarray, image_size: tuple[int, int], margin: float)
     The image covers ``[-0.5, w - 0.5] x [-0.5, h - 0.5]``; ``lines`` have unit normals
     ``(a, b)``. The line is ``p0 + s d`` with ``p0 = -c (a, b)``, ``d = (-b, a)``; each axis
     bounds ``s`` to an interval (all of R when ``d`` is parallel to it and ``p0`` inside), and
-    the chord is the length of the intersection of the two intervals.
+    the chord is the length of the intersection of the two intervals. ValueError or TypeError
+    naming the argument at fault.
     """
-    _, _, first, last = _chords(lines, image_size, margin)
+    lines = as_finite_rows(lines, "lines", 3)
+    size = as_image_size(image_size, "image_size")
+    _, _, first, last = _chords(lines, size, as_nonnegative(margin, "margin"))
     return np.maximum(last - first, 0.0)
 
 
@@ -337,10 +367,16 @@ def epipolar_significance(
     Returns
     -------
     Significance
+
+    Raises
+    ------
+    ValueError, TypeError
+        An argument of another shape or kind, named.
     """
+    E, (x1, x2), K2 = _as_matrix3(E, "E"), _as_matches(x1, x2), as_camera_matrix(K2, "K2")
     n = int(x1.shape[0])
-    width, height = image_size2
-    lines = epipolar_lines(E, x1, K2)
+    width, height = as_image_size(image_size2, "image_size2")
+    lines = _epipolar_lines(E, x1, K2)
     residuals = np.abs(np.einsum("ij,ij->i", lines, x2 @ np.asarray(K2, float).T))
     order = np.argsort(residuals)
     eps = residuals[order]
@@ -349,7 +385,8 @@ def epipolar_significance(
     if k.size == 0:
         return Significance(np.inf, 0, np.nan, np.nan, n, np.zeros(n, dtype=bool))
     eps = eps[k - 1]
-    log_chord = np.log10(np.maximum(chord_lengths(lines[order], image_size2, eps[-1]), 1.0))
+    _, _, first, last = _chords(lines[order], (width, height), eps[-1])
+    log_chord = np.log10(np.maximum(np.maximum(last - first, 0.0), 1.0))
     prefix = np.cumsum(log_chord)[k - 1]
     # the k - s largest chords of the k best: all k minus at least s times the smallest
     log_chords = prefix - sample_size * np.minimum.accumulate(log_chord)[k - 1]
@@ -571,7 +608,15 @@ def require_significance(
     its :func:`local_consistency` at most :data:`MAX_LOCAL_P`; ``max_log10_nfa`` inf turns
     all three off. Returns the :class:`Significance`; ValueError "no reliable two-view
     geometry" with the figures when the consensus may be chance (``log10 NFA`` above
-    ``max_log10_nfa``, not distinctive enough, or not locally consistent)."""
+    ``max_log10_nfa``, not distinctive enough, or not locally consistent); ValueError or
+    TypeError naming an argument of another shape or kind."""
+    E, (x1, x2), K2 = _as_matrix3(E, "E"), _as_matches(x1, x2), as_camera_matrix(K2, "K2")
+    size2, ratios = as_image_size(size2, "size2"), as_finite_array(ratios, "ratios")
+    max_log10_nfa = as_number(max_log10_nfa, "max_log10_nfa")
+    if np.isnan(max_log10_nfa):
+        raise ValueError("max_log10_nfa must be a number or inf, got nan")
+    if ratios.shape != (len(x1),):
+        raise ValueError(f"ratios must be (N,) of the {len(x1)} matches, got {ratios.shape}")
     significance = epipolar_significance(E, x1, x2, K2, size2)
     refused = not significance.log10_nfa <= max_log10_nfa
     detail = f"log10 NFA {significance.log10_nfa:.1f} > {max_log10_nfa:g}"
@@ -606,7 +651,7 @@ def _consensus_local_consistency(E, x1, x2, K2, size2, significance: Significanc
     :data:`LOCAL_CONSISTENCY_MATCHES`, those of least residual) under ``E`` (3, 3), ``x1``,
     ``x2`` (N, 3) normalized, image 2 of ``size2`` pixels seen by ``K2`` (3, 3)."""
     K2 = np.asarray(K2, float)
-    lines = epipolar_lines(E, x1, K2)
+    lines = _epipolar_lines(E, x1, K2)
     points2 = x2 @ K2.T
     points2 = points2[:, :2] / points2[:, 2:]
     residuals = np.abs(np.einsum("ij,ij->i", lines[:, :2], points2) + lines[:, 2])
@@ -655,15 +700,23 @@ def ray_angles_deg(x1: np.ndarray, x2: np.ndarray, R: np.ndarray) -> np.ndarray:
         Homogeneous normalized coordinates of the matches.
     R : ndarray, shape (3, 3)
         Rotation from camera 1 to camera 2.
+
+    Raises
+    ------
+    ValueError, TypeError
+        An argument of another shape or kind, named.
     """
-    return np.atleast_1d(direction_error_deg(x1, x2 @ np.asarray(R, float)))
+    (x1, x2), R = _as_matches(x1, x2), as_rotation(R, "R")
+    return np.atleast_1d(direction_error_deg(x1, x2 @ R))
 
 
 def require_matchable_viewpoints(x1: np.ndarray, x2: np.ndarray, R: np.ndarray) -> float:
     """ValueError "no reliable two-view geometry" when the median of :func:`ray_angles_deg` of
     the inliers ``x1``, ``x2`` (N, 3) through ``R`` exceeds :data:`MAX_MEDIAN_RAY_ANGLE_DEG`:
     the pose has most of its consensus seen from directions no descriptor matches across, as a
-    chance consensus of a few matches may. Returns that median, degrees (0 for no inliers)."""
+    chance consensus of a few matches may. Returns that median, degrees (0 for no inliers);
+    ValueError or TypeError naming an argument of another shape or kind."""
+    (x1, x2), R = _as_matches(x1, x2), as_rotation(R, "R")
     if x1.shape[0] == 0:
         return 0.0
     median = float(np.median(ray_angles_deg(x1, x2, R)))

@@ -21,13 +21,13 @@ import numpy as np
 
 from .checks import as_positive, as_rotation, as_vector3, require_instance, require_pose_matches
 from .lsq import (
-    cross_matrices,
-    cross_matrix,
-    huber_weights,
-    levenberg_marquardt_stacked,
+    _cross_matrices,
+    _cross_matrix,
+    _huber_weights,
+    _levenberg_marquardt_stacked,
+    _rotation_increment,
+    _rotation_increments,
     pose_increment,
-    rotation_increment,
-    rotation_increments,
     stacked_jacobian,
     tangent_basis,
 )
@@ -99,7 +99,7 @@ def _cost(x1: np.ndarray, x2: np.ndarray, scale: float):
 
     def residuals(E: np.ndarray) -> np.ndarray:
         r = _sampson_signed_rows(E, X1, X2)
-        return huber_weights(np.abs(r), scale) * r
+        return _huber_weights(np.abs(r), scale) * r
 
     return residuals
 
@@ -111,7 +111,7 @@ def _pose_costs(cost, R: np.ndarray, t: np.ndarray, basis: np.ndarray):
     def residuals(p: np.ndarray) -> np.ndarray:
         tp = t + p[:, 3:5] @ basis
         tp = tp / np.linalg.norm(tp, axis=1, keepdims=True)
-        return cost(cross_matrices(tp) @ (rotation_increments(p[:, :3]) @ R))
+        return cost(_cross_matrices(tp) @ (_rotation_increments(p[:, :3]) @ R))
 
     return residuals
 
@@ -121,14 +121,14 @@ def _rotation_costs(cost, R: np.ndarray, cross_t: np.ndarray):
     (``cross_t``)."""
 
     def residuals(q: np.ndarray) -> np.ndarray:
-        return cost(cross_t @ (rotation_increments(q) @ R))
+        return cost(cross_t @ (_rotation_increments(q) @ R))
 
     return residuals
 
 
 def _polish(cost, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     basis = tangent_basis(t)
-    p, _ = levenberg_marquardt_stacked(_pose_costs(cost, R, t, basis), np.zeros(5), 20)
+    p, _ = _levenberg_marquardt_stacked(_pose_costs(cost, R, t, basis), np.zeros(5), 20)
     return pose_increment(R, t, p, basis)
 
 
@@ -149,9 +149,9 @@ def _profile(cost, R: np.ndarray, t: np.ndarray, u: np.ndarray) -> list[tuple]:
     steps = []
     for angle in np.radians(VALLEY_STEPS_DEG):
         ti = np.cos(angle) * t + np.sin(angle) * u
-        costs = _rotation_costs(cost, R, cross_matrix(ti))
-        w, r = levenberg_marquardt_stacked(costs, np.zeros(3), 4)
-        R = rotation_increment(w) @ R
+        costs = _rotation_costs(cost, R, _cross_matrix(ti))
+        w, r = _levenberg_marquardt_stacked(costs, np.zeros(3), 4)
+        R = _rotation_increment(w) @ R
         steps.append((float(r @ r), R, ti))
     return steps
 
@@ -184,7 +184,7 @@ def valley_minima(
     if len(x1) < 12:
         return []
     cost = _cost(np.asarray(x1, float), np.asarray(x2, float), scale)
-    r0 = cost(cross_matrix(t) @ R)
+    r0 = cost(_cross_matrix(t) @ R)
     start, variance = float(r0 @ r0), float(r0 @ r0) / max(len(r0) - 5, 1)
     u = _worst_direction(cost, R, t)
     minima = []
@@ -194,7 +194,7 @@ def valley_minima(
         if lowest < len(profile) - 1 and profile[lowest][0] > profile[lowest - 1][0]:
             continue
         Rm, tm = _polish(cost, *profile[lowest][1:])
-        r = cost(cross_matrix(tm) @ Rm)
+        r = cost(_cross_matrix(tm) @ Rm)
         minima.append(ValleyMinimum(Rm, tm, (float(r @ r) - start) / variance))
     return minima
 

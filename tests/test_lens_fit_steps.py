@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from ppo_cv import motion_model, photometric, rotation
+from ppo_cv import lsq, motion_model, photometric, rotation
 from ppo_cv.rotation import MAX_FOCAL_CHANGE, fit_rotation_lens
 
 FOCAL = 1000.0
@@ -24,7 +24,7 @@ def _pan(focal_error: float = 0.02, k1: float = 0.05, outliers: int = 20, seed: 
     located to 0.1 px, the last ``outliers`` of them moved by 3-10 px."""
     rng = np.random.default_rng(seed)
     q1 = rng.uniform(-0.35, 0.35, (500, 2))
-    R = rotation.rotation_increment(np.radians([2.0, 12.0, 1.0]))
+    R = lsq.rotation_increment(np.radians([2.0, 12.0, 1.0]))
     ray = np.column_stack([q1, np.ones(len(q1))]) @ R.T
     q2 = ray[:, :2] / ray[:, 2:]
     keep = np.all(np.abs(q2) < 0.35, axis=1)

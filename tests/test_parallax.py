@@ -89,9 +89,9 @@ def test_each_jacobian_of_the_fit_is_one_stacked_call_with_the_same_figures(monk
     )
     assert fit_plane_parallax(x1, x2).parallax == fit.parallax
     assert (8, 3, 3) in shapes and shapes.count((3, 3)) < 2 * shapes.count((8, 3, 3)) + 3
-    one_at_a_time = parallax.levenberg_marquardt
+    one_at_a_time = parallax._levenberg_marquardt
     monkeypatch.setattr(
-        parallax, "levenberg_marquardt", lambda f, p, steps, many=None: one_at_a_time(f, p, steps)
+        parallax, "_levenberg_marquardt", lambda f, p, steps, many=None: one_at_a_time(f, p, steps)
     )
     alone = fit_plane_parallax(x1, x2)
     assert np.array_equal(alone.H, fit.H)
