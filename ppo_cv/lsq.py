@@ -152,6 +152,15 @@ def pose_increment(
     return _rotation_increment(p[:3]) @ R, tp / np.linalg.norm(tp)
 
 
+def _pose_increments(
+    R: np.ndarray, t: np.ndarray, P: np.ndarray, basis: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`pose_increment` of each row of ``P`` (K, 5): rotations (K, 3, 3) and unit
+    translations (K, 3), unchecked."""
+    tp = t + P[:, 3:5] @ basis
+    return _rotation_increments(P[:, :3]) @ R, tp / np.linalg.norm(tp, axis=1, keepdims=True)
+
+
 def huber_weights(size: np.ndarray, scale: float) -> np.ndarray:
     """``sqrt(rho(s)) / s`` for residual sizes ``s`` (N,): the weighted squares sum to Huber's
     cost ``rho(s) = s^2`` up to ``scale`` and ``2 scale s - scale^2`` beyond. ``size`` real

@@ -43,6 +43,7 @@ from .lsq import (
     _levenberg_marquardt,
     _levenberg_marquardt_batched,
     _levenberg_marquardt_stacked,
+    _pose_increments,
     _rotation_increments,
     pose_increment,
     stack_by_chunks,
@@ -358,11 +359,10 @@ def refine_pose_huber(
         For matches :func:`ppo_cv.checks.require_pose_matches` refuses (a zero ``t`` among
         them), a ``scale`` that is not a finite number > 0 or ``iterations`` below 1.
     """
-    require_pose_matches(R, t, x1, x2, inliers)
+    t0 = require_pose_matches(R, t, x1, x2, inliers)
     scale = as_positive(scale, "scale")
     iterations = as_whole_number(iterations, "iterations", 1, MAX_WHOLE_NUMBER)
     R0 = np.asarray(R, dtype=np.float64)
-    t0 = np.asarray(t, dtype=np.float64).reshape(3)
     t0 = t0 / np.linalg.norm(t0)
     inliers = np.asarray(inliers, dtype=bool)
     if np.count_nonzero(inliers) < 12:
@@ -371,10 +371,7 @@ def refine_pose_huber(
     basis = tangent_basis(t0)
 
     def residuals(P: np.ndarray) -> np.ndarray:
-        tp = t0 + P[:, 3:5] @ basis
-        tp = tp / np.linalg.norm(tp, axis=1, keepdims=True)
-        E = _cross_matrices(tp) @ (_rotation_increments(P[:, :3]) @ R0)
-        r = _sampson_signed_rows(E, X1, X2)
+        r = _sampson_by_coordinate(*_pose_increments(R0, t0, P, basis), X1, X2)
         return _huber_weights(np.abs(r), scale) * r
 
     p, _ = _levenberg_marquardt_stacked(residuals, np.zeros(5), iterations)
@@ -466,9 +463,7 @@ def _radial_residuals(R0, t0, basis, scale, k1_prior, k1_start):
     (:func:`ppo_cv.lsq.stack_by_chunks`), each row's figures those of the row alone."""
 
     def chunk(P, points, weight, rows):
-        Rp = _rotation_increments(P[:, :3]) @ R0
-        tp = t0 + P[:, 3:5] @ basis
-        tp = tp / np.linalg.norm(tp, axis=1, keepdims=True)
+        Rp, tp = _pose_increments(R0, t0, P, basis)
         k1 = k1_start + P[:, 5]
         r = _sampson_by_coordinate(Rp, tp, *(view.undistorted(k1, rows) for view in points))
         return np.column_stack([_huber_weights(np.abs(r), scale) * r, weight * k1 / k1_prior])

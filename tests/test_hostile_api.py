@@ -1159,6 +1159,12 @@ def test_any_finite_scale_of_t_gives_the_same_refined_pose(scale):
     np.testing.assert_allclose(t_scaled, np.sign(scale) * t, atol=1e-9)
     radial = refine.refine_pose_radial(R_TRUE, T_TRUE * scale, _rays(), RAYS2, _ALL, scale=1e-3)
     assert np.all(np.isfinite(radial.t)) and abs(np.linalg.norm(radial.t) - 1) < 1e-12
+    huber = refine.refine_pose_huber(R_TRUE, T_TRUE, _rays(), RAYS2, _ALL, scale=1e-3)
+    R_huber, t_huber = refine.refine_pose_huber(
+        R_TRUE, T_TRUE * scale, _rays(), RAYS2, _ALL, scale=1e-3
+    )
+    np.testing.assert_allclose(R_huber, huber[0], atol=1e-9)
+    np.testing.assert_allclose(t_huber, np.sign(scale) * huber[1], atol=1e-9)
 
 
 def test_refine_pose_reads_rows_as_homogeneous_points():
