@@ -14,6 +14,7 @@ __all__ = [
     "as_points",
     "as_finite_rows",
     "as_finite_array",
+    "as_matrix3",
     "as_real_array",
     "as_point_pair",
     "as_homogeneous_pair",
@@ -276,6 +277,15 @@ def as_finite_array(value: Any, name: str) -> np.ndarray:
     array = _as_real_array(value, name)
     require_finite(array, name)
     return array
+
+
+def as_matrix3(value: Any, name: str) -> np.ndarray:
+    """Real numbers of shape (3, 3) as float64, all finite; ValueError or TypeError naming
+    ``name`` otherwise."""
+    matrix = as_finite_array(value, name)
+    if matrix.shape != (3, 3):
+        raise ValueError(f"{name} must be a 3x3 matrix, got shape {matrix.shape}")
+    return matrix
 
 
 def as_points(value: Any, name: str) -> np.ndarray:

@@ -40,6 +40,7 @@ from . import ppo
 from .checks import (
     as_finite_array,
     as_finite_rows,
+    as_matrix3,
     as_number,
     as_real_array,
     as_rotation,
@@ -792,9 +793,7 @@ def rms_rotation_angle_deg(covariance: np.ndarray) -> float:
     >>> round(rms_rotation_angle_deg(np.diag([3e-6, 1e-6, 0.0])), 4)
     0.1146
     """
-    covariance = as_finite_array(covariance, "covariance")
-    if covariance.shape != (3, 3):
-        raise ValueError(f"covariance must be a 3x3 matrix, got shape {covariance.shape}")
+    covariance = as_matrix3(covariance, "covariance")
     return _rms_rotation_angle_deg(covariance)
 
 

@@ -93,6 +93,7 @@ from .checks import (
     as_finite_array,
     as_finite_rows,
     as_image_size,
+    as_matrix3,
     as_nonnegative,
     as_number,
     as_positive,
@@ -275,16 +276,8 @@ def epipolar_lines(E: np.ndarray, x1: np.ndarray, K2: np.ndarray) -> np.ndarray:
     ``E`` (3, 3), ``x1`` (N, 3) normalized, ``K2`` (3, 3) a camera matrix; ValueError or
     TypeError naming the argument at fault.
     """
-    E, x1 = _as_matrix3(E, "E"), as_finite_rows(x1, "x1", 3)
+    E, x1 = as_matrix3(E, "E"), as_finite_rows(x1, "x1", 3)
     return _epipolar_lines(E, x1, as_camera_matrix(K2, "K2"))
-
-
-def _as_matrix3(value, name: str) -> np.ndarray:
-    """``value`` as a finite float64 (3, 3); ValueError or TypeError naming ``name``."""
-    matrix = as_finite_array(value, name)
-    if matrix.shape != (3, 3):
-        raise ValueError(f"{name} must have shape (3, 3), got {matrix.shape}")
-    return matrix
 
 
 def _as_matches(x1, x2) -> tuple[np.ndarray, np.ndarray]:
@@ -373,7 +366,7 @@ def epipolar_significance(
     ValueError, TypeError
         An argument of another shape or kind, named.
     """
-    E, (x1, x2), K2 = _as_matrix3(E, "E"), _as_matches(x1, x2), as_camera_matrix(K2, "K2")
+    E, (x1, x2), K2 = as_matrix3(E, "E"), _as_matches(x1, x2), as_camera_matrix(K2, "K2")
     n = int(x1.shape[0])
     width, height = as_image_size(image_size2, "image_size2")
     lines = _epipolar_lines(E, x1, K2)
@@ -610,7 +603,7 @@ def require_significance(
     geometry" with the figures when the consensus may be chance (``log10 NFA`` above
     ``max_log10_nfa``, not distinctive enough, or not locally consistent); ValueError or
     TypeError naming an argument of another shape or kind."""
-    E, (x1, x2), K2 = _as_matrix3(E, "E"), _as_matches(x1, x2), as_camera_matrix(K2, "K2")
+    E, (x1, x2), K2 = as_matrix3(E, "E"), _as_matches(x1, x2), as_camera_matrix(K2, "K2")
     size2, ratios = as_image_size(size2, "size2"), as_finite_array(ratios, "ratios")
     max_log10_nfa = as_number(max_log10_nfa, "max_log10_nfa")
     if np.isnan(max_log10_nfa):
