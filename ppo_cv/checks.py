@@ -14,6 +14,7 @@ __all__ = [
     "as_points",
     "as_finite_rows",
     "as_finite_array",
+    "as_matched_rows",
     "as_matrix3",
     "as_real_array",
     "as_point_pair",
@@ -277,6 +278,15 @@ def as_finite_array(value: Any, name: str) -> np.ndarray:
     array = _as_real_array(value, name)
     require_finite(array, name)
     return array
+
+
+def as_matched_rows(x1: Any, x2: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Two arrays of matched rows as finite float64 (N, 3) of one N; ValueError or TypeError
+    naming ``x1`` or ``x2`` otherwise."""
+    x1, x2 = as_finite_rows(x1, "x1", 3), as_finite_rows(x2, "x2", 3)
+    if len(x1) != len(x2):
+        raise ValueError(f"x1 and x2 must have the same length, got {len(x1)} and {len(x2)}")
+    return x1, x2
 
 
 def as_matrix3(value: Any, name: str) -> np.ndarray:

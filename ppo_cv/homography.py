@@ -25,7 +25,7 @@ import numpy as np
 
 from .checks import (
     MAX_WHOLE_NUMBER,
-    as_finite_rows,
+    as_matched_rows,
     as_matrix3,
     as_whole_number,
     require_instance,
@@ -142,11 +142,7 @@ def symmetric_transfer_errors(H: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> 
 def _checked_homography_matches(H, x1, x2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``H`` (3, 3) and ``x1``, ``x2`` (N, 3) as float64, finite and of one length; ValueError or
     TypeError naming the argument otherwise (numpy's AttributeError for a list or None)."""
-    H = as_matrix3(H, "H")
-    x1, x2 = as_finite_rows(x1, "x1", 3), as_finite_rows(x2, "x2", 3)
-    if len(x1) != len(x2):
-        raise ValueError(f"x1 and x2 must have the same length, got {len(x1)} and {len(x2)}")
-    return H, x1, x2
+    return (as_matrix3(H, "H"), *as_matched_rows(x1, x2))
 
 
 def _pycolmap(p1, p2, threshold, confidence, min_trials, max_trials, seed):

@@ -42,9 +42,9 @@ from .checks import (
     MAX_WHOLE_NUMBER,
     as_camera_matrix,
     as_finite_array,
-    as_finite_rows,
     as_flag,
     as_image_size,
+    as_matched_rows,
     as_number,
     as_positive,
     as_positive_at_most,
@@ -274,9 +274,7 @@ def virtual_camera(focal: float, width: int = 0, height: int = 0):
 def checked_rays(x1: Any, x2: Any) -> tuple[np.ndarray, np.ndarray]:
     """Two arrays of matched rays as contiguous float64 (N, 3), all finite; a ValueError or
     TypeError naming ``x1`` or ``x2`` otherwise, or when their lengths differ."""
-    x1, x2 = as_finite_rows(x1, "x1", 3), as_finite_rows(x2, "x2", 3)
-    if len(x1) != len(x2):
-        raise ValueError(f"x1 and x2 must have the same length, got {len(x1)} and {len(x2)}")
+    x1, x2 = as_matched_rows(x1, x2)
     return np.ascontiguousarray(x1), np.ascontiguousarray(x2)
 
 

@@ -93,6 +93,7 @@ from .checks import (
     as_finite_array,
     as_finite_rows,
     as_image_size,
+    as_matched_rows,
     as_matrix3,
     as_nonnegative,
     as_number,
@@ -280,14 +281,6 @@ def epipolar_lines(E: np.ndarray, x1: np.ndarray, K2: np.ndarray) -> np.ndarray:
     return _epipolar_lines(E, x1, as_camera_matrix(K2, "K2"))
 
 
-def _as_matches(x1, x2) -> tuple[np.ndarray, np.ndarray]:
-    """``x1``, ``x2`` as finite float64 (N, 3) of one N; ValueError or TypeError naming them."""
-    x1, x2 = as_finite_rows(x1, "x1", 3), as_finite_rows(x2, "x2", 3)
-    if x1.shape != x2.shape:
-        raise ValueError(f"x1 and x2 must have the same length, got {len(x1)} and {len(x2)}")
-    return x1, x2
-
-
 def _epipolar_lines(E: np.ndarray, x1: np.ndarray, K2: np.ndarray) -> np.ndarray:
     """:func:`epipolar_lines`, unchecked."""
     lines = x1 @ (np.linalg.inv(K2).T @ E).T
@@ -366,7 +359,7 @@ def epipolar_significance(
     ValueError, TypeError
         An argument of another shape or kind, named.
     """
-    E, (x1, x2), K2 = as_matrix3(E, "E"), _as_matches(x1, x2), as_camera_matrix(K2, "K2")
+    E, (x1, x2), K2 = as_matrix3(E, "E"), as_matched_rows(x1, x2), as_camera_matrix(K2, "K2")
     n = int(x1.shape[0])
     width, height = as_image_size(image_size2, "image_size2")
     lines = _epipolar_lines(E, x1, K2)
@@ -603,7 +596,7 @@ def require_significance(
     geometry" with the figures when the consensus may be chance (``log10 NFA`` above
     ``max_log10_nfa``, not distinctive enough, or not locally consistent); ValueError or
     TypeError naming an argument of another shape or kind."""
-    E, (x1, x2), K2 = as_matrix3(E, "E"), _as_matches(x1, x2), as_camera_matrix(K2, "K2")
+    E, (x1, x2), K2 = as_matrix3(E, "E"), as_matched_rows(x1, x2), as_camera_matrix(K2, "K2")
     size2, ratios = as_image_size(size2, "size2"), as_finite_array(ratios, "ratios")
     max_log10_nfa = as_number(max_log10_nfa, "max_log10_nfa")
     if np.isnan(max_log10_nfa):
@@ -699,7 +692,7 @@ def ray_angles_deg(x1: np.ndarray, x2: np.ndarray, R: np.ndarray) -> np.ndarray:
     ValueError, TypeError
         An argument of another shape or kind, named.
     """
-    (x1, x2), R = _as_matches(x1, x2), as_rotation(R, "R")
+    (x1, x2), R = as_matched_rows(x1, x2), as_rotation(R, "R")
     return np.atleast_1d(direction_error_deg(x1, x2 @ R))
 
 
@@ -709,7 +702,7 @@ def require_matchable_viewpoints(x1: np.ndarray, x2: np.ndarray, R: np.ndarray) 
     the pose has most of its consensus seen from directions no descriptor matches across, as a
     chance consensus of a few matches may. Returns that median, degrees (0 for no inliers);
     ValueError or TypeError naming an argument of another shape or kind."""
-    (x1, x2), R = _as_matches(x1, x2), as_rotation(R, "R")
+    (x1, x2), R = as_matched_rows(x1, x2), as_rotation(R, "R")
     if x1.shape[0] == 0:
         return 0.0
     median = float(np.median(ray_angles_deg(x1, x2, R)))
