@@ -84,6 +84,7 @@ its distinctiveness); the real pairs lie below the bar by a factor of two at lea
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -269,6 +270,15 @@ def _log10_nfa(n: int, k: np.ndarray, log_p: np.ndarray, sample_size, models_per
     )
 
 
+def _as_solver(sample_size: Any, models_per_sample: Any) -> tuple[int, int]:
+    """``(s, N_out)`` of a minimal solver as ints, whole numbers in 1..
+    :data:`~ppo_cv.checks.MAX_WHOLE_NUMBER`; ValueError or TypeError naming the one at fault."""
+    return (
+        as_whole_number(sample_size, "sample_size", 1, MAX_WHOLE_NUMBER),
+        as_whole_number(models_per_sample, "models_per_sample", 1, MAX_WHOLE_NUMBER),
+    )
+
+
 def epipolar_lines(E: np.ndarray, x1: np.ndarray, K2: np.ndarray) -> np.ndarray:
     """Epipolar lines ``l2 = K2^-T E x1`` in pixels of image 2, scaled to unit normals, (N, 3).
 
@@ -346,9 +356,9 @@ def epipolar_significance(
     image_size2 : (int, int)
         ``(width, height)`` of image 2, pixels.
     sample_size, models_per_sample : int
-        ``s`` and ``N_out`` of the minimal solver.
+        ``s`` and ``N_out`` of the minimal solver, whole numbers from 1.
     max_threshold : float
-        Largest ``eps_k`` tried, pixels.
+        Largest ``eps_k`` tried, pixels: a number > 0, ``inf`` for no bound.
 
     Returns
     -------
@@ -362,6 +372,10 @@ def epipolar_significance(
     E, (x1, x2), K2 = as_matrix3(E, "E"), as_matched_rows(x1, x2), as_camera_matrix(K2, "K2")
     n = int(x1.shape[0])
     width, height = as_image_size(image_size2, "image_size2")
+    sample_size, models_per_sample = _as_solver(sample_size, models_per_sample)
+    max_threshold = as_number(max_threshold, "max_threshold")
+    if not max_threshold > 0:
+        raise ValueError(f"max_threshold must be a number > 0 (inf: no bound), got {max_threshold}")
     lines = _epipolar_lines(E, x1, K2)
     residuals = np.abs(np.einsum("ij,ij->i", lines, x2 @ np.asarray(K2, float).T))
     order = np.argsort(residuals)
@@ -558,7 +572,7 @@ def smallest_significant_consensus(
     max_log10_nfa : float
         The significance bar.
     sample_size, models_per_sample : int
-        ``s`` and ``N_out`` of the minimal solver.
+        ``s`` and ``N_out`` of the minimal solver, whole numbers from 1.
 
     Returns
     -------
@@ -570,8 +584,7 @@ def smallest_significant_consensus(
     threshold = as_positive(threshold, "threshold")
     if as_number(max_log10_nfa, "max_log10_nfa") != max_log10_nfa:
         raise ValueError("max_log10_nfa must be a number (inf: every consensus), got nan")
-    for name, value in (("sample_size", sample_size), ("models_per_sample", models_per_sample)):
-        as_whole_number(value, name, 1, MAX_WHOLE_NUMBER)
+    sample_size, models_per_sample = _as_solver(sample_size, models_per_sample)
     k = np.arange(sample_size + 1, n + 1)
     if k.size == 0:
         return n + 1

@@ -31,6 +31,13 @@ def _rendered(**changed):
                            "t": np.zeros(3), "depth1": depth, **changed})  # fmt: skip
 
 
+def _significance(**settings):
+    """The consensus of a sideways motion (``E = [t]x``, ``t`` along x) over matches of one row."""
+    E = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+    return significance.epipolar_significance(E, X, X + [0.05, 0.0, 0.0], K, (640, 480),
+                                              **settings)  # fmt: skip
+
+
 CASES = {
     # sfm: AttributeError ('NoneType' object has no attribute 'split'), os.fspath's words
     "pair_text None": (lambda: sfm.pair_text(None, "b.png"), TypeError,
@@ -95,6 +102,52 @@ CASES = {
         "x1 must hold real numbers"),
     "epipolar_lines None": (lambda: significance.epipolar_lines(None, X, K), TypeError,
                             "E is required, got None"),
+    # the minimal solver's counts and the largest band: NaN gave "arange: cannot compute
+    # length", text a str concatenation error, 5.0 an IndexError, True and a NaN or negative
+    # max_threshold an answer (no consensus, or a bool read as a count), -1 models a NaN NFA
+    "epipolar_significance sample_size NaN": (
+        lambda: _significance(sample_size=np.nan), ValueError,
+        "sample_size must be a whole number in 1..2147483647, got nan"),
+    "epipolar_significance sample_size 0": (
+        lambda: _significance(sample_size=0), ValueError,
+        "sample_size must be a whole number in 1..2147483647, got 0"),
+    "epipolar_significance sample_size text": (
+        lambda: _significance(sample_size="5"), TypeError,
+        "sample_size must be a whole number, got str '5'"),
+    "epipolar_significance sample_size bool": (
+        lambda: _significance(sample_size=True), TypeError,
+        "sample_size must be a whole number, got bool True"),
+    "epipolar_significance sample_size huge": (
+        lambda: _significance(sample_size=HUGE), ValueError,
+        "sample_size must be a whole number in 1..2147483647, got <401-digit integer>"),
+    "epipolar_significance models -1": (
+        lambda: _significance(models_per_sample=-1), ValueError,
+        "models_per_sample must be a whole number in 1..2147483647, got -1"),
+    "epipolar_significance models huge": (
+        lambda: _significance(models_per_sample=10**30), ValueError,
+        "models_per_sample must be a whole number in 1..2147483647"),
+    "epipolar_significance models bool": (
+        lambda: _significance(models_per_sample=True), TypeError,
+        "models_per_sample must be a whole number, got bool True"),
+    "epipolar_significance max_threshold NaN": (
+        lambda: _significance(max_threshold=np.nan), ValueError,
+        "max_threshold must be a number > 0 (inf: no bound), got nan"),
+    "epipolar_significance max_threshold -1": (
+        lambda: _significance(max_threshold=-1), ValueError,
+        "max_threshold must be a number > 0 (inf: no bound), got -1.0"),
+    "epipolar_significance max_threshold 0": (
+        lambda: _significance(max_threshold=0.0), ValueError,
+        "max_threshold must be a number > 0 (inf: no bound), got 0.0"),
+    "epipolar_significance max_threshold text": (
+        lambda: _significance(max_threshold="16"), TypeError,
+        "max_threshold must be a number, got str '16'"),
+    "epipolar_significance max_threshold bool": (
+        lambda: _significance(max_threshold=True), TypeError,
+        "max_threshold must be a number, got True"),
+    "smallest_significant_consensus models NaN": (
+        lambda: significance.smallest_significant_consensus(
+            100, (640, 480), 1.0, 5.0, models_per_sample=np.nan), ValueError,
+        "models_per_sample must be a whole number in 1..2147483647, got nan"),
     "epipolar_lines K2 singular": (
         lambda: significance.epipolar_lines(np.eye(3), X, np.diag([500.0, 500.0, 0.0])),
         ValueError, "K2 must be upper triangular with last row (0, 0, 1)"),
@@ -172,6 +225,19 @@ def test_hostile_input_to_a_helper_is_an_error_naming_the_argument(case):
     with pytest.raises(exception) as info:
         call()
     assert words in str(info.value)
+
+
+def test_whole_float_counts_of_the_consensus_test_read_as_their_integers():
+    """A float count that is a whole number is read as one: ``sample_size=5.0`` raised numpy's
+    IndexError (epipolar_significance) or a TypeError of integers (smallest_significant_consensus);
+    ``max_threshold`` inf bounds nothing."""
+    expected = _significance(sample_size=1)
+    assert expected.num_consistent > 1 and np.isfinite(expected.log10_nfa)
+    found = _significance(sample_size=1.0, models_per_sample=10.0, max_threshold=np.inf)
+    assert (found.log10_nfa, found.num_consistent) == (expected.log10_nfa, expected.num_consistent)
+    smallest = significance.smallest_significant_consensus(200, (640, 480), 1.0, 5.0)
+    assert significance.smallest_significant_consensus(
+        200, (640, 480), 1.0, 5.0, sample_size=5.0, models_per_sample=10.0) == smallest < 200
 
 
 def _photo(name: str):
