@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from ppo_cv.checks import as_finite_array, as_image_size, as_vector3, shown
+from ppo_cv.checks import as_finite_array, as_image_size, as_matrix3, as_vector3
 from ppo_cv.result import compact_repr
 
 from .scenes import Quad, Scene
@@ -82,28 +82,11 @@ class RenderedPair:
 
     def __post_init__(self) -> None:
         for name in ("K1", "K2"):
-            object.__setattr__(self, name, _as_matrix3(getattr(self, name), name))
+            object.__setattr__(self, name, as_matrix3(getattr(self, name), name).copy())
         for name, true in (("K1_given", self.K1), ("K2_given", self.K2)):
             given = getattr(self, name)
-            value = true.copy() if given is None else _as_matrix3(given, name)
+            value = true.copy() if given is None else as_matrix3(given, name).copy()
             object.__setattr__(self, name, value)
-
-
-def _as_matrix3(value, name: str) -> np.ndarray:
-    """``value`` as a new finite float64 (3, 3); ValueError or TypeError naming ``name``."""
-    if value is None:
-        raise TypeError(f"{name} is required, got None")
-    try:
-        matrix = np.array(value, dtype=np.float64)
-    except OverflowError:
-        raise ValueError(f"{name} holds a number beyond the range of a float") from None
-    except (TypeError, ValueError):
-        raise TypeError(f"{name} must be a 3x3 matrix of numbers, got {shown(value)}") from None
-    if matrix.shape != (3, 3):
-        raise ValueError(f"{name} must be a 3x3 matrix, got shape {matrix.shape}")
-    if not np.isfinite(matrix).all():
-        raise ValueError(f"{name} must be finite, got {matrix.tolist()}")
-    return matrix
 
 
 def _check_matrix(name: str, value, shape: tuple) -> np.ndarray:

@@ -110,8 +110,21 @@ def _as_real_array(value: Any, name: str, text_hint: str = "") -> np.ndarray:
     if array.dtype == np.float64:
         return array
     if array.dtype.kind not in "iuf":
+        if array.dtype == object:
+            _require_float_range(array, name)
         raise TypeError(_not_numbers(value, array, name, text_hint))
     return array.astype(np.float64)
+
+
+def _require_float_range(array: np.ndarray, name: str) -> None:
+    """ValueError naming ``name`` when an object array holds an integer beyond the range of a
+    float (10**400), which numpy keeps as a Python object."""
+    try:
+        array.astype(np.float64)
+    except OverflowError:
+        raise ValueError(f"{name} holds a number beyond the range of a float") from None
+    except (TypeError, ValueError):
+        pass
 
 
 def _not_numbers(value: Any, array: np.ndarray, name: str, text_hint: str = "") -> str:

@@ -29,6 +29,7 @@ from .checks import (
     MAX_WHOLE_NUMBER,
     as_camera_matrix,
     as_finite_rows,
+    as_matrix3,
     as_nonnegative,
     as_point_pair,
     as_pri_threshold,
@@ -332,9 +333,7 @@ def _require_essential_geometry(E: Any, matches: np.ndarray) -> None:
     (:func:`ppo_cv.checks.require_essential_spread`), with the keypoint its inlier
     ``matches`` (K, 2) share most: a degenerate estimate, such as pycolmap's from matches that
     all reuse one keypoint, was refused as an ``E`` given by the caller ("pass E = K2^T F K1")."""
-    E = np.asarray(E, dtype=np.float64)
-    if E.shape != (3, 3) or not np.all(np.isfinite(E)):
-        raise ValueError(f"geometry.E must be a finite 3x3 matrix, got {shown(E)}")
+    E = as_matrix3(E, "geometry.E")
     try:
         require_essential_spread(np.linalg.svd(E, compute_uv=False))
     except ValueError as exc:

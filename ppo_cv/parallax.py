@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .checks import as_finite_array, as_finite_rows, as_positive, shown
+from .checks import as_finite_array, as_finite_rows, as_matrix3, as_positive, shown
 from .lsq import _gauss_newton_covariance, _levenberg_marquardt, forward_jacobian
 from .model_selection import robust_sigma
 
@@ -77,7 +77,7 @@ def homography_parallax(H: np.ndarray) -> float:
     >>> round(homography_parallax(H), 4)
     0.02
     """
-    return _homography_parallax(_checked_homography(H))
+    return _homography_parallax(as_matrix3(H, "H"))
 
 
 def _homography_parallax(H: np.ndarray) -> float:
@@ -91,19 +91,12 @@ def focal_conjugates(H: np.ndarray, log_scales: np.ndarray) -> np.ndarray:
     """``S^-1 H S`` (K, 3, 3) of a homography ``H`` (3, 3) for each ``S = diag(s, s, 1)``,
     ``s = exp(log_scales)`` (K,): ``H`` on points normalised with a focal length ``s`` times
     the one that normalised them."""
-    return _focal_conjugates(_checked_homography(H), _checked_log_scales(log_scales))
+    return _focal_conjugates(as_matrix3(H, "H"), _checked_log_scales(log_scales))
 
 
 _MAX_LOG_SCALE = 50.0
 """Largest ``|log_scales|`` of :func:`focal_conjugates` and its callers: a focal scale beyond
 ``e^50`` (5e21) is no camera's, and ``exp`` overflows past 709."""
-
-
-def _checked_homography(H: np.ndarray) -> np.ndarray:
-    H = as_finite_array(H, "H")
-    if H.shape != (3, 3):
-        raise ValueError(f"H must be a 3x3 homography, got shape {H.shape}")
-    return H
 
 
 def _checked_log_scales(log_scales: np.ndarray) -> np.ndarray:
@@ -145,7 +138,7 @@ def rotation_spread(H: np.ndarray, log_scales: np.ndarray) -> np.ndarray:
     >>> np.round(rotation_spread(H, np.log([0.8, 1.0])), 4)
     array([0.    , 0.0894])
     """
-    return _rotation_spread(_checked_homography(H), _checked_log_scales(log_scales))
+    return _rotation_spread(as_matrix3(H, "H"), _checked_log_scales(log_scales))
 
 
 def _rotation_spread(H: np.ndarray, log_scales: np.ndarray) -> np.ndarray:
@@ -169,7 +162,7 @@ def nearest_rotation_log_scale(H: np.ndarray, log_scales: np.ndarray) -> tuple[f
         Whether the grid's best lies inside the grid, not on one of its ends (where no scale in
         the range makes ``H`` a rotation).
     """
-    H, log_scales = _checked_homography(H), _checked_log_scales(log_scales)
+    H, log_scales = as_matrix3(H, "H"), _checked_log_scales(log_scales)
     spreads = _rotation_spread(H, log_scales)
     best = int(np.argmin(spreads))
     last = len(log_scales) - 1

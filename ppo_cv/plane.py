@@ -180,15 +180,6 @@ def _homogeneous(x: np.ndarray) -> np.ndarray:
     return np.column_stack([x, np.ones(len(x))]) if x.shape[1] == 2 else x
 
 
-def _as_homography(H: np.ndarray) -> np.ndarray:
-    H = np.asarray(H, dtype=np.float64)
-    if H.shape != (3, 3):
-        raise ValueError(f"H must have shape (3, 3), got {H.shape}")
-    if not np.all(np.isfinite(H)):
-        raise ValueError("H has NaN or infinite entries")
-    return H
-
-
 def normalize_homography(
     H: np.ndarray, x1: np.ndarray | None = None, x2: np.ndarray | None = None
 ) -> np.ndarray:
@@ -211,7 +202,7 @@ def normalize_homography(
     -------
     ndarray, shape (3, 3)
     """
-    H = _as_homography(H)
+    H = as_matrix3(H, "H")
     s = np.linalg.svd(H, compute_uv=False)
     if not s[1] > 0:
         raise ValueError("H has rank below 2: not a homography between two views")
@@ -258,7 +249,7 @@ def decompose_homography(H: np.ndarray) -> HomographyCandidates:
     -------
     HomographyCandidates
     """
-    H = _as_homography(H)
+    H = as_matrix3(H, "H")
     _, s, Vt = np.linalg.svd(H)  # Hn^T Hn = V diag(s^2) V^T
     if not s[1] > 0:
         raise ValueError("H has rank below 2: not a homography between two views")
@@ -510,9 +501,7 @@ def planar_pose(
     >>> np.allclose(pose.R, np.eye(3)), np.allclose(pose.t, [1, 0, 0]), pose.n.round(6) + 0.0
     (True, True, array([0., 0., 1.]))
     """
-    if np.shape(H) != (3, 3):
-        raise ValueError(f"H must be a 3x3 matrix, got shape {np.shape(H)}")
-    as_finite_array(H, "H")
+    as_matrix3(H, "H")
     _require_matches(x1, x2)
     X1, X2 = _homogeneous(x1), _homogeneous(x2)
     used = None if inliers is None else np.asarray(inliers, bool).reshape(-1)

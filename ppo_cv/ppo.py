@@ -25,6 +25,7 @@ from .checks import (
     as_essential,
     as_finite_array,
     as_finite_rows,
+    as_matrix3,
     as_points,
     as_vector3,
     shown,
@@ -160,9 +161,7 @@ def _checked_pose_rays(
     direction of a finite nonzero ``t`` (3 numbers); ValueError or TypeError naming the
     argument otherwise."""
     X1, X2 = _checked_ray_pair(x1, x2)
-    if np.shape(R) != (3, 3):
-        raise ValueError(f"R must be a 3x3 matrix, got shape {np.shape(R)}")
-    R = as_finite_rows(R, "R", 3)
+    R = as_matrix3(R, "R")
     t = as_vector3(t, "t")
     if not t.any():
         raise ValueError("t is zero: it has no direction")
@@ -239,10 +238,8 @@ def candidates_from_svd(U: np.ndarray, s: np.ndarray, Vt: np.ndarray) -> Candida
 def _require_orthogonal(matrix: Any, name: str) -> None:
     """ValueError or TypeError naming ``name`` unless ``matrix`` is an orthogonal 3x3 matrix,
     a factor of an SVD."""
-    orthogonal = as_finite_array(matrix, name)
-    if orthogonal.shape != (3, 3) or not np.allclose(
-        orthogonal @ orthogonal.T, np.eye(3), atol=1e-6
-    ):
+    orthogonal = as_matrix3(matrix, name)
+    if not np.allclose(orthogonal @ orthogonal.T, np.eye(3), atol=1e-6):
         raise ValueError(f"{name} must be an orthogonal 3x3 matrix (of an SVD)")
 
 

@@ -592,7 +592,7 @@ CASES = {
         ValueError, "log_scales must ascend within +-50, got [0.1, 0.0, -0.1]"),
     "parallax homography_parallax H of two rows": (
         lambda: __import__("ppo_cv.parallax").parallax.homography_parallax(np.eye(3)[:2]),
-        ValueError, "H must be a 3x3 homography, got shape (2, 3)"),
+        ValueError, "H must be a 3x3 matrix, got shape (2, 3)"),
     "parallax fit_plane_parallax text": (
         lambda: __import__("ppo_cv.parallax").parallax.fit_plane_parallax("x1", RAYS), TypeError,
         "x1 must be an array of real numbers, got str"),
