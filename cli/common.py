@@ -37,6 +37,7 @@ __all__ = [
     "ExifOrientation",
     "Cameras",
     "fail",
+    "with_warnings",
     "one_line",
     "error_message",
     "warn",
@@ -304,6 +305,12 @@ def short_words(text: str, width: int = MESSAGE_WORD_MAX) -> str:
         return f"'{cut(word[1], width)}'" if word[1] is not None else cut(word[2], width)
 
     return re.sub(rf"'([^']{{{width + 1},}})'|([^\s']{{{width + 1},}})", short, text)
+
+
+def with_warnings(message: str, warnings: list[str]) -> str:
+    """``message``, the one line of a failure, followed by each of ``warnings`` (``; warning:
+    ...``): a camera that does not fit its image may be why the run found nothing."""
+    return message + "".join(f"; warning: {one_line(text)}" for text in warnings)
 
 
 def fail(command: str, message: str, code: int = 2) -> NoReturn:

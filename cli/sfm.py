@@ -30,6 +30,7 @@ from .common import (
     print_result,
     upright_model_warning,
     warn,
+    with_warnings,
 )
 
 __all__ = ["register", "parse_K"]
@@ -77,7 +78,9 @@ def _stored_size(path: Path, exif_orientation: bool) -> tuple[tuple[int, int] | 
 
 def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads, seed,
            pri_threshold, overwrite, exif_orientation=True):  # fmt: skip
-    """Every argument checked before the run; returns the camera matrix or None."""
+    """Every argument checked before the run; returns the camera matrix (or None) and the
+    warning that it does not fit the images (:func:`implausible_intrinsics`), if it does not:
+    given after the run, as ``ppo-cv pair`` gives it, on the line of a failure."""
     from ppo_cv import sfm
     from ppo_cv.atomic import check_apart, check_target
 
@@ -117,13 +120,10 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
             "poses",
         )
         _exif_warnings(Path(image_dir), names, exif_orientation)
-        return None
-    if names:
-        size, turned = _stored_size(Path(image_dir) / names[0], exif_orientation)
-        doubt = implausible_intrinsics(matrix, size, exif_turned=turned)
-        if doubt:
-            warn("sfm", doubt)
-    return matrix
+        return None, []
+    size, turned = _stored_size(Path(image_dir) / names[0], exif_orientation)
+    doubt = implausible_intrinsics(matrix, size, exif_turned=turned)
+    return matrix, [doubt] if doubt else []
 
 
 def register(app: typer.Typer) -> None:
@@ -188,7 +188,7 @@ def register(app: typer.Typer) -> None:
         sigterm_as_interrupt()
 
         try:
-            matrix = _check(image_dir, out_dir, K, init, seeding, database, max_features,
+            matrix, doubts = _check(image_dir, out_dir, K, init, seeding, database, max_features,
                             threads, seed, pri_threshold, overwrite, exif_orientation)  # fmt: skip
         except ValueError as exc:
             _fail(str(exc))
@@ -206,11 +206,13 @@ def register(app: typer.Typer) -> None:
             )  # fmt: skip
         except sfm.ReconstructionFailed as exc:
             kept = f"; the matched features are in {database}" if database is not None else ""
-            _fail(f"{exc}{kept}", code=NO_RESULT)
+            _fail(with_warnings(f"{exc}{kept}", doubts), code=NO_RESULT)
         except (ValueError, OSError) as exc:
             _fail(error_message(exc))
         except RuntimeError as exc:
-            _fail(f"pycolmap failed: {exc}", code=NO_RESULT)
+            _fail(with_warnings(f"pycolmap failed: {exc}", doubts), code=NO_RESULT)
+        for doubt in doubts:  # after the run, as pair gives it: a failure is its one line
+            warn("sfm", doubt)
         paths = [Path(image_dir) / name for name in sfm.list_images(image_dir)]
         for message in upright_model_warning(paths, exif_orientation, f"the model {out_dir}"):
             warn("sfm", message)
