@@ -591,12 +591,19 @@ def image_size(path: str | os.PathLike) -> tuple[int, int] | None:
 def read_size(path: str | os.PathLike, exif_orientation: bool = True) -> tuple[int, int] | None:
     """``(width, height)`` of the image as the commands read it: by its header, turned where
     its EXIF orientation turns it a quarter and ``exif_orientation``; None when unknown."""
+    return read_layout(path, exif_orientation)[0]
+
+
+def read_layout(
+    path: str | os.PathLike, exif_orientation: bool = True
+) -> tuple[tuple[int, int] | None, bool]:
+    """:func:`read_size`, and whether the EXIF orientation turned the image a quarter (False
+    when the size is unknown or ``exif_orientation`` is off)."""
     from ppo_cv.images import exif_layout
 
     size = image_size(path)
-    if size is not None and exif_orientation and exif_layout(path).turned:
-        return size[1], size[0]
-    return size
+    turned = size is not None and exif_orientation and exif_layout(path).turned
+    return (size[::-1] if turned else size), turned
 
 
 def upright_model_warning(paths, exif_orientation: bool, model: str) -> list[str]:

@@ -25,9 +25,9 @@ from .common import (
     error_message,
     exif_camera,
     fail,
-    image_size,
     implausible_intrinsics,
     print_result,
+    read_layout,
     upright_model_warning,
     warn,
     with_warnings,
@@ -63,17 +63,6 @@ def _exif_warnings(image_dir: Path, names: list[str], exif_orientation: bool) ->
         warn("sfm", message)
     if len(doubts) > MAX_EXIF_WARNINGS:
         warn("sfm", f"{len(doubts) - MAX_EXIF_WARNINGS} more doubtful EXIF focal lengths")
-
-
-def _stored_size(path: Path, exif_orientation: bool) -> tuple[tuple[int, int] | None, bool]:
-    """The image's size as the reconstruction sees it, and whether EXIF turned it upright."""
-    from ppo_cv.images import exif_layout
-
-    size = image_size(path)
-    turned = exif_orientation and exif_layout(path).turned
-    if size is not None and turned:
-        size = (size[1], size[0])
-    return size, turned
 
 
 def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads, seed,
@@ -121,7 +110,7 @@ def _check(image_dir, out_dir, K, init, seeding, database, max_features, threads
         )
         _exif_warnings(Path(image_dir), names, exif_orientation)
         return None, []
-    size, turned = _stored_size(Path(image_dir) / names[0], exif_orientation)
+    size, turned = read_layout(Path(image_dir) / names[0], exif_orientation)
     doubt = implausible_intrinsics(matrix, size, exif_turned=turned)
     return matrix, [doubt] if doubt else []
 

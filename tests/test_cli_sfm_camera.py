@@ -39,9 +39,10 @@ def _no_model(image_dir, output_dir, progress, **settings):
 def _run(tmp_path, monkeypatch, run_sfm, K, *options):
     monkeypatch.setattr(sfm, "run_sfm", run_sfm)
     images = tmp_path / "images"
-    images.mkdir()
-    for name in (DEMO["image1"], DEMO["image2"]):
-        (images / name).write_bytes((DATA / name).read_bytes())
+    if not images.exists():
+        images.mkdir()
+        for name in (DEMO["image1"], DEMO["image2"]):
+            (images / name).write_bytes((DATA / name).read_bytes())
     return CliRunner().invoke(app, ["sfm", str(images), str(tmp_path / "model"), "--K", K,
                                     *options])  # fmt: skip
 
@@ -66,3 +67,23 @@ def test_a_far_off_principal_point_is_named_on_the_line_of_a_failure(tmp_path, m
 def test_a_camera_that_fits_is_no_warning(tmp_path, monkeypatch, run_sfm):
     run = _run(tmp_path, monkeypatch, run_sfm, "525,525,319.5,239.5", "--quiet")
     assert "warning" not in run.stderr and run.exit_code == (0 if run_sfm is _model else 1)
+
+
+def test_a_camera_of_the_pixels_as_stored_names_the_exif_orientation(tmp_path, monkeypatch):
+    """Photos stored turned a quarter (EXIF orientation 6) are read upright, 640x480; a camera
+    of their stored pixels (principal point at the centre of 480x640) is named as such."""
+    from PIL import Image
+
+    (tmp_path / "images").mkdir()
+    for name in (DEMO["image1"], DEMO["image2"]):
+        exif = Image.Exif()
+        exif[0x0112] = 6
+        stored = Image.open(DATA / name).convert("RGB").transpose(Image.Transpose.ROTATE_90)
+        stored.save(tmp_path / "images" / f"{Path(name).stem}.jpg", exif=exif.tobytes())
+    run = _run(tmp_path, monkeypatch, _no_model, "525,525,239.5,319.5", "--quiet")
+    assert run.exit_code == 1
+    assert run.stderr.strip().endswith(
+        "warning: --K looks implausible for a 640x480 image: principal point (239.5, 319.5) is "
+        "the centre of a 480x640 image: a camera for the pixels as stored, where the EXIF "
+        "orientation turns the image upright (--no-exif-orientation reads them as stored)?"
+    )
