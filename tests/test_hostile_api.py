@@ -1083,6 +1083,12 @@ CASES = {
     "transfer_errors row at infinity": (
         lambda: ppo_cv.homography.transfer_errors(np.eye(3), RAYS * [1, 1, 0], RAYS2),
         ValueError, "x1 has 40 row(s) with w = 0"),
+    # a zero n gave a basis of NaN, two numbers an IndexError
+    "tangent_basis zero": (lambda: __import__("ppo_cv.lsq").lsq.tangent_basis(np.zeros(3)),
+                           ValueError, "n is zero: it has no tangent plane"),
+    "tangent_basis two numbers": (
+        lambda: __import__("ppo_cv.lsq").lsq.tangent_basis(np.ones(2)), ValueError,
+        "n must be 3 numbers"),
     # an all-zero H gave Sampson errors of 0, every match on the homography
     "homography sampson zero H": (
         lambda: ppo_cv.homography.homography_sampson_errors(np.zeros((3, 3)), RAYS, RAYS2),
