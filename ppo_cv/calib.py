@@ -38,8 +38,10 @@ from .checks import (
     as_distortion,
     as_flag,
     as_image_size,
+    as_nonnegative,
     as_number,
     as_path,
+    as_positive,
     cut,
     require_instance,
     shown,
@@ -946,7 +948,16 @@ def field_of_view_deg(focal: float, extent: float) -> float:
 
     >>> round(field_of_view_deg(500.0, 1000.0), 6)
     90.0
+
+    ``focal`` must be a number > 0 and ``extent`` one >= 0 (ValueError or TypeError naming
+    it): a negative focal length gave a field beyond 180 degrees, a huge integer an
+    OverflowError.
     """
+    return _field_deg(as_positive(focal, "focal"), as_nonnegative(extent, "extent"))
+
+
+def _field_deg(focal: float, extent: float) -> float:
+    """:func:`field_of_view_deg`, unchecked (a focal length of 0 gives 180 degrees)."""
     return math.degrees(2.0 * math.atan2(extent, 2.0 * focal))
 
 
@@ -967,7 +978,8 @@ def unusable_exif_focal(focal: float, side: int) -> str | None:
         :data:`EXIF_FIELD_RANGE_DEG` (the focal length is then replaced by COLMAP's default
         guess, 1.2 times ``side``).
     """
-    field = field_of_view_deg(focal, side)
+    as_positive(side, "side")
+    field = _field_deg(as_number(focal, "focal"), side)  # an EXIF focal length may be 0
     low, high = EXIF_FIELD_RANGE_DEG
     if low <= field <= high:
         return None

@@ -15,6 +15,7 @@ __all__ = [
     "as_finite_rows",
     "as_finite_array",
     "as_matched_rows",
+    "as_image_rows",
     "as_matrix3",
     "as_real_array",
     "as_point_pair",
@@ -28,6 +29,7 @@ __all__ = [
     "as_positive",
     "as_positive_at_most",
     "as_ransac_settings",
+    "as_confidence",
     "as_vector3",
     "require_pose_matches",
     "MAX_RAY_SLOPE",
@@ -300,6 +302,22 @@ def as_matched_rows(x1: Any, x2: Any) -> tuple[np.ndarray, np.ndarray]:
     if len(x1) != len(x2):
         raise ValueError(f"x1 and x2 must have the same length, got {len(x1)} and {len(x2)}")
     return x1, x2
+
+
+def as_image_rows(x1: Any, x2: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Two arrays of matched homogeneous image points as finite float64 (N, 3) of one N, each
+    row divided by its ``w`` (rows of ``w = 1`` kept as they are); ValueError or TypeError
+    naming ``x1`` or ``x2`` otherwise, or for a row with ``w = 0`` or ``|(x, y)|`` beyond
+    :data:`MAX_RAY_SLOPE` ``|w|``. The robust fits read ``x[:, :2]`` as the image point, which
+    is a wrong point for a row of another ``w`` (a bearing vector: no error, a wrong pose)."""
+    x1, x2 = as_matched_rows(x1, x2)
+    return _on_image_plane(x1, "x1"), _on_image_plane(x2, "x2")
+
+
+def _on_image_plane(rows: np.ndarray, name: str) -> np.ndarray:
+    _require_rays(rows, name, MAX_RAY_SLOPE)
+    w = rows[:, 2]
+    return rows if (w == 1.0).all() else rows / w[:, None]
 
 
 def as_matrix3(value: Any, name: str) -> np.ndarray:
@@ -670,12 +688,23 @@ def as_ransac_settings(
     positive threshold, a confidence in (0, 1], whole trial counts and seed from 0 (a negative
     count ran pycolmap's sampler without end); ValueError or TypeError naming the argument."""
     threshold = as_positive(threshold, "threshold")
-    confidence = as_positive(confidence, "confidence")
-    if confidence > 1:
-        raise ValueError(f"confidence must be in (0, 1], got {confidence}")
+    confidence = as_confidence(confidence, "confidence")
     counts = {"min_trials": min_trials, "max_trials": max_trials, "seed": seed}
     counts = [as_whole_number(value, name, 0, MAX_WHOLE_NUMBER) for name, value in counts.items()]
     return (threshold, confidence, *counts)
+
+
+def as_confidence(value: Any, name: str) -> float:
+    """A RANSAC confidence in ``(0, 1]`` whose complement ``1 - value`` is below 1: one of
+    2**-54 (5.6e-17) or less leaves ``1 - value`` equal to 1, whose logarithm, 0, stopped
+    pycolmap's sampler before its first hypothesis: no model, read as 0 inliers."""
+    number = as_positive(value, name)
+    if not (1.0 - number < 1.0 and number <= 1.0):
+        raise ValueError(
+            f"{name} must be in (0, 1] with 1 - {name} below 1 (above {2.0**-54:.2g}), "
+            f"got {shown(number)}"
+        )
+    return number
 
 
 def as_whole_number(value: Any, name: str, low: int, high: int) -> int:
@@ -684,10 +713,9 @@ def as_whole_number(value: Any, name: str, low: int, high: int) -> int:
         value, (int, float, np.integer, np.floating)
     ):
         raise TypeError(f"{name} must be a whole number, got {type(value).__name__} {shown(value)}")
-    integral = isinstance(value, (int, np.integer)) or (
-        math.isfinite(value) and float(value).is_integer()
-    )
-    if not (integral and low <= value <= high):
+    number = int(value) if isinstance(value, (int, np.integer)) else float(value)
+    integral = isinstance(number, int) or (math.isfinite(number) and number.is_integer())
+    if not (integral and low <= number <= high):
         raise ValueError(f"{name} must be a whole number in {low}..{high}, got {shown(value)}")
     return int(value)
 
@@ -696,8 +724,9 @@ def as_image_size(
     size: Any, name: str, low: int = 1, high: int = MAX_WHOLE_NUMBER
 ) -> tuple[int, int]:
     """An image size ``(width, height)``: two whole numbers in ``low..high``; TypeError for
-    anything but two values."""
-    if isinstance(size, (str, bytes)) or not hasattr(size, "__len__") or len(size) != 2:
+    anything but two values (a 0-d array, a text)."""
+    sized = hasattr(size, "__len__") and getattr(size, "ndim", 1) != 0  # not a 0-d array
+    if isinstance(size, (str, bytes)) or not sized or len(size) != 2:
         raise TypeError(f"{name} must be (width, height), got {shown(size)}")
     width, height = (as_whole_number(v, f"{name} {side}", low, high)
                      for v, side in zip(size, ("width", "height"), strict=True))  # fmt: skip

@@ -33,6 +33,7 @@ from .checks import (
     as_nonnegative,
     as_point_pair,
     as_pri_threshold,
+    as_real_array,
     as_rotation,
     as_whole_number,
     require_essential_spread,
@@ -164,8 +165,8 @@ def rigid3d_from_pose(R: Any, t: Any) -> pycolmap.Rigid3d:
 def _as_translation(t: Any) -> np.ndarray:
     """Three finite numbers as float64 (3,); TypeError or ValueError naming ``t``."""
     try:
-        t = np.asarray(t, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError, OverflowError):
+        t = as_real_array(t, "t").reshape(-1)
+    except (TypeError, ValueError, OverflowError):  # also complex, bool or text numbers
         raise TypeError(f"t must be three numbers, got {type(t).__name__} {shown(t)}") from None
     if t.shape != (3,):
         raise ValueError(f"t must be of length 3, got shape {t.shape}")
@@ -177,8 +178,8 @@ def _as_real_rows(value: Any, name: str, width: int, shape: str = "") -> np.ndar
     """Real numbers as float64 (N, ``width``), or (N, ``width`` or more) where ``shape`` says
     so (``"(M, >=2)"``); NaN allowed (a point the pose does not define)."""
     try:
-        array = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError, OverflowError):
+        array = as_real_array(value, name)
+    except (TypeError, ValueError, OverflowError):  # also complex, bool or text numbers
         raise TypeError(f"{name} must be an array of real numbers, got {shown(value)}") from None
     wide = array.ndim == 2 and (array.shape[1] >= width if shape else array.shape[1] == width)
     if not wide:

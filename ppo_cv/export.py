@@ -626,7 +626,10 @@ def composed_distortion(
     from .camera import pixels_to_normalized
 
     K, size = as_camera_matrix(K, "K"), as_image_size(size, "size")
-    as_distortion(dist, "dist")
+    checked = as_distortion(dist, "dist")
+    if checked is None and dist is not None and np.size(dist):  # zeros: kept, as many
+        checked = np.zeros(np.size(dist))
+    dist = checked  # a list or an empty array failed in OpenCV (cv2.error)
     _require_division_k1(k1, pixels_to_normalized(_composed_grid(size), K, dist))
     return _composed(K, dist, size, k1)
 

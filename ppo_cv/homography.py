@@ -19,13 +19,14 @@ across models (Torr, 1998).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from .checks import (
     MAX_WHOLE_NUMBER,
-    as_matched_rows,
+    as_image_rows,
     as_matrix3,
     as_whole_number,
     require_instance,
@@ -140,9 +141,18 @@ def symmetric_transfer_errors(H: np.ndarray, x1: np.ndarray, x2: np.ndarray) -> 
 
 
 def _checked_homography_matches(H, x1, x2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``H`` (3, 3) and ``x1``, ``x2`` (N, 3) as float64, finite and of one length; ValueError or
-    TypeError naming the argument otherwise (numpy's AttributeError for a list or None)."""
-    return (as_matrix3(H, "H"), *as_matched_rows(x1, x2))
+    """``H`` (3, 3) and ``x1``, ``x2`` (N, 3) as float64, finite and of one length, each row
+    divided by its ``w`` (:func:`ppo_cv.checks.as_image_rows`); ValueError or TypeError naming
+    the argument otherwise (numpy's AttributeError for a list or None). ``H`` is divided by a
+    power of two, exactly, where its largest entry lies beyond ``[1e-100, 1e100]``: the errors
+    do not depend on its scale, and its products overflowed to NaN."""
+    H = as_matrix3(H, "H")
+    largest = float(np.abs(H).max())
+    if largest == 0:
+        raise ValueError("H is singular (all zeros): it maps no point")
+    if not 1e-100 <= largest <= 1e100:
+        H = np.ldexp(H, -math.frexp(largest)[1])
+    return (H, *as_image_rows(x1, x2))
 
 
 def _pycolmap(p1, p2, threshold, confidence, min_trials, max_trials, seed):

@@ -46,7 +46,13 @@ __all__ = [
 
 
 def tangent_basis(n: np.ndarray) -> np.ndarray:
-    """Two unit vectors orthogonal to the unit vector ``n`` and to each other, shape (2, 3)."""
+    """Two unit vectors orthogonal to the unit vector ``n`` and to each other, shape (2, 3).
+
+    ``n`` is three finite numbers, not all zero (ValueError or TypeError naming it: a zero
+    ``n`` gave a basis of NaN, a 0-d array or two numbers an IndexError)."""
+    n = as_vector3(n, "n")
+    if not n.any():
+        raise ValueError("n is zero: it has no tangent plane")
     axis = np.eye(3)[int(np.argmin(np.abs(n)))]
     a = _cross(n, axis)
     a /= np.linalg.norm(a)

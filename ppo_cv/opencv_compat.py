@@ -239,7 +239,7 @@ def _camera_from_focal(focal: Any, pp: Any) -> np.ndarray:
     if not MIN_FOCAL <= f <= MAX_FOCAL:
         raise ValueError(f"focal must be in [{MIN_FOCAL:g}, {MAX_FOCAL:g}] pixels, got {f}")
     try:
-        if pp is not None and np.asarray(pp).dtype.kind in "bSU":  # True is no coordinate
+        if pp is not None and np.asarray(pp).dtype.kind in "bcSU":  # True, complex, text
             raise TypeError
         cx, cy = (0.0, 0.0) if pp is None else np.asarray(pp, dtype=np.float64).reshape(2)
     except (TypeError, ValueError):

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 from .checks import (
     MAX_WHOLE_NUMBER,
+    as_confidence,
     as_flag,
     as_number,
     as_pri_threshold,
@@ -206,6 +207,7 @@ class PairOptions:
             raise ValueError("max_log10_nfa must be a number (inf disables the test), got nan")
         if not 0 < self.confidence < 1:
             raise ValueError(f"confidence must be in (0, 1), got {self.confidence}")
+        as_confidence(self.confidence, "confidence")
         if (
             self.max_features < 8
             or not 1 <= self.min_trials <= self.max_trials

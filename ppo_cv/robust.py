@@ -43,8 +43,8 @@ from .checks import (
     as_camera_matrix,
     as_finite_array,
     as_flag,
+    as_image_rows,
     as_image_size,
-    as_matched_rows,
     as_number,
     as_positive,
     as_positive_at_most,
@@ -190,10 +190,21 @@ def _checked_sampson(E: Any, x1: Any, x2: Any, by_coordinate: bool) -> tuple:
 
 
 def _checked_sampson_points(value: Any, name: str, axis: int) -> np.ndarray:
+    """Homogeneous image points, coordinates along ``axis``, each divided by its ``w`` (the
+    residuals are those of the image points ``(x / w, y / w)``; ``x`` and ``y`` were read as
+    they stood, a wrong residual for a bearing vector)."""
     points = as_finite_array(value, name)
     if points.ndim < 2 or points.shape[axis] != 3:
         wanted = "(..., 3, N)" if axis == -2 else "(N, 3) or (..., N, 3)"
         raise ValueError(f"{name} must have shape {wanted}, got {points.shape}")
+    w = points[..., 2, :] if axis == -2 else points[..., 2]
+    if not (w == 1.0).all():
+        if not w.all():
+            raise ValueError(
+                f"{name} has {int(np.count_nonzero(w == 0))} point(s) with w = 0 (at infinity): "
+                "not image points"
+            )
+        points = points / np.expand_dims(w, axis)
     if points.size and not -MAX_COORDINATE <= points.min() <= points.max() <= MAX_COORDINATE:
         raise ValueError(
             f"{name} has coordinates up to {float(np.abs(points).max()):.3g}, beyond "
@@ -272,9 +283,10 @@ def virtual_camera(focal: float, width: int = 0, height: int = 0):
 
 
 def checked_rays(x1: Any, x2: Any) -> tuple[np.ndarray, np.ndarray]:
-    """Two arrays of matched rays as contiguous float64 (N, 3), all finite; a ValueError or
-    TypeError naming ``x1`` or ``x2`` otherwise, or when their lengths differ."""
-    x1, x2 = as_matched_rows(x1, x2)
+    """Two arrays of matched homogeneous image points as contiguous float64 (N, 3), all finite,
+    of ``w = 1`` (:func:`ppo_cv.checks.as_image_rows` divides a row of another ``w`` by it); a
+    ValueError or TypeError naming ``x1`` or ``x2`` otherwise, or when their lengths differ."""
+    x1, x2 = as_image_rows(x1, x2)
     return np.ascontiguousarray(x1), np.ascontiguousarray(x2)
 
 
@@ -514,10 +526,9 @@ def _ordered_fit_settings(image_size, K2, focal, uniform_when_weak, max_log10_nf
 
 
 def _scored_matches(x1, x2, scores) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``x1``, ``x2`` as contiguous float64 and ``scores`` as a flat float64 array; ValueError
-    unless there is one finite score per match."""
-    x1 = np.ascontiguousarray(x1, dtype=np.float64)
-    x2 = np.ascontiguousarray(x2, dtype=np.float64)
+    """``x1``, ``x2`` checked by :func:`checked_rays` and ``scores`` as a flat float64 array;
+    ValueError unless there is one finite score per match."""
+    x1, x2 = checked_rays(x1, x2)
     scores = as_real_array(scores, "scores").reshape(-1)
     if scores.shape[0] != x1.shape[0] or x1.shape != x2.shape:
         raise ValueError(

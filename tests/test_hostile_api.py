@@ -22,6 +22,7 @@ from twoview import make_scene, random_rotation, skew
 
 import ppo_cv
 from ppo_cv.calib import ImplausibleCameraWarning
+from ppo_cv.camera import principal_point_is_centre
 from ppo_cv.images import load_image
 from ppo_cv.pipeline import PairOptions
 
@@ -1037,6 +1038,61 @@ CASES = {
                                   "prior must be None or (mean, deviation)"),
     "focal_ratio_keywords NaN": (lambda: _rotation().focal_ratio_keywords((1.0, np.nan)),
                                  ValueError, "prior deviation must be a finite number > 0"),
+    # complex numbers lost their imaginary part with a ComplexWarning and were used
+    "recoverPose pp complex": (
+        lambda: ppo_cv.recoverPose(E, P1, P2, focal=800.0, pp=np.array([320 + 1j, 240])),
+        TypeError, "pp must be two numbers"),
+    "rigid3d_from_pose t complex": (
+        lambda: ppo_cv.colmap.rigid3d_from_pose(R_TRUE, T_TRUE.astype(complex)), TypeError,
+        "t must be three numbers"),
+    "triangulation_angles points complex": (
+        lambda: ppo_cv.colmap.triangulation_angles(RAYS.astype(complex), R_TRUE, T_TRUE),
+        TypeError, "points3d must be an array of real numbers"),
+    # a 0-d array failed in len() ("len() of unsized object")
+    "principal_point_is_centre size 0-d": (
+        lambda: principal_point_is_centre(K, np.array(640)), TypeError,
+        "image_size must be (width, height)"),
+    # a negative focal length gave a field beyond 180 degrees, a huge integer an OverflowError
+    "field_of_view_deg negative focal": (lambda: ppo_cv.calib.field_of_view_deg(-500.0, 640),
+                                         ValueError, "focal must be a finite number > 0"),
+    "field_of_view_deg huge focal": (lambda: ppo_cv.calib.field_of_view_deg(10**400, 640),
+                                     ValueError, "focal is beyond the range of a float"),
+    "field_of_view_deg text extent": (lambda: ppo_cv.calib.field_of_view_deg(500.0, "640"),
+                                      TypeError, "extent must be a number"),
+    "unusable_exif_focal huge side": (lambda: ppo_cv.calib.unusable_exif_focal(500.0, 10**400),
+                                      ValueError, "side is beyond the range of a float"),
+    "unusable_exif_focal complex focal": (
+        lambda: ppo_cv.calib.unusable_exif_focal(500 + 1j, 640), TypeError,
+        "focal must be a number"),
+    # 1 - confidence rounded to 1: pycolmap drew no hypothesis and the fit found no model
+    "PairOptions confidence 1e-17": (lambda: PairOptions(confidence=1e-17), ValueError,
+                                     "confidence must be in (0, 1] with 1 - confidence below 1"),
+    "estimate_essential confidence 1e-17": (
+        lambda: ppo_cv.robust.estimate_essential(RAYS, RAYS2, 800.0, confidence=1e-17),
+        ValueError, "1 - confidence below 1"),
+    "estimate_homography confidence 1e-17": (
+        lambda: ppo_cv.homography.estimate_homography(RAYS, RAYS2, 800.0, confidence=1e-17),
+        ValueError, "1 - confidence below 1"),
+    # rows of w = 0 were read as the image points (x, y)
+    "estimate_essential row at infinity": (
+        lambda: ppo_cv.robust.estimate_essential(RAYS * [1, 1, 0], RAYS2, 800.0), ValueError,
+        "x1 has 40 row(s) with w = 0"),
+    "sampson_errors point at infinity": (
+        lambda: ppo_cv.robust.sampson_errors(E, RAYS, RAYS2 * [1, 1, 0]), ValueError,
+        "x2 has 40 point(s) with w = 0"),
+    "transfer_errors row at infinity": (
+        lambda: ppo_cv.homography.transfer_errors(np.eye(3), RAYS * [1, 1, 0], RAYS2),
+        ValueError, "x1 has 40 row(s) with w = 0"),
+    # a zero n gave a basis of NaN, two numbers an IndexError
+    "tangent_basis zero": (lambda: __import__("ppo_cv.lsq").lsq.tangent_basis(np.zeros(3)),
+                           ValueError, "n is zero: it has no tangent plane"),
+    "tangent_basis two numbers": (
+        lambda: __import__("ppo_cv.lsq").lsq.tangent_basis(np.ones(2)), ValueError,
+        "n must be 3 numbers"),
+    # an all-zero H gave Sampson errors of 0, every match on the homography
+    "homography sampson zero H": (
+        lambda: ppo_cv.homography.homography_sampson_errors(np.zeros((3, 3)), RAYS, RAYS2),
+        ValueError, "H is singular (all zeros)"),
 }  # fmt: skip
 
 
@@ -1958,3 +2014,60 @@ def test_a_name_not_found_names_the_file_that_differs_in_case_only(tmp_path):
     )
     with pytest.raises(ValueError, match=r"not found: \S+IMG_2\.jpg$"):
         ppo_cv.estimate_pair(tmp_path / "IMG_2.jpg", photo, K)
+
+
+def test_homogeneous_rows_of_any_w_are_the_image_points_they_stand_for():
+    # the robust fits and the residuals read (x, y) of a row as its image point whatever its
+    # w: rows scaled by 2 or -0.5, the same points, gave another E and other residuals
+    scaled1, scaled2 = RAYS * 2.0, RAYS2 * -0.5
+    fit = ppo_cv.robust.estimate_essential(RAYS, RAYS2, 800.0)
+    again = ppo_cv.robust.estimate_essential(scaled1, scaled2, 800.0)
+    assert np.array_equal(fit.E, again.E) and np.array_equal(fit.inliers, again.inliers)
+    residuals = ppo_cv.robust.sampson_errors(E, RAYS, RAYS2)
+    np.testing.assert_allclose(ppo_cv.robust.sampson_errors(E, scaled1, scaled2), residuals)
+    np.testing.assert_allclose(
+        ppo_cv.robust.sampson_signed_rows(E, scaled1.T, scaled2.T),
+        ppo_cv.robust.sampson_signed(E, RAYS, RAYS2),
+    )
+    H = np.array([[1.0, 0.02, 0.01], [-0.03, 0.98, 0.02], [0.01, 0.0, 1.0]])
+    for errors in (
+        ppo_cv.homography.homography_sampson_errors,
+        ppo_cv.homography.transfer_errors,
+        ppo_cv.homography.symmetric_transfer_errors,
+    ):
+        np.testing.assert_allclose(errors(H, scaled1, scaled2), errors(H, RAYS, RAYS2))
+
+
+def test_homography_errors_do_not_depend_on_the_scale_of_H():
+    H = np.array([[1.0, 0.02, 0.01], [-0.03, 0.98, 0.02], [0.01, 0.0, 1.0]])
+    for errors in (
+        ppo_cv.homography.homography_sampson_errors,
+        ppo_cv.homography.transfer_errors,
+        ppo_cv.homography.symmetric_transfer_errors,
+    ):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # an overflow to NaN warned
+            for scale in (1e200, 1e-200):
+                np.testing.assert_allclose(errors(H * scale, RAYS, RAYS2), errors(H, RAYS, RAYS2))
+
+
+def test_composed_distortion_takes_the_lens_as_a_list_or_empty():
+    from ppo_cv.export import composed_distortion
+
+    dist = np.array([-0.1, 0.01, 0.0, 0.0])
+    expected = composed_distortion(K, dist, (640, 480), 0.05)  # a list or [] failed in OpenCV
+    np.testing.assert_array_equal(composed_distortion(K, dist.tolist(), (640, 480), 0.05), expected)
+    np.testing.assert_array_equal(
+        composed_distortion(K, [], (640, 480), 0.05), composed_distortion(K, None, (640, 480), 0.05)
+    )
+    zeros = composed_distortion(K, np.zeros(8), (640, 480), 0.05)
+    assert zeros.shape == (8,)  # as many coefficients as before: zeros are kept
+    np.testing.assert_array_equal(composed_distortion(K, [0.0] * 8, (640, 480), 0.05), zeros)
+
+
+def test_an_image_size_of_float16_is_read_without_an_overflow_warning():
+    size = np.array([640, 480], np.float16)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the comparison with 2**31 - 1 overflowed its cast
+        assert ppo_cv.calib.resize_scale(size, (320, 240)) == 0.5
+        assert principal_point_is_centre(K, size) is True
