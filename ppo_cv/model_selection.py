@@ -51,6 +51,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -200,7 +201,7 @@ def nearest_neighbours(points: np.ndarray) -> np.ndarray:
     extent = np.maximum(p.max(axis=0) - low, 1e-12)
     side = max(float(np.sqrt(extent[0] * extent[1] / n)), float(extent.max()) / n)
     for _ in range(8):
-        _, counts = np.unique(np.floor((p - low) / side), axis=0, return_counts=True)
+        counts = _cell_counts(np.floor((p - low) / side))
         crowding = float(np.sum(counts.astype(np.float64) ** 2)) / n
         if crowding <= _CROWDING:
             break
@@ -223,6 +224,14 @@ _MAX_SLOTS = 32  # points of one cell compared; a fuller cell leaves the query u
 _BRUTE_FORCE = 256  # unsettled points compared with every point, this many at a time
 
 
+def _cell_counts(cell: np.ndarray) -> np.ndarray:
+    """Points in each occupied cell, cells ``cell`` (N, 2) of whole numbers >= 0 (float)."""
+    columns, rows = cell.max(axis=0) + 1.0
+    if columns * rows > 2.0**53:  # one float key per cell would not be exact
+        return np.unique(cell, axis=0, return_counts=True)[1]
+    return np.unique(cell[:, 1] * columns + cell[:, 0], return_counts=True)[1]
+
+
 def _grid_pass(p, queries, low, side, best, best_d2) -> np.ndarray:
     """Update ``best`` and ``best_d2`` of ``queries`` from the 3 x 3 cells of ``side`` around
     each (in place); return the queries a point beyond those cells may still be nearer to."""
@@ -230,23 +239,60 @@ def _grid_pass(p, queries, low, side, best, best_d2) -> np.ndarray:
     width = int(cell[:, 0].max()) + 3
     key = (cell[:, 1] + 1) * width + cell[:, 0] + 1
     order = np.argsort(key, kind="stable")
-    sorted_key = key[order]
+    sorted_key, cells = key[order], int(key.max()) + width + 3
+    if cells <= _CELL_TABLE_PER_POINT * len(p):  # a table of every cell's place: one lookup
+        first_at = np.searchsorted(sorted_key, np.arange(cells)).__getitem__
+    else:
+        first_at = partial(np.searchsorted, sorted_key)
+    steps = _NEIGHBOUR_CELLS[0] * width + _NEIGHBOUR_CELLS[1]
     crowded = np.zeros(queries.size, dtype=bool)
-    for shift in (np.arange(9) // 3 - 1) * width + np.arange(9) % 3 - 1:
-        target = key[queries] + shift
-        start = np.searchsorted(sorted_key, target, "left")
-        count = np.searchsorted(sorted_key, target, "right") - start
-        crowded |= count > _MAX_SLOTS
-        count = np.minimum(count, _MAX_SLOTS)
-        for slot in range(int(count.max(initial=0))):
-            has = np.flatnonzero(count > slot)
-            i, j = queries[has], order[start[has] + slot]
-            d2 = np.sum((p[j] - p[i]) ** 2, axis=1)
-            better = (d2 < best_d2[i]) & (j != i)
-            best[i[better]], best_d2[i[better]] = j[better], d2[better]
+    for start in range(0, queries.size, _QUERY_CHUNK):
+        chunk = queries[start : start + _QUERY_CHUNK]
+        targets = key[chunk, None] + steps
+        crowded[start : start + _QUERY_CHUNK] = _nearest_in_cells(
+            p, chunk, targets, (order, first_at), best, best_d2
+        )
     offset = (p[queries] - low) / side % 1.0
     margin = side * (1.0 + np.minimum(offset, 1.0 - offset).min(axis=1))
     return queries[crowded | (best_d2[queries] > margin**2)]
+
+
+_NEIGHBOUR_CELLS = np.stack([np.arange(9) // 3 - 1, np.arange(9) % 3 - 1])
+"""Row and column steps (2, 9) from a cell to the 3 x 3 cells about it, in the order searched."""
+_QUERY_CHUNK = 1024  # queries whose candidates are compared at once (a few MB)
+_CELL_TABLE_PER_POINT = 16  # cells per point up to which a table finds each cell's points
+
+
+def _nearest_in_cells(p, queries, targets, grid, best, best_d2) -> np.ndarray:
+    """Update ``best`` and ``best_d2`` of ``queries`` (Q,) from the points of the cells
+    ``targets`` (Q, 9), at most :data:`_MAX_SLOTS` of each, in place; whether a cell held more
+    (Q,) bool. ``grid``: the points ordered by cell, and the place in that order of the first
+    point of each cell at or after the given ones.
+
+    A query's candidates are taken cell by cell, by index within a cell; it takes the first
+    of them at its least distance when that is below its best so far, as comparing them one by
+    one would."""
+    order, first_at = grid
+    start = first_at(targets)
+    count = first_at(targets + 1) - start
+    crowded = np.any(count > _MAX_SLOTS, axis=1)
+    count = np.minimum(count, _MAX_SLOTS).ravel()
+    within = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    j = order[np.repeat(start.ravel(), count) + within]
+    sizes = count.reshape(len(queries), 9).sum(axis=1)
+    i = np.repeat(queries, sizes)
+    d2 = np.sum((p[j] - p[i]) ** 2, axis=1)
+    d2[j == i] = np.inf
+    searched = sizes > 0
+    queries, sizes = queries[searched], sizes[searched]
+    if queries.size:
+        starts = np.cumsum(sizes) - sizes
+        least = np.minimum.reduceat(d2, starts)
+        at_least = np.flatnonzero(d2 == np.repeat(least, sizes))
+        first = at_least[np.searchsorted(at_least, starts)]
+        better = least < best_d2[queries]
+        best[queries[better]], best_d2[queries[better]] = j[first[better]], least[better]
+    return crowded
 
 
 def incoherent_sigma(vectors: np.ndarray, neighbours: np.ndarray) -> float:
