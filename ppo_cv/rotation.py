@@ -40,6 +40,7 @@ from numpy.typing import ArrayLike
 from .checks import (
     MAX_COORDINATE,
     MAX_RADIAL,
+    MAX_RAY_SLOPE,
     as_finite_array,
     as_finite_rows,
     as_flag,
@@ -340,14 +341,30 @@ def _two_ray_rotations(a1, a2, b1, b2) -> np.ndarray:
 
 def _checked_rows(value: Any, name: str) -> np.ndarray:
     """Normalised points (N, 2) or rays (N, 3) as finite float64 of magnitude at most
-    :data:`ppo_cv.checks.MAX_COORDINATE`; ValueError or TypeError naming ``name`` otherwise."""
+    :data:`ppo_cv.checks.MAX_COORDINATE`, no ray zero (it has no direction: every rotation
+    maps it onto its match at angle 0); ValueError or TypeError naming ``name`` otherwise."""
     rows = as_finite_rows(value, name, (2, 3))
     if rows.size and not -MAX_COORDINATE <= rows.min() <= rows.max() <= MAX_COORDINATE:
         raise ValueError(
             f"{name} has coordinates up to {float(np.abs(rows).max()):.3g}, beyond "
             f"{MAX_COORDINATE:.0e}: not normalised points or rays"
         )
+    if rows.shape[1] == 3 and not rows.any(axis=1).all():
+        zero = int(np.count_nonzero(~rows.any(axis=1)))
+        raise ValueError(f"{name} has {zero} zero row(s): a ray needs a direction")
     return rows
+
+
+def _require_ahead(rows: np.ndarray, name: str) -> None:
+    """ValueError naming ``name`` unless every ray (N, 3) has ``w > 0``: the least-squares
+    rotation (:func:`ppo_cv.ppo.rotation_from_rays`) reads a ray as the image point ``x / w``,
+    which turns a ray behind the image plane around and divides by a zero ``w``."""
+    if rows.shape[1] == 3 and rows.size and rows[:, 2].min() <= 0:
+        behind = int(np.count_nonzero(rows[:, 2] <= 0))
+        raise ValueError(
+            f"{name} has {behind} row(s) with w <= 0 (a ray at or behind the image plane): "
+            "ransac_rotation takes normalised points or rays ahead of the camera"
+        )
 
 
 def _checked_matches(x1: Any, x2: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -423,7 +440,8 @@ def ransac_rotation(
     Parameters
     ----------
     x1, x2 : array_like, shape (N, 2) or (N, 3)
-        Normalised (undistorted) points or bearings of the matches, N >= 2.
+        Normalised (undistorted) points or bearings of the matches, N >= 2; rows of three
+        have ``w > 0`` (a ray ahead of the camera).
     threshold : float
         Inlier bound on the angle between ``b2`` and ``R b1``, radians (pixels over focal), > 0.
     confidence : float
@@ -439,6 +457,8 @@ def ransac_rotation(
         None when fewer than two matches are given.
     """
     x1, x2 = _checked_matches(x1, x2)
+    _require_ahead(x1, "x1")
+    _require_ahead(x2, "x2")
     settings = as_ransac_settings(threshold, confidence, min_trials, max_trials, seed)
     return _ransac(_bearings(x1), _bearings(x2), *settings)
 
@@ -521,11 +541,18 @@ def _correct_points(x: np.ndarray, focal_scale, k1, principal_offset) -> np.ndar
 def seen_through_lens(ray: ArrayLike, scale, k1, offset, ratio) -> np.ndarray:
     """Given normalised points (..., N, 2) where view 2 sees rays (..., N, 3) of its frame
     through the lens of :func:`fit_rotation_lens`: ``x2 = (p + q2 (1 + k1 |q2|^2)) / (s rho)``,
-    ``q2`` the ray's projection; the lens terms (finite, ``scale`` and ``ratio`` > 0) broadcast
+    ``q2`` the ray's projection, at most :data:`ppo_cv.checks.MAX_RAY_SLOPE` (beyond it
+    ``|q2|^2`` overflows); the lens terms (finite, ``scale`` and ``ratio`` > 0) broadcast
     against ``q2``."""
     ray = as_finite_array(ray, "ray")
     if ray.ndim < 2 or ray.shape[-1] != 3:
         raise ValueError(f"ray must have shape (..., N, 3), got {ray.shape}")
+    beyond = np.abs(ray[..., :2]).max(axis=-1) / MAX_RAY_SLOPE > np.abs(ray[..., 2])
+    if beyond.any():
+        raise ValueError(
+            f"ray has {int(beyond.sum())} ray(s) at or near right angles to the optical axis "
+            f"(|(x, y)| beyond {MAX_RAY_SLOPE:.0e} |z|): they meet the image plane nowhere"
+        )
     names = ("scale", "k1", "offset", "ratio")
     terms = [as_finite_array(value, name)
              for value, name in zip((scale, k1, offset, ratio), names, strict=True)]  # fmt: skip
@@ -664,7 +691,8 @@ def focal_ratio_keywords(prior: tuple[float, float] | None) -> dict:
     """
     if prior is None:
         return {}
-    if isinstance(prior, (str, bytes)) or not hasattr(prior, "__len__") or len(prior) != 2:
+    sized = hasattr(prior, "__len__") and getattr(prior, "ndim", 1) != 0  # not a 0-d array
+    if isinstance(prior, (str, bytes)) or not sized or len(prior) != 2:
         raise TypeError(
             f"prior must be None or (mean, deviation), as focal_ratio_prior returns it, got "
             f"{shown(prior)}"
