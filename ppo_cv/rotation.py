@@ -41,6 +41,7 @@ from .checks import (
     MAX_COORDINATE,
     MAX_RADIAL,
     MAX_RAY_SLOPE,
+    _on_image_plane,
     as_finite_array,
     as_finite_rows,
     as_flag,
@@ -490,13 +491,28 @@ def _ransac(b1, b2, threshold, confidence, min_trials, max_trials, seed) -> Rota
 def correct_points(
     x: ArrayLike, focal_scale: float, k1: float, principal_offset: ArrayLike = (0.0, 0.0)
 ) -> np.ndarray:
-    """Normalised points of the given camera (N, 2 or 3) to homogeneous true rays (N, 3).
+    """Normalised points of the given camera (N, 2 or 3) to homogeneous true rays (N, 3); a
+    row of three is the point ``(x / w, y / w)``.
 
     The inverse of ``s x = p + q (1 + k1 |q|^2)``: the lens terms of :func:`fit_rotation_lens`
     (``focal_scale`` ``s`` in [0.001, 1000], ``|k1| <= 10``, ``principal_offset`` ``p`` (2,)).
     """
     scale, k1, offset, _ = _checked_lens_terms(focal_scale, k1, principal_offset, 1.0)
-    return _correct_points(_checked_rows(x, "x"), scale, k1, offset)
+    return _correct_points(_image_points(_checked_rows(x, "x"), "x"), scale, k1, offset)
+
+
+def _image_points(rows: np.ndarray, name: str) -> np.ndarray:
+    """Checked rows (N, 2) or (N, 3) as the lens maps read them: a row of three as the image
+    point ``(x / w, y / w)`` it stands for (rows of ``w = 1`` as they are), where they read its
+    ``x`` and ``y`` as they stood; ValueError naming ``name`` for ``w = 0`` or ``|(x, y)|``
+    beyond :data:`ppo_cv.checks.MAX_RAY_SLOPE` ``|w|``."""
+    return rows if rows.shape[1] == 2 else _on_image_plane(rows, name)
+
+
+def _lens_matches(x1: Any, x2: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Matches checked by :func:`_checked_matches`, rows of three as :func:`_image_points`."""
+    x1, x2 = _checked_matches(x1, x2)
+    return _image_points(x1, "x1"), _image_points(x2, "x2")
 
 
 _SCALE_RANGE = (1e-3, 1e3)
@@ -603,13 +619,14 @@ def transfer_points(
 ) -> np.ndarray:
     """Where the lens rotation of :func:`fit_rotation_lens` takes normalised points of view 1.
 
-    ``x1`` (N, 2 or 3, given camera) is corrected to the true ray ``q1``, rotated by ``R``
-    (3, 3) and put back through the lens: ``x2 = (p + q2 (1 + k1 |q2|^2)) / (s rho)``, the
-    lens terms as :func:`correct_points` takes them (``rho`` as ``s``). Returns ``x2``, (N, 2).
+    ``x1`` (N, 2 or 3, given camera; a row of three the point ``(x / w, y / w)``) is corrected
+    to the true ray ``q1``, rotated by ``R`` (3, 3) and put back through the lens:
+    ``x2 = (p + q2 (1 + k1 |q2|^2)) / (s rho)``, the lens terms as :func:`correct_points` takes
+    them (``rho`` as ``s``). Returns ``x2``, (N, 2).
     """
     R = as_rotation(R, "R")
     terms = _checked_lens_terms(focal_scale, k1, principal_offset, focal_ratio)
-    return _transfer_points(_checked_rows(x1, "x1"), R, *terms)
+    return _transfer_points(_image_points(_checked_rows(x1, "x1"), "x1"), R, *terms)
 
 
 def _transfer_points(x1, R, focal_scale, k1, principal_offset, focal_ratio) -> np.ndarray:
@@ -635,7 +652,7 @@ def lens_rotation_residuals(
     (N, 2 or 3), the rotation (3, 3) and lens terms as :func:`transfer_points` takes them."""
     R = as_rotation(R, "R")
     terms = _checked_lens_terms(focal_scale, k1, principal_offset, focal_ratio)
-    x1, x2 = _checked_matches(x1, x2)
+    x1, x2 = _lens_matches(x1, x2)
     vectors = as_flag(vectors, "vectors")
     return _lens_rotation_residuals(R, terms[0], terms[1], x1, x2, *terms[2:], vectors=vectors)
 
@@ -738,7 +755,7 @@ def fit_rotation_lens(
     Parameters
     ----------
     x1, x2 : ndarray, shape (N, 2) or (N, 3)
-        Normalised points of the matches.
+        Normalised points of the matches; a row of three is the point ``(x / w, y / w)``.
     used : ndarray of bool, shape (N,)
         Matches in the cost (at least 12 for the lens terms).
     R : ndarray, shape (3, 3)
@@ -787,7 +804,7 @@ def fit_rotation_lens(
     (1.03, True)
     """
     if check_input:
-        x1, x2 = _checked_matches(x1, x2)
+        x1, x2 = _lens_matches(x1, x2)
         used, R = _checked_used(used, len(x1)), as_rotation(R, "R")
         keywords = _checked_fit_keywords(
             iterations, max_k1, noise, focal_prior, k1_prior, principal_prior, focal_ratio_prior,

@@ -1067,6 +1067,8 @@ CASES = {
     "focal_ratio_keywords complex": (
         lambda: _rotation().focal_ratio_keywords((np.complex128(1.0), 0.1)), TypeError,
         "prior mean must be a real number, got complex128"),
+    "correct_points w = 0": (lambda: _rotation().correct_points(RAYS * [1.0, 1.0, 0.0], 1.0, 0.0),
+                             ValueError, "x has 40 row(s) with w = 0"),
     # rays parallel to the image plane overflowed |q2|^2
     "seen_through_lens ray 1e300": (
         lambda: _rotation().seen_through_lens([[1e300, 0.0, 1.0]], 1.0, 0.0, 0.0, 1.0),
@@ -2086,6 +2088,25 @@ def test_homogeneous_rows_of_any_w_are_the_image_points_they_stand_for():
         ppo_cv.homography.symmetric_transfer_errors,
     ):
         np.testing.assert_allclose(errors(H, scaled1, scaled2), errors(H, RAYS, RAYS2))
+
+
+def test_the_lens_maps_read_rows_of_any_w_as_their_image_points():
+    # correct_points, transfer_points, lens_rotation_residuals and fit_rotation_lens read x and y
+    # of a row as its point whatever its w: rows scaled by 2 (the same points) moved 0.4
+    rotation = _rotation()
+    scaled1, scaled2 = RAYS * 2.0, RAYS2 * -0.5
+    lens = (1.01, -0.02, (0.001, 0.0))
+    for name, args in (("correct_points", ()), ("transfer_points", (R_TRUE,))):
+        mapped = getattr(rotation, name)
+        np.testing.assert_allclose(mapped(scaled1, *args, *lens), mapped(RAYS, *args, *lens),
+                                   rtol=1e-15)  # fmt: skip
+    np.testing.assert_allclose(
+        rotation.lens_rotation_residuals(R_TRUE, 1.01, -0.02, scaled1, scaled2),
+        rotation.lens_rotation_residuals(R_TRUE, 1.01, -0.02, RAYS, RAYS2), rtol=1e-12)
+    fits = [rotation.fit_rotation_lens(a, b, _ALL, R_TRUE) for a, b in ((RAYS, RAYS2),
+                                                                       (scaled1, scaled2))]
+    np.testing.assert_allclose(fits[1].R, fits[0].R, atol=1e-12)
+    assert fits[1].focal_scale == pytest.approx(fits[0].focal_scale, abs=1e-12)
 
 
 def test_homography_errors_do_not_depend_on_the_scale_of_H():
