@@ -789,7 +789,8 @@ def warn_implausible(
     ):
         raise TypeError(f"image_shape must be an image's shape (rows, columns[, channels]), "
                         f"got {shown(image_shape)}")  # fmt: skip
-    message = implausible_intrinsics(K, (image_shape[1], image_shape[0]), name)
+    size = as_image_size((image_shape[1], image_shape[0]), "image_shape")
+    message = implausible_intrinsics(K, size, name)
     if message is not None:
         warnings.warn(message, ImplausibleCameraWarning, stacklevel=stacklevel + 1)
 
@@ -897,7 +898,8 @@ def fitted_exif_focal(focal: float, layout: Any, size: tuple[int, int]) -> tuple
     scaled to a resized copy (:func:`exif_focal_scale`), or, where that is none
     (:func:`unusable_exif_focal`), COLMAP's guess for an image without one
     (:data:`GUESSED_FOCAL_FACTOR` times its larger side); with why it was replaced, None when
-    it is the EXIF's."""
+    it is the EXIF's. ValueError or TypeError naming an argument of another kind."""
+    size = as_image_size(size, "size")
     focal = as_number(focal, "focal") * exif_focal_scale(layout, size)
     doubt = unusable_exif_focal(focal, max(size))
     return (focal, None) if doubt is None else (GUESSED_FOCAL_FACTOR * max(size), doubt)

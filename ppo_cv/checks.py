@@ -666,6 +666,9 @@ def _as_float(value: Any, name: str) -> float:
         raise TypeError(f"{name} must be a number, got {value!r}")
     if isinstance(value, (str, bytes)):
         raise TypeError(f"{name} must be a number, got {type(value).__name__} {shown(value)}")
+    if getattr(getattr(value, "dtype", None), "kind", "") == "c":
+        # float() of a numpy complex drops its imaginary part, with a warning
+        raise TypeError(f"{name} must be a real number, got {type(value).__name__} {shown(value)}")
     try:
         return float(value)
     except OverflowError:

@@ -10,6 +10,7 @@ increment ``exp([w]x)`` (for a rotation) are all they need; the rotation-only fi
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import numpy as np
@@ -21,11 +22,14 @@ from .checks import (
     as_nonnegative,
     as_positive,
     as_real_array,
+    as_rotation,
     as_vector3,
     as_whole_number,
+    shown,
 )
 
 __all__ = [
+    "MAX_INCREMENT",
     "cross_matrix",
     "cross_matrices",
     "forward_jacobian",
@@ -49,10 +53,21 @@ def tangent_basis(n: np.ndarray) -> np.ndarray:
     """Two unit vectors orthogonal to the unit vector ``n`` and to each other, shape (2, 3).
 
     ``n`` is three finite numbers, not all zero (ValueError or TypeError naming it: a zero
-    ``n`` gave a basis of NaN, a 0-d array or two numbers an IndexError)."""
+    ``n`` gave a basis of NaN, a 0-d array or two numbers an IndexError). An ``n`` of another
+    norm is made unit first (its second row had that norm), scaled by a power of two when its
+    entries lie beyond ``[1e-100, 1e100]``, where its norm would overflow or underflow."""
     n = as_vector3(n, "n")
-    if not n.any():
+    largest = float(np.abs(n).max())
+    if largest == 0:
         raise ValueError("n is zero: it has no tangent plane")
+    if not 1e-100 <= largest <= 1e100:
+        n = np.ldexp(n, -math.frexp(largest)[1])
+    norm = math.sqrt(n @ n)
+    return _tangent_basis(n if abs(norm - 1.0) <= 1e-9 else n / norm)
+
+
+def _tangent_basis(n: np.ndarray) -> np.ndarray:
+    """:func:`tangent_basis` of a nonzero float64 ``n`` (3,), unchecked."""
     axis = np.eye(3)[int(np.argmin(np.abs(n)))]
     a = _cross(n, axis)
     a /= np.linalg.norm(a)
@@ -87,11 +102,29 @@ def _as_iterations(iterations) -> int:
     return as_whole_number(iterations, "iterations", 0, MAX_WHOLE_NUMBER)
 
 
+MAX_INCREMENT = 1e15
+"""Largest entry of a rotation vector or pose increment taken by :func:`rotation_increment`,
+:func:`rotation_increments` and :func:`pose_increment`: floats near 1e15 are an eighth of a
+radian apart, so a larger angle names no rotation (and its square overflows near 1e154)."""
+
+
+def _as_increment(w: np.ndarray, name: str) -> np.ndarray:
+    """``w``, finite float64, unless an entry exceeds :data:`MAX_INCREMENT` (ValueError)."""
+    largest = float(np.abs(w).max(initial=0.0))
+    if largest > MAX_INCREMENT:
+        raise ValueError(
+            f"{name} has entries up to {shown(largest)}, beyond {MAX_INCREMENT:.0e}: an angle "
+            "that large is not resolved (floats near it are radians apart)"
+        )
+    return w
+
+
 def rotation_increment(w: np.ndarray) -> np.ndarray:
     """``exp([w]x)`` (3, 3): the rotation by ``|w|`` radians about ``w / |w|`` (Rodrigues), to
     first order ``I + [w]x`` below 1e-12 rad; the figures of :func:`rotation_increments`.
-    ``w`` three finite numbers; ValueError or TypeError naming it otherwise."""
-    return _rotation_increment(as_vector3(w, "w"))
+    ``w`` three finite numbers of magnitude at most :data:`MAX_INCREMENT`; ValueError or
+    TypeError naming it otherwise."""
+    return _rotation_increment(_as_increment(as_vector3(w, "w"), "w"))
 
 
 def _rotation_increment(w: np.ndarray) -> np.ndarray:
@@ -132,8 +165,9 @@ def _cross_matrices(v: np.ndarray) -> np.ndarray:
 
 def rotation_increments(w: np.ndarray) -> np.ndarray:
     """:func:`rotation_increment` of each row of ``w`` (P, 3), shape (P, 3, 3); ValueError or
-    TypeError naming ``w`` for anything but finite rows of three."""
-    return _rotation_increments(as_finite_rows(w, "w", 3))
+    TypeError naming ``w`` for anything but finite rows of three of magnitude at most
+    :data:`MAX_INCREMENT`."""
+    return _rotation_increments(_as_increment(as_finite_rows(w, "w", 3), "w"))
 
 
 def _rotation_increments(w: np.ndarray) -> np.ndarray:
@@ -152,8 +186,41 @@ def pose_increment(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The pose ``(R, t)``, ``t`` a unit vector, moved by ``p`` (5,): the rotation increment
     ``p[:3]`` applied on the left and ``t`` stepped by ``p[3:5]`` in ``basis`` (2, 3) of its
-    tangent plane (:func:`tangent_basis` of ``t`` when None), then normalised."""
-    basis = tangent_basis(t) if basis is None else basis
+    tangent plane (:func:`tangent_basis` of ``t`` when None), then normalised.
+
+    ValueError or TypeError naming the argument unless ``R`` is a rotation, ``t`` three
+    numbers of norm 1 (to 1e-6), ``p`` five finite numbers of magnitude at most
+    :data:`MAX_INCREMENT` and ``basis`` None or two orthonormal rows orthogonal to ``t`` (to
+    1e-6): a 0-d ``p`` raised an IndexError, a complex one a ComplexWarning.
+    """
+    R, t = as_rotation(R, "R"), as_vector3(t, "t")
+    if np.abs(t).max() > 2.0 or abs(math.sqrt(t @ t) - 1.0) > 1e-6:
+        raise ValueError(f"t must be a unit vector, got {t.tolist()}")
+    p = as_finite_array(p, "p")
+    if p.shape != (5,):
+        raise ValueError(f"p must be 5 numbers (rotation increment, step of t), got {p.shape}")
+    basis = None if basis is None else _as_basis(basis, t)
+    return _pose_increment(R, t, _as_increment(p, "p"), basis)
+
+
+def _as_basis(basis, t: np.ndarray) -> np.ndarray:
+    """``basis``, two orthonormal rows (2, 3) orthogonal to the unit ``t``, as float64."""
+    basis = as_finite_array(basis, "basis")
+    if basis.shape != (2, 3):
+        raise ValueError(f"basis must have shape (2, 3), got {basis.shape}")
+    frame = np.vstack([t, basis])
+    if np.abs(basis).max() > 2.0 or not np.allclose(frame @ frame.T, np.eye(3), atol=1e-6):
+        raise ValueError(
+            "basis must be two orthonormal rows orthogonal to t (tangent_basis(t) gives them)"
+        )
+    return basis
+
+
+def _pose_increment(
+    R: np.ndarray, t: np.ndarray, p: np.ndarray, basis: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`pose_increment`, unchecked (``p`` may hold more than five entries)."""
+    basis = _tangent_basis(t) if basis is None else basis
     tp = t + p[3:5] @ basis
     return _rotation_increment(p[:3]) @ R, tp / np.linalg.norm(tp)
 
@@ -167,15 +234,27 @@ def _pose_increments(
     return _rotation_increments(P[:, :3]) @ R, tp / np.linalg.norm(tp, axis=1, keepdims=True)
 
 
+_HUBER_RANGE = 1e150
+"""Largest ``scale`` and finite size :func:`_huber_weights` takes: ``2 scale s`` and
+``scale^2`` overflow beyond."""
+
+
 def huber_weights(size: np.ndarray, scale: float) -> np.ndarray:
     """``sqrt(rho(s)) / s`` for residual sizes ``s`` (N,): the weighted squares sum to Huber's
-    cost ``rho(s) = s^2`` up to ``scale`` and ``2 scale s - scale^2`` beyond. ``size`` real
-    numbers (inf of weight 0), ``scale`` a finite number > 0; ValueError or TypeError naming
-    the argument otherwise."""
+    cost ``rho(s) = s^2`` up to ``scale`` and ``2 scale s - scale^2`` beyond. ``size`` numbers
+    >= 0 (inf of weight 0), ``scale`` a finite number > 0; ValueError or TypeError naming the
+    argument otherwise. Sizes or a scale beyond 1e150, whose products overflow, are weighed
+    as ``sqrt(q (2 - q))``, ``q = scale / s``, the same weights."""
     size = as_real_array(size, "size")
     if size.ndim != 1 or np.isnan(size).any():
         raise ValueError(f"size must be residual sizes (N,) without NaN, got {size.shape}")
-    return _huber_weights(size, as_positive(scale, "scale"))
+    if size.size and size.min() < 0:
+        raise ValueError(f"size must be residual sizes >= 0 (|r|), got {shown(size.min())}")
+    scale = as_positive(scale, "scale")
+    if max(scale, float(size.max(initial=0.0))) <= _HUBER_RANGE:
+        return _huber_weights(size, scale)
+    q = np.divide(scale, size, out=np.ones_like(size), where=size > scale)
+    return np.sqrt(q * (2.0 - q))
 
 
 def _huber_weights(size: np.ndarray, scale: float) -> np.ndarray:
@@ -202,15 +281,35 @@ def row_chunks(count: int, width: int) -> list[slice]:
 
 def stack_by_chunks(evaluate: Callable[[slice], np.ndarray], count: int, width: int) -> np.ndarray:
     """``evaluate(s)`` of each slice ``s`` of :func:`row_chunks` ``(count, width)``, stacked
-    along the first axis: a stacked evaluation of ``count`` rows computed chunk by chunk."""
+    along the first axis: a stacked evaluation of ``count`` rows (at least 1) computed chunk by
+    chunk; ValueError or TypeError naming an argument of another kind."""
+    evaluate = _as_callable(evaluate, "evaluate")
     parts = [evaluate(rows) for rows in row_chunks(count, width)]
+    if not parts:
+        raise ValueError("count must be at least 1: no rows to evaluate")
     return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+
+def _as_residuals(r0) -> np.ndarray:
+    """Residuals ``r0`` (M,), finite float64; ValueError or TypeError naming it otherwise."""
+    r0 = as_finite_array(r0, "r0")
+    if r0.ndim != 1:
+        raise ValueError(f"r0 must be residuals of shape (M,), got {r0.shape}")
+    return r0
 
 
 def forward_jacobian(
     f: Callable[[np.ndarray], np.ndarray], p: np.ndarray, r0: np.ndarray, step: float = 1e-7
 ) -> np.ndarray:
-    """Jacobian (M, P) of ``f`` at ``p`` by forward differences, ``r0 = f(p)``."""
+    """Jacobian (M, P) of ``f`` at ``p`` (P,) by forward differences, ``r0 = f(p)`` (M,);
+    ValueError or TypeError naming an argument of another kind or shape, or a ``step`` not a
+    finite number > 0."""
+    f, p, r0 = _as_callable(f, "f"), _as_start(p, 1), _as_residuals(r0)
+    return _forward_jacobian(f, p, r0, as_positive(step, "step"))
+
+
+def _forward_jacobian(f, p: np.ndarray, r0: np.ndarray, step: float = 1e-7) -> np.ndarray:
+    """:func:`forward_jacobian`, unchecked."""
     return np.column_stack([(f(p + step * e) - r0) / step for e in np.eye(len(p))])
 
 
@@ -230,14 +329,35 @@ def levenberg_marquardt_batched(
     """
     many, p = _as_callable(many, "many"), _as_start(p, 2)
     step = as_positive(step, "step")
-    return _levenberg_marquardt_batched(many, p, _as_iterations(iterations), step)
+    iterations = _as_iterations(iterations)
+    r0 = _start_residuals(many(p, np.arange(len(p))), "many", 2)
+    return _levenberg_marquardt_batched(many, p, iterations, step, r0)
 
 
-def _levenberg_marquardt_batched(many, p, iterations: int, step: float = 1e-7) -> np.ndarray:
-    """:func:`levenberg_marquardt_batched`, unchecked."""
+def _start_residuals(r, name: str, ndim: int = 1) -> np.ndarray:
+    """The residuals ``r`` of a fit at its start, given by ``name``: finite float64 of ``ndim``
+    dimensions whose squares sum to a finite cost; ValueError naming ``name`` otherwise."""
+    r = as_finite_array(r, f"{name}(p)")
+    if r.ndim != ndim:
+        raise ValueError(f"{name}(p) must be residuals of {ndim} dimension(s), got {r.shape}")
+    with np.errstate(over="ignore"):
+        cost = np.sum(r * r)
+    if not np.isfinite(cost):
+        raise ValueError(
+            f"{name}(p) has residuals up to {float(np.abs(r).max()):.3g} at the start p: "
+            "their squares overflow"
+        )
+    return r
+
+
+def _levenberg_marquardt_batched(
+    many, p, iterations: int, step: float = 1e-7, r0: np.ndarray | None = None
+) -> np.ndarray:
+    """:func:`levenberg_marquardt_batched`, unchecked (``r0`` the residuals at ``p`` when
+    known)."""
     p = np.array(p, dtype=np.float64)
     every = np.arange(len(p))
-    r0 = many(p, every)
+    r0 = many(p, every) if r0 is None else np.array(r0, dtype=np.float64)
     J = _batched_jacobians(many, p, r0, every, step)
     damping = np.full(len(p), 1e-3)
     active = np.ones(len(p), dtype=bool)
@@ -294,18 +414,33 @@ def forward_jacobian_stacked(
     """:func:`forward_jacobian` (M, P) of a stacked ``f`` (``many``: (K, P) -> (K, M)) in one
     call of it, ``r0 = f(p)``: :func:`stacked_jacobian` with the residuals at ``p`` known,
     laid out in memory as :func:`forward_jacobian`'s, so that the products of the steps that
-    use it are the same to the bit."""
-    return np.ascontiguousarray(stacked_jacobian(many, p, step, r0)[1])
+    use it are the same to the bit. ValueError or TypeError as :func:`forward_jacobian`."""
+    many, p, r0 = _as_callable(many, "many"), _as_start(p, 1), _as_residuals(r0)
+    return _forward_jacobian_stacked(many, p, r0, as_positive(step, "step"))
+
+
+def _forward_jacobian_stacked(many, p: np.ndarray, r0: np.ndarray, step: float = 1e-7):
+    """:func:`forward_jacobian_stacked`, unchecked."""
+    return np.ascontiguousarray(_stacked_jacobian(many, p, step, r0)[1])
 
 
 def gauss_newton_covariance(J: np.ndarray, variance: float) -> np.ndarray | None:
     """Covariance ``variance (J^T J)^-1`` (P, P) of the parameters of a least-squares fit with
-    Jacobian ``J`` (M, P) at its minimum; None when ``J^T J`` is singular. ValueError or
-    TypeError naming the argument for ``J`` not finite (M, P) or ``variance`` not >= 0."""
+    Jacobian ``J`` (M, P) at its minimum; None when ``J^T J`` is singular or the covariance
+    beyond the range of a float. A ``J`` of entries beyond ``[1e-100, 1e100]`` is scaled by a
+    power of two (exactly) first, so that ``J^T J`` does not overflow. ValueError or TypeError
+    naming the argument for ``J`` not finite (M, P) or ``variance`` not >= 0."""
     J = as_finite_array(J, "J")
     if J.ndim != 2:
         raise ValueError(f"J must be a Jacobian of shape (M, P), got {J.shape}")
-    return _gauss_newton_covariance(J, as_nonnegative(variance, "variance"))
+    variance = as_nonnegative(variance, "variance")
+    largest = float(np.abs(J).max(initial=0.0))
+    shift = math.frexp(largest)[1] if largest and not 1e-100 <= largest <= 1e100 else 0
+    with np.errstate(over="ignore"):
+        covariance = _gauss_newton_covariance(np.ldexp(J, -shift), variance)
+        if covariance is not None:
+            covariance = np.ldexp(covariance, -2 * shift)
+    return covariance if covariance is None or np.isfinite(covariance).all() else None
 
 
 def _gauss_newton_covariance(J: np.ndarray, variance: float) -> np.ndarray | None:
@@ -326,8 +461,16 @@ def stacked_jacobian(
     ``f``, which maps a stack of parameter vectors (K, P) to a stack of residuals (K, M).
 
     ``r0``, the residuals at ``p`` when already known, leaves ``p`` out of the call. The
-    Jacobian is the transposed view of the differences (Fortran order).
+    Jacobian is the transposed view of the differences (Fortran order). ValueError or
+    TypeError naming an argument of another kind or shape, or a ``step`` not a finite
+    number > 0.
     """
+    f, p, step = _as_callable(f, "f"), _as_start(p, 1), as_positive(step, "step")
+    return _stacked_jacobian(f, p, step, None if r0 is None else _as_residuals(r0))
+
+
+def _stacked_jacobian(f, p: np.ndarray, step: float = 1e-7, r0=None):
+    """:func:`stacked_jacobian`, unchecked."""
     steps = step * np.eye(len(p))
     if r0 is None:
         r = f(p + np.vstack([np.zeros(len(p)), steps]))
@@ -354,16 +497,18 @@ def levenberg_marquardt(
     """
     f, p, iterations = _as_callable(f, "f"), _as_start(p, 1), _as_iterations(iterations)
     many = None if many is None else _as_callable(many, "many")
-    return _levenberg_marquardt(f, p, iterations, many)
+    return _levenberg_marquardt(f, p, iterations, many, _start_residuals(f(p), "f"))
 
 
-def _levenberg_marquardt(f, p, iterations: int, many=None) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`levenberg_marquardt`, unchecked."""
+def _levenberg_marquardt(
+    f, p, iterations: int, many=None, r0: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`levenberg_marquardt`, unchecked (``r0`` the residuals at ``p`` when known)."""
     if many is None:
-        jacobian = lambda q, r: forward_jacobian(f, q, r)  # noqa: E731
+        jacobian = lambda q, r: _forward_jacobian(f, q, r)  # noqa: E731
     else:
-        jacobian = lambda q, r: forward_jacobian_stacked(many, q, r)  # noqa: E731
-    r0 = f(p)
+        jacobian = lambda q, r: _forward_jacobian_stacked(many, q, r)  # noqa: E731
+    r0 = f(p) if r0 is None else r0
     p, _, J = _damped_steps(lambda q: (f(q), None), jacobian, p, r0, jacobian(p, r0), iterations)
     return p, J
 
@@ -376,13 +521,17 @@ def levenberg_marquardt_stacked(
     trial. Returns the minimiser and the residuals there; ValueError or TypeError naming an
     argument of another kind or shape."""
     f, p, iterations = _as_callable(f, "f"), _as_start(p, 1), _as_iterations(iterations)
-    return _levenberg_marquardt_stacked(f, p, iterations)
+    r0, J = _stacked_jacobian(f, p)
+    return _levenberg_marquardt_stacked(f, p, iterations, (_start_residuals(r0, "f"), J))
 
 
-def _levenberg_marquardt_stacked(f, p, iterations: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`levenberg_marquardt_stacked`, unchecked."""
-    r0, J = stacked_jacobian(f, p)
-    p, r0, _ = _damped_steps(lambda q: stacked_jacobian(f, q), None, p, r0, J, iterations)
+def _levenberg_marquardt_stacked(
+    f, p, iterations: int, start=None
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`levenberg_marquardt_stacked`, unchecked (``start`` the residuals at ``p`` and
+    their Jacobian when known)."""
+    r0, J = _stacked_jacobian(f, p) if start is None else start
+    p, r0, _ = _damped_steps(lambda q: _stacked_jacobian(f, q), None, p, r0, J, iterations)
     return p, r0
 
 

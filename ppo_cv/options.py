@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 
 from .checks import (
@@ -94,13 +95,14 @@ class PairOptions:
     pri_threshold : float
         Pure rotation when PRI is below it (paper: 0.015).
     min_inliers : int
-        Fewer inliers than this is an error, not a pose.
+        Fewer inliers than this is an error, not a pose; at most ``max_features`` (a pair
+        has no more matches than keypoints).
     seed : int
         RANSAC seed.
     max_log10_nfa : float
         Significance bar: the robust fit is a pose only when ``log10`` of its number of false
         alarms (:mod:`ppo_cv.significance`) is at most this; lower is stricter, ``inf`` turns
-        the test off.
+        the test off (``-inf``, which no consensus is below, is refused).
     plane : bool
         Fit a homography too and let the model decision call the pair a plane (on by default:
         with it no rendered preset and no freiburg AUC drops, ``docs/benchmarks.md`` section
@@ -205,6 +207,11 @@ class PairOptions:
         as_pri_threshold(self.pri_threshold)
         if self.max_log10_nfa != self.max_log10_nfa:
             raise ValueError("max_log10_nfa must be a number (inf disables the test), got nan")
+        if self.max_log10_nfa == -math.inf:
+            raise ValueError(
+                "max_log10_nfa is -inf: no consensus is below it, so every pair would be refused "
+                "(inf disables the test)"
+            )
         if not 0 < self.confidence < 1:
             raise ValueError(f"confidence must be in (0, 1), got {self.confidence}")
         as_confidence(self.confidence, "confidence")
@@ -215,6 +222,11 @@ class PairOptions:
         ):
             raise ValueError(
                 "need max_features >= 8, 1 <= min_trials <= max_trials and min_inliers >= 5"
+            )
+        if self.min_inliers > self.max_features:
+            raise ValueError(
+                f"min_inliers ({self.min_inliers}) exceeds max_features ({self.max_features}): "
+                "a pair has at most max_features matches, so every pair would be refused"
             )
         if self.redetect_below < 0:
             raise ValueError(f"redetect_below must be >= 0, got {self.redetect_below}")

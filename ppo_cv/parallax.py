@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .checks import as_finite_array, as_finite_rows, as_matrix3, as_positive, shown
-from .lsq import _gauss_newton_covariance, _levenberg_marquardt, forward_jacobian
+from .lsq import _forward_jacobian, _gauss_newton_covariance, _levenberg_marquardt
 from .model_selection import robust_sigma
 
 __all__ = [
@@ -276,7 +276,7 @@ def fit_plane_parallax(x1: np.ndarray, x2: np.ndarray, noise: float | None = Non
     covariance = _gauss_newton_covariance(J, noise**2) if noise > 0 else None
     sigma = float("inf")
     if covariance is not None:
-        g = forward_jacobian(
+        g = _forward_jacobian(
             lambda q: np.array([_homography_parallax(_perturbed(H0, q))]), p, np.array([parallax])
         )[0]
         sigma = float(np.sqrt(max(g @ covariance @ g, 0.0)))

@@ -48,11 +48,11 @@ from .checks import (
     require_instance,
 )
 from .lsq import (
+    _forward_jacobian,
     _gauss_newton_covariance,
     _huber_weights,
     _levenberg_marquardt,
     _rotation_increment,
-    forward_jacobian,
     tangent_basis,
 )
 from .rotation import FOCAL_PRIOR
@@ -755,7 +755,7 @@ def _k1_sigma(model, p, scale, k1_prior) -> float:
     The factor 2: the forward and backward transfer residuals of a match carry the same noise,
     so ``J^T J`` counts every measurement twice."""
     r = _stacked(model, p, scale, k1_prior)
-    J = forward_jacobian(lambda q: _stacked(model, q, scale, k1_prior), p, r)
+    J = _forward_jacobian(lambda q: _stacked(model, q, scale, k1_prior), p, r)
     dof = max(len(r) - len(p), 1)
     cov = _gauss_newton_covariance(J, 2.0 * float(r @ r) / dof)
     return float("inf") if cov is None else float(np.sqrt(max(cov[8, 8], 0.0)))
@@ -829,7 +829,7 @@ def _plane_covariance(model, p, scale, k1_prior):
     """Covariance ``2 s^2 (J^T J)^-1`` of :func:`_k1_sigma` at ``p`` (None when singular), its
     Jacobian and residuals."""
     r = _stacked(model, p, scale, k1_prior)
-    J = forward_jacobian(lambda q: _stacked(model, q, scale, k1_prior), p, r)
+    J = _forward_jacobian(lambda q: _stacked(model, q, scale, k1_prior), p, r)
     return _gauss_newton_covariance(J, 2.0 * float(r @ r) / max(len(r) - len(p), 1)), J, r
 
 

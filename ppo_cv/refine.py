@@ -43,9 +43,9 @@ from .lsq import (
     _levenberg_marquardt,
     _levenberg_marquardt_batched,
     _levenberg_marquardt_stacked,
+    _pose_increment,
     _pose_increments,
     _rotation_increments,
-    pose_increment,
     stack_by_chunks,
     tangent_basis,
 )
@@ -375,7 +375,7 @@ def refine_pose_huber(
         return _huber_weights(np.abs(r), scale) * r
 
     p, _ = _levenberg_marquardt_stacked(residuals, np.zeros(5), iterations)
-    return pose_increment(R0, t0, p, basis)
+    return _pose_increment(R0, t0, p, basis)
 
 
 def _radial_settings(scale: float, k1_prior: float, iterations: int) -> tuple[float, float, int]:
@@ -422,7 +422,7 @@ def _radial_fit(
     given = [_RadialPoints(x) for x in (a, b)]
 
     def pose(p):
-        return pose_increment(R0, t0, p, basis)
+        return _pose_increment(R0, t0, p, basis)
 
     residuals = _radial_residuals(R0, t0, basis, scale, k1_prior, k1_start)
 
@@ -566,7 +566,9 @@ def _k1_noise_bias(R, t, x1, x2, p, scale, k1_prior, iterations, replicates) -> 
     themselves (``t`` a unit vector), whose residuals size the simulated noise."""
     E = _cross_matrix(t) @ R
     sizes = np.abs(
-        _sampson_signed(*pose_increment(R, t, p), *(_undistort_division(x, p[5]) for x in (x1, x2)))
+        _sampson_signed(
+            *_pose_increment(R, t, p), *(_undistort_division(x, p[5]) for x in (x1, x2))
+        )
     )
     A, B = _stacked_sets(noise_replicates(E, x1, x2, sizes, replicates))
     fitted = _radial_fits(R, t, A, B, scale, k1_prior, iterations)[:, 5]

@@ -40,6 +40,8 @@ from numpy.typing import ArrayLike
 from .checks import (
     MAX_COORDINATE,
     MAX_RADIAL,
+    MAX_RAY_SLOPE,
+    _on_image_plane,
     as_finite_array,
     as_finite_rows,
     as_flag,
@@ -340,14 +342,30 @@ def _two_ray_rotations(a1, a2, b1, b2) -> np.ndarray:
 
 def _checked_rows(value: Any, name: str) -> np.ndarray:
     """Normalised points (N, 2) or rays (N, 3) as finite float64 of magnitude at most
-    :data:`ppo_cv.checks.MAX_COORDINATE`; ValueError or TypeError naming ``name`` otherwise."""
+    :data:`ppo_cv.checks.MAX_COORDINATE`, no ray zero (it has no direction: every rotation
+    maps it onto its match at angle 0); ValueError or TypeError naming ``name`` otherwise."""
     rows = as_finite_rows(value, name, (2, 3))
     if rows.size and not -MAX_COORDINATE <= rows.min() <= rows.max() <= MAX_COORDINATE:
         raise ValueError(
             f"{name} has coordinates up to {float(np.abs(rows).max()):.3g}, beyond "
             f"{MAX_COORDINATE:.0e}: not normalised points or rays"
         )
+    if rows.shape[1] == 3 and not rows.any(axis=1).all():
+        zero = int(np.count_nonzero(~rows.any(axis=1)))
+        raise ValueError(f"{name} has {zero} zero row(s): a ray needs a direction")
     return rows
+
+
+def _require_ahead(rows: np.ndarray, name: str) -> None:
+    """ValueError naming ``name`` unless every ray (N, 3) has ``w > 0``: the least-squares
+    rotation (:func:`ppo_cv.ppo.rotation_from_rays`) reads a ray as the image point ``x / w``,
+    which turns a ray behind the image plane around and divides by a zero ``w``."""
+    if rows.shape[1] == 3 and rows.size and rows[:, 2].min() <= 0:
+        behind = int(np.count_nonzero(rows[:, 2] <= 0))
+        raise ValueError(
+            f"{name} has {behind} row(s) with w <= 0 (a ray at or behind the image plane): "
+            "ransac_rotation takes normalised points or rays ahead of the camera"
+        )
 
 
 def _checked_matches(x1: Any, x2: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -423,7 +441,8 @@ def ransac_rotation(
     Parameters
     ----------
     x1, x2 : array_like, shape (N, 2) or (N, 3)
-        Normalised (undistorted) points or bearings of the matches, N >= 2.
+        Normalised (undistorted) points or bearings of the matches, N >= 2; rows of three
+        have ``w > 0`` (a ray ahead of the camera).
     threshold : float
         Inlier bound on the angle between ``b2`` and ``R b1``, radians (pixels over focal), > 0.
     confidence : float
@@ -439,6 +458,8 @@ def ransac_rotation(
         None when fewer than two matches are given.
     """
     x1, x2 = _checked_matches(x1, x2)
+    _require_ahead(x1, "x1")
+    _require_ahead(x2, "x2")
     settings = as_ransac_settings(threshold, confidence, min_trials, max_trials, seed)
     return _ransac(_bearings(x1), _bearings(x2), *settings)
 
@@ -470,13 +491,28 @@ def _ransac(b1, b2, threshold, confidence, min_trials, max_trials, seed) -> Rota
 def correct_points(
     x: ArrayLike, focal_scale: float, k1: float, principal_offset: ArrayLike = (0.0, 0.0)
 ) -> np.ndarray:
-    """Normalised points of the given camera (N, 2 or 3) to homogeneous true rays (N, 3).
+    """Normalised points of the given camera (N, 2 or 3) to homogeneous true rays (N, 3); a
+    row of three is the point ``(x / w, y / w)``.
 
     The inverse of ``s x = p + q (1 + k1 |q|^2)``: the lens terms of :func:`fit_rotation_lens`
     (``focal_scale`` ``s`` in [0.001, 1000], ``|k1| <= 10``, ``principal_offset`` ``p`` (2,)).
     """
     scale, k1, offset, _ = _checked_lens_terms(focal_scale, k1, principal_offset, 1.0)
-    return _correct_points(_checked_rows(x, "x"), scale, k1, offset)
+    return _correct_points(_image_points(_checked_rows(x, "x"), "x"), scale, k1, offset)
+
+
+def _image_points(rows: np.ndarray, name: str) -> np.ndarray:
+    """Checked rows (N, 2) or (N, 3) as the lens maps read them: a row of three as the image
+    point ``(x / w, y / w)`` it stands for (rows of ``w = 1`` as they are), where they read its
+    ``x`` and ``y`` as they stood; ValueError naming ``name`` for ``w = 0`` or ``|(x, y)|``
+    beyond :data:`ppo_cv.checks.MAX_RAY_SLOPE` ``|w|``."""
+    return rows if rows.shape[1] == 2 else _on_image_plane(rows, name)
+
+
+def _lens_matches(x1: Any, x2: Any) -> tuple[np.ndarray, np.ndarray]:
+    """Matches checked by :func:`_checked_matches`, rows of three as :func:`_image_points`."""
+    x1, x2 = _checked_matches(x1, x2)
+    return _image_points(x1, "x1"), _image_points(x2, "x2")
 
 
 _SCALE_RANGE = (1e-3, 1e3)
@@ -521,11 +557,18 @@ def _correct_points(x: np.ndarray, focal_scale, k1, principal_offset) -> np.ndar
 def seen_through_lens(ray: ArrayLike, scale, k1, offset, ratio) -> np.ndarray:
     """Given normalised points (..., N, 2) where view 2 sees rays (..., N, 3) of its frame
     through the lens of :func:`fit_rotation_lens`: ``x2 = (p + q2 (1 + k1 |q2|^2)) / (s rho)``,
-    ``q2`` the ray's projection; the lens terms (finite, ``scale`` and ``ratio`` > 0) broadcast
+    ``q2`` the ray's projection, at most :data:`ppo_cv.checks.MAX_RAY_SLOPE` (beyond it
+    ``|q2|^2`` overflows); the lens terms (finite, ``scale`` and ``ratio`` > 0) broadcast
     against ``q2``."""
     ray = as_finite_array(ray, "ray")
     if ray.ndim < 2 or ray.shape[-1] != 3:
         raise ValueError(f"ray must have shape (..., N, 3), got {ray.shape}")
+    beyond = np.abs(ray[..., :2]).max(axis=-1) / MAX_RAY_SLOPE > np.abs(ray[..., 2])
+    if beyond.any():
+        raise ValueError(
+            f"ray has {int(beyond.sum())} ray(s) at or near right angles to the optical axis "
+            f"(|(x, y)| beyond {MAX_RAY_SLOPE:.0e} |z|): they meet the image plane nowhere"
+        )
     names = ("scale", "k1", "offset", "ratio")
     terms = [as_finite_array(value, name)
              for value, name in zip((scale, k1, offset, ratio), names, strict=True)]  # fmt: skip
@@ -576,13 +619,14 @@ def transfer_points(
 ) -> np.ndarray:
     """Where the lens rotation of :func:`fit_rotation_lens` takes normalised points of view 1.
 
-    ``x1`` (N, 2 or 3, given camera) is corrected to the true ray ``q1``, rotated by ``R``
-    (3, 3) and put back through the lens: ``x2 = (p + q2 (1 + k1 |q2|^2)) / (s rho)``, the
-    lens terms as :func:`correct_points` takes them (``rho`` as ``s``). Returns ``x2``, (N, 2).
+    ``x1`` (N, 2 or 3, given camera; a row of three the point ``(x / w, y / w)``) is corrected
+    to the true ray ``q1``, rotated by ``R`` (3, 3) and put back through the lens:
+    ``x2 = (p + q2 (1 + k1 |q2|^2)) / (s rho)``, the lens terms as :func:`correct_points` takes
+    them (``rho`` as ``s``). Returns ``x2``, (N, 2).
     """
     R = as_rotation(R, "R")
     terms = _checked_lens_terms(focal_scale, k1, principal_offset, focal_ratio)
-    return _transfer_points(_checked_rows(x1, "x1"), R, *terms)
+    return _transfer_points(_image_points(_checked_rows(x1, "x1"), "x1"), R, *terms)
 
 
 def _transfer_points(x1, R, focal_scale, k1, principal_offset, focal_ratio) -> np.ndarray:
@@ -608,7 +652,7 @@ def lens_rotation_residuals(
     (N, 2 or 3), the rotation (3, 3) and lens terms as :func:`transfer_points` takes them."""
     R = as_rotation(R, "R")
     terms = _checked_lens_terms(focal_scale, k1, principal_offset, focal_ratio)
-    x1, x2 = _checked_matches(x1, x2)
+    x1, x2 = _lens_matches(x1, x2)
     vectors = as_flag(vectors, "vectors")
     return _lens_rotation_residuals(R, terms[0], terms[1], x1, x2, *terms[2:], vectors=vectors)
 
@@ -664,7 +708,8 @@ def focal_ratio_keywords(prior: tuple[float, float] | None) -> dict:
     """
     if prior is None:
         return {}
-    if isinstance(prior, (str, bytes)) or not hasattr(prior, "__len__") or len(prior) != 2:
+    sized = hasattr(prior, "__len__") and getattr(prior, "ndim", 1) != 0  # not a 0-d array
+    if isinstance(prior, (str, bytes)) or not sized or len(prior) != 2:
         raise TypeError(
             f"prior must be None or (mean, deviation), as focal_ratio_prior returns it, got "
             f"{shown(prior)}"
@@ -710,7 +755,7 @@ def fit_rotation_lens(
     Parameters
     ----------
     x1, x2 : ndarray, shape (N, 2) or (N, 3)
-        Normalised points of the matches.
+        Normalised points of the matches; a row of three is the point ``(x / w, y / w)``.
     used : ndarray of bool, shape (N,)
         Matches in the cost (at least 12 for the lens terms).
     R : ndarray, shape (3, 3)
@@ -759,7 +804,7 @@ def fit_rotation_lens(
     (1.03, True)
     """
     if check_input:
-        x1, x2 = _checked_matches(x1, x2)
+        x1, x2 = _lens_matches(x1, x2)
         used, R = _checked_used(used, len(x1)), as_rotation(R, "R")
         keywords = _checked_fit_keywords(
             iterations, max_k1, noise, focal_prior, k1_prior, principal_prior, focal_ratio_prior,

@@ -25,9 +25,9 @@ from .lsq import (
     _cross_matrix,
     _huber_weights,
     _levenberg_marquardt_stacked,
+    _pose_increment,
     _rotation_increment,
     _rotation_increments,
-    pose_increment,
     stacked_jacobian,
     tangent_basis,
 )
@@ -129,7 +129,7 @@ def _rotation_costs(cost, R: np.ndarray, cross_t: np.ndarray):
 def _polish(cost, R: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     basis = tangent_basis(t)
     p, _ = _levenberg_marquardt_stacked(_pose_costs(cost, R, t, basis), np.zeros(5), 20)
-    return pose_increment(R, t, p, basis)
+    return _pose_increment(R, t, p, basis)
 
 
 def _worst_direction(cost, R: np.ndarray, t: np.ndarray, step: float = 1e-6) -> np.ndarray:

@@ -18,6 +18,7 @@ from ppo_cv.data_gen import RenderedPair
 K = np.array([[525.0, 0.0, 319.5], [0.0, 525.0, 239.5], [0.0, 0.0, 1.0]])
 X = np.column_stack([np.linspace(-0.2, 0.2, 6), np.linspace(0.1, -0.1, 6), np.ones(6)])
 HUGE = 10**400
+T, P5 = np.array([0.6, 0.0, 0.8]), np.array([0.01, -0.02, 0.03, 0.1, -0.2])
 
 
 def _fit(p):
@@ -195,6 +196,52 @@ CASES = {
     "levenberg_marquardt_batched p": (
         lambda: lsq.levenberg_marquardt_batched(_fit, np.zeros(2), 5), ValueError,
         "p must be parameters of shape (S, P), got (2,)"),
+    # pose_increment had no checks: a 0-d p raised an IndexError, a complex one warned
+    "pose_increment 0-d p": (lambda: lsq.pose_increment(np.eye(3), T, np.array(0.1)), ValueError,
+                             "p must be 5 numbers (rotation increment, step of t), got ()"),
+    "pose_increment complex p": (lambda: lsq.pose_increment(np.eye(3), T, P5 + 1j), TypeError,
+                                 "p must hold real numbers, got dtype complex128"),
+    "pose_increment p 1e300": (lambda: lsq.pose_increment(np.eye(3), T, P5 * 1e300), ValueError,
+                               "p has entries up to 2e+299, beyond 1e+15"),
+    "pose_increment t of norm 2": (lambda: lsq.pose_increment(np.eye(3), 2 * T, P5), ValueError,
+                                   "t must be a unit vector, got [1.2, 0.0, 1.6]"),
+    "pose_increment R None": (lambda: lsq.pose_increment(None, T, P5), TypeError,
+                              "R is required, got None"),
+    "pose_increment basis not tangent": (
+        lambda: lsq.pose_increment(np.eye(3), T, P5, np.eye(3)[:2]), ValueError,
+        "basis must be two orthonormal rows orthogonal to t"),
+    # an angle of 1e300 overflowed its square (RuntimeWarning)
+    "rotation_increment 1e300": (lambda: lsq.rotation_increment([1e300, 0, 0]), ValueError,
+                                 "w has entries up to 1e+300, beyond 1e+15"),
+    "rotation_increments 1e300": (lambda: lsq.rotation_increments([[0, 0, -1e300]]), ValueError,
+                                  "w has entries up to 1e+300, beyond 1e+15"),
+    "huber_weights negative": (lambda: lsq.huber_weights(np.array([1.0, -2.0]), 1.0), ValueError,
+                               "size must be residual sizes >= 0 (|r|), got -2.0"),
+    # the Jacobians had no checks: len() of a 0-d p, numpy's broadcast of a wrong r0
+    "forward_jacobian 0-d p": (lambda: lsq.forward_jacobian(_fit, np.array(1.0), np.zeros(1)),
+                               ValueError, "p must be parameters of shape (P,), got ()"),
+    "forward_jacobian r0 None": (lambda: lsq.forward_jacobian(_fit, np.zeros(2), None),
+                                 TypeError, "r0 is required, got None"),
+    "forward_jacobian_stacked step 0": (
+        lambda: lsq.forward_jacobian_stacked(_fit, np.zeros(2), np.zeros(2), 0.0), ValueError,
+        "step must be a finite number > 0"),
+    "stacked_jacobian f None": (lambda: lsq.stacked_jacobian(None, np.zeros(2)), TypeError,
+                                "f must be a callable, got NoneType"),
+    "stack_by_chunks count 0": (lambda: lsq.stack_by_chunks(np.zeros, 0, 3), ValueError,
+                                "count must be at least 1"),
+    "stack_by_chunks evaluate None": (lambda: lsq.stack_by_chunks(None, 4, 3), TypeError,
+                                      "evaluate must be a callable, got NoneType"),
+    # residuals whose squares overflow at the start: numpy's overflow warnings, then NaN steps
+    "levenberg_marquardt residuals overflow": (
+        lambda: lsq.levenberg_marquardt(_fit, np.array([1e300, 0.0]), 5), ValueError,
+        "f(p) has residuals up to 1e+300 at the start p: their squares overflow"),
+    "levenberg_marquardt_stacked residuals overflow": (
+        lambda: lsq.levenberg_marquardt_stacked(_fit, np.array([1e300, 0.0]), 5), ValueError,
+        "f(p) has residuals up to 1e+300 at the start p"),
+    "levenberg_marquardt_batched residuals overflow": (
+        lambda: lsq.levenberg_marquardt_batched(lambda P, rows: _fit(P),
+                                                np.array([[0.0, 0.0], [1e300, 0.0]]), 5),
+        ValueError, "many(p) has residuals up to 1e+300 at the start p"),
     "levenberg_marquardt_batched step": (
         lambda: lsq.levenberg_marquardt_batched(_fit, np.zeros((1, 2)), 5, step=0.0),
         ValueError, "step must be a finite number > 0"),
@@ -312,7 +359,41 @@ def test_the_checked_least_squares_tools_give_the_figures_of_the_unchecked_ones(
          lsq._levenberg_marquardt_stacked(many, np.array([1.0, 0.5]), 20)[0]),
         (lsq.levenberg_marquardt_batched(many, np.array([[1.0, 0.5], [3.0, 1.0]]), 20),
          lsq._levenberg_marquardt_batched(many, np.array([[1.0, 0.5], [3.0, 1.0]]), 20)),
+        *zip(lsq.pose_increment(lsq.rotation_increment(w), T, P5),
+             lsq._pose_increment(lsq.rotation_increment(w), T, P5), strict=True),
+        *zip(lsq.pose_increment(np.eye(3), T, P5, lsq.tangent_basis(T)),
+             lsq._pose_increment(np.eye(3), T, P5, lsq.tangent_basis(T)), strict=True),
+        (lsq.forward_jacobian(one, np.array([1.0, 0.5]), one(np.array([1.0, 0.5]))),
+         lsq._forward_jacobian(one, np.array([1.0, 0.5]), one(np.array([1.0, 0.5])))),
+        (lsq.stacked_jacobian(many, np.array([1.0, 0.5]))[1],
+         lsq._stacked_jacobian(many, np.array([1.0, 0.5]))[1]),
     ]  # fmt: skip
     for checked, unchecked in pairs:
         assert np.array_equal(checked, unchecked)
     assert np.allclose(pairs[6][0], [2.0, 1.5], atol=1e-6)
+
+
+def test_extreme_least_squares_values_give_their_figures_without_warnings():
+    """A Huber scale of 1e300 raised an OverflowError and an infinite size weighed NaN; a
+    Jacobian of entries near 1e156 overflowed ``J^T J``; an ``n`` of 1e300 overflowed its norm,
+    one of norm 2 gave a second row of norm 2. Each now gives the figures of its scaled-down
+    twin, without a warning."""
+    sizes = np.array([0.0, 0.5, 2.0, 4.0, np.inf])
+    J = np.random.default_rng(5).normal(size=(9, 4))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        far = lsq.huber_weights(sizes * 1e300, 1e300)
+        near = lsq.huber_weights(sizes, 1.0)
+        huge = lsq.gauss_newton_covariance(J * 2.0**520, 1e300)
+        tiny = lsq.gauss_newton_covariance(J * 2.0**-400, 2.0)
+        beyond = lsq.gauss_newton_covariance(np.eye(3) * 1e-100, 1e300)
+        bases = [lsq.tangent_basis(n) for n in ([1e300, -1e300, 5e299], [3e-300, 0, 0], 2 * T)]
+    np.testing.assert_allclose(far, near, rtol=1e-15)
+    np.testing.assert_allclose(near, [1.0, 1.0, np.sqrt(3.0) / 2.0, np.sqrt(7.0) / 4.0, 0.0])
+    expected = lsq.gauss_newton_covariance(J, 1e300)
+    np.testing.assert_allclose(np.ldexp(huge, 1040), expected, rtol=1e-12)
+    np.testing.assert_allclose(np.ldexp(tiny, -800), expected * 2e-300, rtol=1e-12)
+    assert beyond is None  # 1e500: beyond a float
+    for basis, n in zip(bases, ([2, -2, 1], [1, 0, 0], T), strict=True):
+        frame = np.vstack([np.divide(n, np.linalg.norm(n)), basis])
+        np.testing.assert_allclose(frame @ frame.T, np.eye(3), atol=1e-12)

@@ -133,6 +133,12 @@ def _rotation():
     return rotation
 
 
+def _turned_bearings():
+    """The bearings of RAYS and those of view 2 turned 90 degrees about y: (40, 3) each."""
+    b1 = RAYS / np.linalg.norm(RAYS, axis=1, keepdims=True)
+    return b1, b1 @ np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]]).T
+
+
 def _nan_row(rays):
     rays = rays.copy()
     rays[7, 0] = np.nan
@@ -278,6 +284,15 @@ CASES = {
                                       "pri_threshold must be a number in [0, 1]"),
     "PairOptions max_log10_nfa nan": (lambda: PairOptions(max_log10_nfa=np.nan), ValueError,
                                       "max_log10_nfa"),
+    # options under which every pair is refused: no consensus is below -inf, and a pair has
+    # no more matches than keypoints
+    "PairOptions max_log10_nfa -inf": (lambda: PairOptions(max_log10_nfa=-np.inf), ValueError,
+                                       "max_log10_nfa is -inf: no consensus is below it"),
+    "PairOptions min_inliers beyond max_features": (
+        lambda: PairOptions(max_features=100, min_inliers=101), ValueError,
+        "min_inliers (101) exceeds max_features (100)"),
+    "PairOptions ratio complex": (lambda: PairOptions(ratio=np.complex128(0.8)), TypeError,
+                                  "ratio must be a real number, got complex128"),
     "estimate_pair dist 1e10": (_pair(dist1=[1e10, 0, 0, 0]), ValueError,
                                 "dist1: radial k1, k2 [10000000000.0, 0.0]"),
     "estimate_pair dist k3 50": (_pair(dist1=[0, 0, 0, 0, 50.0]), ValueError, "dist1: radial k3"),
@@ -568,6 +583,16 @@ CASES = {
     "calib exif_focal_scale None": (
         lambda: ppo_cv.calib.exif_focal_scale(None, (640, 480)), TypeError,
         "layout must be a ppo_cv.images.ExifLayout, got NoneType"),
+    # the image's size was read as "side" (max(size)), a 0-d one raised numpy's iteration error
+    "calib fitted_exif_focal size 0-d": (
+        lambda: ppo_cv.calib.fitted_exif_focal(500.0, ppo_cv.images.ExifLayout(), np.array(640)),
+        TypeError, "size must be (width, height)"),
+    "calib fitted_exif_focal size NaN": (
+        lambda: ppo_cv.calib.fitted_exif_focal(500.0, ppo_cv.images.ExifLayout(), (640, np.nan)),
+        ValueError, "size height must be a whole number"),
+    "calib warn_implausible shape NaN": (
+        lambda: ppo_cv.calib.warn_implausible(K, (np.nan, 640), "K"), ValueError,
+        "image_shape height must be a whole number"),
     "calib fitted_exif_focal text focal": (
         lambda: ppo_cv.calib.fitted_exif_focal("500", None, (640, 480)), TypeError,
         "focal must be a number, got str"),
@@ -1036,6 +1061,33 @@ CASES = {
                                "given_ratio must be a number, got str"),
     "focal_ratio_keywords text": (lambda: _rotation().focal_ratio_keywords("ab"), TypeError,
                                   "prior must be None or (mean, deviation)"),
+    # a 0-d prior raised len()'s TypeError; a complex number warned and lost its imaginary part
+    "focal_ratio_keywords 0-d": (lambda: _rotation().focal_ratio_keywords(np.array(1.0)),
+                                 TypeError, "prior must be None or (mean, deviation)"),
+    "focal_ratio_keywords complex": (
+        lambda: _rotation().focal_ratio_keywords((np.complex128(1.0), 0.1)), TypeError,
+        "prior mean must be a real number, got complex128"),
+    "correct_points w = 0": (lambda: _rotation().correct_points(RAYS * [1.0, 1.0, 0.0], 1.0, 0.0),
+                             ValueError, "x has 40 row(s) with w = 0"),
+    # rays parallel to the image plane overflowed |q2|^2
+    "seen_through_lens ray 1e300": (
+        lambda: _rotation().seen_through_lens([[1e300, 0.0, 1.0]], 1.0, 0.0, 0.0, 1.0),
+        ValueError, "ray has 1 ray(s) at or near right angles to the optical axis"),
+    # zero rows: an inlier of every rotation at angle 0, then numpy's SVD failed (LinAlgError)
+    "ransac_rotation zero rows": (
+        lambda: _rotation().ransac_rotation(np.vstack([RAYS, np.zeros((2, 3))]),
+                                            np.vstack([RAYS2, np.zeros((2, 3))]), 0.01),
+        ValueError, "x1 has 2 zero row(s): a ray needs a direction"),
+    "rotation_residuals zero rows": (
+        lambda: _rotation().rotation_residuals(np.eye(3), RAYS, np.zeros((40, 3))),
+        ValueError, "x2 has 40 zero row(s)"),
+    "ransac_rotation w = 0": (
+        lambda: _rotation().ransac_rotation(RAYS, RAYS2 * [1.0, 1.0, 0.0], 0.01), ValueError,
+        "x2 has 40 row(s) with w <= 0 (a ray at or behind the image plane)"),
+    # bearings turned 90 degrees, half of them behind view 2's image plane: the least-squares
+    # rotation read them as the image points x / w and answered a rotation 180 degrees off
+    "ransac_rotation rays behind": (lambda: _rotation().ransac_rotation(*_turned_bearings(), 0.01),
+                                    ValueError, "x2 has 17 row(s) with w <= 0"),
     "focal_ratio_keywords NaN": (lambda: _rotation().focal_ratio_keywords((1.0, np.nan)),
                                  ValueError, "prior deviation must be a finite number > 0"),
     # complex numbers lost their imaginary part with a ComplexWarning and were used
@@ -2036,6 +2088,25 @@ def test_homogeneous_rows_of_any_w_are_the_image_points_they_stand_for():
         ppo_cv.homography.symmetric_transfer_errors,
     ):
         np.testing.assert_allclose(errors(H, scaled1, scaled2), errors(H, RAYS, RAYS2))
+
+
+def test_the_lens_maps_read_rows_of_any_w_as_their_image_points():
+    # correct_points, transfer_points, lens_rotation_residuals and fit_rotation_lens read x and y
+    # of a row as its point whatever its w: rows scaled by 2 (the same points) moved 0.4
+    rotation = _rotation()
+    scaled1, scaled2 = RAYS * 2.0, RAYS2 * -0.5
+    lens = (1.01, -0.02, (0.001, 0.0))
+    for name, args in (("correct_points", ()), ("transfer_points", (R_TRUE,))):
+        mapped = getattr(rotation, name)
+        np.testing.assert_allclose(mapped(scaled1, *args, *lens), mapped(RAYS, *args, *lens),
+                                   rtol=1e-15)  # fmt: skip
+    np.testing.assert_allclose(
+        rotation.lens_rotation_residuals(R_TRUE, 1.01, -0.02, scaled1, scaled2),
+        rotation.lens_rotation_residuals(R_TRUE, 1.01, -0.02, RAYS, RAYS2), rtol=1e-12)
+    fits = [rotation.fit_rotation_lens(a, b, _ALL, R_TRUE) for a, b in ((RAYS, RAYS2),
+                                                                       (scaled1, scaled2))]
+    np.testing.assert_allclose(fits[1].R, fits[0].R, atol=1e-12)
+    assert fits[1].focal_scale == pytest.approx(fits[0].focal_scale, abs=1e-12)
 
 
 def test_homography_errors_do_not_depend_on_the_scale_of_H():
