@@ -264,9 +264,19 @@ class PanelledHelpCommand(TyperCommand):
                     formatter.write_dl(records)
 
 
+COMMAND_ORDER = ("pair", "pairs", "sfm", "synth", "demo")
+"""The order ``ppo-cv --help`` lists the commands in: one pair, many pairs, a reconstruction,
+then rendered data and the demo."""
+
+
 class WrappedHelpGroup(TyperGroup):
     """The ``ppo-cv`` group: its ``--help`` gives each command's first sentence whole, wrapped,
-    where click cuts it at the terminal width with an ellipsis."""
+    where click cuts it at the terminal width with an ellipsis. It lists the commands in the
+    order of :data:`COMMAND_ORDER`, any other after them."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        names = super().list_commands(ctx)
+        return sorted(names, key=lambda n: COMMAND_ORDER.index(n) if n in COMMAND_ORDER else 99)
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         records = []

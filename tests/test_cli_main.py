@@ -48,6 +48,14 @@ def test_help_exits_0(capsys):
     assert code == 0 and "synth" in out and "sfm" in out
 
 
+def test_help_lists_the_commands_in_the_order_a_newcomer_needs_them(capsys):
+    # they were listed in the order the modules registered them: synth, sfm, pair, demo, pairs
+    code, out, _ = _run(["--help"], capsys)
+    lines = out.split("Commands:")[1].splitlines()
+    names = [line.split()[0] for line in lines if line[:2] == "  " and line[2:3] != " "]
+    assert code == 0 and names == ["pair", "pairs", "sfm", "synth", "demo"]
+
+
 def test_version_is_printed_by_the_installed_command():
     done = subprocess.run([sys.executable, "-m", "ppo_cv.cli.main", "--version"],
                           capture_output=True, text=True, timeout=60)  # fmt: skip
