@@ -7,7 +7,9 @@
   Kalibr's radtan: OpenCV's pinhole distortion; Kalibr's none: no distortion; another model,
   a fisheye's, is refused). Kalibr's ``distortion_coeffs`` are read as OpenCV's, and a Kalibr
   ``camchain.yaml`` of pinhole cameras camera by camera (``cam0``, ``cam1``).
-- COLMAP ``cameras.txt`` (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV).
+- COLMAP ``cameras.txt`` (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, FULL_OPENCV),
+  its principal point moved from COLMAP's pixel coordinates to OpenCV's
+  (:data:`COLMAP_PIXEL_OFFSET`).
 - JSON: ``{"K": ..., "dist": ...}``, ``{"fx", "fy", "cx", "cy"}``, ``{"K1", "K2", "dist1",
   "dist2"}`` or ``{"cameras": [camera, camera]}``; a ``distortion_model`` must name OpenCV's
   pinhole distortion or none, as in ROS YAML.
@@ -68,8 +70,16 @@ __all__ = [
     "resize_scale",
     "GUESSED_FOCAL_FACTOR",
     "MAX_PIXEL_ASPECT",
+    "COLMAP_PIXEL_OFFSET",
     "unusable_exif_focal",
 ]
+
+COLMAP_PIXEL_OFFSET = 0.5
+"""COLMAP puts the centre of an image's first pixel at (0.5, 0.5), OpenCV at (0, 0); every
+``K`` and pixel of ppo_cv is in OpenCV's coordinates (a blob centred on pixel column 100 is
+at x 100 to OpenCV, 100.5 to pycolmap's SIFT). A principal point or keypoint in COLMAP's
+coordinates is OpenCV's plus this: added where a COLMAP model is written, taken off where a
+COLMAP ``cameras.txt`` is read."""
 
 ASPECT_TOLERANCE = 0.01
 """Relative difference of the horizontal and vertical scale factors within which an image is
@@ -443,13 +453,14 @@ def _colmap_camera(model: str, params: np.ndarray, where: str, size=None) -> Cam
         )
     if params.size != counts[model]:
         raise ValueError(f"{where}: {model} takes {counts[model]} parameters, got {params.size}")
+    shift = np.array([0.0, 0.0, COLMAP_PIXEL_OFFSET, COLMAP_PIXEL_OFFSET])  # to OpenCV's pixels
     if model in ("SIMPLE_PINHOLE", "SIMPLE_RADIAL", "RADIAL"):
         f, cx, cy = params[:3]
-        K = _matrix_from_values([f, f, cx, cy], where)
+        K = _matrix_from_values(np.array([f, f, cx, cy]) - shift, where)
         radial = params[3:]  # k or (k1, k2): OpenCV (k1, k2, p1=0, p2=0)
         dist = np.r_[radial, np.zeros(4 - radial.size)] if radial.size else None
     else:  # OPENCV: k1 k2 p1 p2; FULL_OPENCV: k1 k2 p1 p2 k3 k4 k5 k6, OpenCV's order
-        K = _matrix_from_values(params[:4], where)
+        K = _matrix_from_values(params[:4] - shift, where)
         dist = params[4:] if params.size > 4 else None
     return Camera(K, as_distortion(dist, where), size)
 

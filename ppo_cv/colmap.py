@@ -114,6 +114,11 @@ class TwoViewEstimate:
 def camera_from_K(K: Any, width: int, height: int) -> pycolmap.Camera:
     """A ``PINHOLE`` pycolmap camera ``(fx, fy, cx, cy)`` from a 3x3 intrinsic matrix.
 
+    ``K`` is taken in COLMAP's pixel coordinates, those of the keypoints of a COLMAP database,
+    where the centre of the first pixel is (0.5, 0.5): a ``K`` in OpenCV's, as
+    ``cv2.calibrateCamera`` or :func:`ppo_cv.load_calibration` gives it, needs
+    :data:`~ppo_cv.calib.COLMAP_PIXEL_OFFSET` added to its ``cx`` and ``cy`` first.
+
     Raises
     ------
     ValueError

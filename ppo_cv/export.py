@@ -17,6 +17,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from .calib import COLMAP_PIXEL_OFFSET
 from .checks import (
     MAX_RADIAL,
     MAX_WHOLE_NUMBER,
@@ -557,10 +558,12 @@ def _colmap_camera(
     """The COLMAP camera of intrinsics ``K``, OpenCV distortion ``dist`` and the pose's radial
     term ``k1`` (:func:`fitted_radial_k1`) composed after it (:func:`composed_distortion`):
     ``PINHOLE`` without distortion, ``OPENCV`` for up to four coefficients, else
-    ``FULL_OPENCV``."""
+    ``FULL_OPENCV``. Its principal point is in COLMAP's pixel coordinates
+    (:data:`~ppo_cv.calib.COLMAP_PIXEL_OFFSET` added)."""
     import pycolmap
 
-    fx, fy, cx, cy = K[0, 0], K[1, 1], K[0, 2], K[1, 2]
+    fx, fy = K[0, 0], K[1, 1]
+    cx, cy = K[0, 2] + COLMAP_PIXEL_OFFSET, K[1, 2] + COLMAP_PIXEL_OFFSET
     coefficients = np.zeros(0) if dist is None else np.asarray(dist, float).ravel()[:8]
     if k1 != 0.0:
         coefficients = _composed(K, dist, size, k1)
@@ -706,15 +709,18 @@ def write_colmap_model(
     COLMAP's binary model when an image name holds whitespace, which the text format cannot keep.
 
     Camera 1 is the world frame; camera 2 has pose ``(R, t)`` (``t`` zero for a pure rotation);
-    the unit is the baseline. Each point's error is its mean reprojection error over the two
-    views in pixels, through the camera models (distortion included), as COLMAP defines it.
-    ``dists`` defaults to the distortion the result was computed with. The cameras are those the
-    pose was fitted with: the radial term of a general or plane pose (:func:`fitted_radial_k1`)
-    composed after ``dists`` (:func:`composed_distortion`, an ``OPENCV`` or ``FULL_OPENCV``
-    camera), so the points reproject onto their pixels. A camera no COLMAP
-    model holds (:func:`check_colmap_camera`), ``names`` that are not two distinct non-empty
-    texts, ``dists`` that are not two distortions, or a ``directory`` that is no path or names
-    a file is a ValueError or TypeError; an existing folder keeps its other files.
+    the unit is the baseline. Principal points and keypoints are in COLMAP's pixel coordinates,
+    where the centre of the first pixel is (0.5, 0.5): those of ``result`` (OpenCV's, (0, 0))
+    plus :data:`~ppo_cv.calib.COLMAP_PIXEL_OFFSET`. Each point's error is its mean
+    reprojection error over the two views in pixels, through the camera models (distortion
+    included), as COLMAP defines it. ``dists`` defaults to the distortion the result was
+    computed with. The cameras are those the pose was fitted with: the radial term of a
+    general or plane pose (:func:`fitted_radial_k1`) composed after ``dists``
+    (:func:`composed_distortion`, an ``OPENCV`` or ``FULL_OPENCV`` camera), so the points
+    reproject onto their pixels. A camera no COLMAP model holds (:func:`check_colmap_camera`),
+    ``names`` that are not two distinct non-empty texts, ``dists`` that are not two
+    distortions, or a ``directory`` that is no path or names a file is a ValueError or
+    TypeError; an existing folder keeps its other files.
     """
     import pycolmap
 
@@ -753,7 +759,7 @@ def write_colmap_model(
     for image_id, (name, points, pose) in enumerate(zip(names, (p1, p2), poses, strict=True), 1):
         image = pycolmap.Image(
             name=name,
-            keypoints=np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 2),
+            keypoints=np.asarray(points, dtype=np.float64).reshape(-1, 2) + COLMAP_PIXEL_OFFSET,
             camera_id=1 if (same or image_id == 1) else 2,
             image_id=image_id,
         )

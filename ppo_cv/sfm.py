@@ -53,6 +53,7 @@ from .atomic import (
     signals_deferred,
     staging_folder,
 )
+from .calib import COLMAP_PIXEL_OFFSET
 from .checks import (
     MAX_WHOLE_NUMBER,
     as_callback,
@@ -459,14 +460,14 @@ def _image_subfolders(image_dir: Path) -> list[str]:
 
 
 def _pycolmap_options(K: np.ndarray | None, max_num_features: int, num_threads: int, seed: int):
-    """pycolmap's reader (a ``PINHOLE`` camera of ``K`` when given), extraction, matching and
-    verification options of :func:`prepare_database`, on the CPU."""
+    """pycolmap's reader (a ``PINHOLE`` camera of ``K`` when given, its principal point moved
+    to COLMAP's pixel coordinates: :data:`~ppo_cv.calib.COLMAP_PIXEL_OFFSET`), extraction,
+    matching and verification options of :func:`prepare_database`, on the CPU."""
     reader = pycolmap.ImageReaderOptions()
     if K is not None:
         reader.camera_model = "PINHOLE"
-        reader.camera_params = ",".join(
-            repr(float(v)) for v in (K[0, 0], K[1, 1], K[0, 2], K[1, 2])
-        )
+        cx, cy = K[0, 2] + COLMAP_PIXEL_OFFSET, K[1, 2] + COLMAP_PIXEL_OFFSET
+        reader.camera_params = ",".join(repr(float(v)) for v in (K[0, 0], K[1, 1], cx, cy))
     extraction = pycolmap.FeatureExtractionOptions()
     extraction.num_threads = num_threads
     extraction.use_gpu = False
@@ -1261,8 +1262,10 @@ def _fitted_focal_scale(stored: _StoredPair) -> float | None:
 
 
 def _pipeline_camera(camera: pycolmap.Camera) -> tuple[np.ndarray, np.ndarray | None]:
-    """``K`` and OpenCV distortion coefficients (None for none) of a database camera."""
+    """``K`` (in OpenCV's pixel coordinates, as :func:`~ppo_cv.pipeline.estimate_pair` reads
+    images) and OpenCV distortion coefficients (None for none) of a database camera."""
     K = np.asarray(camera.calibration_matrix(), dtype=np.float64)
+    K[:2, 2] -= COLMAP_PIXEL_OFFSET
     params = np.asarray(camera.params, dtype=np.float64)
     radial = {"SIMPLE_RADIAL": params[3:4], "RADIAL": params[3:5]}.get(camera.model_name)
     if camera.model_name == "OPENCV":

@@ -104,7 +104,7 @@ BOM_FILES = {  # the text of each format, as an editor on Windows saves it: a UT
     "yml": lambda tmp_path: _written_by_opencv(tmp_path, "yml"),
     "xml": lambda tmp_path: _written_by_opencv(tmp_path, "xml"),
     "json": lambda _: json.dumps({"K": K_FREIBURG.tolist(), "dist": DIST.tolist()}).encode(),
-    "txt": lambda _: b"# Camera list\n1 OPENCV 640 480 535.4 539.2 320.1 247.6 "
+    "txt": lambda _: b"# Camera list\n1 OPENCV 640 480 535.4 539.2 320.6 248.1 "
     + " ".join(str(v) for v in DIST[:4]).encode() + b"\n",
 }
 
@@ -156,29 +156,30 @@ def test_colmap_cameras_txt(tmp_path):
     path.write_text(
         "# Camera list with one line of data per camera:\n"
         "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
-        "1 PINHOLE 640 480 535.4 539.2 320.1 247.6\n"
+        "1 PINHOLE 640 480 535.4 539.2 320.6 248.1\n"
         "2 SIMPLE_RADIAL 640 480 500 320 240 -0.1\n"
     )
     first, second = load_calibration(path)
-    np.testing.assert_allclose(first.K, K_FREIBURG)
+    np.testing.assert_allclose(first.K, K_FREIBURG)  # COLMAP's pixel centres are 0.5 further
     assert first.dist is None
-    np.testing.assert_allclose(second.K, [[500, 0, 320], [0, 500, 240], [0, 0, 1]])
+    np.testing.assert_allclose(second.K, [[500, 0, 319.5], [0, 500, 239.5], [0, 0, 1]])
     np.testing.assert_allclose(second.dist, [-0.1, 0, 0, 0])
 
 
 @pytest.mark.parametrize(
     "line, K, dist",
     [
-        ("1 SIMPLE_PINHOLE 640 480 500 320 240", [500, 500, 320, 240], None),
-        ("1 RADIAL 640 480 500 320 240 -0.1 0.02", [500, 500, 320, 240], [-0.1, 0.02, 0, 0]),
+        # the principal point in OpenCV's pixel coordinates, COLMAP's less half a pixel
+        ("1 SIMPLE_PINHOLE 640 480 500 320 240", [500, 500, 319.5, 239.5], None),
+        ("1 RADIAL 640 480 500 320 240 -0.1 0.02", [500, 500, 319.5, 239.5], [-0.1, 0.02, 0, 0]),
         (
             "1 OPENCV 640 480 510 500 320 240 -0.1 0.02 0.001 0.002",
-            [510, 500, 320, 240],
+            [510, 500, 319.5, 239.5],
             [-0.1, 0.02, 0.001, 0.002],
         ),
         (
             "1 FULL_OPENCV 640 480 510 500 320 240 -0.1 0.02 0.001 0.002 0.01 0 0 0",
-            [510, 500, 320, 240],
+            [510, 500, 319.5, 239.5],
             [-0.1, 0.02, 0.001, 0.002, 0.01, 0, 0, 0],
         ),
     ],

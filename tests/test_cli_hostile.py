@@ -869,7 +869,7 @@ def _half_calibration(root: Path, kind: str) -> Path:
     fx, fy, cx, cy = _half_camera()
     if kind == "colmap":
         path = root / "cameras.txt"
-        path.write_text(f"1 PINHOLE 320 240 {fx} {fy} {cx} {cy}\n")
+        path.write_text(f"1 PINHOLE 320 240 {fx} {fy} {cx + 0.5} {cy + 0.5}\n")  # COLMAP's pixels
     elif kind == "json":
         path = root / "camera.json"
         path.write_text(json.dumps({"fx": fx, "fy": fy, "cx": cx, "cy": cy, "width": 320,

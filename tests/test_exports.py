@@ -16,6 +16,7 @@ from twoview import make_scene, random_rotation, skew
 
 import ppo_cv
 from ppo_cv import colmap
+from ppo_cv.calib import COLMAP_PIXEL_OFFSET
 from ppo_cv.export import (
     MAX_DRAWN_MATCHES,
     check_colmap_camera,
@@ -29,6 +30,7 @@ from ppo_cv.features import Features, detect_features, match_features, unique_pi
 from ppo_cv.pipeline import estimate_pair, load_image
 
 K = np.array([[700.0, 0.0, 320.0], [0.0, 700.0, 240.0], [0.0, 0.0, 1.0]])
+CENTRE_SHIFT = np.array([[0, 0, COLMAP_PIXEL_OFFSET], [0, 0, COLMAP_PIXEL_OFFSET], [0, 0, 0]])
 
 
 @pytest.fixture(scope="module")
@@ -138,7 +140,7 @@ def test_exported_pair_reads_back_with_its_pose_names_and_point_counts(demo, dem
     np.testing.assert_allclose(t, result.t, atol=1e-12)
     (camera,) = model.cameras.values()
     assert camera.model_name == "PINHOLE"
-    np.testing.assert_allclose(colmap.K_from_camera(camera), result.cameras.K1)
+    np.testing.assert_allclose(colmap.K_from_camera(camera), result.cameras.K1 + CENTRE_SHIFT)
     data = (tmp_path / "out" / "points.ply").read_bytes()
     header, body = data.split(b"end_header\n", 1)
     (count,) = re.findall(rb"element vertex (\d+)", header)
@@ -280,9 +282,44 @@ def test_a_camera_colmap_cannot_hold_is_refused_and_nothing_written(
 def test_the_colmap_camera_is_the_camera_used(demo, demo_result, tmp_path, dist, model, params):
     write_outputs(tmp_path / "out", demo_result, demo[0], demo[1], dists=(dist, None))
     camera = pycolmap.Reconstruction(str(tmp_path / "out" / "colmap")).cameras[1]
-    K1 = demo_result.cameras.K1
+    K1 = demo_result.cameras.K1 + CENTRE_SHIFT
     assert camera.model_name == model
     np.testing.assert_allclose(camera.params, [K1[0, 0], K1[1, 1], K1[0, 2], K1[1, 2], *params])
+
+
+def test_pycolmap_puts_the_centre_of_the_first_pixel_at_half_a_pixel():
+    # the convention COLMAP_PIXEL_OFFSET states: blobs centred on OpenCV pixels (100, 80) and
+    # (200, 150) are found by pycolmap's SIFT at (100.5, 80.5) and (200.5, 150.5)
+    rows, cols = np.mgrid[0:240, 0:320].astype(np.float64)
+    image = np.full((240, 320), 0.1)
+    for x, y in [(100.0, 80.0), (200.0, 150.0)]:
+        image += 0.8 * np.exp(-((cols - x) ** 2 + (rows - y) ** 2) / 18.0)
+    options = pycolmap.FeatureExtractionOptions()
+    options.use_gpu, options.num_threads = False, 1
+    extractor = pycolmap.FeatureExtractor.create(options, pycolmap.Device.cpu)
+    keypoints, _ = extractor.extract_from_float32_array(image.astype(np.float32))
+    found = np.unique(np.round([[k.x, k.y] for k in keypoints], 3), axis=0)
+    expected = np.array([[100.0, 80.0], [200.0, 150.0]]) + COLMAP_PIXEL_OFFSET
+    np.testing.assert_allclose(found, expected, atol=0.01)
+
+
+def test_the_colmap_model_is_in_colmap_pixel_coordinates(demo_result, tmp_path):
+    # its principal point and keypoints were OpenCV's, half a pixel off for COLMAP, whose
+    # features of the same images sit 0.5 px further right and down
+    result = demo_result
+    write_colmap_model(tmp_path, result, ("a.png", "b.png"))
+    model = pycolmap.Reconstruction(str(tmp_path))
+    (camera,) = model.cameras.values()
+    points = result.points3d[result.point_matches]
+    ours = points @ result.cameras.K1.T
+    ours = ours[:, :2] / ours[:, 2:]
+    projected = np.asarray(camera.img_from_cam(points))
+    np.testing.assert_allclose(projected, ours + COLMAP_PIXEL_OFFSET, atol=1e-9)
+    ids = {image.name: image for image in model.images.values()}
+    stored = np.array([point.xy for point in ids["a.png"].points2D])
+    np.testing.assert_allclose(stored, result.inlier_points[0] + COLMAP_PIXEL_OFFSET, atol=1e-9)
+    (read_back,) = ppo_cv.load_calibration(tmp_path / "cameras.txt")
+    np.testing.assert_allclose(read_back.K, result.cameras.K1, atol=1e-12)
 
 
 WRITE_OUTPUTS_CASES = {

@@ -293,6 +293,19 @@ def test_too_few_images_names_the_sub_folders_that_hold_images(tmp_path):
     assert not (tmp_path / "db.db").exists()
 
 
+def test_a_given_K_reaches_pycolmap_in_colmap_pixel_coordinates_and_comes_back():
+    # COLMAP's features put the first pixel's centre at (0.5, 0.5): the given (OpenCV) principal
+    # point went to pycolmap as it was, half a pixel off its keypoints and those of the images
+    K = np.array([[535.4, 0.0, 320.1], [0.0, 539.2, 247.6], [0.0, 0.0, 1.0]])
+    reader, *_ = sfm._pycolmap_options(K, 1000, 1, 0)
+    params = [float(v) for v in reader.camera_params.split(",")]
+    assert params == [535.4, 539.2, 320.6, 248.1]
+    camera = pycolmap.Camera(model="PINHOLE", width=640, height=480, params=params)
+    K_back, dist = sfm._pipeline_camera(camera)
+    np.testing.assert_allclose(K_back, K, atol=1e-12)
+    assert dist is None
+
+
 # --- the command line ----------------------------------------------------------------------
 
 
@@ -314,7 +327,8 @@ def test_cli_sfm_writes_a_colmap_model(tripod, tmp_path):
     reconstruction = pycolmap.Reconstruction(out)
     assert reconstruction.num_reg_images() == 5
     camera = next(iter(reconstruction.cameras.values()))
-    np.testing.assert_allclose(camera.calibration_matrix(), K)
+    shift = np.array([[0, 0, 0.5], [0, 0, 0.5], [0, 0, 0]])  # COLMAP's pixel coordinates
+    np.testing.assert_allclose(camera.calibration_matrix(), K + shift)
     ranking = (out / "initial_pairs.txt").read_text().splitlines()
     assert ranking[0].startswith("#") and len(ranking) == 1 + 10
     assert "pure_rotation" in (out / "initial_pairs.txt").read_text()
