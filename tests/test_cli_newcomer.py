@@ -23,6 +23,7 @@ DEMO1, DEMO2 = DATA / DEMO["image1"], DATA / DEMO["image2"]
 K_TEXT = ",".join(str(v) for v in DEMO["intrinsics"])
 FX, FY, CX, CY = DEMO["intrinsics"]
 K_MATRIX = np.array([[FX, 0.0, CX], [0.0, FY, CY], [0.0, 0.0, 1.0]])
+COLMAP_CAMERA = f"1 PINHOLE 640 480 {FX} {FY} {CX + 0.5} {CY + 0.5}\n"  # COLMAP's pixel centres
 EXE = shutil.which("ppo-cv")
 COMMAND = [EXE] if EXE else [sys.executable, "-m", "ppo_cv.cli.main"]
 
@@ -89,7 +90,7 @@ def test_pairs_without_intrinsics_takes_the_cameras_pair_takes(tmp_path):
 def test_pairs_takes_a_calibration_file_and_a_second_camera(tmp_path):
     (tmp_path / "pairs.txt").write_text(f"{DEMO1.name} {DEMO2.name}\n")
     calib = tmp_path / "cameras.txt"
-    calib.write_text("1 PINHOLE 640 480 " + K_TEXT.replace(",", " ") + "\n")
+    calib.write_text(COLMAP_CAMERA)
     runs = {
         "calib": ("--calib", calib),
         "K2": ("--K", K_TEXT, "--K2", K_TEXT),
@@ -153,7 +154,7 @@ def test_pairs_scales_a_calibration_that_states_its_size_as_pair_does(tmp_path):
     cv2.imwrite(str(tmp_path / "b.png"), half)
     (tmp_path / "pairs.txt").write_text("a.png b.png\n")
     sized = tmp_path / "cameras.txt"
-    sized.write_text("1 PINHOLE 640 480 " + K_TEXT.replace(",", " ") + "\n")
+    sized.write_text(COLMAP_CAMERA)
     done = ppo_cv("pairs", tmp_path / "pairs.txt", tmp_path, "--calib", sized, "-q")
     assert done.returncode == 0, done.stderr
     (row,) = [json.loads(line) for line in done.stdout.splitlines()]

@@ -22,6 +22,8 @@ DATA = Path(__file__).resolve().parents[1] / "ppo_cv" / "data"
 DEMO = json.loads((DATA / "demo.json").read_text())
 DEMO1, DEMO2 = str(DATA / DEMO["image1"]), str(DATA / DEMO["image2"])
 K_TEXT = ",".join(str(v) for v in DEMO["intrinsics"])
+FX, FY, CX, CY = DEMO["intrinsics"]
+COLMAP_CAMERA = f"1 PINHOLE 640 480 {FX} {FY} {CX + 0.5} {CY + 0.5}\n"  # COLMAP's pixels
 REQUIRED_KEYS = {
     "R",
     "t",
@@ -185,7 +187,7 @@ def test_out_directory_files_open(tmp_path):
 
 def test_calibration_file_and_distortion_options(tmp_path):
     calib = tmp_path / "cameras.txt"
-    calib.write_text("1 PINHOLE 640 480 " + K_TEXT.replace(",", " ") + "\n")
+    calib.write_text(COLMAP_CAMERA)
     result = runner.invoke(app, ["pair", DEMO1, DEMO2, "--calib", str(calib), "--json"])
     assert result.exit_code == 0, result.output
     check_demo_pose(json.loads(result.stdout))
