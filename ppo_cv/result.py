@@ -452,6 +452,29 @@ class PairResult:
     timings : dict
         Seconds per stage (:mod:`ppo_cv.pipeline`); ``features`` is detection alone and
         ``pycolmap_import`` the wait for the first import of pycolmap that overlaps it.
+
+    Examples
+    --------
+    The answer, its finite 3D points (P, 3) in camera 1 with a unit baseline, and the files
+    ``ppo-cv pair --out`` writes from it (``result.json``, ``points.ply``, ``matches.png`` and
+    a COLMAP model):
+
+    >>> import os, tempfile
+    >>> from importlib.resources import files
+    >>> import ppo_cv
+    >>> demo = files("ppo_cv") / "data"
+    >>> image1, image2 = str(demo / "demo1.png"), str(demo / "demo2.png")
+    >>> K = [[535.4, 0, 320.1], [0, 539.2, 247.6], [0, 0, 1]]
+    >>> result = ppo_cv.estimate_pair(image1, image2, K)
+    >>> result.model, result.pure_rotation, result.R.shape, result.t.shape
+    ('general', False, (3, 3), (3,))
+    >>> result.points3d[result.point_matches].shape
+    (259, 3)
+    >>> scratch = tempfile.TemporaryDirectory()
+    >>> written = ppo_cv.write_outputs(os.path.join(scratch.name, "result"), result, image1, image2)
+    >>> sorted(os.listdir(written))
+    ['colmap', 'matches.png', 'points.ply', 'result.json']
+    >>> scratch.cleanup()
     """
 
     R: np.ndarray
