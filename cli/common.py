@@ -79,8 +79,8 @@ MaxFeatures = Annotated[
 MaxSize = Annotated[
     int,
     typer.Option(
-        help=f"Detect on a copy whose longer side is at most this (32..{MAX_SIZE_MAX}; "
-        "0: full size).",
+        help=f"Detect on a copy whose longer side is at most this many pixels "
+        f"(32..{MAX_SIZE_MAX}; 0: full size).",
         rich_help_panel=_PANEL,
     ),
 ]

@@ -139,7 +139,8 @@ def register(app: typer.Typer) -> None:
             str | None,
             typer.Option(
                 "--K",
-                help="Intrinsics fx,fy,cx,cy, held fixed (all images of one size). Give them "
+                help="Intrinsics in pixels, fx,fy,cx,cy (OpenCV's: the first pixel's centre "
+                "at 0,0), held fixed (all images of one size). Give them "
                 "when known: without them pycolmap guesses a focal length, and the initial "
                 "pairs are checked for a pure rotation as ppo-cv pair checks them without "
                 "--K, with focal lengths fitted to each pair.",

@@ -48,6 +48,19 @@ def test_help_exits_0(capsys):
     assert code == 0 and "synth" in out and "sfm" in out
 
 
+@pytest.mark.parametrize("command, option", [("pair", "--max-size"), ("pairs", "--max-size"),
+                                             ("sfm", "--K")])
+def test_an_option_in_pixels_says_so_in_its_help(command, option):
+    # --max-size said "at most this" and sfm's --K "Intrinsics fx,fy,cx,cy": no unit
+    import typer
+
+    from ppo_cv.cli.main import app
+
+    group = typer.main.get_command(app)
+    (param,) = [p for p in group.commands[command].params if option in p.opts]
+    assert "pixels" in param.help
+
+
 def test_help_lists_the_commands_in_the_order_a_newcomer_needs_them(capsys):
     # they were listed in the order the modules registered them: synth, sfm, pair, demo, pairs
     code, out, _ = _run(["--help"], capsys)
