@@ -174,7 +174,8 @@ def _matrix_from_values(values: np.ndarray, name: str) -> np.ndarray:
         K = values.reshape(3, 3)
     else:
         hint = (" (a focal length alone, or f,cx,cy: give f,f,cx,cy, the principal point at "
-                "the image centre, width/2,height/2, when it is not known)")  # fmt: skip
+                "the image centre, (width-1)/2,(height-1)/2 in OpenCV's pixels, when it is not "
+                "known)")  # fmt: skip
         raise ValueError(
             f"{name} must be 4 numbers fx,fy,cx,cy or the 9 entries of K, got {values.size}"
             + (hint if values.size < 4 else "")
