@@ -12,9 +12,15 @@ decision is reported only when it is a pure rotation. The homography has no lens
 radial distortion moves its focal length by several percent, beyond the rotation-only fit's
 box (:data:`ppo_cv.rotation.MAX_FOCAL_CHANGE`) about it, so where that decision is no rotation
 the pair is decided a third time with the focal length of the rotation-only fit with its radial
-term, freed about the homography's (:func:`lens_focal_scale`). ``ppo-cv pair`` and ``pairs``
-report the rotation so found (:func:`decide_with_fitted_focal`), and ``ppo-cv sfm`` refuses
-it as an initial pair (:mod:`ppo_cv.sfm`).
+term, freed about the homography's (:func:`lens_focal_scale`). Focal length and radial term
+trade against each other along a valley of almost equal residuals, and where that fit stays
+at the homography's focal length, or its decision is no rotation either, the second decision's
+own rotation-only fit may have asked for a focal length beyond its box: its inliers'
+homography, corrected by the lens that fit found, made a rotation by one focal length
+(:func:`clipped_lens_focal_scale`). The pair is then decided with that one, the fit inside its
+box, both models on that camera. ``ppo-cv pair`` and ``pairs`` report the rotation so found
+(:func:`decide_with_fitted_focal`), and ``ppo-cv sfm`` refuses it as an initial pair
+(:mod:`ppo_cv.sfm`).
 """
 
 from __future__ import annotations
@@ -46,6 +52,7 @@ __all__ = [
     "LENS_FOCAL_PRIOR",
     "LENS_START_THRESHOLD",
     "MIN_FOCAL_REFIT",
+    "clipped_lens_focal_scale",
     "decide_with_fitted_focal",
     "decided_again",
     "fitted_focal_scale",
@@ -57,9 +64,10 @@ __all__ = [
 GUESSED_FOCAL_SPREAD = 0.05
 """Largest ``log(sigma_1 / sigma_3)`` of the matches' homography, conjugated by the focal length
 that makes it nearest a rotation (:func:`homography_rotation_focal`), for which a
-pair decided with a guessed camera is decided again with that focal length: 0.002 to 0.029 on
-14 pano_dev tripod pairs under their EXIF focal lengths, 0.055 to 1.02 on 9 freiburg
-translating pairs under the 1.2 x image size guess, where the second run would only cost time."""
+pair decided with a guessed camera is decided again with that focal length: 0.0018 to 0.031 on
+the 53 pano_dev tripod pairs their EXIF focal lengths call no rotation, 0.047 to 3.3 on the 79
+freiburg translating pairs with a homography under the 1.2 x image size guess, where the later
+runs only cost time (the one at 0.047 stays general motion)."""
 
 MIN_FOCAL_REFIT = 0.01
 """Relative change of the focal length below which a pair is not decided again."""
@@ -140,6 +148,31 @@ def lens_focal_scale(
     return float(scale / fit.focal_scale)
 
 
+def clipped_lens_focal_scale(decision: PairResult, scale: float) -> float | None:
+    """Scale of the guessed focal length that ``decision``'s rotation-only fit asked for
+    beyond its box, ``decision`` made with the guessed focal length times ``scale``.
+
+    That fit clipped its lens to the box (``decision.lens.lens_excess`` above 0); the focal
+    length its matches want is the one that makes the homography of its inliers, corrected by
+    the lens it found, a rotation (``decision.lens.wanted_focal_scale``, given over true:
+    :func:`ppo_cv.rotation_choice.wanted_focal_scale`), here ``scale`` over it.
+
+    Returns
+    -------
+    float or None
+        The scale; None for a pure rotation, where the fit kept its lens in the box or no such
+        focal length exists (NaN), and within :data:`MIN_FOCAL_REFIT` (log) of ``scale``.
+    """
+    _require_result(decision)
+    scale = as_positive(scale, "scale")
+    wanted = float(decision.lens.wanted_focal_scale)
+    if decision.pure_rotation or not (math.isfinite(wanted) and wanted > 0.0):
+        return None
+    if abs(math.log(wanted)) < MIN_FOCAL_REFIT:
+        return None
+    return scale / wanted
+
+
 def _require_result(result: Any) -> None:
     require_instance(result, PairResult, "result", " (estimate_pair)")
 
@@ -147,12 +180,15 @@ def _require_result(result: Any) -> None:
 def decided_again(
     result: PairResult, images: Sequence[Any], options: Any, **features: Any
 ) -> tuple[PairResult, float, str] | None:
-    """``(decision, focal, how)``: for a pair decided with a guessed camera, the decision with
-    the focal length of :func:`fitted_focal_scale`, or where that is no pure rotation the one
-    with :func:`lens_focal_scale`'s, when it is a pure rotation, that focal length (pixels,
-    of camera 1) and how it was found (``"fitted to the homography of its matches"``, then
-    ``" and then with its lens's radial term"``); None otherwise. These are the decisions
-    ``ppo-cv pair``, ``pairs`` and ``sfm`` make without intrinsics after the guessed camera's.
+    """``(decision, focal, how)``: for a pair decided with a guessed camera, the first pure
+    rotation among the decisions with the focal lengths of :func:`fitted_focal_scale`, then
+    of :func:`lens_focal_scale` and of :func:`clipped_lens_focal_scale` of the decision with
+    the first (each skipped within :data:`MIN_FOCAL_REFIT` of one already tried), that focal length
+    (pixels, of camera 1) and how it was found (``"fitted to the homography of its matches"``,
+    then ``" and then with its lens's radial term"`` or ``" and then to that of its matches
+    corrected by their rotation-only fit's lens"``); None when none is. These are the
+    decisions ``ppo-cv pair``, ``pairs`` and ``sfm`` make without intrinsics after the guessed
+    camera's.
 
     ``images`` and ``options`` go to the later :func:`~ppo_cv.pipeline.estimate_pair` runs as
     to the first, with ``features`` (``features1``, ``features2``).
@@ -160,15 +196,26 @@ def decided_again(
     scale = fitted_focal_scale(result)
     if scale is None:
         return None
+    focal, how = float(result.cameras.K1[0, 0]), "fitted to the homography of its matches"
     again = _decided_at(result, scale, images, options, features)
-    how = "fitted to the homography of its matches"
-    if again is None or not again.pure_rotation:
-        scale = lens_focal_scale(result, scale, options.ransac_threshold, options.seed)
-        again = None if scale is None else _decided_at(result, scale, images, options, features)
-        how = "fitted to the homography of its matches and then with its lens's radial term"
-    if again is None or not again.pure_rotation:
-        return None
-    return again, scale * float(result.cameras.K1[0, 0]), how
+    if again is not None and again.pure_rotation:
+        return again, scale * focal, how
+    lens = lens_focal_scale(result, scale, options.ransac_threshold, options.seed)
+    clipped = None if again is None else clipped_lens_focal_scale(again, scale)
+    later = (
+        (lens, f"{how} and then with its lens's radial term"),
+        (clipped, f"{how} and then to that of its matches corrected by their rotation-only "
+                  "fit's lens"),
+    )  # fmt: skip
+    tried = [scale]
+    for other, how in later:
+        if other is None or any(abs(math.log(other / s)) < MIN_FOCAL_REFIT for s in tried):
+            continue
+        tried.append(other)
+        again = _decided_at(result, other, images, options, features)
+        if again is not None and again.pure_rotation:
+            return again, other * focal, how
+    return None
 
 
 def decide_with_fitted_focal(

@@ -551,6 +551,10 @@ CASES = {
         lambda: __import__("ppo_cv.guessed_camera").guessed_camera.decide_with_fitted_focal(
             "result.json", [GREY, GREY], PairOptions()), TypeError,
         "result must be a ppo_cv.result.PairResult, got str (estimate_pair)"),
+    "guessed_camera clipped_lens_focal_scale None": (
+        lambda: __import__("ppo_cv.guessed_camera").guessed_camera.clipped_lens_focal_scale(
+            None, 1.0), TypeError,
+        "result must be a ppo_cv.result.PairResult, got NoneType (estimate_pair)"),
     "guessed_camera lens_focal_scale zero scale": (
         lambda: __import__("ppo_cv.guessed_camera").guessed_camera.lens_focal_scale(
             None, 0.0, 1.0), ValueError, "scale must be a finite number > 0, got 0.0"),
