@@ -100,9 +100,11 @@ a margin below the textbook a-contrario bar 0 (one consensus this good expected 
 because a wrong model found on the ranked subset can gather a consensus near that bar (on the
 freiburg pairs the bar -5 kept the mean AUC closer to the full fit's than 0)."""
 FALLBACK_MAX_TRIALS = 30_000
-"""Cap on the hypotheses of the fallback fit over all matches, unless the ordered result would
-be weak (``log10 NFA`` above ``ORDERED_TRUSTED_LOG10_NFA`` or ``max_log10_nfa``): then the full
-``max_trials``."""
+"""Least budget of the fallback fit over all matches (at most ``max_trials``); it has more when a
+rival consensus as large as the ordered one needs more to give an all-inlier sample with
+probability ``1 - eta`` (:func:`trials_for_consensus`), and the full ``max_trials`` when the
+ordered result would be weak (``log10 NFA`` above ``ORDERED_TRUSTED_LOG10_NFA`` or
+``max_log10_nfa``)."""
 ORDERED_TRUSTED_LOG10_NFA = 0.0
 """Above this ``log10 NFA`` an ordered result is always replaced by the full fit over all matches.
 The significance test of :mod:`ppo_cv.significance` (its bar and the distinctiveness test of a
@@ -436,15 +438,15 @@ def estimate_essential_ordered(
        stop comes after ``min_trials``; its local optimisation then sees every inlier.
        The inliers are the matches within ``threshold`` of the result.
     3. When the result's ``log10 NFA`` (:func:`ppo_cv.significance.epipolar_significance`) is
-       above ``FALLBACK_MAX_LOG10_NFA``, fit all N matches (at most
-       ``min(max_trials, FALLBACK_MAX_TRIALS)`` hypotheses), refit that model on its
-       consensus as in step 2, and keep whichever has more inliers. A weak result
-       (``log10 NFA`` above ``max_log10_nfa`` or ``ORDERED_TRUSTED_LOG10_NFA``) is replaced
-       by the full fit as it is (no refit), the consensus that the significance test was
-       calibrated on (uniform sampling alone), of at most ``max_trials`` hypotheses and
-       stopped by the evidence it can still gain (module docstring); with
-       ``uniform_when_weak`` False that fit is left to the caller: ordered sampling has not
-       settled the matches, and None says so.
+       above ``FALLBACK_MAX_LOG10_NFA``, fit all N matches (as many hypotheses as a rival
+       consensus of as many inliers needs, :data:`FALLBACK_MAX_TRIALS` to ``max_trials``),
+       refit that model on its consensus as in step 2, and keep whichever has more
+       inliers. A weak result (``log10 NFA`` above ``max_log10_nfa`` or
+       ``ORDERED_TRUSTED_LOG10_NFA``) is replaced by the full fit as it is (no refit), the
+       consensus that the significance test was calibrated on (uniform sampling alone), of
+       at most ``max_trials`` hypotheses and stopped by the evidence it can still gain
+       (module docstring); with ``uniform_when_weak`` False that fit is left to the caller:
+       ordered sampling has not settled the matches, and None says so.
 
     Parameters
     ----------
@@ -502,7 +504,8 @@ def estimate_essential_ordered(
             x1, x2, focal, image_size, max_trials, max_log10_nfa, settings
         )
         return None if full is None else RobustEstimate(full.E, full.inliers, backend, "fallback")
-    cap = min(int(max_trials), FALLBACK_MAX_TRIALS)
+    rival = trials_for_consensus(fit.num_inliers, n, MISSED_CONSENSUS_PROBABILITY)
+    cap = int(min(int(max_trials), max(FALLBACK_MAX_TRIALS, rival)))
     full = estimate_essential(x1, x2, focal, max_trials=cap, **settings)
     if full is not None:
         full = _consensus_fit(full.E, x1, x2, focal, cap, settings) or full
