@@ -368,10 +368,15 @@ def warn(command: str, message: str) -> None:
 
 def ignore_library_camera_warnings() -> None:
     """Silence the library's :class:`~ppo_cv.calib.ImplausibleCameraWarning`: the commands
-    check their cameras themselves and say so in their own one-line warnings."""
+    check their cameras themselves and say so in their own one-line warnings; and its
+    :class:`~ppo_cv.consensus.GivenFeaturesReplacedWarning`: the features the commands give
+    ``estimate_pair`` are their own detection of the images, which a second detection on the
+    images may follow as it does without them."""
     from ppo_cv.calib import ImplausibleCameraWarning
+    from ppo_cv.consensus import GivenFeaturesReplacedWarning
 
     warnings.filterwarnings("ignore", category=ImplausibleCameraWarning)
+    warnings.filterwarnings("ignore", category=GivenFeaturesReplacedWarning)
 
 
 def check_range(name: str, value: float, low: float, high: float) -> None:

@@ -16,14 +16,16 @@ from __future__ import annotations
 import importlib
 import sys
 import time
+import warnings
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .camera import pixels_to_normalized
 from .checks import require_instance
 from .features import (
+    PIXEL_PAIR_RESOLUTION,
     Features,
     _require_same_descriptors,
     at_threshold,
@@ -39,15 +41,25 @@ __all__ = [
     "MIN_MATCHES",
     "REDETECT_THRESHOLD_SCALE",
     "Consensus",
+    "GivenFeaturesReplacedWarning",
     "PairInputs",
     "best_consensus",
     "require_features_of",
+    "require_usable_features",
     "detect_both",
     "ransac_keywords",
 ]
 
 MIN_MATCHES = 8
 """Fewest features per image, and matches between them, a pair needs."""
+
+
+class GivenFeaturesReplacedWarning(UserWarning):
+    """The pose of a pair given ``features1`` and ``features2`` comes from features detected
+    on the images: the given ones gave no consensus, or a weak one that the denser detection
+    (``PairOptions.redetect_below``) beat; ``redetect_below=0`` keeps to the given features."""
+
+
 REDETECT_THRESHOLD_SCALE = 0.25
 """Detector threshold scale of the second detection, for pairs whose first consensus is weak.
 A few dozen matches can neither tell a rotation from a general motion nor pin a pose. On the
@@ -197,6 +209,9 @@ class Consensus:
         The robust essential matrix and its inliers.
     significance : Significance
         Its a-contrario test over all N matches.
+    source : str
+        ``"detected"``: features detected on the images; ``"given"``: the ``features1`` and
+        ``features2`` given to :func:`ppo_cv.pipeline.estimate_pair` (thinned or as given).
     """
 
     features1: Features
@@ -207,6 +222,7 @@ class Consensus:
     x2: np.ndarray
     fit: RobustEstimate
     significance: Significance
+    source: str = "detected"
 
 
 def _consensus(
@@ -290,9 +306,72 @@ def require_features_of(f1: Features, f2: Features, shape1: tuple, shape2: tuple
     _require_same_descriptors(f1, f2)
 
 
+def require_usable_features(f1: Features, f2: Features) -> None:
+    """ValueError naming ``features1`` or ``features2`` when given features cannot give a pair
+    its :data:`MIN_MATCHES` matches: fewer keypoints than that, fewer distinct places (matching
+    keeps one match per pixel pair, to :data:`~ppo_cv.features.PIXEL_PAIR_RESOLUTION`), or
+    fewer distinct descriptors (all zeros, or one value throughout: the ratio test tells no
+    keypoint from another). They were replaced by a detection on the images without a word."""
+    for name, f in (("features1", f1), ("features2", f2)):
+        image = "image" + name[-1]
+        if len(f) < MIN_MATCHES:
+            raise ValueError(
+                f"{name} has too few keypoints ({len(f)}, need {MIN_MATCHES}): blank or "
+                f"textureless {image}, or features of nothing?"
+            )
+        places = _distinct_rows(np.rint(f.keypoints / PIXEL_PAIR_RESOLUTION))
+        if places < MIN_MATCHES:
+            raise ValueError(
+                f"{name} has its {len(f)} keypoints at {places} distinct place(s) (need "
+                f"{MIN_MATCHES}): matching keeps one match per pixel pair"
+            )
+        distinct = _distinct_rows(f.descriptors)
+        if distinct < MIN_MATCHES:
+            raise ValueError(
+                f"{name} has {distinct} distinct descriptor(s) among its {len(f)} (need "
+                f"{MIN_MATCHES}; all zeros, or one value throughout?): the ratio test tells "
+                "no keypoint from another"
+            )
+
+
+def _distinct_rows(rows: np.ndarray) -> int:
+    """How many distinct rows ``rows`` (N, D) holds: exact below :data:`MIN_MATCHES`, a lower
+    bound otherwise. Rows projected on fixed weights (square roots) give the bound without
+    sorting the rows, as equal rows project alike: those of the first 64 rows, of all when
+    they fall short; only a bound below :data:`MIN_MATCHES` is counted exactly."""
+    weights = np.sqrt(np.arange(2.0, rows.shape[1] + 2.0))
+    for sample in (rows[:64], rows):
+        bound = np.unique(np.einsum("ij,j->i", sample, weights)).size  # BLAS threads: slower
+        if bound >= MIN_MATCHES:
+            return bound
+    return len(np.unique(rows, axis=0))
+
+
+def _warn_replaced(first: Consensus | None, failure: ValueError | None, options: PairOptions):
+    """:class:`GivenFeaturesReplacedWarning` saying why the given features' consensus
+    (``first``, or its ``failure``) gave way to features detected on the images."""
+    if first is not None:
+        why = (
+            f"a consensus of {first.fit.num_inliers} inliers (fewer than redetect_below="
+            f"{options.redetect_below}), which chance explains more than"
+        )
+    else:
+        why = f"no consensus ({failure})" if failure else "no consensus by ordered sampling"
+        why += ", unlike"
+    warnings.warn(
+        f"features1 and features2 gave {why} features detected on the images at threshold "
+        f"scale {REDETECT_THRESHOLD_SCALE:g}; the pose comes from those "
+        "(result.evidence.significance.features is 'detected'). PairOptions(redetect_below=0) "
+        "keeps to the given features",
+        GivenFeaturesReplacedWarning,
+        stacklevel=4,
+    )
+
+
 def best_consensus(
-    f1: Features, f2: Features, inputs: PairInputs, options: PairOptions, lap: Callable
-) -> Consensus:
+    f1: Features, f2: Features, inputs: PairInputs, options: PairOptions, lap: Callable,
+    given: bool = False,
+) -> Consensus:  # fmt: skip
     """The consensus of the features ``f1``, ``f2`` of the images of ``inputs``, or of features
     detected at :data:`REDETECT_THRESHOLD_SCALE` when that one is weak
     (``PairOptions.redetect_below``) and chance explains the denser one less (lower ``log10``
@@ -305,7 +384,11 @@ def best_consensus(
     One uniform fit settles a weak pair: when ordered sampling cannot settle the given
     features, the denser ones are fitted first (they hold the given ones: thinned to threshold
     1 they are the given set), and the given features are fitted uniformly only when the
-    denser ones give no significant consensus."""
+    denser ones give no significant consensus.
+
+    ``given``: ``f1`` and ``f2`` are the caller's (``Consensus.source`` ``"given"``); a
+    consensus of features detected on the images replacing theirs is ``"detected"``, with a
+    :class:`GivenFeaturesReplacedWarning`."""
     require_instance(inputs, PairInputs, "inputs")
     require_instance(options, PairOptions, "options", " (ppo_cv.PairOptions(...))")
     if not callable(lap):
@@ -325,10 +408,11 @@ def best_consensus(
     redetect = options.redetect_below > 0
     found, failure = attempt(f1, f2, 1.0, settle=not redetect)
     unsettled = found is None and failure is None
-    refused = None
+    refused, source = None, "given" if given else "detected"
     if redetect and (found is None or found.fit.num_inliers < options.redetect_below):
         d1, d2 = f1, f2
-        if not all(_thins_to(f, REDETECT_THRESHOLD_SCALE) for f in (f1, f2)):
+        fresh = not all(_thins_to(f, REDETECT_THRESHOLD_SCALE) for f in (f1, f2))
+        if fresh:
             d1, d2, _ = detect_both(img1, img2, options, REDETECT_THRESHOLD_SCALE)
         lap("features")
         denser, refused = attempt(d1, d2, REDETECT_THRESHOLD_SCALE)
@@ -337,10 +421,13 @@ def best_consensus(
         if denser is not None and (
             found is None or denser.significance.log10_nfa < found.significance.log10_nfa
         ):
+            if given and fresh:
+                _warn_replaced(found, failure, options)
+                source = "detected"
             found = denser
     if found is None:
         raise failure if refused is None else _both_refused(failure, refused)
-    return found
+    return replace(found, source=source)
 
 
 def _both_refused(first: ValueError, denser: ValueError) -> ValueError:

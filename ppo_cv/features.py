@@ -249,7 +249,22 @@ def _detector(kind: str, max_features: int, threshold_scale: float = 1.0):
         # OpenCV 5 moved AKAZE to the contrib module xfeatures2d.
         create = getattr(cv2, "AKAZE_create", None) or cv2.xfeatures2d.AKAZE_create
         return create(threshold=5e-4 * threshold_scale)
-    raise ValueError(f"unknown feature type {kind!r}; choose one of {', '.join(FEATURE_TYPES)}")
+    _require_kind(kind)
+    raise ValueError(f"no detector for feature type {shown(kind)}")
+
+
+def _require_kind(kind: Any) -> None:
+    """TypeError for a ``kind`` that is no text (options passed where the detector's name
+    belongs), ValueError for an unknown name; the value quoted cut (:func:`shown`)."""
+    if not isinstance(kind, str):
+        raise TypeError(
+            f"kind must be a detector name ({', '.join(FEATURE_TYPES)}), got "
+            f"{type(kind).__name__} {shown(kind)}"
+        )
+    if kind not in FEATURE_TYPES:
+        raise ValueError(
+            f"unknown feature type {shown(kind)}; choose one of {', '.join(FEATURE_TYPES)}"
+        )
 
 
 def _root_sift(descriptors: np.ndarray) -> np.ndarray:
@@ -314,13 +329,12 @@ def detect_features(
     """
     import cv2
 
-    if kind not in FEATURE_TYPES:
-        raise ValueError(f"unknown feature type {kind!r}; choose one of {', '.join(FEATURE_TYPES)}")
+    _require_kind(kind)
     max_features = as_whole_number(max_features, "max_features", 1, MAX_KEYPOINTS)
     if max_image_size is not None:
         max_image_size = as_whole_number(max_image_size, "max_image_size", 32, MAX_WHOLE_NUMBER)
     if not 0 < as_number(threshold_scale, "threshold_scale") < np.inf:
-        raise ValueError(f"threshold_scale must be a positive number, got {threshold_scale}")
+        raise ValueError(f"threshold_scale must be a positive number, got {shown(threshold_scale)}")
     if image is None:
         raise TypeError(f"{name} is required: an image array (H, W) or (H, W, 3), got None")
     if isinstance(image, (str, bytes, os.PathLike)):
@@ -418,7 +432,7 @@ def at_threshold(features: Features, threshold_scale: float) -> Features:
     if not features.threshold_scale <= as_number(threshold_scale, "threshold_scale") < np.inf:
         raise ValueError(
             f"threshold_scale must be at least the features' {features.threshold_scale:g}, "
-            f"got {threshold_scale}"
+            f"got {shown(threshold_scale)}"
         )
     bound = np.float32(_SIFT_CONTRAST * threshold_scale)
     keep = features.responses * np.float32(_SIFT_LAYERS) >= bound
@@ -429,8 +443,13 @@ def at_threshold(features: Features, threshold_scale: float) -> Features:
 
 
 def _knn_opencv(query: np.ndarray, train: np.ndarray, k: int, binary: bool, flann: bool):
-    """Indices (Nq, k) and distances (Nq, k) of the k nearest train descriptors, by OpenCV."""
+    """Indices (Nq, k) and distances (Nq, k) of the k nearest train descriptors, by OpenCV;
+    float descriptors as float32, the only float type its matchers take (float64 or float16
+    ones failed in FLANN's index with an OpenCV error)."""
     import cv2
+
+    if not binary:
+        query, train = (np.ascontiguousarray(d, dtype=np.float32) for d in (query, train))
 
     if flann and not binary:
         matcher = cv2.FlannBasedMatcher({"algorithm": 1, "trees": 4}, {"checks": 128})
@@ -562,7 +581,7 @@ def match_features_scored(
     if features1.kind != features2.kind:
         raise ValueError(f"cannot match {features1.kind} features with {features2.kind} features")
     if not 0 < as_number(ratio, "ratio") <= 1:
-        raise ValueError(f"ratio must be in (0, 1], got {ratio}")
+        raise ValueError(f"ratio must be in (0, 1], got {shown(ratio)}")
     mutual, unique = as_flag(mutual, "mutual"), as_flag(unique, "unique")
     flann = None if flann is None else as_flag(flann, "flann")
     _require_same_descriptors(features1, features2)
@@ -642,7 +661,7 @@ def _checked_pixel_pairs(matches, keypoints1, keypoints2, distances, resolution)
             f"distances must have one per match ({len(pairs)},), got {distances.shape}"
         )
     if resolution is not None and as_positive(resolution, "resolution") < 1e-6:
-        raise ValueError(f"resolution must be at least 1e-6 pixels, got {resolution}")
+        raise ValueError(f"resolution must be at least 1e-6 pixels, got {shown(resolution)}")
     return pairs, *keypoints, distances, resolution
 
 

@@ -72,7 +72,10 @@ class PairOptions:
         When the essential matrix has fewer inliers than this (or none could be fitted), detect
         again with the detector threshold scaled by :data:`REDETECT_THRESHOLD_SCALE` and keep
         the fit whose consensus has the lower ``log10`` NFA; 0 never does. Given ``features1``
-        and ``features2``, the second detection runs on the images.
+        and ``features2``, SIFT features detected at that lower threshold serve the second
+        consensus themselves; other features have the second detection run on the images, and
+        a pose from it is marked ``result.evidence.significance.features == "detected"``, with
+        a :class:`ppo_cv.consensus.GivenFeaturesReplacedWarning`.
     detect_once : bool
         Detect SIFT once, at :data:`REDETECT_THRESHOLD_SCALE` (at most
         :data:`FIRST_DETECTION_PER_MEGAPIXEL` keypoints), thinned to the default threshold for

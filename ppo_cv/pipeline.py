@@ -48,11 +48,19 @@ choice of the rotation with the smallest expected error (``_choose_rotation``,
 :mod:`ppo_cv.rotation_choice`), and ``_assemble`` builds the :class:`~ppo_cv.result.PairResult`.
 
 Given features. ``features1`` and ``features2`` (as :func:`~ppo_cv.features.detect_features`
-gives with the ``options``) skip the first detection; a second one, on the images, follows a
-weak consensus (``PairOptions.redetect_below``). SIFT features detected at
-:data:`REDETECT_THRESHOLD_SCALE` serve both, as those of the first detection do: thinned to
-threshold 1 for the first consensus (:func:`ppo_cv.features.at_threshold`), as they are for
-the second. Batch runs use them to detect each image once.
+gives with the ``options``, or a detector's own of the same kind) skip the first detection.
+Features that cannot give a pair :data:`MIN_MATCHES` matches (fewer keypoints, distinct places
+or distinct descriptors than that) are a ValueError naming them
+(:func:`~ppo_cv.consensus.require_usable_features`), as are keypoints outside their image. A
+weak consensus (``PairOptions.redetect_below``) or none is fitted again on denser features:
+SIFT features detected at :data:`REDETECT_THRESHOLD_SCALE` serve both consensuses, as those
+of the first detection do (thinned to threshold 1 for the first,
+:func:`ppo_cv.features.at_threshold`, as they are for the second); other features have the
+second detection run on the images. When its consensus is the one kept, the pose no longer
+comes from the given features: ``result.evidence.significance.features`` is ``"detected"``
+(``"given"`` otherwise) and a :class:`~ppo_cv.consensus.GivenFeaturesReplacedWarning` says
+why; ``PairOptions(redetect_below=0)`` keeps to the given features. Batch runs use them to
+detect each image once.
 
 Errors. ``estimate_pair`` raises ValueError for an unreadable or oversized image
 (:func:`ppo_cv.images.load_image`), NaN pixels, an image too small or thin to detect features
@@ -95,6 +103,7 @@ from .consensus import (
     best_consensus,
     detect_both,
     ransac_keywords,
+    require_usable_features,
 )
 from .features import (
     Features,
@@ -415,6 +424,7 @@ def _features(
             raise ValueError(
                 f"{name} are {f.kind} features but options.features is {options.features}"
             )
+    require_usable_features(features1, features2)
     watch.lap("features")
     return features1, features2
 
@@ -820,7 +830,10 @@ def _evidence(motion: MotionDecision, found: Consensus, options: PairOptions) ->
         selection=selection,
         tracks=TrackParallax(motion.track_parallax, motion.track_parallax_sigma),
         significance=ConsensusSignificance(
-            found.significance.log10_nfa, found.threshold_scale, options.ransac_threshold
+            found.significance.log10_nfa,
+            found.threshold_scale,
+            options.ransac_threshold,
+            found.source,
         ),
     )
 
@@ -910,7 +923,7 @@ def estimate_pair(
     options = _in_detection_pixels(inputs, options)
     watch.lap("load")
     f1, f2 = _features(inputs, features1, features2, options, watch)
-    found = best_consensus(f1, f2, inputs, options, watch.lap)
+    found = best_consensus(f1, f2, inputs, options, watch.lap, given=not detect)
     pose = _essential_pose(found, inputs.focal, options, watch)
     homography = _homography(found, pose, inputs.focal, options)
     watch.lap("homography")

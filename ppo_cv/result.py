@@ -293,11 +293,19 @@ class ConsensusSignificance:
         ``PairOptions.ransac_threshold`` times the reduction of an image detected on a copy
         reduced to ``PairOptions.max_image_size`` (its keypoints carry that much more noise in
         full-size pixels), at most :data:`ppo_cv.options.MAX_RANSAC_THRESHOLD`.
+    features : str
+        Where the features behind the result come from: ``"given"``, the ``features1`` and
+        ``features2`` given to :func:`ppo_cv.pipeline.estimate_pair` (thinned to the threshold
+        or as given); ``"detected"``, detected on the images by ``estimate_pair``: always
+        without given features, and with them when their consensus was weak or failed and
+        that of a detection on the images was kept (with a
+        :class:`ppo_cv.consensus.GivenFeaturesReplacedWarning`).
     """
 
     log10_nfa: float
     threshold_scale: float
     ransac_threshold_px: float
+    features: str = "detected"
 
 
 @dataclass(frozen=True)

@@ -29,6 +29,7 @@ FLAT_FIELDS = (
     "log10_nfa", "plane_residual_px", "gric_plane_difference", "plane_epipolar_ratio",
     "plane_normal", "plane_distance", "plane_ambiguous", "plane_k1", "radial_k1",
     "rotation_source", "rotation_bias_deg", "wanted_focal_scale", "ransac_threshold_px",
+    "features_source",
 )  # fmt: skip
 """Every field of the flat ``PairResult`` but ``timings`` (seconds differ run to run), and
 those added since (:data:`ADDED_FIELDS`)."""
@@ -38,6 +39,7 @@ ADDED_FIELDS = {
     "rotation_bias_deg": "uncertainty.rotation_bias_deg",
     "wanted_focal_scale": "lens.wanted_focal_scale",
     "ransac_threshold_px": "evidence.significance.ransac_threshold_px",
+    "features_source": "evidence.significance.features",
 }
 """Fields added after 0.1.0 -> their path: the record names them as the flat layout would."""
 

@@ -8,6 +8,7 @@ import pytest
 from ppo_cv import PairOptions, data_gen, estimate_pair
 from ppo_cv import features as features_module
 from ppo_cv.cli.pair import _summary
+from ppo_cv.consensus import GivenFeaturesReplacedWarning
 from ppo_cv.export import result_to_dict
 from ppo_cv.features import at_threshold, detect_features
 from ppo_cv.metrics import rotation_error_deg
@@ -121,9 +122,10 @@ def test_one_detection_serves_a_weak_pair_unless_cut(
     lower one for the second consensus: the same pose."""
     image1, image2 = _bgr(narrow_pair.image1), _bgr(narrow_pair.image2)
     given = {"features1": detect_features(image1), "features2": detect_features(image2)}
-    two_detections = estimate_pair(
-        image1, image2, narrow_pair.K1_given, narrow_pair.K2_given, **given
-    )
+    with pytest.warns(GivenFeaturesReplacedWarning):
+        two_detections = estimate_pair(
+            image1, image2, narrow_pair.K1_given, narrow_pair.K2_given, **given
+        )
     if per_megapixel is not None:
         monkeypatch.setattr("ppo_cv.consensus.FIRST_DETECTION_PER_MEGAPIXEL", per_megapixel)
     scales = _counted_detections(monkeypatch)
@@ -164,6 +166,7 @@ def test_given_denser_features_serve_both_consensuses(narrow_pair, monkeypatch):
     result = estimate_pair(image1, image2, narrow_pair.K1_given, narrow_pair.K2_given, **denser)
     assert not calls  # thinned for the first consensus, as they are for the second
     assert result.evidence.significance.threshold_scale == REDETECT_THRESHOLD_SCALE
+    assert result.evidence.significance.features == "given"
     np.testing.assert_allclose(result.R, detected.R, atol=1e-9)
 
 
@@ -189,9 +192,11 @@ def test_a_weak_narrow_pan_is_flagged_on_denser_features(narrow_pair):
 def test_given_features_of_a_weak_pair_are_detected_again(narrow_pair):
     image1, image2 = _bgr(narrow_pair.image1), _bgr(narrow_pair.image2)
     given = {"features1": detect_features(image1), "features2": detect_features(image2)}
-    result = estimate_pair(image1, image2, narrow_pair.K1_given, narrow_pair.K2_given, **given)
+    with pytest.warns(GivenFeaturesReplacedWarning, match=r"consensus of \d+ inliers \(fewer"):
+        result = estimate_pair(image1, image2, narrow_pair.K1_given, narrow_pair.K2_given, **given)
     detected = _estimate(narrow_pair)
     assert result.evidence.significance.threshold_scale == REDETECT_THRESHOLD_SCALE
+    assert result.evidence.significance.features == "detected"
     np.testing.assert_allclose(result.R, detected.R, atol=1e-9)
 
 
