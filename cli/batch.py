@@ -622,6 +622,19 @@ def _recent_features(target: str):
     )
 
 
+def _own_detection(features, image: str):
+    """The run's own detection of ``image``; ValueError naming the image, not the features,
+    when it holds too few to match (a blank image), as :func:`ppo_cv.estimate_pair` names an
+    image it detects itself."""
+    from ppo_cv.consensus import MIN_MATCHES
+
+    if len(features) < MIN_MATCHES:
+        raise ValueError(
+            f"{image} has too few features ({len(features)}): blank or textureless image"
+        )
+    return features
+
+
 def _one(array) -> list:
     return [array]
 
@@ -640,7 +653,7 @@ def _pair_job(job: tuple) -> dict:
             for (kind, value), name in zip(cached, ("features1", "features2"), strict=True):
                 if kind == "error":
                     raise ValueError(value)
-                given[name] = _recent_features(value)
+                given[name] = _own_detection(_recent_features(value), "image" + name[-1])
         images = [_recent_image(path, exif_orientation) for path in paths]
         if row["K1"] is None or row["K2"] is None:
             raise ValueError("no camera: the EXIF of an image could not be read; pass --K")
