@@ -1167,7 +1167,8 @@ def _image_rejection(
     images = [
         load_image(image_dir / name, exif_orientation=False) for name in (pair.name1, pair.name2)
     ]
-    (K1, dist1), (K2, dist2) = (_pipeline_camera(camera) for camera in stored.cameras)
+    given = not fit_focal
+    (K1, dist1), (K2, dist2) = (_pipeline_camera(camera, given) for camera in stored.cameras)
     options = PairOptions(pri_threshold=pri_threshold)
     try:
         result = estimate_pair(*images, K1, K2, dist1, dist2, options=options)
@@ -1261,11 +1262,14 @@ def _fitted_focal_scale(stored: _StoredPair) -> float | None:
     return None if fit is None else fit[0]
 
 
-def _pipeline_camera(camera: pycolmap.Camera) -> tuple[np.ndarray, np.ndarray | None]:
-    """``K`` (in OpenCV's pixel coordinates, as :func:`~ppo_cv.pipeline.estimate_pair` reads
-    images) and OpenCV distortion coefficients (None for none) of a database camera."""
+def _pipeline_camera(camera: pycolmap.Camera, given: bool) -> tuple[np.ndarray, Any]:
+    """``K`` and OpenCV distortion coefficients (None for none) of a database camera. A camera
+    ``given`` (``--K``) comes back in OpenCV's pixel coordinates, as it was given; one pycolmap
+    guessed is read as :func:`ppo_cv.calib.camera_from_exif` reads pycolmap's guess, the camera
+    ``ppo-cv pair`` guesses for the image, so that both decide a pair alike."""
     K = np.asarray(camera.calibration_matrix(), dtype=np.float64)
-    K[:2, 2] -= COLMAP_PIXEL_OFFSET
+    if given:
+        K[:2, 2] -= COLMAP_PIXEL_OFFSET
     params = np.asarray(camera.params, dtype=np.float64)
     radial = {"SIMPLE_RADIAL": params[3:4], "RADIAL": params[3:5]}.get(camera.model_name)
     if camera.model_name == "OPENCV":

@@ -143,7 +143,7 @@ def test_the_settled_rotation_computes_the_deviations_of_its_last_fit_only(monke
 
 def test_the_lens_maps_give_the_same_points_whatever_the_layout_of_the_given_ones():
     rng = np.random.default_rng(4)
-    points = rng.uniform(-0.5, 0.5, (300, 3))
+    points = np.column_stack([rng.uniform(-0.5, 0.5, (300, 2)), np.ones(300)])
     lens = (1.03, 0.05, (0.004, -0.002))
     given = [points[:, :2].copy(), np.asfortranarray(points[:, :2]), points, points[:, :2]]
     rays = [rotation.correct_points(x, *lens) for x in given]

@@ -288,7 +288,7 @@ def test_sampson_residual_equals_its_formula_summed_along_the_last_axis(shape):
 
     rng = np.random.default_rng(5)
     E = rng.normal(size=shape + (3, 3))
-    x1, x2 = (np.column_stack([rng.normal(size=(300, 2)), rng.uniform(0.5, 2, 300)]) for _ in "ab")
+    x1, x2 = (np.column_stack([rng.normal(size=(300, 2)), np.ones(300)]) for _ in "ab")
     points1 = np.broadcast_to(x1, shape + x1.shape)
     Ex1, Etx2 = points1 @ np.swapaxes(E, -1, -2), x2 @ E
     norm = np.sqrt(np.sum(Ex1[..., :2] ** 2, axis=-1) + np.sum(Etx2[..., :2] ** 2, axis=-1))

@@ -301,9 +301,12 @@ def test_a_given_K_reaches_pycolmap_in_colmap_pixel_coordinates_and_comes_back()
     params = [float(v) for v in reader.camera_params.split(",")]
     assert params == [535.4, 539.2, 320.6, 248.1]
     camera = pycolmap.Camera(model="PINHOLE", width=640, height=480, params=params)
-    K_back, dist = sfm._pipeline_camera(camera)
+    K_back, dist = sfm._pipeline_camera(camera, given=True)
     np.testing.assert_allclose(K_back, K, atol=1e-12)
     assert dist is None
+    # a camera pycolmap guessed is read as calib.camera_from_exif reads its guess (pair's camera)
+    K_guessed, _ = sfm._pipeline_camera(camera, given=False)
+    np.testing.assert_array_equal(K_guessed, camera.calibration_matrix())
 
 
 # --- the command line ----------------------------------------------------------------------
