@@ -907,6 +907,11 @@ def estimate_pair(
     Returns
     -------
     PairResult
+        ``R`` (3, 3) and unit ``t`` (3,), ``X2 = R X1 + t``; ``pure_rotation`` (then ``t`` is
+        undetermined) and ``model`` (``"rotation"``, ``"plane"`` or ``"general"``); the analytic
+        3D points of the matches in camera 1, ``points3d[point_matches]`` (P, 3); ``uncertainty``
+        and ``evidence``. :func:`ppo_cv.write_outputs` saves it as ``ppo-cv pair --out`` does
+        (:class:`~ppo_cv.result.PairResult` shows both).
 
     Raises
     ------
