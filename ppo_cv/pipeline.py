@@ -891,8 +891,7 @@ def estimate_pair(
     Parameters
     ----------
     image1, image2 : ndarray or path
-        Shape (H, W), (H, W, 1), (H, W, 3) BGR or (H, W, 4) BGRA (alpha ignored), of any
-        depth (scaled to 8 bits by :func:`ppo_cv.images.as_image`), or an image file.
+        Shape (H, W), (H, W, 1), (H, W, 3) BGR or (H, W, 4) BGRA, any depth, or an image file.
     K1, K2 : array_like, shape (3, 3)
         Intrinsics of the cameras; ``K2`` defaults to ``K1``.
     dist1, dist2 : array_like, optional
@@ -907,11 +906,7 @@ def estimate_pair(
     Returns
     -------
     PairResult
-        ``R`` (3, 3) and unit ``t`` (3,), ``X2 = R X1 + t``; ``pure_rotation`` (then ``t`` is
-        undetermined) and ``model`` (``"rotation"``, ``"plane"`` or ``"general"``); the analytic
-        3D points of the matches in camera 1, ``points3d[point_matches]`` (P, 3); ``uncertainty``
-        and ``evidence``. :func:`ppo_cv.write_outputs` saves it as ``ppo-cv pair --out`` does
-        (:class:`~ppo_cv.result.PairResult` shows both).
+        ``R``, ``t``, ``pure_rotation``, ``points3d[point_matches]``; saved by ``write_outputs``.
 
     Raises
     ------
