@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 __all__ = [
+    "in_float_range",
     "MIN_POINTS",
     "as_points",
     "as_finite_rows",
@@ -215,6 +216,17 @@ def as_vector3(value: Any, name: str) -> np.ndarray:
     return as_finite_rows(np.reshape(value, (1, 3)), name, 3)[0]
 
 
+
+def in_float_range(array: np.ndarray) -> np.ndarray:
+    """``array`` divided by a power of two, exactly, when its largest magnitude lies beyond
+    ``[1e-100, 1e100]``, where its squares and norms would overflow or underflow; unchanged
+    otherwise (all zeros too). For quantities whose scale does not matter (a direction, a
+    homography, a normal)."""
+    largest = float(np.abs(array).max(initial=0.0))
+    if largest and not 1e-100 <= largest <= 1e100:
+        return np.ldexp(array, -math.frexp(largest)[1])
+    return array
+
 def require_pose_matches(
     R: Any, t: Any, x1: Any, x2: Any, inliers: Any = None, *, moving: bool = True,
     bearings: bool = False, max_slope: float = math.inf,
@@ -240,8 +252,7 @@ def require_pose_matches(
     largest = float(np.abs(translation).max())
     if largest == 0 and moving:
         raise ValueError("t is zero: these need a translation (a pure rotation has none)")
-    if largest and not 1e-100 <= largest <= 1e100:
-        translation = np.ldexp(translation, -math.frexp(largest)[1])
+    translation = in_float_range(translation)
     a, b = as_finite_rows(x1, "x1", 3), as_finite_rows(x2, "x2", 3)
     if a.shape[0] != b.shape[0]:
         raise ValueError(f"x1 and x2 must have the same length, got {a.shape[0]} and {b.shape[0]}")

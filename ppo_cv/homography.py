@@ -19,7 +19,6 @@ across models (Torr, 1998).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,6 +28,7 @@ from .checks import (
     as_image_rows,
     as_matrix3,
     as_whole_number,
+    in_float_range,
     require_instance,
 )
 from .plane import normalize_homography
@@ -150,9 +150,7 @@ def _checked_homography_matches(H, x1, x2) -> tuple[np.ndarray, np.ndarray, np.n
     largest = float(np.abs(H).max())
     if largest == 0:
         raise ValueError("H is singular (all zeros): it maps no point")
-    if not 1e-100 <= largest <= 1e100:
-        H = np.ldexp(H, -math.frexp(largest)[1])
-    return (H, *as_image_rows(x1, x2))
+    return (in_float_range(H), *as_image_rows(x1, x2))
 
 
 def _pycolmap(p1, p2, threshold, confidence, min_trials, max_trials, seed):

@@ -25,6 +25,7 @@ from .checks import (
     as_rotation,
     as_vector3,
     as_whole_number,
+    in_float_range,
     shown,
 )
 
@@ -60,8 +61,7 @@ def tangent_basis(n: np.ndarray) -> np.ndarray:
     largest = float(np.abs(n).max())
     if largest == 0:
         raise ValueError("n is zero: it has no tangent plane")
-    if not 1e-100 <= largest <= 1e100:
-        n = np.ldexp(n, -math.frexp(largest)[1])
+    n = in_float_range(n)
     norm = math.sqrt(n @ n)
     return _tangent_basis(n if abs(norm - 1.0) <= 1e-9 else n / norm)
 
