@@ -626,12 +626,9 @@ def _own_detection(features, image: str):
     """The run's own detection of ``image``; ValueError naming the image, not the features,
     when it holds too few to match (a blank image), as :func:`ppo_cv.estimate_pair` names an
     image it detects itself."""
-    from ppo_cv.consensus import MIN_MATCHES
+    from ppo_cv.consensus import require_enough_features
 
-    if len(features) < MIN_MATCHES:
-        raise ValueError(
-            f"{image} has too few features ({len(features)}): blank or textureless image"
-        )
+    require_enough_features(features, image)
     return features
 
 

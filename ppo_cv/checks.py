@@ -10,7 +10,6 @@ from typing import Any
 import numpy as np
 
 __all__ = [
-    "in_float_range",
     "MIN_POINTS",
     "as_points",
     "as_finite_rows",
@@ -32,6 +31,8 @@ __all__ = [
     "as_ransac_settings",
     "as_confidence",
     "as_vector3",
+    "in_float_range",
+    "float_range_exponent",
     "require_pose_matches",
     "MAX_RAY_SLOPE",
     "as_deviation",
@@ -216,16 +217,21 @@ def as_vector3(value: Any, name: str) -> np.ndarray:
     return as_finite_rows(np.reshape(value, (1, 3)), name, 3)[0]
 
 
-
 def in_float_range(array: np.ndarray) -> np.ndarray:
     """``array`` divided by a power of two, exactly, when its largest magnitude lies beyond
     ``[1e-100, 1e100]``, where its squares and norms would overflow or underflow; unchanged
     otherwise (all zeros too). For quantities whose scale does not matter (a direction, a
     homography, a normal)."""
+    shift = float_range_exponent(array)
+    return np.ldexp(array, -shift) if shift else array
+
+
+def float_range_exponent(array: np.ndarray) -> int:
+    """The power of two :func:`in_float_range` divides ``array`` by: that of its largest
+    magnitude beyond ``[1e-100, 1e100]``, else 0."""
     largest = float(np.abs(array).max(initial=0.0))
-    if largest and not 1e-100 <= largest <= 1e100:
-        return np.ldexp(array, -math.frexp(largest)[1])
-    return array
+    return math.frexp(largest)[1] if largest and not 1e-100 <= largest <= 1e100 else 0
+
 
 def require_pose_matches(
     R: Any, t: Any, x1: Any, x2: Any, inliers: Any = None, *, moving: bool = True,
@@ -249,8 +255,7 @@ def require_pose_matches(
     """
     as_rotation(R, "R")
     translation = as_vector3(t, "t")
-    largest = float(np.abs(translation).max())
-    if largest == 0 and moving:
+    if moving and not translation.any():
         raise ValueError("t is zero: these need a translation (a pure rotation has none)")
     translation = in_float_range(translation)
     a, b = as_finite_rows(x1, "x1", 3), as_finite_rows(x2, "x2", 3)

@@ -45,6 +45,7 @@ __all__ = [
     "PairInputs",
     "best_consensus",
     "require_features_of",
+    "require_enough_features",
     "require_usable_features",
     "detect_both",
     "ransac_keywords",
@@ -233,9 +234,8 @@ def _consensus(
     missing. None when ordered sampling does not settle the matches and ``settle`` is False:
     the uniform fit that would settle them is left to the caller (:func:`_robust_essential`)."""
     f1, f2 = _thinned(f1, threshold_scale), _thinned(f2, threshold_scale)
-    for name, f in (("image1", f1), ("image2", f2)):
-        if len(f) < MIN_MATCHES:
-            raise ValueError(f"{name} has too few features ({len(f)}): blank or textureless image")
+    require_enough_features(f1, "image1")
+    require_enough_features(f2, "image2")
     try:  # a stage that fails still ends, so that its time is not the next stage's
         matches, scores = match_features_scored(f1, f2, options.ratio, options.mutual)
         if len(matches) < MIN_MATCHES:
@@ -304,6 +304,15 @@ def require_features_of(f1: Features, f2: Features, shape1: tuple, shape2: tuple
                 "of another image, or of a resized copy?"
             )
     _require_same_descriptors(f1, f2)
+
+
+def require_enough_features(features: Features, image: str) -> None:
+    """ValueError naming ``image`` when its detection holds fewer than :data:`MIN_MATCHES`
+    features (a blank or textureless image)."""
+    if len(features) < MIN_MATCHES:
+        raise ValueError(
+            f"{image} has too few features ({len(features)}): blank or textureless image"
+        )
 
 
 def require_usable_features(f1: Features, f2: Features) -> None:

@@ -147,8 +147,7 @@ def _checked_homography_matches(H, x1, x2) -> tuple[np.ndarray, np.ndarray, np.n
     power of two, exactly, where its largest entry lies beyond ``[1e-100, 1e100]``: the errors
     do not depend on its scale, and its products overflowed to NaN."""
     H = as_matrix3(H, "H")
-    largest = float(np.abs(H).max())
-    if largest == 0:
+    if not H.any():
         raise ValueError("H is singular (all zeros): it maps no point")
     return (in_float_range(H), *as_image_rows(x1, x2))
 

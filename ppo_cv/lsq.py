@@ -25,6 +25,7 @@ from .checks import (
     as_rotation,
     as_vector3,
     as_whole_number,
+    float_range_exponent,
     in_float_range,
     shown,
 )
@@ -58,8 +59,7 @@ def tangent_basis(n: np.ndarray) -> np.ndarray:
     norm is made unit first (its second row had that norm), scaled by a power of two when its
     entries lie beyond ``[1e-100, 1e100]``, where its norm would overflow or underflow."""
     n = as_vector3(n, "n")
-    largest = float(np.abs(n).max())
-    if largest == 0:
+    if not n.any():
         raise ValueError("n is zero: it has no tangent plane")
     n = in_float_range(n)
     norm = math.sqrt(n @ n)
@@ -434,8 +434,7 @@ def gauss_newton_covariance(J: np.ndarray, variance: float) -> np.ndarray | None
     if J.ndim != 2:
         raise ValueError(f"J must be a Jacobian of shape (M, P), got {J.shape}")
     variance = as_nonnegative(variance, "variance")
-    largest = float(np.abs(J).max(initial=0.0))
-    shift = math.frexp(largest)[1] if largest and not 1e-100 <= largest <= 1e100 else 0
+    shift = float_range_exponent(J)
     with np.errstate(over="ignore"):
         covariance = _gauss_newton_covariance(np.ldexp(J, -shift), variance)
         if covariance is not None:
